@@ -1,0 +1,147 @@
+// Buffer allocation and staged transfers.
+#include "buffer.h"
+
+#include <algorithm>
+#include <cstring>
+#include <optional>
+#include <stdexcept>
+#include <utility>
+
+#include "commands.h"
+#include "context.h"
+#include "vk_check.h"
+
+namespace tfm {
+namespace {
+
+std::optional<uint32_t> find_memory_type(const VkPhysicalDeviceMemoryProperties& mem, uint32_t allowed,
+                                         VkMemoryPropertyFlags required, VkMemoryPropertyFlags preferred) {
+  std::optional<uint32_t> fallback;
+  for (uint32_t i = 0; i < mem.memoryTypeCount; ++i) {
+    if (!(allowed & (1u << i))) continue;
+    VkMemoryPropertyFlags flags = mem.memoryTypes[i].propertyFlags;
+    if ((flags & required) != required) continue;
+    if ((flags & preferred) == preferred) return i;
+    if (!fallback) fallback = i;
+  }
+  return fallback;
+}
+
+// Staging buffers are bounded so that uploading a large field never doubles its footprint.
+constexpr uint64_t kStagingBytes = 64ull << 20;
+
+}  // namespace
+
+Buffer::Buffer(Context& ctx, uint64_t bytes, MemoryUsage usage, const std::string& debug_name)
+    : ctx_(&ctx), bytes_(bytes) {
+  if (bytes == 0) throw std::invalid_argument("Buffer '" + debug_name + "': size 0");
+  const auto& vk = ctx.vk();
+  VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+  info.size = bytes;
+  info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
+               VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+  info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  VK_CHECK(vk.vkCreateBuffer(ctx.device(), &info, nullptr, &buffer_));
+  ctx.set_debug_name(VK_OBJECT_TYPE_BUFFER, reinterpret_cast<uint64_t>(buffer_), debug_name.c_str());
+
+  VkMemoryRequirements req{};
+  vk.vkGetBufferMemoryRequirements(ctx.device(), buffer_, &req);
+  VkMemoryPropertyFlags required = 0, preferred = 0;
+  switch (usage) {
+    case MemoryUsage::Device: preferred = VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT; break;
+    case MemoryUsage::Upload:
+      required = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+      break;
+    case MemoryUsage::Readback:
+      required = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+      preferred = VK_MEMORY_PROPERTY_HOST_CACHED_BIT;
+      break;
+  }
+  auto type = find_memory_type(ctx.memory_properties(), req.memoryTypeBits, required, preferred);
+  if (!type) {
+    release();
+    throw std::runtime_error("Buffer '" + debug_name + "': no suitable memory type");
+  }
+  VkMemoryAllocateInfo alloc{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  alloc.allocationSize = req.size;
+  alloc.memoryTypeIndex = *type;
+  VkResult r = vk.vkAllocateMemory(ctx.device(), &alloc, nullptr, &memory_);
+  if (r != VK_SUCCESS) {
+    release();
+    throw VulkanError("allocating " + std::to_string(bytes) + " bytes for buffer '" + debug_name +
+                          "' failed with " + vk_result_name(r),
+                      r);
+  }
+  VK_CHECK(vk.vkBindBufferMemory(ctx.device(), buffer_, memory_, 0));
+  VkMemoryPropertyFlags flags = ctx.memory_properties().memoryTypes[*type].propertyFlags;
+  // Host-visible and coherent memory is mapped for its lifetime (UMA devices skip staging).
+  if ((flags & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT) && (flags & VK_MEMORY_PROPERTY_HOST_COHERENT_BIT))
+    VK_CHECK(vk.vkMapMemory(ctx.device(), memory_, 0, VK_WHOLE_SIZE, 0, &mapped_));
+}
+
+Buffer::~Buffer() { release(); }
+
+Buffer::Buffer(Buffer&& o) noexcept { *this = std::move(o); }
+
+Buffer& Buffer::operator=(Buffer&& o) noexcept {
+  if (this != &o) {
+    release();
+    ctx_ = std::exchange(o.ctx_, nullptr);
+    buffer_ = std::exchange(o.buffer_, VK_NULL_HANDLE);
+    memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
+    bytes_ = std::exchange(o.bytes_, 0);
+    mapped_ = std::exchange(o.mapped_, nullptr);
+  }
+  return *this;
+}
+
+void Buffer::release() {
+  if (!ctx_) return;
+  const auto& vk = ctx_->vk();
+  if (mapped_) vk.vkUnmapMemory(ctx_->device(), memory_);
+  if (buffer_) vk.vkDestroyBuffer(ctx_->device(), buffer_, nullptr);
+  if (memory_) vk.vkFreeMemory(ctx_->device(), memory_, nullptr);
+  buffer_ = VK_NULL_HANDLE;
+  memory_ = VK_NULL_HANDLE;
+  mapped_ = nullptr;
+}
+
+void upload(Context& ctx, Buffer& dst, const void* data, uint64_t bytes, uint64_t offset) {
+  if (offset + bytes > dst.size()) throw std::out_of_range("upload past the end of a buffer");
+  if (dst.host_visible()) {
+    std::memcpy(static_cast<char*>(dst.mapped()) + offset, data, bytes);
+    return;
+  }
+  Buffer staging(ctx, std::min(bytes, kStagingBytes), MemoryUsage::Upload, "staging upload");
+  for (uint64_t done = 0; done < bytes; done += staging.size()) {
+    uint64_t n = std::min(staging.size(), bytes - done);
+    std::memcpy(staging.mapped(), static_cast<const char*>(data) + done, n);
+    CommandBatch batch(ctx);
+    batch.copy(staging, 0, dst, offset + done, n);
+    batch.submit_and_wait();
+  }
+}
+
+void readback(Context& ctx, const Buffer& src, void* data, uint64_t bytes, uint64_t offset) {
+  if (offset + bytes > src.size()) throw std::out_of_range("readback past the end of a buffer");
+  if (src.host_visible()) {
+    std::memcpy(data, static_cast<const char*>(src.mapped()) + offset, bytes);
+    return;
+  }
+  Buffer staging(ctx, std::min(bytes, kStagingBytes), MemoryUsage::Readback, "staging readback");
+  for (uint64_t done = 0; done < bytes; done += staging.size()) {
+    uint64_t n = std::min(staging.size(), bytes - done);
+    CommandBatch batch(ctx);
+    batch.copy(src, offset + done, staging, 0, n);
+    batch.submit_and_wait();
+    std::memcpy(static_cast<char*>(data) + done, staging.mapped(), n);
+  }
+}
+
+void fill(Context& ctx, Buffer& dst, uint32_t value) {
+  CommandBatch batch(ctx);
+  batch.fill(dst, value);
+  batch.submit_and_wait();
+}
+
+}  // namespace tfm

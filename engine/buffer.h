@@ -1,0 +1,63 @@
+// Device buffers (one allocation each, move-only) and staging transfers between host and device.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+
+#include <volk.h>
+
+namespace tfm {
+
+class Context;
+
+enum class MemoryUsage {
+  Device,    // device-local storage
+  Upload,    // host-visible, host-coherent: written by the host
+  Readback,  // host-visible, host-coherent, cached when the device offers it: read by the host
+};
+
+class Buffer {
+ public:
+  Buffer() = default;
+  // Throws VulkanError (e.g. VK_ERROR_OUT_OF_DEVICE_MEMORY) and std::runtime_error when no
+  // memory type fits. Usage always includes storage and transfer src/dst.
+  Buffer(Context& ctx, uint64_t bytes, MemoryUsage usage, const std::string& debug_name);
+  ~Buffer();
+  Buffer(Buffer&& other) noexcept;
+  Buffer& operator=(Buffer&& other) noexcept;
+  Buffer(const Buffer&) = delete;
+  Buffer& operator=(const Buffer&) = delete;
+
+  VkBuffer handle() const { return buffer_; }
+  uint64_t size() const { return bytes_; }
+  bool host_visible() const { return mapped_ != nullptr; }
+  // Mapped pointer of a host-visible buffer; null otherwise.
+  void* mapped() const { return mapped_; }
+  explicit operator bool() const { return buffer_ != VK_NULL_HANDLE; }
+
+ private:
+  void release();
+  Context* ctx_ = nullptr;
+  VkBuffer buffer_ = VK_NULL_HANDLE;
+  VkDeviceMemory memory_ = VK_NULL_HANDLE;
+  uint64_t bytes_ = 0;
+  void* mapped_ = nullptr;
+};
+
+// Copies host bytes into `dst` at `offset` (through a staging buffer unless dst is host-visible).
+void upload(Context& ctx, Buffer& dst, const void* data, uint64_t bytes, uint64_t offset = 0);
+// Copies `bytes` from `src` at `offset` to host memory.
+void readback(Context& ctx, const Buffer& src, void* data, uint64_t bytes, uint64_t offset = 0);
+// Sets every 32-bit word of `dst` to `value` and waits.
+void fill(Context& ctx, Buffer& dst, uint32_t value);
+
+template <class T>
+Buffer make_buffer(Context& ctx, std::span<const T> data, const std::string& name) {
+  Buffer b(ctx, std::max<uint64_t>(data.size_bytes(), 4), MemoryUsage::Device, name);
+  if (!data.empty()) upload(ctx, b, data.data(), data.size_bytes());
+  return b;
+}
+
+}  // namespace tfm

@@ -1,0 +1,188 @@
+// Command batches: one command buffer, fence, descriptor pools and timestamp queries each.
+#include "commands.h"
+
+#include <stdexcept>
+
+#include "buffer.h"
+#include "context.h"
+#include "pipeline.h"
+#include "vk_check.h"
+
+namespace tfm {
+namespace {
+constexpr uint32_t kMaxTimestamps = 128;
+constexpr uint32_t kSetsPerPool = 64;
+constexpr uint32_t kDescriptorsPerPool = 1024;
+}  // namespace
+
+Binding::Binding(const Buffer& b) : buffers{&b} {}
+Binding::Binding(std::vector<const Buffer*> array) : buffers(std::move(array)) {}
+
+CommandBatch::CommandBatch(Context& ctx) : ctx_(ctx) {
+  const auto& vk = ctx.vk();
+  VkCommandPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+  pool_info.flags = VK_COMMAND_POOL_CREATE_TRANSIENT_BIT;
+  pool_info.queueFamilyIndex = ctx.queue_family();
+  VK_CHECK(vk.vkCreateCommandPool(ctx.device(), &pool_info, nullptr, &pool_));
+  VkCommandBufferAllocateInfo alloc{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+  alloc.commandPool = pool_;
+  alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+  alloc.commandBufferCount = 1;
+  VK_CHECK(vk.vkAllocateCommandBuffers(ctx.device(), &alloc, &cmd_));
+  VkFenceCreateInfo fence_info{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+  VK_CHECK(vk.vkCreateFence(ctx.device(), &fence_info, nullptr, &fence_));
+  VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  VK_CHECK(vk.vkBeginCommandBuffer(cmd_, &begin));
+  if (ctx.timestamps_supported()) {
+    VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+    q.queryType = VK_QUERY_TYPE_TIMESTAMP;
+    q.queryCount = kMaxTimestamps;
+    VK_CHECK(vk.vkCreateQueryPool(ctx.device(), &q, nullptr, &queries_));
+    vk.vkCmdResetQueryPool(cmd_, queries_, 0, kMaxTimestamps);
+  }
+}
+
+CommandBatch::~CommandBatch() {
+  const auto& vk = ctx_.vk();
+  // A batch recorded but never submitted, or destroyed by an exception mid-wait, must not be
+  // freed while the device may still use it.
+  if (submitted_) vk.vkWaitForFences(ctx_.device(), 1, &fence_, VK_TRUE, UINT64_MAX);
+  if (queries_) vk.vkDestroyQueryPool(ctx_.device(), queries_, nullptr);
+  for (auto p : descriptor_pools_) vk.vkDestroyDescriptorPool(ctx_.device(), p, nullptr);
+  vk.vkDestroyFence(ctx_.device(), fence_, nullptr);
+  vk.vkDestroyCommandPool(ctx_.device(), pool_, nullptr);
+}
+
+VkDescriptorSet CommandBatch::allocate_set(VkDescriptorSetLayout layout) {
+  const auto& vk = ctx_.vk();
+  VkDescriptorSetAllocateInfo alloc{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+  alloc.descriptorSetCount = 1;
+  alloc.pSetLayouts = &layout;
+  VkDescriptorSet set = VK_NULL_HANDLE;
+  if (!descriptor_pools_.empty()) {
+    alloc.descriptorPool = descriptor_pools_.back();
+    VkResult r = vk.vkAllocateDescriptorSets(ctx_.device(), &alloc, &set);
+    if (r == VK_SUCCESS) return set;
+    if (r != VK_ERROR_OUT_OF_POOL_MEMORY && r != VK_ERROR_FRAGMENTED_POOL)
+      throw_vk_error("vkAllocateDescriptorSets", r, __FILE__, __LINE__);
+  }
+  VkDescriptorPoolSize size{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kDescriptorsPerPool};
+  VkDescriptorPoolCreateInfo info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+  info.maxSets = kSetsPerPool;
+  info.poolSizeCount = 1;
+  info.pPoolSizes = &size;
+  VkDescriptorPool pool = VK_NULL_HANDLE;
+  VK_CHECK(vk.vkCreateDescriptorPool(ctx_.device(), &info, nullptr, &pool));
+  descriptor_pools_.push_back(pool);
+  alloc.descriptorPool = pool;
+  VK_CHECK(vk.vkAllocateDescriptorSets(ctx_.device(), &alloc, &set));
+  return set;
+}
+
+void CommandBatch::dispatch(const ComputePipeline& pipeline, std::initializer_list<Binding> bindings,
+                            const void* push, uint32_t push_bytes, Groups groups) {
+  const PipelineDesc& desc = pipeline.desc();
+  if (bindings.size() != desc.binding_counts.size())
+    throw std::logic_error(desc.shader + ": " + std::to_string(bindings.size()) + " bindings given, " +
+                           std::to_string(desc.binding_counts.size()) + " expected");
+  if (push_bytes != desc.push_constant_bytes)
+    throw std::logic_error(desc.shader + ": push constants of " + std::to_string(push_bytes) +
+                           " bytes given, " + std::to_string(desc.push_constant_bytes) + " expected");
+  const auto& limits = ctx_.limits();
+  if (groups.x == 0 || groups.y == 0 || groups.z == 0) return;  // nothing to do
+  if (groups.x > limits.maxComputeWorkGroupCount[0] || groups.y > limits.maxComputeWorkGroupCount[1] ||
+      groups.z > limits.maxComputeWorkGroupCount[2])
+    throw std::runtime_error(desc.shader + ": group count exceeds the device's maxComputeWorkGroupCount");
+
+  const auto& vk = ctx_.vk();
+  VkDescriptorSet set = allocate_set(pipeline.set_layout());
+  std::vector<std::vector<VkDescriptorBufferInfo>> infos;
+  std::vector<VkWriteDescriptorSet> writes;
+  infos.reserve(bindings.size());
+  uint32_t index = 0;
+  for (const Binding& b : bindings) {
+    if (b.buffers.size() != desc.binding_counts[index])
+      throw std::logic_error(desc.shader + ": binding " + std::to_string(index) + " needs " +
+                             std::to_string(desc.binding_counts[index]) + " buffers");
+    auto& list = infos.emplace_back();
+    for (const Buffer* buf : b.buffers) {
+      if (!buf || !*buf) throw std::logic_error(desc.shader + ": binding " + std::to_string(index) + " is empty");
+      list.push_back({buf->handle(), 0, VK_WHOLE_SIZE});
+    }
+    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    w.dstSet = set;
+    w.dstBinding = index;
+    w.descriptorCount = static_cast<uint32_t>(list.size());
+    w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    w.pBufferInfo = list.data();
+    writes.push_back(w);
+    ++index;
+  }
+  vk.vkUpdateDescriptorSets(ctx_.device(), static_cast<uint32_t>(writes.size()), writes.data(), 0, nullptr);
+  vk.vkCmdBindPipeline(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline.pipeline());
+  vk.vkCmdBindDescriptorSets(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline.layout(), 0, 1, &set, 0, nullptr);
+  if (push_bytes)
+    vk.vkCmdPushConstants(cmd_, pipeline.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes, push);
+  vk.vkCmdDispatch(cmd_, groups.x, groups.y, groups.z);
+}
+
+void CommandBatch::barrier() {
+  VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+  b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT |
+                    VK_ACCESS_TRANSFER_WRITE_BIT;
+  VkPipelineStageFlags stages = VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT;
+  ctx_.vk().vkCmdPipelineBarrier(cmd_, stages, stages, 0, 1, &b, 0, nullptr, 0, nullptr);
+}
+
+void CommandBatch::copy(const Buffer& src, uint64_t src_offset, const Buffer& dst, uint64_t dst_offset,
+                        uint64_t bytes) {
+  VkBufferCopy region{src_offset, dst_offset, bytes};
+  ctx_.vk().vkCmdCopyBuffer(cmd_, src.handle(), dst.handle(), 1, &region);
+}
+
+void CommandBatch::fill(Buffer& dst, uint32_t value) {
+  ctx_.vk().vkCmdFillBuffer(cmd_, dst.handle(), 0, VK_WHOLE_SIZE, value);
+}
+
+uint32_t CommandBatch::timestamp() {
+  if (!queries_) return query_count_++;
+  if (query_count_ >= kMaxTimestamps) throw std::logic_error("too many timestamps in one batch");
+  ctx_.vk().vkCmdWriteTimestamp(cmd_, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_, query_count_);
+  return query_count_++;
+}
+
+void CommandBatch::submit_and_wait() {
+  if (submitted_) throw std::logic_error("CommandBatch submitted twice");
+  const auto& vk = ctx_.vk();
+  // Make every device write available to the host before the fence signals.
+  VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+  b.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+  vk.vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                          VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &b, 0, nullptr, 0, nullptr);
+  VK_CHECK(vk.vkEndCommandBuffer(cmd_));
+  VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+  submit.commandBufferCount = 1;
+  submit.pCommandBuffers = &cmd_;
+  {
+    std::lock_guard lock(ctx_.queue_mutex());
+    VK_CHECK(vk.vkQueueSubmit(ctx_.queue(), 1, &submit, fence_));
+  }
+  submitted_ = true;
+  VK_CHECK(vk.vkWaitForFences(ctx_.device(), 1, &fence_, VK_TRUE, UINT64_MAX));
+  if (queries_ && query_count_ > 0) {
+    query_results_.resize(query_count_);
+    VK_CHECK(vk.vkGetQueryPoolResults(ctx_.device(), queries_, 0, query_count_,
+                                      query_results_.size() * sizeof(uint64_t), query_results_.data(),
+                                      sizeof(uint64_t), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+  }
+}
+
+double CommandBatch::elapsed_ms(uint32_t a, uint32_t b) const {
+  if (query_results_.empty() || a >= query_results_.size() || b >= query_results_.size()) return -1.0;
+  return double(query_results_[b] - query_results_[a]) * ctx_.limits().timestampPeriod * 1e-6;
+}
+
+}  // namespace tfm

@@ -1,0 +1,72 @@
+// Recording and submitting compute work: dispatches with bindings and push constants, barriers,
+// copies and GPU timestamps, in one command buffer with its own fence and descriptor pool.
+#pragma once
+
+#include <cstdint>
+#include <initializer_list>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include <volk.h>
+
+namespace tfm {
+
+class Buffer;
+class ComputePipeline;
+class Context;
+
+// One binding of a dispatch: a whole buffer, or several buffers for an array binding.
+struct Binding {
+  Binding(const Buffer& b);  // NOLINT(google-explicit-constructor): bindings read as lists
+  Binding(std::vector<const Buffer*> array);
+  std::vector<const Buffer*> buffers;
+};
+
+struct Groups {
+  uint32_t x = 1, y = 1, z = 1;
+};
+
+class CommandBatch {
+ public:
+  explicit CommandBatch(Context& ctx);
+  ~CommandBatch();
+  CommandBatch(const CommandBatch&) = delete;
+  CommandBatch& operator=(const CommandBatch&) = delete;
+
+  // Records a dispatch. Throws std::logic_error when the bindings or push-constant size do not
+  // match the pipeline, std::runtime_error when the group count exceeds the device's limits.
+  void dispatch(const ComputePipeline& pipeline, std::initializer_list<Binding> bindings,
+                const void* push, uint32_t push_bytes, Groups groups);
+  template <class Push>
+  void dispatch(const ComputePipeline& pipeline, std::initializer_list<Binding> bindings,
+                const Push& push, Groups groups) {
+    static_assert(std::is_trivially_copyable_v<Push>);
+    dispatch(pipeline, bindings, &push, sizeof(Push), groups);
+  }
+  // Orders all earlier compute and transfer writes before later compute and transfer accesses.
+  void barrier();
+  void copy(const Buffer& src, uint64_t src_offset, const Buffer& dst, uint64_t dst_offset, uint64_t bytes);
+  void fill(Buffer& dst, uint32_t value);
+  // Writes a GPU timestamp after all earlier work; returns its slot.
+  uint32_t timestamp();
+  // Submits, waits for completion (device writes then visible to the host) and resets nothing:
+  // a batch is submitted once.
+  void submit_and_wait();
+  // Milliseconds between timestamp slots a and b (after submit_and_wait); -1 without timestamps.
+  double elapsed_ms(uint32_t a, uint32_t b) const;
+
+ private:
+  VkDescriptorSet allocate_set(VkDescriptorSetLayout layout);
+  Context& ctx_;
+  VkCommandPool pool_ = VK_NULL_HANDLE;
+  VkCommandBuffer cmd_ = VK_NULL_HANDLE;
+  VkFence fence_ = VK_NULL_HANDLE;
+  std::vector<VkDescriptorPool> descriptor_pools_;
+  VkQueryPool queries_ = VK_NULL_HANDLE;
+  uint32_t query_count_ = 0;
+  std::vector<uint64_t> query_results_;
+  bool submitted_ = false;
+};
+
+}  // namespace tfm

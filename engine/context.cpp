@@ -1,0 +1,344 @@
+// Instance/device creation, device selection, adoption of host handles, validation capture.
+#include "context.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdlib>
+#include <cstring>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+#include "vk_check.h"
+
+namespace tfm {
+namespace {
+
+constexpr const char* kValidationLayer = "VK_LAYER_KHRONOS_validation";
+
+void init_loader() {
+  static VkResult result = volkInitialize();
+  if (result != VK_SUCCESS)
+    throw VulkanError("no Vulkan loader found (install libvulkan1 and a driver such as "
+                      "mesa-vulkan-drivers): volkInitialize returned " + vk_result_name(result),
+                      result);
+}
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+const char* device_type_name(VkPhysicalDeviceType type) {
+  switch (type) {
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return "discrete GPU";
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return "integrated GPU";
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return "virtual GPU";
+    case VK_PHYSICAL_DEVICE_TYPE_CPU: return "CPU";
+    default: return "other";
+  }
+}
+
+bool layer_available(const char* name) {
+  uint32_t count = 0;
+  VK_CHECK(vkEnumerateInstanceLayerProperties(&count, nullptr));
+  std::vector<VkLayerProperties> layers(count);
+  VK_CHECK(vkEnumerateInstanceLayerProperties(&count, layers.data()));
+  return std::any_of(layers.begin(), layers.end(),
+                     [&](const VkLayerProperties& l) { return std::strcmp(l.layerName, name) == 0; });
+}
+
+bool instance_extension_available(const char* name) {
+  uint32_t count = 0;
+  VK_CHECK(vkEnumerateInstanceExtensionProperties(nullptr, &count, nullptr));
+  std::vector<VkExtensionProperties> exts(count);
+  VK_CHECK(vkEnumerateInstanceExtensionProperties(nullptr, &count, exts.data()));
+  return std::any_of(exts.begin(), exts.end(), [&](const VkExtensionProperties& e) {
+    return std::strcmp(e.extensionName, name) == 0;
+  });
+}
+
+std::optional<uint32_t> compute_queue_family(VkPhysicalDevice pd, uint32_t* timestamp_bits) {
+  uint32_t count = 0;
+  vkGetPhysicalDeviceQueueFamilyProperties(pd, &count, nullptr);
+  std::vector<VkQueueFamilyProperties> families(count);
+  vkGetPhysicalDeviceQueueFamilyProperties(pd, &count, families.data());
+  // Prefer a compute family with timestamps; any compute family otherwise.
+  std::optional<uint32_t> best;
+  for (uint32_t i = 0; i < count; ++i) {
+    if (!(families[i].queueFlags & VK_QUEUE_COMPUTE_BIT)) continue;
+    if (!best || (families[i].timestampValidBits > 0 && families[*best].timestampValidBits == 0))
+      best = i;
+  }
+  if (best && timestamp_bits) *timestamp_bits = families[*best].timestampValidBits;
+  return best;
+}
+
+VkInstance create_instance(bool validation, bool debug_utils) {
+  VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
+  app.pApplicationName = "tfmatch";
+  app.pEngineName = "tfmatch";
+  app.apiVersion = VK_API_VERSION_1_2;
+
+  std::vector<const char*> layers;
+  std::vector<const char*> extensions;
+  if (validation) layers.push_back(kValidationLayer);
+  if (debug_utils) extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
+
+  // Synchronization validation checks that every barrier orders what it must.
+  VkValidationFeatureEnableEXT enables[] = {VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT};
+  VkValidationFeaturesEXT features{VK_STRUCTURE_TYPE_VALIDATION_FEATURES_EXT};
+  features.enabledValidationFeatureCount = 1;
+  features.pEnabledValidationFeatures = enables;
+
+  VkInstanceCreateInfo info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+  info.pApplicationInfo = &app;
+  info.enabledLayerCount = static_cast<uint32_t>(layers.size());
+  info.ppEnabledLayerNames = layers.data();
+  info.enabledExtensionCount = static_cast<uint32_t>(extensions.size());
+  info.ppEnabledExtensionNames = extensions.data();
+  if (validation) info.pNext = &features;
+  VkInstance instance = VK_NULL_HANDLE;
+  VK_CHECK(vkCreateInstance(&info, nullptr, &instance));
+  volkLoadInstanceOnly(instance);
+  return instance;
+}
+
+std::vector<VkPhysicalDevice> physical_devices(VkInstance instance) {
+  uint32_t count = 0;
+  VK_CHECK(vkEnumeratePhysicalDevices(instance, &count, nullptr));
+  std::vector<VkPhysicalDevice> devices(count);
+  VK_CHECK(vkEnumeratePhysicalDevices(instance, &count, devices.data()));
+  return devices;
+}
+
+DeviceSummary summarize(VkPhysicalDevice pd, uint32_t index) {
+  VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
+  VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
+  subgroup.pNext = &driver;
+  VkPhysicalDeviceProperties2 props{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+  props.pNext = &subgroup;
+  vkGetPhysicalDeviceProperties2(pd, &props);
+  VkPhysicalDeviceFeatures features{};
+  vkGetPhysicalDeviceFeatures(pd, &features);
+  VkPhysicalDeviceMemoryProperties mem{};
+  vkGetPhysicalDeviceMemoryProperties(pd, &mem);
+
+  DeviceSummary s;
+  s.index = index;
+  s.name = props.properties.deviceName;
+  s.type = device_type_name(props.properties.deviceType);
+  s.driver = std::string(driver.driverName) + " " + driver.driverInfo;
+  s.api_version = props.properties.apiVersion;
+  s.max_storage_buffer_range = props.properties.limits.maxStorageBufferRange;
+  s.max_shared_memory_bytes = props.properties.limits.maxComputeSharedMemorySize;
+  s.max_workgroup_invocations = props.properties.limits.maxComputeWorkGroupInvocations;
+  s.subgroup_size = subgroup.subgroupSize;
+  s.shader_float64 = features.shaderFloat64;
+  uint32_t ts_bits = 0;
+  s.compute_queue = compute_queue_family(pd, &ts_bits).has_value();
+  s.timestamps = ts_bits > 0 && props.properties.limits.timestampPeriod > 0;
+  for (uint32_t i = 0; i < mem.memoryHeapCount; ++i)
+    if (mem.memoryHeaps[i].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT)
+      s.device_local_bytes = std::max<uint64_t>(s.device_local_bytes, mem.memoryHeaps[i].size);
+  return s;
+}
+
+}  // namespace
+
+std::vector<DeviceSummary> enumerate_devices() {
+  init_loader();
+  VkInstance instance = create_instance(false, false);
+  std::vector<DeviceSummary> out;
+  auto devices = physical_devices(instance);
+  for (uint32_t i = 0; i < devices.size(); ++i) out.push_back(summarize(devices[i], i));
+  vkDestroyInstance(instance, nullptr);
+  return out;
+}
+
+std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
+  init_loader();
+  ContextOptions options = options_in;
+  if (!options.device_index && options.device_name.empty()) {
+    if (const char* env = std::getenv("TFMATCH_DEVICE"); env && *env) {
+      std::string v = env;
+      if (std::all_of(v.begin(), v.end(), ::isdigit)) options.device_index = std::stoul(v);
+      else options.device_name = v;
+    }
+  }
+  if (!options.validation) {
+    const char* env = std::getenv("TFMATCH_VALIDATION");
+    options.validation = env && std::string(env) != "0" && *env;
+  }
+
+  std::unique_ptr<Context> ctx(new Context());
+  ctx->owns_ = true;
+  bool want_validation = *options.validation;
+  if (want_validation && !layer_available(kValidationLayer)) {
+    if (options.require_validation)
+      throw std::runtime_error(std::string(kValidationLayer) +
+                               " requested but not installed (apt-get install vulkan-validationlayers)");
+    want_validation = false;
+  }
+  ctx->validation_ = want_validation;
+  ctx->debug_utils_ = instance_extension_available(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
+  ctx->instance_ = create_instance(want_validation, ctx->debug_utils_);
+
+  if (ctx->debug_utils_ && want_validation) {
+    VkDebugUtilsMessengerCreateInfoEXT info{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+    info.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
+                           VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+    info.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+                       VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT;
+    info.pfnUserCallback = &Context::debug_callback;
+    info.pUserData = ctx.get();
+    VK_CHECK(vkCreateDebugUtilsMessengerEXT(ctx->instance_, &info, nullptr, &ctx->messenger_));
+  }
+
+  auto devices = physical_devices(ctx->instance_);
+  std::vector<DeviceSummary> summaries;
+  for (uint32_t i = 0; i < devices.size(); ++i) summaries.push_back(summarize(devices[i], i));
+  auto list = [&] {
+    std::ostringstream os;
+    for (auto& s : summaries) os << "\n  [" << s.index << "] " << s.name << " (" << s.type << ")";
+    return os.str();
+  };
+  if (devices.empty())
+    throw std::runtime_error("no Vulkan device found (install mesa-vulkan-drivers for lavapipe)");
+
+  std::optional<uint32_t> chosen;
+  if (options.device_index) {
+    if (*options.device_index >= devices.size())
+      throw std::runtime_error("device index " + std::to_string(*options.device_index) +
+                               " out of range; devices:" + list());
+    chosen = *options.device_index;
+  } else if (!options.device_name.empty()) {
+    for (auto& s : summaries)
+      if (lower(s.name).find(lower(options.device_name)) != std::string::npos && s.compute_queue) {
+        chosen = s.index;
+        break;
+      }
+    if (!chosen)
+      throw std::runtime_error("no device name contains '" + options.device_name + "'; devices:" + list());
+  } else {
+    // Default: a discrete GPU, then integrated, then anything with a compute queue.
+    int best_rank = -1;
+    for (auto& s : summaries) {
+      if (!s.compute_queue) continue;
+      int rank = s.type == "discrete GPU" ? 3 : s.type == "integrated GPU" ? 2 : s.type == "CPU" ? 0 : 1;
+      if (rank > best_rank) best_rank = rank, chosen = s.index;
+    }
+    if (!chosen) throw std::runtime_error("no Vulkan device has a compute queue; devices:" + list());
+  }
+  if (!summaries[*chosen].compute_queue)
+    throw std::runtime_error("device " + summaries[*chosen].name + " has no compute queue");
+
+  ctx->physical_device_ = devices[*chosen];
+  ctx->queue_family_ = *compute_queue_family(ctx->physical_device_, nullptr);
+
+  float priority = 1.0f;
+  VkDeviceQueueCreateInfo queue_info{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+  queue_info.queueFamilyIndex = ctx->queue_family_;
+  queue_info.queueCount = 1;
+  queue_info.pQueuePriorities = &priority;
+  VkPhysicalDeviceFeatures supported{};
+  vkGetPhysicalDeviceFeatures(ctx->physical_device_, &supported);
+  VkPhysicalDeviceFeatures enabled{};
+  // Arrays of field chunks are indexed per sample by the renderer.
+  enabled.shaderStorageBufferArrayDynamicIndexing = supported.shaderStorageBufferArrayDynamicIndexing;
+  VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+  device_info.queueCreateInfoCount = 1;
+  device_info.pQueueCreateInfos = &queue_info;
+  device_info.pEnabledFeatures = &enabled;
+  VK_CHECK(vkCreateDevice(ctx->physical_device_, &device_info, nullptr, &ctx->device_));
+  volkLoadDeviceTable(&ctx->table_, ctx->device_);
+  ctx->table_.vkGetDeviceQueue(ctx->device_, ctx->queue_family_, 0, &ctx->queue_);
+  ctx->load_device_info();
+  return ctx;
+}
+
+std::unique_ptr<Context> Context::adopt(const ExternalDevice& external) {
+  if (!external.instance || !external.physical_device || !external.device || !external.queue)
+    throw std::invalid_argument("Context::adopt: instance, physical device, device and queue are required");
+  if (external.get_instance_proc_addr) volkInitializeCustom(external.get_instance_proc_addr);
+  else init_loader();
+  std::unique_ptr<Context> ctx(new Context());
+  ctx->owns_ = false;
+  ctx->instance_ = external.instance;
+  ctx->physical_device_ = external.physical_device;
+  ctx->device_ = external.device;
+  ctx->queue_ = external.queue;
+  ctx->queue_family_ = external.queue_family_index;
+  volkLoadInstanceOnly(external.instance);
+  volkLoadDeviceTable(&ctx->table_, external.device);
+  // Debug names work only if the host enabled VK_EXT_debug_utils; the entry point says so.
+  ctx->debug_utils_ = vkSetDebugUtilsObjectNameEXT != nullptr;
+  ctx->load_device_info();
+  return ctx;
+}
+
+void Context::load_device_info() {
+  vkGetPhysicalDeviceProperties(physical_device_, &properties_);
+  vkGetPhysicalDeviceMemoryProperties(physical_device_, &memory_);
+  uint32_t count = 0;
+  vkGetPhysicalDeviceQueueFamilyProperties(physical_device_, &count, nullptr);
+  std::vector<VkQueueFamilyProperties> families(count);
+  vkGetPhysicalDeviceQueueFamilyProperties(physical_device_, &count, families.data());
+  if (queue_family_ >= count) throw std::invalid_argument("queue family index out of range");
+  if (!(families[queue_family_].queueFlags & VK_QUEUE_COMPUTE_BIT))
+    throw std::invalid_argument("the queue family given to tfmatch has no compute capability");
+  timestamp_valid_bits_ = properties_.limits.timestampPeriod > 0 ? families[queue_family_].timestampValidBits : 0;
+
+  VkPhysicalDeviceMaintenance3Properties maint3{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
+  VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
+  subgroup.pNext = &maint3;
+  VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+  props2.pNext = &subgroup;
+  vkGetPhysicalDeviceProperties2(physical_device_, &props2);
+  subgroup_size_ = subgroup.subgroupSize;
+  max_allocation_bytes_ = maint3.maxMemoryAllocationSize;
+}
+
+uint64_t Context::max_buffer_bytes() const {
+  uint64_t limit = properties_.limits.maxStorageBufferRange;
+  if (max_allocation_bytes_ > 0) limit = std::min(limit, max_allocation_bytes_);
+  return limit;
+}
+
+Context::~Context() {
+  if (!owns_) return;
+  if (device_) {
+    table_.vkDeviceWaitIdle(device_);
+    table_.vkDestroyDevice(device_, nullptr);
+  }
+  if (messenger_) vkDestroyDebugUtilsMessengerEXT(instance_, messenger_, nullptr);
+  if (instance_) vkDestroyInstance(instance_, nullptr);
+}
+
+std::vector<std::string> Context::take_validation_messages() {
+  std::lock_guard lock(messages_mutex_);
+  return std::exchange(messages_, {});
+}
+
+void Context::set_debug_name(VkObjectType type, uint64_t handle, const char* name) const {
+  if (!debug_utils_ || !vkSetDebugUtilsObjectNameEXT || !name) return;
+  VkDebugUtilsObjectNameInfoEXT info{VK_STRUCTURE_TYPE_DEBUG_UTILS_OBJECT_NAME_INFO_EXT};
+  info.objectType = type;
+  info.objectHandle = handle;
+  info.pObjectName = name;
+  vkSetDebugUtilsObjectNameEXT(device_, &info);
+}
+
+VKAPI_ATTR VkBool32 VKAPI_CALL Context::debug_callback(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
+                                                       VkDebugUtilsMessageTypeFlagsEXT,
+                                                       const VkDebugUtilsMessengerCallbackDataEXT* data,
+                                                       void* user) {
+  auto* ctx = static_cast<Context*>(user);
+  std::string text = (severity & VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT) ? "error: " : "warning: ";
+  text += data && data->pMessage ? data->pMessage : "(no message)";
+  std::lock_guard lock(ctx->messages_mutex_);
+  ctx->messages_.push_back(std::move(text));
+  return VK_FALSE;
+}
+
+}  // namespace tfm

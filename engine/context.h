@@ -1,0 +1,125 @@
+// The Vulkan device tfmatch computes on: created and owned here, or adopted from a host application.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <volk.h>
+
+namespace tfm {
+
+// How to choose and create a device. Environment variables fill what is left unset:
+// TFMATCH_DEVICE (index or name substring), TFMATCH_VALIDATION=1.
+struct ContextOptions {
+  std::optional<uint32_t> device_index;
+  std::string device_name;          // case-insensitive substring of the device name
+  std::optional<bool> validation;   // Khronos validation layer (+ synchronization validation)
+  bool require_validation = false;  // throw when the layer is requested but not installed
+};
+
+// Handles of a host application's Vulkan objects. The context borrows them and never destroys
+// them; the host must keep them alive and must not use `queue` concurrently with tfmatch
+// (Vulkan requires external synchronization of a queue).
+struct ExternalDevice {
+  VkInstance instance = VK_NULL_HANDLE;
+  VkPhysicalDevice physical_device = VK_NULL_HANDLE;
+  VkDevice device = VK_NULL_HANDLE;
+  VkQueue queue = VK_NULL_HANDLE;
+  uint32_t queue_family_index = 0;
+  // The host's vkGetInstanceProcAddr; null means the system Vulkan loader.
+  PFN_vkGetInstanceProcAddr get_instance_proc_addr = nullptr;
+};
+
+struct DeviceSummary {
+  uint32_t index = 0;
+  std::string name;
+  std::string type;                // "discrete GPU", "CPU", ...
+  std::string driver;              // driver name and info
+  uint32_t api_version = 0;
+  uint64_t max_storage_buffer_range = 0;
+  uint32_t max_shared_memory_bytes = 0;
+  uint32_t max_workgroup_invocations = 0;
+  uint32_t subgroup_size = 0;
+  bool timestamps = false;
+  bool shader_float64 = false;
+  bool compute_queue = false;
+  uint64_t device_local_bytes = 0;
+};
+
+// Lists every physical device the loader reports (creates a temporary instance).
+std::vector<DeviceSummary> enumerate_devices();
+
+class Context {
+ public:
+  // Creates instance, device and compute queue. Throws std::runtime_error when no suitable
+  // device exists or the selection matches none (the message lists the devices).
+  static std::unique_ptr<Context> create(const ContextOptions& options = {});
+  // Wraps a host application's objects without taking ownership; throws VulkanError if the
+  // loader cannot be initialized.
+  static std::unique_ptr<Context> adopt(const ExternalDevice& external);
+
+  ~Context();
+  Context(const Context&) = delete;
+  Context& operator=(const Context&) = delete;
+
+  VkInstance instance() const { return instance_; }
+  VkPhysicalDevice physical_device() const { return physical_device_; }
+  VkDevice device() const { return device_; }
+  VkQueue queue() const { return queue_; }
+  uint32_t queue_family() const { return queue_family_; }
+  bool owns_device() const { return owns_; }
+  // Device-level entry points of this device (never volk's globals, which a host may own).
+  const VolkDeviceTable& vk() const { return table_; }
+
+  const VkPhysicalDeviceProperties& properties() const { return properties_; }
+  const VkPhysicalDeviceLimits& limits() const { return properties_.limits; }
+  const VkPhysicalDeviceMemoryProperties& memory_properties() const { return memory_; }
+  std::string device_name() const { return properties_.deviceName; }
+  bool timestamps_supported() const { return timestamp_valid_bits_ > 0; }
+  uint32_t subgroup_size() const { return subgroup_size_; }
+  // Largest buffer a single storage-buffer descriptor may address (and one allocation may hold).
+  uint64_t max_buffer_bytes() const;
+
+  // Validation messages (errors and warnings) seen since the last call; empty when validation
+  // is off. Tests fail on any.
+  bool validation_enabled() const { return validation_; }
+  std::vector<std::string> take_validation_messages();
+
+  // Serializes queue submissions made through this context.
+  std::mutex& queue_mutex() { return queue_mutex_; }
+
+  void set_debug_name(VkObjectType type, uint64_t handle, const char* name) const;
+
+ private:
+  Context() = default;
+  void load_device_info();
+  static VKAPI_ATTR VkBool32 VKAPI_CALL debug_callback(VkDebugUtilsMessageSeverityFlagBitsEXT,
+                                                      VkDebugUtilsMessageTypeFlagsEXT,
+                                                      const VkDebugUtilsMessengerCallbackDataEXT*,
+                                                      void*);
+
+  VkInstance instance_ = VK_NULL_HANDLE;
+  VkPhysicalDevice physical_device_ = VK_NULL_HANDLE;
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkQueue queue_ = VK_NULL_HANDLE;
+  uint32_t queue_family_ = 0;
+  bool owns_ = false;
+  bool validation_ = false;
+  bool debug_utils_ = false;
+  VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
+  VolkDeviceTable table_{};
+  VkPhysicalDeviceProperties properties_{};
+  VkPhysicalDeviceMemoryProperties memory_{};
+  uint32_t timestamp_valid_bits_ = 0;
+  uint32_t subgroup_size_ = 0;
+  uint64_t max_allocation_bytes_ = 0;
+  std::mutex messages_mutex_;
+  std::vector<std::string> messages_;
+  std::mutex queue_mutex_;
+};
+
+}  // namespace tfm

@@ -1,0 +1,50 @@
+// Chunked device fields.
+#include "device_field.h"
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "context.h"
+
+namespace tfm {
+
+DeviceField::DeviceField(Context& ctx, uint64_t voxel_count, const std::string& name, uint64_t max_chunk_voxels)
+    : ctx_(&ctx), voxels_(voxel_count) {
+  if (voxel_count == 0) throw std::invalid_argument("DeviceField '" + name + "': no voxels");
+  // Chunks are whole multiples of 1024 voxels so chunk boundaries never split a workgroup's span.
+  uint64_t device_chunk = (ctx.max_buffer_bytes() / sizeof(float)) / 1024 * 1024;
+  chunk_voxels_ = std::min(device_chunk, voxel_count);
+  if (max_chunk_voxels) chunk_voxels_ = std::min(chunk_voxels_, max_chunk_voxels);
+  size_t count = static_cast<size_t>((voxel_count + chunk_voxels_ - 1) / chunk_voxels_);
+  chunks_.reserve(count);
+  for (size_t i = 0; i < count; ++i)
+    chunks_.emplace_back(ctx, chunk_size(i) * sizeof(float), MemoryUsage::Device,
+                         name + " chunk " + std::to_string(i));
+}
+
+DeviceField::DeviceField(Context& ctx, std::span<const float> values, const std::string& name,
+                         uint64_t max_chunk_voxels)
+    : DeviceField(ctx, values.size(), name, max_chunk_voxels) {
+  upload(values);
+}
+
+uint64_t DeviceField::chunk_size(size_t i) const {
+  return std::min(chunk_voxels_, voxels_ - chunk_begin(i));
+}
+
+void DeviceField::upload(std::span<const float> values) {
+  if (values.size() != voxels_) throw std::invalid_argument("DeviceField::upload: size mismatch");
+  for (size_t i = 0; i < chunks_.size(); ++i)
+    tfm::upload(*ctx_, chunks_[i], values.data() + chunk_begin(i), chunk_size(i) * sizeof(float));
+}
+
+std::vector<const Buffer*> DeviceField::chunk_array(size_t slots) const {
+  if (chunks_.size() > slots)
+    throw std::runtime_error("field needs " + std::to_string(chunks_.size()) + " buffers but the kernel binds " +
+                             std::to_string(slots) + " (volume too large for this device)");
+  std::vector<const Buffer*> out;
+  for (size_t i = 0; i < slots; ++i) out.push_back(&chunks_[std::min(i, chunks_.size() - 1)]);
+  return out;
+}
+
+}  // namespace tfm

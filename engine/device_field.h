@@ -1,0 +1,41 @@
+// A scalar field on the device, split into chunks that each fit one storage-buffer descriptor
+// (maxStorageBufferRange is 128 MiB on lavapipe; a 10^8-voxel float field needs 400 MB).
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "buffer.h"
+
+namespace tfm {
+
+class Context;
+
+class DeviceField {
+ public:
+  // Voxels per chunk: the device limit, or `max_chunk_voxels` when smaller (tests force splits).
+  DeviceField(Context& ctx, uint64_t voxel_count, const std::string& name, uint64_t max_chunk_voxels = 0);
+  DeviceField(Context& ctx, std::span<const float> values, const std::string& name,
+              uint64_t max_chunk_voxels = 0);
+
+  void upload(std::span<const float> values);
+  uint64_t voxel_count() const { return voxels_; }
+  uint64_t chunk_voxels() const { return chunk_voxels_; }  // every chunk but the last
+  size_t chunk_count() const { return chunks_.size(); }
+  const Buffer& chunk(size_t i) const { return chunks_[i]; }
+  uint64_t chunk_begin(size_t i) const { return i * chunk_voxels_; }
+  uint64_t chunk_size(size_t i) const;
+  // Chunks for an array binding of `slots` descriptors, padded with the last chunk. Throws
+  // std::runtime_error if the field has more chunks than slots.
+  std::vector<const Buffer*> chunk_array(size_t slots) const;
+
+ private:
+  Context* ctx_;
+  uint64_t voxels_ = 0;
+  uint64_t chunk_voxels_ = 0;
+  std::vector<Buffer> chunks_;
+};
+
+}  // namespace tfm

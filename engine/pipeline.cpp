@@ -1,0 +1,79 @@
+// Shader module, descriptor-set layout, pipeline layout and pipeline for one compute kernel.
+#include "pipeline.h"
+
+#include <span>
+#include <stdexcept>
+
+#include "context.h"
+#include "vk_check.h"
+
+namespace tfm {
+
+std::span<const uint32_t> shader_spirv(std::string_view name);  // shaders/shader_registry.cpp
+
+ComputePipeline::ComputePipeline(Context& ctx, PipelineDesc desc) : ctx_(ctx), desc_(std::move(desc)) {
+  const auto& limits = ctx.limits();
+  if (desc_.workgroup_size > limits.maxComputeWorkGroupInvocations)
+    throw std::runtime_error(desc_.shader + ": workgroup of " + std::to_string(desc_.workgroup_size) +
+                             " invocations exceeds the device limit " +
+                             std::to_string(limits.maxComputeWorkGroupInvocations));
+  if (desc_.push_constant_bytes > limits.maxPushConstantsSize)
+    throw std::runtime_error(desc_.shader + ": push constants exceed the device limit");
+  const auto& vk = ctx.vk();
+  auto code = shader_spirv(desc_.shader);
+  VkShaderModuleCreateInfo module_info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+  module_info.codeSize = code.size_bytes();
+  module_info.pCode = code.data();
+  VK_CHECK(vk.vkCreateShaderModule(ctx.device(), &module_info, nullptr, &module_));
+
+  std::vector<VkDescriptorSetLayoutBinding> bindings;
+  for (uint32_t i = 0; i < desc_.binding_counts.size(); ++i) {
+    VkDescriptorSetLayoutBinding b{};
+    b.binding = i;
+    b.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    b.descriptorCount = desc_.binding_counts[i];
+    b.stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
+    bindings.push_back(b);
+  }
+  VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  set_info.bindingCount = static_cast<uint32_t>(bindings.size());
+  set_info.pBindings = bindings.data();
+  VK_CHECK(vk.vkCreateDescriptorSetLayout(ctx.device(), &set_info, nullptr, &set_layout_));
+
+  VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, desc_.push_constant_bytes};
+  VkPipelineLayoutCreateInfo layout_info{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  layout_info.setLayoutCount = 1;
+  layout_info.pSetLayouts = &set_layout_;
+  layout_info.pushConstantRangeCount = desc_.push_constant_bytes ? 1 : 0;
+  layout_info.pPushConstantRanges = &range;
+  VK_CHECK(vk.vkCreatePipelineLayout(ctx.device(), &layout_info, nullptr, &layout_));
+
+  std::vector<VkSpecializationMapEntry> entries;
+  for (uint32_t i = 0; i < desc_.specialization.size(); ++i)
+    entries.push_back({i, static_cast<uint32_t>(i * sizeof(uint32_t)), sizeof(uint32_t)});
+  VkSpecializationInfo spec{};
+  spec.mapEntryCount = static_cast<uint32_t>(entries.size());
+  spec.pMapEntries = entries.data();
+  spec.dataSize = desc_.specialization.size() * sizeof(uint32_t);
+  spec.pData = desc_.specialization.data();
+
+  VkComputePipelineCreateInfo info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+  info.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
+  info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+  info.stage.module = module_;
+  info.stage.pName = "main";
+  info.stage.pSpecializationInfo = entries.empty() ? nullptr : &spec;
+  info.layout = layout_;
+  VK_CHECK(vk.vkCreateComputePipelines(ctx.device(), VK_NULL_HANDLE, 1, &info, nullptr, &pipeline_));
+  ctx.set_debug_name(VK_OBJECT_TYPE_PIPELINE, reinterpret_cast<uint64_t>(pipeline_), desc_.shader.c_str());
+}
+
+ComputePipeline::~ComputePipeline() {
+  const auto& vk = ctx_.vk();
+  vk.vkDestroyPipeline(ctx_.device(), pipeline_, nullptr);
+  vk.vkDestroyPipelineLayout(ctx_.device(), layout_, nullptr);
+  vk.vkDestroyDescriptorSetLayout(ctx_.device(), set_layout_, nullptr);
+  vk.vkDestroyShaderModule(ctx_.device(), module_, nullptr);
+}
+
+}  // namespace tfm

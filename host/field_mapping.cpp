@@ -1,0 +1,55 @@
+// Field range resolution and the float32 TF mapping.
+#include "field_mapping.h"
+
+#include <algorithm>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace tfm {
+
+FiniteStats finite_stats(std::span<const float> values) {
+  FiniteStats s;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (float v : values) {
+    if (!std::isfinite(v)) { ++s.nan; continue; }
+    lo = std::min<double>(lo, v);
+    hi = std::max<double>(hi, v);
+    ++s.finite;
+  }
+  if (s.finite) s.lo = lo, s.hi = hi;
+  return s;
+}
+
+FieldRange resolve_range(std::span<const float> values, const FieldRange* user, const std::string& what) {
+  if (user) {
+    if (!std::isfinite(user->lo) || !std::isfinite(user->hi) || !(user->hi > user->lo)) {
+      std::ostringstream os;
+      os << what << ": range " << user->lo << "," << user->hi << " is empty or reversed (need lo < hi)";
+      throw std::runtime_error(os.str());
+    }
+    return *user;
+  }
+  FiniteStats s = finite_stats(values);
+  if (s.finite == 0) throw std::runtime_error(what + ": the field has no finite value");
+  if (s.hi == s.lo) {
+    std::ostringstream os;
+    os << what << ": the field is constant (every finite value is " << s.lo
+       << "); a transfer function cannot be fitted to it (give a range with --*-range to map it anyway)";
+    throw std::runtime_error(os.str());
+  }
+  return {s.lo, s.hi};
+}
+
+FieldMapping make_mapping(const FieldRange& range, uint32_t tf_size) {
+  if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
+  FieldMapping m;
+  m.lo = static_cast<float>(range.lo);
+  m.scale = static_cast<float>(double(tf_size - 1) / (range.hi - range.lo));
+  m.tf_size = tf_size;
+  if (!std::isfinite(m.scale) || m.scale <= 0.0f)
+    throw std::runtime_error("field range too narrow to map to a transfer function in float32");
+  return m;
+}
+
+}  // namespace tfm

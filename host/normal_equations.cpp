@@ -1,0 +1,184 @@
+// CPU reference assembly and the host solver of the tridiagonal normal equations.
+#include "normal_equations.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/QR>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+
+namespace tfm {
+
+NormalEquations::NormalEquations(uint32_t n_) : n(n_), diag(n_, 0.0), off(n_ ? n_ - 1 : 0, 0.0), rhs(n_, 4) {
+  rhs.setZero();
+}
+
+NormalEquations NormalEquations::from_slots(uint32_t n, std::span<const double> s) {
+  if (s.size() < 6u * n + 4u) throw std::invalid_argument("NormalEquations::from_slots: too few slots");
+  NormalEquations eq(n);
+  for (uint32_t j = 0; j < n; ++j) eq.diag[j] = s[j];
+  for (uint32_t j = 0; j + 1 < n; ++j) eq.off[j] = s[n + j];
+  for (uint32_t j = 0; j < n; ++j)
+    for (int c = 0; c < 4; ++c) eq.rhs(j, c) = s[2 * n - 1 + 4 * j + c];
+  for (int c = 0; c < 4; ++c) eq.btb[c] = s[6 * n - 1 + c];
+  eq.voxels = static_cast<uint64_t>(std::llround(s[6 * n + 3]));
+  return eq;
+}
+
+Eigen::MatrixXd NormalEquations::dense_m() const {
+  Eigen::MatrixXd m = Eigen::MatrixXd::Zero(n, n);
+  for (uint32_t j = 0; j < n; ++j) m(j, j) = diag[j];
+  for (uint32_t j = 0; j + 1 < n; ++j) m(j, j + 1) = m(j + 1, j) = off[j];
+  return m;
+}
+
+double NormalEquations::residual_squared(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x) const {
+  // ||Sx - b||^2 = x^T M x - 2 x^T S^T b + b^T b per channel.
+  double total = 0.0;
+  for (int c = 0; c < 4; ++c) {
+    double xmx = 0.0;
+    for (uint32_t j = 0; j < n; ++j) {
+      xmx += diag[j] * x(j, c) * x(j, c);
+      if (j + 1 < n) xmx += 2.0 * off[j] * x(j, c) * x(j + 1, c);
+    }
+    total += xmx - 2.0 * x.col(c).dot(rhs.col(c)) + btb[c];
+  }
+  return std::max(total, 0.0);
+}
+
+void accumulate_normal_equations_cpu(NormalEquations& eq, std::span<const float> ref, std::span<const float> opt,
+                                     const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                     const TransferFunction& ref_tf) {
+  if (ref.size() != opt.size()) throw std::invalid_argument("assemble_normal_equations_cpu: size mismatch");
+  if (ref_tf.size() != ref_map.tf_size || eq.n != opt_map.tf_size)
+    throw std::invalid_argument("assemble_normal_equations_cpu: TF sizes do not match the mappings");
+  const uint32_t n = eq.n;
+  // Reference TF as float, as the GPU stores it.
+  std::vector<float> tf = ref_tf.as_floats();
+  for (size_t i = 0; i < ref.size(); ++i) {
+    uint32_t jr, jo;
+    float wr, wo;
+    if (!tf_coordinate(ref[i], ref_map, jr, wr) || !tf_coordinate(opt[i], opt_map, jo, wo)) continue;
+    const double u = 1.0 - double(wo), w = wo;
+    eq.diag[jo] += u * u;
+    eq.diag[jo + 1] += w * w;
+    eq.off[jo] += u * w;
+    for (int c = 0; c < 4; ++c) {
+      double b = (1.0 - double(wr)) * tf[4 * jr + c] + double(wr) * tf[4 * (jr + 1) + c];
+      b = std::clamp(b, 0.0, 1.0);
+      eq.rhs(jo, c) += u * b;
+      eq.rhs(jo + 1, c) += w * b;
+      eq.btb[c] += b * b;
+    }
+    ++eq.voxels;
+  }
+  (void)n;
+}
+
+NormalEquations assemble_normal_equations_cpu(std::span<const float> ref, std::span<const float> opt,
+                                              const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                              const TransferFunction& ref_tf) {
+  NormalEquations eq(opt_map.tf_size);
+  accumulate_normal_equations_cpu(eq, ref, opt, ref_map, opt_map, ref_tf);
+  return eq;
+}
+
+Eigen::VectorXd tridiagonal_eigenvalues(const std::vector<double>& diag, const std::vector<double>& off) {
+  Eigen::VectorXd d = Eigen::Map<const Eigen::VectorXd>(diag.data(), Eigen::Index(diag.size()));
+  Eigen::VectorXd e = Eigen::Map<const Eigen::VectorXd>(off.data(), Eigen::Index(off.size()));
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> solver;
+  solver.computeFromTridiagonal(d, e, Eigen::EigenvaluesOnly);
+  if (solver.info() != Eigen::Success) throw std::runtime_error("eigenvalues of M did not converge");
+  return solver.eigenvalues();
+}
+
+SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions& options) {
+  const uint32_t n = eq.n;
+  if (n < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
+  if (eq.voxels == 0)
+    throw std::runtime_error("no voxel has data in both fields (all NaN?): nothing to fit");
+  if (options.ridge < 0 || options.smooth < 0) throw std::invalid_argument("regularization weights must be >= 0");
+
+  SolveResult result;
+  double mean_diag = 0.0;
+  for (double d : eq.diag) mean_diag += d;
+  mean_diag /= n;
+  for (uint32_t j = 0; j < n; ++j) result.unreferenced_entries += eq.diag[j] == 0.0 ? 1 : 0;
+
+  // Regularized tridiagonal matrix: M + ridge I + smooth D^T D (first differences), both scaled
+  // by mean(diag M) so they keep their meaning across volume sizes.
+  std::vector<double> d = eq.diag, e = eq.off;
+  const double ridge = options.ridge * mean_diag, smooth = options.smooth * mean_diag;
+  for (uint32_t j = 0; j < n; ++j) d[j] += ridge + smooth * ((j == 0 || j == n - 1) ? 1.0 : 2.0);
+  for (uint32_t j = 0; j + 1 < n; ++j) e[j] -= smooth;
+
+  Eigen::VectorXd lambda = tridiagonal_eigenvalues(d, e);
+  result.lambda_min = lambda(0);
+  result.lambda_max = lambda(n - 1);
+  // M is positive semi-definite; rounding can make a zero eigenvalue slightly negative.
+  const double singular_tol = 1e-12 * std::abs(result.lambda_max);
+  const bool singular = result.lambda_min <= singular_tol;
+  result.cond = singular ? std::numeric_limits<double>::infinity() : result.lambda_max / result.lambda_min;
+
+  Factorization f = options.factorization;
+  if (f == Factorization::Auto) f = singular ? Factorization::QR : Factorization::LDLT;
+
+  if (f == Factorization::LDLT) {
+    Eigen::SparseMatrix<double> m(n, n);
+    std::vector<Eigen::Triplet<double>> t;
+    for (uint32_t j = 0; j < n; ++j) t.emplace_back(j, j, d[j]);
+    for (uint32_t j = 0; j + 1 < n; ++j) t.emplace_back(j + 1, j, e[j]), t.emplace_back(j, j + 1, e[j]);
+    m.setFromTriplets(t.begin(), t.end());
+    // Natural ordering keeps the tridiagonal band: no fill-in, O(N) factorization.
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt(m);
+    if (ldlt.info() != Eigen::Success) throw std::runtime_error("LDL^T factorization of M failed");
+    result.x = ldlt.solve(eq.rhs);
+    result.factorization = "ldlt";
+    if (!result.x.allFinite()) {
+      // A singular M the LDL^T could not pivot around: fall back to the rank-revealing QR.
+      f = Factorization::QR;
+      result.warnings.push_back("LDL^T produced non-finite values; used column-pivoted QR instead");
+    }
+  }
+  if (f == Factorization::QR) {
+    Eigen::MatrixXd m = Eigen::MatrixXd::Zero(n, n);
+    for (uint32_t j = 0; j < n; ++j) m(j, j) = d[j];
+    for (uint32_t j = 0; j + 1 < n; ++j) m(j, j + 1) = m(j + 1, j) = e[j];
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(m);
+    // Directions below this relative size carry no information from the data: their
+    // components of x are set to 0 (the basic solution).
+    qr.setThreshold(1e-10);
+    result.x = qr.solve(eq.rhs);
+    result.factorization = "column-pivoted-qr";
+  }
+
+  if (singular && options.ridge == 0 && options.smooth == 0) {
+    std::ostringstream os;
+    os << "M is singular: " << result.unreferenced_entries
+       << " TF entries are touched by no voxel and were set to 0; --smooth fills them from their neighbours";
+    result.warnings.push_back(os.str());
+  } else if (result.cond > options.cond_warning) {
+    std::ostringstream os;
+    os << "cond(M) = " << result.cond << " exceeds " << options.cond_warning
+       << ": M carries ~1e-7 relative error from float32 data, so x may be wrong by cond*1e-7; "
+          "consider --solver cgls or --smooth";
+    result.warnings.push_back(os.str());
+  }
+
+  result.tf.rgba.resize(n);
+  for (uint32_t j = 0; j < n; ++j)
+    for (int c = 0; c < 4; ++c) {
+      double v = result.x(j, c);
+      double clamped = std::clamp(v, 0.0, 1.0);
+      if (clamped != v) ++result.clamped_values;
+      result.tf.rgba[j][c] = clamped;
+    }
+  return result;
+}
+
+}  // namespace tfm

@@ -1,0 +1,75 @@
+// The voxel least-squares system in its tridiagonal form (DESIGN.md): M = S^T S (2N-1 numbers),
+// S^T b (N x 4), b^T b (4) and the voxel count; its double-precision CPU reference assembly; and
+// the host solver (tridiagonal LDL^T or column-pivoted QR, ridge and smoothness regularization).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "field_mapping.h"
+#include "transfer_function.h"
+
+namespace tfm {
+
+struct NormalEquations {
+  uint32_t n = 0;
+  std::vector<double> diag;             // M[j][j], j < n
+  std::vector<double> off;              // M[j][j+1], j < n-1
+  Eigen::Matrix<double, Eigen::Dynamic, 4> rhs;  // S^T b
+  std::array<double, 4> btb{};          // sum of b_c^2 per channel
+  uint64_t voxels = 0;                  // voxels with data in both fields
+
+  explicit NormalEquations(uint32_t n_ = 0);
+  // From the fixed-point accumulators of assemble_normal_equations (TFM_ASSEMBLE_SLOTS layout).
+  static NormalEquations from_slots(uint32_t n, std::span<const double> slots);
+  // ||S x - b||^2 summed over channels, from the system alone (x: n x 4).
+  double residual_squared(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x) const;
+  Eigen::MatrixXd dense_m() const;
+};
+
+// Double-precision CPU reference of the GPU assembly: the same float32 TF coordinates
+// (tf_coordinate), every product and sum in double.
+NormalEquations assemble_normal_equations_cpu(std::span<const float> ref, std::span<const float> opt,
+                                              const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                              const TransferFunction& ref_tf);
+// Adds more voxels to `eq` (for streaming references over large synthetic volumes).
+void accumulate_normal_equations_cpu(NormalEquations& eq, std::span<const float> ref, std::span<const float> opt,
+                                     const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                     const TransferFunction& ref_tf);
+
+enum class Factorization { Auto, LDLT, QR };
+
+struct SolveOptions {
+  // Both are relative to the mean diagonal of M (voxels per TF entry), so a value means the
+  // same for any volume size: ridge adds ridge*mean(diag) I, smooth adds smooth*mean(diag) D^T D.
+  double ridge = 0.0;
+  double smooth = 0.0;
+  Factorization factorization = Factorization::Auto;
+  // cond(M) above which the result is flagged as unreliable (see condition_warning_threshold()).
+  double cond_warning = 1e4;
+};
+
+struct SolveResult {
+  TransferFunction tf;                             // clamped to [0,1]
+  Eigen::Matrix<double, Eigen::Dynamic, 4> x;      // unclamped least-squares solution
+  std::string factorization;                       // "ldlt" or "column-pivoted-qr"
+  double cond = 0.0;                               // of the regularized M (inf when singular)
+  double lambda_min = 0.0, lambda_max = 0.0;
+  uint32_t unreferenced_entries = 0;               // TF entries no voxel touches (zero row of M)
+  uint32_t clamped_values = 0;                     // components moved into [0,1]
+  std::vector<std::string> warnings;
+};
+
+// Solves (M + regularization) x = S^T b for the four channels at once. Throws
+// std::runtime_error if no voxel has data.
+SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions& options = {});
+
+// Eigenvalues (ascending) of the symmetric tridiagonal matrix given by diag/off.
+Eigen::VectorXd tridiagonal_eigenvalues(const std::vector<double>& diag, const std::vector<double>& off);
+
+}  // namespace tfm

@@ -1,0 +1,83 @@
+// Deterministic synthetic volumes for the demo and tests.
+#include "synthetic.h"
+
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+#include <numbers>
+
+namespace tfm {
+
+Volume synthetic_reference(uint64_t nx, uint64_t ny, uint64_t nz) {
+  Volume v;
+  v.dims = {nx, ny, nz};
+  v.name = "synthetic reference";
+  v.values.resize(nx * ny * nz);
+  struct Blob { double x, y, z, s, a; };
+  const Blob blobs[] = {{0.30, 0.35, 0.40, 0.16, 0.85}, {0.68, 0.62, 0.55, 0.20, 0.70},
+                        {0.45, 0.75, 0.30, 0.10, 0.55}, {0.70, 0.25, 0.70, 0.12, 0.60}};
+  for (uint64_t z = 0; z < nz; ++z)
+    for (uint64_t y = 0; y < ny; ++y)
+      for (uint64_t x = 0; x < nx; ++x) {
+        double px = (x + 0.5) / nx, py = (y + 0.5) / ny, pz = (z + 0.5) / nz;
+        double f = 0.15 * pz;
+        for (const Blob& b : blobs) {
+          double d2 = (px - b.x) * (px - b.x) + (py - b.y) * (py - b.y) + (pz - b.z) * (pz - b.z);
+          f += b.a * std::exp(-d2 / (2 * b.s * b.s));
+        }
+        v.values[(z * ny + y) * nx + x] = static_cast<float>(std::min(f, 1.0));
+      }
+  return v;
+}
+
+Sphere synthetic_difference_region(const Volume& r) {
+  return {0.70 * r.dims[0], 0.62 * r.dims[1], 0.55 * r.dims[2], 0.14 * double(std::min({r.dims[0], r.dims[1], r.dims[2]}))};
+}
+
+Volume synthetic_remapped(const Volume& ref, bool with_structural_difference) {
+  Volume v = ref;
+  v.name = "synthetic remapped";
+  const double pi = std::numbers::pi;
+  Sphere s = synthetic_difference_region(ref);
+  const auto [nx, ny, nz] = ref.dims;
+  for (uint64_t z = 0; z < nz; ++z)
+    for (uint64_t y = 0; y < ny; ++y)
+      for (uint64_t x = 0; x < nx; ++x) {
+        size_t i = (z * ny + y) * nx + x;
+        double t = ref.values[i];
+        if (with_structural_difference) {
+          double dx = x - s.cx, dy = y - s.cy, dz = z - s.cz;
+          if (dx * dx + dy * dy + dz * dz < s.r * s.r) {
+            // Inside: a striped pattern unrelated to the reference.
+            t = 0.5 + 0.5 * std::sin(0.9 * double(x) + 0.4 * double(z));
+          }
+        }
+        v.values[i] = static_cast<float>(40.0 + 300.0 * (0.55 + 0.45 * std::sin(2.6 * pi * t - 0.9)));
+      }
+  return v;
+}
+
+TransferFunction demo_transfer_function(uint32_t n) {
+  // Colour stops (t, r, g, b) and opacity: low values transparent, peaks at mid and high values.
+  struct Stop { double t, r, g, b; };
+  const Stop stops[] = {{0.0, 0.10, 0.15, 0.60}, {0.35, 0.10, 0.70, 0.85}, {0.6, 0.95, 0.90, 0.25},
+                        {1.0, 0.85, 0.10, 0.10}};
+  TransferFunction tf;
+  tf.rgba.resize(n);
+  for (uint32_t j = 0; j < n; ++j) {
+    double t = double(j) / (n - 1);
+    size_t k = 0;
+    while (k + 2 < std::size(stops) && t > stops[k + 1].t) ++k;
+    double w = std::clamp((t - stops[k].t) / (stops[k + 1].t - stops[k].t), 0.0, 1.0);
+    double r = (1 - w) * stops[k].r + w * stops[k + 1].r;
+    double g = (1 - w) * stops[k].g + w * stops[k + 1].g;
+    double b = (1 - w) * stops[k].b + w * stops[k + 1].b;
+    double a = 0.05 * t + 0.45 * std::exp(-std::pow((t - 0.45) / 0.07, 2)) +
+               0.8 * std::exp(-std::pow((t - 0.8) / 0.1, 2));
+    tf.rgba[j] = {r, g, b, std::min(a, 1.0)};
+  }
+  tf.range = FieldRange{0.0, 1.0};
+  return tf;
+}
+
+}  // namespace tfm

@@ -1,0 +1,231 @@
+// Raw volumes (dimensions and type from the Open SciVis file-name convention
+// `name_256x256x128_float32.raw`, or from options) and `.dat` descriptor files.
+#include <algorithm>
+#include <bit>
+#include <cctype>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <regex>
+#include <sstream>
+#include <stdexcept>
+
+#include "atomic_file.h"
+#include "volume.h"
+
+namespace tfm {
+namespace {
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+template <class T>
+void convert(const char* src, uint64_t count, bool big_endian, float* dst) {
+  const bool swap = big_endian != (std::endian::native == std::endian::big);
+  for (uint64_t i = 0; i < count; ++i) {
+    unsigned char bytes[sizeof(T)];
+    std::memcpy(bytes, src + i * sizeof(T), sizeof(T));
+    if (swap) std::reverse(bytes, bytes + sizeof(T));
+    T v;
+    std::memcpy(&v, bytes, sizeof(T));
+    dst[i] = static_cast<float>(v);
+  }
+}
+
+void decode(const char* src, uint64_t count, ScalarType type, bool big_endian, float* dst) {
+  switch (type) {
+    case ScalarType::UInt8: convert<uint8_t>(src, count, big_endian, dst); break;
+    case ScalarType::Int8: convert<int8_t>(src, count, big_endian, dst); break;
+    case ScalarType::UInt16: convert<uint16_t>(src, count, big_endian, dst); break;
+    case ScalarType::Int16: convert<int16_t>(src, count, big_endian, dst); break;
+    case ScalarType::UInt32: convert<uint32_t>(src, count, big_endian, dst); break;
+    case ScalarType::Int32: convert<int32_t>(src, count, big_endian, dst); break;
+    case ScalarType::Float32: convert<float>(src, count, big_endian, dst); break;
+    case ScalarType::Float64: convert<double>(src, count, big_endian, dst); break;
+    case ScalarType::Unknown: throw std::logic_error("decode: unknown scalar type");
+  }
+}
+
+// Reads `count` elements of `type` at `offset`, checking that the file holds exactly
+// offset + count * size bytes (or at least that many when `allow_trailing`).
+Volume read_elements(const std::filesystem::path& path, std::array<uint64_t, 3> dims, ScalarType type,
+                     bool big_endian, uint64_t offset, bool allow_trailing) {
+  const std::string name = path.string();
+  for (uint64_t d : dims)
+    if (d == 0) throw std::runtime_error(name + ": a grid dimension is 0");
+  const uint64_t max_voxels = uint64_t(1) << 40;
+  if (dims[0] > max_voxels / dims[1] || dims[0] * dims[1] > max_voxels / dims[2])
+    throw std::runtime_error(name + ": grid size overflows (dimensions too large)");
+  const uint64_t count = dims[0] * dims[1] * dims[2];
+  const uint64_t bytes = count * scalar_bytes(type);
+  std::error_code ec;
+  uint64_t file_size = std::filesystem::file_size(path, ec);
+  if (ec) throw std::runtime_error(name + ": cannot open (" + ec.message() + ")");
+  if (file_size < offset + bytes || (!allow_trailing && file_size != offset + bytes)) {
+    std::ostringstream os;
+    os << name << ": file has " << file_size << " bytes, but a " << dims[0] << "x" << dims[1] << "x"
+       << dims[2] << " " << scalar_type_name(type) << " volume needs " << offset + bytes;
+    throw std::runtime_error(os.str());
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(name + ": cannot open");
+  in.seekg(static_cast<std::streamoff>(offset));
+  Volume v;
+  v.dims = dims;
+  v.name = name;
+  v.values.resize(count);
+  // Decode in blocks so the file is never held in memory twice.
+  const uint64_t block = uint64_t(1) << 22;
+  std::vector<char> buffer(std::min(count, block) * scalar_bytes(type));
+  for (uint64_t done = 0; done < count; done += block) {
+    uint64_t n = std::min(block, count - done);
+    in.read(buffer.data(), static_cast<std::streamsize>(n * scalar_bytes(type)));
+    if (!in) throw std::runtime_error(name + ": read failed");
+    decode(buffer.data(), n, type, big_endian, v.values.data() + done);
+  }
+  return v;
+}
+
+}  // namespace
+
+ScalarType parse_scalar_type(std::string s) {
+  s = lower(s);
+  if (s == "uint8" || s == "uchar" || s == "unsigned_char" || s == "unsigned char") return ScalarType::UInt8;
+  if (s == "int8" || s == "char" || s == "signed char") return ScalarType::Int8;
+  if (s == "uint16" || s == "ushort" || s == "unsigned_short" || s == "unsigned short") return ScalarType::UInt16;
+  if (s == "int16" || s == "short") return ScalarType::Int16;
+  if (s == "uint32" || s == "uint" || s == "unsigned_int" || s == "unsigned int") return ScalarType::UInt32;
+  if (s == "int32" || s == "int") return ScalarType::Int32;
+  if (s == "float32" || s == "float") return ScalarType::Float32;
+  if (s == "float64" || s == "double") return ScalarType::Float64;
+  return ScalarType::Unknown;
+}
+
+size_t scalar_bytes(ScalarType t) {
+  switch (t) {
+    case ScalarType::UInt8: case ScalarType::Int8: return 1;
+    case ScalarType::UInt16: case ScalarType::Int16: return 2;
+    case ScalarType::UInt32: case ScalarType::Int32: case ScalarType::Float32: return 4;
+    case ScalarType::Float64: return 8;
+    default: return 0;
+  }
+}
+
+const char* scalar_type_name(ScalarType t) {
+  switch (t) {
+    case ScalarType::UInt8: return "uint8";
+    case ScalarType::Int8: return "int8";
+    case ScalarType::UInt16: return "uint16";
+    case ScalarType::Int16: return "int16";
+    case ScalarType::UInt32: return "uint32";
+    case ScalarType::Int32: return "int32";
+    case ScalarType::Float32: return "float32";
+    case ScalarType::Float64: return "float64";
+    default: return "unknown";
+  }
+}
+
+Volume read_raw_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  std::optional<std::array<uint64_t, 3>> dims = options.dims;
+  ScalarType type = options.type;
+  // Open SciVis convention: <name>_<X>x<Y>x<Z>_<type>.raw
+  static const std::regex pattern(R"(_(\d+)x(\d+)x(\d+)_([a-z0-9]+)\.raw$)", std::regex::icase);
+  std::smatch m;
+  const std::string file = path.filename().string();
+  if (std::regex_search(file, m, pattern)) {
+    try {
+      if (!dims) dims = std::array<uint64_t, 3>{std::stoull(m[1]), std::stoull(m[2]), std::stoull(m[3])};
+    } catch (const std::exception&) {
+      throw std::runtime_error(path.string() + ": dimensions in the file name are out of range");
+    }
+    if (type == ScalarType::Unknown) {
+      type = parse_scalar_type(m[4]);
+      if (type == ScalarType::Unknown)
+        throw std::runtime_error(path.string() + ": unknown element type '" + m[4].str() + "' in the file name");
+    }
+  }
+  if (!dims)
+    throw std::runtime_error(path.string() + ": raw file without dimensions: name it name_XxYxZ_type.raw "
+                             "or pass --dims X,Y,Z (and --type)");
+  if (type == ScalarType::Unknown)
+    throw std::runtime_error(path.string() + ": raw file without element type: pass --type "
+                             "(uint8, uint16, int16, float32, float64, ...)");
+  return read_elements(path, *dims, type, options.big_endian, 0, false);
+}
+
+// .dat descriptor: lines "Key: value" with ObjectFileName, Resolution (X Y Z), Format
+// (UCHAR, USHORT, FLOAT, DOUBLE, ...), optional SliceThickness (spacing) and Endianness.
+Volume read_dat_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path.string() + ": cannot open");
+  std::string object, format;
+  std::optional<std::array<uint64_t, 3>> dims;
+  std::array<double, 3> spacing{1, 1, 1};
+  bool big_endian = options.big_endian;
+  std::string line;
+  int line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.size() > 4096) throw std::runtime_error(path.string() + ": line " + std::to_string(line_no) + " too long");
+    auto colon = line.find(':');
+    if (colon == std::string::npos) continue;
+    std::string key = lower(line.substr(0, colon));
+    key.erase(std::remove_if(key.begin(), key.end(), ::isspace), key.end());
+    std::istringstream value(line.substr(colon + 1));
+    if (key == "objectfilename") {
+      value >> std::ws;
+      std::getline(value, object);
+      while (!object.empty() && std::isspace(static_cast<unsigned char>(object.back()))) object.pop_back();
+    } else if (key == "resolution") {
+      std::array<long long, 3> r{};
+      if (!(value >> r[0] >> r[1] >> r[2]) || r[0] <= 0 || r[1] <= 0 || r[2] <= 0)
+        throw std::runtime_error(path.string() + ": line " + std::to_string(line_no) +
+                                 ": Resolution needs three positive integers");
+      dims = std::array<uint64_t, 3>{uint64_t(r[0]), uint64_t(r[1]), uint64_t(r[2])};
+    } else if (key == "format") {
+      value >> format;
+    } else if (key == "slicethickness") {
+      if (!(value >> spacing[0] >> spacing[1] >> spacing[2]) || spacing[0] <= 0 || spacing[1] <= 0 || spacing[2] <= 0)
+        throw std::runtime_error(path.string() + ": line " + std::to_string(line_no) +
+                                 ": SliceThickness needs three positive numbers");
+    } else if (key == "endianness" || key == "byteorder") {
+      std::string e;
+      value >> e;
+      big_endian = lower(e).find("big") != std::string::npos;
+    }
+  }
+  if (object.empty()) throw std::runtime_error(path.string() + ": no ObjectFileName");
+  if (!dims) throw std::runtime_error(path.string() + ": no Resolution");
+  if (format.empty()) throw std::runtime_error(path.string() + ": no Format");
+  ScalarType type = parse_scalar_type(format);
+  if (type == ScalarType::Unknown)
+    throw std::runtime_error(path.string() + ": unknown Format '" + format + "'");
+  std::filesystem::path data = path.parent_path() / object;
+  Volume v = read_elements(data, *dims, type, big_endian, 0, false);
+  v.spacing = spacing;
+  v.name = path.string();
+  return v;
+}
+
+void require_same_grid(const Volume& a, const Volume& b) {
+  if (a.dims != b.dims) {
+    std::ostringstream os;
+    os << "fields are on different grids: " << a.name << " is " << a.dims[0] << "x" << a.dims[1] << "x"
+       << a.dims[2] << ", " << b.name << " is " << b.dims[0] << "x" << b.dims[1] << "x" << b.dims[2];
+    throw std::runtime_error(os.str());
+  }
+}
+
+void write_raw_float32(const std::filesystem::path& path, const Volume& v) {
+  std::string bytes(v.values.size() * sizeof(float), '\0');
+  for (size_t i = 0; i < v.values.size(); ++i) {
+    uint32_t bits = std::bit_cast<uint32_t>(v.values[i]);
+    if constexpr (std::endian::native == std::endian::big) bits = __builtin_bswap32(bits);
+    std::memcpy(bytes.data() + i * 4, &bits, 4);
+  }
+  write_file_atomically(path, bytes);
+}
+
+}  // namespace tfm

@@ -1,0 +1,99 @@
+// Pipelines and dispatch recording of the voxel-pair kernels.
+#include "voxel_pair.h"
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "context.h"
+
+namespace tfm {
+
+static_assert(sizeof(gpu::VoxelPairPush) == 32, "VoxelPairPush must match the GLSL std430 block");
+
+gpu::VoxelPairPush make_voxel_pair_push(const FieldMapping& ref, const FieldMapping& opt) {
+  gpu::VoxelPairPush p{};
+  p.opt_tf_size = opt.tf_size;
+  p.ref_tf_size = ref.tf_size;
+  p.ref_lo = ref.lo;
+  p.ref_scale = ref.scale;
+  p.opt_lo = opt.lo;
+  p.opt_scale = opt.scale;
+  return p;
+}
+
+uint32_t voxel_groups(const Context& ctx, uint64_t voxels) {
+  const uint64_t per_group = uint64_t(TFM_VOXEL_WORKGROUP) * 32;
+  uint64_t groups = (voxels + per_group - 1) / per_group;
+  return static_cast<uint32_t>(std::clamp<uint64_t>(groups, 1, ctx.limits().maxComputeWorkGroupCount[0]));
+}
+
+std::vector<double> decode_fixed_point(const std::vector<uint32_t>& words) {
+  std::vector<double> out(words.size() / 2);
+  for (size_t k = 0; k < out.size(); ++k)
+    out[k] = (double(words[2 * k + 1]) * TFM_FIXED_ONE + double(words[2 * k])) / TFM_FIXED_ONE;
+  return out;
+}
+
+static void check_pair(const DeviceField& ref, const DeviceField& opt) {
+  if (ref.voxel_count() != opt.voxel_count() || ref.chunk_voxels() != opt.chunk_voxels())
+    throw std::invalid_argument("voxel-pair kernel: fields differ in size or chunking");
+}
+
+AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint32_t tf_size, bool force_global)
+    : ctx_(ctx), tf_size_(tf_size) {
+  if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
+  const uint64_t shared_bytes = uint64_t(TFM_ASSEMBLE_SLOTS(tf_size)) * 2 * sizeof(uint32_t);
+  use_shared_ = !force_global && shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
+  PipelineDesc desc;
+  desc.shader = "assemble_normal_equations";
+  desc.binding_counts = {1, 1, 1, 1};
+  desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
+  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+  desc.specialization = {TFM_VOXEL_WORKGROUP, use_shared_ ? 2 * TFM_ASSEMBLE_SLOTS(tf_size) : 2u, use_shared_ ? 1u : 0u};
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+}
+
+uint32_t AssembleNormalEquationsKernel::slots() const { return TFM_ASSEMBLE_SLOTS(tf_size_); }
+
+void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
+                                           const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                           const Buffer& ref_tf, Buffer& accum) const {
+  check_pair(ref, opt);
+  if (opt_map.tf_size != tf_size_) throw std::invalid_argument("assemble: mapping TF size differs from kernel's");
+  if (accum.size() < uint64_t(slots()) * 8) throw std::invalid_argument("assemble: accumulator buffer too small");
+  gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
+  for (size_t c = 0; c < ref.chunk_count(); ++c) {
+    push.voxel_count = static_cast<uint32_t>(ref.chunk_size(c));
+    batch.dispatch(*pipeline_, {ref.chunk(c), opt.chunk(c), ref_tf, accum}, push,
+                   {voxel_groups(ctx_, ref.chunk_size(c))});
+    // Successive chunks add into the same accumulators.
+    batch.barrier();
+  }
+}
+
+VoxelLossKernel::VoxelLossKernel(Context& ctx) : ctx_(ctx) {
+  PipelineDesc desc;
+  desc.shader = "voxel_loss";
+  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
+  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+  desc.specialization = {TFM_VOXEL_WORKGROUP};
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+}
+
+void VoxelLossKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
+                             const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
+                             const Buffer& opt_tf, Buffer& accum) const {
+  check_pair(ref, opt);
+  if (accum.size() < uint64_t(TFM_LOSS_SLOTS) * 8) throw std::invalid_argument("voxel loss: accumulator too small");
+  gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
+  for (size_t c = 0; c < ref.chunk_count(); ++c) {
+    push.voxel_count = static_cast<uint32_t>(ref.chunk_size(c));
+    batch.dispatch(*pipeline_, {ref.chunk(c), opt.chunk(c), ref_tf, opt_tf, accum}, push,
+                   {voxel_groups(ctx_, ref.chunk_size(c))});
+    // Successive chunks add into the same accumulators.
+    batch.barrier();
+  }
+}
+
+}  // namespace tfm

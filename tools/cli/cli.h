@@ -1,0 +1,38 @@
+// Subcommand registry of the `tfmatch` program and helpers shared by subcommands.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "context.h"
+#include "field_mapping.h"
+
+namespace tfm::cli {
+
+// Options every subcommand that computes shares (device selection, validation).
+struct GlobalOptions {
+  std::string device;        // index or name substring
+  bool validation = false;
+  bool quiet = false;
+};
+GlobalOptions& globals();
+
+// A subcommand adds itself to the app; its callback sets the exit code through `exit_code()`.
+using CommandSetup = std::function<void(CLI::App& app)>;
+struct CommandRegistration {
+  CommandRegistration(int order, CommandSetup setup);
+};
+std::vector<std::pair<int, CommandSetup>>& registered_commands();
+int& exit_code();
+
+// Creates the Vulkan context from the global options.
+std::unique_ptr<Context> make_context();
+
+// Parses "lo,hi"; throws CLI::ValidationError with a clear message.
+FieldRange parse_range(const std::string& text, const std::string& flag);
+
+}  // namespace tfm::cli

@@ -1,0 +1,91 @@
+// `tfmatch optimize`: fit a TF for a second field to a reference field and its TF.
+#include <fstream>
+#include <iostream>
+
+#include "atomic_file.h"
+#include "cli.h"
+#include "optimize.h"
+#include "volume.h"
+
+namespace tfm::cli {
+namespace {
+
+struct OptimizeArgs {
+  std::string ref, ref_tf, field, out, json;
+  uint32_t tf_size = 64;
+  std::string solver = "normal-equations";
+  double ridge = 0.0, smooth = 0.0;
+  std::string factorization = "auto";
+  std::string ref_range, field_range;
+  std::vector<uint64_t> dims;
+  std::string type;
+  bool big_endian = false;
+};
+
+int run(const OptimizeArgs& a) {
+  VolumeOptions vo;
+  if (!a.dims.empty()) vo.dims = std::array<uint64_t, 3>{a.dims[0], a.dims[1], a.dims[2]};
+  if (!a.type.empty()) {
+    vo.type = parse_scalar_type(a.type);
+    if (vo.type == ScalarType::Unknown) throw std::runtime_error("--type: unknown element type '" + a.type + "'");
+  }
+  vo.big_endian = a.big_endian;
+  Volume ref = load_volume(a.ref, vo);
+  Volume field = load_volume(a.field, vo);
+  OptimizeRequest req;
+  req.ref = &ref;
+  req.field = &field;
+  req.ref_tf = read_tf_json(a.ref_tf);
+  if (!a.ref_range.empty()) req.ref_range = parse_range(a.ref_range, "--ref-range");
+  if (!a.field_range.empty()) req.field_range = parse_range(a.field_range, "--field-range");
+  req.tf_size = a.tf_size;
+  req.solver = a.solver;
+  req.settings.solve.ridge = a.ridge;
+  req.settings.solve.smooth = a.smooth;
+  req.settings.solve.factorization = a.factorization == "ldlt" ? Factorization::LDLT
+                                     : a.factorization == "qr" ? Factorization::QR
+                                                               : Factorization::Auto;
+  auto ctx = make_context();
+  OptimizeResult result = run_optimize(*ctx, req);
+  write_tf_json(a.out, result.tf);
+  if (!a.json.empty()) write_file_atomically(a.json, result.to_json().dump(2) + "\n");
+  if (!globals().quiet) {
+    result.print_summary(std::cout);
+    std::cout << "  wrote " << a.out << (a.json.empty() ? "" : " and " + a.json) << "\n";
+  }
+  return 0;
+}
+
+CommandRegistration reg(10, [](CLI::App& app) {
+  auto args = std::make_shared<OptimizeArgs>();
+  auto* sub = app.add_subcommand("optimize", "Optimize a transfer function for FIELD to match REF rendered with REF-TF");
+  sub->add_option("--ref", args->ref, "Reference field (volume file, or file:VARIABLE)")->required();
+  sub->add_option("--ref-tf", args->ref_tf, "Reference transfer function (JSON {\"rgba\": [[r,g,b,a],...]})")
+      ->required()->check(CLI::ExistingFile);
+  sub->add_option("--field", args->field, "Field whose transfer function is optimized")->required();
+  sub->add_option("--out", args->out, "Optimized transfer function (JSON)")->required();
+  sub->add_option("--tf-size", args->tf_size, "Entries N of the optimized TF")->check(CLI::Range(2u, 1u << 16))
+      ->capture_default_str();
+  sub->add_option("--solver", args->solver, "Solver: " + [] {
+    std::string s;
+    for (auto& n : solver_names()) s += (s.empty() ? "" : ", ") + n;
+    return s;
+  }())->capture_default_str();
+  sub->add_option("--ridge", args->ridge, "Tikhonov weight, relative to the mean diagonal of M")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--smooth", args->smooth, "First-difference smoothness weight, relative to the mean diagonal of M")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--factorization", args->factorization, "normal-equations: auto, ldlt or qr")
+      ->check(CLI::IsMember({"auto", "ldlt", "qr"}))->capture_default_str();
+  sub->add_option("--ref-range", args->ref_range, "Reference field range lo,hi (default: TF file's, else finite min/max)");
+  sub->add_option("--field-range", args->field_range, "Field range lo,hi (default: finite min/max)");
+  sub->add_option("--dims", args->dims, "Raw files: grid size X Y Z (when the file name does not say)")->expected(3)
+      ->delimiter(',');
+  sub->add_option("--type", args->type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)");
+  sub->add_flag("--big-endian", args->big_endian, "Raw files: big-endian data");
+  sub->add_option("--json", args->json, "Also write the summary as JSON");
+  sub->callback([args] { exit_code() = run(*args); });
+});
+
+}  // namespace
+}  // namespace tfm::cli

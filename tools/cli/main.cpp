@@ -1,0 +1,86 @@
+// The `tfmatch` program: parses the command line and runs the chosen subcommand.
+#include <algorithm>
+#include <cstdlib>
+#include <exception>
+#include <iostream>
+
+#include "cli.h"
+#include "vk_check.h"
+
+namespace tfm::cli {
+
+GlobalOptions& globals() {
+  static GlobalOptions g;
+  return g;
+}
+
+std::vector<std::pair<int, CommandSetup>>& registered_commands() {
+  static std::vector<std::pair<int, CommandSetup>> list;
+  return list;
+}
+
+CommandRegistration::CommandRegistration(int order, CommandSetup setup) {
+  registered_commands().emplace_back(order, std::move(setup));
+}
+
+int& exit_code() {
+  static int code = 0;
+  return code;
+}
+
+std::unique_ptr<Context> make_context() {
+  ContextOptions options;
+  const std::string& d = globals().device;
+  if (!d.empty()) {
+    if (std::all_of(d.begin(), d.end(), ::isdigit)) options.device_index = std::stoul(d);
+    else options.device_name = d;
+  }
+  if (globals().validation) {
+    options.validation = true;
+    options.require_validation = true;
+  }
+  return Context::create(options);
+}
+
+FieldRange parse_range(const std::string& text, const std::string& flag) {
+  auto comma = text.find(',');
+  try {
+    if (comma == std::string::npos) throw std::invalid_argument("no comma");
+    size_t used = 0;
+    FieldRange r{std::stod(text.substr(0, comma), &used), 0.0};
+    if (used != comma) throw std::invalid_argument("junk");
+    std::string rest = text.substr(comma + 1);
+    r.hi = std::stod(rest, &used);
+    if (used != rest.size()) throw std::invalid_argument("junk");
+    return r;
+  } catch (const std::exception&) {
+    throw CLI::ValidationError(flag, "expected lo,hi (two numbers), got '" + text + "'");
+  }
+}
+
+}  // namespace tfm::cli
+
+int main(int argc, char** argv) {
+  using namespace tfm::cli;
+  CLI::App app{"tfmatch: optimize a transfer function so a second field's volume renderings match a reference's"};
+  app.require_subcommand(1);
+  app.set_help_all_flag("--help-all", "Print help for every subcommand");
+  app.add_option("--device", globals().device, "Vulkan device: index or name substring (env TFMATCH_DEVICE)");
+  app.add_flag("--validation", globals().validation, "Enable the Khronos validation layer (env TFMATCH_VALIDATION=1)");
+  app.add_flag("-q,--quiet", globals().quiet, "Print only errors");
+  auto& commands = registered_commands();
+  std::sort(commands.begin(), commands.end(), [](auto& a, auto& b) { return a.first < b.first; });
+  for (auto& [order, setup] : commands) setup(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const tfm::VulkanError& e) {
+    std::cerr << "tfmatch: Vulkan error: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "tfmatch: error: " << e.what() << "\n";
+    return 1;
+  }
+  return exit_code();
+}
