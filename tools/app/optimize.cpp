@@ -29,6 +29,24 @@ std::vector<std::string> solver_names() {
   return names;
 }
 
+double SolverSettings::number(const std::string& name, double fallback) const {
+  auto it = extra.find(name);
+  if (it == extra.end()) return fallback;
+  try {
+    size_t used = 0;
+    double v = std::stod(it->second, &used);
+    if (used != it->second.size()) throw std::invalid_argument("junk");
+    return v;
+  } catch (const std::exception&) {
+    throw std::runtime_error("--" + name + ": expected a number, got '" + it->second + "'");
+  }
+}
+
+std::string SolverSettings::text(const std::string& name, const std::string& fallback) const {
+  auto it = extra.find(name);
+  return it == extra.end() ? fallback : it->second;
+}
+
 OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   if (!req.ref || !req.field) throw std::invalid_argument("run_optimize: both fields are required");
   if (req.tf_size < 2) throw std::runtime_error("--tf-size must be at least 2");
@@ -55,6 +73,8 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   out.phases.push_back({"upload", ms_since(t0), -1.0});
 
   VoxelProblem problem{ctx,
+                       *req.ref,
+                       *req.field,
                        ref,
                        opt,
                        make_mapping(out.ref_range, static_cast<uint32_t>(req.ref_tf.size())),

@@ -29,6 +29,8 @@ struct PhaseTime {
 // Everything a voxel solver sees: both fields on the device, their mappings, the reference TF.
 struct VoxelProblem {
   Context& ctx;
+  const Volume& ref_volume;      // host copies (dims, spacing; image-based solvers render them)
+  const Volume& opt_volume;
   const DeviceField& ref;
   const DeviceField& opt;
   FieldMapping ref_map;
@@ -40,7 +42,14 @@ struct VoxelProblem {
 
 struct SolverSettings {
   SolveOptions solve;                 // regularization, factorization
-  std::map<std::string, std::string> extra;  // solver-specific settings (name -> value)
+  // Solver-specific settings from the command line, by flag name without dashes ("loss",
+  // "optimizer", "lr", "iterations", "tolerance", "max-iterations", "seed", "views-per-iteration",
+  // "image-size", "init", ...). A solver reads what it understands and rejects bad values.
+  std::map<std::string, std::string> extra;
+  // extra[name] as a number, or `fallback`; throws std::runtime_error naming the flag when the
+  // value is not a number.
+  double number(const std::string& name, double fallback) const;
+  std::string text(const std::string& name, const std::string& fallback) const;
 };
 
 struct SolverOutput {

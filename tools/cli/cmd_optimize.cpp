@@ -1,6 +1,7 @@
 // `tfmatch optimize`: fit a TF for a second field to a reference field and its TF.
 #include <fstream>
 #include <iostream>
+#include <map>
 
 #include "atomic_file.h"
 #include "cli.h"
@@ -20,6 +21,22 @@ struct OptimizeArgs {
   std::vector<uint64_t> dims;
   std::string type;
   bool big_endian = false;
+  std::map<std::string, std::string> extra;  // solver-specific flags, passed through
+};
+
+// Solver-specific flags: each solver reads those it understands from SolverSettings::extra.
+const std::pair<const char*, const char*> kSolverFlags[] = {
+    {"loss", "gradient-descent/diffdvr: l2 or l1"},
+    {"optimizer", "gradient-descent/diffdvr: adam or sgd"},
+    {"lr", "gradient-descent/diffdvr: learning rate"},
+    {"iterations", "gradient-descent/diffdvr: iterations"},
+    {"tolerance", "iterative solvers: relative residual of the normal equations to stop at"},
+    {"max-iterations", "iterative solvers: iteration cap"},
+    {"seed", "diffdvr: seed of the random cameras"},
+    {"views-per-iteration", "diffdvr: cameras per iteration"},
+    {"image-size", "diffdvr: image width and height in pixels"},
+    {"init", "diffdvr: initial TF, reference or normal-equations"},
+    {"cameras", "diffdvr: random or fibonacci"},
 };
 
 int run(const OptimizeArgs& a) {
@@ -42,6 +59,7 @@ int run(const OptimizeArgs& a) {
   req.solver = a.solver;
   req.settings.solve.ridge = a.ridge;
   req.settings.solve.smooth = a.smooth;
+  req.settings.extra = a.extra;
   req.settings.solve.factorization = a.factorization == "ldlt" ? Factorization::LDLT
                                      : a.factorization == "qr" ? Factorization::QR
                                                                : Factorization::Auto;
@@ -84,6 +102,11 @@ CommandRegistration reg(10, [](CLI::App& app) {
   sub->add_option("--type", args->type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)");
   sub->add_flag("--big-endian", args->big_endian, "Raw files: big-endian data");
   sub->add_option("--json", args->json, "Also write the summary as JSON");
+  for (const auto& [flag, help] : kSolverFlags) {
+    std::string name = flag;
+    sub->add_option_function<std::string>("--" + name, [args, name](const std::string& v) { args->extra[name] = v; },
+                                           help);
+  }
   sub->callback([args] { exit_code() = run(*args); });
 });
 
