@@ -1,0 +1,66 @@
+// Explicit sparse A and its normal equations with Eigen (the paper's CPU baseline).
+#include "eigen_baseline.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <vector>
+
+namespace tfm {
+
+ExplicitSystem build_explicit_system(std::span<const float> ref, std::span<const float> opt,
+                                     const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                     const TransferFunction& ref_tf) {
+  if (ref.size() != opt.size()) throw std::invalid_argument("build_explicit_system: size mismatch");
+  const uint32_t n = opt_map.tf_size;
+  std::vector<float> tf = ref_tf.as_floats();
+  // First pass: which voxels have data, so A is allocated once at its final size.
+  std::vector<uint8_t> keep(ref.size());
+  size_t rows_voxels = 0;
+  for (size_t i = 0; i < ref.size(); ++i) {
+    keep[i] = !std::isnan(ref[i]) && !std::isnan(opt[i]);
+    rows_voxels += keep[i];
+  }
+  ExplicitSystem sys;
+  sys.a.resize(Eigen::Index(4 * rows_voxels), Eigen::Index(4 * n));
+  sys.a.reserve(Eigen::VectorXi::Constant(Eigen::Index(4 * rows_voxels), 2));
+  sys.b.resize(Eigen::Index(4 * rows_voxels));
+  size_t row = 0;
+  for (size_t i = 0; i < ref.size(); ++i) {
+    if (!keep[i]) continue;
+    uint32_t jr, jo;
+    float wr, wo;
+    tf_coordinate(ref[i], ref_map, jr, wr);
+    tf_coordinate(opt[i], opt_map, jo, wo);
+    for (int c = 0; c < 4; ++c) {
+      const Eigen::Index r = Eigen::Index(4 * row + c);
+      sys.a.insert(r, Eigen::Index(4 * jo + c)) = 1.0 - double(wo);
+      sys.a.insert(r, Eigen::Index(4 * (jo + 1) + c)) = double(wo);
+      double b = (1.0 - double(wr)) * tf[4 * jr + c] + double(wr) * tf[4 * (jr + 1) + c];
+      sys.b(r) = std::clamp(b, 0.0, 1.0);
+    }
+    ++row;
+  }
+  sys.a.makeCompressed();
+  return sys;
+}
+
+ExplicitNormalEquations explicit_normal_equations(const ExplicitSystem& s) {
+  ExplicitNormalEquations ne;
+  Eigen::SparseMatrix<double> at = s.a.transpose();
+  ne.ata = (at * s.a).pruned();
+  ne.atb = at * s.b;
+  return ne;
+}
+
+NormalEquations to_tridiagonal(const ExplicitNormalEquations& ne, uint32_t n) {
+  if (ne.ata.rows() != Eigen::Index(4 * n)) throw std::invalid_argument("to_tridiagonal: size mismatch");
+  NormalEquations eq(n);
+  // Channel 0 of the Kronecker structure; the other channels repeat it.
+  for (uint32_t j = 0; j < n; ++j) eq.diag[j] = ne.ata.coeff(4 * j, 4 * j);
+  for (uint32_t j = 0; j + 1 < n; ++j) eq.off[j] = ne.ata.coeff(4 * j, 4 * (j + 1));
+  for (uint32_t j = 0; j < n; ++j)
+    for (int c = 0; c < 4; ++c) eq.rhs(j, c) = ne.atb(4 * j + c);
+  return eq;
+}
+
+}  // namespace tfm
