@@ -27,8 +27,8 @@ ExplicitSystem build_explicit_system(std::span<const float> ref, std::span<const
   size_t row = 0;
   for (size_t i = 0; i < ref.size(); ++i) {
     if (!keep[i]) continue;
-    uint32_t jr, jo;
-    float wr, wo;
+    uint32_t jr = 0, jo = 0;
+    float wr = 0.0f, wo = 0.0f;
     tf_coordinate(ref[i], ref_map, jr, wr);
     tf_coordinate(opt[i], opt_map, jo, wo);
     for (int c = 0; c < 4; ++c) {
