@@ -33,7 +33,7 @@ class Buffer {
   VkBuffer handle() const { return buffer_; }
   uint64_t size() const { return bytes_; }
   bool host_visible() const { return mapped_ != nullptr; }
-  // Mapped pointer of a host-visible buffer; null otherwise.
+  // Mapped pointer of an Upload/Readback buffer; null for Device buffers.
   void* mapped() const { return mapped_; }
   explicit operator bool() const { return buffer_ != VK_NULL_HANDLE; }
 
@@ -46,7 +46,8 @@ class Buffer {
   void* mapped_ = nullptr;
 };
 
-// Copies host bytes into `dst` at `offset` (through a staging buffer unless dst is host-visible).
+// Copies host bytes into `dst` at `offset` (through bounded staging buffers unless dst is a
+// host buffer).
 void upload(Context& ctx, Buffer& dst, const void* data, uint64_t bytes, uint64_t offset = 0);
 // Copies `bytes` from `src` at `offset` to host memory.
 void readback(Context& ctx, const Buffer& src, void* data, uint64_t bytes, uint64_t offset = 0);

@@ -2,6 +2,7 @@
 #include "voxel_pair.h"
 
 #include <algorithm>
+#include <cstdlib>
 #include <stdexcept>
 
 #include "context.h"
@@ -22,7 +23,8 @@ gpu::VoxelPairPush make_voxel_pair_push(const FieldMapping& ref, const FieldMapp
 }
 
 uint32_t voxel_groups(const Context& ctx, uint64_t voxels) {
-  const uint64_t per_group = uint64_t(TFM_VOXEL_WORKGROUP) * 32;
+  // Enough voxels per group to amortize its flush of the shared accumulators.
+  const uint64_t per_group = uint64_t(TFM_VOXEL_WORKGROUP) * 64;
   uint64_t groups = (voxels + per_group - 1) / per_group;
   return static_cast<uint32_t>(std::clamp<uint64_t>(groups, 1, ctx.limits().maxComputeWorkGroupCount[0]));
 }
@@ -39,7 +41,8 @@ static void check_pair(const DeviceField& ref, const DeviceField& opt) {
     throw std::invalid_argument("voxel-pair kernel: fields differ in size or chunking");
 }
 
-AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint32_t tf_size, bool force_global)
+AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint32_t tf_size, bool force_global,
+                                                             uint32_t run)
     : ctx_(ctx), tf_size_(tf_size) {
   if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
   const uint64_t shared_bytes = uint64_t(TFM_ASSEMBLE_SLOTS(tf_size)) * 2 * sizeof(uint32_t);
@@ -49,7 +52,12 @@ AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint3
   desc.binding_counts = {1, 1, 1, 1};
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  desc.specialization = {TFM_VOXEL_WORKGROUP, use_shared_ ? 2 * TFM_ASSEMBLE_SLOTS(tf_size) : 2u, use_shared_ ? 1u : 0u};
+  if (run == 0) {
+    run = TFM_ASSEMBLE_RUN;
+    if (const char* env = std::getenv("TFMATCH_ASSEMBLE_RUN")) run = uint32_t(std::clamp(std::atoi(env), 1, 1024));
+  }
+  desc.specialization = {TFM_VOXEL_WORKGROUP, use_shared_ ? 2 * TFM_ASSEMBLE_SLOTS(tf_size) : 2u, use_shared_ ? 1u : 0u,
+                         run};
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 

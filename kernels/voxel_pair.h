@@ -22,9 +22,12 @@ gpu::VoxelPairPush make_voxel_pair_push(const FieldMapping& ref, const FieldMapp
 // Adds M, S^T b, b^T b and the voxel count of (ref, opt) to a 32.32 fixed-point accumulator
 // buffer of TFM_ASSEMBLE_SLOTS(N) slots. Accumulates in workgroup-shared memory when the device
 // has room for the slots, else straight to the buffer (`force_global` selects that path).
+// Each invocation sums `run` contiguous voxels in registers between flushes (0: the default
+// TFM_ASSEMBLE_RUN, or the environment variable TFMATCH_ASSEMBLE_RUN for tuning on a device).
+// The result is bit-identical for every path and run length.
 class AssembleNormalEquationsKernel {
  public:
-  AssembleNormalEquationsKernel(Context& ctx, uint32_t tf_size, bool force_global = false);
+  AssembleNormalEquationsKernel(Context& ctx, uint32_t tf_size, bool force_global = false, uint32_t run = 0);
   uint32_t tf_size() const { return tf_size_; }
   uint32_t slots() const;
   bool uses_shared_memory() const { return use_shared_; }

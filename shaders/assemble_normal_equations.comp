@@ -11,6 +11,8 @@ layout(local_size_x_id = 0) in;
 // Words of workgroup-shared accumulators (2 per slot); 2 when accumulating straight to memory.
 layout(constant_id = 1) const uint SHARED_WORDS = 2u;
 layout(constant_id = 2) const bool USE_SHARED = true;
+// Contiguous voxels one invocation accumulates in registers before touching shared memory.
+layout(constant_id = 3) const uint RUN = TFM_ASSEMBLE_RUN;
 
 layout(std430, binding = TFM_ASSEMBLE_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
 layout(std430, binding = TFM_ASSEMBLE_BINDING_OPT_FIELD) readonly buffer OptField { float opt_field[]; };
@@ -38,26 +40,60 @@ void main() {
   memoryBarrierShared();
   barrier();
 
+  // Each invocation walks a contiguous run of TFM_ASSEMBLE_RUN voxels and keeps the sums of the
+  // current TF bin in registers (exact 32.32 integer adds), touching the shared accumulators only
+  // when the bin changes: neighbouring voxels of smooth fields mostly share a bin, so this removes
+  // most atomics. Runs of one workgroup are adjacent; workgroups stride over blocks.
   uvec2 btb[4] = uvec2[4](uvec2(0u), uvec2(0u), uvec2(0u), uvec2(0u));
   uvec2 count = uvec2(0u);
-  const uint stride = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
-  for (uint i = gl_GlobalInvocationID.x; i < pc.voxel_count; i += stride) {
-    uint jr, jo;
-    float wr, wo;
-    if (!tf_coordinate(ref_field[i], pc.ref_lo, pc.ref_scale, pc.ref_tf_size, jr, wr)) continue;
-    if (!tf_coordinate(opt_field[i], pc.opt_lo, pc.opt_scale, n, jo, wo)) continue;
-    const vec4 b = (1.0 - wr) * ref_tf[jr] + wr * ref_tf[jr + 1u];
-    const float u = 1.0 - wo;
-    ADD(jo, fx_from_float(u * u));
-    ADD(jo + 1u, fx_from_float(wo * wo));
-    ADD(n + jo, fx_from_float(u * wo));
-    for (uint c = 0u; c < 4u; ++c) {
-      const float bc = clamp(b[c], 0.0, 1.0);
-      ADD(stb + 4u * jo + c, fx_from_float(u * bc));
-      ADD(stb + 4u * (jo + 1u) + c, fx_from_float(wo * bc));
-      fx_add(btb[c], fx_from_float(bc * bc));
+  uint cur = 0xFFFFFFFFu;
+  uvec2 d0 = uvec2(0u), d1 = uvec2(0u), od = uvec2(0u);
+  uvec2 s0[4] = uvec2[4](uvec2(0u), uvec2(0u), uvec2(0u), uvec2(0u));
+  uvec2 s1[4] = uvec2[4](uvec2(0u), uvec2(0u), uvec2(0u), uvec2(0u));
+  const uint block = gl_WorkGroupSize.x * RUN;
+  for (uint base = gl_WorkGroupID.x * block; base < pc.voxel_count; base += gl_NumWorkGroups.x * block) {
+    const uint first = base + lid * RUN;
+    const uint last = min(first + RUN, pc.voxel_count);
+    for (uint i = first; i < last; ++i) {
+      uint jr, jo;
+      float wr, wo;
+      if (!tf_coordinate(ref_field[i], pc.ref_lo, pc.ref_scale, pc.ref_tf_size, jr, wr)) continue;
+      if (!tf_coordinate(opt_field[i], pc.opt_lo, pc.opt_scale, n, jo, wo)) continue;
+      if (jo != cur) {
+        if (cur != 0xFFFFFFFFu) {
+          ADD(cur, d0);
+          ADD(cur + 1u, d1);
+          ADD(n + cur, od);
+          for (uint c = 0u; c < 4u; ++c) {
+            ADD(stb + 4u * cur + c, s0[c]);
+            ADD(stb + 4u * (cur + 1u) + c, s1[c]);
+          }
+        }
+        cur = jo;
+        d0 = d1 = od = uvec2(0u);
+        for (uint c = 0u; c < 4u; ++c) s0[c] = s1[c] = uvec2(0u);
+      }
+      const vec4 b = clamp((1.0 - wr) * ref_tf[jr] + wr * ref_tf[jr + 1u], 0.0, 1.0);
+      const float u = 1.0 - wo;
+      fx_add(d0, fx_from_float(u * u));
+      fx_add(d1, fx_from_float(wo * wo));
+      fx_add(od, fx_from_float(u * wo));
+      for (uint c = 0u; c < 4u; ++c) {
+        fx_add(s0[c], fx_from_float(u * b[c]));
+        fx_add(s1[c], fx_from_float(wo * b[c]));
+        fx_add(btb[c], fx_from_float(b[c] * b[c]));
+      }
+      fx_add(count, uvec2(0u, 1u));  // 1.0 in 32.32
     }
-    fx_add(count, uvec2(0u, 1u));  // 1.0 in 32.32
+  }
+  if (cur != 0xFFFFFFFFu) {
+    ADD(cur, d0);
+    ADD(cur + 1u, d1);
+    ADD(n + cur, od);
+    for (uint c = 0u; c < 4u; ++c) {
+      ADD(stb + 4u * cur + c, s0[c]);
+      ADD(stb + 4u * (cur + 1u) + c, s1[c]);
+    }
   }
   for (uint c = 0u; c < 4u; ++c) ADD(6u * n - 1u + c, btb[c]);
   ADD(6u * n + 3u, count);

@@ -31,6 +31,8 @@ using uint = std::uint32_t;
 #define TFM_ASSEMBLE_BINDING_REF_TF 2
 #define TFM_ASSEMBLE_BINDING_ACCUM 3
 #define TFM_ASSEMBLE_SLOTS(n) (6u * (n) + 4u)
+// Contiguous voxels one invocation accumulates in registers before touching shared memory.
+#define TFM_ASSEMBLE_RUN 16u
 
 // Push constants of the kernels that map a pair of fields (reference, optimized) through TFs:
 // assemble_normal_equations and voxel_loss. A shader opts in with TFM_WANT_VOXEL_PAIR_PUSH

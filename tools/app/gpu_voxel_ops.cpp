@@ -8,9 +8,9 @@
 
 namespace tfm {
 
-GpuNormalEquations::GpuNormalEquations(Context& ctx, uint32_t tf_size, bool force_global_atomics)
+GpuNormalEquations::GpuNormalEquations(Context& ctx, uint32_t tf_size, bool force_global_atomics, uint32_t run)
     : ctx_(ctx),
-      kernel_(ctx, tf_size, force_global_atomics),
+      kernel_(ctx, tf_size, force_global_atomics, run),
       accum_(ctx, uint64_t(kernel_.slots()) * 2 * sizeof(uint32_t), MemoryUsage::Device, "normal-equation accumulators") {
   reset();
 }

@@ -17,7 +17,7 @@ namespace tfm {
 // volume, say) and returns them in double precision. Deterministic: same bits on every run.
 class GpuNormalEquations {
  public:
-  GpuNormalEquations(Context& ctx, uint32_t tf_size, bool force_global_atomics = false);
+  GpuNormalEquations(Context& ctx, uint32_t tf_size, bool force_global_atomics = false, uint32_t run = 0);
   void reset();
   // Adds the voxels of (ref, opt); returns the GPU time in ms (-1 without timestamps).
   double add(const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,

@@ -29,8 +29,9 @@ struct CommandRegistration {
 std::vector<std::pair<int, CommandSetup>>& registered_commands();
 int& exit_code();
 
-// Creates the Vulkan context from the global options.
-std::unique_ptr<Context> make_context();
+// Creates the Vulkan context from the global options. When validation is on, the messages it
+// collected are printed to stderr as the context is released, and the exit code becomes 3.
+std::shared_ptr<Context> make_context();
 
 // Parses "lo,hi"; throws CLI::ValidationError with a clear message.
 FieldRange parse_range(const std::string& text, const std::string& flag);

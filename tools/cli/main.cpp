@@ -28,7 +28,14 @@ int& exit_code() {
   return code;
 }
 
-std::unique_ptr<Context> make_context() {
+// Set when a context reported validation messages: the run is then a failure (exit code 3),
+// whatever the command returned.
+static bool& validation_failed() {
+  static bool failed = false;
+  return failed;
+}
+
+std::shared_ptr<Context> make_context() {
   ContextOptions options;
   const std::string& d = globals().device;
   if (!d.empty()) {
@@ -39,7 +46,12 @@ std::unique_ptr<Context> make_context() {
     options.validation = true;
     options.require_validation = true;
   }
-  return Context::create(options);
+  return std::shared_ptr<Context>(Context::create(options).release(), [](Context* ctx) {
+    auto messages = ctx->take_validation_messages();
+    for (const std::string& m : messages) std::cerr << "tfmatch: Vulkan validation " << m << "\n";
+    if (!messages.empty()) validation_failed() = true;
+    delete ctx;
+  });
 }
 
 FieldRange parse_range(const std::string& text, const std::string& flag) {
@@ -82,5 +94,6 @@ int main(int argc, char** argv) {
     std::cerr << "tfmatch: error: " << e.what() << "\n";
     return 1;
   }
+  if (validation_failed()) return 3;
   return exit_code();
 }

@@ -1,0 +1,208 @@
+// The host solver of the tridiagonal normal equations against independent dense least-squares
+// solves of the explicit A, with and without regularization; singular and recovery cases.
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "eigen_baseline.h"
+#include "gpu_voxel_ops.h"
+#include "normal_equations.h"
+#include "synthetic.h"
+#include "vk_test_env.h"
+
+namespace tfm {
+namespace {
+
+struct Problem {
+  std::vector<float> ref, opt;
+  TransferFunction ref_tf;
+  FieldMapping rm, om;
+};
+
+Problem small_problem(size_t voxels, uint32_t n, uint32_t seed, double opt_hi = 1.0) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  Problem p;
+  p.ref.resize(voxels);
+  p.opt.resize(voxels);
+  for (size_t i = 0; i < voxels; ++i) {
+    p.ref[i] = u(rng);
+    p.opt[i] = float(opt_hi) * u(rng);
+  }
+  p.ref_tf.rgba.resize(9);
+  for (auto& e : p.ref_tf.rgba) e = {u(rng), u(rng), u(rng), u(rng)};
+  p.rm = make_mapping({0, 1}, 9);
+  p.om = make_mapping({0, 1}, n);
+  return p;
+}
+
+// x as N x 4 from a solution vector of the explicit system (index 4j + c).
+Eigen::Matrix<double, Eigen::Dynamic, 4> unstack(const Eigen::VectorXd& v, uint32_t n) {
+  Eigen::Matrix<double, Eigen::Dynamic, 4> x(n, 4);
+  for (uint32_t j = 0; j < n; ++j)
+    for (int c = 0; c < 4; ++c) x(j, c) = v(4 * j + c);
+  return x;
+}
+
+// Dense least squares of [A; sqrt(ridge) I; sqrt(smooth) (D (x) I4)] by Householder QR on the
+// explicit matrix: independent of the normal equations (no A^T A is formed).
+Eigen::VectorXd dense_least_squares(const ExplicitSystem& s, uint32_t n, double ridge, double smooth) {
+  Eigen::MatrixXd a = Eigen::MatrixXd(s.a);
+  const Eigen::Index m = a.rows(), cols = 4 * n;
+  const Eigen::Index extra = (ridge > 0 ? cols : 0) + (smooth > 0 ? 4 * (n - 1) : 0);
+  Eigen::MatrixXd big = Eigen::MatrixXd::Zero(m + extra, cols);
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(m + extra);
+  big.topRows(m) = a;
+  rhs.head(m) = s.b;
+  Eigen::Index row = m;
+  if (ridge > 0)
+    for (Eigen::Index k = 0; k < cols; ++k) big(row++, k) = std::sqrt(ridge);
+  if (smooth > 0)
+    for (uint32_t j = 0; j + 1 < n; ++j)
+      for (int c = 0; c < 4; ++c, ++row) {
+        big(row, 4 * j + c) = -std::sqrt(smooth);
+        big(row, 4 * (j + 1) + c) = std::sqrt(smooth);
+      }
+  return big.colPivHouseholderQr().solve(rhs);
+}
+
+double mean_diag(const NormalEquations& eq) {
+  double s = 0;
+  for (double d : eq.diag) s += d;
+  return s / eq.n;
+}
+
+TEST(NormalEquationsSolver, MatchesDenseLeastSquares) {
+  for (uint32_t n : {2u, 5u, 16u}) {
+    Problem p = small_problem(600, n, 10 + n);
+    NormalEquations eq = assemble_normal_equations_cpu(p.ref, p.opt, p.rm, p.om, p.ref_tf);
+    ExplicitSystem sys = build_explicit_system(p.ref, p.opt, p.rm, p.om, p.ref_tf);
+    Eigen::VectorXd dense = dense_least_squares(sys, n, 0, 0);
+    for (Factorization f : {Factorization::LDLT, Factorization::QR}) {
+      SolveOptions o;
+      o.factorization = f;
+      SolveResult r = solve_normal_equations(eq, o);
+      // Well conditioned (cond < 1e3 here): both agree to near double rounding times cond.
+      EXPECT_LT(r.cond, 1e3);
+      EXPECT_LE((r.x - unstack(dense, n)).cwiseAbs().maxCoeff(), 1e-9) << "n=" << n;
+    }
+  }
+}
+
+TEST(NormalEquationsSolver, RegularizationMatchesAugmentedDenseSystem) {
+  const uint32_t n = 12;
+  Problem p = small_problem(400, n, 77);
+  NormalEquations eq = assemble_normal_equations_cpu(p.ref, p.opt, p.rm, p.om, p.ref_tf);
+  ExplicitSystem sys = build_explicit_system(p.ref, p.opt, p.rm, p.om, p.ref_tf);
+  const double md = mean_diag(eq);
+  for (auto [ridge, smooth] : {std::pair{0.1, 0.0}, std::pair{0.0, 0.5}, std::pair{0.05, 2.0}}) {
+    SolveOptions o;
+    o.ridge = ridge;
+    o.smooth = smooth;
+    SolveResult r = solve_normal_equations(eq, o);
+    Eigen::VectorXd dense = dense_least_squares(sys, n, ridge * md, smooth * md);
+    EXPECT_LE((r.x - unstack(dense, n)).cwiseAbs().maxCoeff(), 1e-9) << ridge << " " << smooth;
+  }
+}
+
+TEST(NormalEquationsSolver, ConditionNumberMatchesDenseEigenvalues) {
+  Problem p = small_problem(300, 10, 5);
+  NormalEquations eq = assemble_normal_equations_cpu(p.ref, p.opt, p.rm, p.om, p.ref_tf);
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(eq.dense_m());
+  SolveResult r = solve_normal_equations(eq);
+  double cond = es.eigenvalues().maxCoeff() / es.eigenvalues().minCoeff();
+  EXPECT_NEAR(r.cond / cond, 1.0, 1e-10);
+  EXPECT_EQ(r.factorization, "ldlt");
+}
+
+// Entries no voxel touches make M singular: the rank-revealing QR sets them to 0, the referenced
+// entries still solve their least-squares problem, and nothing is NaN; smoothing fills them.
+TEST(NormalEquationsSolver, UnreferencedEntriesHandled) {
+  const uint32_t n = 10;
+  Problem p = small_problem(500, n, 9, /*opt_hi=*/0.5);  // opt only in [0, 0.5]: entries 5.. unused
+  // x = 9 * opt lies in [0, 4.5]: entries 0..5 are touched, 6..9 are not.
+  NormalEquations eq = assemble_normal_equations_cpu(p.ref, p.opt, p.rm, p.om, p.ref_tf);
+  SolveResult r = solve_normal_equations(eq);
+  EXPECT_TRUE(std::isinf(r.cond));
+  EXPECT_EQ(r.factorization, "column-pivoted-qr");
+  EXPECT_GE(r.unreferenced_entries, 4u);
+  EXPECT_TRUE(r.x.allFinite());
+  EXPECT_FALSE(r.warnings.empty());
+  for (uint32_t j = 0; j < n; ++j)
+    if (eq.diag[j] == 0.0)
+      for (int c = 0; c < 4; ++c) EXPECT_EQ(r.x(j, c), 0.0);
+  // The referenced block equals the dense least-squares solution restricted to its columns.
+  ExplicitSystem sys = build_explicit_system(p.ref, p.opt, p.rm, p.om, p.ref_tf);
+  uint32_t used = 0;
+  while (used < n && eq.diag[used] != 0.0) ++used;
+  Eigen::MatrixXd a = Eigen::MatrixXd(sys.a).leftCols(4 * used);
+  Eigen::VectorXd dense = a.colPivHouseholderQr().solve(sys.b);
+  EXPECT_LE((r.x.topRows(used) - unstack(dense, used)).cwiseAbs().maxCoeff(), 1e-8);
+
+  SolveOptions smooth;
+  smooth.smooth = 0.01;
+  SolveResult rs = solve_normal_equations(eq, smooth);
+  EXPECT_TRUE(std::isfinite(rs.cond));
+  EXPECT_TRUE(rs.x.allFinite());
+  // With a smoothness prior the unreferenced tail continues the last referenced entry.
+  for (int c = 0; c < 4; ++c) EXPECT_NEAR(rs.x(n - 1, c), rs.x(used - 1, c), 1e-6);
+}
+
+using SolverGpuTest = test::GpuTest;
+
+// GPU-assembled and CPU-assembled systems give the same TF (to cond * assembly error).
+TEST_F(SolverGpuTest, GpuAssemblyGivesTheSameSolution) {
+  Problem p = small_problem(50000, 32, 21);
+  DeviceField r(ctx(), p.ref, "ref"), o(ctx(), p.opt, "opt");
+  Buffer tf = upload_tf(ctx(), p.ref_tf, "tf");
+  GpuNormalEquations gpu(ctx(), 32);
+  gpu.add(r, o, p.rm, p.om, tf);
+  SolveResult g = solve_normal_equations(gpu.result());
+  SolveResult c = solve_normal_equations(assemble_normal_equations_cpu(p.ref, p.opt, p.rm, p.om, p.ref_tf));
+  EXPECT_LE((g.x - c.x).cwiseAbs().maxCoeff(), c.cond * 1e-6);
+}
+
+// Recovery: F_o = g(F_r) with g monotone. The piecewise-linear interpolant I of
+// f = T_r o g^-1 at the optimized TF's nodes is one candidate TF, so the least-squares optimum
+// has voxel RMSE <= RMSE(I), which is computed here directly on the voxels; that bound shrinks
+// as O(h^2) with the node spacing h = 1/(N-1). The reference TF is fine (256 entries) and
+// smooth, so the bound is small, and the field shown with the reference TF is far worse.
+TEST_F(SolverGpuTest, RecoversMonotoneRemap) {
+  Volume ref = synthetic_reference(40, 36, 30);
+  auto g = [](double t) { return 10.0 + 90.0 * t * t; };  // monotone on [0,1]
+  auto g_inv = [](double s) { return std::sqrt(std::max(0.0, (s - 10.0) / 90.0)); };
+  Volume opt = ref;
+  for (float& v : opt.values) v = float(g(v));
+  TransferFunction ref_tf = demo_transfer_function(256);
+  const uint32_t n = 64;
+  FieldRange rr = resolve_range(ref.values, nullptr, "ref"), orr = resolve_range(opt.values, nullptr, "opt");
+  FieldMapping rm = make_mapping(rr, 256), om = make_mapping(orr, n);
+  DeviceField dr(ctx(), ref.values, "ref"), dopt(ctx(), opt.values, "opt");
+  Buffer tfb = upload_tf(ctx(), ref_tf, "ref tf");
+  GpuNormalEquations gpu(ctx(), n);
+  gpu.add(dr, dopt, rm, om, tfb);
+  SolveResult sol = solve_normal_equations(gpu.result());
+
+  // Candidate: interpolate f at the nodes s_j = lo + j (hi-lo)/(N-1).
+  TransferFunction candidate;
+  candidate.rgba.resize(n);
+  for (uint32_t j = 0; j < n; ++j) {
+    double s = orr.lo + (orr.hi - orr.lo) * j / (n - 1);
+    double t = (g_inv(s) - rr.lo) / (rr.hi - rr.lo);
+    candidate.rgba[j] = ref_tf.eval(t);
+  }
+  Buffer cand = upload_tf(ctx(), candidate, "candidate"), opt_tf = upload_tf(ctx(), sol.tf, "optimized");
+  VoxelLoss bound = voxel_loss_gpu(ctx(), dr, dopt, rm, om, tfb, cand);
+  VoxelLoss after = voxel_loss_gpu(ctx(), dr, dopt, rm, om, tfb, opt_tf);
+  VoxelLoss before = voxel_loss_gpu(ctx(), dr, dopt, rm, make_mapping(orr, 256), tfb, tfb);
+  std::printf("recovery: RMSE before %.4f, interpolant bound %.5f, optimized %.5f\n", before.rmse(), bound.rmse(),
+              after.rmse());
+  EXPECT_LE(after.rmse(), bound.rmse() * (1 + 1e-6) + 1e-6);
+  EXPECT_LT(bound.rmse(), 0.02);
+  EXPECT_GT(before.rmse(), 10 * bound.rmse());
+}
+
+}  // namespace
+}  // namespace tfm
