@@ -1,0 +1,128 @@
+// `tfmatch optimize` on bad input: a clear message naming the file and the problem, a non-zero
+// exit, and no output file — run as a separate process, as a user runs it.
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "cli_runner.h"
+#include "transfer_function.h"
+#include "volume.h"
+
+namespace tfm {
+namespace {
+
+using test::run_cli;
+using test::TempDir;
+
+void write_floats(const std::string& path, const std::vector<float>& v) {
+  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(v.data()), std::streamsize(v.size() * 4));
+}
+
+void write_text(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+
+std::vector<float> ramp(size_t n, float scale = 1.0f) {
+  std::vector<float> v(n);
+  for (size_t i = 0; i < n; ++i) v[i] = scale * float(i % 17) / 16.0f;
+  return v;
+}
+
+class CliErrors : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    write_floats(dir / "ref_4x4x4_float32.raw", ramp(64));
+    write_floats(dir / "field_4x4x4_float32.raw", ramp(64, 3.0f));
+    write_text(dir / "tf.json", R"({"rgba": [[0,0,0,0],[1,0.5,0.2,0.8],[0.2,0.4,1,1]]})");
+  }
+  // Runs optimize with the given overrides; expects failure mentioning every `needles` entry
+  // and that --out was not created.
+  void expect_failure(const std::string& args, std::vector<std::string> needles) {
+    std::string out = dir / "out.json";
+    auto r = run_cli("optimize --out " + out + " " + args);
+    EXPECT_NE(r.exit_code, 0) << r.output;
+    for (const auto& n : needles) EXPECT_NE(r.output.find(n), std::string::npos) << "missing '" << n << "' in:\n" << r.output;
+    EXPECT_FALSE(std::filesystem::exists(out)) << "a failed run left " << out;
+    EXPECT_EQ(r.output.find("Segmentation"), std::string::npos);
+  }
+  std::string ok_inputs(const std::string& ref = "", const std::string& field = "", const std::string& tf = "") {
+    return "--ref " + (ref.empty() ? dir / "ref_4x4x4_float32.raw" : ref) + " --field " +
+           (field.empty() ? dir / "field_4x4x4_float32.raw" : field) + " --ref-tf " + (tf.empty() ? dir / "tf.json" : tf);
+  }
+  TempDir dir;
+};
+
+TEST_F(CliErrors, MissingFile) {
+  expect_failure(ok_inputs(dir / "nope_4x4x4_float32.raw"), {"nope_4x4x4_float32.raw", "no such file"});
+}
+
+TEST_F(CliErrors, WrongSizeRaw) {
+  write_floats(dir / "short_4x4x4_float32.raw", ramp(60));
+  expect_failure(ok_inputs(dir / "short_4x4x4_float32.raw"), {"short_4x4x4_float32.raw", "240 bytes", "needs 256"});
+}
+
+TEST_F(CliErrors, RawWithoutDimensions) {
+  write_floats(dir / "plain.raw", ramp(64));
+  expect_failure(ok_inputs(dir / "plain.raw"), {"plain.raw", "--dims"});
+}
+
+TEST_F(CliErrors, ConstantField) {
+  write_floats(dir / "const_4x4x4_float32.raw", std::vector<float>(64, 2.5f));
+  expect_failure(ok_inputs("", dir / "const_4x4x4_float32.raw"), {"const_4x4x4_float32.raw", "constant"});
+}
+
+TEST_F(CliErrors, GridsOfDifferentSize) {
+  write_floats(dir / "other_4x4x5_float32.raw", ramp(80));
+  expect_failure(ok_inputs("", dir / "other_4x4x5_float32.raw"), {"different grids", "4x4x5", "4x4x4"});
+}
+
+TEST_F(CliErrors, MalformedTransferFunctions) {
+  write_text(dir / "bad_json.json", "{\"rgba\": [[0,0,0,0], [1,1,1");
+  expect_failure(ok_inputs("", "", dir / "bad_json.json"), {"bad_json.json", "not valid JSON"});
+  write_text(dir / "three.json", R"({"rgba": [[0,0,0,0],[1,1,1]]})");
+  expect_failure(ok_inputs("", "", dir / "three.json"), {"three.json", "row 1", "not 4 numbers"});
+  write_text(dir / "range.json", R"({"rgba": [[0,0,0,0],[1,2,1,1]]})");
+  expect_failure(ok_inputs("", "", dir / "range.json"), {"range.json", "outside [0,1]"});
+  write_text(dir / "one.json", R"({"rgba": [[0,0,0,0]]})");
+  expect_failure(ok_inputs("", "", dir / "one.json"), {"one.json", "at least 2 entries"});
+  write_text(dir / "norgba.json", R"({"colors": []})");
+  expect_failure(ok_inputs("", "", dir / "norgba.json"), {"norgba.json", "rgba"});
+}
+
+TEST_F(CliErrors, TooSmallTfSize) {
+  expect_failure(ok_inputs() + " --tf-size 1", {"--tf-size"});
+}
+
+TEST_F(CliErrors, BadRange) {
+  expect_failure(ok_inputs() + " --field-range 5,1", {"range", "lo < hi"});
+  expect_failure(ok_inputs() + " --field-range abc", {"--field-range", "lo,hi"});
+}
+
+TEST_F(CliErrors, AllNanField) {
+  write_floats(dir / "nan_4x4x4_float32.raw", std::vector<float>(64, NAN));
+  expect_failure(ok_inputs("", dir / "nan_4x4x4_float32.raw"), {"nan_4x4x4_float32.raw", "no finite value"});
+}
+
+// The working case: a 3-entry reference TF, an optimized TF of another size, JSON summary.
+TEST_F(CliErrors, DifferentTfSizesWork) {
+  std::string out = dir / "out.json", summary = dir / "summary.json";
+  auto r = run_cli("optimize --out " + out + " --json " + summary + " --tf-size 9 " + ok_inputs());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  TransferFunction tf = read_tf_json(out);
+  EXPECT_EQ(tf.size(), 9u);
+  ASSERT_TRUE(tf.range.has_value());
+  EXPECT_DOUBLE_EQ(tf.range->hi, 3.0);
+  EXPECT_TRUE(std::filesystem::exists(summary));
+  EXPECT_NE(r.output.find("voxel RMSE"), std::string::npos);
+}
+
+TEST(CliHelp, EverySubcommandHasHelp) {
+  for (const char* sub : {"optimize", "demo", "devices", "bench"}) {
+    auto r = run_cli(std::string(sub) + " --help");
+    EXPECT_EQ(r.exit_code, 0) << sub;
+    EXPECT_NE(r.output.find("Usage"), std::string::npos) << sub << ": " << r.output;
+  }
+  auto r = run_cli("no-such-command");
+  EXPECT_NE(r.exit_code, 0);
+}
+
+}  // namespace
+}  // namespace tfm
