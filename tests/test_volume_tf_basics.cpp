@@ -1,0 +1,140 @@
+// Raw and .dat volumes, the TF JSON format and resampling, and the field-to-TF mapping.
+#include <bit>
+#include <cmath>
+#include <algorithm>
+#include <cstring>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "cli_runner.h"
+#include "field_mapping.h"
+#include "transfer_function.h"
+#include "volume.h"
+
+namespace tfm {
+namespace {
+
+using test::TempDir;
+
+template <class T>
+void write_values(const std::string& path, const std::vector<T>& v, bool big_endian = false) {
+  std::ofstream out(path, std::ios::binary);
+  for (T x : v) {
+    unsigned char b[sizeof(T)];
+    std::memcpy(b, &x, sizeof(T));
+    if (big_endian != (std::endian::native == std::endian::big)) std::reverse(b, b + sizeof(T));
+    out.write(reinterpret_cast<const char*>(b), sizeof(T));
+  }
+}
+
+TEST(RawVolume, DimensionsAndTypeFromTheName) {
+  TempDir dir;
+  std::vector<uint16_t> v(3 * 4 * 5);
+  for (size_t i = 0; i < v.size(); ++i) v[i] = uint16_t(1000 + 7 * i);
+  write_values(dir / "head_3x4x5_uint16.raw", v);
+  Volume vol = load_volume(dir / "head_3x4x5_uint16.raw");
+  EXPECT_EQ(vol.dims, (std::array<uint64_t, 3>{3, 4, 5}));
+  EXPECT_EQ(vol.at(2, 3, 4), float(1000 + 7 * 59));  // x fastest
+  EXPECT_EQ(vol.at(1, 0, 0), 1007.0f);
+}
+
+TEST(RawVolume, FlagsForTypeDimsAndByteOrder) {
+  TempDir dir;
+  std::vector<int16_t> v = {-300, 5, 32767, -32768, 0, 1, 2, 3};
+  write_values(dir / "plain.raw", v, /*big_endian=*/true);
+  VolumeOptions o;
+  o.dims = std::array<uint64_t, 3>{2, 2, 2};
+  o.type = ScalarType::Int16;
+  o.big_endian = true;
+  Volume vol = load_volume(dir / "plain.raw", o);
+  EXPECT_EQ(vol.values[0], -300.0f);
+  EXPECT_EQ(vol.values[3], -32768.0f);
+  std::vector<double> d = {1.5, -2.25, NAN, 1e300};
+  write_values(dir / "d_4x1x1_float64.raw", d);
+  Volume dv = load_volume(dir / "d_4x1x1_float64.raw");
+  EXPECT_EQ(dv.values[1], -2.25f);
+  EXPECT_TRUE(std::isnan(dv.values[2]));
+  EXPECT_TRUE(std::isinf(dv.values[3]));  // out of float range: no data for the range
+  EXPECT_EQ(finite_stats(dv.values).nan, 2u);
+}
+
+TEST(RawVolume, ErrorsNameTheFileAndTheProblem) {
+  TempDir dir;
+  write_values(dir / "x_2x2x2_complex64.raw", std::vector<float>(8));
+  try {
+    load_volume(dir / "x_2x2x2_complex64.raw");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("complex64"), std::string::npos) << e.what();
+  }
+  write_values(dir / "huge_100000x100000x100000_uint8.raw", std::vector<uint8_t>(8));
+  EXPECT_THROW(load_volume(dir / "huge_100000x100000x100000_uint8.raw"), std::runtime_error);
+  write_values(dir / "zero_0x2x2_uint8.raw", std::vector<uint8_t>(0));
+  EXPECT_THROW(load_volume(dir / "zero_0x2x2_uint8.raw"), std::runtime_error);
+  EXPECT_THROW(load_volume(dir.path.string()), std::runtime_error);  // a directory
+}
+
+TEST(DatVolume, DescriptorWithSpacing) {
+  TempDir dir;
+  write_values(dir / "data.bin", std::vector<uint8_t>{1, 2, 3, 4, 5, 6});
+  std::ofstream(dir / "vol.dat") << "ObjectFileName: data.bin\nTaggedFileName: ---\nResolution: 3 2 1\n"
+                                    "SliceThickness: 0.5 0.5 2\nFormat: UCHAR\n";
+  Volume v = load_volume(dir / "vol.dat");
+  EXPECT_EQ(v.dims, (std::array<uint64_t, 3>{3, 2, 1}));
+  EXPECT_EQ(v.spacing[2], 2.0);
+  EXPECT_EQ(v.at(2, 1, 0), 6.0f);
+  std::ofstream(dir / "bad.dat") << "ObjectFileName: data.bin\nResolution: 3 2\nFormat: UCHAR\n";
+  EXPECT_THROW(load_volume(dir / "bad.dat"), std::runtime_error);
+  std::ofstream(dir / "fmt.dat") << "ObjectFileName: data.bin\nResolution: 3 2 1\nFormat: QUATERNION\n";
+  EXPECT_THROW(load_volume(dir / "fmt.dat"), std::runtime_error);
+  std::ofstream(dir / "size.dat") << "ObjectFileName: data.bin\nResolution: 3 2 2\nFormat: UCHAR\n";
+  EXPECT_THROW(load_volume(dir / "size.dat"), std::runtime_error);
+}
+
+TEST(TransferFunction, JsonRoundTripAndResampling) {
+  TransferFunction tf;
+  tf.rgba = {{0, 0, 0, 0}, {1, 0.5, 0.25, 1}};
+  tf.range = FieldRange{-3, 7};
+  TransferFunction back = parse_tf_json(tf_to_json(tf), "memory");
+  EXPECT_EQ(back.rgba, tf.rgba);
+  ASSERT_TRUE(back.range);
+  EXPECT_EQ(back.range->lo, -3);
+  // A linear TF stays exactly linear under resampling; entry j sits at t = j/(N-1).
+  TransferFunction r = tf.resampled(5);
+  ASSERT_EQ(r.size(), 5u);
+  for (size_t j = 0; j < 5; ++j) EXPECT_NEAR(r.rgba[j][1], 0.5 * double(j) / 4.0, 1e-15);
+  EXPECT_EQ(tf.resampled(2).rgba, tf.rgba);
+  EXPECT_THROW(parse_tf_json(R"({"rgba": [[0,0,0,0],[1,1,1,1]], "range": [2, 1]})", "m"), std::runtime_error);
+  EXPECT_THROW(parse_tf_json(R"({"rgba": [[0,0,0,0],[1,1,1,-0.1]]})", "m"), std::runtime_error);
+}
+
+TEST(FieldMapping, CoordinatesAtTheEdgesAndOutside) {
+  FieldMapping m = make_mapping({2.0, 6.0}, 5);  // one entry per unit
+  uint32_t j;
+  float w;
+  ASSERT_TRUE(tf_coordinate(2.0f, m, j, w));
+  EXPECT_EQ(j, 0u);
+  EXPECT_EQ(w, 0.0f);
+  ASSERT_TRUE(tf_coordinate(6.0f, m, j, w));  // the top value lands on the last entry, w = 1
+  EXPECT_EQ(j, 3u);
+  EXPECT_EQ(w, 1.0f);
+  ASSERT_TRUE(tf_coordinate(4.5f, m, j, w));
+  EXPECT_EQ(j, 2u);
+  EXPECT_EQ(w, 0.5f);
+  ASSERT_TRUE(tf_coordinate(-100.0f, m, j, w));
+  EXPECT_EQ(j, 0u);
+  EXPECT_EQ(w, 0.0f);
+  ASSERT_TRUE(tf_coordinate(1e30f, m, j, w));
+  EXPECT_EQ(j, 3u);
+  EXPECT_EQ(w, 1.0f);
+  EXPECT_FALSE(tf_coordinate(NAN, m, j, w));
+  std::vector<float> constant(10, 3.0f);
+  EXPECT_THROW(resolve_range(constant, nullptr, "c"), std::runtime_error);
+  FieldRange user{0, 1};
+  EXPECT_NO_THROW(resolve_range(constant, &user, "c"));
+  EXPECT_THROW(make_mapping({0, 1}, 1), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace tfm
