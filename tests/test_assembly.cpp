@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstring>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "gpu_voxel_ops.h"
@@ -89,7 +90,13 @@ INSTANTIATE_TEST_SUITE_P(Sizes, AssemblyVsCpu,
                                            Case{256, 64, false, 0}, Case{257, 64, false, 0},
                                            Case{8193, 2, false, 0}, Case{8193, 64, true, 0},
                                            Case{20000, 1500, false, 0}, Case{5000, 64, false, 1024},
-                                           Case{100003, 256, false, 0}));
+                                           Case{100003, 256, false, 0}),
+                         [](const ::testing::TestParamInfo<Case>& info) {
+                           const Case& c = info.param;
+                           return "v" + std::to_string(c.voxels) + "_n" + std::to_string(c.tf_size) +
+                                  (c.force_global ? "_global" : "") +
+                                  (c.chunk_voxels ? "_chunks" + std::to_string(c.chunk_voxels) : "");
+                         });
 
 using AssemblyTest = test::GpuTest;
 
