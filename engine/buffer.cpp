@@ -72,6 +72,7 @@ Buffer::Buffer(Context& ctx, uint64_t bytes, MemoryUsage usage, const std::strin
                           "' failed with " + vk_result_name(r),
                       r);
   }
+  ctx.track_buffer_bytes(int64_t(bytes_));
   VK_CHECK(vk.vkBindBufferMemory(ctx.device(), buffer_, memory_, 0));
   // Host buffers stay mapped for their lifetime. Device buffers are never mapped, even where
   // device memory is host-visible (lavapipe, integrated GPUs): transfers always take the same
@@ -101,7 +102,10 @@ void Buffer::release() {
   const auto& vk = ctx_->vk();
   if (mapped_) vk.vkUnmapMemory(ctx_->device(), memory_);
   if (buffer_) vk.vkDestroyBuffer(ctx_->device(), buffer_, nullptr);
-  if (memory_) vk.vkFreeMemory(ctx_->device(), memory_, nullptr);
+  if (memory_) {
+    vk.vkFreeMemory(ctx_->device(), memory_, nullptr);
+    ctx_->track_buffer_bytes(-int64_t(bytes_));
+  }
   buffer_ = VK_NULL_HANDLE;
   memory_ = VK_NULL_HANDLE;
   mapped_ = nullptr;

@@ -1,6 +1,7 @@
 // The Vulkan device tfmatch computes on: created and owned here, or adopted from a host application.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -94,6 +95,18 @@ class Context {
 
   void set_debug_name(VkObjectType type, uint64_t handle, const char* name) const;
 
+  // Bytes held by tfm::Buffer objects of this context (device and staging), and the most held
+  // at once since the last reset_peak_buffer_bytes(): benchmarks report peak memory with it.
+  uint64_t buffer_bytes() const { return buffer_bytes_.load(); }
+  uint64_t peak_buffer_bytes() const { return peak_buffer_bytes_.load(); }
+  void reset_peak_buffer_bytes() { peak_buffer_bytes_.store(buffer_bytes_.load()); }
+  void track_buffer_bytes(int64_t delta) {  // called by Buffer on allocation and release
+    const uint64_t now = buffer_bytes_.fetch_add(uint64_t(delta)) + uint64_t(delta);
+    uint64_t peak = peak_buffer_bytes_.load();
+    while (now > peak && !peak_buffer_bytes_.compare_exchange_weak(peak, now)) {
+    }
+  }
+
  private:
   Context() = default;
   void load_device_info();
@@ -120,6 +133,7 @@ class Context {
   std::mutex messages_mutex_;
   std::vector<std::string> messages_;
   std::mutex queue_mutex_;
+  std::atomic<uint64_t> buffer_bytes_{0}, peak_buffer_bytes_{0};
 };
 
 }  // namespace tfm

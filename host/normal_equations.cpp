@@ -97,6 +97,21 @@ Eigen::VectorXd tridiagonal_eigenvalues(const std::vector<double>& diag, const s
   return solver.eigenvalues();
 }
 
+Regularization absolute_regularization(const NormalEquations& eq, const SolveOptions& options) {
+  double mean_diag = 0.0;
+  for (double d : eq.diag) mean_diag += d;
+  if (eq.n > 0) mean_diag /= eq.n;
+  return {options.ridge * mean_diag, options.smooth * mean_diag};
+}
+
+Tridiagonal regularized_matrix(const NormalEquations& eq, const Regularization& r) {
+  const uint32_t n = eq.n;
+  Tridiagonal t{eq.diag, eq.off};
+  for (uint32_t j = 0; j < n; ++j) t.diag[j] += r.ridge + r.smooth * ((j == 0 || j == n - 1) ? 1.0 : 2.0);
+  for (uint32_t j = 0; j + 1 < n; ++j) t.off[j] -= r.smooth;
+  return t;
+}
+
 SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions& options) {
   const uint32_t n = eq.n;
   if (n < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
@@ -105,17 +120,13 @@ SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions
   if (options.ridge < 0 || options.smooth < 0) throw std::invalid_argument("regularization weights must be >= 0");
 
   SolveResult result;
-  double mean_diag = 0.0;
-  for (double d : eq.diag) mean_diag += d;
-  mean_diag /= n;
   for (uint32_t j = 0; j < n; ++j) result.unreferenced_entries += eq.diag[j] == 0.0 ? 1 : 0;
 
   // Regularized tridiagonal matrix: M + ridge I + smooth D^T D (first differences), both scaled
   // by mean(diag M) so they keep their meaning across volume sizes.
-  std::vector<double> d = eq.diag, e = eq.off;
-  const double ridge = options.ridge * mean_diag, smooth = options.smooth * mean_diag;
-  for (uint32_t j = 0; j < n; ++j) d[j] += ridge + smooth * ((j == 0 || j == n - 1) ? 1.0 : 2.0);
-  for (uint32_t j = 0; j + 1 < n; ++j) e[j] -= smooth;
+  Tridiagonal reg = regularized_matrix(eq, absolute_regularization(eq, options));
+  const std::vector<double>& d = reg.diag;
+  const std::vector<double>& e = reg.off;
 
   Eigen::VectorXd lambda = tridiagonal_eigenvalues(d, e);
   result.lambda_min = lambda(0);
@@ -178,6 +189,12 @@ SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions
       if (clamped != v) ++result.clamped_values;
       result.tf.rgba[j][c] = clamped;
     }
+  if (result.clamped_values > 0) {
+    std::ostringstream os;
+    os << result.clamped_values << " TF components fell outside [0,1] and were clamped; "
+       << "--solver qp gives the exact box-constrained optimum";
+    result.warnings.push_back(os.str());
+  }
   return result;
 }
 

@@ -54,6 +54,23 @@ struct SolveOptions {
   double cond_warning = 1e4;
 };
 
+// Absolute weights of the regularization R = ridge I + smooth D^T D (D: first differences),
+// i.e. SolveOptions' relative weights times mean(diag M). Every solver minimizes
+// ||S x - b||^2 + x^T R x per channel with these.
+struct Regularization {
+  double ridge = 0.0;
+  double smooth = 0.0;
+};
+Regularization absolute_regularization(const NormalEquations& eq, const SolveOptions& options);
+
+// A symmetric tridiagonal matrix: diag (n) and off-diagonal (n-1).
+struct Tridiagonal {
+  std::vector<double> diag;
+  std::vector<double> off;
+};
+// M + R.
+Tridiagonal regularized_matrix(const NormalEquations& eq, const Regularization& r);
+
 struct SolveResult {
   TransferFunction tf;                             // clamped to [0,1]
   Eigen::Matrix<double, Eigen::Dynamic, 4> x;      // unclamped least-squares solution

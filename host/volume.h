@@ -35,11 +35,12 @@ struct VolumeOptions {
   bool big_endian = false;                       // raw: byte order
   std::string variable;                          // NetCDF variable / GRIB shortName / VTK array
   std::optional<uint64_t> time_index;            // NetCDF/GRIB: time step
-  std::optional<uint64_t> member_index;          // NetCDF: index along extra dimensions
+  std::optional<uint64_t> member_index;          // NetCDF: extra dimension; GRIB: ensemble number
 };
 
-// Loads a volume. `spec` is a path, optionally followed by ":VARIABLE". Dispatches by file
-// extension. Throws std::runtime_error whose message starts with the file name and says what is
+// Loads a volume. `spec` is a path, optionally followed by ":VAR[@LEVELTYPE][,time=N][,member=N]"
+// (overriding `options`; see host/volume_formats.h). Dispatches by file extension, else by the
+// first bytes. Throws std::runtime_error whose message starts with the file name and says what is
 // wrong (missing file, wrong size, unknown type, ...).
 Volume load_volume(const std::string& spec, const VolumeOptions& options = {});
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cctype>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -12,6 +13,7 @@
 
 #include "atomic_file.h"
 #include "volume.h"
+#include "volume_formats.h"
 
 namespace tfm {
 namespace {
@@ -157,54 +159,68 @@ Volume read_raw_volume(const std::filesystem::path& path, const VolumeOptions& o
 
 // .dat descriptor: lines "Key: value" with ObjectFileName, Resolution (X Y Z), Format
 // (UCHAR, USHORT, FLOAT, DOUBLE, ...), optional SliceThickness (spacing) and Endianness.
-Volume read_dat_volume(const std::filesystem::path& path, const VolumeOptions& options) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path.string() + ": cannot open");
-  std::string object, format;
-  std::optional<std::array<uint64_t, 3>> dims;
-  std::array<double, 3> spacing{1, 1, 1};
-  bool big_endian = options.big_endian;
+DatDescriptor parse_dat_descriptor(std::string_view text, const std::string& name, bool big_endian_default) {
+  DatDescriptor d;
+  d.big_endian = big_endian_default;
+  bool have_dims = false;
+  std::istringstream in{std::string(text)};
   std::string line;
   int line_no = 0;
+  auto fail = [&](const std::string& what) {
+    return std::runtime_error(name + ": line " + std::to_string(line_no) + ": " + what);
+  };
   while (std::getline(in, line)) {
     ++line_no;
-    if (line.size() > 4096) throw std::runtime_error(path.string() + ": line " + std::to_string(line_no) + " too long");
+    if (line.size() > 4096) throw fail("line too long");
     auto colon = line.find(':');
     if (colon == std::string::npos) continue;
     std::string key = lower(line.substr(0, colon));
-    key.erase(std::remove_if(key.begin(), key.end(), ::isspace), key.end());
+    key.erase(std::remove_if(key.begin(), key.end(), [](unsigned char c) { return std::isspace(c); }), key.end());
     std::istringstream value(line.substr(colon + 1));
     if (key == "objectfilename") {
       value >> std::ws;
-      std::getline(value, object);
-      while (!object.empty() && std::isspace(static_cast<unsigned char>(object.back()))) object.pop_back();
+      std::getline(value, d.object_file);
+      while (!d.object_file.empty() && std::isspace(static_cast<unsigned char>(d.object_file.back()))) d.object_file.pop_back();
     } else if (key == "resolution") {
       std::array<long long, 3> r{};
       if (!(value >> r[0] >> r[1] >> r[2]) || r[0] <= 0 || r[1] <= 0 || r[2] <= 0)
-        throw std::runtime_error(path.string() + ": line " + std::to_string(line_no) +
-                                 ": Resolution needs three positive integers");
-      dims = std::array<uint64_t, 3>{uint64_t(r[0]), uint64_t(r[1]), uint64_t(r[2])};
+        throw fail("Resolution needs three positive integers");
+      d.dims = std::array<uint64_t, 3>{uint64_t(r[0]), uint64_t(r[1]), uint64_t(r[2])};
+      have_dims = true;
     } else if (key == "format") {
-      value >> format;
+      value >> d.format;
     } else if (key == "slicethickness") {
-      if (!(value >> spacing[0] >> spacing[1] >> spacing[2]) || spacing[0] <= 0 || spacing[1] <= 0 || spacing[2] <= 0)
-        throw std::runtime_error(path.string() + ": line " + std::to_string(line_no) +
-                                 ": SliceThickness needs three positive numbers");
+      auto& sp = d.spacing;
+      if (!(value >> sp[0] >> sp[1] >> sp[2]) || !(sp[0] > 0) || !(sp[1] > 0) || !(sp[2] > 0) || !std::isfinite(sp[0]) ||
+          !std::isfinite(sp[1]) || !std::isfinite(sp[2]))
+        throw fail("SliceThickness needs three positive numbers");
     } else if (key == "endianness" || key == "byteorder") {
       std::string e;
       value >> e;
-      big_endian = lower(e).find("big") != std::string::npos;
+      d.big_endian = lower(e).find("big") != std::string::npos;
     }
   }
-  if (object.empty()) throw std::runtime_error(path.string() + ": no ObjectFileName");
-  if (!dims) throw std::runtime_error(path.string() + ": no Resolution");
-  if (format.empty()) throw std::runtime_error(path.string() + ": no Format");
-  ScalarType type = parse_scalar_type(format);
-  if (type == ScalarType::Unknown)
-    throw std::runtime_error(path.string() + ": unknown Format '" + format + "'");
-  std::filesystem::path data = path.parent_path() / object;
-  Volume v = read_elements(data, *dims, type, big_endian, 0, false);
-  v.spacing = spacing;
+  if (d.object_file.empty()) throw std::runtime_error(name + ": no ObjectFileName");
+  if (!have_dims) throw std::runtime_error(name + ": no Resolution");
+  if (d.format.empty()) throw std::runtime_error(name + ": no Format");
+  d.type = parse_scalar_type(d.format);
+  if (d.type == ScalarType::Unknown) throw std::runtime_error(name + ": unknown Format '" + d.format + "'");
+  return d;
+}
+
+Volume read_dat_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path.string() + ": cannot open");
+  // A descriptor is a few lines; refuse to read a large binary file given as .dat by mistake.
+  std::string text(64 * 1024, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<size_t>(in.gcount()));
+  if (in.gcount() == 64 * 1024 && in.peek() != EOF)
+    throw std::runtime_error(path.string() + ": too large for a .dat descriptor (over 64 KiB)");
+  DatDescriptor d = parse_dat_descriptor(text, path.string(), options.big_endian);
+  std::filesystem::path data = path.parent_path() / d.object_file;
+  Volume v = read_elements(data, d.dims, d.type, d.big_endian, 0, false);
+  v.spacing = d.spacing;
   v.name = path.string();
   return v;
 }

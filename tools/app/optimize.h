@@ -15,6 +15,7 @@
 #include "device_field.h"
 #include "gpu_voxel_ops.h"
 #include "normal_equations.h"
+#include "render_settings.h"
 #include "transfer_function.h"
 #include "volume.h"
 
@@ -46,6 +47,9 @@ struct SolverSettings {
   // "optimizer", "lr", "iterations", "tolerance", "max-iterations", "seed", "views-per-iteration",
   // "image-size", "init", ...). A solver reads what it understands and rejects bad values.
   std::map<std::string, std::string> extra;
+  // The optical model and camera of the renderings (image-based solvers render with these, so
+  // the images optimized are the images shown; the image size comes from "image-size").
+  RenderSettings render;
   // extra[name] as a number, or `fallback`; throws std::runtime_error naming the flag when the
   // value is not a number.
   double number(const std::string& name, double fallback) const;

@@ -1,10 +1,15 @@
 // `tfmatch demo`: a built-in pair of fields and a reference TF, optimized end to end.
 #include <filesystem>
 #include <iostream>
+#include <map>
 
 #include "atomic_file.h"
 #include "cli.h"
 #include "optimize.h"
+#include "progress.h"
+#include "render_options.h"
+#include "report.h"
+#include "solver_diffdvr_plot.h"
 #include "synthetic.h"
 
 namespace tfm::cli {
@@ -14,9 +19,14 @@ struct DemoArgs {
   std::string out = "tfmatch-demo";
   uint64_t size = 96;
   std::string solver = "normal-equations";
+  std::string report;        // empty: the output directory
+  bool no_report = false;
+  RenderSettings render;
+  std::map<std::string, std::string> extra;  // solver-specific flags, passed through as optimize does
 };
 
 int run(const DemoArgs& a) {
+  if (!a.no_report) validate(a.render);
   std::filesystem::create_directories(a.out);
   const std::filesystem::path dir = a.out;
   Volume ref = synthetic_reference(a.size, a.size, a.size);
@@ -33,6 +43,8 @@ int run(const DemoArgs& a) {
   req.ref_tf = ref_tf;
   req.tf_size = 64;
   req.solver = a.solver;
+  req.settings.render = a.render;  // image-based solvers render as the report does
+  req.settings.extra = a.extra;
   auto ctx = make_context();
   OptimizeResult result = run_optimize(*ctx, req);
   write_tf_json(dir / "optimized_tf.json", result.tf);
@@ -44,6 +56,18 @@ int run(const DemoArgs& a) {
     std::cout << "  wrote " << dir.string() << "/{reference,field}_" << dims
               << "_float32.raw, reference_tf.json, optimized_tf.json, summary.json\n";
   }
+  if (!a.no_report) {
+    set_progress_enabled(!globals().quiet);
+    const std::filesystem::path report_dir = a.report.empty() ? dir : std::filesystem::path(a.report);
+    ReportInputs inputs{ref, field, ref_tf, result, a.render};
+    inputs.extra_figures = solver_report_figures(result, a.render.width);  // diffdvr: loss curve
+    inputs.title = "tfmatch demo: synthetic reference vs remapped field";
+    ReportSummary summary = write_report(*ctx, inputs, report_dir);
+    if (!globals().quiet)
+      std::cout << "  images vs reference: reference TF " << summary.before.to_string() << "\n"
+                << "                       optimized TF " << summary.after.to_string() << "\n"
+                << "  report: " << summary.index.string() << "\n";
+  }
   return 0;
 }
 
@@ -53,6 +77,14 @@ CommandRegistration reg(0, [](CLI::App& app) {
   sub->add_option("--out", args->out, "Output directory")->capture_default_str();
   sub->add_option("--size", args->size, "Grid size per axis")->check(CLI::Range(8, 512))->capture_default_str();
   sub->add_option("--solver", args->solver, "Solver (see optimize --help)")->capture_default_str();
+  sub->add_option("--report", args->report, "Report directory (default: the output directory)");
+  sub->add_flag("--no-report", args->no_report, "Skip the report (renderings, metrics, index.html)");
+  for (const char* flag : {"loss", "lr", "iterations", "seed", "views-per-iteration", "image-size", "init", "cameras"}) {
+    const std::string name = flag;
+    sub->add_option_function<std::string>("--" + name, [args, name](const std::string& v) { args->extra[name] = v; },
+                                           "Solver option (see optimize --help)");
+  }
+  add_render_options(sub, args->render);
   sub->callback([args] { exit_code() = run(*args); });
 });
 

@@ -1,0 +1,63 @@
+// Images: the renderer's premultiplied RGBA output, 8-bit RGB pictures, compositing over a
+// background, and the few drawing primitives the plots and labelled panels need (with a tiny
+// built-in 5x7 bitmap font).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace tfm {
+
+using Rgb8 = std::array<uint8_t, 3>;
+
+// 8-bit RGB, rows top to bottom.
+struct Image {
+  uint32_t width = 0;
+  uint32_t height = 0;
+  std::vector<uint8_t> rgb;  // 3 bytes per pixel
+
+  Image() = default;
+  Image(uint32_t w, uint32_t h, Rgb8 fill = {255, 255, 255});
+  uint8_t* at(uint32_t x, uint32_t y) { return rgb.data() + (size_t(y) * width + x) * 3; }
+  const uint8_t* at(uint32_t x, uint32_t y) const { return rgb.data() + (size_t(y) * width + x) * 3; }
+  void set(int x, int y, Rgb8 c);                // ignores pixels outside
+  void blend(int x, int y, Rgb8 c, double alpha);  // c over the pixel with coverage alpha
+};
+
+// What a render produces: per pixel premultiplied RGB and opacity before any background, and
+// the samples each ray marched (k_stop, which DiffDVR's backward pass starts from).
+struct RenderedImage {
+  uint32_t width = 0;
+  uint32_t height = 0;
+  std::vector<float> rgba;        // 4 floats per pixel
+  std::vector<uint32_t> stop;     // 1 per pixel
+  uint64_t samples() const;       // sum of stop: samples marched
+};
+
+// C + (1 - A) * background per channel, rounded to 8 bits (colours as stored: no gamma).
+Image composite_over(const RenderedImage& image, const std::array<double, 3>& background);
+Image composite_over(std::span<const double> rgba, uint32_t width, uint32_t height,
+                     const std::array<double, 3>& background);
+
+// ---- drawing ------------------------------------------------------------------------------
+void fill_rect(Image& img, int x, int y, int w, int h, Rgb8 c);
+// A line of `width` pixels, anti-aliased by distance to the segment.
+void draw_line(Image& img, double x0, double y0, double x1, double y1, Rgb8 c, double width = 1.0);
+// Text in the built-in 5x7 font (ASCII 32..126; lower case drawn as small capitals), each font
+// pixel drawn as scale x scale. Returns the width drawn.
+int draw_text(Image& img, int x, int y, const std::string& text, Rgb8 c, int scale = 1);
+int text_width(const std::string& text, int scale = 1);
+int text_height(int scale = 1);
+void blit(Image& dst, const Image& src, int x, int y);
+
+// Pictures side by side in rows of `columns`, each with its label centred above it.
+struct Panel {
+  Image image;
+  std::string label;
+};
+Image compose_panels(const std::vector<Panel>& panels, uint32_t columns, Rgb8 background = {255, 255, 255});
+
+}  // namespace tfm

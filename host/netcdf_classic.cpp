@@ -1,0 +1,94 @@
+// Size of a classic NetCDF file's header and data (layout from the NetCDF classic format
+// specification: magic, numrecs, dim_list, gatt_list, var_list, then the data).
+#include "netcdf_classic.h"
+
+#include <netcdf.h>
+
+#include <vector>
+
+namespace tfm {
+namespace {
+
+uint64_t pad4(uint64_t n) { return (n + 3) / 4 * 4; }
+
+struct Sizes {
+  uint64_t non_neg;  // NON_NEG and nelems: 4 bytes, 8 in CDF-5
+  uint64_t offset;   // a variable's begin: 4 bytes in CDF-1, 8 otherwise
+};
+
+bool name_size(int nc, int var, int att_or_dim, bool is_att, const Sizes& s, uint64_t& out) {
+  char name[NC_MAX_NAME + 1];
+  int rc = is_att ? nc_inq_attname(nc, var, att_or_dim, name) : nc_inq_dimname(nc, att_or_dim, name);
+  if (rc != NC_NOERR) return false;
+  uint64_t len = 0;
+  while (name[len]) ++len;
+  out = s.non_neg + pad4(len);
+  return true;
+}
+
+// A list of attributes (ABSENT, or tag + nelems + the attributes).
+bool attributes_size(int nc, int var, const Sizes& s, uint64_t& out) {
+  int natts = 0;
+  if ((var == NC_GLOBAL ? nc_inq_natts(nc, &natts) : nc_inq_varnatts(nc, var, &natts)) != NC_NOERR) return false;
+  out = 4 + s.non_neg;
+  for (int a = 0; a < natts; ++a) {
+    char name[NC_MAX_NAME + 1];
+    nc_type t;
+    size_t len = 0, tsize = 0;
+    uint64_t n = 0;
+    if (nc_inq_attname(nc, var, a, name) != NC_NOERR || nc_inq_att(nc, var, name, &t, &len) != NC_NOERR ||
+        nc_inq_type(nc, t, nullptr, &tsize) != NC_NOERR || !name_size(nc, var, a, true, s, n))
+      return false;
+    out += n + 4 + s.non_neg + pad4(uint64_t(len) * tsize);
+  }
+  return true;
+}
+
+}  // namespace
+
+uint64_t netcdf_classic_minimum_size(int nc, int format) {
+  if (format != NC_FORMAT_CLASSIC && format != NC_FORMAT_64BIT_OFFSET && format != NC_FORMAT_CDF5) return 0;
+  const Sizes s{format == NC_FORMAT_CDF5 ? 8u : 4u, format == NC_FORMAT_CLASSIC ? 4u : 8u};
+  int ndims = 0, nvars = 0, unlimited = -1;
+  if (nc_inq(nc, &ndims, &nvars, nullptr, &unlimited) != NC_NOERR) return 0;
+  uint64_t size = 4 + s.non_neg;  // magic, numrecs
+  size += 4 + s.non_neg;          // dim_list
+  std::vector<uint64_t> dim_len(ndims);
+  for (int d = 0; d < ndims; ++d) {
+    size_t len = 0;
+    uint64_t n = 0;
+    if (nc_inq_dimlen(nc, d, &len) != NC_NOERR || !name_size(nc, NC_GLOBAL, d, false, s, n)) return 0;
+    dim_len[d] = len;
+    size += n + s.non_neg;
+  }
+  uint64_t atts = 0;
+  if (!attributes_size(nc, NC_GLOBAL, s, atts)) return 0;
+  size += atts + 4 + s.non_neg;  // gatt_list, var_list
+  uint64_t data = 0, record = 0;
+  for (int v = 0; v < nvars; ++v) {
+    char name[NC_MAX_NAME + 1];
+    nc_type t;
+    int nd = 0;
+    int dims[NC_MAX_VAR_DIMS];
+    size_t tsize = 0;
+    if (nc_inq_var(nc, v, name, &t, &nd, dims, nullptr) != NC_NOERR || nc_inq_type(nc, t, nullptr, &tsize) != NC_NOERR ||
+        !attributes_size(nc, v, s, atts))
+      return 0;
+    uint64_t len = 0;
+    while (name[len]) ++len;
+    size += s.non_neg + pad4(len) + s.non_neg + uint64_t(nd) * s.non_neg + atts + 4 + s.non_neg + s.offset;
+    // Data: one value per index, without padding (a lower bound); record variables per record.
+    uint64_t count = tsize;
+    bool is_record = nd > 0 && dims[0] == unlimited;
+    for (int i = is_record ? 1 : 0; i < nd; ++i) {
+      if (dim_len[dims[i]] != 0 && count > (uint64_t(1) << 62) / dim_len[dims[i]]) return 0;
+      count *= dim_len[dims[i]];
+    }
+    (is_record ? record : data) += count;
+  }
+  const uint64_t records = unlimited >= 0 ? dim_len[unlimited] : 0;
+  if (records != 0 && record > (uint64_t(1) << 62) / records) return 0;
+  return size + data + records * record;
+}
+
+}  // namespace tfm

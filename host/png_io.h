@@ -1,0 +1,20 @@
+// PNG files of 8-bit RGB images (libpng's simplified API), written atomically.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include "image.h"
+
+namespace tfm {
+
+// The PNG byte stream of an image. Throws std::runtime_error when libpng fails.
+std::string encode_png(const Image& image);
+// Writes atomically (host/atomic_file.h). Throws std::runtime_error naming the path.
+void write_png(const std::filesystem::path& path, const Image& image);
+// Reads any PNG as 8-bit RGB: grey and palette images are expanded, 16-bit reduced, and an
+// alpha channel is composited over white. Throws std::runtime_error naming the path when the
+// file is missing or not a PNG.
+Image read_png(const std::filesystem::path& path);
+
+}  // namespace tfm

@@ -1,0 +1,40 @@
+// Pipeline and dispatch of the CGLS vector stages.
+#include "cgls_vectors.h"
+
+#include <stdexcept>
+
+#include "sparse_ops.h"
+
+namespace tfm {
+
+static_assert(sizeof(gpu::CglsPush) == 32, "CglsPush must match the GLSL std430 block");
+
+CglsVectorsKernel::CglsVectorsKernel(Context& ctx) {
+  PipelineDesc desc;
+  desc.shader = "cgls_vectors";
+  desc.binding_counts = {1, 1, 1, 1, 1, 1};
+  desc.push_constant_bytes = sizeof(gpu::CglsPush);
+  desc.workgroup_size = TFM_VECTOR_WORKGROUP;
+  desc.specialization = {TFM_VECTOR_WORKGROUP};
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+}
+
+void CglsVectorsKernel::record(CommandBatch& batch, uint32_t stage, uint32_t tf_size, float ridge, float smooth,
+                               float tolerance, const CglsBuffers& b) const {
+  if (!b.s_accum || !b.delta_accum || !b.inv_diag || !b.x || !b.p || !b.state)
+    throw std::invalid_argument("cgls_vectors: missing buffer");
+  const uint64_t rgba = uint64_t(tf_size) * 16;
+  if (b.s_accum->size() < signed_accumulator_bytes(tf_size) || b.delta_accum->size() < TFM_GATHER_NORM_SLOTS * 8 ||
+      b.inv_diag->size() < uint64_t(tf_size) * 4 || b.x->size() < rgba || b.p->size() < rgba ||
+      b.state->size() < sizeof(gpu::CglsState))
+    throw std::invalid_argument("cgls_vectors: a buffer is smaller than N entries need");
+  gpu::CglsPush push{};
+  push.tf_size = tf_size;
+  push.stage = stage;
+  push.ridge_weight = ridge;
+  push.smooth_weight = smooth;
+  push.tolerance2 = tolerance * tolerance;
+  batch.dispatch(*pipeline_, {*b.s_accum, *b.delta_accum, *b.inv_diag, *b.x, *b.p, *b.state}, push, {1});
+}
+
+}  // namespace tfm

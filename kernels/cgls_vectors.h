@@ -1,0 +1,38 @@
+// The TF-sized stages of GPU CGLS (cgls_vectors.comp): one workgroup updates x, p and the
+// per-channel scalars in the CGLS state from the accumulators of sparse_gather / sparse_scatter.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+
+#include "buffer.h"
+#include "commands.h"
+#include "pipeline.h"
+#include "solver_layout.h"
+
+namespace tfm {
+
+class Context;
+
+struct CglsBuffers {
+  const Buffer* s_accum = nullptr;      // signed S^T r slots (signed_accumulator_bytes(N))
+  const Buffer* delta_accum = nullptr;  // ||S p||^2 (TFM_GATHER_NORM_SLOTS unsigned slots)
+  const Buffer* inv_diag = nullptr;     // N floats
+  Buffer* x = nullptr;                  // N RGBA
+  Buffer* p = nullptr;                  // N RGBA
+  Buffer* state = nullptr;              // gpu::CglsState
+};
+
+class CglsVectorsKernel {
+ public:
+  explicit CglsVectorsKernel(Context& ctx);
+  // Records one stage (TFM_CGLS_STAGE_*). ridge/smooth are absolute weights; the stop test is
+  // ||s||^2 <= tolerance^2 ||s0||^2. Throws std::invalid_argument when a buffer is missing or small.
+  void record(CommandBatch& batch, uint32_t stage, uint32_t tf_size, float ridge, float smooth, float tolerance,
+              const CglsBuffers& buffers) const;
+
+ private:
+  std::unique_ptr<ComputePipeline> pipeline_;
+};
+
+}  // namespace tfm

@@ -1,0 +1,115 @@
+// Pipelines and dispatch recording of the DiffDVR forward and backward kernels.
+#include "diffdvr.h"
+
+#include <stdexcept>
+#include <string>
+
+#include "context.h"
+
+namespace tfm {
+
+static_assert(uint32_t(ImageLoss::L2) == TFM_DIFFDVR_LOSS_L2 && uint32_t(ImageLoss::L1) == TFM_DIFFDVR_LOSS_L1,
+              "the host enum is the specialization constant");
+
+namespace {
+
+void check_chunks(uint32_t chunks) {
+  if (chunks == 0 || chunks > TFM_RENDER_MAX_CHUNKS)
+    throw std::runtime_error("diffdvr: the field needs " + std::to_string(chunks) +
+                             " storage buffers; the kernels bind at most " + std::to_string(TFM_RENDER_MAX_CHUNKS) +
+                             " (volume too large for this device)");
+}
+
+// The checks both passes share: chunking, buffer sizes, row band.
+void check_pass(const DeviceField& field, uint32_t chunks, const Buffer& tf, const Buffer& views,
+                const gpu::RenderPush& push, const Buffer& state, const Buffer& stop, uint32_t row_begin,
+                uint32_t row_count) {
+  if (field.chunk_count() != chunks) throw std::invalid_argument("diffdvr: field chunk count differs from pipeline's");
+  const uint64_t pixels = uint64_t(push.width) * push.height * push.view_count;
+  if (state.size() < pixels * 16 || stop.size() < pixels * 4)
+    throw std::invalid_argument("diffdvr: state buffers too small for the images");
+  if (views.size() < uint64_t(push.view_count) * sizeof(gpu::RenderView))
+    throw std::invalid_argument("diffdvr: fewer camera records than views");
+  if (tf.size() < uint64_t(push.tf_size) * 16) throw std::invalid_argument("diffdvr: TF buffer smaller than tf_size");
+  if (uint64_t(row_begin) + row_count > push.height) throw std::invalid_argument("diffdvr: row band outside the image");
+}
+
+Groups tiles(const gpu::RenderPush& push, uint32_t row_count, uint32_t tile) {
+  return {(push.width + tile - 1) / tile, (row_count + tile - 1) / tile, push.view_count};
+}
+
+}  // namespace
+
+DiffDvrForwardKernel::DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks) : chunks_(field_chunks) {
+  check_chunks(field_chunks);
+  PipelineDesc desc;
+  desc.shader = "diffdvr_forward";
+  desc.binding_counts = {TFM_RENDER_MAX_CHUNKS, 1, 1, 1, 1};
+  desc.push_constant_bytes = sizeof(gpu::RenderPush);
+  desc.workgroup_size = TFM_DIFFDVR_FORWARD_TILE * TFM_DIFFDVR_FORWARD_TILE;
+  desc.specialization = {TFM_DIFFDVR_FORWARD_TILE, TFM_DIFFDVR_FORWARD_TILE, field_chunks};
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+}
+
+void DiffDvrForwardKernel::record(CommandBatch& batch, const DeviceField& field, const Buffer& tf,
+                                  const Buffer& views, gpu::RenderPush push, Buffer& state, Buffer& stop,
+                                  uint32_t row_begin, uint32_t row_count) const {
+  check_pass(field, chunks_, tf, views, push, state, stop, row_begin, row_count);
+  push.row_offset = row_begin;
+  batch.dispatch(*pipeline_, {field.chunk_array(TFM_RENDER_MAX_CHUNKS), tf, views, state, stop}, push,
+                 tiles(push, row_count, TFM_DIFFDVR_FORWARD_TILE));
+}
+
+DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks, uint32_t tf_size, ImageLoss loss,
+                                             bool force_global)
+    : chunks_(field_chunks), tf_size_(tf_size) {
+  check_chunks(field_chunks);
+  if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
+  const uint64_t shared_bytes = uint64_t(slots()) * 2 * sizeof(uint32_t);
+  use_shared_ = !force_global && shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
+  PipelineDesc desc;
+  desc.shader = "diffdvr_backward";
+  desc.binding_counts = {TFM_RENDER_MAX_CHUNKS, 1, 1, 1, 1, 1, 1};
+  desc.push_constant_bytes = sizeof(gpu::RenderPush);
+  desc.workgroup_size = TFM_DIFFDVR_BACKWARD_TILE * TFM_DIFFDVR_BACKWARD_TILE;
+  desc.specialization = {TFM_DIFFDVR_BACKWARD_TILE,
+                         TFM_DIFFDVR_BACKWARD_TILE,
+                         field_chunks,
+                         static_cast<uint32_t>(loss),
+                         use_shared_ ? 2 * slots() : 2u,
+                         use_shared_ ? 1u : 0u};
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+}
+
+void DiffDvrBackwardKernel::record(CommandBatch& batch, const DeviceField& field, const Buffer& tf,
+                                   const Buffer& views, gpu::RenderPush push, const Buffer& state, const Buffer& stop,
+                                   const Buffer& target, Buffer& accum, uint32_t row_begin, uint32_t row_count) const {
+  check_pass(field, chunks_, tf, views, push, state, stop, row_begin, row_count);
+  if (push.tf_size != tf_size_) throw std::invalid_argument("diffdvr: TF size differs from the kernel's");
+  if (target.size() < state.size()) throw std::invalid_argument("diffdvr: target image smaller than the state");
+  if (accum.size() < uint64_t(slots()) * 8) throw std::invalid_argument("diffdvr: accumulator buffer too small");
+  push.row_offset = row_begin;
+  batch.dispatch(*pipeline_, {field.chunk_array(TFM_RENDER_MAX_CHUNKS), tf, views, state, stop, target, accum}, push,
+                 tiles(push, row_count, TFM_DIFFDVR_BACKWARD_TILE));
+}
+
+void FixedPointTotals::add(const uint32_t* words) {
+  for (size_t k = 0; k < whole_.size(); ++k) {
+    // Two's complement: the conversion to int64 is exact (well defined since C++20), and the
+    // arithmetic shift floors, so value = whole * 2^32 + fraction with 0 <= fraction < 2^32.
+    const int64_t v = static_cast<int64_t>((uint64_t(words[2 * k + 1]) << 32) | words[2 * k]);
+    whole_[k] += v >> 32;
+    fraction_[k] += v & 0xFFFFFFFF;
+  }
+}
+
+std::vector<double> FixedPointTotals::values() const {
+  std::vector<double> out(whole_.size());
+  for (size_t k = 0; k < out.size(); ++k) {
+    const int64_t whole = whole_[k] + (fraction_[k] >> 32), fraction = fraction_[k] & 0xFFFFFFFF;
+    out[k] = double(whole) + double(fraction) / TFM_FIXED_ONE;  // both exact; one rounding
+  }
+  return out;
+}
+
+}  // namespace tfm

@@ -1,0 +1,75 @@
+// Wrappers of the DiffDVR kernels: the forward pass (diffdvr_forward.comp) writes each pixel's
+// final state (C, T) and k_stop for a batch of cameras; the backward pass (diffdvr_backward.comp)
+// re-marches from that state and adds the image loss and its TF gradient to fixed-point
+// accumulators. Both take the renderer's push block (make_render_push of render_image.h).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "buffer.h"
+#include "commands.h"
+#include "device_field.h"
+#include "diffdvr_cpu.h"  // ImageLoss
+#include "diffdvr_layout.h"
+#include "pipeline.h"
+
+namespace tfm {
+
+class Context;
+
+class DiffDvrForwardKernel {
+ public:
+  // Throws std::runtime_error when the field needs more buffers than the kernel binds.
+  DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks);
+  // Records one dispatch over rows [row_begin, row_begin + row_count) of every view of `push`.
+  // `state` holds width*height*views vec4 (C, T), `stop` as many uints. Throws
+  // std::invalid_argument when a buffer or the field's chunking does not fit.
+  void record(CommandBatch& batch, const DeviceField& field, const Buffer& tf, const Buffer& views,
+              gpu::RenderPush push, Buffer& state, Buffer& stop, uint32_t row_begin, uint32_t row_count) const;
+
+ private:
+  uint32_t chunks_;
+  std::unique_ptr<ComputePipeline> pipeline_;
+};
+
+class DiffDvrBackwardKernel {
+ public:
+  // Accumulates in workgroup-shared memory when the device has room for the slots of `tf_size`
+  // entries, else straight to the buffer (`force_global` selects that path; same bits either way).
+  DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks, uint32_t tf_size, ImageLoss loss,
+                        bool force_global = false);
+  uint32_t tf_size() const { return tf_size_; }
+  uint32_t slots() const { return TFM_DIFFDVR_SLOTS(tf_size_); }  // accumulator bytes: 8 per slot
+  bool uses_shared_memory() const { return use_shared_; }
+  // Adds the loss of (state vs target) over rows [row_begin, row_begin + row_count) of every view
+  // and its gradient w.r.t. `tf` to `accum`. `state`/`stop` are the forward pass's output for
+  // (field, tf, views, push); `target` has the same layout. Throws std::invalid_argument when a
+  // buffer, the TF size or the chunking does not fit.
+  void record(CommandBatch& batch, const DeviceField& field, const Buffer& tf, const Buffer& views,
+              gpu::RenderPush push, const Buffer& state, const Buffer& stop, const Buffer& target, Buffer& accum,
+              uint32_t row_begin, uint32_t row_count) const;
+
+ private:
+  uint32_t chunks_;
+  uint32_t tf_size_;
+  bool use_shared_;
+  std::unique_ptr<ComputePipeline> pipeline_;
+};
+
+// The exact total of signed 32.32 fixed-point accumulators (two's complement, low word first)
+// read back from several passes. Integer parts and fractions are summed apart in 64-bit
+// integers (exact for < 2^31 passes of values below 2^31), so the total, and the double it is
+// rounded to once, do not depend on how the work was split into passes.
+class FixedPointTotals {
+ public:
+  explicit FixedPointTotals(size_t slots) : whole_(slots, 0), fraction_(slots, 0) {}
+  void add(const uint32_t* words);  // 2 * slots words
+  std::vector<double> values() const;
+
+ private:
+  std::vector<int64_t> whole_, fraction_;
+};
+
+}  // namespace tfm

@@ -1,0 +1,68 @@
+// Pipelines and dispatch of the gradient-descent kernels.
+#include "gradient_descent.h"
+
+#include <stdexcept>
+
+#include "context.h"
+#include "sparse_ops.h"
+#include "voxel_pair.h"
+
+namespace tfm {
+
+static_assert(sizeof(gpu::GdUpdatePush) == 48, "GdUpdatePush must match the GLSL std430 block");
+
+uint64_t gd_accumulator_bytes(uint32_t tf_size) { return uint64_t(TFM_GD_ACCUM_WORDS(tf_size)) * sizeof(uint32_t); }
+
+GdGradientKernel::GdGradientKernel(Context& ctx, uint32_t tf_size, bool l1, bool force_global)
+    : ctx_(ctx), tf_size_(tf_size), use_shared_(!force_global && signed_slots_fit_shared(ctx, tf_size)) {
+  if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
+  PipelineDesc desc;
+  desc.shader = "gd_gradient";
+  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
+  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+  const uint32_t shared_words = use_shared_ ? uint32_t(signed_accumulator_bytes(tf_size) / 4) : TFM_SIGNED_SLOT_WORDS;
+  desc.specialization = {TFM_VOXEL_WORKGROUP, shared_words, use_shared_ ? 1u : 0u, l1 ? 1u : 0u};
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+}
+
+void GdGradientKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
+                              const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
+                              const Buffer& x, Buffer& accum) const {
+  if (ref.voxel_count() != opt.voxel_count() || ref.chunk_voxels() != opt.chunk_voxels())
+    throw std::invalid_argument("gd_gradient: fields differ in size or chunking");
+  if (opt_map.tf_size != tf_size_) throw std::invalid_argument("gd_gradient: mapping TF size differs from kernel's");
+  if (accum.size() < gd_accumulator_bytes(tf_size_) || x.size() < uint64_t(tf_size_) * 16)
+    throw std::invalid_argument("gd_gradient: accumulator or TF buffer too small");
+  gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
+  for (size_t c = 0; c < ref.chunk_count(); ++c) {
+    push.voxel_count = static_cast<uint32_t>(ref.chunk_size(c));
+    batch.dispatch(*pipeline_, {ref.chunk(c), opt.chunk(c), ref_tf, x, accum}, push,
+                   {voxel_groups(ctx_, ref.chunk_size(c))});
+    // Successive chunks add into the same accumulators.
+    batch.barrier();
+  }
+}
+
+GdUpdateKernel::GdUpdateKernel(Context& ctx) {
+  PipelineDesc desc;
+  desc.shader = "gd_update";
+  desc.binding_counts = {1, 1, 1, 1, 1, 1};
+  desc.push_constant_bytes = sizeof(gpu::GdUpdatePush);
+  desc.workgroup_size = TFM_VECTOR_WORKGROUP;
+  desc.specialization = {TFM_VECTOR_WORKGROUP};
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+}
+
+void GdUpdateKernel::record(CommandBatch& batch, const gpu::GdUpdatePush& push, const GdUpdateBuffers& b) const {
+  if (!b.accum || !b.x || !b.m || !b.v || !b.inv_diag || !b.gradient)
+    throw std::invalid_argument("gd_update: missing buffer");
+  const uint64_t rgba = uint64_t(push.tf_size) * 16;
+  if (b.accum->size() < gd_accumulator_bytes(push.tf_size) || b.x->size() < rgba || b.m->size() < rgba ||
+      b.v->size() < rgba || b.gradient->size() < rgba || b.inv_diag->size() < uint64_t(push.tf_size) * 4)
+    throw std::invalid_argument("gd_update: a buffer is smaller than N entries need");
+  if (!(push.reg_scale > 0.0f)) throw std::invalid_argument("gd_update: reg_scale must be positive");
+  batch.dispatch(*pipeline_, {*b.accum, *b.x, *b.m, *b.v, *b.inv_diag, *b.gradient}, push, {1});
+}
+
+}  // namespace tfm

@@ -1,0 +1,86 @@
+// Pipeline and dispatch recording of the direct volume renderer.
+#include "render_image.h"
+
+#include <stdexcept>
+#include <string>
+
+#include "context.h"
+
+namespace tfm {
+
+static_assert(sizeof(gpu::RenderView) == 64, "RenderView must match the GLSL std430 struct");
+static_assert(sizeof(gpu::RenderPush) == 72, "RenderPush must match the GLSL push-constant block");
+static_assert(kMaxSampleOpticalDepth == TFM_MAX_SAMPLE_OPTICAL_DEPTH, "CPU and GPU clamp the same depth");
+
+gpu::RenderView make_render_view(const CameraFrame& f) {
+  gpu::RenderView v{};
+  auto put = [](float* dst, const glm::dvec3& src, double w) {
+    dst[0] = float(src.x), dst[1] = float(src.y), dst[2] = float(src.z), dst[3] = float(w);
+  };
+  put(v.eye, f.eye, f.tan_half_fov);
+  put(v.forward, f.forward, f.aspect);
+  put(v.right, f.right, 0.0);
+  put(v.up, f.up, 0.0);
+  return v;
+}
+
+gpu::RenderPush make_render_push(const VolumeGeometry& g, const MarchConstants& m, const FieldMapping& map,
+                                 const DeviceField& field, uint32_t width, uint32_t height, uint32_t view_count) {
+  const uint64_t voxels = g.dims[0] * g.dims[1] * g.dims[2];
+  if (voxels >= (uint64_t(1) << 32))
+    throw std::runtime_error("render: grids of 2^32 voxels or more are not supported (32-bit voxel indices)");
+  if (field.voxel_count() != voxels) throw std::invalid_argument("render: field size differs from the grid");
+  gpu::RenderPush p{};
+  p.width = width;
+  p.height = height;
+  p.view_count = view_count;
+  p.dim_x = uint32_t(g.dims[0]);
+  p.dim_y = uint32_t(g.dims[1]);
+  p.dim_z = uint32_t(g.dims[2]);
+  p.chunk_voxels = uint32_t(field.chunk_voxels());
+  p.tf_size = map.tf_size;
+  p.tf_lo = map.lo;
+  p.tf_scale = map.scale;
+  p.dt = float(m.dt);
+  p.depth_per_alpha = float(m.depth_per_alpha);
+  p.stop_transmittance = float(m.stop_transmittance);
+  p.max_steps = m.max_steps;
+  p.inv_axis_x = float(1.0 / g.axis_scale.x);
+  p.inv_axis_y = float(1.0 / g.axis_scale.y);
+  p.inv_axis_z = float(1.0 / g.axis_scale.z);
+  return p;
+}
+
+RenderImageKernel::RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32_t mode)
+    : ctx_(ctx), chunks_(field_chunks) {
+  if (field_chunks == 0 || field_chunks > TFM_RENDER_MAX_CHUNKS)
+    throw std::runtime_error("render: the field needs " + std::to_string(field_chunks) +
+                             " storage buffers; the renderer binds at most " +
+                             std::to_string(TFM_RENDER_MAX_CHUNKS) + " (volume too large for this device)");
+  PipelineDesc desc;
+  desc.shader = "render_image";
+  desc.binding_counts = {TFM_RENDER_MAX_CHUNKS, 1, 1, 1, 1};
+  desc.push_constant_bytes = sizeof(gpu::RenderPush);
+  desc.workgroup_size = TFM_RENDER_TILE * TFM_RENDER_TILE;
+  desc.specialization = {TFM_RENDER_TILE, TFM_RENDER_TILE, field_chunks, mode};
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+}
+
+void RenderImageKernel::record(CommandBatch& batch, const DeviceField& field, const Buffer& tf, const Buffer& views,
+                               gpu::RenderPush push, Buffer& image, Buffer& stop, uint32_t row_begin,
+                               uint32_t row_count) const {
+  if (field.chunk_count() != chunks_) throw std::invalid_argument("render: field chunk count differs from pipeline's");
+  const uint64_t pixels = uint64_t(push.width) * push.height * push.view_count;
+  if (image.size() < pixels * 16 || stop.size() < pixels * 4)
+    throw std::invalid_argument("render: output buffers too small for the image");
+  if (views.size() < uint64_t(push.view_count) * sizeof(gpu::RenderView))
+    throw std::invalid_argument("render: fewer camera records than views");
+  if (tf.size() < uint64_t(push.tf_size) * 16) throw std::invalid_argument("render: TF buffer smaller than tf_size");
+  if (row_begin + row_count > push.height) throw std::invalid_argument("render: row band outside the image");
+  push.row_offset = row_begin;
+  const Groups groups{(push.width + TFM_RENDER_TILE - 1) / TFM_RENDER_TILE,
+                      (row_count + TFM_RENDER_TILE - 1) / TFM_RENDER_TILE, push.view_count};
+  batch.dispatch(*pipeline_, {field.chunk_array(TFM_RENDER_MAX_CHUNKS), tf, views, image, stop}, push, groups);
+}
+
+}  // namespace tfm

@@ -1,0 +1,45 @@
+// Wrapper of shaders/render_image.comp: one dispatch renders a band of image rows of one field
+// from `view_count` cameras. Also packs the host's camera and marching constants into the
+// GPU records (gpu::RenderView, gpu::RenderPush of shaders/render_layout.h).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+
+#include "buffer.h"
+#include "camera.h"
+#include "commands.h"
+#include "device_field.h"
+#include "field_mapping.h"
+#include "pipeline.h"
+#include "render_layout.h"
+
+namespace tfm {
+
+class Context;
+
+gpu::RenderView make_render_view(const CameraFrame& frame);
+// Throws std::runtime_error when the grid has 2^32 voxels or more (32-bit voxel indices).
+gpu::RenderPush make_render_push(const VolumeGeometry& geometry, const MarchConstants& march,
+                                 const FieldMapping& mapping, const DeviceField& field, uint32_t width,
+                                 uint32_t height, uint32_t view_count);
+
+class RenderImageKernel {
+ public:
+  // `field_chunks`: chunks of the fields this pipeline renders (1..TFM_RENDER_MAX_CHUNKS);
+  // `mode`: TFM_RENDER_MODE_FORWARD, or TFM_RENDER_MODE_INVERSE_CHECK (tests).
+  RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32_t mode = TFM_RENDER_MODE_FORWARD);
+  uint32_t field_chunks() const { return chunks_; }
+  // Records one dispatch over rows [row_begin, row_begin + row_count) of every view. `image`
+  // holds width*height*views vec4, `stop` as many uints. Throws std::invalid_argument when the
+  // field's chunk count or a buffer size does not fit.
+  void record(CommandBatch& batch, const DeviceField& field, const Buffer& tf, const Buffer& views,
+              gpu::RenderPush push, Buffer& image, Buffer& stop, uint32_t row_begin, uint32_t row_count) const;
+
+ private:
+  Context& ctx_;
+  uint32_t chunks_;
+  std::unique_ptr<ComputePipeline> pipeline_;
+};
+
+}  // namespace tfm

@@ -1,0 +1,30 @@
+// Wrapper of shaders/residual_map.comp: per voxel || premul(T_r(F_r)) - premul(T_o(F_o)) ||_2
+// into a device field chunked like the inputs (NaN in either input gives 0).
+#pragma once
+
+#include <memory>
+
+#include "buffer.h"
+#include "commands.h"
+#include "device_field.h"
+#include "field_mapping.h"
+#include "pipeline.h"
+
+namespace tfm {
+
+class Context;
+
+class ResidualMapKernel {
+ public:
+  explicit ResidualMapKernel(Context& ctx);
+  // Records one dispatch per chunk. `ref_map`/`opt_map` carry each TF's size. Throws
+  // std::invalid_argument when the three fields differ in size or chunking.
+  void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
+              const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, DeviceField& out) const;
+
+ private:
+  Context& ctx_;
+  std::unique_ptr<ComputePipeline> pipeline_;
+};
+
+}  // namespace tfm

@@ -1,0 +1,194 @@
+// Voxel vectors and the prepare / gather / scatter kernels of the matrix-free solvers.
+#include "sparse_ops.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+#include "context.h"
+#include "voxel_pair.h"
+
+namespace tfm {
+
+static_assert(sizeof(gpu::PreparePush) == 32, "PreparePush must match the GLSL std430 block");
+static_assert(sizeof(gpu::SparsePush) == 8, "SparsePush must match the GLSL std430 block");
+static_assert(sizeof(gpu::CglsState) == 112, "CglsState must match the GLSL std430 struct");
+
+namespace {
+constexpr uint64_t kRgbaBytes = 4 * sizeof(float);
+}  // namespace
+
+VoxelVectors::VoxelVectors(Context& ctx, const DeviceField& ref, const DeviceField& opt, uint64_t max_chunk_voxels)
+    : voxels_(ref.voxel_count()), field_chunk_voxels_(ref.chunk_voxels()) {
+  if (ref.voxel_count() != opt.voxel_count() || ref.chunk_voxels() != opt.chunk_voxels())
+    throw std::invalid_argument("voxel vectors: fields differ in size or chunking");
+  uint64_t limit = ctx.max_buffer_bytes() / kRgbaBytes;
+  if (max_chunk_voxels) limit = std::min(limit, max_chunk_voxels);
+  if (ref.chunk_count() == 1) {
+    chunk_voxels_ = std::min(voxels_, limit);
+  } else {
+    // Several field chunks: the chunk size must divide the field chunk so that no chunk straddles
+    // two field buffers. Field chunks are multiples of 1024 voxels, so a divisor is found quickly.
+    const uint64_t f = field_chunk_voxels_;
+    for (uint64_t k = (f + limit - 1) / limit; k <= f; ++k) {
+      if (f % k == 0) {
+        chunk_voxels_ = f / k;
+        break;
+      }
+    }
+  }
+  if (chunk_voxels_ == 0)
+    throw std::runtime_error("voxel vectors: no chunk size fits " + std::to_string(voxels_) +
+                             " voxels in storage buffers of " + std::to_string(ctx.max_buffer_bytes()) + " bytes");
+  const size_t count = size_t((voxels_ + chunk_voxels_ - 1) / chunk_voxels_);
+  coord_.reserve(count);
+  rgba_.reserve(count);
+  for (size_t c = 0; c < count; ++c) {
+    coord_.emplace_back(ctx, chunk_size(c) * sizeof(float), MemoryUsage::Device,
+                        "voxel coordinates chunk " + std::to_string(c));
+    rgba_.emplace_back(ctx, chunk_size(c) * kRgbaBytes, MemoryUsage::Device, "voxel RGBA chunk " + std::to_string(c));
+  }
+}
+
+uint64_t VoxelVectors::chunk_size(size_t c) const { return std::min(chunk_voxels_, voxels_ - chunk_begin(c)); }
+
+std::vector<float> VoxelVectors::read_coords(Context& ctx) const {
+  std::vector<float> out(voxels_);
+  for (size_t c = 0; c < chunk_count(); ++c)
+    readback(ctx, coord_[c], out.data() + chunk_begin(c), chunk_size(c) * sizeof(float));
+  return out;
+}
+
+std::vector<float> VoxelVectors::read_rgba(Context& ctx) const {
+  std::vector<float> out(voxels_ * 4);
+  for (size_t c = 0; c < chunk_count(); ++c)
+    readback(ctx, rgba_[c], out.data() + 4 * chunk_begin(c), chunk_size(c) * kRgbaBytes);
+  return out;
+}
+
+SparsePrepareKernel::SparsePrepareKernel(Context& ctx) : ctx_(ctx) {
+  PipelineDesc desc;
+  desc.shader = "sparse_prepare";
+  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.push_constant_bytes = sizeof(gpu::PreparePush);
+  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+  desc.specialization = {TFM_VOXEL_WORKGROUP};
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+}
+
+void SparsePrepareKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
+                                 const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
+                                 VoxelVectors& v) const {
+  if (ref.voxel_count() != v.voxel_count() || opt.voxel_count() != v.voxel_count())
+    throw std::invalid_argument("sparse_prepare: fields and voxel vectors differ in size");
+  gpu::PreparePush push{};
+  push.opt_tf_size = opt_map.tf_size;
+  push.ref_tf_size = ref_map.tf_size;
+  push.ref_lo = ref_map.lo;
+  push.ref_scale = ref_map.scale;
+  push.opt_lo = opt_map.lo;
+  push.opt_scale = opt_map.scale;
+  for (size_t c = 0; c < v.chunk_count(); ++c) {
+    push.voxel_count = static_cast<uint32_t>(v.chunk_size(c));
+    push.field_offset = static_cast<uint32_t>(v.field_offset(c));
+    const size_t f = v.field_chunk(c);
+    batch.dispatch(*pipeline_, {ref.chunk(f), opt.chunk(f), ref_tf, v.coord(c), v.rgba(c)}, push,
+                   {voxel_groups(ctx_, v.chunk_size(c))});
+  }
+}
+
+SparseGatherKernel::SparseGatherKernel(Context& ctx, bool write_out, bool accumulate_norm, bool scaled)
+    : ctx_(ctx), scaled_(scaled), dummy_state_(ctx, sizeof(gpu::CglsState), MemoryUsage::Device, "gather unused state") {
+  PipelineDesc desc;
+  desc.shader = "sparse_gather";
+  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.push_constant_bytes = sizeof(gpu::SparsePush);
+  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+  desc.specialization = {TFM_VOXEL_WORKGROUP, write_out ? 1u : 0u, accumulate_norm ? 1u : 0u, scaled ? 1u : 0u};
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+}
+
+void SparseGatherKernel::record(CommandBatch& batch, VoxelVectors& v, uint32_t tf_size, const Buffer& x,
+                                Buffer& norm_accum, const Buffer* state) const {
+  if (tf_size < 2 || x.size() < uint64_t(tf_size) * kRgbaBytes)
+    throw std::invalid_argument("sparse_gather: TF buffer smaller than N RGBA entries");
+  if (norm_accum.size() < TFM_GATHER_NORM_SLOTS * 2 * sizeof(uint32_t))
+    throw std::invalid_argument("sparse_gather: norm accumulator too small");
+  if (scaled_ && (!state || state->size() < sizeof(gpu::CglsState)))
+    throw std::invalid_argument("sparse_gather: the scaled norm needs the CGLS state");
+  const Buffer& st = scaled_ ? *state : dummy_state_;
+  gpu::SparsePush push{0, tf_size};
+  for (size_t c = 0; c < v.chunk_count(); ++c) {
+    push.voxel_count = static_cast<uint32_t>(v.chunk_size(c));
+    batch.dispatch(*pipeline_, {v.coord(c), x, v.rgba(c), norm_accum, st}, push,
+                   {voxel_groups(ctx_, v.chunk_size(c))});
+    // Successive chunks add into the same accumulators.
+    batch.barrier();
+  }
+}
+
+uint64_t signed_accumulator_bytes(uint32_t tf_size) {
+  return uint64_t(4) * tf_size * TFM_SIGNED_SLOT_WORDS * sizeof(uint32_t);
+}
+
+bool signed_slots_fit_shared(const Context& ctx, uint32_t tf_size) {
+  return signed_accumulator_bytes(tf_size) <= ctx.limits().maxComputeSharedMemorySize;
+}
+
+std::vector<double> decode_signed_fixed_point(const std::vector<uint32_t>& words) {
+  std::vector<double> out(words.size() / TFM_SIGNED_SLOT_WORDS);
+  for (size_t k = 0; k < out.size(); ++k) {
+    const uint32_t* w = &words[TFM_SIGNED_SLOT_WORDS * k];
+    const uint64_t pos = (uint64_t(w[1]) << 32) | w[0];
+    const uint64_t neg = (uint64_t(w[3]) << 32) | w[2];
+    // Exact difference in integers, then one rounding to double.
+    out[k] = pos >= neg ? double(pos - neg) / TFM_FIXED_ONE : -double(neg - pos) / TFM_FIXED_ONE;
+  }
+  return out;
+}
+
+SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool update_residual, bool force_global)
+    : ctx_(ctx),
+      tf_size_(tf_size),
+      update_(update_residual),
+      use_shared_(!force_global && signed_slots_fit_shared(ctx, tf_size)),
+      dummy_p_(ctx, uint64_t(tf_size) * kRgbaBytes, MemoryUsage::Device, "scatter unused p"),
+      dummy_state_(ctx, sizeof(gpu::CglsState), MemoryUsage::Device, "scatter unused state") {
+  if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
+  PipelineDesc desc;
+  desc.shader = "sparse_scatter";
+  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.push_constant_bytes = sizeof(gpu::SparsePush);
+  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+  const uint32_t shared_words = use_shared_ ? uint32_t(signed_accumulator_bytes(tf_size) / 4) : TFM_SIGNED_SLOT_WORDS;
+  desc.specialization = {TFM_VOXEL_WORKGROUP, shared_words, use_shared_ ? 1u : 0u, update_residual ? 1u : 0u};
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+}
+
+void SparseScatterKernel::record(CommandBatch& batch, VoxelVectors& v, Buffer& accum) const {
+  if (update_) throw std::logic_error("sparse_scatter: this pipeline updates the residual; use record_update");
+  record_chunks(batch, v, dummy_p_, dummy_state_, accum);
+}
+
+void SparseScatterKernel::record_update(CommandBatch& batch, VoxelVectors& v, const Buffer& p, const Buffer& state,
+                                        Buffer& accum) const {
+  if (!update_) throw std::logic_error("sparse_scatter: this pipeline does not update the residual");
+  if (p.size() < uint64_t(tf_size_) * kRgbaBytes || state.size() < sizeof(gpu::CglsState))
+    throw std::invalid_argument("sparse_scatter: p or state buffer too small");
+  record_chunks(batch, v, p, state, accum);
+}
+
+void SparseScatterKernel::record_chunks(CommandBatch& batch, VoxelVectors& v, const Buffer& p, const Buffer& state,
+                                        Buffer& accum) const {
+  if (accum.size() < signed_accumulator_bytes(tf_size_))
+    throw std::invalid_argument("sparse_scatter: accumulator buffer too small");
+  gpu::SparsePush push{0, tf_size_};
+  for (size_t c = 0; c < v.chunk_count(); ++c) {
+    push.voxel_count = static_cast<uint32_t>(v.chunk_size(c));
+    batch.dispatch(*pipeline_, {v.coord(c), v.rgba(c), p, state, accum}, push, {voxel_groups(ctx_, v.chunk_size(c))});
+    // Successive chunks add into the same accumulators.
+    batch.barrier();
+  }
+}
+
+}  // namespace tfm

@@ -1,0 +1,116 @@
+// The matrix-free operators of the voxel system: per-voxel vectors (TF coordinates and an RGBA
+// vector, chunked to fit storage buffers), and the kernels that prepare them, gather q = S x and
+// scatter s = S^T r into deterministic signed fixed-point accumulators.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "buffer.h"
+#include "commands.h"
+#include "device_field.h"
+#include "field_mapping.h"
+#include "pipeline.h"
+#include "solver_layout.h"
+
+namespace tfm {
+
+class Context;
+
+// Per-voxel vectors of the matrix-free solvers over a pair of fields: the TF coordinate of each
+// voxel (4 bytes) and one RGBA vector (16 bytes; b, then the CGLS residual). Chunks are sized so
+// that an RGBA chunk fits one storage buffer and lies inside one chunk of the fields.
+class VoxelVectors {
+ public:
+  // `max_chunk_voxels` (0: device limit) forces smaller chunks in tests. Throws
+  // std::invalid_argument when the fields differ in size or chunking, std::runtime_error when no
+  // chunk size fits the device (the message says how large the fields and the limit are).
+  VoxelVectors(Context& ctx, const DeviceField& ref, const DeviceField& opt, uint64_t max_chunk_voxels = 0);
+
+  uint64_t voxel_count() const { return voxels_; }
+  uint64_t chunk_voxels() const { return chunk_voxels_; }
+  size_t chunk_count() const { return coord_.size(); }
+  uint64_t chunk_begin(size_t c) const { return c * chunk_voxels_; }
+  uint64_t chunk_size(size_t c) const;
+  // The chunk of the input fields that holds chunk c, and c's first voxel inside it.
+  size_t field_chunk(size_t c) const { return size_t(chunk_begin(c) / field_chunk_voxels_); }
+  uint64_t field_offset(size_t c) const { return chunk_begin(c) % field_chunk_voxels_; }
+  const Buffer& coord(size_t c) const { return coord_[c]; }
+  Buffer& rgba(size_t c) { return rgba_[c]; }
+  const Buffer& rgba(size_t c) const { return rgba_[c]; }
+
+  // Reads every chunk back (tests, small problems).
+  std::vector<float> read_coords(Context& ctx) const;
+  std::vector<float> read_rgba(Context& ctx) const;  // 4 floats per voxel
+
+ private:
+  uint64_t voxels_ = 0;
+  uint64_t chunk_voxels_ = 0;
+  uint64_t field_chunk_voxels_ = 0;
+  std::vector<Buffer> coord_;
+  std::vector<Buffer> rgba_;
+};
+
+// Writes coordinates and b = clamp(T_r(F_r), 0, 1) of every voxel (TFM_NO_DATA / 0 where either
+// field has no data).
+class SparsePrepareKernel {
+ public:
+  explicit SparsePrepareKernel(Context& ctx);
+  void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
+              const FieldMapping& opt_map, const Buffer& ref_tf, VoxelVectors& vectors) const;
+
+ private:
+  Context& ctx_;
+  std::unique_ptr<ComputePipeline> pipeline_;
+};
+
+// q = S x (x: N RGBA entries). With `write_out` stores q in the vectors' RGBA chunks; with
+// `accumulate_norm` adds ||q_c||^2 to TFM_GATHER_NORM_SLOTS unsigned 32.32 slots, of q / p_scale
+// (from a CGLS state buffer) when `scaled`.
+class SparseGatherKernel {
+ public:
+  SparseGatherKernel(Context& ctx, bool write_out, bool accumulate_norm, bool scaled = false);
+  // `state` is required when scaled, ignored otherwise.
+  void record(CommandBatch& batch, VoxelVectors& vectors, uint32_t tf_size, const Buffer& x, Buffer& norm_accum,
+              const Buffer* state = nullptr) const;
+
+ private:
+  Context& ctx_;
+  bool scaled_;
+  std::unique_ptr<ComputePipeline> pipeline_;
+  Buffer dummy_state_;
+};
+
+// s += S^T r, r = the vectors' RGBA chunks, into 4N signed slots (TFM_SIGNED_SLOT_WORDS words each:
+// signed_accumulator_bytes(N)). With `update_residual` first r -= alpha (S p), alpha from the
+// CGLS state. Accumulates in shared memory when it fits (`force_global`: never).
+class SparseScatterKernel {
+ public:
+  SparseScatterKernel(Context& ctx, uint32_t tf_size, bool update_residual, bool force_global = false);
+  bool uses_shared_memory() const { return use_shared_; }
+  // Plain S^T r.
+  void record(CommandBatch& batch, VoxelVectors& vectors, Buffer& accum) const;
+  // The CGLS residual update and S^T r of the updated residual.
+  void record_update(CommandBatch& batch, VoxelVectors& vectors, const Buffer& p, const Buffer& state,
+                     Buffer& accum) const;
+
+ private:
+  void record_chunks(CommandBatch& batch, VoxelVectors& vectors, const Buffer& p, const Buffer& state,
+                     Buffer& accum) const;
+  Context& ctx_;
+  uint32_t tf_size_;
+  bool update_;
+  bool use_shared_;
+  std::unique_ptr<ComputePipeline> pipeline_;
+  Buffer dummy_p_, dummy_state_;
+};
+
+// Bytes of 4N signed 32.32 accumulators.
+uint64_t signed_accumulator_bytes(uint32_t tf_size);
+// Decodes signed accumulators read back as uint32 words: value k = (pos - neg) / 2^32.
+std::vector<double> decode_signed_fixed_point(const std::vector<uint32_t>& words);
+// Whether 4N signed slots fit the device's workgroup-shared memory.
+bool signed_slots_fit_shared(const Context& ctx, uint32_t tf_size);
+
+}  // namespace tfm

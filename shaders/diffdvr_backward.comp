@@ -1,0 +1,154 @@
+// DiffDVR backward pass with the inversion trick. Per pixel: the image loss against the target
+// (l2 or l1 over RGBA, X = (C, 1 - T)), then a re-march of the ray from its final state, sample
+// k_stop-1 down to 0, undoing each compositing step with uncomposite() instead of reading stored
+// samples, while the adjoints flow back to the two TF entries each sample interpolates.
+//
+// One step (forward) is C' = C + T (1 - tau) c, T' = T tau, tau = exp(-min(a D, MAX)), with D
+// the optical depth of one step at TF opacity 1. Given the adjoints gC (vec3) of C' and gT of T':
+//   dL/dc   = gC T (1 - tau)
+//   dL/dtau = T (gT - gC.c)
+//   dL/da   = dL/dtau * (-D tau)          (0 where the clamp a D >= MAX is active)
+//   gT     <- (1 - tau) gC.c + tau gT    (the adjoint of T); gC is unchanged (C' is C + ...)
+// The TF lookup is (1 - w) E_j + w E_{j+1}, so E_j receives (1 - w) (dL/dc, dL/da) and E_{j+1}
+// w times it. Empty (NaN) samples left the state unchanged and receive nothing.
+//
+// Guard near alpha = 1: the inversion T <- T / tau needs T > 0 and tau > 0 in float. The
+// forward pass stops once T <= 1 - termination opacity (validate() keeps that opacity < 1),
+// and the optical-depth clamp (TFM_MAX_SAMPLE_OPTICAL_DEPTH = 20) keeps every tau >= exp(-20),
+// so the final T >= (1 - opacity) exp(-20) ~ 2e-11 for the default 0.99: a normal float, and
+// each T recovered on the way back is larger still. The forward pass hands T over exactly
+// (diffdvr_forward.comp stores T, not 1 - T). Only T enters the adjoint; C is inverted too (it
+// is free: dead code the compiler drops) so the march reads as the forward one reversed.
+//
+// Gradient sums: each invocation keeps the two entries of its current TF interval in float
+// registers while consecutive samples stay in it (smooth fields mostly do), converts the sums
+// to 32.32 fixed point when the interval changes, and adds them with integer atomics into the
+// workgroup's shared accumulators, flushed once per workgroup into the global ones. Integer
+// sums are exact, so the result does not depend on scheduling.
+#version 450
+#extension GL_GOOGLE_include_directive : require
+#define TFM_WANT_RENDER_PUSH
+#include "diffdvr_layout.h"
+
+layout(local_size_x_id = 0, local_size_y_id = 1) in;
+layout(constant_id = TFM_DIFFDVR_SPEC_LOSS) const uint LOSS = TFM_DIFFDVR_LOSS_L2;
+layout(constant_id = TFM_DIFFDVR_SPEC_SHARED_WORDS) const uint SHARED_WORDS = 2u;
+layout(constant_id = TFM_DIFFDVR_SPEC_USE_SHARED) const bool USE_SHARED = true;
+
+TFM_DECLARE_RAYMARCH_BINDINGS(TFM_DIFFDVR_BWD_BINDING_FIELD, TFM_DIFFDVR_BWD_BINDING_TF)
+#include "raymarch.glsl"
+#include "diffdvr_layout.h"
+
+layout(std430, binding = TFM_DIFFDVR_BWD_BINDING_VIEWS) readonly buffer Views { RenderView views[]; };
+layout(std430, binding = TFM_DIFFDVR_BWD_BINDING_STATE) readonly buffer State { vec4 state[]; };
+layout(std430, binding = TFM_DIFFDVR_BWD_BINDING_STOP) readonly buffer Stop { uint stop_index[]; };
+layout(std430, binding = TFM_DIFFDVR_BWD_BINDING_TARGET) readonly buffer Target { vec4 target[]; };
+layout(std430, binding = TFM_DIFFDVR_BWD_BINDING_ACCUM) buffer Accum { uint accum[]; };
+
+shared uint s_acc[SHARED_WORDS];
+
+#define ADD(slot, value)                  \
+  if (USE_SHARED) {                       \
+    FX_ATOMIC_ADD(s_acc, (slot), (value)) \
+  } else {                                \
+    FX_ATOMIC_ADD(accum, (slot), (value)) \
+  }
+
+// v as a signed 32.32 fixed-point number in two's complement (|v| < 2^31; run sums of one ray
+// are far below). Truncates towards zero like fx_from_float, so the error is below 2^-32.
+uvec2 fx_from_signed(float v) {
+  uvec2 m = fx_from_float(abs(v));
+  if (v < 0.0) {
+    m = ~m;  // -m = ~m + 1 modulo 2^64
+    m.x += 1u;
+    if (m.x == 0u) m.y += 1u;
+  }
+  return m;
+}
+
+// Adds the register sums of TF entries j and j + 1 to the accumulators.
+void flush(uint j, vec4 g0, vec4 g1) {
+  for (uint c = 0u; c < 4u; ++c) {
+    ADD(4u * j + c, fx_from_signed(g0[c]));
+    ADD(4u * (j + 1u) + c, fx_from_signed(g1[c]));
+  }
+}
+
+void backpropagate_pixel(uvec2 pixel, uint view) {
+  const MarchParams mp = march_params_from_push();
+  const Ray ray = view_ray(views[view], pixel, mp);
+  const uint index = (view * rp.height + pixel.y) * rp.width + pixel.x;
+  const vec4 s = state[index];
+  const vec4 t = target[index];
+  // Images as the renderer writes them: (C, opacity = 1 - T).
+  const vec4 diff = vec4(s.rgb, 1.0 - s.a) - vec4(t.rgb, 1.0 - t.a);
+  vec4 g;  // dLoss / d(C, A); sign(0) = 0 where the images agree exactly (missed rays)
+  float loss;
+  if (LOSS == TFM_DIFFDVR_LOSS_L1) {
+    g = sign(diff);
+    loss = abs(diff.r) + abs(diff.g) + abs(diff.b) + abs(diff.a);
+  } else {
+    g = 2.0 * diff;
+    loss = dot(diff, diff);
+  }
+  ADD(4u * mp.tf_size, fx_from_float(loss));
+
+  const vec3 g_color = g.rgb;
+  float g_trans = -g.a;  // A = 1 - T
+  vec3 color = s.rgb;
+  float transmittance = s.a;
+  uint cur = 0xFFFFFFFFu;
+  vec4 g0 = vec4(0.0), g1 = vec4(0.0);
+  for (uint k = stop_index[index]; k > 0u; --k) {
+    float value;
+    if (!sample_field(sample_position(ray, k - 1u, mp.dt), mp, value)) continue;
+    uint j;
+    float w;
+    // shade_sample() of raymarch.glsl, with the interval (j, w) and the clamp kept.
+    const vec4 c = clamp(classify(value, mp, j, w), 0.0, 1.0);
+    const float tau = sample_transmittance(c.a, mp);
+    uncomposite(color, transmittance, c.rgb, tau);  // transmittance is now T before sample k-1
+    const float gc_dot_c = dot(g_color, c.rgb);
+    const vec3 d_rgb = g_color * (transmittance * (1.0 - tau));
+    const float d_tau = transmittance * (g_trans - gc_dot_c);
+    const bool clamped = c.a * mp.depth_per_alpha >= TFM_MAX_SAMPLE_OPTICAL_DEPTH;
+    const float d_alpha = clamped ? 0.0 : -d_tau * mp.depth_per_alpha * tau;
+    g_trans = (1.0 - tau) * gc_dot_c + tau * g_trans;
+    const vec4 d = vec4(d_rgb, d_alpha);
+    if (j != cur) {
+      if (cur != 0xFFFFFFFFu) flush(cur, g0, g1);
+      cur = j;
+      g0 = vec4(0.0);
+      g1 = vec4(0.0);
+    }
+    g0 += (1.0 - w) * d;
+    g1 += w * d;
+  }
+  if (cur != 0xFFFFFFFFu) flush(cur, g0, g1);
+}
+
+void main() {
+  const uint slots = TFM_DIFFDVR_SLOTS(rp.tf_size);
+  const uint lid = gl_LocalInvocationIndex;
+  const uint group_size = gl_WorkGroupSize.x * gl_WorkGroupSize.y;
+  if (USE_SHARED) {
+    for (uint k = lid; k < 2u * slots; k += group_size) s_acc[k] = 0u;
+  }
+  // The zeroed shared accumulators are visible before any invocation adds to them.
+  memoryBarrierShared();
+  barrier();
+
+  // No early return: every invocation must reach the barrier below.
+  const uvec2 pixel = uvec2(gl_GlobalInvocationID.x, gl_GlobalInvocationID.y + rp.row_offset);
+  const uint view = gl_GlobalInvocationID.z;
+  if (pixel.x < rp.width && pixel.y < rp.height && view < rp.view_count) backpropagate_pixel(pixel, view);
+
+  if (USE_SHARED) {
+    // Every shared add of this workgroup is complete before the totals are flushed.
+    memoryBarrierShared();
+    barrier();
+    for (uint k = lid; k < slots; k += group_size) {
+      FX_ATOMIC_ADD(accum, k, uvec2(s_acc[2u * k], s_acc[2u * k + 1u]));
+    }
+  }
+}

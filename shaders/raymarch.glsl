@@ -1,0 +1,177 @@
+// The emission-absorption ray marching of DESIGN.md, in pieces that a forward renderer and a
+// DiffDVR backward pass share, so both see bit-identical samples:
+//   setup_ray()         pixel -> ray entry point, direction and sample count K in the volume box
+//   sample_position()   sample k (0 <= k < K) at t_k = t_entry + (k + 0.5) dt, from the entry point
+//   sample_field()      trilinear over a chunked field; false when any corner is NaN (empty)
+//   classify()          node-aligned TF lookup (tf_coordinate of tf_common.glsl), j and w exposed
+//   sample_transmittance()  tau = exp(-min(a * depth_per_alpha, max)): alpha = 1 - tau
+//   composite() / uncomposite()  one front-to-back step and its exact inverse
+// State along a ray is premultiplied colour C and transmittance T = 1 - opacity:
+//   C += T (1 - tau) c,  T *= tau.
+// Inverse (the "inversion trick"): T /= tau, C -= T (1 - tau) c. It needs tau > 0, which the
+// optical-depth clamp guarantees, and T > 0 at the stop, which early termination at an opacity
+// below 1 guarantees (T >= (1 - threshold) * tau_min when the ray stops). So a backward pass
+// re-marches k = k_stop-1 .. 0 from the final (C, T) without storing per-sample data.
+//
+// The including shader declares, before including this file:
+//   layout(constant_id = TFM_RENDER_SPEC_CHUNKS) const uint FIELD_CHUNKS;
+//   buffer array `field_chunks[TFM_RENDER_MAX_CHUNKS]` with member `float v[]`
+//   buffer `tf_table` with member `vec4 entries[]`
+// (TFM_DECLARE_RAYMARCH_BINDINGS of render_layout.h declares exactly these.)
+#ifndef TFMATCH_RAYMARCH_GLSL
+#define TFMATCH_RAYMARCH_GLSL
+
+#include "tf_common.glsl"
+
+// Everything marching needs besides the camera, filled once per dispatch.
+struct MarchParams {
+  uvec3 dims;
+  uint chunk_voxels;
+  vec3 inv_axis;          // world -> index scale per axis
+  float dt;               // world units
+  float depth_per_alpha;  // optical depth of one step at TF opacity 1
+  float stop_transmittance;
+  uint max_steps;
+  float tf_lo;
+  float tf_scale;
+  uint tf_size;
+};
+
+// A ray in voxel index space: sample k lies at entry + (k + 0.5) * dt * dir.
+struct Ray {
+  vec3 entry;   // index-space point where the ray enters the box [-0.5, dims - 0.5]
+  vec3 dir;     // index-space displacement per world unit
+  uint steps;   // K = round((t_exit - t_entry) / dt), at most max_steps
+};
+
+// Pixel (x, y), y = 0 at the top, through its centre. Returns false (steps = 0) on a miss.
+bool setup_ray(vec3 eye, vec3 forward, vec3 right, vec3 up, float tan_half_fov, float aspect,
+               uvec2 pixel, uvec2 size, MarchParams mp, out Ray ray) {
+  const float sx = ((2.0 * (float(pixel.x) + 0.5)) / float(size.x) - 1.0) * tan_half_fov * aspect;
+  const float sy = (1.0 - (2.0 * (float(pixel.y) + 0.5)) / float(size.y)) * tan_half_fov;
+  const vec3 dir_world = normalize(forward + sx * right + sy * up);
+  const vec3 o = eye * mp.inv_axis;
+  const vec3 d = dir_world * mp.inv_axis;
+  const vec3 box_hi = vec3(mp.dims) - 0.5;
+  float t0 = 0.0;  // the camera may sit inside the box: start at the eye then
+  float t1 = 3.0e38;
+  for (int a = 0; a < 3; ++a) {
+    // An explicit branch, not 1/0 = inf: GLSL leaves division by zero unspecified.
+    if (abs(d[a]) < 1e-30) {
+      if (o[a] < -0.5 || o[a] > box_hi[a]) t1 = -1.0;
+    } else {
+      const float ta = (-0.5 - o[a]) / d[a];
+      const float tb = (box_hi[a] - o[a]) / d[a];
+      t0 = max(t0, min(ta, tb));
+      t1 = min(t1, max(ta, tb));
+    }
+  }
+  ray.entry = o + t0 * d;
+  ray.dir = d;
+  ray.steps = 0u;
+  if (!(t1 > t0)) return false;
+  const float count = floor((t1 - t0) / mp.dt + 0.5);
+  ray.steps = uint(min(count, float(mp.max_steps)));
+  return ray.steps > 0u;
+}
+
+vec3 sample_position(Ray ray, uint k, float dt) {
+  return ray.entry + ((float(k) + 0.5) * dt) * ray.dir;
+}
+
+// One voxel of a chunked field. The chunk index is compared against a loop counter so every
+// descriptor index is dynamically uniform (no non-uniform indexing feature needed); with one
+// chunk the specialization folds it to a plain load.
+float fetch_voxel(uint i, uint chunk_voxels) {
+  if (FIELD_CHUNKS == 1u) return field_chunks[0].v[i];
+  const uint c = i / chunk_voxels;
+  const uint off = i - c * chunk_voxels;
+  float value = 0.0;
+  for (uint k = 0u; k < FIELD_CHUNKS; ++k)
+    if (k == c) value = field_chunks[k].v[off];
+  return value;
+}
+
+// Trilinear interpolation between voxel centres (at integer index coordinates), clamped to the
+// edge voxels. Returns false when any of the 8 corners is NaN: such samples are empty.
+bool sample_field(vec3 p, MarchParams mp, out float value) {
+  const vec3 top = vec3(mp.dims - 1u);
+  const vec3 q = clamp(p, vec3(0.0), top);
+  const vec3 f = floor(q);
+  const vec3 w = q - f;
+  const uvec3 i0 = uvec3(f);
+  const uvec3 i1 = min(i0 + 1u, mp.dims - 1u);
+  const uint nx = mp.dims.x, nxy = mp.dims.x * mp.dims.y;
+  const uint z0 = i0.z * nxy, z1 = i1.z * nxy, y0 = i0.y * nx, y1 = i1.y * nx;
+  const float c000 = fetch_voxel(z0 + y0 + i0.x, mp.chunk_voxels);
+  const float c100 = fetch_voxel(z0 + y0 + i1.x, mp.chunk_voxels);
+  const float c010 = fetch_voxel(z0 + y1 + i0.x, mp.chunk_voxels);
+  const float c110 = fetch_voxel(z0 + y1 + i1.x, mp.chunk_voxels);
+  const float c001 = fetch_voxel(z1 + y0 + i0.x, mp.chunk_voxels);
+  const float c101 = fetch_voxel(z1 + y0 + i1.x, mp.chunk_voxels);
+  const float c011 = fetch_voxel(z1 + y1 + i0.x, mp.chunk_voxels);
+  const float c111 = fetch_voxel(z1 + y1 + i1.x, mp.chunk_voxels);
+  value = 0.0;
+  if (isnan(c000) || isnan(c100) || isnan(c010) || isnan(c110) || isnan(c001) || isnan(c101) ||
+      isnan(c011) || isnan(c111))
+    return false;
+  const float x00 = mix(c000, c100, w.x), x10 = mix(c010, c110, w.x);
+  const float x01 = mix(c001, c101, w.x), x11 = mix(c011, c111, w.x);
+  value = mix(mix(x00, x10, w.y), mix(x01, x11, w.y), w.z);
+  return true;
+}
+
+// T(v) of the node-aligned TF; j, w are the entries and weight a gradient pass scatters to:
+// d rgba / d T_j = 1 - w, d rgba / d T_{j+1} = w.
+vec4 classify(float value, MarchParams mp, out uint j, out float w) {
+  tf_coordinate(value, mp.tf_lo, mp.tf_scale, mp.tf_size, j, w);
+  return (1.0 - w) * tf_table.entries[j] + w * tf_table.entries[j + 1u];
+}
+
+// Transmittance of one step for TF opacity a (alpha = 1 - tau).
+float sample_transmittance(float a, MarchParams mp) {
+  return exp(-min(a * mp.depth_per_alpha, TFM_MAX_SAMPLE_OPTICAL_DEPTH));
+}
+
+void composite(inout vec3 color, inout float transmittance, vec3 rgb, float tau) {
+  color += (transmittance * (1.0 - tau)) * rgb;
+  transmittance *= tau;
+}
+
+void uncomposite(inout vec3 color, inout float transmittance, vec3 rgb, float tau) {
+  transmittance /= tau;
+  color -= (transmittance * (1.0 - tau)) * rgb;
+}
+
+// Sample k of a ray classified: false when empty (NaN). rgba.a is the TF opacity, tau the
+// step's transmittance.
+bool shade_sample(Ray ray, uint k, MarchParams mp, out vec3 rgb, out float tau) {
+  float value;
+  rgb = vec3(0.0);
+  tau = 1.0;
+  if (!sample_field(sample_position(ray, k, mp.dt), mp, value)) return false;
+  uint j;
+  float w;
+  const vec4 c = clamp(classify(value, mp, j, w), 0.0, 1.0);
+  rgb = c.rgb;
+  tau = sample_transmittance(c.a, mp);
+  return true;
+}
+
+// Front-to-back marching with early termination. Returns the samples marched (k_stop: the ray
+// stopped after sample k_stop - 1); color/transmittance hold the final state.
+uint march_forward(Ray ray, MarchParams mp, out vec3 color, out float transmittance) {
+  color = vec3(0.0);
+  transmittance = 1.0;
+  uint k = 0u;
+  while (k < ray.steps) {
+    vec3 rgb;
+    float tau;
+    if (shade_sample(ray, k, mp, rgb, tau)) composite(color, transmittance, rgb, tau);
+    ++k;
+    if (transmittance <= mp.stop_transmittance) break;
+  }
+  return k;
+}
+
+#endif

@@ -1,0 +1,162 @@
+// Interfaces of the matrix-free solver kernels (sparse S x / S^T r, CGLS vector steps, gradient
+// descent): bindings, push-constant blocks, accumulator layouts and the CGLS state record. Included
+// by GLSL and by kernels/*.cpp, which static_assert the C++ sizes.
+#ifndef TFMATCH_SOLVER_LAYOUT_H
+#define TFMATCH_SOLVER_LAYOUT_H
+
+#include "shared_layout.h"
+
+#ifdef __cplusplus
+namespace tfm::gpu {
+struct vec4 { float x, y, z, w; };
+struct uvec4 { uint x, y, z, w; };
+#endif
+
+// Workgroup of the single-workgroup kernels over TF-sized vectors (cgls_vectors, gd_update):
+// they loop over N and reduce in shared memory in a fixed order (deterministic).
+#define TFM_VECTOR_WORKGROUP 256
+
+// Voxels one invocation of the scatter-type kernels (sparse_scatter, gd_gradient) walks in a
+// contiguous run, summing the terms of the current TF bin in float registers: neighbouring voxels
+// of smooth fields mostly share a bin, so most fixed-point conversions and atomics disappear.
+#define TFM_SOLVER_RUN 16u
+
+// Signed 32.32 fixed-point accumulators: slot k is four words, a non-negative total of the
+// positive terms (words 4k, 4k+1) and one of the negated negative terms (4k+2, 4k+3); the value
+// is their difference, taken in 64-bit integer arithmetic before any rounding. Slot of TF entry j,
+// channel c: 4j + c.
+#define TFM_SIGNED_SLOT_WORDS 4u
+
+// Coordinate field: per voxel the TF coordinate x = clamp((v - lo) * scale, 0, N-1) of the
+// optimized field (exactly as tf_coordinate computes it), or TFM_NO_DATA when either field has
+// no data there. Valid coordinates are >= 0, so a negative sentinel survives any NaN handling.
+#define TFM_NO_DATA (-1.0)
+
+// ---- sparse_prepare.comp: coordinates and b (reference colours) per voxel ------------------------
+#define TFM_PREPARE_BINDING_REF_FIELD 0
+#define TFM_PREPARE_BINDING_OPT_FIELD 1
+#define TFM_PREPARE_BINDING_REF_TF 2
+#define TFM_PREPARE_BINDING_COORD 3
+#define TFM_PREPARE_BINDING_RGBA 4
+
+#if defined(__cplusplus) || defined(TFM_WANT_PREPARE_PUSH)
+TFM_PUSH_CONSTANTS(PreparePush) {
+  uint voxel_count;   // voxels in this chunk of the voxel vectors
+  uint field_offset;  // index of its first voxel inside the bound field chunks
+  uint opt_tf_size;
+  uint ref_tf_size;
+  float ref_lo;
+  float ref_scale;
+  float opt_lo;
+  float opt_scale;
+} TFM_PUSH_INSTANCE(pc);
+#endif
+
+// ---- sparse_gather.comp: q = S x per voxel, optionally ||q||^2 per channel -----------------------
+// Specialization: 0 workgroup size, 1 WRITE_OUT (store q), 2 ACCUMULATE_NORM (add ||q_c||^2 to
+// 4 unsigned 32.32 slots), 3 NORM_SCALED: the norm is of q / p_scale (CGLS state), a power of two
+// >= max |x|, so the squares keep their relative precision in fixed point however small x gets.
+#define TFM_GATHER_BINDING_COORD 0
+#define TFM_GATHER_BINDING_X 1
+#define TFM_GATHER_BINDING_OUT 2
+#define TFM_GATHER_BINDING_NORM 3
+#define TFM_GATHER_BINDING_STATE 4
+#define TFM_GATHER_NORM_SLOTS 4u
+
+// ---- sparse_scatter.comp: s += S^T r (signed slots), optionally after r -= alpha (S p) ----------
+// Specialization: 0 workgroup size, 1 shared words, 2 USE_SHARED, 3 UPDATE_RESIDUAL (alpha from
+// the CGLS state).
+#define TFM_SCATTER_BINDING_COORD 0
+#define TFM_SCATTER_BINDING_RESIDUAL 1
+#define TFM_SCATTER_BINDING_P 2
+#define TFM_SCATTER_BINDING_STATE 3
+#define TFM_SCATTER_BINDING_ACCUM 4
+
+// Push constants of sparse_gather and sparse_scatter.
+#if defined(__cplusplus) || defined(TFM_WANT_SPARSE_PUSH)
+TFM_PUSH_CONSTANTS(SparsePush) {
+  uint voxel_count;  // voxels in this chunk
+  uint tf_size;      // N
+} TFM_PUSH_INSTANCE(pc);
+#endif
+
+// ---- cgls_vectors.comp: the TF-sized steps of Jacobi-preconditioned CGLS, four channels at once --
+#define TFM_CGLS_BINDING_S_ACCUM 0     // signed slots of S^T r (from sparse_scatter)
+#define TFM_CGLS_BINDING_DELTA_ACCUM 1 // ||S p||^2 (from sparse_gather)
+#define TFM_CGLS_BINDING_INV_DIAG 2    // 1 / diag(M + R) per entry, 0 for unreferenced entries
+#define TFM_CGLS_BINDING_X 3
+#define TFM_CGLS_BINDING_P 4
+#define TFM_CGLS_BINDING_STATE 5
+
+#define TFM_CGLS_STAGE_INIT 0u       // s = S^T b, z = D^-1 s, p = z, gamma = s.z, x = 0
+#define TFM_CGLS_STAGE_STEP 1u       // delta = ||S p||^2 + p.R p, alpha = gamma / delta, x += alpha p
+#define TFM_CGLS_STAGE_DIRECTION 2u  // s = S^T r - R x, z = D^-1 s, beta, p = z + beta p, stop test
+
+// Per-channel scalars of the four CGLS runs (std430: vec4/uvec4 members, no padding).
+struct CglsState {
+  vec4 gamma;        // s.z of the current direction
+  vec4 alpha;        // step of the current iteration (0 for stopped channels)
+  vec4 s_norm2;      // ||s||^2 of the latest iterate
+  vec4 s0_norm2;     // ||S^T b||^2
+  vec4 p_scale;      // power of two >= max_j |p_j| (1 when p = 0): sparse_gather's norm scale
+  uvec4 iterations;  // completed iterations per channel
+  uvec4 running;     // 1 while a channel iterates; 0 once converged or broken down
+};
+
+#if defined(__cplusplus) || defined(TFM_WANT_CGLS_PUSH)
+TFM_PUSH_CONSTANTS(CglsPush) {
+  uint tf_size;
+  uint stage;         // TFM_CGLS_STAGE_*
+  float ridge_weight;      // absolute weights of R = ridge I + smooth D^T D
+  float smooth_weight;
+  float tolerance2;   // stop when ||s||^2 <= tolerance2 * ||s0||^2
+  uint pad0, pad1, pad2;
+} TFM_PUSH_INSTANCE(pc);
+#endif
+
+// ---- gd_gradient.comp: loss and signed gradient accumulators over one chunk ----------------------
+// Uses VoxelPairPush (shared_layout.h). Specialization: 0 workgroup size, 1 shared words,
+// 2 USE_SHARED, 3 LOSS_L1. Slots: gradient 4N signed slots (4 words each), then the loss per
+// channel as 4 unsigned slots (2 words each) at word offset 16N.
+#define TFM_GD_BINDING_REF_FIELD 0
+#define TFM_GD_BINDING_OPT_FIELD 1
+#define TFM_GD_BINDING_REF_TF 2
+#define TFM_GD_BINDING_X 3
+#define TFM_GD_BINDING_ACCUM 4
+#define TFM_GD_ACCUM_WORDS(n) (16u * (n) + 8u)
+
+// ---- gd_update.comp: one SGD or Adam step on the TF, projected to [0,1] ---------------------------
+#define TFM_GD_UPDATE_BINDING_ACCUM 0
+#define TFM_GD_UPDATE_BINDING_X 1
+#define TFM_GD_UPDATE_BINDING_M 2
+#define TFM_GD_UPDATE_BINDING_V 3
+#define TFM_GD_UPDATE_BINDING_INV_DIAG 4
+#define TFM_GD_UPDATE_BINDING_GRADIENT 5  // out: the gradient of this step (N RGBA)
+
+#define TFM_GD_OPTIMIZER_SGD 0u
+#define TFM_GD_OPTIMIZER_ADAM 1u
+
+#if defined(__cplusplus) || defined(TFM_WANT_GD_UPDATE_PUSH)
+// Loss L(x) = data_scale * sum_i phi(S x - b)_i + reg_scale/2 * x^T R x, so the gradient is
+// g = data_scale * (accumulated sum) + reg_scale * R x. SGD steps are Jacobi-scaled:
+// x -= lr * g / (reg_scale * diag(M + R)), i.e. lr = 1 is a diagonal Newton step of the l2 loss.
+TFM_PUSH_CONSTANTS(GdUpdatePush) {
+  uint tf_size;
+  uint optimizer;      // TFM_GD_OPTIMIZER_*
+  float data_scale;
+  float reg_scale;
+  float ridge_weight;       // absolute weights of R = ridge I + smooth D^T D
+  float smooth_weight;
+  float lr;            // step size of this iteration
+  float beta1;         // Adam moment decay rates
+  float beta2;
+  float bias1;         // 1 / (1 - beta1^t)
+  float bias2;         // 1 / (1 - beta2^t)
+  float epsilon;
+} TFM_PUSH_INSTANCE(pc);
+#endif
+
+#ifdef __cplusplus
+}  // namespace tfm::gpu
+#endif
+#endif  // TFMATCH_SOLVER_LAYOUT_H

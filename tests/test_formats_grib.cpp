@@ -1,0 +1,190 @@
+// GRIB reader: files built here from ecCodes' own samples check stacking by level, parameter and
+// level-type selection, time/member choice, bitmaps and grid checks; the real files in
+// ../shared/data are checked against grib_get_data output.
+#include <gtest/gtest.h>
+#include <eccodes.h>
+
+#include <cmath>
+
+#include "formats_test_util.h"
+#include "vk_test_env.h"
+#include "volume.h"
+#include "volume_info.h"
+
+namespace tfm {
+namespace {
+
+using formats_test::expect_error;
+using formats_test::TempDir;
+
+constexpr int kNi = 16, kNj = 31;  // the regular_ll_pl_grib2 sample's grid
+
+// Integer values, exact under simple packing: (i + 16 j) % 97 + level/50 + 10 member + 300 time.
+double expected(int i, int j, long level, long member, int time) {
+  return (i + kNi * j) % 97 + level / 50 + 10 * member + 300 * time;
+}
+
+struct MessageSpec {
+  const char* short_name = "t";
+  long level = 500;
+  long member = 0;
+  int time = 0;             // 0: 2020-01-01, 1: 2020-01-02
+  bool missing_corner = false;
+  double lat_shift = 0.0;   // moves the grid
+  bool surface = false;
+};
+
+std::string encode(const MessageSpec& m) {
+  codes_handle* h = codes_grib_handle_new_from_samples(nullptr, m.surface ? "GRIB2" : "regular_ll_pl_grib2");
+  EXPECT_NE(h, nullptr);
+  EXPECT_EQ(codes_set_long(h, "productDefinitionTemplateNumber", 1), 0);  // ensemble: has "number"
+  size_t len = std::strlen(m.short_name);
+  EXPECT_EQ(codes_set_string(h, "shortName", m.short_name, &len), 0);
+  EXPECT_EQ(codes_set_long(h, "number", m.member), 0);
+  EXPECT_EQ(codes_set_long(h, "dataDate", 20200101 + m.time), 0);
+  if (!m.surface) {
+    EXPECT_EQ(codes_set_long(h, "level", m.level), 0);
+  }
+  if (m.lat_shift != 0.0) {
+    double lat = 0;
+    codes_get_double(h, "latitudeOfFirstGridPointInDegrees", &lat);
+    EXPECT_EQ(codes_set_double(h, "latitudeOfFirstGridPointInDegrees", lat + m.lat_shift), 0);
+  }
+  std::vector<double> v(kNi * kNj);
+  for (int j = 0; j < kNj; ++j)
+    for (int i = 0; i < kNi; ++i) v[j * kNi + i] = expected(i, j, m.level, m.member, m.time);
+  if (m.missing_corner) {
+    EXPECT_EQ(codes_set_long(h, "bitmapPresent", 1), 0);
+    EXPECT_EQ(codes_set_double(h, "missingValue", 9999), 0);
+    v[0] = 9999;
+  }
+  EXPECT_EQ(codes_set_double_array(h, "values", v.data(), v.size()), 0);
+  const void* buf = nullptr;
+  size_t size = 0;
+  EXPECT_EQ(codes_get_message(h, &buf, &size), 0);
+  std::string out(static_cast<const char*>(buf), size);
+  codes_handle_delete(h);
+  return out;
+}
+
+std::filesystem::path write_grib(const TempDir& dir, const std::string& name, const std::vector<MessageSpec>& ms) {
+  std::string bytes;
+  for (const auto& m : ms) bytes += encode(m);
+  formats_test::write_bytes(dir / name, bytes);
+  return dir / name;
+}
+
+TEST(GribGenerated, StacksLevelsSortedAndSelectsTimeMember) {
+  TempDir dir;
+  std::vector<MessageSpec> ms;
+  for (int time : {1, 0})
+    for (long member : {2, 0, 1})
+      for (long level : {850, 300, 500}) ms.push_back({"t", level, member, time, level == 300 && member == 1});
+  ms.push_back({"u", 500});
+  ms.push_back({.short_name = "t", .surface = true});
+  const std::string f = write_grib(dir, "gen.grib2", ms).string();
+
+  // t: isobaricInhPa (3 levels) wins over surface (1); levels sorted 300, 500, 850 into z.
+  Volume t = load_volume(f + ":t,time=1,member=1");
+  EXPECT_EQ(t.dims, (std::array<uint64_t, 3>{kNi, kNj, 3}));
+  EXPECT_NE(t.name.find("t@isobaricInhPa"), std::string::npos);
+  for (int z = 0; z < 3; ++z) {
+    const long level = z == 0 ? 300 : z == 1 ? 500 : 850;
+    for (int j : {0, 7, kNj - 1})
+      for (int i : {0, 5, kNi - 1}) {
+        if (z == 0 && i == 0 && j == 0) continue;
+        EXPECT_NEAR(t.at(i, j, z), expected(i, j, level, 1, 1), 1e-3) << i << "," << j << "," << z;
+      }
+  }
+  EXPECT_TRUE(std::isnan(t.at(0, 0, 0)));  // bitmap: missing
+  // Defaults: the first time and member; members are sorted numbers, times sorted dates.
+  EXPECT_NEAR(load_volume(f + ":t").at(3, 4, 1), expected(3, 4, 500, 0, 0), 1e-3);
+  VolumeOptions o;
+  o.member_index = 2;
+  EXPECT_NEAR(load_volume(f + ":t", o).at(3, 4, 2), expected(3, 4, 850, 2, 0), 1e-3);
+  // An explicit level type.
+  Volume sfc = load_volume(f + ":t@surface");
+  EXPECT_EQ(sfc.dims[2], 1u);
+  EXPECT_EQ(t.spacing[2], 1.0);
+  EXPECT_GT(t.spacing[0], 0.0);
+
+  expect_error([&] { load_volume(f + ":q"); }, {f, "no parameter 'q'", "t", "u"});
+  expect_error([&] { load_volume(f); }, {f, "choose a parameter"});
+  expect_error([&] { load_volume(f + ":t@sigma"); }, {f, "no level type 'sigma'", "isobaricInhPa", "surface"});
+  expect_error([&] { load_volume(f + ":t,time=2"); }, {f, "time 2 is out of range", "2 reference time"});
+  expect_error([&] { load_volume(f + ":t,member=3"); }, {f, "member 3 is out of range", "3 ensemble members"});
+
+  FileInfo info = describe_file(f);
+  ASSERT_FALSE(info.arrays.empty());
+  EXPECT_EQ(info.arrays[0].name, "t@isobaricInhPa");
+  EXPECT_EQ(info.arrays[0].grid, (std::array<uint64_t, 3>{kNi, kNj, 3}));
+  EXPECT_EQ(info.arrays[0].nan_count, 2u);  // one missing corner per time
+}
+
+TEST(GribGenerated, DifferentGridsAndDuplicateLevelsAreErrors) {
+  TempDir dir;
+  const std::string g = write_grib(dir, "grids.grib2", {{"t", 500}, {.short_name = "t", .level = 850, .lat_shift = -1.0}}).string();
+  expect_error([&] { load_volume(g + ":t"); }, {g, "do not share one grid", "regular_ll"});
+  const std::string d = write_grib(dir, "dup.grib2", {{"t", 500}, {"t", 500}}).string();
+  expect_error([&] { load_volume(d + ":t"); }, {d, "both at level 500"});
+}
+
+TEST(GribGenerated, GarbageAndTruncatedFilesFailCleanly) {
+  TempDir dir;
+  formats_test::write_bytes(dir / "junk.grib2", "plain text, nothing else");
+  expect_error([&] { load_volume((dir / "junk.grib2").string() + ":t"); }, {"junk.grib2", "no GRIB messages"});
+  // The magic word followed by garbage: ecCodes' reason, with the file and message number.
+  formats_test::write_bytes(dir / "bad.grib2", "GRIB\x01\x02\x03\x09 and then garbage");
+  expect_error([&] { load_volume((dir / "bad.grib2").string() + ":t"); }, {"bad.grib2", "GRIB message 1 is unreadable"});
+  std::string bytes = encode({"t", 500}) + encode({"t", 850});
+  formats_test::write_bytes(dir / "cut.grib2", bytes.substr(0, bytes.size() - 100));
+  expect_error([&] { load_volume((dir / "cut.grib2").string() + ":t"); }, {"cut.grib2"});
+}
+
+std::string data(const std::string& rel) {
+  const std::string d = test::shared_data_dir();
+  return d.empty() ? "" : d + "/" + rel;
+}
+
+TEST(GribRealFiles, GfsWindsStackedOver26Levels) {
+  if (data("").empty()) GTEST_SKIP() << "../shared/data not present";
+  // `grib_get_data -w shortName=u,typeOfLevel=isobaricInhPa,level=L` row r = point r-2:
+  // level 10: first -18.5, (lat 0, lon 180) -3.31 ... see the values below.
+  Volume u = load_volume(data("gfs_grib2/gfs.t12z.pgrbf120.2p5deg.grib2:u"));
+  Volume v = load_volume(data("gfs_grib2/gfs.t12z.pgrbf120.2p5deg.grib2:v"));
+  EXPECT_EQ(u.dims, (std::array<uint64_t, 3>{144, 73, 26}));
+  EXPECT_NO_THROW(require_same_grid(u, v));
+  EXPECT_EQ(u.spacing, (std::array<double, 3>{2.5, 2.5, 1.0}));
+  // z: 10 hPa first (index 0), 500 hPa index 13, 1000 hPa index 25.
+  EXPECT_FLOAT_EQ(u.at(0, 0, 0), -18.5f);
+  EXPECT_FLOAT_EQ(u.at(72, 36, 0), -18.3f);
+  EXPECT_FLOAT_EQ(u.at(143, 72, 0), 2.4f);
+  EXPECT_FLOAT_EQ(u.at(0, 0, 13), -25.31f);
+  EXPECT_FLOAT_EQ(u.at(72, 36, 13), -3.31f);
+  EXPECT_FLOAT_EQ(u.at(72, 36, 25), -10.26f);
+  EXPECT_FLOAT_EQ(v.at(72, 36, 13), 0.33f);
+  // Bitmap: `grib_get -p numberOfMissing -w shortName=u,typeOfLevel=heightAboveSea` = 1161+794+452.
+  Volume h = load_volume(data("gfs_grib2/gfs.t12z.pgrbf120.2p5deg.grib2:u@heightAboveSea"));
+  size_t nan = 0;
+  for (float x : h.values) nan += std::isnan(x);
+  EXPECT_EQ(nan, 1161u + 794u + 452u);
+}
+
+TEST(GribRealFiles, Era5MembersAndTimesAndMultiParamSteps) {
+  if (data("").empty()) GTEST_SKIP() << "../shared/data not present";
+  // `grib_get_data -w shortName=t,number=3,dataDate=20170102,dataTime=0,level=850`: first point
+  // 250.8110352, (lat 0, lon 180) 291.5043945. That date/time is the 3rd of 4 (time=2), 850 hPa
+  // the 2nd level (z=1).
+  Volume t = load_volume(data("era5_ensemble_grib1/era5-levels-members.grib:t,member=3,time=2"));
+  EXPECT_EQ(t.dims, (std::array<uint64_t, 3>{120, 61, 2}));
+  EXPECT_NEAR(t.at(0, 0, 1), 250.8110352, 1e-4);
+  EXPECT_NEAR(t.at(60, 30, 1), 291.5043945, 1e-4);
+  // `grib_get_data -w shortName=t,step=24,level=500`: point 10*72+5 = 256.3386688; step 24 is
+  // the 3rd of steps 0, 12, 24, 36; 500 hPa the 2nd of 300, 500, 850, 1000.
+  Volume m = load_volume(data("ecmwf_multiparam_grib1/multi_param_on_multi_dims.grib:t,time=2"));
+  EXPECT_EQ(m.dims, (std::array<uint64_t, 3>{72, 37, 4}));
+  EXPECT_NEAR(m.at(5, 10, 1), 256.3386688, 1e-4);
+}
+
+}  // namespace
+}  // namespace tfm

@@ -1,0 +1,275 @@
+// NetCDF reader: files written here with netCDF-C (classic and netCDF-4) check the dimension
+// mapping, time/member selection, fill values, packing, _Unsigned and coordinate spacing; the real
+// files in ../shared/data are checked against values printed by ncdump.
+#include <gtest/gtest.h>
+#include <netcdf.h>
+
+#include <cmath>
+
+#include "formats_test_util.h"
+#include "vk_test_env.h"
+#include "volume.h"
+#include "volume_info.h"
+
+namespace tfm {
+namespace {
+
+using formats_test::expect_error;
+using formats_test::TempDir;
+
+void ok(int status) { ASSERT_EQ(status, NC_NOERR) << nc_strerror(status); }
+
+int def_var(int nc, const char* name, nc_type t, std::initializer_list<int> dims) {
+  int v;
+  std::vector<int> d(dims);
+  EXPECT_EQ(nc_def_var(nc, name, t, int(d.size()), d.data(), &v), NC_NOERR);
+  return v;
+}
+
+void text_att(int nc, int v, const char* name, const std::string& text) {
+  EXPECT_EQ(nc_put_att_text(nc, v, name, text.size(), text.c_str()), NC_NOERR);
+}
+
+// A(time=2, lev=3, lat=4, lon=5) float, value 1000t + 100z + 10y + x, one fill value;
+// P(lev, lat, lon) short packed with a negative scale and a missing_value;
+// E(ens=2, time=2, lat, lon) double; B(lat, lon) byte with _Unsigned; W(step=2, lat, lon) whose
+// time dimension is known only from its coordinate's units; C(zc, yc, xc) on a metre grid;
+// N(ens, run=3, time, lat, lon) with two extra dimensions; name(lon) char.
+std::filesystem::path make_file(const TempDir& dir, const std::string& file, int mode) {
+  const auto path = dir / file;
+  int nc;
+  EXPECT_EQ(nc_create(path.c_str(), NC_CLOBBER | mode, &nc), NC_NOERR);
+  int time, lev, lat, lon, ens, step, zc, yc, xc, run;
+  ok(nc_def_dim(nc, "time", 2, &time));
+  ok(nc_def_dim(nc, "lev", 3, &lev));
+  ok(nc_def_dim(nc, "lat", 4, &lat));
+  ok(nc_def_dim(nc, "lon", 5, &lon));
+  ok(nc_def_dim(nc, "ens", 2, &ens));
+  ok(nc_def_dim(nc, "step", 2, &step));
+  ok(nc_def_dim(nc, "zc", 3, &zc));
+  ok(nc_def_dim(nc, "yc", 2, &yc));
+  ok(nc_def_dim(nc, "xc", 4, &xc));
+  ok(nc_def_dim(nc, "run", 3, &run));
+  const int vlon = def_var(nc, "lon", NC_FLOAT, {lon}), vlat = def_var(nc, "lat", NC_FLOAT, {lat});
+  const int vlev = def_var(nc, "lev", NC_INT, {lev}), vstep = def_var(nc, "step", NC_DOUBLE, {step});
+  const int vxc = def_var(nc, "xc", NC_FLOAT, {xc}), vyc = def_var(nc, "yc", NC_FLOAT, {yc}), vzc = def_var(nc, "zc", NC_FLOAT, {zc});
+  text_att(nc, vlon, "units", "degrees_east");
+  text_att(nc, vlat, "units", "degrees_north");
+  text_att(nc, vlev, "units", "hPa");
+  text_att(nc, vstep, "units", "hours since 2000-01-01 00:00");
+  for (int v : {vxc, vyc, vzc}) text_att(nc, v, "units", "m");
+  const int A = def_var(nc, "A", NC_FLOAT, {time, lev, lat, lon});
+  const float fill = -999.0f;
+  ok(nc_put_att_float(nc, A, "_FillValue", NC_FLOAT, 1, &fill));
+  const int P = def_var(nc, "P", NC_SHORT, {lev, lat, lon});
+  const double scale = -0.5, offset = 100.0, missing = -32767.0;
+  ok(nc_put_att_double(nc, P, "scale_factor", NC_DOUBLE, 1, &scale));
+  ok(nc_put_att_double(nc, P, "add_offset", NC_DOUBLE, 1, &offset));
+  ok(nc_put_att_double(nc, P, "missing_value", NC_DOUBLE, 1, &missing));
+  const int E = def_var(nc, "E", NC_DOUBLE, {ens, time, lat, lon});
+  const int B = def_var(nc, "B", NC_BYTE, {lat, lon});
+  text_att(nc, B, "_Unsigned", "true");
+  const int W = def_var(nc, "W", NC_FLOAT, {step, lat, lon});
+  const int C = def_var(nc, "C", NC_FLOAT, {zc, yc, xc});
+  const int N = def_var(nc, "N", NC_FLOAT, {ens, run, time, lat, lon});
+  def_var(nc, "name", NC_CHAR, {lon});
+  ok(nc_enddef(nc));
+
+  const float lons[5] = {0, 2.5f, 5, 7.5f, 10}, lats[4] = {-60, -30.1f, 0, 30.1f};
+  const int levs[3] = {1000, 850, 500};
+  const double steps[2] = {0, 6};
+  const float xs[4] = {0, 2, 4, 6}, ys[2] = {0, 3}, zs[3] = {10, 15, 20};
+  ok(nc_put_var_float(nc, vlon, lons));
+  ok(nc_put_var_float(nc, vlat, lats));
+  ok(nc_put_var_int(nc, vlev, levs));
+  ok(nc_put_var_double(nc, vstep, steps));
+  ok(nc_put_var_float(nc, vxc, xs));
+  ok(nc_put_var_float(nc, vyc, ys));
+  ok(nc_put_var_float(nc, vzc, zs));
+  std::vector<float> a(2 * 3 * 4 * 5);
+  for (int t = 0; t < 2; ++t)
+    for (int z = 0; z < 3; ++z)
+      for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 5; ++x) a[((t * 3 + z) * 4 + y) * 5 + x] = float(1000 * t + 100 * z + 10 * y + x);
+  a.back() = fill;
+  size_t start[4] = {0, 0, 0, 0}, count[4] = {2, 3, 4, 5};
+  ok(nc_put_vara_float(nc, A, start, count, a.data()));
+  std::vector<short> p(60);
+  for (int i = 0; i < 60; ++i) p[i] = short(i);
+  p[7] = -32767;
+  ok(nc_put_var_short(nc, P, p.data()));
+  std::vector<double> e(2 * 2 * 4 * 5);
+  for (size_t i = 0; i < e.size(); ++i) e[i] = double(i) + 0.5;
+  size_t ecount[4] = {2, 2, 4, 5};
+  ok(nc_put_vara_double(nc, E, start, ecount, e.data()));
+  std::vector<signed char> b(20, 5);
+  b[3] = -1;  // 255 when unsigned
+  ok(nc_put_var_schar(nc, B, b.data()));
+  std::vector<float> w(40);
+  for (int i = 0; i < 40; ++i) w[i] = float(i);
+  ok(nc_put_var_float(nc, W, w.data()));
+  std::vector<float> c(24, 1.0f), n(2 * 3 * 2 * 20, 2.0f);
+  ok(nc_put_var_float(nc, C, c.data()));
+  ok(nc_put_var_float(nc, N, n.data()));
+  ok(nc_close(nc));
+  return path;
+}
+
+class NetcdfGenerated : public ::testing::TestWithParam<int> {};
+
+TEST_P(NetcdfGenerated, MapsDimensionsTimeFillPackingAndSpacing) {
+  TempDir dir;
+  const auto path = make_file(dir, "gen.nc", GetParam());
+  const std::string f = path.string();
+
+  // x = lon (last), y = lat, z = lev; time picks the record.
+  Volume v = load_volume(f + ":A,time=1");
+  EXPECT_EQ(v.dims, (std::array<uint64_t, 3>{5, 4, 3}));
+  EXPECT_EQ(v.at(4, 2, 1), 1000 + 100 * 1 + 10 * 2 + 4);
+  EXPECT_EQ(v.at(0, 3, 2), 1000 + 200 + 30);
+  EXPECT_TRUE(std::isnan(v.at(4, 3, 2)));  // the _FillValue
+  EXPECT_EQ(load_volume(f + ":A").at(1, 1, 1), 111);  // time defaults to 0
+  // lon regular: 2.5; lat within 1% of regular: mean step (30.1 + 60) / 3; lev irregular: 1.
+  EXPECT_DOUBLE_EQ(v.spacing[0], 2.5);
+  EXPECT_NEAR(v.spacing[1], (30.1 + 60.0) / 3.0, 1e-5);
+  EXPECT_EQ(v.spacing[2], 1.0);
+  // --var / --time through VolumeOptions; the spec's selection wins.
+  VolumeOptions o;
+  o.variable = "P";
+  o.time_index = 1;
+  EXPECT_EQ(load_volume(f + ":A", o).at(0, 0, 0), 1000);
+
+  // Packing with a negative scale, missing_value in the packed domain.
+  Volume p = load_volume(f + ":P");
+  EXPECT_EQ(p.dims, (std::array<uint64_t, 3>{5, 4, 3}));
+  EXPECT_DOUBLE_EQ(p.at(1, 2, 2), (40 + 10 + 1) * -0.5 + 100.0);
+  EXPECT_TRUE(std::isnan(p.at(2, 1, 0)));  // stored -32767 at index 7
+
+  // A leading non-time dimension is the member; two spatial dimensions make one slice.
+  Volume e = load_volume(f + ":E,member=1,time=1");
+  EXPECT_EQ(e.dims, (std::array<uint64_t, 3>{5, 4, 1}));
+  EXPECT_EQ(e.at(3, 2, 0), ((1 * 2 + 1) * 4 + 2) * 5 + 3 + 0.5);
+
+  Volume b = load_volume(f + ":B");
+  EXPECT_EQ(b.at(3, 0, 0), 255.0f);
+  EXPECT_EQ(b.at(0, 0, 0), 5.0f);
+
+  // "step" is a time dimension because its coordinate's units are "hours since ...".
+  Volume w = load_volume(f + ":W,time=1");
+  EXPECT_EQ(w.dims, (std::array<uint64_t, 3>{5, 4, 1}));
+  EXPECT_EQ(w.at(0, 0, 0), 20.0f);
+
+  // A Cartesian grid: z takes its step too because its units match x's.
+  Volume c = load_volume(f + ":C");
+  EXPECT_EQ(c.spacing, (std::array<double, 3>{2, 3, 5}));
+}
+
+TEST_P(NetcdfGenerated, ErrorsNameFileAndProblem) {
+  TempDir dir;
+  const auto path = make_file(dir, "gen.nc", GetParam());
+  const std::string f = path.string();
+  expect_error([&] { load_volume(f + ":nope"); }, {f, "no variable 'nope'", "A"});
+  expect_error([&] { load_volume(f); }, {f, "choose a variable"});
+  expect_error([&] { load_volume(f + ":A,time=2"); }, {f, "time 2 is out of range", "time has 2"});
+  expect_error([&] { load_volume(f + ":E,member=2"); }, {f, "member 2 is out of range", "ens"});
+  expect_error([&] { load_volume(f + ":P,time=1"); }, {f, "has no time dimension"});
+  expect_error([&] { load_volume(f + ":N"); }, {f, "two leading dimensions", "ens", "run"});
+  expect_error([&] { load_volume(f + ":name"); }, {f, "not a numeric type"});
+  expect_error([&] { load_volume(f + ":A,when=1"); }, {f, "bad selection"});
+  // Two variables of one file on different grids.
+  Volume a = load_volume(f + ":A"), e = load_volume(f + ":E");
+  expect_error([&] { require_same_grid(a, e); }, {"different grids", "5x4x3", "5x4x1"});
+}
+
+INSTANTIATE_TEST_SUITE_P(Formats, NetcdfGenerated, ::testing::Values(0, NC_64BIT_OFFSET, NC_NETCDF4),
+                         [](const auto& info) {
+                           return std::string(info.param == 0 ? "classic" : info.param == NC_NETCDF4 ? "netcdf4" : "offset64");
+                         });
+
+TEST(NetcdfMalformed, GarbageAndTruncatedFilesFailCleanly) {
+  TempDir dir;
+  formats_test::write_bytes(dir / "garbage.nc", "this is not a netCDF file at all");
+  expect_error([&] { load_volume((dir / "garbage.nc").string() + ":A"); }, {"garbage.nc", "cannot open as NetCDF"});
+  const auto path = make_file(dir, "cut.nc", 0);
+  const std::string bytes = formats_test::read_bytes(path);
+  // netCDF-C itself would read the missing bytes as zeros: the header's sizes catch it. The bound
+  // leaves out alignment padding (3 bytes after the byte variable B here), so cut 4 or more.
+  for (size_t cut : {size_t(4), bytes.size() / 2}) {
+    formats_test::write_bytes(path, bytes.substr(0, bytes.size() - cut));
+    expect_error([&] { load_volume(path.string() + ":A,time=1"); }, {"cut.nc: truncated", "header describes at least"});
+  }
+  formats_test::write_bytes(path, bytes.substr(0, 40));
+  expect_error([&] { load_volume(path.string() + ":A"); }, {"cut.nc"});
+}
+
+TEST(NetcdfInfo, ListsVariablesWithRangesAndNoData) {
+  TempDir dir;
+  const auto path = make_file(dir, "gen.nc", 0);
+  FileInfo info = describe_file(path);
+  const ArrayInfo* a = nullptr;
+  for (const auto& x : info.arrays)
+    if (x.name == "A") a = &x;
+  ASSERT_NE(a, nullptr);
+  EXPECT_EQ(a->grid, (std::array<uint64_t, 3>{5, 4, 3}));
+  EXPECT_EQ(a->values, 120u);  // both times
+  EXPECT_EQ(a->nan_count, 1u);
+  EXPECT_EQ(*a->min, 0.0);
+  EXPECT_EQ(*a->max, 1000 + 200 + 30 + 3);  // the largest value is the fill's neighbour
+  EXPECT_NE(format_file_info(info).find("time = 2 (--time)"), std::string::npos);
+}
+
+// ---- real files (../shared/data/SOURCES.md) ----
+
+std::string data(const std::string& rel) {
+  const std::string d = test::shared_data_dir();
+  return d.empty() ? "" : d + "/" + rel;
+}
+
+TEST(NetcdfRealFiles, CamUvtWindsMatchNcdump) {
+  if (data("").empty()) GTEST_SKIP() << "../shared/data not present";
+  // Expected values: `ncdump -v U cam_uvt/uvt.nc`, element [time][lev][lat][lon].
+  Volume u = load_volume(data("cam_uvt/uvt.nc:U"));
+  EXPECT_EQ(u.dims, (std::array<uint64_t, 3>{128, 64, 14}));
+  EXPECT_FLOAT_EQ(u.at(0, 0, 0), -7.200147f);
+  EXPECT_FLOAT_EQ(u.at(20, 10, 2), 11.29383f);
+  EXPECT_FLOAT_EQ(u.at(127, 63, 13), 2.967923f);
+  EXPECT_FLOAT_EQ(u.at(64, 32, 7), 2.221278f);
+  EXPECT_DOUBLE_EQ(u.spacing[0], 2.8125);   // regular longitudes
+  EXPECT_NEAR(u.spacing[1], 2.7893, 1e-3);  // Gaussian latitudes: nearly regular, mean step
+  EXPECT_EQ(u.spacing[2], 1.0);             // pressure levels
+  Volume v = load_volume(data("cam_uvt/uvt.nc:V"));
+  EXPECT_NO_THROW(require_same_grid(u, v));
+}
+
+TEST(NetcdfRealFiles, EraInterimPackedShortsWithNanFillValue) {
+  if (data("").empty()) GTEST_SKIP() << "../shared/data not present";
+  // `ncdump -v u eraint_uvz/eraint_uvz.nc` prints the stored shorts: [0][0][0][0] = 16333,
+  // [1][2][120][240] = 17386; u = stored * -0.00157270493804553 + 26.96875 (ncdump -h).
+  const double scale = -0.00157270493804553, offset = 26.96875;
+  Volume u0 = load_volume(data("eraint_uvz/eraint_uvz.nc:u"));
+  EXPECT_EQ(u0.dims, (std::array<uint64_t, 3>{480, 241, 3}));
+  EXPECT_FLOAT_EQ(u0.at(0, 0, 0), float(16333 * scale + offset));
+  Volume u1 = load_volume(data("eraint_uvz/eraint_uvz.nc:u,member=1"));  // month 7
+  EXPECT_FLOAT_EQ(u1.at(240, 120, 2), float(17386 * scale + offset));
+  // The NaN _FillValue (a double on an int16 variable) matches nothing: no value is lost.
+  for (float x : u1.values) ASSERT_FALSE(std::isnan(x));
+  EXPECT_DOUBLE_EQ(u0.spacing[0], 0.75);
+}
+
+TEST(NetcdfRealFiles, WrfNetcdf4TimeStepsAndStaggeredGrids) {
+  if (data("").empty()) GTEST_SKIP() << "../shared/data not present";
+  // `ncdump -v QVAPOR wrf_katrina/ci_test_file.nc`: [3][0][0][0] = 0.02134872,
+  // [3][5][20][30] = 0.01894741, [0][13][47][47] = 0.006199233.
+  Volume q3 = load_volume(data("wrf_katrina/ci_test_file.nc:QVAPOR,time=3"));
+  EXPECT_EQ(q3.dims, (std::array<uint64_t, 3>{48, 48, 14}));
+  EXPECT_FLOAT_EQ(q3.at(0, 0, 0), 0.02134872f);
+  EXPECT_FLOAT_EQ(q3.at(30, 20, 5), 0.01894741f);
+  EXPECT_FLOAT_EQ(load_volume(data("wrf_katrina/ci_test_file.nc:QVAPOR")).at(47, 47, 13), 0.006199233f);
+  // U is staggered in x: a clear error against a mass-grid field.
+  Volume u = load_volume(data("wrf_katrina/ci_test_file.nc:U"));
+  EXPECT_EQ(u.dims, (std::array<uint64_t, 3>{49, 48, 14}));
+  expect_error([&] { require_same_grid(q3, u); }, {"different grids", "48x48x14", "49x48x14"});
+}
+
+}  // namespace
+}  // namespace tfm

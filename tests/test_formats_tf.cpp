@@ -1,0 +1,194 @@
+// Transfer functions from other tools: the framework's XML (colour data modes, sRGB vs linear
+// blending), ParaView presets (colour spaces, opacity midpoint/sharpness, ranges), tfmatch JSON,
+// round trips table -> file -> table, and malformed files.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "formats_test_util.h"
+#include "tf_formats.h"
+
+namespace tfm {
+namespace {
+
+using formats_test::expect_error;
+
+// sRGB 0.5 in linear light: ((0.5 + 0.055) / 1.055)^2.4 (IEC 61966-2-1).
+const double kHalfSrgbLinear = std::pow(0.555 / 1.055, 2.4);
+
+std::string xml(const std::string& interp, const std::string& color_data, const std::string& points) {
+  return "<TransferFunction colorspace=\"sRGB\"" + (interp.empty() ? "" : " interpolation_colorspace=\"" + interp + "\"") +
+         ">\n<OpacityPoints>\n<OpacityPoint position=\"0\" opacity=\"0\"/>\n<OpacityPoint position=\"1\" opacity=\"1\"/>\n"
+         "</OpacityPoints>\n<ColorPoints" + (color_data.empty() ? "" : " color_data=\"" + color_data + "\"") + ">\n" + points +
+         "</ColorPoints>\n</TransferFunction>\n";
+}
+
+TransferFunction parse(const std::string& text, size_t n = 0) {
+  return parse_transfer_function(text, "mem.tf", TfReadOptions{n, ""});
+}
+
+TEST(TfFormats, SrgbCurve) {
+  EXPECT_NEAR(srgb_to_linear(0.5), 0.21404114048223255, 1e-15);
+  EXPECT_NEAR(linear_to_srgb(0.21404114048223255), 0.5, 1e-15);
+  EXPECT_EQ(srgb_to_linear(0.04), 0.04 / 12.92);
+  for (double c = 0; c <= 1.0; c += 0.01) EXPECT_NEAR(linear_to_srgb(srgb_to_linear(c)), c, 1e-14);
+}
+
+TEST(TfFormats, XmlBlendsInSrgbOrLinearAndReadsEveryColorDataMode) {
+  const std::string bw = "<ColorPoint position=\"0\" r=\"0\" g=\"0\" b=\"0\"/>\n<ColorPoint position=\"1\" r=\"255\" g=\"255\" b=\"255\"/>\n";
+  // Default blending is sRGB: the midpoint is sRGB 0.5, stored as linear.
+  TransferFunction s = parse(xml("", "", bw), 3);
+  ASSERT_EQ(s.size(), 3u);
+  EXPECT_NEAR(s.rgba[1][0], kHalfSrgbLinear, 1e-12);
+  EXPECT_NEAR(s.rgba[1][3], 0.5, 1e-15);
+  EXPECT_EQ(s.rgba[2], (Rgba{1, 1, 1, 1}));
+  // Linear RGB blending: the midpoint is linear 0.5.
+  EXPECT_NEAR(parse(xml("Linear RGB", "ubyte", bw), 3).rgba[1][1], 0.5, 1e-12);
+  auto one = [&](const std::string& mode, const std::string& r) {
+    return parse(xml("", mode, "<ColorPoint position=\"0.5\" r=\"" + r + "\" g=\"0\" b=\"0\"/>\n"), 2).rgba[0][0];
+  };
+  EXPECT_NEAR(one("ushort", "65535"), 1.0, 1e-15);
+  EXPECT_NEAR(one("float", "0.5"), kHalfSrgbLinear, 1e-12);
+  EXPECT_NEAR(one("float_255", "127.5"), kHalfSrgbLinear, 1e-12);
+  EXPECT_NEAR(one("ubyte", "300"), 1.0, 1e-15);  // clamped like the framework does
+  // Points in any order; a single colour point is constant.
+  TransferFunction u = parse(xml("", "", "<ColorPoint position=\"1\" r=\"255\" g=\"0\" b=\"0\"/>\n"
+                                         "<ColorPoint position=\"0\" r=\"0\" g=\"0\" b=\"255\"/>\n"), 2);
+  EXPECT_EQ(u.rgba[0], (Rgba{0, 0, 1, 0}));
+  EXPECT_EQ(u.rgba[1], (Rgba{1, 0, 0, 1}));
+}
+
+TEST(TfFormats, TableSizeFollowsTheControlPoints) {
+  ControlPointTf cp;
+  cp.opacity = {{0, 0}, {0.25, 1}, {1, 0}};
+  cp.color = {{0, {0, 0, 0}}, {0.75, {1, 1, 1}}};
+  EXPECT_EQ(auto_table_size(cp), 257u);  // points on quarters: 4 * 64 + 1
+  cp.opacity[1].position = 1.0 / 63;
+  cp.color[1].position = 5.0 / 63;
+  EXPECT_EQ(auto_table_size(cp), 316u);  // 63 * 5 + 1
+  cp.opacity[1].position = std::sqrt(2.0) / 3.0;  // on no grid k/d with d <= 4096
+  EXPECT_EQ(auto_table_size(cp), 256u);
+}
+
+TransferFunction random_table(size_t n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  TransferFunction tf;
+  tf.rgba.resize(n);
+  for (auto& e : tf.rgba)
+    for (double& c : e) c = u(rng);
+  tf.rgba[3] = {0, 0, 0, 0};
+  tf.rgba[4] = {1, 1, 1, 1};
+  tf.range = FieldRange{-3.5, 12.25};
+  return tf;
+}
+
+TEST(TfFormats, TablesRoundTripThroughXmlAndParaView) {
+  for (size_t n : {2u, 13u, 64u}) {
+    const TransferFunction tf = random_table(std::max<size_t>(n, 5), unsigned(n));
+    for (const std::string& text : {tf_to_xml(tf), tf_to_paraview_json(tf, "rt")}) {
+      TransferFunction back = parse(text);
+      ASSERT_TRUE(back.range);
+      EXPECT_EQ(back.range->lo, -3.5);
+      EXPECT_EQ(back.range->hi, 12.25);
+      // Nodes of the original are nodes of the (refined) table read back.
+      TransferFunction again = back.resampled(tf.size());
+      // Tolerance: the sRGB curve and back in double precision, plus position arithmetic.
+      for (size_t j = 0; j < tf.size(); ++j)
+        for (int c = 0; c < 4; ++c) ASSERT_NEAR(again.rgba[j][c], tf.rgba[j][c], 1e-12) << j << " " << c;
+      // The XML blends in linear RGB like the table: equal between nodes too.
+      if (text[0] == '<') {
+        for (double t = 0; t <= 1.0; t += 0.0137) EXPECT_NEAR(back.eval(t)[1], tf.eval(t)[1], 1e-12);
+      }
+    }
+  }
+  const TransferFunction tf = random_table(8, 1);
+  EXPECT_EQ(parse(tf_to_json(tf), 0).rgba, tf.rgba);
+  EXPECT_EQ(parse(tf_to_json(tf), 15).size(), 15u);
+}
+
+std::string preset(const std::string& space, const std::string& rgb, const std::string& points, const std::string& name = "p") {
+  return "{\"Name\": \"" + name + "\", \"ColorSpace\": \"" + space + "\", \"RGBPoints\": [" + rgb + "]" +
+         (points.empty() ? "" : ", \"Points\": [" + points + "]") + "}";
+}
+
+TEST(TfFormats, ParaViewColourSpacesOpacityShapeAndRange) {
+  // Range from the points' span; opacity midpoint 0.25: the value is halfway at a quarter.
+  TransferFunction a = parse(preset("RGB", "-1, 0,0,0, 3, 1,1,1", "-1, 0, 0.25, 0, 3, 1, 0.5, 0"), 5);
+  ASSERT_TRUE(a.range);
+  EXPECT_EQ(a.range->lo, -1.0);
+  EXPECT_EQ(a.range->hi, 3.0);
+  EXPECT_NEAR(a.rgba[1][3], 0.5, 1e-12);
+  EXPECT_NEAR(a.rgba[2][0], kHalfSrgbLinear, 1e-12);  // ParaView "RGB" blends the stored values
+  // Sharpness 1: a step at the midpoint.
+  TransferFunction st = parse(preset("RGB", "0, 0,0,0, 1, 1,1,1", "0, 0, 0.5, 1, 1, 1, 0.5, 0"), 5);
+  EXPECT_EQ(st.rgba[1][3], 0.0);
+  EXPECT_EQ(st.rgba[3][3], 1.0);
+  EXPECT_FALSE(st.range);  // [0,1]: a normalized preset
+  // Step colour space: the left point's colour.
+  EXPECT_EQ(parse(preset("Step", "0, 1,0,0, 1, 0,0,1", "0,1,0.5,0, 1,1,0.5,0"), 3).rgba[1][0], 1.0);
+  // Diverging: distinct saturated ends pass through Msh (88, 0, 0): L* = 88, a neutral grey of
+  // luminance ((88 + 16) / 116)^3 in linear light.
+  const double grey = std::pow(104.0 / 116.0, 3);
+  TransferFunction d = parse(preset("Diverging", "0, 0.23,0.299,0.754, 1, 0.706,0.016,0.15", "0,1,0.5,0, 1,1,0.5,0"), 3);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(d.rgba[1][c], grey, 2e-3);  // tolerance: rounded D65/matrix constants
+  // Lab between black and white: L* = 50.
+  TransferFunction lab = parse(preset("Lab", "0, 0,0,0, 1, 1,1,1", "0,1,0.5,0, 1,1,0.5,0"), 3);
+  EXPECT_NEAR(lab.rgba[1][1], std::pow(66.0 / 116.0, 3), 2e-3);
+  // HSV from red to blue takes the shorter arc, through magenta.
+  TransferFunction hsv = parse(preset("HSV", "0, 1,0,0, 1, 0,0,1", "0,1,0.5,0, 1,1,0.5,0"), 3);
+  EXPECT_NEAR(hsv.rgba[1][0], 1.0, 1e-12);
+  EXPECT_NEAR(hsv.rgba[1][1], 0.0, 1e-12);
+  EXPECT_NEAR(hsv.rgba[1][2], 1.0, 1e-12);
+  // Several presets: by name; no opacity points: a ramp, with a note.
+  const std::string many = "[" + preset("RGB", "0,0,0,0, 1,1,1,1", "", "gray") + "," +
+                           preset("RGB", "0,1,0,0, 1,1,0,0", "0,0.5,0.5,0, 1,0.5,0.5,0", "red") + "]";
+  EXPECT_EQ(parse_transfer_function(many, "m.json", {0, "red"}).rgba[0][3], 0.5);
+  std::vector<std::string> notes;
+  TransferFunction g = parse_transfer_function(many, "m.json", {3, ""}, &notes);
+  EXPECT_EQ(g.rgba[1][3], 0.5);
+  ASSERT_EQ(notes.size(), 1u);
+  EXPECT_NE(notes[0].find("ramp"), std::string::npos);
+  expect_error([&] { parse_transfer_function(many, "m.json", {0, "blue"}); }, {"m.json", "no preset named 'blue'", "gray, red"});
+}
+
+TEST(TfFormats, MalformedFilesGiveClearErrors) {
+  const std::string pt = "<ColorPoint position=\"0\" r=\"0\" g=\"0\" b=\"0\"/>\n";
+  expect_error([&] { parse("<TransferFunction><OpacityPoints>"); }, {"mem.tf", "not well-formed XML"});
+  expect_error([&] { parse("<Colormap/>"); }, {"<Colormap>", "not <TransferFunction>"});
+  expect_error([&] { parse("<TransferFunction><ColorPoints>" + pt + "</ColorPoints></TransferFunction>"); }, {"no <OpacityPoint>"});
+  expect_error([&] { parse(xml("", "", "")); }, {"no <ColorPoint>"});
+  expect_error([&] { parse(xml("", "", "<ColorPoint position=\"x\" r=\"0\" g=\"0\" b=\"0\"/>")); }, {"line", "'position'", "'x'"});
+  expect_error([&] { parse(xml("", "", "<ColorPoint position=\"0\" r=\"0\" g=\"nan\" b=\"0\"/>")); }, {"finite number in 'g'"});
+  expect_error([&] { parse(xml("", "rgb16", pt)); }, {"unknown color_data 'rgb16'"});
+  expect_error([&] { parse(xml("HSL", "", pt)); }, {"unknown interpolation_colorspace 'HSL'"});
+  expect_error([&] { parse(preset("RGB", "0,0,0", "")); }, {"\"RGBPoints\" must be an array of 4 numbers per point"});
+  expect_error([&] { parse(preset("RGB", "0,0,0,2, 1,0,0,0", "")); }, {"colour 2 outside [0,1]"});
+  expect_error([&] { parse(preset("RGB", "0.5,0,0,0, 0.5,1,1,1", "")); }, {"one position"});
+  expect_error([&] { parse(preset("XYZ", "0,0,0,0, 1,1,1,1", "")); }, {"unknown ColorSpace 'XYZ'"});
+  expect_error([&] { parse("{\"Name\": \"x\"}"); }, {"no \"RGBPoints\""});
+  expect_error([&] { parse("[1, 2"); }, {"not valid JSON"});
+  expect_error([&] { parse("{\"rgba\": [[0,0,0,0]]}"); }, {"at least 2 entries"});
+  expect_error([&] { parse("hello"); }, {"not a transfer function"});
+  expect_error([&] { parse(""); }, {"empty transfer function file"});
+}
+
+TEST(TfFormats, WriteDispatchesByExtensionAndReadsBack) {
+  formats_test::TempDir dir;
+  const TransferFunction tf = random_table(16, 7);
+  for (const std::string name : {"a.json", "b.xml", "c.paraview.json"}) {
+    write_transfer_function(dir / name, tf);
+    TransferFunction back = read_transfer_function(dir / name).resampled(16);
+    for (size_t j = 0; j < 16; ++j)
+      for (int c = 0; c < 4; ++c) ASSERT_NEAR(back.rgba[j][c], tf.rgba[j][c], 1e-12) << name;
+  }
+  EXPECT_NE(formats_test::read_bytes(dir / "c.paraview.json").find("\"Name\": \"c\""), std::string::npos);
+  expect_error([&] { write_transfer_function(dir / "d.txt", tf); }, {"d.txt", "unknown transfer function format"});
+  // FILE:PRESET names a preset; 16 nodes at j/15 refine to 15 * 17 + 1 entries.
+  EXPECT_EQ(read_transfer_function((dir / "c.paraview.json").string() + ":c").size(), 256u);
+  expect_error([&] { read_transfer_function((dir / "c.paraview.json").string() + ":nope"); }, {"no preset named 'nope'"});
+}
+
+}  // namespace
+}  // namespace tfm

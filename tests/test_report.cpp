@@ -1,0 +1,88 @@
+// The optimization report: every picture and file written, metrics.json consistent with the
+// PNGs on disk, the optimized TF moving the images closer on the demo pair, and a page that
+// references every picture.
+#include <fstream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "cli_runner.h"
+#include "metrics.h"
+#include "png_io.h"
+#include "report.h"
+#include "synthetic.h"
+#include "vk_test_env.h"
+
+namespace tfm {
+namespace {
+
+std::string read_text(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+class Report : public test::GpuTest {};
+
+TEST_F(Report, WritesPicturesMetricsAndPage) {
+  test::TempDir dir;
+  const Volume ref = synthetic_reference(20, 18, 16);
+  const Volume field = synthetic_remapped(ref);
+  const TransferFunction ref_tf = demo_transfer_function(32);
+  OptimizeRequest req;
+  req.ref = &ref;
+  req.field = &field;
+  req.ref_tf = ref_tf;
+  req.tf_size = 32;
+  const OptimizeResult result = run_optimize(ctx(), req);
+
+  ReportInputs in{ref, field, ref_tf, result, RenderSettings{}};
+  in.settings.width = 48;
+  in.settings.height = 40;
+  in.title = "test <report>";
+  in.extra_figures.push_back({"Loss", "loss.png", Image(20, 10, {0, 0, 255}), "a curve"});
+  const ReportSummary s = write_report(ctx(), in, dir.path);
+
+  for (const char* name : {"reference.png", "field_reference_tf.png", "field_optimized_tf.png",
+                           "residual_reference_tf.png", "residual_optimized_tf.png"}) {
+    const Image img = read_png(dir / name);
+    EXPECT_EQ(img.width, 48u) << name;
+    EXPECT_EQ(img.height, 40u) << name;
+  }
+  for (const char* name : {"tf_reference.png", "tf_field_reference.png", "tf_optimized.png", "tf_residual.png",
+                           "overview.png", "loss.png"})
+    EXPECT_NO_THROW(read_png(dir / name)) << name;
+
+  // metrics.json holds what the PNGs on disk give.
+  const auto m = nlohmann::json::parse(read_text(dir / "metrics.json"));
+  const Image ref_img = read_png(dir / "reference.png");
+  const ImageMetrics before = compare_images(ref_img, read_png(dir / "field_reference_tf.png"));
+  const ImageMetrics after = compare_images(ref_img, read_png(dir / "field_optimized_tf.png"));
+  EXPECT_DOUBLE_EQ(m["images"]["reference_tf"]["rmse"].get<double>(), before.rmse);
+  EXPECT_DOUBLE_EQ(m["images"]["optimized_tf"]["ssim"].get<double>(), after.ssim);
+  EXPECT_DOUBLE_EQ(m["voxels"]["rmse_optimized_tf"].get<double>(), result.after.rmse());
+  EXPECT_EQ(m["render_settings"]["width"], 48);
+  // On the demo pair the optimized TF brings both the voxels and the images closer.
+  EXPECT_LT(after.rmse, before.rmse);
+  EXPECT_GT(after.ssim, before.ssim);
+  EXPECT_LT(s.residual_max_after, s.residual_max_before + 1e-6);
+
+  const std::string html = read_text(s.index);
+  for (const std::string& f : s.files)
+    if (f.ends_with(".png") && f != "overview.png") EXPECT_NE(html.find("src=\"" + f + "\""), std::string::npos) << f;
+  EXPECT_NE(html.find("test &lt;report&gt;"), std::string::npos) << "title is escaped";
+  EXPECT_NE(html.find("LPIPS"), std::string::npos);
+}
+
+TEST_F(Report, RejectsFieldsOnDifferentGrids) {
+  test::TempDir dir;
+  const Volume ref = synthetic_reference(8, 8, 8);
+  const Volume other = synthetic_reference(8, 8, 9);
+  OptimizeResult r;
+  r.tf = demo_transfer_function(8);
+  EXPECT_THROW(write_report(ctx(), {ref, other, r.tf, r, RenderSettings{}}, dir.path), std::runtime_error);
+}
+
+}  // namespace
+}  // namespace tfm

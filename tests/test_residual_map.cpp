@@ -1,0 +1,102 @@
+// Residual-map kernel against a double-precision CPU reference: awkward sizes (1, 13, 127, one
+// past a workgroup), NaNs in either field, fields split into several buffers, zero for a field
+// compared with itself.
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "commands.h"
+#include "gpu_voxel_ops.h"
+#include "render_residual.h"
+#include "render_layout.h"
+#include "vk_test_env.h"
+
+namespace tfm {
+namespace {
+
+TransferFunction random_tf(uint32_t n, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  TransferFunction tf;
+  tf.rgba.resize(n);
+  for (auto& e : tf.rgba) e = {u(rng), u(rng), u(rng), u(rng)};
+  return tf;
+}
+
+// T(v) with the shaders' float mapping (bit-identical j and w), interpolated in double.
+bool classify(const TransferFunction& tf, const FieldMapping& m, float v, Rgba& out) {
+  uint32_t j;
+  float w;
+  if (!tf_coordinate(v, m, j, w)) return false;
+  for (int c = 0; c < 4; ++c) out[c] = std::clamp((1.0 - w) * tf.rgba[j][c] + double(w) * tf.rgba[j + 1][c], 0.0, 1.0);
+  return true;
+}
+
+std::vector<double> residual_cpu(const std::vector<float>& ref, const std::vector<float>& opt,
+                                 const TransferFunction& ref_tf, const TransferFunction& opt_tf,
+                                 const FieldMapping& rm, const FieldMapping& om) {
+  std::vector<double> out(ref.size(), 0.0);
+  for (size_t i = 0; i < ref.size(); ++i) {
+    Rgba b, v;
+    if (!classify(ref_tf, rm, ref[i], b) || !classify(opt_tf, om, opt[i], v)) continue;
+    const double pb[4] = {b[0] * b[3], b[1] * b[3], b[2] * b[3], b[3]};
+    const double pv[4] = {v[0] * v[3], v[1] * v[3], v[2] * v[3], v[3]};
+    double s = 0;
+    for (int c = 0; c < 4; ++c) s += (pb[c] - pv[c]) * (pb[c] - pv[c]);
+    out[i] = std::sqrt(s);
+  }
+  return out;
+}
+
+class ResidualMap : public test::GpuTest {
+ protected:
+  void check(size_t n, uint64_t max_chunk_voxels, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(-0.2f, 1.2f);  // some values outside the range: clamped
+    Volume ref, opt;
+    ref.dims = opt.dims = {n, 1, 1};
+    for (size_t i = 0; i < n; ++i) {
+      ref.values.push_back(i % 11 == 4 ? NAN : u(rng));
+      opt.values.push_back(i % 7 == 2 ? NAN : 20.0f + 5.0f * u(rng));
+    }
+    const TransferFunction ref_tf = random_tf(23, seed + 1), opt_tf = random_tf(64, seed + 2);
+    const FieldMapping rm = make_mapping({0, 1}, 23), om = make_mapping({20, 25}, 64);
+    DeviceField ref_dev(ctx(), ref.values, "ref", max_chunk_voxels);
+    DeviceField opt_dev(ctx(), opt.values, "opt", max_chunk_voxels);
+    Buffer rtf = upload_tf(ctx(), ref_tf, "ref tf"), otf = upload_tf(ctx(), opt_tf, "opt tf");
+    const Volume gpu = residual_map_gpu(ctx(), ref, ref_dev, opt_dev, rm, om, rtf, otf);
+    const std::vector<double> cpu = residual_cpu(ref.values, opt.values, ref_tf, opt_tf, rm, om);
+    ASSERT_EQ(gpu.values.size(), n);
+    EXPECT_EQ(gpu.dims, ref.dims);
+    // Float interpolation and premultiplication of values in [0,1] (a few roundings of 2^-24
+    // each) and a float sqrt of a sum <= 4: errors stay below 1e-6.
+    for (size_t i = 0; i < n; ++i) {
+      ASSERT_NEAR(gpu.values[i], cpu[i], 1e-6) << "voxel " << i << " of " << n;
+      if (std::isnan(ref.values[i]) || std::isnan(opt.values[i])) ASSERT_EQ(gpu.values[i], 0.0f) << "voxel " << i;
+    }
+  }
+};
+
+TEST_F(ResidualMap, MatchesCpuReferenceOnAwkwardSizes) {
+  for (size_t n : {size_t(1), size_t(13), size_t(127), size_t(TFM_RESIDUAL_WORKGROUP + 1), size_t(70001)}) {
+    SCOPED_TRACE(n);
+    check(n, 0, uint32_t(n));
+  }
+}
+
+TEST_F(ResidualMap, MatchesCpuReferenceOnASplitField) { check(5000, 1024, 99); }
+
+TEST_F(ResidualMap, FieldAgainstItselfIsZeroAndGridMismatchThrows) {
+  Volume v;
+  v.dims = {13, 7, 5};
+  for (size_t i = 0; i < v.voxel_count(); ++i) v.values.push_back(float(i % 29) / 28.0f);
+  const TransferFunction tf = random_tf(16, 5);
+  const Volume r = residual_map(ctx(), v, tf, {0, 1}, v, tf, {0, 1});
+  for (float x : r.values) ASSERT_EQ(x, 0.0f);
+  Volume w = v;
+  w.dims = {7, 13, 5};
+  EXPECT_THROW(residual_map(ctx(), v, tf, {0, 1}, w, tf, {0, 1}), std::runtime_error);
+}
+
+}  // namespace
+}  // namespace tfm

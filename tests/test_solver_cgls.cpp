@@ -1,0 +1,155 @@
+// GPU CGLS (`cgls`) and the CPU CGLS baseline (`eigen-cgls`, host/cgls_cpu.h) against the exact
+// normal-equations solution: small and medium problems, split chunks, regularization, rank-
+// deficient M, the stop test, and bit-identical results across runs.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include <Eigen/Dense>
+
+#include "cgls_cpu.h"
+#include "eigen_baseline.h"
+#include "test_solver_problem.h"
+#include "vk_test_env.h"
+
+namespace tfm {
+namespace {
+
+class SolverCgls : public test::GpuTest {};
+
+// Tolerances: CGLS stops at ||s|| <= 1e-6 ||s0|| (default). With Jacobi scaling D, the error
+// obeys |x - x*| <~ cond(D^-1/2 M D^-1/2) * 1e-6 * |x*|; for these uniform-coverage problems the
+// scaled condition number is below ~10 (checked against cond(M) in the normal-equations result),
+// and float32 iterates add ~1e-6. Measured on lavapipe: <= 5e-6; 1e-4 bounds both with margin.
+constexpr double kCglsTolerance = 1e-4;
+
+TEST_F(SolverCgls, MatchesNormalEquationsWhenConstraintsAreInactive) {
+  test::SolverProblem p = test::make_solver_problem(5000, 16, 12, 0.2, 0.8, 3);
+  p.upload(ctx());
+  const SolverOutput out = p.solve(ctx(), "cgls");
+  const SolveResult exact = solve_normal_equations(p.cpu_equations());
+  ASSERT_EQ(exact.clamped_values, 0u);
+  EXPECT_LT(test::max_difference(out.tf, exact.tf), kCglsTolerance);
+  EXPECT_LE(out.details["relative_residual"].get<double>(), 1e-6);
+  EXPECT_LE(out.details["iterations"].get<int>(), 16 + 4) << "CG on 16 unknowns needs ~16 iterations";
+  EXPECT_TRUE(out.warnings.empty());
+}
+
+TEST_F(SolverCgls, MediumProblemWithNaNsAndSplitChunks) {
+  test::SolverProblem p = test::make_solver_problem(60000, 64, 40, 0.1, 0.9, 4, 0.02, 17);
+  p.upload(ctx(), 20480);  // three field chunks
+  SolverSettings s;
+  s.extra["max-chunk-voxels"] = "5000";  // voxel vectors in chunks that divide the field chunks
+  const SolverOutput out = p.solve(ctx(), "cgls", s);
+  EXPECT_GT(out.details["voxel_chunks"].get<int>(), 3);
+  const SolveResult exact = solve_normal_equations(p.cpu_equations());
+  EXPECT_LT(test::max_difference(out.tf, exact.tf), kCglsTolerance);
+  EXPECT_TRUE(test::all_finite_in_box(out.tf));
+}
+
+TEST_F(SolverCgls, LargeTfUsesGlobalAccumulatorsAndSeveralVectorBlocks) {
+  // N = 600: more entries than the vector kernel's 256 invocations, and signed slots (38 KB)
+  // beyond lavapipe's 32 KB of shared memory, so the scatter adds straight to memory.
+  test::SolverProblem p = test::make_solver_problem(40000, 600, 50, 0.2, 0.8, 10);
+  p.upload(ctx());
+  const SolverOutput out = p.solve(ctx(), "cgls");
+  const SolveResult exact = solve_normal_equations(p.cpu_equations());
+  EXPECT_LT(test::max_difference(out.tf, exact.tf), kCglsTolerance);
+  EXPECT_TRUE(out.warnings.empty());
+}
+
+TEST_F(SolverCgls, RegularizedMatchesRegularizedNormalEquations) {
+  test::SolverProblem p = test::make_solver_problem(8000, 32, 20, 0.2, 0.8, 5, 0.1);
+  p.upload(ctx());
+  SolverSettings s;
+  s.solve.ridge = 0.01;
+  s.solve.smooth = 0.1;
+  const SolverOutput out = p.solve(ctx(), "cgls", s);
+  const SolveResult exact = solve_normal_equations(p.cpu_equations(), s.solve);
+  EXPECT_LT(test::max_difference(out.tf, exact.tf), kCglsTolerance);
+}
+
+TEST_F(SolverCgls, UnreferencedEntriesWithAndWithoutSmoothness) {
+  // The second field covers only part of its range (the range is given wider): entries above
+  // ~t = 0.6 are touched by no voxel and M is singular.
+  test::SolverProblem p = test::make_solver_problem(6000, 24, 12, 0.2, 0.8, 6);
+  p.opt_map = make_mapping({10.0, 30.0}, 24);
+  p.upload(ctx());
+  const NormalEquations eq = p.cpu_equations();
+  ASSERT_EQ(eq.diag[23], 0.0);
+  const SolverOutput plain = p.solve(ctx(), "cgls");
+  EXPECT_TRUE(test::all_finite_in_box(plain.tf));
+  const SolveResult exact = solve_normal_equations(eq);
+  // Unreferenced entries: 0, as the normal equations' basic solution sets them.
+  EXPECT_LT(test::max_difference(plain.tf, exact.tf), kCglsTolerance);
+  SolverSettings s;
+  s.solve.smooth = 0.05;
+  const SolverOutput smooth = p.solve(ctx(), "cgls", s);
+  const SolveResult exact_smooth = solve_normal_equations(eq, s.solve);
+  EXPECT_TRUE(test::all_finite_in_box(smooth.tf));
+  EXPECT_LT(test::max_difference(smooth.tf, exact_smooth.tf), kCglsTolerance);
+}
+
+TEST_F(SolverCgls, IsBitIdenticalAcrossRuns) {
+  test::SolverProblem p = test::make_solver_problem(20000, 64, 30, 0.1, 0.9, 7, 0.05);
+  p.upload(ctx());
+  const SolverOutput a = p.solve(ctx(), "cgls");
+  const SolverOutput b = p.solve(ctx(), "cgls");
+  EXPECT_EQ(a.tf.rgba, b.tf.rgba);
+  EXPECT_EQ(a.details["iterations_per_channel"], b.details["iterations_per_channel"]);
+}
+
+TEST_F(SolverCgls, IterationCapStopsAndWarns) {
+  test::SolverProblem p = test::make_solver_problem(5000, 32, 20, 0.2, 0.8, 8);
+  p.upload(ctx());
+  SolverSettings s;
+  s.extra["max-iterations"] = "3";
+  const SolverOutput out = p.solve(ctx(), "cgls", s);
+  EXPECT_EQ(out.details["iterations"].get<int>(), 3);
+  EXPECT_GT(out.details["relative_residual"].get<double>(), 1e-6);
+  EXPECT_FALSE(out.warnings.empty());
+  s.extra["tolerance"] = "2";
+  EXPECT_THROW(p.solve(ctx(), "cgls", s), std::runtime_error);
+}
+
+TEST_F(SolverCgls, EigenCglsMatchesNormalEquations) {
+  test::SolverProblem p = test::make_solver_problem(5000, 32, 20, 0.2, 0.8, 9, 0.05, 23);
+  p.upload(ctx());
+  const SolveResult exact = solve_normal_equations(p.cpu_equations());
+  const SolverOutput out = p.solve(ctx(), "eigen-cgls");
+  // Double precision: only the stop test (1e-6, scaled condition number < 10) limits it.
+  EXPECT_LT(test::max_difference(out.tf, exact.tf), 1e-5);
+  EXPECT_LE(out.details["relative_residual"].get<double>(), 1e-6);
+}
+
+TEST(CglsCpu, RegularizedExplicitSystemMatchesDirectSolve) {
+  // A random explicit system with a ridge, solved to 1e-12 and compared with a dense solve.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const int rows = 300, cols = 12;
+  Eigen::SparseMatrix<double, Eigen::RowMajor> a(rows, cols);
+  std::vector<Eigen::Triplet<double>> t;
+  Eigen::VectorXd b(rows);
+  for (int r = 0; r < rows; ++r) {
+    const int j = int(rng() % (cols - 1));
+    const double w = u(rng);
+    t.emplace_back(r, j, 1.0 - w);
+    t.emplace_back(r, j + 1, w);
+    b[r] = u(rng);
+  }
+  a.setFromTriplets(t.begin(), t.end());
+  Eigen::SparseMatrix<double> reg(cols, cols);
+  reg.setIdentity();
+  reg *= 0.5;
+  CglsOptions o;
+  o.tolerance = 1e-12;
+  const CglsResult r = cgls_jacobi(a, b, reg, o);
+  const Eigen::MatrixXd dense = Eigen::MatrixXd(a.transpose() * a) + Eigen::MatrixXd(reg);
+  const Eigen::VectorXd x = dense.ldlt().solve(Eigen::VectorXd(a.transpose() * b));
+  EXPECT_TRUE(r.converged);
+  EXPECT_LE(r.iterations, 2u * cols);
+  EXPECT_LT((r.x - x).cwiseAbs().maxCoeff(), 1e-10);
+}
+
+}  // namespace
+}  // namespace tfm

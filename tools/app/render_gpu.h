@@ -1,0 +1,43 @@
+// Rendering fields on the device: a renderer bound to one device field, and one-call helpers
+// that upload a volume and its TF, render with RenderSettings and read the image back.
+#pragma once
+
+#include <memory>
+
+#include "camera.h"
+#include "context.h"
+#include "device_field.h"
+#include "field_mapping.h"
+#include "image.h"
+#include "progress.h"
+#include "render_image.h"
+#include "render_settings.h"
+#include "transfer_function.h"
+#include "volume.h"
+
+namespace tfm {
+
+class GpuRenderer {
+ public:
+  // The pipeline is specialized for the field's chunk count. Throws std::runtime_error when the
+  // field has more chunks than the renderer binds.
+  GpuRenderer(Context& ctx, const DeviceField& field, const VolumeGeometry& geometry);
+
+  // Renders settings.camera. With `progress`, the image is rendered in bands of rows, one
+  // submission each, and progress->update(rows done) after each; otherwise in one dispatch.
+  // `gpu_ms` receives the GPU time (sum over bands; -1 without timestamps).
+  RenderedImage render(const FieldMapping& mapping, const Buffer& tf, const RenderSettings& settings,
+                       Progress* progress = nullptr, double* gpu_ms = nullptr) const;
+
+ private:
+  Context& ctx_;
+  const DeviceField& field_;
+  VolumeGeometry geometry_;
+  RenderImageKernel kernel_;
+};
+
+// Uploads `volume` and `tf` and renders them; `range` maps the field to the TF.
+RenderedImage render_volume(Context& ctx, const Volume& volume, const TransferFunction& tf, const FieldRange& range,
+                            const RenderSettings& settings, Progress* progress = nullptr);
+
+}  // namespace tfm

@@ -1,0 +1,127 @@
+// index.html of a report: pictures in a grid, metrics in a table, settings at the end.
+#include "render_report_html.h"
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+namespace tfm {
+namespace {
+
+std::string escape(const std::string& text) {
+  std::string out;
+  for (char c : text) {
+    switch (c) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
+std::string figure(const std::string& file, const std::string& caption) {
+  return "<figure><img src=\"" + escape(file) + "\" alt=\"" + escape(caption) + "\"><figcaption>" + escape(caption) +
+         "</figcaption></figure>\n";
+}
+
+// A row of the metrics table; `better` says which direction improves, and the after cell is
+// marked when it moved that way.
+std::string metric_row(const std::string& name, double before, double after, int digits, bool higher_is_better) {
+  const bool improved = higher_is_better ? after > before : after < before;
+  return "<tr><td>" + name + "</td><td>" + report_number(before, digits) + "</td><td" +
+         (improved ? " class=\"better\"" : "") + ">" + report_number(after, digits) + "</td><td>" +
+         (higher_is_better ? "higher is better" : "lower is better") + "</td></tr>\n";
+}
+
+const char* kStyle = R"(
+body { font-family: sans-serif; margin: 24px; color: #222; background: #fafafa; }
+h1 { font-size: 22px; margin-bottom: 4px; }
+h2 { font-size: 17px; margin-top: 28px; border-bottom: 1px solid #ddd; padding-bottom: 4px; }
+.sub { color: #666; font-size: 13px; }
+.grid { display: grid; gap: 14px; align-items: start; }
+.g3 { grid-template-columns: repeat(3, minmax(0, 1fr)); }
+.g2 { grid-template-columns: repeat(2, minmax(0, 1fr)); }
+figure { margin: 0; background: #fff; border: 1px solid #e2e2e2; padding: 6px; }
+figure img { width: 100%; height: auto; display: block; image-rendering: auto; }
+figcaption { font-size: 13px; color: #444; padding-top: 4px; text-align: center; }
+table { border-collapse: collapse; background: #fff; font-size: 14px; }
+td, th { border: 1px solid #ddd; padding: 5px 12px; text-align: right; }
+td:first-child, th:first-child { text-align: left; }
+td.better { background: #e6f4e6; font-weight: bold; }
+.note { font-size: 12px; color: #666; max-width: 60em; }
+)";
+
+}  // namespace
+
+std::string report_number(double v, int digits) {
+  if (std::isinf(v)) return "inf";
+  if (std::isnan(v)) return "n/a";
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.*g", digits, v);
+  return buf;
+}
+
+std::string report_html(const ReportInputs& in, const ReportSummary& s, const nlohmann::json& metrics) {
+  const OptimizeResult& r = in.result;
+  std::ostringstream h;
+  h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<title>" << escape(in.title)
+    << "</title>\n<style>" << kStyle << "</style></head><body>\n";
+  h << "<h1>" << escape(in.title) << "</h1>\n<div class=\"sub\">reference: " << escape(in.ref.name)
+    << " &middot; field: " << escape(in.field.name) << " &middot; grid " << in.ref.dims[0] << "&times;"
+    << in.ref.dims[1] << "&times;" << in.ref.dims[2] << " &middot; solver: " << escape(r.solver)
+    << " &middot; device: " << escape(r.device) << "</div>\n";
+
+  h << "<h2>Renderings</h2>\n<div class=\"grid g3\">\n"
+    << figure("reference.png", "Reference field, reference TF")
+    << figure("field_reference_tf.png", "Second field, reference TF (before)")
+    << figure("field_optimized_tf.png", "Second field, optimized TF (after)")
+    << figure("tf_reference.png", "Reference TF over the reference histogram")
+    << figure("tf_field_reference.png", "Reference TF over the field histogram")
+    << figure("tf_optimized.png", "Optimized TF over the field histogram") << "</div>\n";
+
+  h << "<h2>Residual maps</h2>\n<p class=\"note\">Per voxel || premul(T<sub>r</sub>(F<sub>r</sub>)) &minus; "
+       "premul(T<sub>o</sub>(F<sub>o</sub>)) ||<sub>2</sub> over RGBA, rendered with the TF below (opacity "
+       "linear in the residual) on one scale [0, "
+    << report_number(metrics["residual"]["display_range"][1].get<double>(), 4)
+    << "] for both, same camera. What remains after optimization is structure no TF can explain.</p>\n"
+    << "<div class=\"grid g3\">\n"
+    << figure("residual_reference_tf.png", "Residual with the reference TF (before)")
+    << figure("residual_optimized_tf.png", "Residual with the optimized TF (after)")
+    << figure("tf_residual.png", "Residual TF over the histogram of the residual after") << "</div>\n";
+
+  h << "<h2>Metrics</h2>\n<table>\n<tr><th></th><th>reference TF</th><th>optimized TF</th><th></th></tr>\n"
+    << metric_row("Image RMSE (0&ndash;255)", s.before.rmse, s.after.rmse, 5, false)
+    << metric_row("Image PSNR (dB)", s.before.psnr, s.after.psnr, 5, true)
+    << metric_row("Image SSIM", s.before.ssim, s.after.ssim, 5, true)
+    << metric_row("Voxel RMSE (RGBA)", r.before.rmse(), r.after.rmse(), 5, false)
+    << metric_row("Voxel MAE (RGBA)", r.before.mae(), r.after.mae(), 5, false)
+    << metric_row("Residual max", s.residual_max_before, s.residual_max_after, 4, false) << "</table>\n"
+    << "<p class=\"note\">Image metrics compare each rendering of the second field with the reference "
+       "rendering, in RGB after compositing over the background. SSIM: Wang et al. 2004, 11&times;11 "
+       "Gaussian window (&sigma; = 1.5), K1 = 0.01, K2 = 0.03. LPIPS is not computed (it needs "
+       "pretrained network weights). All numbers are in <a href=\"metrics.json\">metrics.json</a>.</p>\n";
+
+  if (!in.extra_figures.empty()) {
+    h << "<h2>More</h2>\n<div class=\"grid g2\">\n";
+    for (const ReportFigure& f : in.extra_figures) h << figure(f.file, f.title + (f.caption.empty() ? "" : ": " + f.caption));
+    h << "</div>\n";
+  }
+
+  const RenderSettings& rs = in.settings;
+  h << "<h2>Settings</h2>\n<p class=\"note\">" << rs.width << "&times;" << rs.height << " pixels, step "
+    << report_number(rs.step_voxels, 4) << " voxels, opacity scale " << report_number(rs.opacity_scale, 4)
+    << " per box length, early termination at opacity " << report_number(rs.termination_opacity, 4)
+    << "; camera azimuth " << report_number(rs.camera.azimuth_deg, 4) << "&deg;, elevation "
+    << report_number(rs.camera.elevation_deg, 4) << "&deg;, distance " << report_number(rs.camera.distance, 4)
+    << " radii, field of view " << report_number(rs.camera.fov_deg, 4) << "&deg;. Ranges: reference ["
+    << report_number(r.ref_range.lo, 6) << ", " << report_number(r.ref_range.hi, 6) << "], field ["
+    << report_number(r.field_range.lo, 6) << ", " << report_number(r.field_range.hi, 6) << "]. "
+    << "A summary picture of this page: <a href=\"overview.png\">overview.png</a>.</p>\n";
+  h << "</body></html>\n";
+  return h.str();
+}
+
+}  // namespace tfm

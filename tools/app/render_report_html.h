@@ -1,0 +1,19 @@
+// The report's index.html (tools/app/report.h): a self-contained page that shows the report's
+// pictures side by side with the numbers.
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "report.h"
+
+namespace tfm {
+
+// `metrics` is what metrics.json holds.
+std::string report_html(const ReportInputs& inputs, const ReportSummary& summary, const nlohmann::json& metrics);
+
+// A number with `digits` significant digits; "inf" / "n/a" for infinity / NaN.
+std::string report_number(double v, int digits);
+
+}  // namespace tfm

@@ -1,0 +1,55 @@
+// The report of an optimization (`tfmatch optimize --report DIR`, `tfmatch demo`): renderings of
+// the reference, of the second field with the reference and the optimized TF, residual maps
+// before and after, TF plots, image metrics, metrics.json and an index.html showing it all.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "context.h"
+#include "image.h"
+#include "metrics.h"
+#include "optimize.h"
+#include "render_settings.h"
+#include "transfer_function.h"
+#include "volume.h"
+
+namespace tfm {
+
+// A picture another part adds to the report (DiffDVR's loss curve, say): written as `file`
+// (a PNG name inside the report directory) and shown in its own section.
+struct ReportFigure {
+  std::string title;
+  std::string file;
+  Image image;
+  std::string caption;
+};
+
+struct ReportInputs {
+  const Volume& ref;
+  const Volume& field;
+  const TransferFunction& ref_tf;
+  const OptimizeResult& result;    // optimized TF, both ranges, voxel losses, solver details
+  RenderSettings settings;         // one camera and optical model for every rendering
+  std::string title = "tfmatch report";
+  std::vector<ReportFigure> extra_figures;
+  nlohmann::json extra_metrics;    // merged into metrics.json under "extra" when not null
+};
+
+struct ReportSummary {
+  ImageMetrics before;  // reference image vs the field with the reference TF
+  ImageMetrics after;   // reference image vs the field with the optimized TF
+  double residual_max_before = 0.0, residual_max_after = 0.0;
+  std::filesystem::path index;  // index.html
+  std::vector<std::string> files;  // every file written, relative to the report directory
+};
+
+// Renders, measures and writes the report into `dir` (created if missing; files inside are
+// replaced atomically). Shows progress on a terminal. Throws std::runtime_error for unusable
+// input (grids differ) or when a file cannot be written.
+ReportSummary write_report(Context& ctx, const ReportInputs& inputs, const std::filesystem::path& dir);
+
+}  // namespace tfm

@@ -1,0 +1,99 @@
+// Image-based TF optimization (DiffDVR, solver "diffdvr"): the GPU evaluation of the image loss
+// and its gradient w.r.t. the TF for a batch of cameras, and the options of the optimizer loop
+// (tools/app/solver_diffdvr_optimize.cpp).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "camera.h"
+#include "context.h"
+#include "device_field.h"
+#include "diffdvr.h"
+#include "diffdvr_cpu.h"
+#include "field_mapping.h"
+#include "optimize.h"
+#include "render_settings.h"
+#include "transfer_function.h"
+
+namespace tfm {
+
+struct ImageLossGradient {
+  double loss = 0.0;               // sum over views, pixels and RGBA components
+  std::vector<double> gradient;    // dLoss/dT[j][c] of that sum at 4j + c
+  uint64_t components = 0;         // 4 * pixels * views: divide by it for the mean
+  double forward_gpu_ms = -1.0;    // both forward passes; -1 without timestamps
+  double backward_gpu_ms = -1.0;
+};
+
+// The GPU passes of one field pair. For each batch of cameras: the forward kernel renders the
+// reference field with its TF (the target) and the second field with the candidate TF, keeping
+// each pixel's final state; the backward kernel re-marches the second field's rays and adds the
+// loss and its TF gradient. Views are processed in groups small enough that one image buffer
+// fits a storage descriptor and the fixed-point sums cannot overflow; one submission in all.
+// Deterministic: the same inputs give the same bits.
+class DiffDvrGradient {
+ public:
+  // `settings`: the optical model and the image size (width x height) of every view; the camera
+  // pose comes with each evaluation. Both fields live on `geometry`. `force_global_atomics` and
+  // `max_group_views` select the backward kernel's global-atomics path and smaller view groups
+  // (tests: every path gives the same bits). Throws std::runtime_error for invalid settings or a
+  // field too large for the kernels.
+  DiffDvrGradient(Context& ctx, const DeviceField& ref, const DeviceField& opt, const VolumeGeometry& geometry,
+                  const FieldMapping& ref_map, const Buffer& ref_tf, const FieldMapping& opt_map,
+                  const RenderSettings& settings, ImageLoss loss, bool force_global_atomics = false,
+                  uint32_t max_group_views = 64);
+  ~DiffDvrGradient();
+
+  // Loss and gradient of the second field's images with `tf` (opt_map.tf_size entries) against
+  // the reference images, over `cameras` (distance and fov as given; width/height from the
+  // settings). Reference images are rendered again unless the cameras equal the last call's
+  // and fit one group.
+  ImageLossGradient evaluate(const TransferFunction& tf, std::span<const OrbitCamera> cameras);
+  // Views per group (per dispatch) for this image size.
+  uint32_t views_per_group() const { return group_; }
+
+ private:
+  struct Buffers;
+  Context& ctx_;
+  const DeviceField& ref_;
+  const DeviceField& opt_;
+  VolumeGeometry geometry_;
+  FieldMapping ref_map_, opt_map_;
+  const Buffer& ref_tf_;
+  RenderSettings settings_;
+  MarchConstants march_;
+  DiffDvrForwardKernel forward_ref_, forward_opt_;
+  DiffDvrBackwardKernel backward_;
+  uint32_t group_ = 1;
+  std::unique_ptr<Buffers> buffers_;
+  std::vector<OrbitCamera> cached_cameras_;  // whose reference images the target buffer holds
+};
+
+// Settings of the optimizer, from SolverSettings::extra and SolverSettings::render.
+struct DiffDvrOptions {
+  ImageLoss loss = ImageLoss::L2;
+  uint32_t iterations = 200;
+  uint32_t views_per_iteration = 8;
+  uint32_t image_size = 512;
+  uint64_t seed = 1;
+  bool fibonacci = false;                // fixed Fibonacci-sphere cameras instead of random ones
+  std::string init = "reference";        // or "normal-equations"
+  double learning_rate = 0.02;
+  double smooth = 0.0;                   // weight of the TF's squared first differences
+  RenderSettings render;                 // optical model and camera distance / fov
+
+  // Throws std::runtime_error naming the flag for a bad value.
+  static DiffDvrOptions from(const SolverSettings& settings);
+};
+
+// The "diffdvr" solver: projected Adam on the mean image loss (plus the smoothness prior).
+// details: loss_curve (mean loss plus penalty before each step, on that step's views),
+// fixed_view_loss (mean image loss of the initial and final TF on the Fibonacci views), the
+// options used, GPU times per pass.
+SolverOutput solve_with_diffdvr(VoxelProblem& problem, const SolverSettings& settings);
+
+}  // namespace tfm

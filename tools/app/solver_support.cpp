@@ -1,0 +1,60 @@
+// Helpers shared by the solvers.
+#include "solver_support.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "gpu_voxel_ops.h"
+
+namespace tfm {
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+JacobiSetup jacobi_setup(VoxelProblem& p, const SolverSettings& settings) {
+  JacobiSetup js;
+  GpuNormalEquations gpu(p.ctx, p.opt_map.tf_size);
+  js.gpu_ms = gpu.add(p.ref, p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer);
+  js.eq = gpu.result();
+  if (js.eq.voxels == 0) throw std::runtime_error("no voxel has data in both fields (all NaN?): nothing to fit");
+  if (settings.solve.ridge < 0 || settings.solve.smooth < 0)
+    throw std::invalid_argument("regularization weights must be >= 0");
+  js.reg = absolute_regularization(js.eq, settings.solve);
+  const Tridiagonal h = regularized_matrix(js.eq, js.reg);
+  js.inv_diag.resize(js.eq.n);
+  for (uint32_t j = 0; j < js.eq.n; ++j) js.inv_diag[j] = h.diag[j] > 0.0 ? float(1.0 / h.diag[j]) : 0.0f;
+  return js;
+}
+
+uint32_t positive_integer(const SolverSettings& settings, const std::string& name, uint32_t fallback) {
+  const double v = settings.number(name, fallback);
+  if (!(v >= 1.0) || v != std::floor(v) || v > 1e9)
+    throw std::runtime_error("--" + name + ": expected a positive integer, got " + settings.text(name, ""));
+  return static_cast<uint32_t>(v);
+}
+
+TransferFunction clamp_to_tf(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x, uint32_t* clamped) {
+  TransferFunction tf;
+  tf.rgba.resize(size_t(x.rows()));
+  uint32_t moved = 0;
+  for (Eigen::Index j = 0; j < x.rows(); ++j)
+    for (int c = 0; c < 4; ++c) {
+      const double v = std::isfinite(x(j, c)) ? x(j, c) : 0.0;
+      const double k = std::clamp(v, 0.0, 1.0);
+      moved += k != x(j, c) ? 1 : 0;
+      tf.rgba[size_t(j)][size_t(c)] = k;
+    }
+  if (clamped) *clamped = moved;
+  return tf;
+}
+
+TransferFunction tf_from_floats(const std::vector<float>& rgba, uint32_t* clamped) {
+  Eigen::Matrix<double, Eigen::Dynamic, 4> x(Eigen::Index(rgba.size() / 4), 4);
+  for (Eigen::Index j = 0; j < x.rows(); ++j)
+    for (int c = 0; c < 4; ++c) x(j, c) = rgba[size_t(4 * j + c)];
+  return clamp_to_tf(x, clamped);
+}
+
+}  // namespace tfm

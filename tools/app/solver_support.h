@@ -1,0 +1,40 @@
+// Helpers shared by the solvers of tools/app/solver_*.cpp: timing, the Jacobi diagonal from the
+// GPU assembly, reading solver flags, and turning an unconstrained solution into a TF.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "normal_equations.h"
+#include "optimize.h"
+#include "transfer_function.h"
+
+namespace tfm {
+
+double ms_since(std::chrono::steady_clock::time_point t0);
+
+// The assembled system of a problem (GPU, deterministic) with the absolute regularization weights
+// of the settings, and 1 / diag(M + R) per entry (0 where that diagonal is 0: an unreferenced
+// entry no iterative solver can move).
+struct JacobiSetup {
+  NormalEquations eq;
+  Regularization reg;
+  std::vector<float> inv_diag;
+  double gpu_ms = -1.0;
+};
+JacobiSetup jacobi_setup(VoxelProblem& problem, const SolverSettings& settings);
+
+// settings.number(name) as a positive integer (default `fallback`); throws std::runtime_error
+// naming the flag otherwise.
+uint32_t positive_integer(const SolverSettings& settings, const std::string& name, uint32_t fallback);
+
+// x (N x 4) clamped to [0,1] as a TF; counts the components that moved.
+TransferFunction clamp_to_tf(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x, uint32_t* clamped = nullptr);
+// A TF of N float RGBA entries (as read back from the device) clamped to [0,1].
+TransferFunction tf_from_floats(const std::vector<float>& rgba, uint32_t* clamped = nullptr);
+
+}  // namespace tfm

@@ -1,0 +1,59 @@
+// `tfmatch convert-volume IN... OUT.vti`: any field tfmatch reads, as VTK ImageData for ParaView.
+#include <iostream>
+
+#include "cli.h"
+#include "volume_formats.h"
+#include "volume_vti.h"
+
+namespace tfm::cli {
+namespace {
+
+struct ConvertVolumeArgs {
+  std::vector<std::string> inputs;
+  std::string out;
+  std::string var;
+  std::optional<uint64_t> time, member;
+  bool no_compress = false;
+};
+
+int run(const ConvertVolumeArgs& a) {
+  VolumeOptions vo;
+  vo.variable = a.var;
+  vo.time_index = a.time;
+  vo.member_index = a.member;
+  std::vector<Volume> volumes;
+  std::vector<std::pair<std::string, const Volume*>> arrays;
+  volumes.reserve(a.inputs.size());
+  for (const auto& in : a.inputs) {
+    volumes.push_back(load_volume(in, vo));
+    if (volumes.size() > 1) require_same_grid(volumes.front(), volumes.back());
+  }
+  for (size_t i = 0; i < volumes.size(); ++i) {
+    // Array name: the selection after the last ':' (variable), else the file stem.
+    const std::string& n = volumes[i].name;
+    auto colon = n.rfind(':');
+    std::string name = colon != std::string::npos ? n.substr(colon + 1) : std::filesystem::path(n).stem().string();
+    arrays.emplace_back(name.empty() ? "field" + std::to_string(i) : name, &volumes[i]);
+  }
+  write_vti(a.out, arrays, VtiWriteOptions{!a.no_compress});
+  if (!globals().quiet) std::cout << "wrote " << a.out << " (" << arrays.size() << " array(s))\n";
+  return 0;
+}
+
+CommandRegistration reg(41, [](CLI::App& app) {
+  auto args = std::make_shared<ConvertVolumeArgs>();
+  auto* sub = app.add_subcommand("convert-volume", "Write fields (same grid) as one .vti for ParaView");
+  sub->add_option("inputs", args->inputs, "Fields (file or file:VARIABLE), then the output .vti")->required()->expected(2, -1);
+  sub->add_option("--var", args->var, "NetCDF variable / GRIB shortName / VTK array (default for every input)");
+  sub->add_option("--time", args->time, "NetCDF/GRIB time index");
+  sub->add_option("--member", args->member, "NetCDF/GRIB member index");
+  sub->add_flag("--no-compress", args->no_compress, "Write raw instead of zlib-compressed data");
+  sub->callback([args] {
+    args->out = args->inputs.back();
+    args->inputs.pop_back();
+    exit_code() = run(*args);
+  });
+});
+
+}  // namespace
+}  // namespace tfm::cli

@@ -1,0 +1,53 @@
+// `tfmatch metrics A.png B.png`: RMSE, PSNR and SSIM of two images, as text or JSON.
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+
+#include "cli.h"
+#include "metrics.h"
+#include "png_io.h"
+
+namespace tfm::cli {
+namespace {
+
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+struct MetricsArgs {
+  std::string a, b;
+  bool json = false;
+};
+
+int run(const MetricsArgs& args) {
+  const Image a = read_png(args.a), b = read_png(args.b);
+  if (a.width != b.width || a.height != b.height)
+    throw std::runtime_error(args.b + ": size " + std::to_string(b.width) + "x" + std::to_string(b.height) +
+                             " differs from " + args.a + " (" + std::to_string(a.width) + "x" +
+                             std::to_string(a.height) + ")");
+  const ImageMetrics m = compare_images(a, b);
+  if (args.json) {
+    std::cout << m.to_json().dump(2) << "\n";
+  } else {
+    std::cout << "RMSE " << num(m.rmse) << " (0-255)\nPSNR " << (std::isinf(m.psnr) ? "inf" : num(m.psnr))
+              << " dB\nSSIM " << (std::isnan(m.ssim) ? "n/a (images under 11x11 pixels)" : num(m.ssim)) << "\n";
+  }
+  return 0;
+}
+
+CommandRegistration reg(22, [](CLI::App& app) {
+  auto args = std::make_shared<MetricsArgs>();
+  auto* sub = app.add_subcommand("metrics", "Image similarity of two PNGs: RMSE, PSNR (0-255 scale) and SSIM");
+  sub->add_option("A", args->a, "First image (PNG)")->required()->check(CLI::ExistingFile);
+  sub->add_option("B", args->b, "Second image (PNG)")->required()->check(CLI::ExistingFile);
+  sub->add_flag("--json", args->json, "Print JSON: {\"rmse\", \"psnr\" (\"inf\" when identical), \"ssim\"}");
+  sub->footer("SSIM: Wang et al. 2004 (11x11 Gaussian window, sigma 1.5, K1 0.01, K2 0.03) on RGB, as "
+              "scikit-image's structural_similarity(gaussian_weights=True, use_sample_covariance=False, "
+              "data_range=255). Alpha in a PNG is composited over white. LPIPS is not available.");
+  sub->callback([args] { exit_code() = run(*args); });
+});
+
+}  // namespace
+}  // namespace tfm::cli

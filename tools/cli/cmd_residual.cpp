@@ -1,0 +1,95 @@
+// `tfmatch residual`: the residual map || premul(T_r(F_r)) - premul(T_o(F_o)) ||_2 per voxel,
+// saved as float32 raw, and optionally rendered with the residual TF into a PNG.
+#include <iostream>
+#include <regex>
+
+#include "cli.h"
+#include "png_io.h"
+#include "render_gpu.h"
+#include "render_options.h"
+#include "render_residual.h"
+#include "tf_formats.h"
+#include "volume_vti.h"
+#include "transfer_function.h"
+
+namespace tfm::cli {
+namespace {
+
+struct ResidualArgs {
+  std::string ref, ref_tf, field, field_tf, out, image;
+  std::string ref_range, field_range, display_range;
+  VolumeFlags volume_flags;
+  RenderSettings settings;
+};
+
+FieldRange range_of(const Volume& v, const TransferFunction& tf, const std::string& flag_value, const std::string& flag) {
+  FieldRange user;
+  if (!flag_value.empty()) user = parse_range(flag_value, flag);
+  const FieldRange* given = !flag_value.empty() ? &user : (tf.range ? &*tf.range : nullptr);
+  return resolve_range(v.values, given, v.name);
+}
+
+int run(const ResidualArgs& a) {
+  set_progress_enabled(!globals().quiet);
+  const VolumeOptions vo = a.volume_flags.options();
+  Volume ref = load_volume(a.ref, vo);
+  Volume field = load_volume(a.field, vo);
+  require_same_grid(ref, field);
+  TransferFunction ref_tf = read_transfer_function(a.ref_tf);
+  TransferFunction field_tf = read_transfer_function(a.field_tf);
+  const FieldRange ref_range = range_of(ref, ref_tf, a.ref_range, "--ref-range");
+  const FieldRange field_range = range_of(field, field_tf, a.field_range, "--field-range");
+  if (!a.image.empty()) validate(a.settings);
+
+  auto ctx = make_context();
+  Volume residual = residual_map(*ctx, ref, ref_tf, ref_range, field, field_tf, field_range);
+  // .vti opens in ParaView with its grid and spacing; anything else is float32 raw.
+  const bool vti = std::filesystem::path(a.out).extension() == ".vti";
+  if (vti) write_vti(a.out, residual, "residual");
+  else write_raw_float32(a.out, residual);
+  const FieldRange shown = a.display_range.empty() ? residual_display_range({&residual})
+                                                   : parse_range(a.display_range, "--display-range");
+  if (!a.image.empty()) {
+    Progress progress("rendering the residual", a.settings.height);
+    RenderedImage img = render_volume(*ctx, residual, residual_transfer_function(), shown, a.settings, &progress);
+    progress.finish();
+    write_png(a.image, composite_over(img, a.settings.background));
+  }
+  if (!globals().quiet) {
+    double sum = 0;
+    for (float v : residual.values) sum += v;
+    const auto& d = residual.dims;
+    std::cout << "residual map " << d[0] << "x" << d[1] << "x" << d[2] << ": mean " << sum / double(residual.voxel_count())
+              << ", max " << residual_display_range({&residual}).hi << " (0 where either field has no data)\n"
+              << "  wrote " << a.out << (vti ? " (VTK ImageData)" : " (float32 little-endian)");
+    // The raw reader takes the grid from names like residual_64x64x32_float32.raw.
+    static const std::regex sized(R"(\d+x\d+x\d+)");
+    if (!vti && !std::regex_search(std::filesystem::path(a.out).filename().string(), sized))
+      std::cout << "; read it back with --dims " << d[0] << "," << d[1] << "," << d[2] << " --type float32";
+    std::cout << "\n";
+    if (!a.image.empty())
+      std::cout << "  wrote " << a.image << " (residual TF over [" << shown.lo << ", " << shown.hi << "])\n";
+  }
+  return 0;
+}
+
+CommandRegistration reg(21, [](CLI::App& app) {
+  auto args = std::make_shared<ResidualArgs>();
+  auto* sub = app.add_subcommand("residual", "Residual map between REF with REF-TF and FIELD with FIELD-TF");
+  sub->add_option("--ref", args->ref, "Reference field (volume file, or file:VARIABLE)")->required();
+  sub->add_option("--ref-tf", args->ref_tf, "Reference transfer function (tfmatch JSON, XML or ParaView preset)")->required();
+  sub->add_option("--field", args->field, "Second field")->required();
+  sub->add_option("--field-tf", args->field_tf, "Transfer function of the second field (e.g. the optimized one; any TF format)")
+      ->required();
+  sub->add_option("--out", args->out, "Residual map: .vti (ParaView) or float32 raw")->required();
+  sub->add_option("--image", args->image, "Also render the residual map into this PNG");
+  sub->add_option("--ref-range", args->ref_range, "Reference range lo,hi (default: TF file's, else finite min/max)");
+  sub->add_option("--field-range", args->field_range, "Field range lo,hi (default: TF file's, else finite min/max)");
+  sub->add_option("--display-range", args->display_range, "Residual range lo,hi the image maps (default: 0,max)");
+  add_volume_flags(sub, args->volume_flags);
+  add_render_options(sub, args->settings);
+  sub->callback([args] { exit_code() = run(*args); });
+});
+
+}  // namespace
+}  // namespace tfm::cli

@@ -1,0 +1,112 @@
+// `tfmatch solvers`: runs every voxel solver on one problem (given fields, or the built-in
+// synthetic pair at the paper's 1.76 M-voxel Necker grid) and prints a table like the paper's
+// Table 1, as text and/or JSON.
+#include <iostream>
+#include <map>
+#include <sstream>
+
+#include "atomic_file.h"
+#include "cli.h"
+#include "input_options.h"
+#include "solver_comparison.h"
+#include "synthetic.h"
+
+namespace tfm::cli {
+namespace {
+
+struct SolversArgs {
+  InputArgs input;
+  bool synthetic = false;
+  std::string size = "250x352x20";  // the Necker et al. grid of the paper: 1.76 M voxels
+  std::vector<std::string> solvers;
+  double ridge = 0.0, smooth = 0.0;
+  std::string json;
+  std::map<std::string, std::string> extra;
+};
+
+const std::pair<const char*, const char*> kSolverFlags[] = {
+    {"loss", "gradient-descent: l2 or l1"},
+    {"optimizer", "gradient-descent: adam or sgd"},
+    {"lr", "gradient-descent: initial learning rate"},
+    {"iterations", "gradient-descent: iterations"},
+    {"tolerance", "cgls, eigen-cgls, cuda-cgls: relative residual of the normal equations to stop at"},
+    {"max-iterations", "cgls, eigen-cgls, cuda-cgls: iteration cap"},
+};
+
+std::array<uint64_t, 3> parse_size(const std::string& s) {
+  std::array<uint64_t, 3> d{};
+  char x1 = 0, x2 = 0;
+  std::istringstream in(s);
+  if (!(in >> d[0] >> x1 >> d[1] >> x2 >> d[2]) || x1 != 'x' || x2 != 'x' || !d[0] || !d[1] || !d[2] || !in.eof())
+    throw CLI::ValidationError("--size", "expected XxYxZ, got '" + s + "'");
+  return d;
+}
+
+int run(const SolversArgs& a) {
+  LoadedInputs in;
+  if (a.synthetic) {
+    if (!a.input.ref.empty() || !a.input.field.empty() || !a.input.ref_tf.empty())
+      throw std::runtime_error("--synthetic replaces --ref, --ref-tf and --field; give either");
+    const auto d = parse_size(a.size);
+    in.ref = synthetic_reference(d[0], d[1], d[2]);
+    in.field = synthetic_remapped(in.ref);
+    in.request.ref = &in.ref;
+    in.request.field = &in.field;
+    in.request.ref_tf = demo_transfer_function(64);
+    in.request.tf_size = a.input.tf_size;
+  } else {
+    if (a.input.ref.empty() || a.input.field.empty() || a.input.ref_tf.empty())
+      throw std::runtime_error("give --ref, --ref-tf and --field, or --synthetic");
+    load_inputs(a.input, in);
+  }
+  in.request.settings.solve.ridge = a.ridge;
+  in.request.settings.solve.smooth = a.smooth;
+  in.request.settings.extra = a.extra;
+  auto ctx = make_context();
+  // One line per finished solver on stderr: a full comparison on large data takes minutes.
+  const bool progress = !globals().quiet && a.json != "-";
+  const ComparisonResult result =
+      compare_solvers(*ctx, in.request, a.solvers, [progress](const ComparisonRow& row, size_t i, size_t count) {
+        if (!progress) return;
+        std::cerr << "  [" << i << "/" << count << "] " << row.solver
+                  << (row.error.empty() ? ": " + std::to_string(int(row.total_ms)) + " ms" : ": failed") << "\n";
+      });
+  const std::string json = result.to_json().dump(2) + "\n";
+  if (a.json == "-") {
+    std::cout << json;
+  } else {
+    if (!a.json.empty()) write_file_atomically(a.json, json);
+    if (!globals().quiet) {
+      if (a.synthetic) std::cout << "synthetic pair " << a.size << " (tfmatch demo's fields)\n";
+      result.print_table(std::cout);
+      if (!a.json.empty()) std::cout << "wrote " << a.json << "\n";
+    }
+  }
+  return 0;
+}
+
+CommandRegistration reg(15, [](CLI::App& app) {
+  auto args = std::make_shared<SolversArgs>();
+  auto* sub = app.add_subcommand(
+      "solvers", "Run every solver on one problem and compare time, iterations, voxel loss and the box constraints");
+  add_input_options(sub, args->input, false);
+  sub->add_flag("--synthetic", args->synthetic, "Use the built-in synthetic pair instead of --ref/--ref-tf/--field");
+  sub->add_option("--size", args->size, "--synthetic: grid size XxYxZ")->capture_default_str();
+  sub->add_option("--solvers", args->solvers, "Solvers to run, comma-separated (default: all registered, including "
+                  "the image-based diffdvr, which takes long on large fields; qp always runs as the reference)")
+      ->delimiter(',');
+  sub->add_option("--ridge", args->ridge, "Tikhonov weight, relative to the mean diagonal of M")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--smooth", args->smooth, "First-difference smoothness weight, relative to the mean diagonal of M")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--json", args->json, "Write the comparison as JSON to this file ('-': stdout, no table)");
+  for (const auto& [flag, help] : kSolverFlags) {
+    std::string name = flag;
+    sub->add_option_function<std::string>("--" + name, [args, name](const std::string& v) { args->extra[name] = v; },
+                                           help);
+  }
+  sub->callback([args] { exit_code() = run(*args); });
+});
+
+}  // namespace
+}  // namespace tfm::cli

@@ -1,0 +1,59 @@
+// Input flags of the TF-fitting subcommands and their loading.
+#include "input_options.h"
+
+#include <iostream>
+
+#include "cli.h"
+#include "tf_formats.h"
+
+namespace tfm::cli {
+
+void add_input_options(CLI::App* sub, InputArgs& a, bool required) {
+  auto* ref = sub->add_option("--ref", a.ref, "Reference field: FILE or FILE:VAR[@LEVELTYPE][,time=N][,member=N]");
+  auto* tf = sub->add_option("--ref-tf", a.ref_tf, "Reference transfer function: tfmatch JSON, framework XML or "
+                             "ParaView preset (FILE:PRESET picks one)");
+  auto* field = sub->add_option("--field", a.field, "Field whose transfer function is optimized");
+  if (required) {
+    ref->required();
+    tf->required();
+    field->required();
+  }
+  sub->add_option("--tf-size", a.tf_size, "Entries N of the optimized TF")->check(CLI::Range(2u, 1u << 16))
+      ->capture_default_str();
+  sub->add_option("--ref-range", a.ref_range, "Reference field range lo,hi (default: TF file's, else finite min/max)");
+  sub->add_option("--field-range", a.field_range, "Field range lo,hi (default: finite min/max)");
+  sub->add_option("--dims", a.dims, "Raw files: grid size X Y Z (when the file name does not say)")->expected(3)
+      ->delimiter(',');
+  sub->add_option("--type", a.type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)");
+  sub->add_flag("--big-endian", a.big_endian, "Raw files: big-endian data");
+  sub->add_option("--var", a.var, "NetCDF variable / GRIB shortName[@typeOfLevel] / VTK array, for both fields "
+                  "unless FILE:VAR says otherwise");
+  sub->add_option("--time", a.time, "NetCDF/GRIB time index (default 0; FILE:VAR,time=N per field)");
+  sub->add_option("--member", a.member, "NetCDF/GRIB ensemble member / extra dimension index (default 0)");
+}
+
+void load_inputs(const InputArgs& a, LoadedInputs& out) {
+  VolumeOptions vo;
+  if (!a.dims.empty()) vo.dims = std::array<uint64_t, 3>{a.dims[0], a.dims[1], a.dims[2]};
+  if (!a.type.empty()) {
+    vo.type = parse_scalar_type(a.type);
+    if (vo.type == ScalarType::Unknown) throw std::runtime_error("--type: unknown element type '" + a.type + "'");
+  }
+  vo.big_endian = a.big_endian;
+  vo.variable = a.var;
+  vo.time_index = a.time;
+  vo.member_index = a.member;
+  out.ref = load_volume(a.ref, vo);
+  out.field = load_volume(a.field, vo);
+  OptimizeRequest& req = out.request;
+  req.ref = &out.ref;
+  req.field = &out.field;
+  std::vector<std::string> notes;
+  req.ref_tf = read_transfer_function(a.ref_tf, {}, &notes);
+  for (const auto& n : notes) std::cerr << "tfmatch: note: " << n << "\n";
+  if (!a.ref_range.empty()) req.ref_range = parse_range(a.ref_range, "--ref-range");
+  if (!a.field_range.empty()) req.field_range = parse_range(a.field_range, "--field-range");
+  req.tf_size = a.tf_size;
+}
+
+}  // namespace tfm::cli

@@ -1,0 +1,40 @@
+// The input flags shared by subcommands that fit a TF (--ref, --ref-tf, --field, ranges, raw-file
+// and NetCDF/GRIB selectors, --tf-size) and loading them into an OptimizeRequest.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "optimize.h"
+#include "volume.h"
+
+namespace tfm::cli {
+
+struct InputArgs {
+  std::string ref, ref_tf, field;
+  uint32_t tf_size = 64;
+  std::string ref_range, field_range;
+  std::vector<uint64_t> dims;
+  std::string type;
+  bool big_endian = false;
+  std::string var;
+  std::optional<uint64_t> time, member;
+};
+
+// Adds the flags to `sub`; `required` makes --ref, --ref-tf and --field required.
+void add_input_options(CLI::App* sub, InputArgs& args, bool required);
+
+// The loaded inputs: volumes (owned here, the request points at them) and the request.
+struct LoadedInputs {
+  Volume ref, field;
+  OptimizeRequest request;
+};
+// Loads the volumes and the reference TF (printing TF reader notes to stderr) and fills the
+// request's inputs, ranges and TF size. Throws std::runtime_error naming a bad file or flag.
+void load_inputs(const InputArgs& args, LoadedInputs& out);
+
+}  // namespace tfm::cli

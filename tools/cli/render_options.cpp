@@ -1,0 +1,87 @@
+// The shared render flags.
+#include "render_options.h"
+
+#include <cctype>
+#include <cstdlib>
+#include <memory>
+#include <stdexcept>
+
+namespace tfm::cli {
+
+std::array<double, 3> parse_color(const std::string& text, const std::string& flag) {
+  auto fail = [&] {
+    throw CLI::ValidationError(flag, "expected white, black, gray, #rrggbb or r,g,b in [0,1], got '" + text + "'");
+  };
+  if (text == "white") return {1, 1, 1};
+  if (text == "black") return {0, 0, 0};
+  if (text == "gray" || text == "grey") return {0.5, 0.5, 0.5};
+  std::array<double, 3> c{};
+  if (text.size() == 7 && text[0] == '#') {
+    for (int k = 0; k < 3; ++k) {
+      const std::string hex = text.substr(1 + 2 * k, 2);
+      if (!std::isxdigit(static_cast<unsigned char>(hex[0])) || !std::isxdigit(static_cast<unsigned char>(hex[1])))
+        fail();
+      c[k] = double(std::strtol(hex.c_str(), nullptr, 16)) / 255.0;
+    }
+    return c;
+  }
+  size_t pos = 0;
+  for (int k = 0; k < 3; ++k) {
+    const size_t end = k < 2 ? text.find(',', pos) : text.size();
+    if (end == std::string::npos) fail();
+    const std::string part = text.substr(pos, end - pos);
+    char* stop = nullptr;
+    c[k] = std::strtod(part.c_str(), &stop);
+    if (part.empty() || *stop != '\0' || !(c[k] >= 0 && c[k] <= 1)) fail();
+    pos = end + 1;
+  }
+  return c;
+}
+
+VolumeOptions VolumeFlags::options() const {
+  VolumeOptions vo;
+  if (dims.size() == 3) vo.dims = std::array<uint64_t, 3>{dims[0], dims[1], dims[2]};
+  if (!type.empty()) {
+    vo.type = parse_scalar_type(type);
+    if (vo.type == ScalarType::Unknown) throw std::runtime_error("--type: unknown element type '" + type + "'");
+  }
+  vo.big_endian = big_endian;
+  return vo;
+}
+
+void add_volume_flags(CLI::App* sub, VolumeFlags& f) {
+  const std::string g = "Raw volumes";
+  sub->add_option("--dims", f.dims, "Raw files: grid size X,Y,Z (when the file name does not say)")->expected(3)
+      ->delimiter(',')->group(g);
+  sub->add_option("--type", f.type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)")->group(g);
+  sub->add_flag("--big-endian", f.big_endian, "Raw files: big-endian data")->group(g);
+}
+
+void add_render_options(CLI::App* sub, RenderSettings& s) {
+  const std::string g = "Rendering";
+  sub->add_option("--azimuth", s.camera.azimuth_deg, "Camera azimuth about the grid's z axis, degrees")
+      ->capture_default_str()->group(g);
+  sub->add_option("--elevation", s.camera.elevation_deg, "Camera elevation above the xy plane, degrees (-90..90)")
+      ->check(CLI::Range(-90.0, 90.0))->capture_default_str()->group(g);
+  sub->add_option("--distance", s.camera.distance, "Camera distance from the box centre, in bounding-sphere radii")
+      ->check(CLI::Range(1.0001, 1e4))->capture_default_str()->group(g);
+  sub->add_option("--fov", s.camera.fov_deg, "Vertical field of view, degrees")
+      ->check(CLI::Range(0.1, 179.0))->capture_default_str()->group(g);
+  sub->add_option("--width", s.width, "Image width in pixels")->check(CLI::Range(1u, 16384u))
+      ->capture_default_str()->group(g);
+  sub->add_option("--height", s.height, "Image height in pixels")->check(CLI::Range(1u, 16384u))
+      ->capture_default_str()->group(g);
+  sub->add_option("--step", s.step_voxels, "Ray-marching step, in voxels of the finest axis")
+      ->check(CLI::Range(0.01, 64.0))->capture_default_str()->group(g);
+  sub->add_option("--opacity-scale", s.opacity_scale,
+                  "Extinction of TF opacity 1 per box length (sigma = a * scale)")
+      ->check(CLI::NonNegativeNumber)->capture_default_str()->group(g);
+  sub->add_option("--termination", s.termination_opacity, "Stop a ray once its opacity reaches this (< 1)")
+      ->check(CLI::Range(0.01, 0.9999))->capture_default_str()->group(g);
+  sub->add_option_function<std::string>(
+         "--background", [&s](const std::string& v) { s.background = parse_color(v, "--background"); },
+         "Background: white, black, gray, #rrggbb or r,g,b (default white)")
+      ->group(g);
+}
+
+}  // namespace tfm::cli

@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets of the hand-written parsers (legacy VTK, VTI, NRRD, .dat, TF XML,
+# TF JSON) with clang + ASan/UBSan and runs each for a fixed time, starting from the seeds in
+# tests/fuzz/seeds. Exits non-zero when a target finds a crash, leak, timeout or huge allocation;
+# the input that did it is left in $BUILD/fuzz-artifacts.
+#
+#   tools/fuzz.sh [SECONDS_PER_TARGET=30] [TARGET...]     e.g. tools/fuzz.sh 60 vti nrrd
+#
+# Needs clang and libFuzzer: Debian clang-14 and libclang-rt-14-dev (libclang_rt.fuzzer).
+# Environment: TFMATCH_FUZZ_BUILD (build directory, default build-fuzz), FUZZ_JOBS (build jobs).
+set -euo pipefail
+
+root=$(cd "$(dirname "$0")/.." && pwd)
+seconds=${1:-30}
+[ $# -gt 0 ] && shift
+targets=("$@")
+[ ${#targets[@]} -eq 0 ] && targets=(vtk_legacy vti nrrd dat tf_xml tf_json)
+build=${TFMATCH_FUZZ_BUILD:-$root/build-fuzz}
+
+cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ -DTFMATCH_FUZZ=ON >/dev/null
+cmake --build "$build" -j "${FUZZ_JOBS:-2}" --target "${targets[@]/#/fuzz_}"
+
+dict_for() {
+  case $1 in
+    vtk_legacy) echo vtk.dict ;;
+    vti) echo vti.dict ;;
+    nrrd) echo nrrd.dict ;;
+    tf_xml | tf_json) echo tf.dict ;;
+    *) echo "" ;;
+  esac
+}
+
+failed=()
+for t in "${targets[@]}"; do
+  corpus=$build/fuzz-corpus/$t
+  artifacts=$build/fuzz-artifacts
+  mkdir -p "$corpus" "$artifacts"
+  args=(-max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024 -max_len=65536
+        -artifact_prefix="$artifacts/$t-" -print_final_stats=1)
+  dict=$(dict_for "$t")
+  [ -n "$dict" ] && args+=(-dict="$root/tests/fuzz/$dict")
+  echo "== fuzz_$t for ${seconds}s"
+  # New inputs go to the first directory (kept between runs); the seeds are read only.
+  if ! "$build/tests/fuzz/fuzz_$t" "${args[@]}" "$corpus" "$root/tests/fuzz/seeds/$t" 2>"$build/fuzz-$t.log"; then
+    failed+=("$t")
+    tail -40 "$build/fuzz-$t.log"
+  else
+    grep -E "stat::number_of_executed_units|stat::peak_rss_mb" "$build/fuzz-$t.log" | tr '\n' ' '
+    echo
+  fi
+done
+
+if [ ${#failed[@]} -gt 0 ]; then
+  echo "fuzz.sh: findings in: ${failed[*]} (inputs in $build/fuzz-artifacts)" >&2
+  exit 1
+fi
+echo "fuzz.sh: no findings in ${targets[*]} (${seconds}s each)"
