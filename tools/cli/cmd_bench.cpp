@@ -101,7 +101,8 @@ int run(const BenchArgs& a) {
               << gpu_voxels_per_s / 1e6 << " M voxels/s\n"
               << "    copy-speed bound      " << std::setw(9) << copy_best << " ms  " << std::setw(9)
               << bound_voxels_per_s / 1e6 << " M voxels/s  (" << copy_bytes_per_s / 1e9 << " GB/s copy)\n"
-              << "    assembly / bound      " << std::setw(9) << gpu_voxels_per_s / bound_voxels_per_s << "\n";
+              << "    assembly / bound      " << std::setw(9) << std::defaultfloat << std::setprecision(3)
+              << gpu_voxels_per_s / bound_voxels_per_s << std::fixed << std::setprecision(2) << "\n";
 
     // The straightforward CPU method, single thread, in double: our reference.
     auto t0 = std::chrono::steady_clock::now();

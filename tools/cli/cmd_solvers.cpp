@@ -92,8 +92,8 @@ CommandRegistration reg(15, [](CLI::App& app) {
   add_input_options(sub, args->input, false);
   sub->add_flag("--synthetic", args->synthetic, "Use the built-in synthetic pair instead of --ref/--ref-tf/--field");
   sub->add_option("--size", args->size, "--synthetic: grid size XxYxZ")->capture_default_str();
-  sub->add_option("--solvers", args->solvers, "Solvers to run, comma-separated (default: all registered, including "
-                  "the image-based diffdvr, which takes long on large fields; qp always runs as the reference)")
+  sub->add_option("--solvers", args->solvers, "Solvers to run, comma-separated (default: every voxel solver; name the "
+                  "image-based diffdvr to include it — it takes minutes on large fields; qp always runs as the reference)")
       ->delimiter(',');
   sub->add_option("--ridge", args->ridge, "Tikhonov weight, relative to the mean diagonal of M")
       ->check(CLI::NonNegativeNumber);
