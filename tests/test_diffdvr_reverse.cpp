@@ -80,14 +80,16 @@ Scene make_scene(std::array<uint64_t, 3> dims, uint32_t tf_size, uint32_t width,
 }
 
 ImageLossGradient gpu(Context& ctx, const Scene& s, uint64_t max_chunk_voxels = 0, bool force_global = false,
-                      uint32_t max_group_views = 64) {
+                      uint32_t max_group_views = 64, uint32_t* passes = nullptr) {
   const VolumeGeometry geo = VolumeGeometry::from(s.opt.dims, s.opt.spacing);
   DeviceField ref(ctx, s.ref.values, "reverse test reference", max_chunk_voxels);
   DeviceField opt(ctx, s.opt.values, "reverse test field", max_chunk_voxels);
   Buffer ref_tf = upload_tf(ctx, s.ref_tf, "reverse test reference TF");
   DiffDvrGradient g(ctx, ref, opt, geo, make_mapping({0, 1}, uint32_t(s.ref_tf.size())), ref_tf,
                     make_mapping({0, 1}, uint32_t(s.tf.size())), s.settings, s.loss, force_global, max_group_views);
-  return g.evaluate(s.tf, s.cameras);
+  ImageLossGradient out = g.evaluate(s.tf, s.cameras);
+  if (passes) *passes = g.last_pass_count();
+  return out;
 }
 
 struct CpuTotal {
@@ -117,9 +119,9 @@ class DiffDvrReverse : public test::GpuTest {
   // finite-difference test (test_diffdvr_gradient.cpp explains it). The largest term here is the
   // float TF coordinate with N = 127: |dw| <= 2^-24 * 126 = 7.5e-6. Lavapipe: <= 1.3e-5 for
   // that case, ~1e-6 for the others (printed).
-  void compare(const Scene& s, uint64_t max_chunk_voxels = 0) {
+  void compare(const Scene& s, uint64_t max_chunk_voxels = 0, uint32_t* passes = nullptr) {
     const CpuTotal want = cpu(s);
-    const ImageLossGradient got = gpu(ctx(), s, max_chunk_voxels);
+    const ImageLossGradient got = gpu(ctx(), s, max_chunk_voxels, false, 64, passes);
     ASSERT_EQ(got.gradient.size(), want.gradient.size());
     double scale = 0, worst = 0;
     for (double g : want.gradient) scale = std::max(scale, std::abs(g));
@@ -151,6 +153,16 @@ TEST_F(DiffDvrReverse, MatchesWhereTheOpticalDepthClampIsActive) {
   const MarchConstants m = march_constants(s.settings, geo);
   ASSERT_GT(m.depth_per_alpha * 0.15, kMaxSampleOpticalDepth) << "the case must exercise the clamp";
   compare(s);
+}
+
+TEST_F(DiffDvrReverse, MatchesWhenTheSumsAreSplitIntoGroupsAndRowBands) {
+  // An absurd opacity scale makes the accumulators' worst-case bound per ray (~10^7) so large
+  // that DiffDvrGradient must sum each view separately and each in two bands of 16 rows.
+  Scene s = make_scene({7, 6, 5}, 6, 24, 24);
+  s.settings.opacity_scale = 1e6;
+  uint32_t passes = 0;
+  compare(s, 0, &passes);
+  EXPECT_EQ(passes, 6u) << "3 views x 2 bands";
 }
 
 TEST_F(DiffDvrReverse, MatchesOnOddImageAndTfSizes) {

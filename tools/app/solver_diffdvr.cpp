@@ -145,6 +145,7 @@ ImageLossGradient DiffDvrGradient::evaluate(const TransferFunction& tf, std::spa
     stamps.push_back(batch.timestamp());
   }
   batch.submit_and_wait();
+  passes_ = band_index;
   cached_cameras_.assign(cameras.begin(), cameras.end());
   if (groups != 1) cached_cameras_.clear();
 

@@ -55,6 +55,8 @@ class DiffDvrGradient {
   ImageLossGradient evaluate(const TransferFunction& tf, std::span<const OrbitCamera> cameras);
   // Views per group (per dispatch) for this image size.
   uint32_t views_per_group() const { return group_; }
+  // Backward passes (view groups x row bands) the last evaluation summed.
+  uint32_t last_pass_count() const { return passes_; }
 
  private:
   struct Buffers;
@@ -69,6 +71,7 @@ class DiffDvrGradient {
   DiffDvrForwardKernel forward_ref_, forward_opt_;
   DiffDvrBackwardKernel backward_;
   uint32_t group_ = 1;
+  uint32_t passes_ = 0;
   std::unique_ptr<Buffers> buffers_;
   std::vector<OrbitCamera> cached_cameras_;  // whose reference images the target buffer holds
 };

@@ -61,7 +61,7 @@ nlohmann::json bench_step(Context& ctx, const BenchArgs& a, double step, const D
   ctx.reset_peak_buffer_bytes();
   uint64_t base = ctx.buffer_bytes();
   double forward_only_ms = 1e300, forward_only_wall = 1e300;
-  uint64_t samples = 0, rays_hit = 0;
+  uint64_t samples = 0, rays_hit = 0, forward_only_peak = 0;
   {
     RenderImageKernel kernel(ctx, uint32_t(opt.chunk_count()));
     std::vector<gpu::RenderView> records;
@@ -82,11 +82,11 @@ nlohmann::json bench_step(Context& ctx, const BenchArgs& a, double step, const D
       forward_only_wall = std::min(forward_only_wall, ms_since(t0));
       forward_only_ms = std::min(forward_only_ms, ms >= 0 ? ms : ms_since(t0));
     }
+    forward_only_peak = ctx.peak_buffer_bytes() - base;  // before the readback's staging buffer
     std::vector<uint32_t> k_stop(pixels);
     readback(ctx, stop, k_stop.data(), pixels * 4);
     for (uint32_t k : k_stop) samples += k, rays_hit += k > 0;
   }
-  const uint64_t forward_only_peak = ctx.peak_buffer_bytes() - base;
 
   // DiffDVR iterations: reference forward, field forward, backward; new cameras each time.
   ctx.reset_peak_buffer_bytes();

@@ -36,7 +36,7 @@ struct OptimizeArgs {
 // Solver-specific flags: each solver reads those it understands from SolverSettings::extra.
 const std::pair<const char*, const char*> kSolverFlags[] = {
     {"loss", "gradient-descent/diffdvr: l2 or l1"},
-    {"optimizer", "gradient-descent/diffdvr: adam or sgd"},
+    {"optimizer", "gradient-descent: adam or sgd; diffdvr: adam"},
     {"lr", "gradient-descent/diffdvr: learning rate"},
     {"iterations", "gradient-descent/diffdvr: iterations"},
     {"tolerance", "iterative solvers: relative residual of the normal equations to stop at"},
