@@ -23,31 +23,22 @@ std::string lower(std::string s) {
   return s;
 }
 
-template <class T>
-void convert(const char* src, uint64_t count, bool big_endian, float* dst) {
-  const bool swap = big_endian != (std::endian::native == std::endian::big);
-  for (uint64_t i = 0; i < count; ++i) {
-    unsigned char bytes[sizeof(T)];
-    std::memcpy(bytes, src + i * sizeof(T), sizeof(T));
-    if (swap) std::reverse(bytes, bytes + sizeof(T));
-    T v;
-    std::memcpy(&v, bytes, sizeof(T));
-    dst[i] = static_cast<float>(v);
-  }
-}
-
+// The raw reader's element types are a subset of the format readers' (volume_formats.h), whose
+// decoder does the work.
 void decode(const char* src, uint64_t count, ScalarType type, bool big_endian, float* dst) {
+  ElementType e;
   switch (type) {
-    case ScalarType::UInt8: convert<uint8_t>(src, count, big_endian, dst); break;
-    case ScalarType::Int8: convert<int8_t>(src, count, big_endian, dst); break;
-    case ScalarType::UInt16: convert<uint16_t>(src, count, big_endian, dst); break;
-    case ScalarType::Int16: convert<int16_t>(src, count, big_endian, dst); break;
-    case ScalarType::UInt32: convert<uint32_t>(src, count, big_endian, dst); break;
-    case ScalarType::Int32: convert<int32_t>(src, count, big_endian, dst); break;
-    case ScalarType::Float32: convert<float>(src, count, big_endian, dst); break;
-    case ScalarType::Float64: convert<double>(src, count, big_endian, dst); break;
-    case ScalarType::Unknown: throw std::logic_error("decode: unknown scalar type");
+    case ScalarType::UInt8: e = ElementType::UInt8; break;
+    case ScalarType::Int8: e = ElementType::Int8; break;
+    case ScalarType::UInt16: e = ElementType::UInt16; break;
+    case ScalarType::Int16: e = ElementType::Int16; break;
+    case ScalarType::UInt32: e = ElementType::UInt32; break;
+    case ScalarType::Int32: e = ElementType::Int32; break;
+    case ScalarType::Float32: e = ElementType::Float32; break;
+    case ScalarType::Float64: e = ElementType::Float64; break;
+    default: throw std::logic_error("decode: unknown scalar type");
   }
+  decode_elements(src, count, e, big_endian, dst);
 }
 
 // Reads `count` elements of `type` at `offset`, checking that the file holds exactly
