@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -47,6 +48,32 @@ struct ArraySelector {
   std::optional<uint64_t> component;
 };
 ArraySelector parse_array_selector(const std::string& text, const std::string& file);
+
+// The array `sel` names among a VTK-family file's arrays (each with `name` and `section`), or,
+// without a name, the one of lowest `rank(array)` (file order breaks ties). Field-data arrays are
+// not on the grid: naming one is an error. Throws std::runtime_error naming `file` and listing
+// the grid arrays when nothing matches.
+template <class Array, class Rank>
+const Array& pick_grid_array(const std::vector<Array>& arrays, const ArraySelector& sel, Rank rank,
+                             const std::string& file) {
+  const Array* pick = nullptr;
+  std::string names;
+  for (const Array& a : arrays) {
+    if (a.section == "field data") {
+      if (a.name == sel.name)
+        throw std::runtime_error(file + ": no array '" + a.name + "' on the grid: '" + a.name +
+                                 "' is field data, not on the grid");
+      continue;
+    }
+    names += (names.empty() ? "" : ", ") + a.name;
+    if (sel.name.empty() ? (!pick || rank(a) < rank(*pick)) : (a.name == sel.name && !pick)) pick = &a;
+  }
+  if (!pick) {
+    if (sel.name.empty()) throw std::runtime_error(file + ": no arrays on the grid");
+    throw std::runtime_error(file + ": no array '" + sel.name + "' (arrays: " + (names.empty() ? "none" : names) + ")");
+  }
+  return *pick;
+}
 
 // From `tuples` interleaved tuples of `components` values: component k, or (no component given)
 // the values themselves for one component and the Euclidean magnitude for several. Throws

@@ -346,26 +346,12 @@ Volume parse_vti(std::string_view bytes, const std::string& file, const VolumeOp
   auto rank = [&](const VtiArray& a) {
     return a.section == "point data" ? (a.name == doc.active_scalars ? 0 : 1) : 2;
   };
-  const VtiArray* pick = nullptr;
-  std::string names;
-  for (const auto& a : doc.arrays) {
-    if (a.section == "field data") {
-      if (a.name == sel.name)
-        throw std::runtime_error(file + ": '" + a.name + "' is field data (" + std::to_string(a.tuples) + " values), not on the grid");
-      continue;
-    }
-    names += (names.empty() ? "" : ", ") + a.name;
-    if (sel.name.empty() ? (!pick || rank(a) < rank(*pick)) : (a.name == sel.name && !pick)) pick = &a;
-  }
-  if (!pick) {
-    if (sel.name.empty()) throw std::runtime_error(file + ": no arrays on the grid");
-    throw std::runtime_error(file + ": no array '" + sel.name + "' (arrays: " + (names.empty() ? "none" : names) + ")");
-  }
+  const VtiArray& pick = pick_grid_array(doc.arrays, sel, rank, file);
   Volume v;
-  v.dims = grid_of(doc, *pick);
+  v.dims = grid_of(doc, pick);
   v.spacing = doc.spacing;
-  v.name = file + ":" + pick->name + (sel.component ? "[" + std::to_string(*sel.component) + "]" : "");
-  v.values = select_component(decode_array(bytes, doc, *pick, file), pick->components, sel.component, v.name);
+  v.name = file + ":" + pick.name + (sel.component ? "[" + std::to_string(*sel.component) + "]" : "");
+  v.values = select_component(decode_array(bytes, doc, pick, file), pick.components, sel.component, v.name);
   return v;
 }
 

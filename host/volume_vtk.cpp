@@ -341,22 +341,12 @@ Volume parse_vtk_legacy(std::string_view bytes, const std::string& file, const V
   const ArraySelector sel = parse_array_selector(options.variable, file);
   // Without a name: point SCALARS first, then any point array, then cell arrays (file order).
   auto rank = [](const VtkArray& a) { return (a.section == "point data" ? 0 : 2) + (a.keyword == "SCALARS" ? 0 : 1); };
-  const VtkArray* pick = nullptr;
-  std::string names;
-  for (const auto& a : doc.arrays) {
-    if (a.section == "field data") continue;
-    names += (names.empty() ? "" : ", ") + a.name;
-    if (sel.name.empty() ? (!pick || rank(a) < rank(*pick)) : (a.name == sel.name && !pick)) pick = &a;
-  }
-  if (!pick) {
-    if (sel.name.empty()) throw std::runtime_error(file + ": no arrays on the grid");
-    throw std::runtime_error(file + ": no array '" + sel.name + "' (arrays: " + (names.empty() ? "none" : names) + ")");
-  }
+  const VtkArray& pick = pick_grid_array(doc.arrays, sel, rank, file);
   Volume v;
-  v.dims = grid_of(doc, *pick);
+  v.dims = grid_of(doc, pick);
   v.spacing = doc.spacing;
-  v.name = file + ":" + pick->name + (sel.component ? "[" + std::to_string(*sel.component) + "]" : "");
-  v.values = select_component(decode_array(bytes, doc, *pick, file), pick->components, sel.component, v.name);
+  v.name = file + ":" + pick.name + (sel.component ? "[" + std::to_string(*sel.component) + "]" : "");
+  v.values = select_component(decode_array(bytes, doc, pick, file), pick.components, sel.component, v.name);
   return v;
 }
 
