@@ -5,6 +5,7 @@
 
 #include "atomic_file.h"
 #include "cli.h"
+#include "input_options.h"
 #include "optimize.h"
 #include "progress.h"
 #include "render_options.h"
@@ -17,17 +18,11 @@ namespace tfm::cli {
 namespace {
 
 struct OptimizeArgs {
-  std::string ref, ref_tf, field, out, json;
-  uint32_t tf_size = 64;
+  InputArgs in;                               // --ref, --ref-tf, --field, ranges, selectors, --tf-size
+  std::string out, json;
   std::string solver = "normal-equations";
   double ridge = 0.0, smooth = 0.0;
   std::string factorization = "auto";
-  std::string ref_range, field_range;
-  std::vector<uint64_t> dims;
-  std::string type;
-  bool big_endian = false;
-  std::string var;                            // NetCDF variable / GRIB shortName / VTK array
-  std::optional<uint64_t> time, member;       // NetCDF/GRIB time and member indices
   std::map<std::string, std::string> extra;  // solver-specific flags, passed through
   std::string report;                         // report directory (renderings, metrics, index.html)
   RenderSettings render;
@@ -49,27 +44,11 @@ const std::pair<const char*, const char*> kSolverFlags[] = {
 };
 
 int run(const OptimizeArgs& a) {
-  VolumeOptions vo;
-  if (!a.dims.empty()) vo.dims = std::array<uint64_t, 3>{a.dims[0], a.dims[1], a.dims[2]};
-  if (!a.type.empty()) {
-    vo.type = parse_scalar_type(a.type);
-    if (vo.type == ScalarType::Unknown) throw std::runtime_error("--type: unknown element type '" + a.type + "'");
-  }
-  vo.big_endian = a.big_endian;
-  vo.variable = a.var;
-  vo.time_index = a.time;
-  vo.member_index = a.member;
-  Volume ref = load_volume(a.ref, vo);
-  Volume field = load_volume(a.field, vo);
-  OptimizeRequest req;
-  req.ref = &ref;
-  req.field = &field;
-  std::vector<std::string> tf_notes;
-  req.ref_tf = read_transfer_function(a.ref_tf, {}, &tf_notes);
-  for (const auto& n : tf_notes) std::cerr << "tfmatch: note: " << n << "\n";
-  if (!a.ref_range.empty()) req.ref_range = parse_range(a.ref_range, "--ref-range");
-  if (!a.field_range.empty()) req.field_range = parse_range(a.field_range, "--field-range");
-  req.tf_size = a.tf_size;
+  LoadedInputs loaded;
+  load_inputs(a.in, loaded);
+  const Volume& ref = loaded.ref;
+  const Volume& field = loaded.field;
+  OptimizeRequest& req = loaded.request;
   req.solver = a.solver;
   req.settings.render = a.render;  // image-based solvers render as the report does
   req.settings.solve.ridge = a.ridge;
@@ -104,13 +83,8 @@ int run(const OptimizeArgs& a) {
 CommandRegistration reg(10, [](CLI::App& app) {
   auto args = std::make_shared<OptimizeArgs>();
   auto* sub = app.add_subcommand("optimize", "Optimize a transfer function for FIELD to match REF rendered with REF-TF");
-  sub->add_option("--ref", args->ref, "Reference field: FILE or FILE:VAR[@LEVELTYPE][,time=N][,member=N]")->required();
-  sub->add_option("--ref-tf", args->ref_tf, "Reference transfer function: tfmatch JSON, framework XML or ParaView "
-                  "preset (FILE:PRESET picks one)")->required();
-  sub->add_option("--field", args->field, "Field whose transfer function is optimized")->required();
+  add_input_options(sub, args->in, /*required=*/true);
   sub->add_option("--out", args->out, "Optimized transfer function (.json, .xml or .paraview.json)")->required();
-  sub->add_option("--tf-size", args->tf_size, "Entries N of the optimized TF")->check(CLI::Range(2u, 1u << 16))
-      ->capture_default_str();
   sub->add_option("--solver", args->solver, "Solver: " + [] {
     std::string s;
     for (auto& n : solver_names()) s += (s.empty() ? "" : ", ") + n;
@@ -123,16 +97,6 @@ CommandRegistration reg(10, [](CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--factorization", args->factorization, "normal-equations: auto, ldlt or qr")
       ->check(CLI::IsMember({"auto", "ldlt", "qr"}))->capture_default_str();
-  sub->add_option("--ref-range", args->ref_range, "Reference field range lo,hi (default: TF file's, else finite min/max)");
-  sub->add_option("--field-range", args->field_range, "Field range lo,hi (default: finite min/max)");
-  sub->add_option("--dims", args->dims, "Raw files: grid size X Y Z (when the file name does not say)")->expected(3)
-      ->delimiter(',');
-  sub->add_option("--type", args->type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)");
-  sub->add_flag("--big-endian", args->big_endian, "Raw files: big-endian data");
-  sub->add_option("--var", args->var, "NetCDF variable / GRIB shortName[@typeOfLevel] / VTK array, for both fields "
-                  "unless FILE:VAR says otherwise");
-  sub->add_option("--time", args->time, "NetCDF/GRIB time index (default 0; FILE:VAR,time=N per field)");
-  sub->add_option("--member", args->member, "NetCDF/GRIB ensemble member / extra dimension index (default 0)");
   sub->add_option("--json", args->json, "Also write the summary as JSON");
   for (const auto& [flag, help] : kSolverFlags) {
     std::string name = flag;
