@@ -8,7 +8,6 @@
 #include "buffer.h"
 #include "commands.h"
 #include "device_field.h"
-#include "field_mapping.h"
 #include "pipeline.h"
 #include "solver_layout.h"
 

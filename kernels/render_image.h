@@ -1,28 +1,20 @@
 // Wrapper of shaders/render_image.comp: one dispatch renders a band of image rows of one field
-// from `view_count` cameras. Also packs the host's camera and marching constants into the
-// GPU records (gpu::RenderView, gpu::RenderPush of shaders/render_layout.h).
+// from `view_count` cameras (gpu::RenderView, gpu::RenderPush of shaders/render_layout.h; the
+// host packs them from its camera model with host/core/camera.h).
 #pragma once
 
 #include <cstdint>
 #include <memory>
 
 #include "buffer.h"
-#include "camera.h"
 #include "commands.h"
 #include "device_field.h"
-#include "field_mapping.h"
 #include "pipeline.h"
 #include "render_layout.h"
 
 namespace tfm {
 
 class Context;
-
-gpu::RenderView make_render_view(const CameraFrame& frame);
-// Throws std::runtime_error when the grid has 2^32 voxels or more (32-bit voxel indices).
-gpu::RenderPush make_render_push(const VolumeGeometry& geometry, const MarchConstants& march,
-                                 const FieldMapping& mapping, const DeviceField& field, uint32_t width,
-                                 uint32_t height, uint32_t view_count);
 
 class RenderImageKernel {
  public:

@@ -7,8 +7,8 @@
 #include "buffer.h"
 #include "commands.h"
 #include "device_field.h"
-#include "field_mapping.h"
 #include "pipeline.h"
+#include "shared_layout.h"
 
 namespace tfm {
 

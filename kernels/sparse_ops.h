@@ -10,7 +10,6 @@
 #include "buffer.h"
 #include "commands.h"
 #include "device_field.h"
-#include "field_mapping.h"
 #include "pipeline.h"
 #include "solver_layout.h"
 

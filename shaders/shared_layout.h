@@ -61,6 +61,17 @@ TFM_PUSH_CONSTANTS(VoxelPairPush) {
 #define TFM_LOSS_SLOTS 9u
 
 #ifdef __cplusplus
+// How a field maps to TF coordinates in float32, as tf_coordinate() of tf_common.glsl computes it:
+// x = clamp((v - lo) * scale, 0, tf_size - 1), scale = (tf_size - 1) / (hi - lo) rounded to float
+// (host/core/field_mapping.h makes one from a range and mirrors the arithmetic bit for bit).
+struct FieldMapping {
+  float lo = 0.0f;
+  float scale = 1.0f;
+  uint tf_size = 2;
+};
 }  // namespace tfm::gpu
+namespace tfm {
+using gpu::FieldMapping;
+}  // namespace tfm
 #endif
 #endif  // TFMATCH_SHARED_LAYOUT_H

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "normal_equations_cpu.h"
 #include "gpu_voxel_ops.h"
 #include "normal_equations.h"
 #include "vk_test_env.h"

@@ -7,6 +7,7 @@
 #include "cli_runner.h"
 #include "transfer_function.h"
 #include "volume.h"
+#include "tf_json.h"
 
 namespace tfm {
 namespace {

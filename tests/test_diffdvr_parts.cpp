@@ -12,7 +12,7 @@
 #include "cameras.h"
 #include "diffdvr.h"
 #include "diffdvr_cpu.h"
-#include "solver_diffdvr_plot.h"
+#include "loss_plot.h"
 
 namespace tfm {
 namespace {

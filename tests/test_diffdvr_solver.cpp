@@ -11,7 +11,7 @@
 #include "cli_runner.h"
 #include "metrics.h"
 #include "optimize.h"
-#include "render_gpu.h"
+#include "render.h"
 #include "synthetic_cube.h"
 #include "vk_test_env.h"
 

@@ -5,6 +5,7 @@
 #include <numeric>
 #include <vector>
 
+#include "normal_equations_cpu.h"
 #include "buffer.h"
 #include "commands.h"
 #include "device_field.h"

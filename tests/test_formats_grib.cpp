@@ -10,6 +10,7 @@
 #include "vk_test_env.h"
 #include "volume.h"
 #include "volume_info.h"
+#include "volume_io.h"
 
 namespace tfm {
 namespace {

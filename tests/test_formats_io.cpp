@@ -9,6 +9,7 @@
 #include "volume_formats.h"
 #include "volume_info.h"
 #include "vk_test_env.h"
+#include "volume_io.h"
 
 namespace tfm {
 namespace {

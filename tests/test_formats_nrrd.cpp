@@ -11,6 +11,7 @@
 #include "volume.h"
 #include "volume_formats.h"
 #include "vk_test_env.h"
+#include "volume_io.h"
 
 namespace tfm {
 namespace {

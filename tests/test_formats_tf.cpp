@@ -8,6 +8,7 @@
 
 #include "formats_test_util.h"
 #include "tf_formats.h"
+#include "tf_json.h"
 
 namespace tfm {
 namespace {

@@ -13,6 +13,7 @@
 #include "volume_formats.h"
 #include "volume_vti.h"
 #include "vk_test_env.h"
+#include "volume_io.h"
 
 namespace tfm {
 namespace {

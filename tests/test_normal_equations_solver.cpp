@@ -6,6 +6,7 @@
 
 #include <Eigen/Dense>
 
+#include "normal_equations_cpu.h"
 #include "eigen_baseline.h"
 #include "gpu_voxel_ops.h"
 #include "normal_equations.h"

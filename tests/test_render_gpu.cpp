@@ -11,7 +11,7 @@
 #include "commands.h"
 #include "cpu_renderer.h"
 #include "gpu_voxel_ops.h"
-#include "render_gpu.h"
+#include "render.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "cpu_renderer.h"
-#include "render_gpu.h"
+#include "render.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -7,7 +7,7 @@
 
 #include "commands.h"
 #include "gpu_voxel_ops.h"
-#include "render_residual.h"
+#include "residual.h"
 #include "render_layout.h"
 #include "vk_test_env.h"
 

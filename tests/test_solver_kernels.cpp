@@ -7,6 +7,8 @@
 #include <random>
 #include <vector>
 
+#include "field_mapping.h"
+#include "transfer_function.h"
 #include "commands.h"
 #include "gpu_voxel_ops.h"
 #include "sparse_ops.h"

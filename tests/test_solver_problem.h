@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "normal_equations_cpu.h"
 #include "field_mapping.h"
 #include "gpu_voxel_ops.h"
 #include "normal_equations.h"

@@ -11,6 +11,8 @@
 #include "field_mapping.h"
 #include "transfer_function.h"
 #include "volume.h"
+#include "volume_io.h"
+#include "tf_json.h"
 
 namespace tfm {
 namespace {

@@ -2,6 +2,7 @@
 #include <stdexcept>
 
 #include "volume_formats.h"
+#include "volume_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string_view bytes(reinterpret_cast<const char*>(data), size);

@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "normal_equations_cpu.h"
 #include "atomic_file.h"
 #include "cli.h"
 #include "commands.h"

@@ -15,7 +15,7 @@
 #include "metrics.h"
 #include "optimize.h"
 #include "progress.h"
-#include "render_gpu.h"
+#include "render.h"
 #include "render_options.h"
 #include "solver_diffdvr.h"
 #include "synthetic.h"

@@ -11,7 +11,7 @@
 #include "cpu_renderer.h"
 #include "gpu_voxel_ops.h"
 #include "progress.h"
-#include "render_gpu.h"
+#include "render.h"
 #include "render_options.h"
 #include "synthetic.h"
 

@@ -4,6 +4,7 @@
 #include "cli.h"
 #include "volume_formats.h"
 #include "volume_vti.h"
+#include "volume_io.h"
 
 namespace tfm::cli {
 namespace {

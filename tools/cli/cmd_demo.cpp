@@ -9,8 +9,10 @@
 #include "progress.h"
 #include "render_options.h"
 #include "report.h"
-#include "solver_diffdvr_plot.h"
+#include "loss_plot.h"
 #include "synthetic.h"
+#include "volume_io.h"
+#include "tf_json.h"
 
 namespace tfm::cli {
 namespace {

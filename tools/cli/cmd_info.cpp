@@ -4,6 +4,7 @@
 
 #include "cli.h"
 #include "volume_info.h"
+#include "volume_io.h"
 
 namespace tfm::cli {
 namespace {

@@ -10,7 +10,7 @@
 #include "progress.h"
 #include "render_options.h"
 #include "report.h"
-#include "solver_diffdvr_plot.h"
+#include "loss_plot.h"
 #include "tf_formats.h"
 #include "volume.h"
 

@@ -5,10 +5,11 @@
 #include "cli.h"
 #include "png_io.h"
 #include "progress.h"
-#include "render_gpu.h"
+#include "render.h"
 #include "render_options.h"
 #include "tf_formats.h"
 #include "transfer_function.h"
+#include "volume_io.h"
 
 namespace tfm::cli {
 namespace {

@@ -5,12 +5,13 @@
 
 #include "cli.h"
 #include "png_io.h"
-#include "render_gpu.h"
+#include "render.h"
 #include "render_options.h"
-#include "render_residual.h"
+#include "residual.h"
 #include "tf_formats.h"
 #include "volume_vti.h"
 #include "transfer_function.h"
+#include "volume_io.h"
 
 namespace tfm::cli {
 namespace {

@@ -5,6 +5,7 @@
 
 #include "cli.h"
 #include "tf_formats.h"
+#include "volume_io.h"
 
 namespace tfm::cli {
 

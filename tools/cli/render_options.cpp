@@ -1,5 +1,6 @@
 // The shared render flags.
 #include "render_options.h"
+#include "volume_io.h"
 
 #include <cctype>
 #include <cstdlib>

@@ -10,6 +10,7 @@
 
 #include "render_settings.h"
 #include "volume.h"
+#include "volume_io.h"
 
 namespace tfm::cli {
 

@@ -1,0 +1,140 @@
+// Orbit camera frames, marching constants and double-precision ray setup.
+#include "camera.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+namespace tfm {
+
+static_assert(kMaxSampleOpticalDepth == TFM_MAX_SAMPLE_OPTICAL_DEPTH, "CPU and GPU clamp the same depth");
+
+VolumeGeometry VolumeGeometry::from(const std::array<uint64_t, 3>& dims, const std::array<double, 3>& spacing) {
+  for (int a = 0; a < 3; ++a) {
+    if (dims[a] == 0) throw std::runtime_error("volume geometry: empty grid");
+    if (!(spacing[a] > 0) || !std::isfinite(spacing[a]))
+      throw std::runtime_error("volume geometry: spacing must be positive and finite");
+  }
+  const double finest = std::min({spacing[0], spacing[1], spacing[2]});
+  VolumeGeometry g;
+  g.dims = dims;
+  g.axis_scale = glm::dvec3(spacing[0], spacing[1], spacing[2]) / finest;
+  return g;
+}
+
+namespace {
+glm::dvec3 as_vector(const std::array<uint64_t, 3>& d) { return {double(d[0]), double(d[1]), double(d[2])}; }
+}  // namespace
+
+glm::dvec3 VolumeGeometry::center() const { return (as_vector(dims) - 1.0) * 0.5 * axis_scale; }
+
+glm::dvec3 VolumeGeometry::half_extent() const { return as_vector(dims) * 0.5 * axis_scale; }
+
+double VolumeGeometry::radius() const { return glm::length(half_extent()); }
+
+double VolumeGeometry::box_length() const {
+  glm::dvec3 h = half_extent();
+  return 2.0 * std::max({h.x, h.y, h.z});
+}
+
+CameraFrame orbit_frame(const OrbitCamera& camera, const VolumeGeometry& geometry, uint32_t width, uint32_t height) {
+  const double deg = std::numbers::pi / 180.0;
+  const double az = camera.azimuth_deg * deg, el = camera.elevation_deg * deg;
+  const double ca = std::cos(az), sa = std::sin(az), ce = std::cos(el), se = std::sin(el);
+  CameraFrame f;
+  const glm::dvec3 outward(ce * ca, ce * sa, se);  // box centre -> eye
+  f.eye = geometry.center() + camera.distance * geometry.radius() * outward;
+  f.forward = -outward;
+  // d(outward)/d(azimuth) / cos(el) and d(outward)/d(elevation): unit length and orthogonal to
+  // the view direction for every elevation, so nothing degenerates at +-90 degrees.
+  f.right = glm::dvec3(-sa, ca, 0.0);
+  f.up = glm::dvec3(-se * ca, -se * sa, ce);
+  f.tan_half_fov = std::tan(0.5 * camera.fov_deg * deg);
+  f.aspect = double(width) / double(height);
+  return f;
+}
+
+MarchConstants march_constants(const RenderSettings& s, const VolumeGeometry& g) {
+  validate(s);
+  MarchConstants m;
+  m.dt = s.step_voxels;
+  m.depth_per_alpha = s.opacity_scale * m.dt / g.box_length();
+  m.stop_transmittance = 1.0 - s.termination_opacity;
+  const double diagonal = 2.0 * g.radius();
+  const double steps = std::ceil(diagonal / m.dt) + 2.0;
+  if (steps > 1e8) throw std::runtime_error("render settings: step too small for this volume (over 10^8 samples per ray)");
+  m.max_steps = static_cast<uint32_t>(steps);
+  return m;
+}
+
+RaySegment pixel_ray(const CameraFrame& f, const VolumeGeometry& g, const MarchConstants& m, uint32_t px,
+                     uint32_t py, uint32_t width, uint32_t height, double tolerance) {
+  const double sx = ((2.0 * (px + 0.5)) / width - 1.0) * f.tan_half_fov * f.aspect;
+  const double sy = (1.0 - (2.0 * (py + 0.5)) / height) * f.tan_half_fov;
+  const glm::dvec3 dir_world = glm::normalize(f.forward + sx * f.right + sy * f.up);
+  const glm::dvec3 o = f.eye / g.axis_scale;
+  const glm::dvec3 d = dir_world / g.axis_scale;
+  double t0 = 0.0, t1 = 3.0e38;
+  for (int a = 0; a < 3; ++a) {
+    const double hi = double(g.dims[a]) - 0.5;
+    if (std::abs(d[a]) < 1e-30) {
+      if (o[a] < -0.5 || o[a] > hi) t1 = -1.0;
+    } else {
+      const double ta = (-0.5 - o[a]) / d[a], tb = (hi - o[a]) / d[a];
+      t0 = std::max(t0, std::min(ta, tb));
+      t1 = std::min(t1, std::max(ta, tb));
+    }
+  }
+  RaySegment r;
+  r.entry = o + t0 * d;
+  r.dir = d;
+  r.t_entry = t0;
+  r.t_exit = t1;
+  if (!(t1 > t0)) return r;
+  const double q = (t1 - t0) / m.dt;
+  r.steps = static_cast<uint32_t>(std::min(std::floor(q + 0.5), double(m.max_steps)));
+  r.steps_ambiguous = std::abs(q - std::floor(q) - 0.5) < tolerance;
+  return r;
+}
+
+gpu::RenderView make_render_view(const CameraFrame& f) {
+  gpu::RenderView v{};
+  auto put = [](float* dst, const glm::dvec3& src, double w) {
+    dst[0] = float(src.x), dst[1] = float(src.y), dst[2] = float(src.z), dst[3] = float(w);
+  };
+  put(v.eye, f.eye, f.tan_half_fov);
+  put(v.forward, f.forward, f.aspect);
+  put(v.right, f.right, 0.0);
+  put(v.up, f.up, 0.0);
+  return v;
+}
+
+gpu::RenderPush make_render_push(const VolumeGeometry& g, const MarchConstants& m, const FieldMapping& map,
+                                 const DeviceField& field, uint32_t width, uint32_t height, uint32_t view_count) {
+  const uint64_t voxels = g.dims[0] * g.dims[1] * g.dims[2];
+  if (voxels >= (uint64_t(1) << 32))
+    throw std::runtime_error("render: grids of 2^32 voxels or more are not supported (32-bit voxel indices)");
+  if (field.voxel_count() != voxels) throw std::invalid_argument("render: field size differs from the grid");
+  gpu::RenderPush p{};
+  p.width = width;
+  p.height = height;
+  p.view_count = view_count;
+  p.dim_x = uint32_t(g.dims[0]);
+  p.dim_y = uint32_t(g.dims[1]);
+  p.dim_z = uint32_t(g.dims[2]);
+  p.chunk_voxels = uint32_t(field.chunk_voxels());
+  p.tf_size = map.tf_size;
+  p.tf_lo = map.lo;
+  p.tf_scale = map.scale;
+  p.dt = float(m.dt);
+  p.depth_per_alpha = float(m.depth_per_alpha);
+  p.stop_transmittance = float(m.stop_transmittance);
+  p.max_steps = m.max_steps;
+  p.inv_axis_x = float(1.0 / g.axis_scale.x);
+  p.inv_axis_y = float(1.0 / g.axis_scale.y);
+  p.inv_axis_z = float(1.0 / g.axis_scale.z);
+  return p;
+}
+
+}  // namespace tfm

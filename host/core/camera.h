@@ -1,0 +1,77 @@
+// Volume box geometry, the orbit camera's frame and per-ray setup in double precision: the CPU
+// mirror of setup_ray() in shaders/raymarch.glsl, and what the GPU wrappers pack into floats.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include <glm/glm.hpp>
+
+#include "device_field.h"
+#include "field_mapping.h"
+#include "render_layout.h"
+#include "render_settings.h"
+
+namespace tfm {
+
+// World space is voxel index space scaled per axis by spacing / finest spacing, so one world unit
+// is one voxel of the finest axis. Voxel centres sit at integer index coordinates; the box the
+// rays march through is [-0.5, n - 0.5] per axis (clamp-to-edge sampling near the faces).
+struct VolumeGeometry {
+  std::array<uint64_t, 3> dims{1, 1, 1};
+  glm::dvec3 axis_scale{1.0};  // world = index * axis_scale
+
+  // Throws std::runtime_error for an empty grid or non-positive / non-finite spacing.
+  static VolumeGeometry from(const std::array<uint64_t, 3>& dims, const std::array<double, 3>& spacing);
+  glm::dvec3 center() const;       // world
+  glm::dvec3 half_extent() const;  // world
+  double radius() const;           // of the bounding sphere, world
+  double box_length() const;       // longest side, world (the unit of opacity_scale)
+};
+
+struct CameraFrame {
+  glm::dvec3 eye, forward, right, up;  // world; forward, right, up orthonormal, right = forward x up
+  double tan_half_fov = 0.0;
+  double aspect = 1.0;
+};
+
+// The orbit camera's frame. The basis is written in closed form (right = azimuth tangent,
+// up = elevation tangent), so it is continuous and orthonormal at every elevation, the poles
+// included, where a cross product with a fixed up vector would vanish.
+CameraFrame orbit_frame(const OrbitCamera& camera, const VolumeGeometry& geometry, uint32_t width, uint32_t height);
+
+// Optical depth of one sample is clamped to this so its transmittance exp(-depth) stays a normal
+// float for DiffDVR's division (TFM_MAX_SAMPLE_OPTICAL_DEPTH of shaders/render_layout.h).
+inline constexpr double kMaxSampleOpticalDepth = 20.0;
+
+// Per-dispatch marching constants, derived once from the settings and the geometry.
+struct MarchConstants {
+  double dt = 0.5;               // world units
+  double depth_per_alpha = 0.0;  // optical depth of one step at TF opacity 1
+  double stop_transmittance = 0.01;
+  uint32_t max_steps = 0;        // box diagonal / dt + 2: bounds every ray's sample count
+};
+// Validates the settings (throws std::runtime_error) and derives the constants.
+MarchConstants march_constants(const RenderSettings& settings, const VolumeGeometry& geometry);
+
+// A ray in index space: sample k at entry + (k + 0.5) dt dir, k < steps.
+struct RaySegment {
+  glm::dvec3 entry{0.0}, dir{0.0};
+  double t_entry = 0.0, t_exit = 0.0;  // world distances from the eye
+  uint32_t steps = 0;
+  // True when (t_exit - t_entry) / dt lies within `tolerance` of a half-integer, where float
+  // and double may round the sample count differently (tests treat such pixels separately).
+  bool steps_ambiguous = false;
+};
+
+RaySegment pixel_ray(const CameraFrame& frame, const VolumeGeometry& geometry, const MarchConstants& march,
+                     uint32_t px, uint32_t py, uint32_t width, uint32_t height, double tolerance = 1e-4);
+
+// The GPU records of a camera frame and of one render dispatch (shaders/render_layout.h).
+gpu::RenderView make_render_view(const CameraFrame& frame);
+// Throws std::runtime_error when the grid has 2^32 voxels or more (32-bit voxel indices).
+gpu::RenderPush make_render_push(const VolumeGeometry& geometry, const MarchConstants& march,
+                                 const FieldMapping& mapping, const DeviceField& field, uint32_t width,
+                                 uint32_t height, uint32_t view_count);
+
+}  // namespace tfm

@@ -1,0 +1,49 @@
+// The field-range convention of DESIGN.md: finite range, value -> TF coordinate, and the float32
+// mapping the GPU kernels use (mirrored bit for bit so CPU references see identical weights).
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <span>
+#include <string>
+
+#include "shared_layout.h"  // FieldMapping, the record the kernels take
+
+namespace tfm {
+
+struct FieldRange {
+  double lo = 0.0;
+  double hi = 1.0;
+};
+
+struct FiniteStats {
+  double lo = 0.0, hi = 0.0;
+  uint64_t finite = 0;
+  uint64_t nan = 0;  // non-finite values that count as "no data" (NaN)
+};
+
+// Finite min/max and NaN count of a field.
+FiniteStats finite_stats(std::span<const float> values);
+
+// Range of a field: `user` if given, else the finite min/max. Throws std::runtime_error naming
+// `what` when the field has no finite value or is constant (hi == lo), or when a user range is
+// empty or reversed.
+FieldRange resolve_range(std::span<const float> values, const FieldRange* user, const std::string& what);
+
+
+FieldMapping make_mapping(const FieldRange& range, uint32_t tf_size);
+
+// Bit-identical CPU mirror of tf_coordinate() in shaders/tf_common.glsl. Returns false for NaN.
+inline bool tf_coordinate(float v, const FieldMapping& m, uint32_t& j, float& w) {
+  if (std::isnan(v)) return false;
+  // volatile-free: this file is compiled with -ffp-contract=off (host/CMakeLists.txt).
+  float x = (v - m.lo) * m.scale;
+  float top = float(m.tf_size - 1);
+  x = x < 0.0f ? 0.0f : (x > top ? top : x);
+  float jf = std::fmin(std::floor(x), float(m.tf_size - 2));
+  j = static_cast<uint32_t>(jf);
+  w = x - jf;
+  return true;
+}
+
+}  // namespace tfm

@@ -1,0 +1,64 @@
+// GPU rendering of a device field into a host image.
+#include "render.h"
+
+#include <algorithm>
+
+#include "commands.h"
+#include "gpu_voxel_ops.h"
+
+namespace tfm {
+
+GpuRenderer::GpuRenderer(Context& ctx, const DeviceField& field, const VolumeGeometry& geometry)
+    : ctx_(ctx), field_(field), geometry_(geometry), kernel_(ctx, uint32_t(field.chunk_count())) {}
+
+RenderedImage GpuRenderer::render(const FieldMapping& mapping, const Buffer& tf, const RenderSettings& s,
+                                  Progress* progress, double* gpu_ms) const {
+  const MarchConstants march = march_constants(s, geometry_);
+  const CameraFrame frame = orbit_frame(s.camera, geometry_, s.width, s.height);
+  const gpu::RenderView view = make_render_view(frame);
+  const gpu::RenderPush push = make_render_push(geometry_, march, mapping, field_, s.width, s.height, 1);
+  const uint64_t pixels = uint64_t(s.width) * s.height;
+  Buffer views = make_buffer<gpu::RenderView>(ctx_, std::span(&view, 1), "render camera");
+  Buffer image(ctx_, pixels * 16, MemoryUsage::Device, "render image");
+  Buffer stop(ctx_, pixels * 4, MemoryUsage::Device, "render stop index");
+
+  // Bands keep each submission short enough to report progress; multiples of the tile height.
+  const uint32_t band = progress ? std::max<uint32_t>(TFM_RENDER_TILE, (s.height / 32 + 7) / 8 * 8) : s.height;
+  double total_ms = 0.0;
+  bool timed = ctx_.timestamps_supported();
+  for (uint32_t row = 0; row < s.height; row += band) {
+    const uint32_t rows = std::min(band, s.height - row);
+    CommandBatch batch(ctx_);
+    const uint32_t t0 = batch.timestamp();
+    kernel_.record(batch, field_, tf, views, push, image, stop, row, rows);
+    const uint32_t t1 = batch.timestamp();
+    batch.submit_and_wait();
+    const double ms = batch.elapsed_ms(t0, t1);
+    if (ms < 0) timed = false;
+    total_ms += ms;
+    if (progress) progress->update(row + rows);
+  }
+  if (gpu_ms) *gpu_ms = timed ? total_ms : -1.0;
+
+  RenderedImage out;
+  out.width = s.width;
+  out.height = s.height;
+  out.rgba.resize(pixels * 4);
+  out.stop.resize(pixels);
+  readback(ctx_, image, out.rgba.data(), pixels * 16);
+  readback(ctx_, stop, out.stop.data(), pixels * 4);
+  return out;
+}
+
+RenderedImage render_volume(Context& ctx, const Volume& volume, const TransferFunction& tf, const FieldRange& range,
+                            const RenderSettings& settings, Progress* progress) {
+  const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing);
+  if (volume.values.size() != volume.voxel_count())
+    throw std::runtime_error(volume.name + ": value count differs from the grid size");
+  DeviceField field(ctx, volume.values, volume.name.empty() ? "render field" : volume.name);
+  Buffer tf_buffer = upload_tf(ctx, tf, "render TF");
+  GpuRenderer renderer(ctx, field, geometry);
+  return renderer.render(make_mapping(range, uint32_t(tf.size())), tf_buffer, settings, progress);
+}
+
+}  // namespace tfm

@@ -1,0 +1,48 @@
+// Transfer-function evaluation and resampling.
+#include "transfer_function.h"
+
+#include "gpu_voxel_ops.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+
+
+namespace tfm {
+
+Rgba TransferFunction::eval(double t) const {
+  const size_t n = rgba.size();
+  double x = std::clamp(t, 0.0, 1.0) * double(n - 1);
+  size_t j = std::min<size_t>(static_cast<size_t>(std::floor(x)), n - 2);
+  double w = x - double(j);
+  Rgba out;
+  for (int c = 0; c < 4; ++c) out[c] = (1.0 - w) * rgba[j][c] + w * rgba[j + 1][c];
+  return out;
+}
+
+TransferFunction TransferFunction::resampled(size_t n) const {
+  if (n < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
+  if (n == rgba.size()) return *this;
+  TransferFunction out;
+  out.range = range;
+  out.rgba.resize(n);
+  for (size_t j = 0; j < n; ++j) out.rgba[j] = eval(double(j) / double(n - 1));
+  return out;
+}
+
+std::vector<float> TransferFunction::as_floats() const {
+  std::vector<float> out;
+  out.reserve(rgba.size() * 4);
+  for (const Rgba& e : rgba)
+    for (double c : e) out.push_back(static_cast<float>(c));
+  return out;
+}
+
+
+Buffer upload_tf(Context& ctx, const TransferFunction& tf, const std::string& name) {
+  const std::vector<float> v = tf.as_floats();
+  return upload_tf(ctx, std::span<const float>(v), name);
+}
+
+}  // namespace tfm

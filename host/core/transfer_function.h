@@ -1,0 +1,32 @@
+// Node-aligned RGBA transfer-function tables (DESIGN.md) (files: host/io/tf_json.h, tf_formats.h).
+#pragma once
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "buffer.h"
+#include "field_mapping.h"
+
+namespace tfm {
+
+using Rgba = std::array<double, 4>;
+
+struct TransferFunction {
+  std::vector<Rgba> rgba;             // entry j at t = j/(N-1), values in [0,1]
+  std::optional<FieldRange> range;    // data range the table was made for, if the file says
+
+  size_t size() const { return rgba.size(); }
+  // T(t) for t in [0,1] (clamped), linear between entries.
+  Rgba eval(double t) const;
+  // The same TF sampled at `n` node-aligned entries (exact when n == size()).
+  TransferFunction resampled(size_t n) const;
+  // Entries as float RGBA (for device upload).
+  std::vector<float> as_floats() const;
+};
+
+// Uploads the table as vec4 floats (kernels/gpu_voxel_ops.h upload_tf).
+Buffer upload_tf(Context& ctx, const TransferFunction& tf, const std::string& name);
+
+}  // namespace tfm

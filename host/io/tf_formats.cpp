@@ -1,0 +1,332 @@
+// Transfer-function file formats of other tools (see tf_formats.h): control points <-> tables,
+// the framework's XML, ParaView presets, and dispatch by content / extension.
+#include "tf_formats.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+#include "atomic_file.h"
+#include "volume_formats.h"
+#include "xml_tree.h"
+#include "tf_json.h"
+
+namespace tfm {
+namespace {
+
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.17g", v);
+  return buf;
+}
+
+// ParaView's (VTK's) piecewise segment: the midpoint moves where the value is halfway, the
+// sharpness bends the segment from linear (0) towards a step (1) through a Hermite curve.
+double shaped_segment(double y1, double y2, double x, double midpoint, double sharpness) {
+  const double mid = std::clamp(midpoint, 1e-5, 1.0 - 1e-5);
+  x = x < mid ? 0.5 * x / mid : 0.5 + 0.5 * (x - mid) / (1.0 - mid);
+  if (sharpness > 0.99) return x < 0.5 ? y1 : y2;
+  if (sharpness < 0.01) return (1 - x) * y1 + x * y2;
+  const double e = 1.0 + 10.0 * sharpness;
+  if (x < 0.5) x = 0.5 * std::pow(2 * x, e);
+  else if (x > 0.5) x = 1.0 - 0.5 * std::pow(2 * (1 - x), e);
+  const double xx = x * x, xxx = xx * x;
+  const double h1 = 2 * xxx - 3 * xx + 1, h2 = -2 * xxx + 3 * xx, h3 = xxx - 2 * xx + x, h4 = xxx - xx;
+  const double tangent = (1 - sharpness) * (y2 - y1);
+  const double v = h1 * y1 + h2 * y2 + h3 * tangent + h4 * tangent;
+  return std::clamp(v, std::min(y1, y2), std::max(y1, y2));
+}
+
+// Index k of the segment [k-1, k] holding t, with the weight of point k; points sorted.
+template <class P>
+std::pair<size_t, double> locate(const std::vector<P>& p, double t) {
+  if (t <= p.front().position) return {0, 1.0};
+  if (t >= p.back().position) return {p.size() - 1, 1.0};
+  size_t k = 1;
+  while (p[k].position < t) ++k;
+  if (p[k].position == t) return {k, 1.0};
+  return {k, (t - p[k - 1].position) / (p[k].position - p[k - 1].position)};
+}
+
+template <class P>
+void sort_points(std::vector<P>& p) {
+  for (auto& x : p) x.position = std::clamp(x.position, 0.0, 1.0);
+  std::stable_sort(p.begin(), p.end(), [](const P& a, const P& b) { return a.position < b.position; });
+}
+
+double attr_number(const XmlElement& e, const char* key, const std::string& name) {
+  const std::string* v = e.attribute(key);
+  auto n = v ? parse_number(*v) : std::nullopt;
+  if (!n || !std::isfinite(*n))
+    throw std::runtime_error(name + ": line " + std::to_string(e.line) + ": <" + e.name + "> needs a finite number in '" + key +
+                             "'" + (v ? ", found '" + *v + "'" : ""));
+  return *n;
+}
+
+}  // namespace
+
+TransferFunction table_from_control_points(const ControlPointTf& in, size_t n) {
+  if (in.opacity.empty() || in.color.empty()) throw std::invalid_argument("table_from_control_points: no points");
+  if (n == 0) n = auto_table_size(in);
+  if (n < 2) throw std::invalid_argument("table_from_control_points: need at least 2 entries");
+  ControlPointTf cp = in;
+  sort_points(cp.opacity);
+  sort_points(cp.color);
+  TransferFunction tf;
+  tf.range = cp.range;
+  tf.rgba.resize(n);
+  for (size_t j = 0; j < n; ++j) {
+    const double t = double(j) / double(n - 1);
+    auto [ko, wo] = locate(cp.opacity, t);
+    const auto& o1 = cp.opacity[ko];
+    const double a = wo == 1.0 ? o1.opacity
+                               : shaped_segment(cp.opacity[ko - 1].opacity, o1.opacity, wo, cp.opacity[ko - 1].midpoint,
+                                                cp.opacity[ko - 1].sharpness);
+    auto [kc, wc] = locate(cp.color, t);
+    Rgb srgb = wc == 1.0 ? cp.color[kc].srgb : interpolate_color(cp.color[kc - 1].srgb, cp.color[kc].srgb, wc, cp.interpolation);
+    const Rgb lin = srgb_to_linear(srgb);
+    for (int c = 0; c < 3; ++c) tf.rgba[j][c] = std::clamp(lin[c], 0.0, 1.0);
+    tf.rgba[j][3] = std::clamp(a, 0.0, 1.0);
+  }
+  return tf;
+}
+
+ControlPointTf control_points_from_table(const TransferFunction& tf) {
+  ControlPointTf cp;
+  cp.interpolation = ColorInterpolation::LinearRgb;
+  cp.range = tf.range;
+  const size_t n = tf.size();
+  for (size_t j = 0; j < n; ++j) {
+    const double t = n > 1 ? double(j) / double(n - 1) : 0.0;
+    cp.opacity.push_back({t, tf.rgba[j][3]});
+    cp.color.push_back({t, linear_to_srgb(Rgb{tf.rgba[j][0], tf.rgba[j][1], tf.rgba[j][2]})});
+  }
+  return cp;
+}
+
+size_t auto_table_size(const ControlPointTf& cp) {
+  std::vector<double> pos;
+  for (const auto& p : cp.opacity) pos.push_back(std::clamp(p.position, 0.0, 1.0));
+  for (const auto& p : cp.color) pos.push_back(std::clamp(p.position, 0.0, 1.0));
+  for (size_t d = 1; d <= 4096; ++d) {
+    bool on_grid = true;
+    for (double p : pos) {
+      const double x = p * double(d);
+      if (std::abs(x - std::round(x)) > 1e-6) {
+        on_grid = false;
+        break;
+      }
+    }
+    if (on_grid) return d * ((255 + d - 1) / d) + 1;
+  }
+  return 256;
+}
+
+ControlPointTf parse_tf_xml(std::string_view text, const std::string& name) {
+  auto root = parse_xml(text, name);
+  if (root->name != "TransferFunction")
+    throw std::runtime_error(name + ": the root element is <" + root->name + ">, not <TransferFunction>");
+  ControlPointTf cp;
+  // Points are sRGB unless the file says otherwise; blending defaults to sRGB (as the framework).
+  const std::string* points_space = root->attribute("colorspace");
+  const bool points_linear = points_space && *points_space == "Linear RGB";
+  if (points_space && *points_space != "sRGB" && !points_linear)
+    throw std::runtime_error(name + ": unknown colorspace '" + *points_space + "' (sRGB or Linear RGB)");
+  const std::string* interp = root->attribute("interpolation_colorspace");
+  if (!interp) interp = root->attribute("colorspace_interpolation");  // older files
+  if (interp && *interp != "sRGB" && *interp != "Linear RGB")
+    throw std::runtime_error(name + ": unknown interpolation_colorspace '" + *interp + "' (sRGB or Linear RGB)");
+  cp.interpolation = interp && *interp == "Linear RGB" ? ColorInterpolation::LinearRgb : ColorInterpolation::SRgb;
+  if (const XmlElement* ops = root->child("OpacityPoints"))
+    for (const XmlElement* p : ops->children_named("OpacityPoint"))
+      cp.opacity.push_back({attr_number(*p, "position", name), std::clamp(attr_number(*p, "opacity", name), 0.0, 1.0)});
+  if (const XmlElement* cps = root->child("ColorPoints")) {
+    const std::string* mode = cps->attribute("color_data");
+    const std::string m = mode ? *mode : "ubyte";
+    double scale = m == "ubyte" ? 255.0 : m == "ushort" ? 65535.0 : m == "float" ? 1.0 : m == "float_255" ? 255.0 : 0.0;
+    if (scale == 0.0) throw std::runtime_error(name + ": unknown color_data '" + m + "' (ubyte, ushort, float, float_255)");
+    for (const XmlElement* p : cps->children_named("ColorPoint")) {
+      ControlPointTf::ColorPoint c;
+      c.position = attr_number(*p, "position", name);
+      const char* keys[3] = {"r", "g", "b"};
+      for (int i = 0; i < 3; ++i) c.srgb[i] = std::clamp(attr_number(*p, keys[i], name) / scale, 0.0, 1.0);
+      if (points_linear) c.srgb = linear_to_srgb(c.srgb);
+      cp.color.push_back(c);
+    }
+  }
+  if (cp.opacity.empty()) throw std::runtime_error(name + ": no <OpacityPoint> in <OpacityPoints>");
+  if (cp.color.empty()) throw std::runtime_error(name + ": no <ColorPoint> in <ColorPoints>");
+  auto lo = root->attribute("range_min"), hi = root->attribute("range_max");  // tfmatch's addition
+  if (lo && hi) {
+    auto a = parse_number(*lo), b = parse_number(*hi);
+    if (!a || !b || !std::isfinite(*a) || !std::isfinite(*b) || !(*b > *a))
+      throw std::runtime_error(name + ": range_min/range_max must be numbers with range_min < range_max");
+    cp.range = FieldRange{*a, *b};
+  }
+  return cp;
+}
+
+std::string tf_to_xml(const TransferFunction& tf) {
+  const ControlPointTf cp = control_points_from_table(tf);
+  std::ostringstream os;
+  os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+     << "<!-- tfmatch: " << tf.size() << " node-aligned entries; sRGB colours as floats, blended in linear RGB -->\n"
+     << "<TransferFunction colorspace=\"sRGB\" interpolation_colorspace=\"Linear RGB\"";
+  if (tf.range) os << " range_min=\"" << num(tf.range->lo) << "\" range_max=\"" << num(tf.range->hi) << "\"";
+  os << ">\n    <OpacityPoints>\n";
+  for (const auto& p : cp.opacity)
+    os << "        <OpacityPoint position=\"" << num(p.position) << "\" opacity=\"" << num(p.opacity) << "\"/>\n";
+  os << "    </OpacityPoints>\n    <ColorPoints color_data=\"float\">\n";
+  for (const auto& p : cp.color)
+    os << "        <ColorPoint position=\"" << num(p.position) << "\" r=\"" << num(p.srgb[0]) << "\" g=\"" << num(p.srgb[1])
+       << "\" b=\"" << num(p.srgb[2]) << "\"/>\n";
+  os << "    </ColorPoints>\n</TransferFunction>\n";
+  return os.str();
+}
+
+ControlPointTf parse_paraview_preset(std::string_view text, const std::string& name, const std::string& preset,
+                                     std::vector<std::string>* notes) {
+  nlohmann::json doc;
+  try {
+    doc = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {
+    throw std::runtime_error(name + ": not valid JSON (" + e.what() + ")");
+  }
+  const nlohmann::json* obj = nullptr;
+  if (doc.is_array()) {
+    std::string names;
+    for (const auto& p : doc) {
+      if (!p.is_object() || !p.contains("RGBPoints")) continue;
+      const std::string n = p.contains("Name") && p["Name"].is_string() ? p["Name"].get<std::string>() : "";
+      names += (names.empty() ? "" : ", ") + n;
+      if (!obj && (preset.empty() || n == preset)) obj = &p;
+    }
+    if (!obj)
+      throw std::runtime_error(name + (preset.empty() ? ": no preset with RGBPoints" : ": no preset named '" + preset + "' (presets: " + names + ")"));
+  } else if (doc.is_object()) {
+    obj = &doc;
+  } else {
+    throw std::runtime_error(name + ": expected a ParaView preset (an object or an array of objects)");
+  }
+  auto numbers = [&](const char* key, size_t per_point) {
+    std::vector<double> v;
+    if (!obj->contains(key)) return v;
+    const auto& a = (*obj)[key];
+    if (!a.is_array() || a.empty() || a.size() % per_point != 0)
+      throw std::runtime_error(name + ": \"" + key + "\" must be an array of " + std::to_string(per_point) + " numbers per point");
+    for (const auto& x : a) {
+      if (!x.is_number() || !std::isfinite(x.get<double>())) throw std::runtime_error(name + ": \"" + key + "\" holds a non-number");
+      v.push_back(x.get<double>());
+    }
+    return v;
+  };
+  const std::vector<double> rgb = numbers("RGBPoints", 4), pts = numbers("Points", 4);
+  if (rgb.empty()) throw std::runtime_error(name + ": the preset has no \"RGBPoints\"");
+  ControlPointTf cp;
+  const std::string space = obj->contains("ColorSpace") && (*obj)["ColorSpace"].is_string() ? (*obj)["ColorSpace"].get<std::string>() : "RGB";
+  try {
+    cp.interpolation = parse_paraview_color_space(space);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(name + ": " + e.what());
+  }
+  if (notes && space == "Lab/CIEDE2000") notes->push_back(name + ": ColorSpace Lab/CIEDE2000 is blended in plain Lab");
+  double lo = rgb[0], hi = rgb[0];
+  for (size_t i = 0; i < rgb.size(); i += 4) lo = std::min(lo, rgb[i]), hi = std::max(hi, rgb[i]);
+  for (size_t i = 0; i < pts.size(); i += 4) lo = std::min(lo, pts[i]), hi = std::max(hi, pts[i]);
+  if (!(hi > lo)) throw std::runtime_error(name + ": all points are at one position; a range needs two");
+  if (!std::isfinite(hi - lo)) throw std::runtime_error(name + ": the points span more than a double can hold");
+  auto in01 = [&](double v, const char* what) {
+    if (v < 0.0 || v > 1.0) throw std::runtime_error(name + ": " + what + " " + num(v) + " outside [0,1]");
+    return v;
+  };
+  for (size_t i = 0; i < rgb.size(); i += 4)
+    cp.color.push_back({(rgb[i] - lo) / (hi - lo), {in01(rgb[i + 1], "colour"), in01(rgb[i + 2], "colour"), in01(rgb[i + 3], "colour")}});
+  for (size_t i = 0; i < pts.size(); i += 4)
+    cp.opacity.push_back({(pts[i] - lo) / (hi - lo), in01(pts[i + 1], "opacity"), in01(pts[i + 2], "midpoint"), in01(pts[i + 3], "sharpness")});
+  if (cp.opacity.empty()) {
+    cp.opacity = {{0.0, 0.0}, {1.0, 1.0}};
+    if (notes) notes->push_back(name + ": the preset has no opacity \"Points\"; using a ramp from 0 to 1");
+  }
+  if (!(lo == 0.0 && hi == 1.0)) cp.range = FieldRange{lo, hi};
+  return cp;
+}
+
+std::string tf_to_paraview_json(const TransferFunction& tf, const std::string& preset_name) {
+  // Colours go out as sRGB with ColorSpace "RGB": exact at the nodes; between nodes ParaView
+  // blends sRGB values where tfmatch blends linear ones (a small difference for fine tables).
+  const ControlPointTf cp = control_points_from_table(tf);
+  const double lo = tf.range ? tf.range->lo : 0.0, hi = tf.range ? tf.range->hi : 1.0;
+  nlohmann::json p;
+  p["Name"] = preset_name;
+  p["Creator"] = "tfmatch";
+  p["ColorSpace"] = "RGB";
+  p["NanColor"] = {0.0, 0.0, 0.0};
+  p["NanOpacity"] = 0.0;
+  auto rgb = nlohmann::json::array(), pts = nlohmann::json::array();
+  for (size_t j = 0; j < cp.color.size(); ++j) {
+    const double x = lo + cp.color[j].position * (hi - lo);
+    for (double v : {x, cp.color[j].srgb[0], cp.color[j].srgb[1], cp.color[j].srgb[2]}) rgb.push_back(v);
+    for (double v : {x, cp.opacity[j].opacity, 0.5, 0.0}) pts.push_back(v);
+  }
+  p["RGBPoints"] = rgb;
+  p["Points"] = pts;
+  return nlohmann::json::array({p}).dump(1) + "\n";
+}
+
+TransferFunction parse_transfer_function(std::string_view text, const std::string& name, const TfReadOptions& options,
+                                         std::vector<std::string>* notes) {
+  size_t p = 0;
+  while (p < text.size() && std::isspace(static_cast<unsigned char>(text[p]))) ++p;
+  // Skip a UTF-8 byte order mark.
+  if (text.substr(p, 3) == "\xEF\xBB\xBF") p += 3;
+  if (p == text.size()) throw std::runtime_error(name + ": empty transfer function file");
+  if (text[p] == '<') return table_from_control_points(parse_tf_xml(text, name), options.table_size);
+  if (text[p] != '{' && text[p] != '[')
+    throw std::runtime_error(name + ": not a transfer function (expected XML, tfmatch JSON or a ParaView preset)");
+  if (text[p] == '{') {
+    nlohmann::json doc = nlohmann::json::parse(text, nullptr, false);
+    if (doc.is_discarded()) throw std::runtime_error(name + ": not valid JSON");
+    if (doc.contains("rgba")) {
+      TransferFunction tf = parse_tf_json(std::string(text), name);
+      return options.table_size ? tf.resampled(options.table_size) : tf;
+    }
+  }
+  return table_from_control_points(parse_paraview_preset(text, name, options.preset, notes), options.table_size);
+}
+
+TransferFunction read_transfer_function(const std::filesystem::path& path_in, const TfReadOptions& options_in,
+                                        std::vector<std::string>* notes) {
+  std::filesystem::path path = path_in;
+  TfReadOptions options = options_in;
+  const std::string spec = path_in.string();
+  if (!std::filesystem::exists(path)) {
+    auto colon = spec.rfind(':');
+    if (colon != std::string::npos && colon > 0 && std::filesystem::exists(spec.substr(0, colon))) {
+      path = spec.substr(0, colon);
+      options.preset = spec.substr(colon + 1);
+    }
+  }
+  std::error_code ec;
+  if (std::filesystem::file_size(path, ec) > (uint64_t(64) << 20) && !ec)
+    throw std::runtime_error(path.string() + ": too large for a transfer function file (over 64 MiB)");
+  return parse_transfer_function(read_file_bytes(path), path.string(), options, notes);
+}
+
+void write_transfer_function(const std::filesystem::path& path, const TransferFunction& tf) {
+  const std::string file = path.filename().string();
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (ext == ".xml") return write_file_atomically(path, tf_to_xml(tf));
+  if (file.size() > 14 && file.substr(file.size() - 14) == ".paraview.json")
+    return write_file_atomically(path, tf_to_paraview_json(tf, file.substr(0, file.size() - 14)));
+  if (ext == ".json") return write_tf_json(path, tf);
+  throw std::runtime_error(path.string() + ": unknown transfer function format '" + ext +
+                           "' (.json tfmatch table, .xml framework XML, .paraview.json ParaView preset)");
+}
+
+}  // namespace tfm

@@ -1,0 +1,76 @@
+// tfmatch's TF JSON format: {"rgba": [[r,g,b,a], ...], "range": [lo, hi]?}.
+#include "tf_json.h"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+#include "atomic_file.h"
+
+namespace tfm {
+
+TransferFunction parse_tf_json(const std::string& text, const std::string& source) {
+  nlohmann::json doc;
+  try {
+    doc = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {
+    throw std::runtime_error(source + ": not valid JSON (" + e.what() + ")");
+  }
+  if (!doc.is_object() || !doc.contains("rgba") || !doc["rgba"].is_array())
+    throw std::runtime_error(source + ": expected an object with an \"rgba\" array of [r,g,b,a] rows");
+  TransferFunction tf;
+  size_t row = 0;
+  for (const auto& e : doc["rgba"]) {
+    if (!e.is_array() || e.size() != 4)
+      throw std::runtime_error(source + ": rgba row " + std::to_string(row) + " is not 4 numbers");
+    Rgba v;
+    for (int c = 0; c < 4; ++c) {
+      if (!e[c].is_number())
+        throw std::runtime_error(source + ": rgba row " + std::to_string(row) + " has a non-number");
+      v[c] = e[c].get<double>();
+      if (!std::isfinite(v[c]) || v[c] < 0.0 || v[c] > 1.0)
+        throw std::runtime_error(source + ": rgba row " + std::to_string(row) + " has value " +
+                                 std::to_string(v[c]) + " outside [0,1]");
+    }
+    tf.rgba.push_back(v);
+    ++row;
+  }
+  if (tf.rgba.size() < 2)
+    throw std::runtime_error(source + ": a transfer function needs at least 2 entries, found " +
+                             std::to_string(tf.rgba.size()));
+  if (doc.contains("range")) {
+    const auto& r = doc["range"];
+    if (!r.is_array() || r.size() != 2 || !r[0].is_number() || !r[1].is_number() ||
+        !(r[1].get<double>() > r[0].get<double>()))
+      throw std::runtime_error(source + ": \"range\" must be [lo, hi] with lo < hi");
+    tf.range = FieldRange{r[0].get<double>(), r[1].get<double>()};
+  }
+  return tf;
+}
+
+TransferFunction read_tf_json(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path.string() + ": cannot open transfer function file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse_tf_json(ss.str(), path.string());
+}
+
+std::string tf_to_json(const TransferFunction& tf) {
+  nlohmann::json doc;
+  doc["format"] = "tfmatch-tf";
+  doc["colorspace"] = "linear-rgb";
+  auto rows = nlohmann::json::array();
+  for (const Rgba& e : tf.rgba) rows.push_back({e[0], e[1], e[2], e[3]});
+  doc["rgba"] = rows;
+  if (tf.range) doc["range"] = {tf.range->lo, tf.range->hi};
+  return doc.dump(1) + "\n";
+}
+
+void write_tf_json(const std::filesystem::path& path, const TransferFunction& tf) {
+  write_file_atomically(path, tf_to_json(tf));
+}
+}  // namespace tfm

@@ -1,0 +1,327 @@
+// GRIB 1 and 2 (ecCodes) as volumes: the messages of one parameter (shortName) on one level type,
+// stacked by level into z.
+//
+// Conventions (README "Formats"):
+// - Selection: "file.grib2:SHORTNAME" or "file.grib2:SHORTNAME@TYPEOFLEVEL". Without a level type
+//   the one with the most distinct levels is taken (isobaricInhPa for GFS u, v, t, ...).
+// - z: the selected messages sorted by increasing level value (for pressure levels z = 0 is the
+//   lowest pressure, i.e. the top); two messages at one level are an error.
+// - x, y: the message's grid points in its scanning order (x = i along a row, y = rows), as
+//   ecCodes returns them; for most global grids row 0 is the northernmost.
+// - --time picks among the distinct (reference date and time, forecast step) pairs, sorted
+//   (analysis times of a reanalysis, forecast steps of a run); --member among the distinct
+//   ensemble numbers ("number"), sorted. Both default to the first.
+// - Missing values (bitmap) become NaN. Messages on different grids are an error.
+// - Spacing: regular lat/lon or Gaussian grids take their increments in degrees (Gaussian
+//   latitudes: the mean step), projected grids their Dx/Dy in metres; z spacing is 1.
+#include <eccodes.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <tuple>
+
+#include "volume_formats.h"
+#include "volume_info.h"
+#include "volume_io.h"
+
+namespace tfm {
+namespace {
+
+// Marks missing points: no packing of physical data produces this value.
+constexpr double kMissing = 1.0e30;
+
+struct HandleDeleter {
+  void operator()(codes_handle* h) const { codes_handle_delete(h); }
+};
+using Handle = std::unique_ptr<codes_handle, HandleDeleter>;
+
+std::optional<std::string> get_string(codes_handle* h, const char* key) {
+  char buf[256];
+  size_t len = sizeof(buf);
+  if (codes_get_string(h, key, buf, &len) != CODES_SUCCESS) return std::nullopt;
+  return std::string(buf);
+}
+std::optional<long> get_long(codes_handle* h, const char* key) {
+  long v = 0;
+  int err = 0;
+  if (codes_is_missing(h, key, &err) == 1 || err != 0) return std::nullopt;
+  if (codes_get_long(h, key, &v) != CODES_SUCCESS) return std::nullopt;
+  return v;
+}
+std::optional<double> get_double(codes_handle* h, const char* key) {
+  double v = 0;
+  int err = 0;
+  if (codes_is_missing(h, key, &err) == 1 || err != 0) return std::nullopt;
+  if (codes_get_double(h, key, &v) != CODES_SUCCESS) return std::nullopt;
+  return v;
+}
+
+struct Message {
+  Handle handle;
+  int index = 0;  // 1-based position in the file
+  std::string short_name, level_type, grid_type;
+  double level = 0, bottom = 0;
+  std::tuple<long, long, long, long> time{0, 0, 0, 0};  // dataDate, dataTime, startStep, endStep
+  long member = 0;
+  long ni = 0, nj = 0;
+  std::array<double, 4> corners{0, 0, 0, 0};  // lat/lon of first and last grid points
+
+  std::string grid_text() const {
+    std::ostringstream os;
+    os << grid_type << " " << ni << "x" << nj << " from (" << corners[0] << ", " << corners[1] << ") to (" << corners[2]
+       << ", " << corners[3] << ")";
+    return os.str();
+  }
+  bool same_grid(const Message& o) const {
+    if (grid_type != o.grid_type || ni != o.ni || nj != o.nj) return false;
+    for (int i = 0; i < 4; ++i)
+      if (std::abs(corners[i] - o.corners[i]) > 1e-6) return false;
+    return true;
+  }
+};
+
+std::string time_text(const std::tuple<long, long, long, long>& t) {
+  std::ostringstream os;
+  os << std::get<0>(t) << " " << std::get<1>(t) << " step " << std::get<3>(t);
+  if (std::get<2>(t) != std::get<3>(t)) os << " (from " << std::get<2>(t) << ")";
+  return os.str();
+}
+
+// Reads every message's metadata; keeps the handles of messages whose shortName passes `keep`.
+template <class Keep>
+std::vector<Message> scan(const std::filesystem::path& path, Keep keep) {
+  const std::string file = path.string();
+  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(file.c_str(), "rb"), &std::fclose);
+  if (!f) throw std::runtime_error(file + ": cannot open");
+  std::vector<Message> out;
+  int err = 0;
+  // GRIB2 messages may hold several fields (NCEP packs u and v together); count each field.
+  codes_grib_multi_support_on(nullptr);
+  struct ResetMulti {
+    FILE* f;
+    ~ResetMulti() { codes_grib_multi_support_reset_file(nullptr, f); }
+  } reset{f.get()};
+  for (int index = 1;; ++index) {
+    Handle h(codes_handle_new_from_file(nullptr, f.get(), PRODUCT_GRIB, &err));
+    if (!h) {
+      if (err != CODES_SUCCESS)
+        throw std::runtime_error(file + ": GRIB message " + std::to_string(index) + " is unreadable (" +
+                                 codes_get_error_message(err) + ")");
+      break;
+    }
+    Message m;
+    m.index = index;
+    m.short_name = get_string(h.get(), "shortName").value_or("unknown");
+    if (!keep(m.short_name)) continue;
+    m.level_type = get_string(h.get(), "typeOfLevel").value_or("unknown");
+    m.level = get_double(h.get(), "level").value_or(0);
+    m.bottom = get_double(h.get(), "bottomLevel").value_or(m.level);
+    m.time = {get_long(h.get(), "dataDate").value_or(0), get_long(h.get(), "dataTime").value_or(0),
+              get_long(h.get(), "startStep").value_or(0), get_long(h.get(), "endStep").value_or(0)};
+    m.member = get_long(h.get(), "number").value_or(0);
+    m.grid_type = get_string(h.get(), "gridType").value_or("unknown");
+    m.ni = get_long(h.get(), "Ni").value_or(0);
+    m.nj = get_long(h.get(), "Nj").value_or(0);
+    m.corners = {get_double(h.get(), "latitudeOfFirstGridPointInDegrees").value_or(0),
+                 get_double(h.get(), "longitudeOfFirstGridPointInDegrees").value_or(0),
+                 get_double(h.get(), "latitudeOfLastGridPointInDegrees").value_or(0),
+                 get_double(h.get(), "longitudeOfLastGridPointInDegrees").value_or(0)};
+    m.handle = std::move(h);
+    out.push_back(std::move(m));
+  }
+  return out;
+}
+
+std::array<double, 2> horizontal_spacing(const Message& m) {
+  codes_handle* h = m.handle.get();
+  std::array<double, 2> s{1, 1};
+  if (m.grid_type == "regular_ll" || m.grid_type == "rotated_ll" || m.grid_type == "regular_gg") {
+    s[0] = get_double(h, "iDirectionIncrementInDegrees").value_or(1.0);
+    if (m.grid_type == "regular_gg") s[1] = m.nj > 1 ? std::abs(m.corners[0] - m.corners[2]) / double(m.nj - 1) : 1.0;
+    else s[1] = get_double(h, "jDirectionIncrementInDegrees").value_or(1.0);
+  } else {
+    auto dx = get_double(h, "DxInMetres");
+    auto dy = get_double(h, "DyInMetres");
+    if (!dx) dx = get_double(h, "DiInMetres");
+    if (!dy) dy = get_double(h, "DjInMetres");
+    if (dx && dy) s = {*dx, *dy};
+  }
+  for (double& v : s)
+    if (!std::isfinite(v) || v <= 0) v = 1.0;
+  return s;
+}
+
+// Values of one message, missing points as NaN.
+std::vector<double> message_values(const Message& m, const std::string& file) {
+  codes_handle* h = m.handle.get();
+  const std::string where = file + ": message " + std::to_string(m.index) + " (" + m.short_name + ")";
+  if (codes_set_double(h, "missingValue", kMissing) != CODES_SUCCESS)
+    throw std::runtime_error(where + ": cannot set missingValue");
+  size_t n = 0;
+  if (codes_get_size(h, "values", &n) != CODES_SUCCESS) throw std::runtime_error(where + ": has no values");
+  if (m.ni <= 0 || m.nj <= 0 || n != size_t(m.ni) * size_t(m.nj))
+    throw std::runtime_error(where + ": " + m.grid_type + " grid with " + std::to_string(n) +
+                             " values is not a rectangular Ni x Nj grid (reduced grids are not supported)");
+  std::vector<double> v(n);
+  int err = codes_get_double_array(h, "values", v.data(), &n);
+  if (err != CODES_SUCCESS) throw std::runtime_error(where + ": cannot decode values (" + codes_get_error_message(err) + ")");
+  for (double& x : v)
+    if (x == kMissing) x = NAN;
+  return v;
+}
+
+template <class T, class F>
+std::vector<T> distinct_sorted(const std::vector<Message>& ms, F get) {
+  std::set<T> s;
+  for (const auto& m : ms) s.insert(get(m));
+  return {s.begin(), s.end()};
+}
+
+}  // namespace
+
+Volume read_grib_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  const std::string file = path.string();
+  std::string want = options.variable, want_level;
+  if (auto at = want.find('@'); at != std::string::npos) {
+    want_level = want.substr(at + 1);
+    want = want.substr(0, at);
+  }
+  std::set<std::string> all_names;
+  std::vector<Message> msgs = scan(path, [&](const std::string& n) {
+    all_names.insert(n);
+    return want.empty() || n == want;
+  });
+  auto names_list = [&] {
+    std::string s;
+    for (const auto& n : all_names) s += (s.empty() ? "" : ", ") + n;
+    return s;
+  };
+  if (all_names.empty()) throw std::runtime_error(file + ": no GRIB messages (not a GRIB file?)");
+  if (want.empty()) {
+    if (all_names.size() != 1)
+      throw std::runtime_error(file + ": choose a parameter (file.grib2:SHORTNAME or --var): " + names_list());
+    want = *all_names.begin();
+  }
+  if (msgs.empty()) throw std::runtime_error(file + ": no parameter '" + want + "' (parameters: " + names_list() + ")");
+  // Level type: the requested one, else the one with the most distinct levels.
+  std::map<std::string, std::set<std::pair<double, double>>> levels_by_type;
+  for (const auto& m : msgs) levels_by_type[m.level_type].insert({m.level, m.bottom});
+  if (want_level.empty()) {
+    size_t best = 0;
+    for (const auto& m : msgs)
+      if (levels_by_type[m.level_type].size() > best) best = levels_by_type[m.level_type].size(), want_level = m.level_type;
+  } else if (!levels_by_type.count(want_level)) {
+    std::string types;
+    for (const auto& [t, l] : levels_by_type) types += (types.empty() ? "" : ", ") + t;
+    throw std::runtime_error(file + ": parameter " + want + " has no level type '" + want_level + "' (it has: " + types + ")");
+  }
+  std::erase_if(msgs, [&](const Message& m) { return m.level_type != want_level; });
+
+  const auto times = distinct_sorted<std::tuple<long, long, long, long>>(msgs, [](const Message& m) { return m.time; });
+  const auto members = distinct_sorted<long>(msgs, [](const Message& m) { return m.member; });
+  const std::string what = file + ": " + want + "@" + want_level;
+  const uint64_t t = options.time_index.value_or(0), k = options.member_index.value_or(0);
+  if (t >= times.size())
+    throw std::runtime_error(what + ": time " + std::to_string(t) + " is out of range (" + std::to_string(times.size()) +
+                             " reference time/step pairs)");
+  if (k >= members.size())
+    throw std::runtime_error(what + ": member " + std::to_string(k) + " is out of range (" + std::to_string(members.size()) +
+                             " ensemble members)");
+  std::erase_if(msgs, [&](const Message& m) { return m.time != times[t] || m.member != members[k]; });
+  std::stable_sort(msgs.begin(), msgs.end(),
+                   [](const Message& a, const Message& b) { return std::tie(a.level, a.bottom) < std::tie(b.level, b.bottom); });
+  for (size_t i = 1; i < msgs.size(); ++i) {
+    if (msgs[i].level == msgs[i - 1].level && msgs[i].bottom == msgs[i - 1].bottom)
+      throw std::runtime_error(what + ": messages " + std::to_string(msgs[i - 1].index) + " and " + std::to_string(msgs[i].index) +
+                               " are both at level " + std::to_string(msgs[i].level) + " (differing in a key not selected, e.g. stepType)");
+    if (!msgs[i].same_grid(msgs[0]))
+      throw std::runtime_error(what + ": the messages do not share one grid: message " + std::to_string(msgs[0].index) + " is " +
+                               msgs[0].grid_text() + ", message " + std::to_string(msgs[i].index) + " is " + msgs[i].grid_text());
+  }
+  Volume v;
+  v.dims = {uint64_t(std::max<long>(msgs[0].ni, 0)), uint64_t(std::max<long>(msgs[0].nj, 0)), msgs.size()};
+  checked_voxel_count(v.dims, file);
+  const auto hs = horizontal_spacing(msgs[0]);
+  v.spacing = {hs[0], hs[1], 1.0};
+  v.name = file + ":" + want + "@" + want_level;
+  if (times.size() > 1) v.name += ",time=" + std::to_string(t);
+  if (members.size() > 1) v.name += ",member=" + std::to_string(k);
+  v.values.reserve(v.voxel_count());
+  for (const auto& m : msgs) {
+    std::vector<double> values = message_values(m, file);
+    for (double x : values) v.values.push_back(static_cast<float>(x));
+  }
+  return v;
+}
+
+FileInfo describe_grib(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  std::vector<Message> msgs = scan(path, [](const std::string&) { return true; });
+  if (msgs.empty()) throw std::runtime_error(file + ": no GRIB messages (not a GRIB file?)");
+  FileInfo info{file, "GRIB", {}, {}};
+  std::set<long> editions;
+  for (const auto& m : msgs) editions.insert(get_long(m.handle.get(), "edition").value_or(0));
+  std::string ed;
+  for (long e : editions) ed += (ed.empty() ? "" : ", ") + std::to_string(e);
+  info.format = "GRIB edition " + ed + ", " + std::to_string(msgs.size()) + " messages";
+  // One entry per (shortName, typeOfLevel), in order of first appearance.
+  std::vector<std::pair<std::string, std::string>> order;
+  std::map<std::pair<std::string, std::string>, std::vector<const Message*>> groups;
+  for (const auto& m : msgs) {
+    auto key = std::make_pair(m.short_name, m.level_type);
+    if (!groups.count(key)) order.push_back(key);
+    groups[key].push_back(&m);
+  }
+  for (const auto& key : order) {
+    const auto& g = groups[key];
+    ArrayInfo a;
+    a.name = key.first + "@" + key.second;
+    a.kind = "GRIB parameter";
+    const Message& first = *g.front();
+    a.type = get_string(first.handle.get(), "packingType").value_or("?");
+    std::set<std::pair<double, double>> levels;
+    std::set<std::tuple<long, long, long, long>> times;
+    std::set<long> members;
+    bool same_grid = true;
+    for (const Message* m : g) {
+      levels.insert({m->level, m->bottom});
+      times.insert(m->time);
+      members.insert(m->member);
+      same_grid &= m->same_grid(first);
+    }
+    std::ostringstream shape;
+    shape << g.size() << " messages, " << levels.size() << " levels (" << levels.begin()->first;
+    if (levels.size() > 1) shape << " .. " << levels.rbegin()->first;
+    shape << "), grid " << first.grid_text();
+    a.shape = shape.str();
+    if (same_grid && first.ni > 0 && first.nj > 0) {
+      a.grid = {uint64_t(first.ni), uint64_t(first.nj), levels.size()};
+      auto hs = horizontal_spacing(first);
+      a.spacing = {hs[0], hs[1], 1.0};
+    } else {
+      a.notes.push_back(same_grid ? "not a rectangular grid: cannot be loaded" : "messages on different grids: cannot be stacked");
+    }
+    if (times.size() > 1) a.choices.push_back(std::to_string(times.size()) + " times (--time): " + time_text(*times.begin()) +
+                                              " .. " + time_text(*times.rbegin()));
+    if (members.size() > 1) a.choices.push_back(std::to_string(members.size()) + " members (--member): number " +
+                                                std::to_string(*members.begin()) + " .. " + std::to_string(*members.rbegin()));
+    if (auto n = get_string(first.handle.get(), "name")) a.notes.push_back(*n);
+    if (auto u = get_string(first.handle.get(), "units")) a.notes.push_back("units: " + *u);
+    for (const Message* m : g) {
+      if (m->ni <= 0 || m->nj <= 0) break;
+      std::vector<double> v = message_values(*m, file);
+      std::vector<float> f(v.begin(), v.end());
+      accumulate_stats(a, f.data(), f.size());
+    }
+    info.arrays.push_back(std::move(a));
+  }
+  return info;
+}
+
+}  // namespace tfm

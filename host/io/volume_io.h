@@ -1,0 +1,46 @@
+// Loading volumes from files (every format of host/io/volume_formats.h) and writing raw float32.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "volume.h"
+
+namespace tfm {
+
+enum class ScalarType { Unknown, UInt8, Int8, UInt16, Int16, UInt32, Int32, Float32, Float64 };
+
+// Parses "uint8", "uint16", "float32", "float64", "int16", ... (also "float", "double", "uchar",
+// "ushort"); Unknown when unrecognized.
+ScalarType parse_scalar_type(std::string name);
+size_t scalar_bytes(ScalarType t);
+const char* scalar_type_name(ScalarType t);
+
+// What a user can say about a file beyond its name (the flags of `tfmatch optimize` etc.).
+struct VolumeOptions {
+  std::optional<std::array<uint64_t, 3>> dims;   // raw: grid size when the name does not say
+  ScalarType type = ScalarType::Unknown;         // raw: element type when the name does not say
+  bool big_endian = false;                       // raw: byte order
+  std::string variable;                          // NetCDF variable / GRIB shortName / VTK array
+  std::optional<uint64_t> time_index;            // NetCDF/GRIB: time step
+  std::optional<uint64_t> member_index;          // NetCDF: extra dimension; GRIB: ensemble number
+};
+
+// Loads a volume. `spec` is a path, optionally followed by ":VAR[@LEVELTYPE][,time=N][,member=N]"
+// (overriding `options`; see host/volume_formats.h). Dispatches by file extension, else by the
+// first bytes. Throws std::runtime_error whose message starts with the file name and says what is
+// wrong (missing file, wrong size, unknown type, ...).
+Volume load_volume(const std::string& spec, const VolumeOptions& options = {});
+
+// Readers (host/volume_*.cpp).
+Volume read_raw_volume(const std::filesystem::path& path, const VolumeOptions& options);
+Volume read_dat_volume(const std::filesystem::path& path, const VolumeOptions& options);
+
+// Writes float32 little-endian raw data, named by the Open SciVis convention if `path` is a
+// directory-less stem; returns the path written.
+void write_raw_float32(const std::filesystem::path& path, const Volume& v);
+
+}  // namespace tfm

@@ -1,0 +1,494 @@
+// NetCDF variables (netCDF-C: classic, 64-bit offset, CDF-5 and netCDF-4/HDF5) as volumes.
+//
+// Conventions (README "Formats"):
+// - Dimension order. NetCDF stores C order, last dimension fastest, so x = the last dimension,
+//   y = the one before, z = the one before that (e.g. U(time, lev, lat, lon): x = lon, y = lat,
+//   z = lev). A variable with two such dimensions is one slice (z = 1).
+// - The time dimension (the unlimited one, one named time/Time/t..., or one whose coordinate has
+//   axis = "T", standard_name = "time" or units "... since ...") is never spatial: --time (or
+//   ",time=N" in the spec) picks the index, default 0. Spatial dimensions come after it (CF order
+//   T, Z, Y, X). Any other dimension (before time, or a fourth one: ensemble member,
+//   ERA-Interim's "month", ...) is chosen with --member (",member=N"), default 0; at most one
+//   such dimension may have more than one entry.
+// - No data: values equal to _FillValue or any missing_value, outside valid_min/valid_max/
+//   valid_range, or NaN become NaN; so do float/double values equal to netCDF's default fill
+//   when no _FillValue is set. Fill values are compared with the stored (packed) values, so a NaN
+//   _FillValue on an integer variable matches nothing (`tfmatch info` says so).
+// - Packing: value = stored * scale_factor + add_offset (either may be absent; negative scales
+//   are fine), in double precision, after honouring _Unsigned = "true".
+// - Spacing: x and y take their coordinate variable's step when it is regular to within 1% of
+//   the mean step (so Gaussian latitudes count as regular), else 1; z takes its coordinate's step
+//   only when it is regular and has the same units as x (a Cartesian grid); pressure or model
+//   levels give 1.
+#include <netcdf.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+#include <stdexcept>
+
+#include "netcdf_classic.h"
+#include "volume_formats.h"
+#include "volume_info.h"
+#include "volume_io.h"
+
+namespace tfm {
+namespace {
+
+class NcFile {
+ public:
+  explicit NcFile(const std::filesystem::path& path) : name_(path.string()) {
+    check(nc_open(name_.c_str(), NC_NOWRITE, &id_), "cannot open as NetCDF");
+    // netCDF-C reads missing bytes of a truncated classic file as zeros: refuse such a file.
+    int format = 0;
+    std::error_code ec;
+    const uint64_t size = std::filesystem::file_size(path, ec);
+    if (nc_inq_format(id_, &format) == NC_NOERR && !ec) {
+      const uint64_t needed = netcdf_classic_minimum_size(id_, format);
+      if (needed > size) {
+        nc_close(id_);
+        id_ = -1;
+        throw std::runtime_error(name_ + ": truncated: its header describes at least " + std::to_string(needed) +
+                                 " bytes, the file has " + std::to_string(size));
+      }
+    }
+  }
+  ~NcFile() {
+    if (id_ >= 0) nc_close(id_);
+  }
+  NcFile(const NcFile&) = delete;
+  NcFile& operator=(const NcFile&) = delete;
+  int id() const { return id_; }
+  const std::string& name() const { return name_; }
+  void check(int status, const std::string& what) const {
+    if (status != NC_NOERR) throw std::runtime_error(name_ + ": " + what + " (" + nc_strerror(status) + ")");
+  }
+
+ private:
+  std::string name_;
+  int id_ = -1;
+};
+
+bool is_numeric(nc_type t) {
+  return t == NC_BYTE || t == NC_UBYTE || t == NC_SHORT || t == NC_USHORT || t == NC_INT || t == NC_UINT ||
+         t == NC_INT64 || t == NC_UINT64 || t == NC_FLOAT || t == NC_DOUBLE;
+}
+
+const char* nc_type_name(nc_type t) {
+  switch (t) {
+    case NC_BYTE: return "int8";
+    case NC_UBYTE: return "uint8";
+    case NC_CHAR: return "char";
+    case NC_SHORT: return "int16";
+    case NC_USHORT: return "uint16";
+    case NC_INT: return "int32";
+    case NC_UINT: return "uint32";
+    case NC_INT64: return "int64";
+    case NC_UINT64: return "uint64";
+    case NC_FLOAT: return "float32";
+    case NC_DOUBLE: return "float64";
+    case NC_STRING: return "string";
+    default: return "user-defined";
+  }
+}
+
+std::optional<std::string> att_text(int nc, int var, const char* name) {
+  nc_type t;
+  size_t len;
+  if (nc_inq_att(nc, var, name, &t, &len) != NC_NOERR || t != NC_CHAR || len > 4096) return std::nullopt;
+  std::string s(len, '\0');
+  if (nc_get_att_text(nc, var, name, s.data()) != NC_NOERR) return std::nullopt;
+  while (!s.empty() && s.back() == '\0') s.pop_back();
+  return s;
+}
+
+std::optional<std::vector<double>> att_numbers(int nc, int var, const char* name) {
+  nc_type t;
+  size_t len;
+  if (nc_inq_att(nc, var, name, &t, &len) != NC_NOERR || !is_numeric(t) || len == 0 || len > 64) return std::nullopt;
+  std::vector<double> v(len);
+  if (nc_get_att_double(nc, var, name, v.data()) != NC_NOERR) return std::nullopt;
+  return v;
+}
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+// The coordinate variable of a dimension: same name, one dimension, that dimension.
+int coordinate_var(int nc, int dimid, const std::string& dim_name) {
+  int v;
+  int nd;
+  int d;
+  if (nc_inq_varid(nc, dim_name.c_str(), &v) != NC_NOERR) return -1;
+  if (nc_inq_varndims(nc, v, &nd) != NC_NOERR || nd != 1) return -1;
+  if (nc_inq_vardimid(nc, v, &d) != NC_NOERR || d != dimid) return -1;
+  return v;
+}
+
+bool is_time_dimension(int nc, int dimid, const std::string& name) {
+  int unlimited[NC_MAX_DIMS];
+  int n = 0;
+  if (nc_inq_unlimdims(nc, &n, unlimited) == NC_NOERR)
+    for (int i = 0; i < n; ++i)
+      if (unlimited[i] == dimid) return true;
+  const std::string l = lower(name);
+  if (l == "time" || l == "t" || l.rfind("time", 0) == 0) return true;
+  const int cv = coordinate_var(nc, dimid, name);
+  if (cv < 0) return false;
+  auto axis = att_text(nc, cv, "axis");
+  auto sn = att_text(nc, cv, "standard_name");
+  auto units = att_text(nc, cv, "units");
+  return (axis && (*axis == "T" || *axis == "t")) || (sn && *sn == "time") ||
+         (units && lower(*units).find(" since ") != std::string::npos);
+}
+
+// How a variable's dimensions map to x, y, z, time and member.
+struct Layout {
+  int varid = -1;
+  std::string name;
+  nc_type type = NC_NAT;
+  std::vector<int> dimids;
+  std::vector<std::string> dim_names;
+  std::vector<size_t> dim_sizes;
+  int time_axis = -1;
+  std::vector<int> extra_axes;          // leading non-time dimensions (members)
+  std::array<int, 3> spatial{-1, -1, -1};  // file axis of x, y, z (-1: absent, size 1)
+  int spatial_count = 0;
+  bool is_coordinate = false;
+
+  std::string shape() const {
+    std::string s = "(";
+    for (size_t i = 0; i < dim_names.size(); ++i) s += (i ? ", " : "") + dim_names[i] + "=" + std::to_string(dim_sizes[i]);
+    return s + ")";
+  }
+  std::array<uint64_t, 3> grid() const {
+    std::array<uint64_t, 3> g{1, 1, 1};
+    for (int k = 0; k < 3; ++k)
+      if (spatial[k] >= 0) g[k] = dim_sizes[spatial[k]];
+    return g;
+  }
+};
+
+Layout layout_of(const NcFile& f, int varid) {
+  Layout L;
+  L.varid = varid;
+  char name[NC_MAX_NAME + 1];
+  int nd = 0;
+  f.check(nc_inq_var(f.id(), varid, name, &L.type, &nd, nullptr, nullptr), "cannot read variable metadata");
+  L.name = name;
+  L.dimids.resize(nd);
+  f.check(nc_inq_vardimid(f.id(), varid, L.dimids.data()), "cannot read dimensions of " + L.name);
+  std::vector<int> nontime;
+  for (int i = 0; i < nd; ++i) {
+    char dn[NC_MAX_NAME + 1];
+    size_t len = 0;
+    f.check(nc_inq_dim(f.id(), L.dimids[i], dn, &len), "cannot read a dimension of " + L.name);
+    L.dim_names.push_back(dn);
+    L.dim_sizes.push_back(len);
+    if (L.time_axis < 0 && nd > 1 && is_time_dimension(f.id(), L.dimids[i], dn)) L.time_axis = i;
+    else nontime.push_back(i);
+  }
+  L.is_coordinate = nd == 1 && L.dim_names[0] == L.name;
+  // x = last non-time dimension, y = the one before, z = the one before that; with a time
+  // dimension only those after it (CF order T, Z, Y, X: what precedes T is a member axis).
+  std::vector<int> candidates;
+  for (int i : nontime)
+    if (L.time_axis < 0 || i > L.time_axis || nontime.back() < L.time_axis) candidates.push_back(i);
+  for (int k = 0; k < 3 && !candidates.empty(); ++k) {
+    L.spatial[k] = candidates.back();
+    candidates.pop_back();
+    ++L.spatial_count;
+  }
+  for (int i : nontime)
+    if (i != L.spatial[0] && i != L.spatial[1] && i != L.spatial[2]) L.extra_axes.push_back(i);
+  return L;
+}
+
+// Turns stored values into physical values with NaN for no data.
+struct Unpacker {
+  std::vector<double> missing;
+  std::optional<double> valid_min, valid_max;
+  bool valid_unpacked = false;  // valid_* given in the unpacked type
+  bool unsigned_fix = false;
+  int bits = 0;
+  double scale = 1.0, offset = 0.0;
+  std::optional<double> default_fill;
+  std::vector<std::string> notes;
+
+  float operator()(double raw) const {
+    if (std::isnan(raw)) return NAN;
+    for (double m : missing)
+      if (raw == m) return NAN;
+    if (default_fill && raw == *default_fill) return NAN;
+    if (unsigned_fix && raw < 0) raw += std::ldexp(1.0, bits);
+    const double v = raw * scale + offset;
+    const double check = valid_unpacked ? v : raw;
+    if ((valid_min && check < *valid_min) || (valid_max && check > *valid_max)) return NAN;
+    return static_cast<float>(v);
+  }
+};
+
+Unpacker unpacker_of(const NcFile& f, const Layout& L) {
+  Unpacker u;
+  const int nc = f.id(), v = L.varid;
+  const bool integer = L.type != NC_FLOAT && L.type != NC_DOUBLE;
+  auto fill = att_numbers(nc, v, "_FillValue");
+  if (fill) {
+    u.missing.push_back((*fill)[0]);
+    std::ostringstream os;
+    os << "_FillValue " << (*fill)[0];
+    if (std::isnan((*fill)[0]) && integer) os << " on an integer variable: matches no stored value, ignored";
+    u.notes.push_back(os.str());
+  } else if (L.type == NC_FLOAT) {
+    u.default_fill = double(NC_FILL_FLOAT);
+  } else if (L.type == NC_DOUBLE) {
+    u.default_fill = NC_FILL_DOUBLE;
+  }
+  if (auto mv = att_numbers(nc, v, "missing_value")) {
+    u.missing.insert(u.missing.end(), mv->begin(), mv->end());
+    u.notes.push_back("missing_value " + std::to_string((*mv)[0]) + (mv->size() > 1 ? " ..." : ""));
+  }
+  auto sf = att_numbers(nc, v, "scale_factor");
+  auto ao = att_numbers(nc, v, "add_offset");
+  if (sf) u.scale = (*sf)[0];
+  if (ao) u.offset = (*ao)[0];
+  if (sf || ao) {
+    std::ostringstream os;
+    os.precision(15);
+    os << "packed: value = stored * " << u.scale << " + " << u.offset;
+    u.notes.push_back(os.str());
+  }
+  if (auto un = att_text(nc, v, "_Unsigned"); un && lower(*un) == "true" &&
+                                              (L.type == NC_BYTE || L.type == NC_SHORT || L.type == NC_INT)) {
+    u.unsigned_fix = true;
+    u.bits = L.type == NC_BYTE ? 8 : L.type == NC_SHORT ? 16 : 32;
+    u.notes.push_back("_Unsigned = true");
+  }
+  // valid_* in the variable's own type are stored values; in another type (the packed case),
+  // unpacked values (NetCDF User Guide).
+  nc_type at;
+  size_t alen;
+  for (const char* key : {"valid_range", "valid_min", "valid_max"}) {
+    auto vals = att_numbers(nc, v, key);
+    if (!vals) continue;
+    if (nc_inq_att(nc, v, key, &at, &alen) == NC_NOERR && at != L.type && (sf || ao)) u.valid_unpacked = true;
+    if (std::strcmp(key, "valid_range") == 0 && vals->size() >= 2) u.valid_min = (*vals)[0], u.valid_max = (*vals)[1];
+    if (std::strcmp(key, "valid_min") == 0) u.valid_min = (*vals)[0];
+    if (std::strcmp(key, "valid_max") == 0) u.valid_max = (*vals)[0];
+    u.notes.push_back(std::string(key) + " applied");
+  }
+  return u;
+}
+
+std::string units_family(const std::optional<std::string>& u) {
+  if (!u) return "";
+  std::string l = lower(*u);
+  return l.rfind("degree", 0) == 0 ? "degree" : l;
+}
+
+// Step of a dimension's coordinate when regular within 1% of the mean step, with its units.
+std::pair<std::optional<double>, std::string> regular_step(const NcFile& f, const Layout& L, int axis) {
+  const int cv = coordinate_var(f.id(), L.dimids[axis], L.dim_names[axis]);
+  const size_t n = L.dim_sizes[axis];
+  if (cv < 0 || n < 2 || n > (size_t(1) << 24)) return {std::nullopt, ""};
+  nc_type t;
+  if (nc_inq_vartype(f.id(), cv, &t) != NC_NOERR || !is_numeric(t)) return {std::nullopt, ""};
+  std::vector<double> c(n);
+  if (nc_get_var_double(f.id(), cv, c.data()) != NC_NOERR) return {std::nullopt, ""};
+  const double mean = (c.back() - c.front()) / double(n - 1);
+  if (!std::isfinite(mean) || mean == 0) return {std::nullopt, ""};
+  for (size_t i = 1; i < n; ++i)
+    if (!(std::abs((c[i] - c[i - 1]) - mean) <= 0.01 * std::abs(mean))) return {std::nullopt, ""};
+  return {std::abs(mean), units_family(att_text(f.id(), cv, "units"))};
+}
+
+std::array<double, 3> spacing_of(const NcFile& f, const Layout& L) {
+  std::array<double, 3> s{1, 1, 1};
+  std::string x_units;
+  bool x_regular = false;
+  for (int k = 0; k < 3; ++k) {
+    if (L.spatial[k] < 0) continue;
+    auto [step, u] = regular_step(f, L, L.spatial[k]);
+    if (!step) continue;
+    if (k == 0) x_regular = true, x_units = u;
+    // Horizontal steps always; a vertical step only in the units of x (else it would mix, say,
+    // hPa with degrees).
+    if (k < 2 || (x_regular && !u.empty() && u == x_units)) s[k] = *step;
+  }
+  return s;
+}
+
+// Candidate data variables: numeric, not coordinates, at least two spatial dimensions.
+std::vector<std::string> volume_variables(const NcFile& f) {
+  int nvars = 0;
+  f.check(nc_inq_nvars(f.id(), &nvars), "cannot list variables");
+  std::vector<std::string> out;
+  for (int v = 0; v < nvars; ++v) {
+    Layout L = layout_of(f, v);
+    if (is_numeric(L.type) && !L.is_coordinate && L.spatial_count >= 2) out.push_back(L.name);
+  }
+  return out;
+}
+
+std::string join(const std::vector<std::string>& v) {
+  std::string s;
+  for (const auto& x : v) s += (s.empty() ? "" : ", ") + x;
+  return s;
+}
+
+size_t pick_index(const Layout& L, int axis, std::optional<uint64_t> requested, const char* flag, const std::string& file) {
+  if (axis < 0) {
+    if (requested && *requested > 0)
+      throw std::runtime_error(file + ": variable " + L.name + " has no " + (std::strcmp(flag, "time") == 0 ? "time" : "member") +
+                               " dimension (" + flag + " " + std::to_string(*requested) + " given)");
+    return 0;
+  }
+  const uint64_t i = requested.value_or(0);
+  if (i >= L.dim_sizes[axis])
+    throw std::runtime_error(file + ": variable " + L.name + ": " + flag + " " + std::to_string(i) + " is out of range (dimension " +
+                             L.dim_names[axis] + " has " + std::to_string(L.dim_sizes[axis]) + ")");
+  return static_cast<size_t>(i);
+}
+
+// Calls fn(values, n) for each 2D (or 1D) slab of the variable at the given leading indices;
+// `fixed` holds an index for every axis that is not one of the last two spatial axes.
+template <class Fn>
+void for_each_slab(const NcFile& f, const Layout& L, std::vector<size_t> start, const std::vector<int>& iterate, Fn fn) {
+  const size_t nd = L.dim_sizes.size();
+  std::vector<size_t> count(nd, 1);
+  for (int k = 0; k < 2; ++k)
+    if (L.spatial[k] >= 0) count[L.spatial[k]] = L.dim_sizes[L.spatial[k]];
+  size_t slab = 1;
+  for (size_t c : count) slab *= c;
+  std::vector<double> buf(slab);
+  const Unpacker u = unpacker_of(f, L);
+  std::vector<float> out(slab);
+  while (true) {
+    f.check(nc_get_vara_double(f.id(), L.varid, start.data(), count.data(), buf.data()), "cannot read variable " + L.name);
+    for (size_t i = 0; i < slab; ++i) out[i] = u(buf[i]);
+    fn(out.data(), slab);
+    // Odometer over the axes to iterate (last one fastest).
+    int k = static_cast<int>(iterate.size()) - 1;
+    for (; k >= 0; --k) {
+      if (++start[iterate[k]] < L.dim_sizes[iterate[k]]) break;
+      start[iterate[k]] = 0;
+    }
+    if (k < 0) return;
+  }
+}
+
+}  // namespace
+
+Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  NcFile f(path);
+  const std::string& file = f.name();
+  std::string var = options.variable;
+  if (var.empty()) {
+    auto candidates = volume_variables(f);
+    if (candidates.size() != 1)
+      throw std::runtime_error(file + ": choose a variable (file.nc:VAR or --var): " +
+                               (candidates.empty() ? std::string("no variable has two or more spatial dimensions")
+                                                   : "candidates are " + join(candidates)));
+    var = candidates.front();
+  }
+  int varid;
+  if (nc_inq_varid(f.id(), var.c_str(), &varid) != NC_NOERR)
+    throw std::runtime_error(file + ": no variable '" + var + "' (volume variables: " + join(volume_variables(f)) + ")");
+  Layout L = layout_of(f, varid);
+  if (!is_numeric(L.type))
+    throw std::runtime_error(file + ": variable " + var + " has type " + nc_type_name(L.type) + ", not a numeric type");
+  if (L.spatial_count == 0) throw std::runtime_error(file + ": variable " + var + " is a scalar");
+  int member_axis = -1;
+  for (int a : L.extra_axes) {
+    if (L.dim_sizes[a] <= 1) continue;
+    if (member_axis >= 0)
+      throw std::runtime_error(file + ": variable " + var + " has two leading dimensions besides time (" +
+                               L.dim_names[member_axis] + ", " + L.dim_names[a] + "); only one can be chosen with --member");
+    member_axis = a;
+  }
+  std::vector<size_t> start(L.dim_sizes.size(), 0);
+  const size_t t = pick_index(L, L.time_axis, options.time_index, "time", file);
+  const size_t m = pick_index(L, member_axis, options.member_index, "member", file);
+  if (L.time_axis >= 0) start[L.time_axis] = t;
+  if (member_axis >= 0) start[member_axis] = m;
+
+  Volume v;
+  v.dims = L.grid();
+  const uint64_t voxels = checked_voxel_count(v.dims, file);
+  int format = 0;
+  f.check(nc_inq_format(f.id(), &format), "cannot read the format");
+  // A classic file stores every value, so a slab cannot exceed the file (checked before
+  // allocating); compressed netCDF-4 has no such bound, so cap it at 2^34 voxels (64 GiB).
+  std::error_code ec;
+  const uint64_t file_size = std::filesystem::file_size(path, ec);
+  if ((format == NC_FORMAT_NETCDF4 || format == NC_FORMAT_NETCDF4_CLASSIC) ? voxels > (uint64_t(1) << 34)
+                                                                           : (!ec && voxels > file_size))
+    throw std::runtime_error(file + ": variable " + var + " is larger than the file can hold (" + L.shape() + ")");
+  v.spacing = spacing_of(f, L);
+  v.name = file + ":" + var;
+  if (L.time_axis >= 0 && L.dim_sizes[L.time_axis] > 1) v.name += ",time=" + std::to_string(t);
+  if (member_axis >= 0) v.name += ",member=" + std::to_string(m);
+  v.values.reserve(voxels);
+  std::vector<int> iterate;
+  if (L.spatial[2] >= 0) iterate.push_back(L.spatial[2]);
+  for_each_slab(f, L, start, iterate, [&](const float* s, size_t n) { v.values.insert(v.values.end(), s, s + n); });
+  return v;
+}
+
+FileInfo describe_netcdf(const std::filesystem::path& path) {
+  NcFile f(path);
+  FileInfo info;
+  info.path = f.name();
+  int format = 0;
+  f.check(nc_inq_format(f.id(), &format), "cannot read the format");
+  info.format = format == NC_FORMAT_CLASSIC         ? "NetCDF classic"
+                : format == NC_FORMAT_64BIT_OFFSET  ? "NetCDF 64-bit offset"
+                : format == NC_FORMAT_CDF5          ? "NetCDF CDF-5"
+                : format == NC_FORMAT_NETCDF4       ? "NetCDF-4 (HDF5)"
+                                                    : "NetCDF-4 classic model (HDF5)";
+  if (auto title = att_text(f.id(), NC_GLOBAL, "title")) info.notes.push_back("title: " + *title);
+  int ngroups = 0;
+  if (nc_inq_grps(f.id(), &ngroups, nullptr) == NC_NOERR && ngroups > 0)
+    info.notes.push_back(std::to_string(ngroups) + " groups: only variables of the root group are read");
+  int nvars = 0;
+  f.check(nc_inq_nvars(f.id(), &nvars), "cannot list variables");
+  for (int v = 0; v < nvars; ++v) {
+    Layout L = layout_of(f, v);
+    ArrayInfo a;
+    a.name = L.name;
+    a.kind = L.is_coordinate ? "coordinate" : "variable";
+    a.type = nc_type_name(L.type);
+    a.shape = L.shape();
+    if (auto ln = att_text(f.id(), v, "long_name")) a.notes.push_back(*ln);
+    if (auto un = att_text(f.id(), v, "units")) a.notes.push_back("units: " + *un);
+    if (!is_numeric(L.type) || L.spatial_count == 0) {
+      a.notes.push_back("not numeric or scalar: not a volume");
+      info.arrays.push_back(std::move(a));
+      continue;
+    }
+    a.grid = L.grid();
+    a.spacing = spacing_of(f, L);
+    if (L.time_axis >= 0)
+      a.choices.push_back("time: " + L.dim_names[L.time_axis] + " = " + std::to_string(L.dim_sizes[L.time_axis]) + " (--time)");
+    for (int e : L.extra_axes)
+      a.choices.push_back("member: " + L.dim_names[e] + " = " + std::to_string(L.dim_sizes[e]) + " (--member)");
+    auto u = unpacker_of(f, L);
+    a.notes.insert(a.notes.end(), u.notes.begin(), u.notes.end());
+    // Every slab of every time and member counts towards the range.
+    std::vector<int> iterate;
+    for (size_t i = 0; i < L.dim_sizes.size(); ++i)
+      if (int(i) != L.spatial[0] && int(i) != L.spatial[1]) iterate.push_back(int(i));
+    bool empty = false;
+    for (size_t s : L.dim_sizes) empty |= s == 0;
+    if (!empty)
+      for_each_slab(f, L, std::vector<size_t>(L.dim_sizes.size(), 0), iterate,
+                    [&](const float* s, size_t n) { accumulate_stats(a, s, n); });
+    info.arrays.push_back(std::move(a));
+  }
+  return info;
+}
+
+}  // namespace tfm

@@ -1,0 +1,438 @@
+// NRRD volumes: attached (.nrrd) or detached (.nhdr + data files, including the multi-file
+// forms "data file: name.%d min max step [subdim]" and "data file: LIST"); raw, gzip, ASCII and
+// hex encodings; either byte order; dimension 1-3, or 4 with the fastest axis as components.
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include <zlib.h>
+
+#include "volume_formats.h"
+#include "volume_info.h"
+#include "volume_io.h"
+
+namespace tfm {
+namespace {
+
+std::string trim(std::string_view s) {
+  size_t b = 0, e = s.size();
+  while (b < e && std::isspace(static_cast<unsigned char>(s[b]))) ++b;
+  while (e > b && std::isspace(static_cast<unsigned char>(s[e - 1]))) --e;
+  return std::string(s.substr(b, e - b));
+}
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+std::vector<std::string> words(const std::string& s) {
+  std::istringstream in(s);
+  std::vector<std::string> out;
+  for (std::string w; in >> w;) out.push_back(w);
+  return out;
+}
+
+std::optional<ElementType> parse_nrrd_type(std::string t) {
+  t = lower(trim(t));
+  // Collapse runs of spaces: "unsigned  short" is still "unsigned short".
+  std::string c;
+  for (char ch : t)
+    if (!(ch == ' ' && !c.empty() && c.back() == ' ')) c.push_back(ch);
+  if (c == "signed char" || c == "int8" || c == "int8_t") return ElementType::Int8;
+  if (c == "uchar" || c == "unsigned char" || c == "uint8" || c == "uint8_t") return ElementType::UInt8;
+  if (c == "short" || c == "short int" || c == "signed short" || c == "signed short int" || c == "int16" || c == "int16_t")
+    return ElementType::Int16;
+  if (c == "ushort" || c == "unsigned short" || c == "unsigned short int" || c == "uint16" || c == "uint16_t")
+    return ElementType::UInt16;
+  if (c == "int" || c == "signed int" || c == "int32" || c == "int32_t") return ElementType::Int32;
+  if (c == "uint" || c == "unsigned int" || c == "uint32" || c == "uint32_t") return ElementType::UInt32;
+  if (c == "longlong" || c == "long long" || c == "long long int" || c == "signed long long" ||
+      c == "signed long long int" || c == "int64" || c == "int64_t")
+    return ElementType::Int64;
+  if (c == "ulonglong" || c == "unsigned long long" || c == "unsigned long long int" || c == "uint64" || c == "uint64_t")
+    return ElementType::UInt64;
+  if (c == "float") return ElementType::Float32;
+  if (c == "double") return ElementType::Float64;
+  return std::nullopt;
+}
+
+struct NrrdHeader {
+  int dimension = 0;
+  std::vector<uint64_t> sizes;
+  std::optional<ElementType> type;
+  std::string type_text;
+  std::string encoding;                 // raw, gzip, ascii, hex
+  std::optional<bool> big_endian;
+  std::vector<double> spacings;         // per axis, NaN when not given
+  std::vector<std::string> data_files;  // empty: data attached after the header
+  uint64_t subdim = 0;                  // axes per data file (0: all)
+  int64_t byte_skip = 0;
+  uint64_t line_skip = 0;
+  size_t data_begin = 0;                // attached data offset
+};
+
+uint64_t parse_uint_field(const std::string& v, const std::string& where) {
+  uint64_t x = 0;
+  auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), x);
+  if (v.empty() || ec != std::errc() || p != v.data() + v.size())
+    throw std::runtime_error(where + ": expected a non-negative integer, found '" + v + "'");
+  return x;
+}
+
+// Expands "name.%03d" with one integer: only %d/%i/%u with optional 0 flag and width (never
+// handed to printf, since the header is untrusted).
+std::string format_name(const std::string& fmt, int64_t value, const std::string& where) {
+  std::string out;
+  bool used = false;
+  for (size_t i = 0; i < fmt.size(); ++i) {
+    if (fmt[i] != '%') {
+      out.push_back(fmt[i]);
+      continue;
+    }
+    if (i + 1 < fmt.size() && fmt[i + 1] == '%') {
+      out.push_back('%');
+      ++i;
+      continue;
+    }
+    size_t j = i + 1;
+    bool zero = j < fmt.size() && fmt[j] == '0';
+    if (zero) ++j;
+    size_t width = 0;
+    while (j < fmt.size() && std::isdigit(static_cast<unsigned char>(fmt[j])) && width < 64) width = width * 10 + (fmt[j++] - '0');
+    if (j >= fmt.size() || (fmt[j] != 'd' && fmt[j] != 'i' && fmt[j] != 'u') || used)
+      throw std::runtime_error(where + ": data file format '" + fmt + "' must contain exactly one %d");
+    used = true;
+    std::string digits = std::to_string(value < 0 ? -value : value);
+    std::string sign = value < 0 ? "-" : "";
+    const size_t len = sign.size() + digits.size();
+    if (len < width) {
+      if (zero) digits.insert(0, width - len, '0');
+      else sign.insert(0, width - len, ' ');
+    }
+    out += sign + digits;
+    i = j;
+  }
+  if (!used) throw std::runtime_error(where + ": data file format '" + fmt + "' must contain one %d");
+  return out;
+}
+
+NrrdHeader parse_header(std::string_view bytes, const std::string& file) {
+  NrrdHeader h;
+  size_t pos = 0;
+  int line_no = 0;
+  auto next_line = [&](std::string& out) {
+    if (pos >= bytes.size()) return false;
+    size_t e = bytes.find('\n', pos);
+    if (e == std::string_view::npos) e = bytes.size();
+    out.assign(bytes.substr(pos, e - pos));
+    if (!out.empty() && out.back() == '\r') out.pop_back();
+    pos = std::min(e + 1, bytes.size());
+    ++line_no;
+    return true;
+  };
+  std::string line;
+  if (!next_line(line) || line.size() != 8 || line.rfind("NRRD000", 0) != 0 || line[7] < '1' || line[7] > '5')
+    throw std::runtime_error(file + ": not a NRRD file (the first line must be NRRD0001..NRRD0005)");
+  auto fail = [&](const std::string& what) -> std::runtime_error {
+    return std::runtime_error(file + ": line " + std::to_string(line_no) + ": " + what);
+  };
+  bool list_follows = false;
+  while (next_line(line)) {
+    if (list_follows) {
+      if (!trim(line).empty()) h.data_files.push_back(trim(line));
+      continue;
+    }
+    if (line.empty()) break;  // end of header; attached data follows
+    if (line[0] == '#') continue;
+    const size_t kv = line.find(":=");
+    const size_t colon = line.find(": ");
+    if (kv != std::string::npos && (colon == std::string::npos || kv < colon)) continue;  // key/value pair
+    if (colon == std::string::npos) throw fail("expected 'field: description', found '" + line + "'");
+    const std::string field = lower(trim(line.substr(0, colon)));
+    const std::string value = trim(line.substr(colon + 2));
+    if (field == "dimension") {
+      const uint64_t d = parse_uint_field(value, file + ": dimension");
+      if (d < 1 || d > 16) throw fail("dimension must be 1..16");
+      h.dimension = static_cast<int>(d);
+    } else if (field == "type") {
+      h.type = parse_nrrd_type(value);
+      h.type_text = value;
+      if (!h.type) throw fail("type '" + value + "' is not supported");
+    } else if (field == "sizes") {
+      for (const auto& w : words(value)) h.sizes.push_back(parse_uint_field(w, file + ": sizes"));
+    } else if (field == "endian") {
+      if (value != "little" && value != "big") throw fail("endian must be little or big");
+      h.big_endian = value == "big";
+    } else if (field == "encoding") {
+      const std::string e = lower(value);
+      if (e == "raw") h.encoding = "raw";
+      else if (e == "gz" || e == "gzip") h.encoding = "gzip";
+      else if (e == "txt" || e == "text" || e == "ascii") h.encoding = "ascii";
+      else if (e == "hex") h.encoding = "hex";
+      else if (e == "bz2" || e == "bzip2") throw fail("bzip2 encoding is not supported (use raw or gzip)");
+      else throw fail("unknown encoding '" + value + "'");
+    } else if (field == "spacings") {
+      for (const auto& w : words(value)) {
+        auto n = parse_number(w);
+        h.spacings.push_back(n ? std::abs(*n) : std::nan(""));
+      }
+    } else if (field == "space directions") {
+      // "(x,y,z) (x,y,z) none ...": the voxel size along an axis is its direction's length.
+      std::vector<double> norms;
+      for (const auto& w : words(value)) {
+        if (w == "none") {
+          norms.push_back(std::nan(""));
+          continue;
+        }
+        if (w.size() < 2 || w.front() != '(' || w.back() != ')') throw fail("bad space direction '" + w + "'");
+        std::string inner = w.substr(1, w.size() - 2);
+        std::replace(inner.begin(), inner.end(), ',', ' ');
+        double s = 0;
+        for (const auto& c : words(inner)) {
+          auto n = parse_number(c);
+          if (!n) throw fail("bad space direction '" + w + "'");
+          s += *n * *n;
+        }
+        norms.push_back(std::sqrt(s));
+      }
+      if (h.spacings.empty()) h.spacings = norms;
+    } else if (field == "byte skip" || field == "byteskip") {
+      if (value == "-1") h.byte_skip = -1;
+      else h.byte_skip = static_cast<int64_t>(std::min<uint64_t>(parse_uint_field(value, file + ": byte skip"), uint64_t(1) << 62));
+    } else if (field == "line skip" || field == "lineskip") {
+      h.line_skip = parse_uint_field(value, file + ": line skip");
+    } else if (field == "data file" || field == "datafile") {
+      std::vector<std::string> w = words(value);
+      if (w.empty()) throw fail("empty data file");
+      if (w[0] == "LIST") {
+        if (w.size() > 1) h.subdim = parse_uint_field(w[1], file + ": data file LIST subdim");
+        list_follows = true;
+      } else if (w.size() >= 4 && w[0].find('%') != std::string::npos) {
+        auto num = [&](const std::string& s) {
+          int64_t v = 0;
+          auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+          if (ec != std::errc() || p != s.data() + s.size()) throw fail("bad number '" + s + "' in data file");
+          return v;
+        };
+        const int64_t lo = num(w[1]), hi = num(w[2]), step = num(w[3]);
+        if (w.size() > 4) h.subdim = parse_uint_field(w[4], file + ": data file subdim");
+        if (step == 0 || (hi - lo) / step < 0 || (hi - lo) / step >= 1000000)
+          throw fail("data file range " + w[1] + ".." + w[2] + " step " + w[3] + " is empty or too long");
+        for (int64_t i = lo; step > 0 ? i <= hi : i >= hi; i += step) h.data_files.push_back(format_name(w[0], i, file));
+      } else {
+        h.data_files.push_back(value);
+      }
+    }
+    // Other fields (content, kinds, space, space origin, units, ...) do not affect the values.
+  }
+  h.data_begin = pos;
+  if (h.dimension == 0) throw std::runtime_error(file + ": no dimension field");
+  if (h.sizes.size() != size_t(h.dimension))
+    throw std::runtime_error(file + ": sizes has " + std::to_string(h.sizes.size()) + " entries for dimension " +
+                             std::to_string(h.dimension));
+  if (!h.type) throw std::runtime_error(file + ": no type field");
+  if (h.encoding.empty()) throw std::runtime_error(file + ": no encoding field");
+  if (!h.big_endian && element_bytes(*h.type) > 1 && h.encoding != "ascii")
+    throw std::runtime_error(file + ": no endian field (needed for " + h.type_text + " data)");
+  if (h.byte_skip < 0 && h.encoding != "raw") throw std::runtime_error(file + ": byte skip -1 needs raw encoding");
+  if (list_follows && h.data_files.empty()) throw std::runtime_error(file + ": data file LIST names no files");
+  return h;
+}
+
+// Decodes `count` elements from one data file's bytes (after line skip) into `out`.
+void decode_chunk(std::string_view data, const NrrdHeader& h, uint64_t count, float* out, const std::string& where) {
+  for (uint64_t i = 0; i < h.line_skip; ++i) {
+    const size_t e = data.find('\n');
+    if (e == std::string_view::npos) throw std::runtime_error(where + ": fewer lines than line skip " + std::to_string(h.line_skip));
+    data.remove_prefix(e + 1);
+  }
+  const uint64_t elem = element_bytes(*h.type);
+  const uint64_t need = count * elem;  // count * elem <= kMaxVoxels * 8 by the caller's checks
+  const bool big = h.big_endian.value_or(false);
+  if (h.encoding == "raw") {
+    uint64_t skip = h.byte_skip < 0 ? (data.size() >= need ? data.size() - need : 0) : uint64_t(h.byte_skip);
+    if (skip > data.size() || data.size() - skip < need)
+      throw std::runtime_error(where + ": has " + std::to_string(data.size()) + " bytes, " + std::to_string(skip + need) +
+                               " needed (truncated, or wrong sizes/type in the header)");
+    decode_elements(data.data() + skip, count, *h.type, big, out);
+  } else if (h.encoding == "gzip") {
+    const uint64_t skip = uint64_t(h.byte_skip);
+    if (need + skip > kMaxDeflateRatio * data.size() + 1024)
+      throw std::runtime_error(where + ": " + std::to_string(data.size()) + " compressed bytes cannot hold " +
+                               std::to_string(need) + " bytes");
+    std::string buf(skip + need, '\0');
+    z_stream z{};
+    if (inflateInit2(&z, 15 + 32) != Z_OK) throw std::runtime_error(where + ": zlib initialization failed");
+    if (data.size() > 0xffffffffu) {
+      inflateEnd(&z);
+      throw std::runtime_error(where + ": gzip data over 4 GiB per file is not supported");
+    }
+    z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
+    z.avail_in = static_cast<uInt>(data.size());
+    uint64_t got = 0;
+    int rc = Z_OK;
+    while (got < buf.size()) {
+      const uint64_t chunk = std::min<uint64_t>(buf.size() - got, uint64_t(1) << 30);
+      z.next_out = reinterpret_cast<Bytef*>(buf.data() + got);
+      z.avail_out = static_cast<uInt>(chunk);
+      rc = inflate(&z, Z_NO_FLUSH);
+      got += chunk - z.avail_out;
+      if (rc == Z_STREAM_END) {
+        if (z.avail_in == 0 || inflateReset(&z) != Z_OK) break;  // more input: concatenated gzip members
+      } else if (rc != Z_OK) {
+        break;  // Z_BUF_ERROR: input exhausted; anything else: corrupt
+      }
+    }
+    inflateEnd(&z);
+    if (got < buf.size())
+      throw std::runtime_error(where + ": gzip data " + (rc == Z_OK || rc == Z_STREAM_END || rc == Z_BUF_ERROR ? "ends" : "is corrupt") +
+                               " after " + std::to_string(got) + " bytes, " + std::to_string(buf.size()) + " needed");
+    decode_elements(buf.data() + skip, count, *h.type, big, out);
+  } else if (h.encoding == "hex") {
+    const uint64_t skip = std::min<uint64_t>(uint64_t(h.byte_skip), data.size());
+    data.remove_prefix(skip);
+    if (need > data.size() / 2) throw std::runtime_error(where + ": too little hex data for " + std::to_string(need) + " bytes");
+    std::string buf;
+    buf.reserve(need);
+    int nibble = -1;
+    for (char c : data) {
+      if (buf.size() == need) break;
+      if (std::isspace(static_cast<unsigned char>(c))) continue;
+      int v = std::isdigit(static_cast<unsigned char>(c)) ? c - '0'
+              : (c >= 'a' && c <= 'f') ? c - 'a' + 10 : (c >= 'A' && c <= 'F') ? c - 'A' + 10 : -1;
+      if (v < 0) throw std::runtime_error(where + ": bad hex digit");
+      if (nibble < 0) nibble = v;
+      else buf.push_back(static_cast<char>(nibble * 16 + v)), nibble = -1;
+    }
+    if (buf.size() != need) throw std::runtime_error(where + ": hex data ends early");
+    decode_elements(buf.data(), count, *h.type, big, out);
+  } else {  // ascii
+    data.remove_prefix(std::min<uint64_t>(uint64_t(h.byte_skip), data.size()));
+    if (count > (data.size() + 1) / 2) throw std::runtime_error(where + ": too little text for " + std::to_string(count) + " values");
+    size_t p = 0;
+    auto sep = [](char c) { return std::isspace(static_cast<unsigned char>(c)) || c == ','; };
+    for (uint64_t i = 0; i < count; ++i) {
+      while (p < data.size() && sep(data[p])) ++p;
+      size_t b = p;
+      while (p < data.size() && !sep(data[p])) ++p;
+      auto n = parse_number(data.substr(b, p - b));
+      if (!n) throw std::runtime_error(where + ": value " + std::to_string(i) + " is not a number");
+      out[i] = static_cast<float>(*n);
+    }
+  }
+}
+
+}  // namespace
+
+Volume parse_nrrd(std::string_view bytes, const std::string& file, const VolumeOptions& options,
+                  const DataFileLoader& open_data_file) {
+  NrrdHeader h = parse_header(bytes, file);
+  if (!options.variable.empty() && parse_array_selector(options.variable, file).name != "")
+    throw std::runtime_error(file + ": NRRD holds one array; use NAME[k] only to pick a component");
+  std::vector<uint64_t> s = h.sizes;
+  uint64_t components = 1;
+  if (h.dimension == 4) {
+    components = s[0];
+    if (components == 0 || components > 1024)
+      throw std::runtime_error(file + ": 4D NRRD: the fastest axis (size " + std::to_string(components) +
+                               ") must hold 1..1024 components");
+    s.erase(s.begin());
+  } else if (h.dimension > 4) {
+    throw std::runtime_error(file + ": dimension " + std::to_string(h.dimension) + " is not supported (1 to 4)");
+  }
+  std::array<uint64_t, 3> dims{1, 1, 1};
+  std::array<double, 3> spacing{1, 1, 1};
+  const size_t axis0 = h.dimension == 4 ? 1 : 0;
+  for (size_t i = 0; i < s.size(); ++i) {
+    dims[i] = s[i];
+    const size_t a = axis0 + i;
+    if (a < h.spacings.size() && std::isfinite(h.spacings[a]) && h.spacings[a] > 0) spacing[i] = h.spacings[a];
+  }
+  const uint64_t voxels = checked_voxel_count(dims, file);
+  const uint64_t count = checked_mul(voxels, components, kMaxVoxels, file, "number of values");
+  // Which files hold which part: each file holds the axes below `subdim`.
+  std::vector<std::string> chunks;
+  if (h.data_files.empty()) {
+    chunks.emplace_back(bytes.substr(h.data_begin));
+  } else {
+    const uint64_t subdim = h.subdim ? h.subdim : (h.data_files.size() == 1 ? uint64_t(h.dimension) : uint64_t(h.dimension - 1));
+    if (subdim < 1 || subdim > uint64_t(h.dimension)) throw std::runtime_error(file + ": data file subdim out of range");
+    uint64_t files_needed = 1;
+    for (size_t a = subdim; a < h.sizes.size(); ++a) files_needed *= h.sizes[a];
+    if (files_needed != h.data_files.size())
+      throw std::runtime_error(file + ": " + std::to_string(h.data_files.size()) + " data files for sizes needing " +
+                               std::to_string(files_needed));
+    for (const auto& f : h.data_files) chunks.push_back(open_data_file(f));
+  }
+  const uint64_t per_chunk = count / chunks.size();
+  Volume v;
+  v.dims = dims;
+  v.spacing = spacing;
+  v.name = file;
+  // A header can promise any size: check what each data file can hold at most before
+  // allocating the volume (raw/hex/ASCII are bounded by their bytes, gzip by zlib's ratio).
+  const uint64_t elem = element_bytes(*h.type);
+  for (size_t i = 0; i < chunks.size(); ++i) {
+    const uint64_t n = chunks[i].size();
+    const uint64_t bound = h.encoding == "raw"    ? n / elem
+                           : h.encoding == "gzip" ? (kMaxDeflateRatio * n + 1024) / elem
+                           : h.encoding == "hex"  ? n / 2 / elem
+                                                  : (n + 1) / 2;
+    if (per_chunk > bound)
+      throw std::runtime_error((h.data_files.empty() ? file + ": attached data" : file + ": data file " + h.data_files[i]) +
+                               " has " + std::to_string(n) + " bytes, too few for " + std::to_string(per_chunk) + " " +
+                               h.type_text + " values (" + h.encoding + "; truncated, or wrong sizes in the header)");
+  }
+  std::vector<float> values(count);
+  for (size_t i = 0; i < chunks.size(); ++i) {
+    const std::string where = h.data_files.empty() ? file + ": attached data" : file + ": data file " + h.data_files[i];
+    decode_chunk(chunks[i], h, per_chunk, values.data() + i * per_chunk, where);
+  }
+  const ArraySelector sel = parse_array_selector(options.variable, file);
+  v.values = select_component(std::move(values), components, sel.component, file);
+  return v;
+}
+
+Volume read_nrrd_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  const std::string bytes = read_file_bytes(path);
+  const std::filesystem::path dir = path.parent_path();
+  return parse_nrrd(bytes, path.string(), options, [&](const std::string& name) {
+    std::filesystem::path p = name;
+    if (p.is_relative()) p = dir / p;
+    if (!std::filesystem::exists(p)) throw std::runtime_error(path.string() + ": data file " + p.string() + " does not exist");
+    return read_file_bytes(p);
+  });
+}
+
+FileInfo describe_nrrd(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  NrrdHeader h = parse_header(read_file_bytes(path), file);
+  Volume v = read_nrrd_volume(path, {});
+  FileInfo info{file, "NRRD", {}, {}};
+  ArrayInfo a;
+  a.name = "(the only array)";
+  a.kind = "volume";
+  a.type = element_type_name(*h.type);
+  std::string sizes;
+  for (uint64_t s : h.sizes) sizes += (sizes.empty() ? "" : " ") + std::to_string(s);
+  a.shape = "sizes " + sizes + ", encoding " + h.encoding +
+            (element_bytes(*h.type) > 1 && h.encoding != "ascii" ? (*h.big_endian ? ", big-endian" : ", little-endian") : "");
+  if (!h.data_files.empty())
+    a.notes.push_back(std::to_string(h.data_files.size()) + " data file(s): " + h.data_files.front() +
+                      (h.data_files.size() > 1 ? " ... " + h.data_files.back() : ""));
+  a.grid = v.dims;
+  a.spacing = v.spacing;
+  if (h.dimension == 4) {
+    a.components = h.sizes[0];
+    a.notes.push_back("loads as the magnitude; [k] picks component k");
+  }
+  accumulate_stats(a, v.values.data(), v.values.size());
+  info.arrays.push_back(std::move(a));
+  return info;
+}
+
+}  // namespace tfm

@@ -1,0 +1,230 @@
+// Raw volumes (dimensions and type from the Open SciVis file-name convention
+// `name_256x256x128_float32.raw`, or from options) and `.dat` descriptor files.
+#include <algorithm>
+#include <bit>
+#include <cctype>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <regex>
+#include <sstream>
+#include <stdexcept>
+
+#include "atomic_file.h"
+#include "volume.h"
+#include "volume_formats.h"
+#include "volume_io.h"
+
+namespace tfm {
+namespace {
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+// The raw reader's element types are a subset of the format readers' (volume_formats.h), whose
+// decoder does the work.
+void decode(const char* src, uint64_t count, ScalarType type, bool big_endian, float* dst) {
+  ElementType e;
+  switch (type) {
+    case ScalarType::UInt8: e = ElementType::UInt8; break;
+    case ScalarType::Int8: e = ElementType::Int8; break;
+    case ScalarType::UInt16: e = ElementType::UInt16; break;
+    case ScalarType::Int16: e = ElementType::Int16; break;
+    case ScalarType::UInt32: e = ElementType::UInt32; break;
+    case ScalarType::Int32: e = ElementType::Int32; break;
+    case ScalarType::Float32: e = ElementType::Float32; break;
+    case ScalarType::Float64: e = ElementType::Float64; break;
+    default: throw std::logic_error("decode: unknown scalar type");
+  }
+  decode_elements(src, count, e, big_endian, dst);
+}
+
+// Reads `count` elements of `type` at `offset`, checking that the file holds exactly
+// offset + count * size bytes (or at least that many when `allow_trailing`).
+Volume read_elements(const std::filesystem::path& path, std::array<uint64_t, 3> dims, ScalarType type,
+                     bool big_endian, uint64_t offset, bool allow_trailing) {
+  const std::string name = path.string();
+  for (uint64_t d : dims)
+    if (d == 0) throw std::runtime_error(name + ": a grid dimension is 0");
+  const uint64_t max_voxels = uint64_t(1) << 40;
+  if (dims[0] > max_voxels / dims[1] || dims[0] * dims[1] > max_voxels / dims[2])
+    throw std::runtime_error(name + ": grid size overflows (dimensions too large)");
+  const uint64_t count = dims[0] * dims[1] * dims[2];
+  const uint64_t bytes = count * scalar_bytes(type);
+  std::error_code ec;
+  uint64_t file_size = std::filesystem::file_size(path, ec);
+  if (ec) throw std::runtime_error(name + ": cannot open (" + ec.message() + ")");
+  if (file_size < offset + bytes || (!allow_trailing && file_size != offset + bytes)) {
+    std::ostringstream os;
+    os << name << ": file has " << file_size << " bytes, but a " << dims[0] << "x" << dims[1] << "x"
+       << dims[2] << " " << scalar_type_name(type) << " volume needs " << offset + bytes;
+    throw std::runtime_error(os.str());
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(name + ": cannot open");
+  in.seekg(static_cast<std::streamoff>(offset));
+  Volume v;
+  v.dims = dims;
+  v.name = name;
+  v.values.resize(count);
+  // Decode in blocks so the file is never held in memory twice.
+  const uint64_t block = uint64_t(1) << 22;
+  std::vector<char> buffer(std::min(count, block) * scalar_bytes(type));
+  for (uint64_t done = 0; done < count; done += block) {
+    uint64_t n = std::min(block, count - done);
+    in.read(buffer.data(), static_cast<std::streamsize>(n * scalar_bytes(type)));
+    if (!in) throw std::runtime_error(name + ": read failed");
+    decode(buffer.data(), n, type, big_endian, v.values.data() + done);
+  }
+  return v;
+}
+
+}  // namespace
+
+ScalarType parse_scalar_type(std::string s) {
+  s = lower(s);
+  if (s == "uint8" || s == "uchar" || s == "unsigned_char" || s == "unsigned char") return ScalarType::UInt8;
+  if (s == "int8" || s == "char" || s == "signed char") return ScalarType::Int8;
+  if (s == "uint16" || s == "ushort" || s == "unsigned_short" || s == "unsigned short") return ScalarType::UInt16;
+  if (s == "int16" || s == "short") return ScalarType::Int16;
+  if (s == "uint32" || s == "uint" || s == "unsigned_int" || s == "unsigned int") return ScalarType::UInt32;
+  if (s == "int32" || s == "int") return ScalarType::Int32;
+  if (s == "float32" || s == "float") return ScalarType::Float32;
+  if (s == "float64" || s == "double") return ScalarType::Float64;
+  return ScalarType::Unknown;
+}
+
+size_t scalar_bytes(ScalarType t) {
+  switch (t) {
+    case ScalarType::UInt8: case ScalarType::Int8: return 1;
+    case ScalarType::UInt16: case ScalarType::Int16: return 2;
+    case ScalarType::UInt32: case ScalarType::Int32: case ScalarType::Float32: return 4;
+    case ScalarType::Float64: return 8;
+    default: return 0;
+  }
+}
+
+const char* scalar_type_name(ScalarType t) {
+  switch (t) {
+    case ScalarType::UInt8: return "uint8";
+    case ScalarType::Int8: return "int8";
+    case ScalarType::UInt16: return "uint16";
+    case ScalarType::Int16: return "int16";
+    case ScalarType::UInt32: return "uint32";
+    case ScalarType::Int32: return "int32";
+    case ScalarType::Float32: return "float32";
+    case ScalarType::Float64: return "float64";
+    default: return "unknown";
+  }
+}
+
+Volume read_raw_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  std::optional<std::array<uint64_t, 3>> dims = options.dims;
+  ScalarType type = options.type;
+  // Open SciVis convention: <name>_<X>x<Y>x<Z>_<type>.raw
+  static const std::regex pattern(R"(_(\d+)x(\d+)x(\d+)_([a-z0-9]+)\.raw$)", std::regex::icase);
+  std::smatch m;
+  const std::string file = path.filename().string();
+  if (std::regex_search(file, m, pattern)) {
+    try {
+      if (!dims) dims = std::array<uint64_t, 3>{std::stoull(m[1]), std::stoull(m[2]), std::stoull(m[3])};
+    } catch (const std::exception&) {
+      throw std::runtime_error(path.string() + ": dimensions in the file name are out of range");
+    }
+    if (type == ScalarType::Unknown) {
+      type = parse_scalar_type(m[4]);
+      if (type == ScalarType::Unknown)
+        throw std::runtime_error(path.string() + ": unknown element type '" + m[4].str() + "' in the file name");
+    }
+  }
+  if (!dims)
+    throw std::runtime_error(path.string() + ": raw file without dimensions: name it name_XxYxZ_type.raw "
+                             "or pass --dims X,Y,Z (and --type)");
+  if (type == ScalarType::Unknown)
+    throw std::runtime_error(path.string() + ": raw file without element type: pass --type "
+                             "(uint8, uint16, int16, float32, float64, ...)");
+  return read_elements(path, *dims, type, options.big_endian, 0, false);
+}
+
+// .dat descriptor: lines "Key: value" with ObjectFileName, Resolution (X Y Z), Format
+// (UCHAR, USHORT, FLOAT, DOUBLE, ...), optional SliceThickness (spacing) and Endianness.
+DatDescriptor parse_dat_descriptor(std::string_view text, const std::string& name, bool big_endian_default) {
+  DatDescriptor d;
+  d.big_endian = big_endian_default;
+  bool have_dims = false;
+  std::istringstream in{std::string(text)};
+  std::string line;
+  int line_no = 0;
+  auto fail = [&](const std::string& what) {
+    return std::runtime_error(name + ": line " + std::to_string(line_no) + ": " + what);
+  };
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.size() > 4096) throw fail("line too long");
+    auto colon = line.find(':');
+    if (colon == std::string::npos) continue;
+    std::string key = lower(line.substr(0, colon));
+    key.erase(std::remove_if(key.begin(), key.end(), [](unsigned char c) { return std::isspace(c); }), key.end());
+    std::istringstream value(line.substr(colon + 1));
+    if (key == "objectfilename") {
+      value >> std::ws;
+      std::getline(value, d.object_file);
+      while (!d.object_file.empty() && std::isspace(static_cast<unsigned char>(d.object_file.back()))) d.object_file.pop_back();
+    } else if (key == "resolution") {
+      std::array<long long, 3> r{};
+      if (!(value >> r[0] >> r[1] >> r[2]) || r[0] <= 0 || r[1] <= 0 || r[2] <= 0)
+        throw fail("Resolution needs three positive integers");
+      d.dims = std::array<uint64_t, 3>{uint64_t(r[0]), uint64_t(r[1]), uint64_t(r[2])};
+      have_dims = true;
+    } else if (key == "format") {
+      value >> d.format;
+    } else if (key == "slicethickness") {
+      auto& sp = d.spacing;
+      if (!(value >> sp[0] >> sp[1] >> sp[2]) || !(sp[0] > 0) || !(sp[1] > 0) || !(sp[2] > 0) || !std::isfinite(sp[0]) ||
+          !std::isfinite(sp[1]) || !std::isfinite(sp[2]))
+        throw fail("SliceThickness needs three positive numbers");
+    } else if (key == "endianness" || key == "byteorder") {
+      std::string e;
+      value >> e;
+      d.big_endian = lower(e).find("big") != std::string::npos;
+    }
+  }
+  if (d.object_file.empty()) throw std::runtime_error(name + ": no ObjectFileName");
+  if (!have_dims) throw std::runtime_error(name + ": no Resolution");
+  if (d.format.empty()) throw std::runtime_error(name + ": no Format");
+  d.type = parse_scalar_type(d.format);
+  if (d.type == ScalarType::Unknown) throw std::runtime_error(name + ": unknown Format '" + d.format + "'");
+  return d;
+}
+
+Volume read_dat_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path.string() + ": cannot open");
+  // A descriptor is a few lines; refuse to read a large binary file given as .dat by mistake.
+  std::string text(64 * 1024, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<size_t>(in.gcount()));
+  if (in.gcount() == 64 * 1024 && in.peek() != EOF)
+    throw std::runtime_error(path.string() + ": too large for a .dat descriptor (over 64 KiB)");
+  DatDescriptor d = parse_dat_descriptor(text, path.string(), options.big_endian);
+  std::filesystem::path data = path.parent_path() / d.object_file;
+  Volume v = read_elements(data, d.dims, d.type, d.big_endian, 0, false);
+  v.spacing = d.spacing;
+  v.name = path.string();
+  return v;
+}
+
+void write_raw_float32(const std::filesystem::path& path, const Volume& v) {
+  std::string bytes(v.values.size() * sizeof(float), '\0');
+  for (size_t i = 0; i < v.values.size(); ++i) {
+    uint32_t bits = std::bit_cast<uint32_t>(v.values[i]);
+    if constexpr (std::endian::native == std::endian::big) bits = __builtin_bswap32(bits);
+    std::memcpy(bytes.data() + i * 4, &bits, 4);
+  }
+  write_file_atomically(path, bytes);
+}
+
+}  // namespace tfm

@@ -1,0 +1,464 @@
+// VTK XML ImageData (.vti): reading ascii, inline base64 and appended (raw or base64) arrays,
+// zlib-compressed or not, UInt32 or UInt64 headers, either byte order; writing Float32 arrays.
+#include "volume_vti.h"
+
+#include <algorithm>
+#include <cctype>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+
+#include <zlib.h>
+
+#include "atomic_file.h"
+#include "base64.h"
+#include "volume_formats.h"
+#include "volume_info.h"
+#include "xml_tree.h"
+#include "volume_io.h"
+
+namespace tfm {
+namespace {
+
+struct VtiArray {
+  std::string name;
+  std::string section;  // "point data", "cell data", "field data"
+  ElementType type = ElementType::Float32;
+  uint64_t components = 1;
+  uint64_t tuples = 0;
+  std::string format;   // ascii, binary, appended
+  size_t content_begin = 0, content_end = 0;
+  uint64_t offset = 0;
+  int line = 0;
+};
+
+struct VtiDocument {
+  bool big_endian = false;
+  bool header64 = false;
+  bool compressed = false;
+  std::array<uint64_t, 3> dims{0, 0, 0};
+  std::array<double, 3> spacing{1, 1, 1};
+  std::vector<VtiArray> arrays;
+  std::string active_scalars;
+  bool has_appended = false;
+  bool appended_base64 = false;
+  size_t appended_begin = 0;  // first byte after '_'
+};
+
+ElementType parse_vti_type(const std::string& t, const std::string& where) {
+  if (t == "Int8" || t == "Char") return ElementType::Int8;
+  if (t == "UInt8" || t == "UnsignedChar") return ElementType::UInt8;
+  if (t == "Int16" || t == "Short") return ElementType::Int16;
+  if (t == "UInt16" || t == "UnsignedShort") return ElementType::UInt16;
+  if (t == "Int32" || t == "Int") return ElementType::Int32;
+  if (t == "UInt32" || t == "UnsignedInt") return ElementType::UInt32;
+  if (t == "Int64") return ElementType::Int64;
+  if (t == "UInt64") return ElementType::UInt64;
+  if (t == "Float32" || t == "Float") return ElementType::Float32;
+  if (t == "Float64" || t == "Double") return ElementType::Float64;
+  throw std::runtime_error(where + ": unsupported data type '" + t + "'");
+}
+
+template <size_t N>
+std::array<double, N> parse_numbers(const std::string* text, std::array<double, N> fallback, const std::string& where) {
+  if (!text) return fallback;
+  std::istringstream in(*text);
+  std::array<double, N> out{};
+  for (auto& v : out) {
+    std::string tok;
+    in >> tok;
+    auto n = parse_number(tok);
+    if (!n) throw std::runtime_error(where + ": expected " + std::to_string(N) + " numbers, found '" + *text + "'");
+    v = *n;
+  }
+  std::string extra;
+  if (in >> extra) throw std::runtime_error(where + ": expected " + std::to_string(N) + " numbers, found '" + *text + "'");
+  return out;
+}
+
+uint64_t parse_uint(const std::string* text, uint64_t fallback, const std::string& where) {
+  if (!text) return fallback;
+  auto v = parse_number(*text);
+  if (!v || *v < 0 || *v != std::floor(*v) || *v > 9.0e15)
+    throw std::runtime_error(where + ": expected a non-negative integer, found '" + *text + "'");
+  return static_cast<uint64_t>(*v);
+}
+
+VtiDocument parse_document(std::string_view bytes, const std::string& file) {
+  VtiDocument doc;
+  // Raw appended data is not XML: parse the part before it, closed by hand.
+  std::string xml_copy;
+  std::string_view xml = bytes;
+  const size_t app = bytes.find("<AppendedData");
+  if (app != std::string_view::npos) {
+    const size_t gt = bytes.find('>', app);
+    if (gt == std::string_view::npos) throw std::runtime_error(file + ": unterminated <AppendedData> tag");
+    const bool self_closing = gt > 0 && bytes[gt - 1] == '/';
+    xml_copy.assign(bytes.substr(0, gt + 1));
+    xml_copy += self_closing ? "</VTKFile>" : "</AppendedData></VTKFile>";
+    xml = xml_copy;
+    if (!self_closing) {
+      size_t p = gt + 1;
+      while (p < bytes.size() && std::isspace(static_cast<unsigned char>(bytes[p]))) ++p;
+      if (p >= bytes.size() || bytes[p] != '_')
+        throw std::runtime_error(file + ": appended data must start with '_'");
+      doc.has_appended = true;
+      doc.appended_begin = p + 1;
+    }
+  }
+  auto root = parse_xml(xml, file);
+  if (root->name != "VTKFile") throw std::runtime_error(file + ": the root element is <" + root->name + ">, not <VTKFile>");
+  const std::string* type = root->attribute("type");
+  if (!type || *type != "ImageData")
+    throw std::runtime_error(file + ": VTK XML type '" + (type ? *type : std::string("?")) +
+                             "' is not supported (only ImageData, .vti)");
+  if (auto* bo = root->attribute("byte_order")) {
+    if (*bo != "LittleEndian" && *bo != "BigEndian") throw std::runtime_error(file + ": unknown byte_order '" + *bo + "'");
+    doc.big_endian = *bo == "BigEndian";
+  }
+  if (auto* ht = root->attribute("header_type")) {
+    if (*ht != "UInt32" && *ht != "UInt64") throw std::runtime_error(file + ": unknown header_type '" + *ht + "'");
+    doc.header64 = *ht == "UInt64";
+  }
+  if (auto* comp = root->attribute("compressor"); comp && !comp->empty()) {
+    if (*comp != "vtkZLibDataCompressor")
+      throw std::runtime_error(file + ": compressor '" + *comp + "' is not supported (only vtkZLibDataCompressor)");
+    doc.compressed = true;
+  }
+  if (const XmlElement* ad = root->child("AppendedData"); ad && doc.has_appended) {
+    const std::string* enc = ad->attribute("encoding");
+    if (!enc || (*enc != "raw" && *enc != "base64"))
+      throw std::runtime_error(file + ": AppendedData encoding must be raw or base64");
+    doc.appended_base64 = *enc == "base64";
+  }
+  const XmlElement* image = root->child("ImageData");
+  if (!image) throw std::runtime_error(file + ": no <ImageData> element");
+  const std::string* we = image->attribute("WholeExtent");
+  if (!we) throw std::runtime_error(file + ": <ImageData> has no WholeExtent");
+  auto extent = parse_numbers<6>(we, {}, file + ": WholeExtent");
+  for (int i = 0; i < 3; ++i) {
+    const double lo = extent[2 * i], hi = extent[2 * i + 1];
+    if (lo != std::floor(lo) || hi != std::floor(hi) || hi < lo || hi - lo >= double(kMaxVoxels))
+      throw std::runtime_error(file + ": bad WholeExtent '" + *we + "'");
+    doc.dims[i] = static_cast<uint64_t>(hi - lo) + 1;
+  }
+  const uint64_t points = checked_voxel_count(doc.dims, file);
+  doc.spacing = parse_numbers<3>(image->attribute("Spacing"), {1.0, 1.0, 1.0}, file + ": Spacing");
+  for (double& s : doc.spacing) {
+    if (!std::isfinite(s) || s == 0) throw std::runtime_error(file + ": Spacing must be finite and non-zero");
+    s = std::abs(s);  // a negative spacing mirrors the axis; the voxel size is its magnitude
+  }
+  auto pieces = image->children_named("Piece");
+  if (pieces.size() != 1)
+    throw std::runtime_error(file + ": " + std::to_string(pieces.size()) + " <Piece> elements; only single-piece files are supported");
+  if (auto* pe = pieces[0]->attribute("Extent"); pe && parse_numbers<6>(pe, {}, file + ": Piece Extent") != extent)
+    throw std::runtime_error(file + ": the piece's Extent differs from WholeExtent (partial pieces are not supported)");
+  uint64_t cells = 1;
+  for (uint64_t d : doc.dims) cells *= std::max<uint64_t>(1, d - 1);
+
+  auto collect = [&](const XmlElement* parent, const std::string& section, uint64_t tuples) {
+    if (!parent) return;
+    if (section == "point data")
+      if (auto* s = parent->attribute("Scalars")) doc.active_scalars = *s;
+    int index = 0;
+    for (const XmlElement* da : parent->children_named("DataArray")) {
+      VtiArray a;
+      const std::string where = file + ": line " + std::to_string(da->line) + ": DataArray";
+      a.section = section;
+      a.line = da->line;
+      const std::string* t = da->attribute("type");
+      if (!t) throw std::runtime_error(where + " has no type");
+      a.type = parse_vti_type(*t, where);
+      a.name = da->attribute("Name") ? *da->attribute("Name") : "array" + std::to_string(index);
+      a.components = parse_uint(da->attribute("NumberOfComponents"), 1, where + " NumberOfComponents");
+      if (a.components == 0 || a.components > 1024) throw std::runtime_error(where + ": NumberOfComponents must be 1..1024");
+      a.tuples = section == "field data" ? parse_uint(da->attribute("NumberOfTuples"), 1, where + " NumberOfTuples") : tuples;
+      a.format = da->attribute("format") ? *da->attribute("format") : "ascii";
+      if (a.format != "ascii" && a.format != "binary" && a.format != "appended")
+        throw std::runtime_error(where + ": unknown format '" + a.format + "'");
+      if (a.format == "appended") {
+        if (!doc.has_appended) throw std::runtime_error(where + " '" + a.name + "' is appended, but the file has no AppendedData");
+        a.offset = parse_uint(da->attribute("offset"), 0, where + " offset");
+      }
+      a.content_begin = da->content_begin;
+      a.content_end = da->content_end;
+      doc.arrays.push_back(a);
+      ++index;
+    }
+  };
+  collect(pieces[0]->child("PointData"), "point data", points);
+  collect(pieces[0]->child("CellData"), "cell data", cells);
+  collect(image->child("FieldData"), "field data", 0);
+  return doc;
+}
+
+// Where an array's bytes come from: raw bytes in place, or base64 decoded on demand.
+class ByteSource {
+ public:
+  ByteSource(std::string_view raw, bool base64) : raw_(raw) {
+    if (base64) b64_.emplace(raw);
+  }
+  uint64_t upper_bound() const { return b64_ ? b64_->remaining_upper_bound() : raw_.size() - pos_; }
+  // Exactly n bytes, or throws (the caller adds the file and array).
+  std::string_view read(uint64_t n) {
+    if (n > upper_bound()) throw std::runtime_error("data truncated: " + std::to_string(n) + " bytes needed, at most " +
+                                                    std::to_string(upper_bound()) + " present");
+    if (!b64_) {
+      std::string_view v = raw_.substr(pos_, n);
+      pos_ += n;
+      return v;
+    }
+    buffer_.clear();
+    if (b64_->read(n, buffer_) != n) throw std::runtime_error("base64 data truncated: " + std::to_string(n) + " bytes needed");
+    return buffer_;
+  }
+
+ private:
+  std::string_view raw_;
+  size_t pos_ = 0;
+  std::optional<Base64Decoder> b64_;
+  std::string buffer_;
+};
+
+uint64_t read_header_uint(ByteSource& src, const VtiDocument& doc) {
+  std::string_view b = src.read(doc.header64 ? 8 : 4);
+  uint64_t v = 0;
+  for (size_t i = 0; i < b.size(); ++i) {
+    const size_t k = doc.big_endian ? i : b.size() - 1 - i;
+    v = (v << 8) | static_cast<unsigned char>(b[k]);
+  }
+  return v;
+}
+
+// The array's decompressed bytes, exactly `expected` of them.
+std::string read_binary(ByteSource& src, const VtiDocument& doc, uint64_t expected, const std::string& where) {
+  std::string out;
+  if (!doc.compressed) {
+    const uint64_t n = read_header_uint(src, doc);
+    if (n != expected)
+      throw std::runtime_error(where + ": its header says " + std::to_string(n) + " bytes, the array needs " +
+                               std::to_string(expected));
+    out.assign(src.read(n));
+    return out;
+  }
+  const uint64_t hb = doc.header64 ? 8 : 4;
+  const uint64_t blocks = read_header_uint(src, doc);
+  const uint64_t block_size = read_header_uint(src, doc);
+  const uint64_t last_size = read_header_uint(src, doc);
+  if (blocks > src.upper_bound() / hb) throw std::runtime_error(where + ": compression header names more blocks than the file holds");
+  if (blocks > 0 && (block_size == 0 || last_size > block_size))
+    throw std::runtime_error(where + ": bad compression header (block size " + std::to_string(block_size) + ", last block " +
+                             std::to_string(last_size) + ")");
+  const uint64_t total =
+      blocks == 0 ? 0 : checked_mul(blocks - 1, block_size, kMaxVoxels * 8, where, "compressed size") + (last_size ? last_size : block_size);
+  if (total != expected)
+    throw std::runtime_error(where + ": compressed blocks hold " + std::to_string(total) + " bytes, the array needs " +
+                             std::to_string(expected));
+  std::vector<uint64_t> sizes(blocks);
+  uint64_t compressed = 0;
+  for (auto& s : sizes) {
+    s = read_header_uint(src, doc);
+    if (s > src.upper_bound()) throw std::runtime_error(where + ": a compressed block is larger than the data present");
+    compressed += s;
+  }
+  if (compressed > src.upper_bound()) throw std::runtime_error(where + ": compressed blocks are larger than the data present");
+  if (expected > kMaxDeflateRatio * compressed + 1024)
+    throw std::runtime_error(where + ": " + std::to_string(compressed) + " compressed bytes cannot hold " +
+                             std::to_string(expected) + " bytes");
+  out.resize(expected);
+  uint64_t done = 0;
+  for (uint64_t b = 0; b < blocks; ++b) {
+    const uint64_t want = (b + 1 == blocks && last_size) ? last_size : block_size;
+    std::string_view in = src.read(sizes[b]);
+    uLongf got = static_cast<uLongf>(want);
+    const int rc = uncompress(reinterpret_cast<Bytef*>(out.data() + done), &got,
+                              reinterpret_cast<const Bytef*>(in.data()), static_cast<uLong>(in.size()));
+    if (rc != Z_OK || got != want)
+      throw std::runtime_error(where + ": zlib block " + std::to_string(b) + " is corrupt (" +
+                               (rc == Z_OK ? "wrong size" : zError(rc)) + ")");
+    done += want;
+  }
+  return out;
+}
+
+std::vector<float> decode_array(std::string_view bytes, const VtiDocument& doc, const VtiArray& a, const std::string& file) {
+  const std::string where = file + ": array '" + a.name + "'";
+  const uint64_t count = checked_mul(a.tuples, a.components, kMaxVoxels, file, "array '" + a.name + "'");
+  std::vector<float> v;
+  if (a.format == "ascii") {
+    std::string_view text = bytes.substr(a.content_begin, a.content_end - a.content_begin);
+    if (count > (text.size() + 1) / 2) throw std::runtime_error(where + ": needs " + std::to_string(count) + " values, the text is too short");
+    v.resize(count);
+    size_t p = 0;
+    auto space = [&](char c) { return std::isspace(static_cast<unsigned char>(c)) != 0; };
+    for (uint64_t i = 0; i < count; ++i) {
+      while (p < text.size() && space(text[p])) ++p;
+      size_t b = p;
+      while (p < text.size() && !space(text[p])) ++p;
+      auto n = parse_number(text.substr(b, p - b));
+      if (!n) throw std::runtime_error(where + ": value " + std::to_string(i) + " is '" + std::string(text.substr(b, p - b)) + "', not a number");
+      v[i] = static_cast<float>(*n);
+    }
+    while (p < text.size() && space(text[p])) ++p;
+    if (p != text.size()) throw std::runtime_error(where + ": more values than " + std::to_string(count));
+    return v;
+  }
+  if (a.format == "appended" && a.offset > bytes.size() - doc.appended_begin)
+    throw std::runtime_error(where + ": offset " + std::to_string(a.offset) + " lies beyond the end of the file");
+  std::string_view region = a.format == "binary" ? bytes.substr(a.content_begin, a.content_end - a.content_begin)
+                                                 : bytes.substr(doc.appended_begin + a.offset);
+  ByteSource src(region, a.format == "binary" || doc.appended_base64);
+  std::string raw;
+  try {
+    raw = read_binary(src, doc, count * element_bytes(a.type), where);
+  } catch (const std::runtime_error& e) {
+    const std::string m = e.what();
+    throw std::runtime_error(m.rfind(file, 0) == 0 ? m : where + ": " + m);
+  }
+  v.resize(count);
+  decode_elements(raw.data(), count, a.type, doc.big_endian, v.data());
+  return v;
+}
+
+std::array<uint64_t, 3> grid_of(const VtiDocument& doc, const VtiArray& a) {
+  std::array<uint64_t, 3> g = doc.dims;
+  if (a.section == "cell data")
+    for (auto& d : g) d = std::max<uint64_t>(1, d - 1);
+  return g;
+}
+
+std::string format_double(double v) {
+  std::ostringstream os;
+  os.precision(17);
+  os << v;
+  return os.str();
+}
+
+}  // namespace
+
+Volume parse_vti(std::string_view bytes, const std::string& file, const VolumeOptions& options) {
+  VtiDocument doc = parse_document(bytes, file);
+  const ArraySelector sel = parse_array_selector(options.variable, file);
+  // Without a name: the active scalars, else the first point array, else the first cell array.
+  auto rank = [&](const VtiArray& a) {
+    return a.section == "point data" ? (a.name == doc.active_scalars ? 0 : 1) : 2;
+  };
+  const VtiArray& pick = pick_grid_array(doc.arrays, sel, rank, file);
+  Volume v;
+  v.dims = grid_of(doc, pick);
+  v.spacing = doc.spacing;
+  v.name = file + ":" + pick.name + (sel.component ? "[" + std::to_string(*sel.component) + "]" : "");
+  v.values = select_component(decode_array(bytes, doc, pick, file), pick.components, sel.component, v.name);
+  return v;
+}
+
+Volume read_vti_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  return parse_vti(read_file_bytes(path), path.string(), options);
+}
+
+FileInfo describe_vti(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  const std::string bytes = read_file_bytes(path);
+  VtiDocument doc = parse_document(bytes, file);
+  FileInfo info{file, "VTK XML ImageData", {}, {}};
+  info.notes.push_back(std::string(doc.big_endian ? "big-endian" : "little-endian") + ", header " +
+                       (doc.header64 ? "UInt64" : "UInt32") + (doc.compressed ? ", zlib-compressed" : ", uncompressed") +
+                       (doc.has_appended ? (doc.appended_base64 ? ", appended base64" : ", appended raw") : ""));
+  for (const auto& a : doc.arrays) {
+    ArrayInfo ai;
+    ai.name = a.name;
+    ai.kind = a.section + (a.name == doc.active_scalars && a.section == "point data" ? " (active scalars)" : "");
+    ai.type = element_type_name(a.type);
+    ai.components = a.components;
+    ai.shape = std::to_string(a.tuples) + " tuples x " + std::to_string(a.components) + " components, format " + a.format;
+    if (a.section != "field data") {
+      ai.grid = grid_of(doc, a);
+      ai.spacing = doc.spacing;
+    }
+    if (a.components > 1) ai.notes.push_back("loads as the magnitude; NAME[k] picks component k");
+    std::vector<float> v = select_component(decode_array(bytes, doc, a, file), a.components, std::nullopt, file);
+    accumulate_stats(ai, v.data(), v.size());
+    info.arrays.push_back(std::move(ai));
+  }
+  return info;
+}
+
+void write_vti(const std::filesystem::path& path, const std::vector<std::pair<std::string, const Volume*>>& arrays,
+               const VtiWriteOptions& options) {
+  if (arrays.empty()) throw std::invalid_argument("write_vti: no arrays");
+  const Volume& first = *arrays.front().second;
+  for (const auto& [name, v] : arrays) {
+    if (v->dims != first.dims)
+      throw std::runtime_error(path.string() + ": arrays to write are on different grids (" + arrays.front().first + ", " + name + ")");
+    if (v->values.size() != v->voxel_count()) throw std::invalid_argument("write_vti: volume size does not match its dims");
+  }
+  std::ostringstream xml;
+  const auto& d = first.dims;
+  const std::string extent = "0 " + std::to_string(d[0] - 1) + " 0 " + std::to_string(d[1] - 1) + " 0 " + std::to_string(d[2] - 1);
+  xml << "<?xml version=\"1.0\"?>\n<VTKFile type=\"ImageData\" version=\"1.0\" byte_order=\"LittleEndian\" "
+         "header_type=\"UInt64\""
+      << (options.compress ? " compressor=\"vtkZLibDataCompressor\"" : "") << ">\n"
+      << "  <ImageData WholeExtent=\"" << extent << "\" Origin=\"0 0 0\" Spacing=\"" << format_double(first.spacing[0]) << " "
+      << format_double(first.spacing[1]) << " " << format_double(first.spacing[2]) << "\">\n"
+      << "    <Piece Extent=\"" << extent << "\">\n"
+      << "      <PointData Scalars=\"" << xml_escape(arrays.front().first) << "\">\n";
+  std::string appended;
+  for (const auto& [name, v] : arrays) {
+    // Payload: little-endian float32.
+    std::string data(v->values.size() * 4, '\0');
+    for (size_t i = 0; i < v->values.size(); ++i) {
+      uint32_t bits = std::bit_cast<uint32_t>(v->values[i]);
+      if constexpr (std::endian::native == std::endian::big) bits = __builtin_bswap32(bits);
+      std::memcpy(data.data() + i * 4, &bits, 4);
+    }
+    auto put64 = [](std::string& s, uint64_t x) {
+      for (int b = 0; b < 8; ++b) s.push_back(static_cast<char>((x >> (8 * b)) & 0xff));
+    };
+    const uint64_t offset = appended.size();
+    if (!options.compress) {
+      put64(appended, data.size());
+      appended += data;
+    } else {
+      const uint64_t block = 32768;
+      const uint64_t blocks = (data.size() + block - 1) / block;
+      std::string header, body;
+      put64(header, blocks);
+      put64(header, block);
+      put64(header, data.size() % block);
+      for (uint64_t b = 0; b < blocks; ++b) {
+        const uint64_t n = std::min<uint64_t>(block, data.size() - b * block);
+        std::string out(compressBound(static_cast<uLong>(n)), '\0');
+        uLongf got = static_cast<uLongf>(out.size());
+        if (compress2(reinterpret_cast<Bytef*>(out.data()), &got, reinterpret_cast<const Bytef*>(data.data() + b * block),
+                      static_cast<uLong>(n), Z_DEFAULT_COMPRESSION) != Z_OK)
+          throw std::runtime_error(path.string() + ": zlib compression failed");
+        put64(header, got);
+        body.append(out.data(), got);
+      }
+      appended += header + body;
+    }
+    float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+    for (float x : v->values)
+      if (std::isfinite(x)) lo = std::min(lo, x), hi = std::max(hi, x);
+    xml << "        <DataArray type=\"Float32\" Name=\"" << xml_escape(name) << "\" NumberOfComponents=\"1\" format=\"appended\"";
+    if (lo <= hi) xml << " RangeMin=\"" << format_double(lo) << "\" RangeMax=\"" << format_double(hi) << "\"";
+    xml << " offset=\"" << offset << "\"/>\n";
+  }
+  xml << "      </PointData>\n      <CellData>\n      </CellData>\n    </Piece>\n  </ImageData>\n"
+      << "  <AppendedData encoding=\"raw\">\n   _";
+  std::string bytes = xml.str();
+  bytes += appended;
+  bytes += "\n  </AppendedData>\n</VTKFile>\n";
+  write_file_atomically(path, bytes);
+}
+
+void write_vti(const std::filesystem::path& path, const Volume& volume, const std::string& array_name,
+               const VtiWriteOptions& options) {
+  write_vti(path, {{array_name, &volume}}, options);
+}
+
+}  // namespace tfm

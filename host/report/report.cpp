@@ -1,0 +1,202 @@
+// Report generation: renders and plots on the device, measures the images, writes PNGs,
+// metrics.json, overview.png and index.html (tools/app/render_report_html.cpp).
+#include "report.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "atomic_file.h"
+#include "camera.h"
+#include "gpu_voxel_ops.h"
+#include "png_io.h"
+#include "progress.h"
+#include "render.h"
+#include "render_report_html.h"
+#include "residual.h"
+#include "tf_plot.h"
+
+namespace tfm {
+namespace {
+
+double max_value(const Volume& v) {
+  double m = 0.0;
+  for (float x : v.values)
+    if (std::isfinite(x)) m = std::max(m, double(x));
+  return m;
+}
+
+// Rows of panels stacked top to bottom, each row centred.
+Image stack_rows(const std::vector<Image>& rows, Rgb8 background) {
+  uint32_t w = 0, h = 0;
+  for (const Image& r : rows) w = std::max(w, r.width), h += r.height;
+  Image out(w, h, background);
+  int y = 0;
+  for (const Image& r : rows) {
+    blit(out, r, int(w - r.width) / 2, y);
+    y += int(r.height);
+  }
+  return out;
+}
+
+// The numbers as a picture, for overview.png (the HTML page has them as a table).
+Image metrics_panel(const ReportSummary& s, const OptimizeResult& r, uint32_t width, uint32_t height) {
+  Image img(width, height);
+  const Rgb8 ink{30, 30, 30}, muted{110, 110, 110};
+  auto cell = [](const std::string& text, size_t w) { return text + std::string(text.size() < w ? w - text.size() : 1, ' '); };
+  auto row = [&](const std::string& name, double before, double after, int digits) {
+    return cell(name, 13) + cell(report_number(before, digits), 9) + report_number(after, digits);
+  };
+  const std::vector<std::pair<std::string, Rgb8>> lines = {
+      {cell("", 13) + cell("ref TF", 9) + "opt TF", muted},
+      {row("image RMSE", s.before.rmse, s.after.rmse, 4), ink},
+      {row("PSNR dB", s.before.psnr, s.after.psnr, 4), ink},
+      {row("SSIM", s.before.ssim, s.after.ssim, 3), ink},
+      {"", ink},
+      {row("voxel RMSE", r.before.rmse(), r.after.rmse(), 3), ink},
+      {row("residual max", s.residual_max_before, s.residual_max_after, 3), ink},
+      {"", ink},
+      {"solver: " + r.solver, muted},
+  };
+  // Scale 2 when the widest line fits, else 1 (small test images).
+  size_t widest = 0;
+  for (const auto& l : lines) widest = std::max(widest, l.first.size());
+  const int scale = text_width(std::string(widest, 'x'), 2) + 24 <= int(width) ? 2 : 1;
+  int y = 16;
+  for (const auto& [text, colour] : lines) {
+    draw_text(img, 12, y, text, colour, scale);
+    y += text_height(scale) + 4 * scale + (text.empty() ? -4 * scale : 0);
+  }
+  return img;
+}
+
+nlohmann::json settings_json(const RenderSettings& s) {
+  return {{"width", s.width},
+          {"height", s.height},
+          {"step_voxels", s.step_voxels},
+          {"opacity_scale", s.opacity_scale},
+          {"background", s.background},
+          {"termination_opacity", s.termination_opacity},
+          {"camera",
+           {{"azimuth_deg", s.camera.azimuth_deg},
+            {"elevation_deg", s.camera.elevation_deg},
+            {"distance", s.camera.distance},
+            {"fov_deg", s.camera.fov_deg}}}};
+}
+
+}  // namespace
+
+ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::filesystem::path& dir) {
+  require_same_grid(in.ref, in.field);
+  const OptimizeResult& r = in.result;
+  const RenderSettings& s = in.settings;
+  validate(s);
+  std::filesystem::create_directories(dir);
+  ReportSummary out;
+  Progress progress("report", 10);
+  uint64_t step = 0;
+  auto advance = [&](const char* what) {
+    progress.set_label(std::string("report: ") + what);
+    progress.update(++step);
+  };
+  auto save = [&](const std::string& name, const Image& img) {
+    write_png(dir / name, img);
+    out.files.push_back(name);
+  };
+
+  // Both fields and the three TF tables on the device once; every picture below reuses them.
+  const VolumeGeometry geometry = VolumeGeometry::from(in.ref.dims, in.ref.spacing);
+  DeviceField ref(ctx, in.ref.values, "report: reference field");
+  DeviceField field(ctx, in.field.values, "report: second field", ref.chunk_voxels());
+  Buffer ref_tf = upload_tf(ctx, in.ref_tf, "report: reference TF");
+  Buffer opt_tf = upload_tf(ctx, r.tf, "report: optimized TF");
+  const uint32_t ref_n = uint32_t(in.ref_tf.size()), opt_n = uint32_t(r.tf.size());
+  const FieldMapping ref_map = make_mapping(r.ref_range, ref_n);
+  const FieldMapping field_ref_tf_map = make_mapping(r.field_range, ref_n);
+  const FieldMapping field_opt_tf_map = make_mapping(r.field_range, opt_n);
+  GpuRenderer ref_renderer(ctx, ref, geometry);
+  GpuRenderer field_renderer(ctx, field, geometry);
+
+  advance("rendering the reference");
+  const Image ref_img = composite_over(ref_renderer.render(ref_map, ref_tf, s), s.background);
+  advance("rendering the field with the reference TF");
+  const Image before_img = composite_over(field_renderer.render(field_ref_tf_map, ref_tf, s), s.background);
+  advance("rendering the field with the optimized TF");
+  const Image after_img = composite_over(field_renderer.render(field_opt_tf_map, opt_tf, s), s.background);
+  save("reference.png", ref_img);
+  save("field_reference_tf.png", before_img);
+  save("field_optimized_tf.png", after_img);
+  out.before = compare_images(ref_img, before_img);
+  out.after = compare_images(ref_img, after_img);
+
+  advance("residual maps");
+  const Volume res_before = residual_map_gpu(ctx, in.ref, ref, field, ref_map, field_ref_tf_map, ref_tf, ref_tf);
+  const Volume res_after = residual_map_gpu(ctx, in.ref, ref, field, ref_map, field_opt_tf_map, ref_tf, opt_tf);
+  out.residual_max_before = max_value(res_before);
+  out.residual_max_after = max_value(res_after);
+  // One display range for both, so the two pictures are comparable.
+  const FieldRange res_range = residual_display_range({&res_before, &res_after});
+  const TransferFunction res_tf = residual_transfer_function();
+  advance("rendering residual maps");
+  Buffer res_tf_buf = upload_tf(ctx, res_tf, "report: residual TF");
+  const FieldMapping res_map = make_mapping(res_range, uint32_t(res_tf.size()));
+  Image res_imgs[2];
+  for (int k = 0; k < 2; ++k) {
+    DeviceField res(ctx, (k == 0 ? res_before : res_after).values, "report: residual map");
+    res_imgs[k] = composite_over(GpuRenderer(ctx, res, geometry).render(res_map, res_tf_buf, s), s.background);
+  }
+  save("residual_reference_tf.png", res_imgs[0]);
+  save("residual_optimized_tf.png", res_imgs[1]);
+
+  advance("TF plots");
+  TfPlotOptions plot;
+  plot.width = std::max<uint32_t>(s.width, 256);
+  plot.title = "Reference TF, reference field histogram";
+  const Image plot_ref = plot_transfer_function(in.ref_tf, in.ref.values, r.ref_range, plot);
+  plot.title = "Reference TF, field histogram";
+  const Image plot_before = plot_transfer_function(in.ref_tf, in.field.values, r.field_range, plot);
+  plot.title = "Optimized TF, field histogram";
+  const Image plot_opt = plot_transfer_function(r.tf, in.field.values, r.field_range, plot);
+  plot.title = "Residual TF, histogram after";
+  const Image plot_res = plot_transfer_function(res_tf, res_after.values, res_range, plot);
+  save("tf_reference.png", plot_ref);
+  save("tf_field_reference.png", plot_before);
+  save("tf_optimized.png", plot_opt);
+  save("tf_residual.png", plot_res);
+  for (const ReportFigure& f : in.extra_figures) save(f.file, f.image);
+
+  advance("overview");
+  const Image overview = stack_rows(
+      {compose_panels({{ref_img, "Reference"}, {before_img, "Field, reference TF"}, {after_img, "Field, optimized TF"}}, 3),
+       compose_panels({{plot_ref, ""}, {plot_before, ""}, {plot_opt, ""}}, 3),
+       compose_panels({{metrics_panel(out, r, s.width, s.height), "Metrics"},
+                       {res_imgs[0], "Residual, reference TF"},
+                       {res_imgs[1], "Residual, optimized TF"}},
+                      3)},
+      {255, 255, 255});
+  save("overview.png", overview);
+
+  advance("metrics.json");
+  nlohmann::json metrics;
+  metrics["images"] = {{"reference_tf", out.before.to_json()}, {"optimized_tf", out.after.to_json()}};
+  metrics["voxels"] = {{"rmse_reference_tf", r.before.rmse()}, {"rmse_optimized_tf", r.after.rmse()},
+                       {"mae_reference_tf", r.before.mae()},   {"mae_optimized_tf", r.after.mae()},
+                       {"voxels_with_data", r.after.voxels}};
+  metrics["residual"] = {{"max_reference_tf", out.residual_max_before},
+                         {"max_optimized_tf", out.residual_max_after},
+                         {"display_range", {res_range.lo, res_range.hi}}};
+  metrics["render_settings"] = settings_json(s);
+  metrics["optimize"] = r.to_json();
+  metrics["fields"] = {{"reference", in.ref.name}, {"field", in.field.name}, {"dims", in.ref.dims}};
+  if (!in.extra_metrics.is_null()) metrics["extra"] = in.extra_metrics;
+  write_file_atomically(dir / "metrics.json", metrics.dump(2) + "\n");
+  out.files.push_back("metrics.json");
+
+  advance("index.html");
+  write_file_atomically(dir / "index.html", report_html(in, out, metrics));
+  out.files.push_back("index.html");
+  out.index = dir / "index.html";
+  progress.finish();
+  return out;
+}
+
+}  // namespace tfm

@@ -1,0 +1,66 @@
+// The host solver of the voxel least-squares system (kernels/normal_equations_system.h): tridiagonal
+// LDL^T or column-pivoted QR, ridge and smoothness regularization, cond(M).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "field_mapping.h"
+#include "normal_equations_system.h"
+#include "transfer_function.h"
+
+namespace tfm {
+
+enum class Factorization { Auto, LDLT, QR };
+
+struct SolveOptions {
+  // Both are relative to the mean diagonal of M (voxels per TF entry), so a value means the
+  // same for any volume size: ridge adds ridge*mean(diag) I, smooth adds smooth*mean(diag) D^T D.
+  double ridge = 0.0;
+  double smooth = 0.0;
+  Factorization factorization = Factorization::Auto;
+  // cond(M) above which the result is flagged as unreliable (see condition_warning_threshold()).
+  double cond_warning = 1e4;
+};
+
+// Absolute weights of the regularization R = ridge I + smooth D^T D (D: first differences),
+// i.e. SolveOptions' relative weights times mean(diag M). Every solver minimizes
+// ||S x - b||^2 + x^T R x per channel with these.
+struct Regularization {
+  double ridge = 0.0;
+  double smooth = 0.0;
+};
+Regularization absolute_regularization(const NormalEquations& eq, const SolveOptions& options);
+
+// A symmetric tridiagonal matrix: diag (n) and off-diagonal (n-1).
+struct Tridiagonal {
+  std::vector<double> diag;
+  std::vector<double> off;
+};
+// M + R.
+Tridiagonal regularized_matrix(const NormalEquations& eq, const Regularization& r);
+
+struct SolveResult {
+  TransferFunction tf;                             // clamped to [0,1]
+  Eigen::Matrix<double, Eigen::Dynamic, 4> x;      // unclamped least-squares solution
+  std::string factorization;                       // "ldlt" or "column-pivoted-qr"
+  double cond = 0.0;                               // of the regularized M (inf when singular)
+  double lambda_min = 0.0, lambda_max = 0.0;
+  uint32_t unreferenced_entries = 0;               // TF entries no voxel touches (zero row of M)
+  uint32_t clamped_values = 0;                     // components moved into [0,1]
+  std::vector<std::string> warnings;
+};
+
+// Solves (M + regularization) x = S^T b for the four channels at once. Throws
+// std::runtime_error if no voxel has data.
+SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions& options = {});
+
+// Eigenvalues (ascending) of the symmetric tridiagonal matrix given by diag/off.
+Eigen::VectorXd tridiagonal_eigenvalues(const std::vector<double>& diag, const std::vector<double>& off);
+
+}  // namespace tfm

@@ -1,0 +1,75 @@
+// GPU normal-equation assembly and voxel loss over device fields.
+#include "gpu_voxel_ops.h"
+
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+#include "commands.h"
+
+namespace tfm {
+
+GpuNormalEquations::GpuNormalEquations(Context& ctx, uint32_t tf_size, bool force_global_atomics, uint32_t run)
+    : ctx_(ctx),
+      kernel_(ctx, tf_size, force_global_atomics, run),
+      accum_(ctx, uint64_t(kernel_.slots()) * 2 * sizeof(uint32_t), MemoryUsage::Device, "normal-equation accumulators") {
+  reset();
+}
+
+void GpuNormalEquations::reset() { fill(ctx_, accum_, 0u); }
+
+double GpuNormalEquations::add(const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
+                               const FieldMapping& opt_map, const Buffer& ref_tf) {
+  CommandBatch batch(ctx_);
+  uint32_t t0 = batch.timestamp();
+  kernel_.record(batch, ref, opt, ref_map, opt_map, ref_tf, accum_);
+  uint32_t t1 = batch.timestamp();
+  batch.submit_and_wait();
+  return batch.elapsed_ms(t0, t1);
+}
+
+NormalEquations GpuNormalEquations::result() const {
+  std::vector<uint32_t> words(size_t(kernel_.slots()) * 2);
+  readback(ctx_, accum_, words.data(), words.size() * sizeof(uint32_t));
+  std::vector<double> slots = decode_fixed_point(words);
+  return NormalEquations::from_slots(kernel_.tf_size(), slots);
+}
+
+double VoxelLoss::rmse() const {
+  if (voxels == 0) return 0.0;
+  return std::sqrt((squared[0] + squared[1] + squared[2] + squared[3]) / (4.0 * double(voxels)));
+}
+
+double VoxelLoss::mae() const {
+  if (voxels == 0) return 0.0;
+  return (absolute[0] + absolute[1] + absolute[2] + absolute[3]) / (4.0 * double(voxels));
+}
+
+VoxelLoss voxel_loss_gpu(Context& ctx, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
+                         const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, double* gpu_ms) {
+  VoxelLossKernel kernel(ctx);
+  Buffer accum(ctx, TFM_LOSS_SLOTS * 2 * sizeof(uint32_t), MemoryUsage::Device, "voxel loss accumulators");
+  CommandBatch batch(ctx);
+  batch.fill(accum, 0u);
+  batch.barrier();
+  uint32_t t0 = batch.timestamp();
+  kernel.record(batch, ref, opt, ref_map, opt_map, ref_tf, opt_tf, accum);
+  uint32_t t1 = batch.timestamp();
+  batch.submit_and_wait();
+  if (gpu_ms) *gpu_ms = batch.elapsed_ms(t0, t1);
+  std::vector<uint32_t> words(TFM_LOSS_SLOTS * 2);
+  readback(ctx, accum, words.data(), words.size() * sizeof(uint32_t));
+  std::vector<double> s = decode_fixed_point(words);
+  VoxelLoss loss;
+  for (int c = 0; c < 4; ++c) loss.squared[c] = s[c], loss.absolute[c] = s[4 + c];
+  loss.voxels = static_cast<uint64_t>(std::llround(s[8]));
+  return loss;
+}
+
+Buffer upload_tf(Context& ctx, std::span<const float> rgba, const std::string& name) {
+  if (rgba.size() % 4 != 0 || rgba.size() < 8)
+    throw std::invalid_argument("upload_tf(" + name + "): need 4 floats per entry and at least 2 entries");
+  return make_buffer<float>(ctx, rgba, name);
+}
+
+}  // namespace tfm

@@ -1,0 +1,45 @@
+// The decoded normal equations: from fixed-point slots, dense M, and the residual from the system alone.
+#include "normal_equations_system.h"
+
+#include <stdexcept>
+
+namespace tfm {
+
+NormalEquations::NormalEquations(uint32_t n_) : n(n_), diag(n_, 0.0), off(n_ ? n_ - 1 : 0, 0.0), rhs(n_, 4) {
+  rhs.setZero();
+}
+
+NormalEquations NormalEquations::from_slots(uint32_t n, std::span<const double> s) {
+  if (s.size() < 6u * n + 4u) throw std::invalid_argument("NormalEquations::from_slots: too few slots");
+  NormalEquations eq(n);
+  for (uint32_t j = 0; j < n; ++j) eq.diag[j] = s[j];
+  for (uint32_t j = 0; j + 1 < n; ++j) eq.off[j] = s[n + j];
+  for (uint32_t j = 0; j < n; ++j)
+    for (int c = 0; c < 4; ++c) eq.rhs(j, c) = s[2 * n - 1 + 4 * j + c];
+  for (int c = 0; c < 4; ++c) eq.btb[c] = s[6 * n - 1 + c];
+  eq.voxels = static_cast<uint64_t>(std::llround(s[6 * n + 3]));
+  return eq;
+}
+
+Eigen::MatrixXd NormalEquations::dense_m() const {
+  Eigen::MatrixXd m = Eigen::MatrixXd::Zero(n, n);
+  for (uint32_t j = 0; j < n; ++j) m(j, j) = diag[j];
+  for (uint32_t j = 0; j + 1 < n; ++j) m(j, j + 1) = m(j + 1, j) = off[j];
+  return m;
+}
+
+double NormalEquations::residual_squared(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x) const {
+  // ||Sx - b||^2 = x^T M x - 2 x^T S^T b + b^T b per channel.
+  double total = 0.0;
+  for (int c = 0; c < 4; ++c) {
+    double xmx = 0.0;
+    for (uint32_t j = 0; j < n; ++j) {
+      xmx += diag[j] * x(j, c) * x(j, c);
+      if (j + 1 < n) xmx += 2.0 * off[j] * x(j, c) * x(j + 1, c);
+    }
+    total += xmx - 2.0 * x.col(c).dot(rhs.col(c)) + btb[c];
+  }
+  return std::max(total, 0.0);
+}
+
+}  // namespace tfm
