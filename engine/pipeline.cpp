@@ -9,8 +9,6 @@
 
 namespace tfm {
 
-std::span<const uint32_t> shader_spirv(std::string_view name);  // shaders/shader_registry.cpp
-
 ComputePipeline::ComputePipeline(Context& ctx, PipelineDesc desc) : ctx_(ctx), desc_(std::move(desc)) {
   const auto& limits = ctx.limits();
   if (desc_.workgroup_size > limits.maxComputeWorkGroupInvocations)
@@ -20,7 +18,8 @@ ComputePipeline::ComputePipeline(Context& ctx, PipelineDesc desc) : ctx_(ctx), d
   if (desc_.push_constant_bytes > limits.maxPushConstantsSize)
     throw std::runtime_error(desc_.shader + ": push constants exceed the device limit");
   const auto& vk = ctx.vk();
-  auto code = shader_spirv(desc_.shader);
+  if (desc_.spirv.empty()) throw std::invalid_argument(desc_.shader + ": no SPIR-V given");
+  const std::span<const uint32_t> code = desc_.spirv;
   VkShaderModuleCreateInfo module_info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
   module_info.codeSize = code.size_bytes();
   module_info.pCode = code.data();

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -13,7 +14,8 @@ namespace tfm {
 class Context;
 
 struct PipelineDesc {
-  std::string shader;                      // stem of shaders/<shader>.comp
+  std::string shader;                      // name, for messages and debug labels
+  std::span<const uint32_t> spirv;         // SPIR-V words (shaders/shader_registry.h; must outlive the call)
   std::vector<uint32_t> binding_counts;    // descriptors per storage-buffer binding 0..n-1
   uint32_t push_constant_bytes = 0;
   std::vector<uint32_t> specialization;    // value of constant_id i (32-bit each)
@@ -22,7 +24,8 @@ struct PipelineDesc {
 
 class ComputePipeline {
  public:
-  // Throws std::runtime_error if the workgroup or push constants exceed the device's limits.
+  // Throws std::runtime_error if the workgroup or push constants exceed the device's limits,
+  // std::invalid_argument when no SPIR-V is given.
   ComputePipeline(Context& ctx, PipelineDesc desc);
   ~ComputePipeline();
   ComputePipeline(const ComputePipeline&) = delete;

@@ -1,6 +1,8 @@
 // Pipeline and dispatch of the CGLS vector stages.
 #include "cgls_vectors.h"
 
+#include "shader_registry.h"
+
 #include <stdexcept>
 
 #include "sparse_ops.h"
@@ -16,6 +18,7 @@ CglsVectorsKernel::CglsVectorsKernel(Context& ctx) {
   desc.push_constant_bytes = sizeof(gpu::CglsPush);
   desc.workgroup_size = TFM_VECTOR_WORKGROUP;
   desc.specialization = {TFM_VECTOR_WORKGROUP};
+  desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 

@@ -1,6 +1,8 @@
 // Pipelines and dispatch recording of the DiffDVR forward and backward kernels.
 #include "diffdvr.h"
 
+#include "shader_registry.h"
+
 #include <stdexcept>
 #include <string>
 
@@ -57,6 +59,7 @@ DiffDvrForwardKernel::DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks) 
   desc.push_constant_bytes = sizeof(gpu::RenderPush);
   desc.workgroup_size = TFM_DIFFDVR_FORWARD_TILE * TFM_DIFFDVR_FORWARD_TILE;
   desc.specialization = {TFM_DIFFDVR_FORWARD_TILE, TFM_DIFFDVR_FORWARD_TILE, field_chunks};
+  desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 
@@ -87,6 +90,7 @@ DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks
                          static_cast<uint32_t>(loss),
                          use_shared_ ? 2 * slots() : 2u,
                          use_shared_ ? 1u : 0u};
+  desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 

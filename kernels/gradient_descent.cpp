@@ -1,6 +1,8 @@
 // Pipelines and dispatch of the gradient-descent kernels.
 #include "gradient_descent.h"
 
+#include "shader_registry.h"
+
 #include <stdexcept>
 
 #include "context.h"
@@ -23,6 +25,7 @@ GdGradientKernel::GdGradientKernel(Context& ctx, uint32_t tf_size, bool l1, bool
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
   const uint32_t shared_words = use_shared_ ? uint32_t(signed_accumulator_bytes(tf_size) / 4) : TFM_SIGNED_SLOT_WORDS;
   desc.specialization = {TFM_VOXEL_WORKGROUP, shared_words, use_shared_ ? 1u : 0u, l1 ? 1u : 0u};
+  desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 
@@ -51,6 +54,7 @@ GdUpdateKernel::GdUpdateKernel(Context& ctx) {
   desc.push_constant_bytes = sizeof(gpu::GdUpdatePush);
   desc.workgroup_size = TFM_VECTOR_WORKGROUP;
   desc.specialization = {TFM_VECTOR_WORKGROUP};
+  desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 

@@ -1,6 +1,8 @@
 // Pipeline and dispatch recording of the direct volume renderer.
 #include "render_image.h"
 
+#include "shader_registry.h"
+
 #include <stdexcept>
 #include <string>
 
@@ -23,6 +25,7 @@ RenderImageKernel::RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32
   desc.push_constant_bytes = sizeof(gpu::RenderPush);
   desc.workgroup_size = TFM_RENDER_TILE * TFM_RENDER_TILE;
   desc.specialization = {TFM_RENDER_TILE, TFM_RENDER_TILE, field_chunks, mode};
+  desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 

@@ -1,6 +1,8 @@
 // Pipeline and dispatch recording of the residual-map kernel.
 #include "residual_map.h"
 
+#include "shader_registry.h"
+
 #include <stdexcept>
 
 #include "context.h"
@@ -16,6 +18,7 @@ ResidualMapKernel::ResidualMapKernel(Context& ctx) : ctx_(ctx) {
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = TFM_RESIDUAL_WORKGROUP;
   desc.specialization = {TFM_RESIDUAL_WORKGROUP};
+  desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 

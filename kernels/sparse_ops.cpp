@@ -1,6 +1,8 @@
 // Voxel vectors and the prepare / gather / scatter kernels of the matrix-free solvers.
 #include "sparse_ops.h"
 
+#include "shader_registry.h"
+
 #include <algorithm>
 #include <stdexcept>
 #include <string>
@@ -73,6 +75,7 @@ SparsePrepareKernel::SparsePrepareKernel(Context& ctx) : ctx_(ctx) {
   desc.push_constant_bytes = sizeof(gpu::PreparePush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
   desc.specialization = {TFM_VOXEL_WORKGROUP};
+  desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 
@@ -105,6 +108,7 @@ SparseGatherKernel::SparseGatherKernel(Context& ctx, bool write_out, bool accumu
   desc.push_constant_bytes = sizeof(gpu::SparsePush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
   desc.specialization = {TFM_VOXEL_WORKGROUP, write_out ? 1u : 0u, accumulate_norm ? 1u : 0u, scaled ? 1u : 0u};
+  desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 
@@ -162,6 +166,7 @@ SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool up
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
   const uint32_t shared_words = use_shared_ ? uint32_t(signed_accumulator_bytes(tf_size) / 4) : TFM_SIGNED_SLOT_WORDS;
   desc.specialization = {TFM_VOXEL_WORKGROUP, shared_words, use_shared_ ? 1u : 0u, update_residual ? 1u : 0u};
+  desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 

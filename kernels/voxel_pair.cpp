@@ -1,6 +1,8 @@
 // Pipelines and dispatch recording of the voxel-pair kernels.
 #include "voxel_pair.h"
 
+#include "shader_registry.h"
+
 #include <algorithm>
 #include <cstdlib>
 #include <stdexcept>
@@ -58,6 +60,7 @@ AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint3
   }
   desc.specialization = {TFM_VOXEL_WORKGROUP, use_shared_ ? 2 * TFM_ASSEMBLE_SLOTS(tf_size) : 2u, use_shared_ ? 1u : 0u,
                          run};
+  desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 
@@ -86,6 +89,7 @@ VoxelLossKernel::VoxelLossKernel(Context& ctx) : ctx_(ctx) {
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
   desc.specialization = {TFM_VOXEL_WORKGROUP};
+  desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "normal_equations_cpu.h"
+#include "shader_registry.h"
 #include "buffer.h"
 #include "commands.h"
 #include "device_field.h"
@@ -44,6 +45,7 @@ TEST_F(EngineTest, TransfersPastTheEndThrow) {
 TEST_F(EngineTest, DispatchChecksBindingsPushAndGroupLimits) {
   PipelineDesc desc;
   desc.shader = "voxel_loss";
+  desc.spirv = shader_spirv(desc.shader);
   desc.binding_counts = {1, 1, 1, 1, 1};
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.specialization = {TFM_VOXEL_WORKGROUP};
@@ -61,6 +63,9 @@ TEST_F(EngineTest, DispatchChecksBindingsPushAndGroupLimits) {
   PipelineDesc too_big = desc;
   too_big.workgroup_size = ctx().limits().maxComputeWorkGroupInvocations + 1;
   EXPECT_THROW(ComputePipeline(ctx(), too_big), std::runtime_error);
+  PipelineDesc no_code = desc;
+  no_code.spirv = {};
+  EXPECT_THROW(ComputePipeline(ctx(), no_code), std::invalid_argument);
 }
 
 TEST_F(EngineTest, SplitFieldChunksAndArrays) {

@@ -1,0 +1,18 @@
+// The compute shaders compiled into tfmatch: SPIR-V words by shader name (the file stem of
+// shaders/<name>.comp), embedded at build time by shaders/CMakeLists.txt.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace tfm {
+
+// The SPIR-V of shaders/<name>.comp; throws std::logic_error for an unknown name.
+std::span<const uint32_t> shader_spirv(std::string_view name);
+// Every embedded shader's name, sorted.
+std::vector<std::string> shader_names();
+
+}  // namespace tfm
