@@ -11,6 +11,7 @@
 #include "normal_equations_cpu.h"
 #include "gpu_voxel_ops.h"
 #include "normal_equations.h"
+#include "test_data.h"
 #include "vk_test_env.h"
 
 namespace tfm {
@@ -35,14 +36,7 @@ Pair random_pair(size_t n, uint32_t seed, uint32_t tf_size) {
   return p;
 }
 
-TransferFunction random_tf(uint32_t n, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  TransferFunction tf;
-  tf.rgba.resize(n);
-  for (auto& e : tf.rgba) e = {u(rng), u(rng), u(rng), u(rng)};
-  return tf;
-}
+using test::random_tf;
 
 // Every term the kernel adds is non-negative, so per entry |GPU - CPU| <= (float rounding of at
 // most 4 operations per term, 4 * 2^-24 relative) * entry + (fixed-point truncation, < 2^-32

@@ -14,6 +14,7 @@
 #include "diffdvr_cpu.h"
 #include "gpu_voxel_ops.h"
 #include "solver_diffdvr.h"
+#include "test_data.h"
 #include "vk_test_env.h"
 
 namespace tfm {
@@ -22,32 +23,14 @@ namespace {
 Volume wavy_volume(std::array<uint64_t, 3> dims, std::array<double, 3> spacing, uint32_t seed, int nan_every = 0) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> noise(-0.05f, 0.05f);
-  Volume v;
-  v.dims = dims;
-  v.spacing = spacing;
-  v.name = "wavy volume";
-  v.values.resize(v.voxel_count());
-  size_t i = 0;
-  for (uint64_t z = 0; z < dims[2]; ++z)
-    for (uint64_t y = 0; y < dims[1]; ++y)
-      for (uint64_t x = 0; x < dims[0]; ++x, ++i) {
-        v.values[i] = 0.5f + 0.4f * std::sin(0.9f * x + 0.4f * y + 0.1f * seed) * std::cos(0.6f * z - 0.3f * x) +
-                      noise(rng);
-        if (nan_every && i % nan_every == 5) v.values[i] = NAN;
-      }
-  return v;
+  return test::make_volume(dims, spacing, "wavy volume", [&](uint64_t x, uint64_t y, uint64_t z, uint64_t i) {
+    const float v =
+        0.5f + 0.4f * std::sin(0.9f * x + 0.4f * y + 0.1f * seed) * std::cos(0.6f * z - 0.3f * x) + noise(rng);
+    return nan_every && i % nan_every == 5 ? NAN : v;
+  });
 }
 
-// Entries with colours in [c_lo, c_hi] and opacity in [a_lo, a_hi], all inside (0, 1): no clamp
-// is active.
-TransferFunction random_tf(uint32_t n, uint32_t seed, double c_lo, double c_hi, double a_lo, double a_hi) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(c_lo, c_hi), a(a_lo, a_hi);
-  TransferFunction tf;
-  tf.rgba.resize(n);
-  for (auto& e : tf.rgba) e = {u(rng), u(rng), u(rng), a(rng)};
-  return tf;
-}
+using test::random_tf;
 
 struct Case {
   Volume ref, opt;

@@ -13,6 +13,7 @@
 #include "diffdvr_cpu.h"
 #include "gpu_voxel_ops.h"
 #include "solver_diffdvr.h"
+#include "test_data.h"
 #include "vk_test_env.h"
 
 namespace tfm {
@@ -21,28 +22,13 @@ namespace {
 Volume noisy_volume(std::array<uint64_t, 3> dims, uint32_t seed, int nan_every = 0) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  Volume v;
-  v.dims = dims;
-  v.name = "noisy volume";
-  v.values.resize(v.voxel_count());
-  size_t i = 0;
-  for (uint64_t z = 0; z < dims[2]; ++z)
-    for (uint64_t y = 0; y < dims[1]; ++y)
-      for (uint64_t x = 0; x < dims[0]; ++x, ++i) {
-        v.values[i] = 0.6f * u(rng) + 0.4f * float(x) / float(dims[0]);
-        if (nan_every && i % nan_every == 2) v.values[i] = NAN;
-      }
-  return v;
+  return test::make_volume(dims, {1.0, 1.0, 1.0}, "noisy volume", [&](uint64_t x, uint64_t, uint64_t, uint64_t i) {
+    const float v = 0.6f * u(rng) + 0.4f * float(x) / float(dims[0]);
+    return nan_every && i % nan_every == 2 ? NAN : v;
+  });
 }
 
-TransferFunction random_tf(uint32_t n, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  TransferFunction tf;
-  tf.rgba.resize(n);
-  for (auto& e : tf.rgba) e = {u(rng), u(rng), u(rng), u(rng)};
-  return tf;
-}
+using test::random_tf;
 
 struct Scene {
   Volume ref, opt;

@@ -12,6 +12,7 @@
 #include "cpu_renderer.h"
 #include "gpu_voxel_ops.h"
 #include "render.h"
+#include "test_data.h"
 #include "vk_test_env.h"
 
 namespace tfm {
@@ -21,29 +22,13 @@ namespace {
 Volume test_volume(std::array<uint64_t, 3> dims, std::array<double, 3> spacing, uint32_t seed, int nan_every = 0) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> noise(-0.08f, 0.08f);
-  Volume v;
-  v.dims = dims;
-  v.spacing = spacing;
-  v.name = "test volume";
-  v.values.resize(v.voxel_count());
-  size_t i = 0;
-  for (uint64_t z = 0; z < dims[2]; ++z)
-    for (uint64_t y = 0; y < dims[1]; ++y)
-      for (uint64_t x = 0; x < dims[0]; ++x, ++i) {
-        v.values[i] = 0.5f + 0.35f * std::sin(0.7f * x + 0.3f * y) * std::cos(0.5f * z - 0.2f * x) + noise(rng);
-        if (nan_every && i % nan_every == 3) v.values[i] = NAN;
-      }
-  return v;
+  return test::make_volume(dims, spacing, "test volume", [&](uint64_t x, uint64_t y, uint64_t z, uint64_t i) {
+    const float v = 0.5f + 0.35f * std::sin(0.7f * x + 0.3f * y) * std::cos(0.5f * z - 0.2f * x) + noise(rng);
+    return nan_every && i % nan_every == 3 ? NAN : v;
+  });
 }
 
-TransferFunction random_tf(uint32_t n, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  TransferFunction tf;
-  tf.rgba.resize(n);
-  for (auto& e : tf.rgba) e = {u(rng), u(rng), u(rng), u(rng)};
-  return tf;
-}
+using test::random_tf;
 
 struct CameraCase {
   double azimuth, elevation;

@@ -9,19 +9,13 @@
 #include "gpu_voxel_ops.h"
 #include "residual.h"
 #include "render_layout.h"
+#include "test_data.h"
 #include "vk_test_env.h"
 
 namespace tfm {
 namespace {
 
-TransferFunction random_tf(uint32_t n, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  TransferFunction tf;
-  tf.rgba.resize(n);
-  for (auto& e : tf.rgba) e = {u(rng), u(rng), u(rng), u(rng)};
-  return tf;
-}
+using test::random_tf;
 
 // T(v) with the shaders' float mapping (bit-identical j and w), interpolated in double.
 bool classify(const TransferFunction& tf, const FieldMapping& m, float v, Rgba& out) {

@@ -6,7 +6,7 @@ and prints RMSE, PSNR and SSIM as computed by scikit-image:
   structural_similarity(a, b, gaussian_weights=True, sigma=1.5, use_sample_covariance=False,
                         data_range=255, channel_axis=-1)
 Run with Debian's python3-skimage (apt-get install -y python3-skimage):
-  /usr/bin/python3 tests/reference/ssim_expected.py
+  /usr/bin/python3 tests/host/report/ssim_expected.py
 and paste the printed values into kExpected in tests/test_metrics.cpp.
 """
 import math

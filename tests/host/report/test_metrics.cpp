@@ -1,4 +1,4 @@
-// Image metrics against scikit-image (tests/reference/ssim_expected.py), and their edge cases.
+// Image metrics against scikit-image (tests/host/report/ssim_expected.py), and their edge cases.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -10,7 +10,7 @@
 namespace tfm {
 namespace {
 
-// Same integer formulas as pixel() in tests/reference/ssim_expected.py.
+// Same integer formulas as pixel() in tests/host/report/ssim_expected.py.
 int pixel(const std::string& c, int x, int y, int ch, bool second) {
   if (c == "noise") {
     const int a = ((x * 73 + y * 151 + ch * 29) ^ (x * y * 7)) & 255;
@@ -40,7 +40,7 @@ struct Expected {
   double rmse, psnr, ssim;
 };
 
-// Printed by tests/reference/ssim_expected.py with scikit-image 0.19.3 (Debian python3-skimage):
+// Printed by tests/host/report/ssim_expected.py with scikit-image 0.19.3 (Debian python3-skimage):
 // mean_squared_error -> sqrt, peak_signal_noise_ratio(data_range=255), structural_similarity(
 // gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=255, channel_axis=-1).
 const Expected kExpected[] = {

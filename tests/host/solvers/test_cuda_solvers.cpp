@@ -11,7 +11,7 @@
 
 #include "cuda_solvers.h"
 #include "eigen_baseline.h"
-#include "test_solver_problem.h"
+#include "solver_problem.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -9,7 +9,7 @@
 
 #include "cgls_cpu.h"
 #include "eigen_baseline.h"
-#include "test_solver_problem.h"
+#include "solver_problem.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -9,7 +9,7 @@
 
 #include "cli_runner.h"
 #include "solver_comparison.h"
-#include "test_solver_problem.h"
+#include "solver_problem.h"
 #include "vk_test_env.h"
 
 namespace tfm {

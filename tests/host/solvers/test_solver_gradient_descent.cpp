@@ -13,7 +13,7 @@
 #include "gradient_descent.h"
 #include "solver_gradient_descent.h"
 #include "sparse_ops.h"
-#include "test_solver_problem.h"
+#include "solver_problem.h"
 #include "vk_test_env.h"
 
 namespace tfm {

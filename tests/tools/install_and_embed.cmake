@@ -1,0 +1,50 @@
+# ctest `Package.InstallBuildAndRunEmbedExample`: installs this build into a temporary prefix,
+# checks that no installed library defines a global vk*/volk* symbol, builds
+# tools/examples/embed out of tree against the installed package (find_package(tfmatch)) and runs
+# it: the example adopts its own plain-loader Vulkan device and checks a GPU fit on the CPU.
+# Arguments: -DBUILD_DIR= -DSOURCE_DIR= -DWORK_DIR= -DGENERATOR= -DNM=
+file(REMOVE_RECURSE ${WORK_DIR})
+set(prefix ${WORK_DIR}/prefix)
+function(run)
+  execute_process(COMMAND ${ARGN} RESULT_VARIABLE result OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT result EQUAL 0)
+    list(JOIN ARGN " " command)
+    message(FATAL_ERROR "failed (${result}): ${command}\n${out}\n${err}")
+  endif()
+  set(run_output "${out}" PARENT_SCOPE)
+endfunction()
+
+run(${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
+
+# No installed library may define a global Vulkan or volk entry point: a host that uses the
+# plain loader would call tfmatch's copy instead of the loader's.
+file(GLOB_RECURSE libraries ${prefix}/lib*/*.a ${prefix}/lib*/*.so)
+if(NOT libraries)
+  message(FATAL_ERROR "no library installed under ${prefix}")
+endif()
+foreach(lib ${libraries})
+  run(${NM} -g --defined-only ${lib})
+  string(REGEX MATCHALL "[0-9a-fA-F]* [A-Z] (vk|volk)[A-Z][A-Za-z0-9_]*" leaked "${run_output}")
+  if(leaked)
+    list(JOIN leaked "\n  " text)
+    message(FATAL_ERROR "${lib} defines global Vulkan symbols:\n  ${text}")
+  endif()
+endforeach()
+list(LENGTH libraries count)
+message(STATUS "${count} installed libraries define no global vk*/volk* symbol")
+
+foreach(header context.h gpu_voxel_ops.h normal_equations.h)
+  if(NOT EXISTS ${prefix}/include/tfmatch/${header})
+    message(FATAL_ERROR "header tfmatch/${header} not installed")
+  endif()
+endforeach()
+
+run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/tools/examples/embed -B ${WORK_DIR}/example -G ${GENERATOR}
+    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_BUILD_TYPE=Release)
+run(${CMAKE_COMMAND} --build ${WORK_DIR}/example)
+run(${WORK_DIR}/example/embed_example)
+message(STATUS "${run_output}")
+if(NOT run_output MATCHES "OK")
+  message(FATAL_ERROR "the example did not report OK")
+endif()
+file(REMOVE_RECURSE ${WORK_DIR})
