@@ -1,8 +1,6 @@
 // Transfer-function evaluation and resampling.
 #include "transfer_function.h"
 
-#include "gpu_voxel_ops.h"
-
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -39,10 +37,5 @@ std::vector<float> TransferFunction::as_floats() const {
   return out;
 }
 
-
-Buffer upload_tf(Context& ctx, const TransferFunction& tf, const std::string& name) {
-  const std::vector<float> v = tf.as_floats();
-  return upload_tf(ctx, std::span<const float>(v), name);
-}
 
 }  // namespace tfm

@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "buffer.h"
 #include "field_mapping.h"
+#include "gpu_voxel_ops.h"
 
 namespace tfm {
 
@@ -27,6 +27,9 @@ struct TransferFunction {
 };
 
 // Uploads the table as vec4 floats (kernels/gpu_voxel_ops.h upload_tf).
-Buffer upload_tf(Context& ctx, const TransferFunction& tf, const std::string& name);
+inline Buffer upload_tf(Context& ctx, const TransferFunction& tf, const std::string& name) {
+  const std::vector<float> v = tf.as_floats();
+  return upload_tf(ctx, std::span<const float>(v), name);
+}
 
 }  // namespace tfm

@@ -1,0 +1,74 @@
+# The installable package: `cmake --install build --prefix P` puts the libraries in P/lib, the
+# public headers in P/include/tfmatch (flat, so they find each other with quoted includes and an
+# embedder writes #include <tfmatch/context.h>), the `tfmatch` program in P/bin, and
+# P/lib/cmake/tfmatch/tfmatchConfig.cmake (+ version file) and P/lib/pkgconfig/tfmatch.pc.
+#   tfmatch::tfmatch  engine, shaders, kernels, host/core, host/reference, host/solvers:
+#                     Vulkan headers, Eigen and GLM only (volk is compiled in under private names)
+#   tfmatch::io       file formats (netCDF-C, ecCodes, expat, zlib)
+#   tfmatch::report   images on disk, plots, metrics, report pages (libpng), with tfmatch::io
+include(GNUInstallDirs)
+include(CMakePackageConfigHelpers)
+
+set(tfm_install_include ${CMAKE_INSTALL_INCLUDEDIR}/tfmatch)
+set(tfm_layer_libraries tfmatch_engine tfmatch_shaders tfmatch_kernels tfmatch_core tfmatch_solvers tfmatch_io
+    tfmatch_report)
+if(TFMATCH_CUDA)
+  list(APPEND tfm_layer_libraries tfmatch_cuda)
+endif()
+foreach(lib ${tfm_layer_libraries})
+  string(REPLACE "tfmatch_" "" short ${lib})
+  set_target_properties(${lib} PROPERTIES EXPORT_NAME ${short})
+  target_include_directories(${lib} INTERFACE $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>
+                                              $<INSTALL_INTERFACE:${tfm_install_include}>)
+endforeach()
+
+# The umbrella targets users link.
+add_library(tfmatch_library INTERFACE)
+set_target_properties(tfmatch_library PROPERTIES EXPORT_NAME tfmatch)
+target_link_libraries(tfmatch_library INTERFACE tfmatch_solvers)
+add_library(tfmatch_io_library INTERFACE)
+set_target_properties(tfmatch_io_library PROPERTIES EXPORT_NAME io)
+target_link_libraries(tfmatch_io_library INTERFACE tfmatch_io)
+add_library(tfmatch_report_library INTERFACE)
+set_target_properties(tfmatch_report_library PROPERTIES EXPORT_NAME report)
+target_link_libraries(tfmatch_report_library INTERFACE tfmatch_report)
+# The same names inside this build (tests, examples built in-tree).
+add_library(tfmatch::tfmatch ALIAS tfmatch_library)
+add_library(tfmatch::io ALIAS tfmatch_io_library)
+add_library(tfmatch::report ALIAS tfmatch_report_library)
+
+install(TARGETS ${tfm_layer_libraries} ${TFMATCH_PRIVATE_INSTALL_TARGETS} tfmatch_library tfmatch_io_library
+                tfmatch_report_library
+        EXPORT tfmatchTargets
+        ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+        LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+install(TARGETS tfmatch RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+
+# Public headers: every header of the library layers except the private ones (named *_private.h
+# or listed in TFMATCH_PRIVATE_HEADERS by their layer).
+set(tfm_public_headers)
+foreach(dir engine shaders kernels host/core host/reference host/solvers host/io host/report)
+  file(GLOB headers ${CMAKE_SOURCE_DIR}/${dir}/*.h)
+  list(APPEND tfm_public_headers ${headers})
+endforeach()
+if(TFMATCH_CUDA)
+  list(APPEND tfm_public_headers ${CMAKE_SOURCE_DIR}/cuda/cuda_solvers.h)
+endif()
+list(FILTER tfm_public_headers EXCLUDE REGEX "_private\\.h$")
+foreach(private ${TFMATCH_PRIVATE_HEADERS})
+  list(REMOVE_ITEM tfm_public_headers ${private})
+endforeach()
+install(FILES ${tfm_public_headers} DESTINATION ${tfm_install_include})
+
+install(EXPORT tfmatchTargets NAMESPACE tfmatch:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/tfmatch)
+configure_package_config_file(${CMAKE_SOURCE_DIR}/tools/cmake/tfmatchConfig.cmake.in
+                              ${CMAKE_BINARY_DIR}/tfmatchConfig.cmake
+                              INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/tfmatch)
+write_basic_package_version_file(${CMAKE_BINARY_DIR}/tfmatchConfigVersion.cmake COMPATIBILITY SameMinorVersion)
+install(FILES ${CMAKE_BINARY_DIR}/tfmatchConfig.cmake ${CMAKE_BINARY_DIR}/tfmatchConfigVersion.cmake
+        DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/tfmatch)
+
+# pkg-config, for builds without CMake: the core package (static libraries, in link order).
+set(tfm_pc_libs "-ltfmatch_solvers -ltfmatch_core -ltfmatch_kernels -ltfmatch_shaders -ltfmatch_engine")
+configure_file(${CMAKE_SOURCE_DIR}/tools/cmake/tfmatch.pc.in ${CMAKE_BINARY_DIR}/tfmatch.pc @ONLY)
+install(FILES ${CMAKE_BINARY_DIR}/tfmatch.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)
