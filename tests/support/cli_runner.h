@@ -3,6 +3,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -44,5 +45,10 @@ struct TempDir {
     return c;
   }
 };
+
+// Writes raw float32 (native byte order): the input files of command-line tests.
+inline void write_floats(const std::string& path, const std::vector<float>& v) {
+  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(v.data()), std::streamsize(v.size() * 4));
+}
 
 }  // namespace tfm::test

@@ -14,10 +14,8 @@ namespace {
 
 using test::run_cli;
 using test::TempDir;
+using test::write_floats;
 
-void write_floats(const std::string& path, const std::vector<float>& v) {
-  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(v.data()), std::streamsize(v.size() * 4));
-}
 
 void write_text(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
