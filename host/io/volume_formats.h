@@ -92,11 +92,8 @@ struct VolumeSpec {
 };
 VolumeSpec parse_volume_spec(const std::string& spec, const VolumeOptions& defaults);
 
-// Format of a file: by extension, else by its first bytes. Empty when unknown.
-// One of "netcdf", "grib", "vtk", "vti", "nrrd", "raw", "dat".
-std::string detect_volume_format(const std::filesystem::path& path);
-
-// ---- readers (each throws std::runtime_error "<file>: <what is wrong>") ----
+// ---- readers (each throws std::runtime_error "<file>: <what is wrong>"), the `read` of the rows of
+// volume_format_table.h ----
 Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions& options);
 Volume read_grib_volume(const std::filesystem::path& path, const VolumeOptions& options);
 Volume read_vtk_legacy_volume(const std::filesystem::path& path, const VolumeOptions& options);
