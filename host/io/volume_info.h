@@ -49,14 +49,6 @@ nlohmann::json file_info_json(const FileInfo& info);
 // Adds `n` values to the range and NaN count of `a`.
 void accumulate_stats(ArrayInfo& a, const float* values, uint64_t n);
 
-// Per format (host/io/volume_*.cpp; the `describe` of each row of volume_format_table.h). Only
-// raw and .dat use `options`.
-FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions& options);
-FileInfo describe_grib(const std::filesystem::path& path, const VolumeOptions& options);
-FileInfo describe_vtk_legacy(const std::filesystem::path& path, const VolumeOptions& options);
-FileInfo describe_vti(const std::filesystem::path& path, const VolumeOptions& options);
-FileInfo describe_nrrd(const std::filesystem::path& path, const VolumeOptions& options);
-FileInfo describe_raw(const std::filesystem::path& path, const VolumeOptions& options);
-FileInfo describe_dat(const std::filesystem::path& path, const VolumeOptions& options);
+// Each format's describer is declared with its reader in volume_formats.h.
 
 }  // namespace tfm
