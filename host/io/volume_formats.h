@@ -1,5 +1,6 @@
-// The volume-format readers behind load_volume() and what they share: element decoding (including
-// 64-bit integers, which ScalarType lacks), array/component selection, checked sizes, file bytes.
+// The volume-format readers and describers behind the format table (volume_format_table.h) and
+// what they share: element decoding (including 64-bit integers, which ScalarType lacks),
+// array/component selection, checked sizes, file bytes.
 #pragma once
 
 #include <array>
@@ -12,6 +13,7 @@
 #include <string_view>
 #include <vector>
 
+#include "volume_info.h"
 #include "volume_io.h"
 
 namespace tfm {
@@ -92,16 +94,22 @@ struct VolumeSpec {
 };
 VolumeSpec parse_volume_spec(const std::string& spec, const VolumeOptions& defaults);
 
-// Format of a file: by extension, else by its first bytes. Empty when unknown.
-// One of "netcdf", "grib", "vtk", "vti", "nrrd", "raw", "dat".
-std::string detect_volume_format(const std::filesystem::path& path);
-
-// ---- readers (each throws std::runtime_error "<file>: <what is wrong>") ----
+// ---- per format (host/io/volume_*.cpp): the `read` and `describe` of its row of
+// volume_format_table.h; each throws std::runtime_error "<file>: <what is wrong>" ----
+// (read_raw_volume and read_dat_volume are in volume_io.h.)
 Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions& options);
 Volume read_grib_volume(const std::filesystem::path& path, const VolumeOptions& options);
 Volume read_vtk_legacy_volume(const std::filesystem::path& path, const VolumeOptions& options);
 Volume read_vti_volume(const std::filesystem::path& path, const VolumeOptions& options);
 Volume read_nrrd_volume(const std::filesystem::path& path, const VolumeOptions& options);
+// What `tfmatch info` says; only raw and .dat use `options`.
+FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions& options);
+FileInfo describe_grib(const std::filesystem::path& path, const VolumeOptions& options);
+FileInfo describe_vtk_legacy(const std::filesystem::path& path, const VolumeOptions& options);
+FileInfo describe_vti(const std::filesystem::path& path, const VolumeOptions& options);
+FileInfo describe_nrrd(const std::filesystem::path& path, const VolumeOptions& options);
+FileInfo describe_raw(const std::filesystem::path& path, const VolumeOptions& options);
+FileInfo describe_dat(const std::filesystem::path& path, const VolumeOptions& options);
 
 // In-memory parsers (what the fuzz targets drive). `name` prefixes every error message.
 Volume parse_vtk_legacy(std::string_view bytes, const std::string& name, const VolumeOptions& options);

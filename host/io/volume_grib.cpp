@@ -260,7 +260,7 @@ Volume read_grib_volume(const std::filesystem::path& path, const VolumeOptions& 
   return v;
 }
 
-FileInfo describe_grib(const std::filesystem::path& path) {
+FileInfo describe_grib(const std::filesystem::path& path, const VolumeOptions&) {
   const std::string file = path.string();
   std::vector<Message> msgs = scan(path, [](const std::string&) { return true; });
   if (msgs.empty()) throw std::runtime_error(file + ": no GRIB messages (not a GRIB file?)");

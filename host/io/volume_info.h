@@ -38,8 +38,8 @@ struct FileInfo {
   std::vector<ArrayInfo> arrays;
 };
 
-// Describes the file (reading every array to compute its range). Throws std::runtime_error
-// "<file>: ..." like the readers.
+// Describes the file with its format's `describe` (volume_format_table.h), reading every array to
+// compute its range. Throws std::runtime_error "<file>: ..." like the readers.
 // `options` matter for raw files only (dimensions, type, byte order); a raw file without known
 // dimensions is described by its size and the cubes that would fit.
 FileInfo describe_file(const std::filesystem::path& path, const VolumeOptions& options = {});
@@ -49,11 +49,6 @@ nlohmann::json file_info_json(const FileInfo& info);
 // Adds `n` values to the range and NaN count of `a`.
 void accumulate_stats(ArrayInfo& a, const float* values, uint64_t n);
 
-// Per format (host/volume_*.cpp).
-FileInfo describe_netcdf(const std::filesystem::path& path);
-FileInfo describe_grib(const std::filesystem::path& path);
-FileInfo describe_vtk_legacy(const std::filesystem::path& path);
-FileInfo describe_vti(const std::filesystem::path& path);
-FileInfo describe_nrrd(const std::filesystem::path& path);
+// Each format's describer is declared with its reader in volume_formats.h.
 
 }  // namespace tfm

@@ -1,22 +1,15 @@
-// load_volume(): parses "path:SELECTION", finds the format (extension, else the first bytes) and
-// dispatches to its reader.
-#include <algorithm>
-#include <cctype>
+// load_volume(): parses "path:SELECTION", finds the file's row of the format table (extension, else
+// the first bytes), checks the selection against what that format has and calls its reader.
 #include <charconv>
-#include <fstream>
 #include <stdexcept>
 
 #include "volume.h"
+#include "volume_format_table.h"
 #include "volume_formats.h"
 #include "volume_io.h"
 
 namespace tfm {
 namespace {
-
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
-  return s;
-}
 
 // SELECTION = VAR[@LEVELTYPE][,time=N][,member=N] (VAR may be empty: "file.nc:,time=2").
 void apply_selection(const std::string& selection, const std::string& file, VolumeOptions& o) {
@@ -55,54 +48,28 @@ VolumeSpec parse_volume_spec(const std::string& spec, const VolumeOptions& defau
   return out;
 }
 
-std::string detect_volume_format(const std::filesystem::path& path) {
-  const std::string ext = lower(path.extension().string());
-  if (ext == ".nc" || ext == ".nc4" || ext == ".cdf" || ext == ".netcdf" || ext == ".h5" || ext == ".hdf5") return "netcdf";
-  if (ext == ".grib" || ext == ".grb" || ext == ".grib1" || ext == ".grib2" || ext == ".grb2" || ext == ".grb1") return "grib";
-  if (ext == ".vtk") return "vtk";
-  if (ext == ".vti") return "vti";
-  if (ext == ".nrrd" || ext == ".nhdr") return "nrrd";
-  if (ext == ".raw") return "raw";
-  if (ext == ".dat") return "dat";
-  // Unknown extension: look at the magic bytes.
-  std::ifstream in(path, std::ios::binary);
-  char head[64] = {};
-  in.read(head, sizeof(head));
-  const std::string h(head, static_cast<size_t>(in.gcount()));
-  if (h.rfind("CDF\x01", 0) == 0 || h.rfind("CDF\x02", 0) == 0 || h.rfind("CDF\x05", 0) == 0 || h.rfind("\x89HDF", 0) == 0)
-    return "netcdf";
-  if (h.rfind("GRIB", 0) == 0) return "grib";
-  if (h.rfind("NRRD000", 0) == 0) return "nrrd";
-  if (lower(h).rfind("# vtk datafile", 0) == 0) return "vtk";
-  if (h.find("<VTKFile") != std::string::npos || (h.rfind("<?xml", 0) == 0 && h.find("VTKFile") != std::string::npos))
-    return "vti";
-  return "";
-}
-
 Volume load_volume(const std::string& spec, const VolumeOptions& defaults) {
   VolumeSpec s = parse_volume_spec(spec, defaults);
   const std::filesystem::path& path = s.path;
   const VolumeOptions& options = s.options;
   if (!std::filesystem::exists(path)) throw std::runtime_error(path.string() + ": no such file");
   if (std::filesystem::is_directory(path)) throw std::runtime_error(path.string() + ": is a directory, not a volume file");
-  const std::string format = detect_volume_format(path);
-  // Options that only some formats understand are errors elsewhere, not silently ignored.
-  const bool has_times = format == "netcdf" || format == "grib";
-  if (!has_times && ((options.time_index && *options.time_index > 0) || (options.member_index && *options.member_index > 0)))
-    throw std::runtime_error(path.string() + ": time and member selection apply to NetCDF and GRIB files only");
-  if ((format == "raw" || format == "dat") && !options.variable.empty())
-    throw std::runtime_error(path.string() + ": a " + format + " file holds one array; remove ':" + options.variable + "' / --var");
-  Volume v;
-  if (format == "netcdf") v = read_netcdf_volume(path, options);
-  else if (format == "grib") v = read_grib_volume(path, options);
-  else if (format == "vtk") v = read_vtk_legacy_volume(path, options);
-  else if (format == "vti") v = read_vti_volume(path, options);
-  else if (format == "nrrd") v = read_nrrd_volume(path, options);
-  else if (format == "raw") v = read_raw_volume(path, options);
-  else if (format == "dat") v = read_dat_volume(path, options);
-  else
-    throw std::runtime_error(path.string() + ": unknown volume format '" + path.extension().string() +
-                             "' (supported: .nc, .grib/.grib2, .vtk, .vti, .nrrd/.nhdr, .raw, .dat)");
+  const VolumeFormat* format = find_volume_format(path);
+  if (!format) throw std::runtime_error(unknown_volume_format_message(path));
+  // Options that only some formats understand are errors elsewhere, not silently ignored (index 0
+  // is what --time/--member give by default, so it passes).
+  if (!format->has_times && options.time_index && *options.time_index > 0)
+    throw std::runtime_error(path.string() + ": time selection (,time=N / --time) applies to " +
+                             volume_format_titles(&VolumeFormat::has_times) + " files only; a " + format->title +
+                             " file has no time axis");
+  if (!format->has_members && options.member_index && *options.member_index > 0)
+    throw std::runtime_error(path.string() + ": member selection (,member=N / --member) applies to " +
+                             volume_format_titles(&VolumeFormat::has_members) + " files only; a " + format->title +
+                             " file has no member axis");
+  if (!format->has_variables() && !format->has_components && !options.variable.empty())
+    throw std::runtime_error(path.string() + ": a " + format->name + " file holds one array; remove ':" +
+                             options.variable + "' / --var");
+  Volume v = format->read(path, options);
   if (v.voxel_count() == 0 || v.values.size() != v.voxel_count())
     throw std::runtime_error(path.string() + ": the volume is empty");
   return v;

@@ -1,4 +1,4 @@
-// Loading volumes from files (every format of host/io/volume_formats.h) and writing raw float32.
+// Loading volumes from files (every format of host/io/volume_format_table.h) and writing raw float32.
 #pragma once
 
 #include <array>
@@ -30,12 +30,13 @@ struct VolumeOptions {
 };
 
 // Loads a volume. `spec` is a path, optionally followed by ":VAR[@LEVELTYPE][,time=N][,member=N]"
-// (overriding `options`; see host/volume_formats.h). Dispatches by file extension, else by the
-// first bytes. Throws std::runtime_error whose message starts with the file name and says what is
-// wrong (missing file, wrong size, unknown type, ...).
+// (overriding `options`; see host/io/volume_formats.h). The format is the file's row of
+// volume_format_table.h (by extension, else by the first bytes); selecting a time, member or
+// array the format does not have is an error. Throws std::runtime_error whose message starts with
+// the file name and says what is wrong (missing file, unknown format, wrong size, ...).
 Volume load_volume(const std::string& spec, const VolumeOptions& options = {});
 
-// Readers (host/volume_*.cpp).
+// Readers (host/io/volume_raw.cpp).
 Volume read_raw_volume(const std::filesystem::path& path, const VolumeOptions& options);
 Volume read_dat_volume(const std::filesystem::path& path, const VolumeOptions& options);
 

@@ -438,7 +438,7 @@ Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions
   return v;
 }
 
-FileInfo describe_netcdf(const std::filesystem::path& path) {
+FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions&) {
   NcFile f(path);
   FileInfo info;
   info.path = f.name();

@@ -408,7 +408,7 @@ Volume read_nrrd_volume(const std::filesystem::path& path, const VolumeOptions& 
   });
 }
 
-FileInfo describe_nrrd(const std::filesystem::path& path) {
+FileInfo describe_nrrd(const std::filesystem::path& path, const VolumeOptions&) {
   const std::string file = path.string();
   NrrdHeader h = parse_header(read_file_bytes(path), file);
   Volume v = read_nrrd_volume(path, {});

@@ -1,5 +1,6 @@
 // Raw volumes (dimensions and type from the Open SciVis file-name convention
-// `name_256x256x128_float32.raw`, or from options) and `.dat` descriptor files.
+// `name_256x256x128_float32.raw`, or from options) and `.dat` descriptor files: reading and what
+// `tfmatch info` says about them.
 #include <algorithm>
 #include <bit>
 #include <cctype>
@@ -14,6 +15,7 @@
 #include "atomic_file.h"
 #include "volume.h"
 #include "volume_formats.h"
+#include "volume_info.h"
 #include "volume_io.h"
 
 namespace tfm {
@@ -80,6 +82,38 @@ Volume read_elements(const std::filesystem::path& path, std::array<uint64_t, 3> 
     decode(buffer.data(), n, type, big_endian, v.values.data() + done);
   }
   return v;
+}
+
+// The one array of a raw or .dat file, for `tfmatch info`.
+FileInfo describe_one_array(const std::filesystem::path& path, const std::string& format, const Volume& v,
+                            const VolumeOptions& options) {
+  FileInfo info{path.string(), format, {}, {}};
+  ArrayInfo a;
+  a.name = "(the only array)";
+  a.kind = "volume";
+  a.type = options.type != ScalarType::Unknown ? scalar_type_name(options.type) : "from the file name / descriptor";
+  a.grid = v.dims;
+  a.spacing = v.spacing;
+  a.shape = std::to_string(v.dims[0]) + "x" + std::to_string(v.dims[1]) + "x" + std::to_string(v.dims[2]);
+  accumulate_stats(a, v.values.data(), v.values.size());
+  info.arrays.push_back(std::move(a));
+  return info;
+}
+
+// A raw file without dimensions: say what is known (its size) and which cubes would fit.
+FileInfo describe_headerless(const std::filesystem::path& path, const std::string& why) {
+  FileInfo info{path.string(), "raw (no header)", {why}, {}};
+  const uint64_t bytes = std::filesystem::file_size(path);
+  std::string fits;
+  const std::pair<uint64_t, const char*> types[] = {{1, "uint8"}, {2, "uint16/int16"}, {4, "float32"}, {8, "float64"}};
+  for (auto [size, name] : types) {
+    if (bytes % size) continue;
+    const uint64_t n = bytes / size, edge = static_cast<uint64_t>(std::llround(std::cbrt(double(n))));
+    if (edge * edge * edge == n) fits += (fits.empty() ? "" : ", ") + std::to_string(edge) + "^3 " + name;
+  }
+  info.notes.push_back(std::to_string(bytes) + " bytes" + (fits.empty() ? "" : "; cubes that fit: " + fits) +
+                       " (pass --dims X,Y,Z --type T, or name it name_XxYxZ_type.raw)");
+  return info;
 }
 
 }  // namespace
@@ -215,6 +249,24 @@ Volume read_dat_volume(const std::filesystem::path& path, const VolumeOptions& o
   v.spacing = d.spacing;
   v.name = path.string();
   return v;
+}
+
+FileInfo describe_raw(const std::filesystem::path& path, const VolumeOptions& options) {
+  Volume v;
+  try {
+    v = read_raw_volume(path, options);
+  } catch (const std::runtime_error& e) {
+    // A raw file that says nothing about itself is described rather than refused.
+    const std::string m = e.what();
+    if (m.find("without dimensions") != std::string::npos || m.find("without element type") != std::string::npos)
+      return describe_headerless(path, "dimensions or element type unknown");
+    throw;
+  }
+  return describe_one_array(path, "raw", v, options);
+}
+
+FileInfo describe_dat(const std::filesystem::path& path, const VolumeOptions& options) {
+  return describe_one_array(path, ".dat descriptor + raw data", read_dat_volume(path, options), options);
 }
 
 void write_raw_float32(const std::filesystem::path& path, const Volume& v) {

@@ -360,7 +360,7 @@ Volume read_vti_volume(const std::filesystem::path& path, const VolumeOptions& o
   return parse_vti(read_file_bytes(path), path.string(), options);
 }
 
-FileInfo describe_vti(const std::filesystem::path& path) {
+FileInfo describe_vti(const std::filesystem::path& path, const VolumeOptions&) {
   const std::string file = path.string();
   const std::string bytes = read_file_bytes(path);
   VtiDocument doc = parse_document(bytes, file);

@@ -355,7 +355,7 @@ Volume read_vtk_legacy_volume(const std::filesystem::path& path, const VolumeOpt
   return parse_vtk_legacy(read_file_bytes(path), path.string(), options);
 }
 
-FileInfo describe_vtk_legacy(const std::filesystem::path& path) {
+FileInfo describe_vtk_legacy(const std::filesystem::path& path, const VolumeOptions&) {
   const std::string file = path.string();
   const std::string bytes = read_file_bytes(path);
   VtkDocument doc = parse_document(bytes, file);

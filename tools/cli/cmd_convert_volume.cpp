@@ -2,6 +2,7 @@
 #include <iostream>
 
 #include "cli.h"
+#include "volume_format_table.h"
 #include "volume_formats.h"
 #include "volume_vti.h"
 #include "volume_io.h"
@@ -45,9 +46,9 @@ CommandRegistration reg(41, [](CLI::App& app) {
   auto args = std::make_shared<ConvertVolumeArgs>();
   auto* sub = app.add_subcommand("convert-volume", "Write fields (same grid) as one .vti for ParaView");
   sub->add_option("inputs", args->inputs, "Fields (file or file:VARIABLE), then the output .vti")->required()->expected(2, -1);
-  sub->add_option("--var", args->var, "NetCDF variable / GRIB shortName / VTK array (default for every input)");
-  sub->add_option("--time", args->time, "NetCDF/GRIB time index");
-  sub->add_option("--member", args->member, "NetCDF/GRIB member index");
+  sub->add_option("--var", args->var, volume_format_selectors() + " (default for every input)");
+  sub->add_option("--time", args->time, "Time index, " + volume_format_titles(&VolumeFormat::has_times) + " files");
+  sub->add_option("--member", args->member, "Member index, " + volume_format_titles(&VolumeFormat::has_members) + " files");
   sub->add_flag("--no-compress", args->no_compress, "Write raw instead of zlib-compressed data");
   sub->callback([args] {
     args->out = args->inputs.back();

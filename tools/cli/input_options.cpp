@@ -5,6 +5,7 @@
 
 #include "cli.h"
 #include "tf_formats.h"
+#include "volume_format_table.h"
 #include "volume_io.h"
 
 namespace tfm::cli {
@@ -27,10 +28,12 @@ void add_input_options(CLI::App* sub, InputArgs& a, bool required) {
       ->delimiter(',');
   sub->add_option("--type", a.type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)");
   sub->add_flag("--big-endian", a.big_endian, "Raw files: big-endian data");
-  sub->add_option("--var", a.var, "NetCDF variable / GRIB shortName[@typeOfLevel] / VTK array, for both fields "
-                  "unless FILE:VAR says otherwise");
-  sub->add_option("--time", a.time, "NetCDF/GRIB time index (default 0; FILE:VAR,time=N per field)");
-  sub->add_option("--member", a.member, "NetCDF/GRIB ensemble member / extra dimension index (default 0)");
+  // Which formats have variables, times and members comes from the format table.
+  sub->add_option("--var", a.var, volume_format_selectors() + ", for both fields unless FILE:VAR says otherwise");
+  sub->add_option("--time", a.time, "Time index, " + volume_format_titles(&VolumeFormat::has_times) +
+                  " files (default 0; FILE:VAR,time=N per field)");
+  sub->add_option("--member", a.member, "Ensemble member / extra dimension index, " +
+                  volume_format_titles(&VolumeFormat::has_members) + " files (default 0)");
 }
 
 void load_inputs(const InputArgs& a, LoadedInputs& out) {

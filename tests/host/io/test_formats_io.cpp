@@ -6,6 +6,7 @@
 #include "cli_runner.h"
 #include "formats_test_util.h"
 #include "volume.h"
+#include "volume_format_table.h"
 #include "volume_formats.h"
 #include "volume_info.h"
 #include "vk_test_env.h"
