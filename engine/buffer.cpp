@@ -10,6 +10,7 @@
 #include "commands.h"
 #include "context.h"
 #include "vk_check.h"
+#include "vk_dispatch.h"
 
 namespace tfm {
 namespace {

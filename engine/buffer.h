@@ -1,12 +1,13 @@
 // Device buffers (one allocation each, move-only) and staging transfers between host and device.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <span>
 #include <string>
 
-#include <volk.h>
+#include <vulkan/vulkan_core.h>
 
 namespace tfm {
 

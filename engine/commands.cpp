@@ -7,6 +7,7 @@
 #include "context.h"
 #include "pipeline.h"
 #include "vk_check.h"
+#include "vk_dispatch.h"
 
 namespace tfm {
 namespace {

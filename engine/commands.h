@@ -8,7 +8,7 @@
 #include <type_traits>
 #include <vector>
 
-#include <volk.h>
+#include <vulkan/vulkan_core.h>
 
 namespace tfm {
 

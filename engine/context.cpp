@@ -10,19 +10,16 @@
 #include <utility>
 
 #include "vk_check.h"
+#include "vk_dispatch.h"
 
 namespace tfm {
 namespace {
 
 constexpr const char* kValidationLayer = "VK_LAYER_KHRONOS_validation";
 
-void init_loader() {
-  static VkResult result = volkInitialize();
-  if (result != VK_SUCCESS)
-    throw VulkanError("no Vulkan loader found (install libvulkan1 and a driver such as "
-                      "mesa-vulkan-drivers): volkInitialize returned " + vk_result_name(result),
-                      result);
-}
+// The global commands below (vkEnumerateInstance*, vkCreateInstance) are volk's renamed globals,
+// filled from the system loader by loader_get_instance_proc_addr(), which callers run first.
+// Everything else goes through a Dispatch.
 
 std::string lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
@@ -58,11 +55,11 @@ bool instance_extension_available(const char* name) {
   });
 }
 
-std::optional<uint32_t> compute_queue_family(VkPhysicalDevice pd, uint32_t* timestamp_bits) {
+std::optional<uint32_t> compute_queue_family(const Dispatch& vk, VkPhysicalDevice pd, uint32_t* timestamp_bits) {
   uint32_t count = 0;
-  vkGetPhysicalDeviceQueueFamilyProperties(pd, &count, nullptr);
+  vk.vkGetPhysicalDeviceQueueFamilyProperties(pd, &count, nullptr);
   std::vector<VkQueueFamilyProperties> families(count);
-  vkGetPhysicalDeviceQueueFamilyProperties(pd, &count, families.data());
+  vk.vkGetPhysicalDeviceQueueFamilyProperties(pd, &count, families.data());
   // Prefer a compute family with timestamps; any compute family otherwise.
   std::optional<uint32_t> best;
   for (uint32_t i = 0; i < count; ++i) {
@@ -100,29 +97,28 @@ VkInstance create_instance(bool validation, bool debug_utils) {
   if (validation) info.pNext = &features;
   VkInstance instance = VK_NULL_HANDLE;
   VK_CHECK(vkCreateInstance(&info, nullptr, &instance));
-  volkLoadInstanceOnly(instance);
   return instance;
 }
 
-std::vector<VkPhysicalDevice> physical_devices(VkInstance instance) {
+std::vector<VkPhysicalDevice> physical_devices(const Dispatch& vk, VkInstance instance) {
   uint32_t count = 0;
-  VK_CHECK(vkEnumeratePhysicalDevices(instance, &count, nullptr));
+  VK_CHECK(vk.vkEnumeratePhysicalDevices(instance, &count, nullptr));
   std::vector<VkPhysicalDevice> devices(count);
-  VK_CHECK(vkEnumeratePhysicalDevices(instance, &count, devices.data()));
+  VK_CHECK(vk.vkEnumeratePhysicalDevices(instance, &count, devices.data()));
   return devices;
 }
 
-DeviceSummary summarize(VkPhysicalDevice pd, uint32_t index) {
+DeviceSummary summarize(const Dispatch& vk, VkPhysicalDevice pd, uint32_t index) {
   VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
   VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
   subgroup.pNext = &driver;
   VkPhysicalDeviceProperties2 props{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
   props.pNext = &subgroup;
-  vkGetPhysicalDeviceProperties2(pd, &props);
+  vk.vkGetPhysicalDeviceProperties2(pd, &props);
   VkPhysicalDeviceFeatures features{};
-  vkGetPhysicalDeviceFeatures(pd, &features);
+  vk.vkGetPhysicalDeviceFeatures(pd, &features);
   VkPhysicalDeviceMemoryProperties mem{};
-  vkGetPhysicalDeviceMemoryProperties(pd, &mem);
+  vk.vkGetPhysicalDeviceMemoryProperties(pd, &mem);
 
   DeviceSummary s;
   s.index = index;
@@ -136,7 +132,7 @@ DeviceSummary summarize(VkPhysicalDevice pd, uint32_t index) {
   s.subgroup_size = subgroup.subgroupSize;
   s.shader_float64 = features.shaderFloat64;
   uint32_t ts_bits = 0;
-  s.compute_queue = compute_queue_family(pd, &ts_bits).has_value();
+  s.compute_queue = compute_queue_family(vk, pd, &ts_bits).has_value();
   s.timestamps = ts_bits > 0 && props.properties.limits.timestampPeriod > 0;
   for (uint32_t i = 0; i < mem.memoryHeapCount; ++i)
     if (mem.memoryHeaps[i].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT)
@@ -147,17 +143,21 @@ DeviceSummary summarize(VkPhysicalDevice pd, uint32_t index) {
 }  // namespace
 
 std::vector<DeviceSummary> enumerate_devices() {
-  init_loader();
+  PFN_vkGetInstanceProcAddr get = loader_get_instance_proc_addr();
   VkInstance instance = create_instance(false, false);
+  Dispatch vk{};
+  load_instance_functions(vk, get, instance);
   std::vector<DeviceSummary> out;
-  auto devices = physical_devices(instance);
-  for (uint32_t i = 0; i < devices.size(); ++i) out.push_back(summarize(devices[i], i));
-  vkDestroyInstance(instance, nullptr);
+  auto devices = physical_devices(vk, instance);
+  for (uint32_t i = 0; i < devices.size(); ++i) out.push_back(summarize(vk, devices[i], i));
+  vk.vkDestroyInstance(instance, nullptr);
   return out;
 }
 
+Context::Context() : dispatch_(std::make_unique<Dispatch>()) {}
+
 std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
-  init_loader();
+  PFN_vkGetInstanceProcAddr get = loader_get_instance_proc_addr();
   ContextOptions options = options_in;
   if (!options.device_index && options.device_name.empty()) {
     if (const char* env = std::getenv("TFMATCH_DEVICE"); env && *env) {
@@ -183,6 +183,8 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
   ctx->validation_ = want_validation;
   ctx->debug_utils_ = instance_extension_available(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
   ctx->instance_ = create_instance(want_validation, ctx->debug_utils_);
+  Dispatch& vk = *ctx->dispatch_;
+  load_instance_functions(vk, get, ctx->instance_);
 
   if (ctx->debug_utils_ && want_validation) {
     VkDebugUtilsMessengerCreateInfoEXT info{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
@@ -192,12 +194,12 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
                        VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT;
     info.pfnUserCallback = &Context::debug_callback;
     info.pUserData = ctx.get();
-    VK_CHECK(vkCreateDebugUtilsMessengerEXT(ctx->instance_, &info, nullptr, &ctx->messenger_));
+    VK_CHECK(vk.vkCreateDebugUtilsMessengerEXT(ctx->instance_, &info, nullptr, &ctx->messenger_));
   }
 
-  auto devices = physical_devices(ctx->instance_);
+  auto devices = physical_devices(vk, ctx->instance_);
   std::vector<DeviceSummary> summaries;
-  for (uint32_t i = 0; i < devices.size(); ++i) summaries.push_back(summarize(devices[i], i));
+  for (uint32_t i = 0; i < devices.size(); ++i) summaries.push_back(summarize(vk, devices[i], i));
   auto list = [&] {
     std::ostringstream os;
     for (auto& s : summaries) os << "\n  [" << s.index << "] " << s.name << " (" << s.type << ")";
@@ -234,7 +236,7 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
     throw std::runtime_error("device " + summaries[*chosen].name + " has no compute queue");
 
   ctx->physical_device_ = devices[*chosen];
-  ctx->queue_family_ = *compute_queue_family(ctx->physical_device_, nullptr);
+  ctx->queue_family_ = *compute_queue_family(vk, ctx->physical_device_, nullptr);
 
   float priority = 1.0f;
   VkDeviceQueueCreateInfo queue_info{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
@@ -242,7 +244,7 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
   queue_info.queueCount = 1;
   queue_info.pQueuePriorities = &priority;
   VkPhysicalDeviceFeatures supported{};
-  vkGetPhysicalDeviceFeatures(ctx->physical_device_, &supported);
+  vk.vkGetPhysicalDeviceFeatures(ctx->physical_device_, &supported);
   VkPhysicalDeviceFeatures enabled{};
   // Arrays of field chunks are indexed per sample by the renderer.
   enabled.shaderStorageBufferArrayDynamicIndexing = supported.shaderStorageBufferArrayDynamicIndexing;
@@ -250,9 +252,9 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
   device_info.queueCreateInfoCount = 1;
   device_info.pQueueCreateInfos = &queue_info;
   device_info.pEnabledFeatures = &enabled;
-  VK_CHECK(vkCreateDevice(ctx->physical_device_, &device_info, nullptr, &ctx->device_));
-  volkLoadDeviceTable(&ctx->table_, ctx->device_);
-  ctx->table_.vkGetDeviceQueue(ctx->device_, ctx->queue_family_, 0, &ctx->queue_);
+  VK_CHECK(vk.vkCreateDevice(ctx->physical_device_, &device_info, nullptr, &ctx->device_));
+  load_device_functions(vk, ctx->device_);
+  vk.vkGetDeviceQueue(ctx->device_, ctx->queue_family_, 0, &ctx->queue_);
   ctx->load_device_info();
   return ctx;
 }
@@ -260,8 +262,8 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
 std::unique_ptr<Context> Context::adopt(const ExternalDevice& external) {
   if (!external.instance || !external.physical_device || !external.device || !external.queue)
     throw std::invalid_argument("Context::adopt: instance, physical device, device and queue are required");
-  if (external.get_instance_proc_addr) volkInitializeCustom(external.get_instance_proc_addr);
-  else init_loader();
+  PFN_vkGetInstanceProcAddr get =
+      external.get_instance_proc_addr ? external.get_instance_proc_addr : loader_get_instance_proc_addr();
   std::unique_ptr<Context> ctx(new Context());
   ctx->owns_ = false;
   ctx->instance_ = external.instance;
@@ -269,21 +271,23 @@ std::unique_ptr<Context> Context::adopt(const ExternalDevice& external) {
   ctx->device_ = external.device;
   ctx->queue_ = external.queue;
   ctx->queue_family_ = external.queue_family_index;
-  volkLoadInstanceOnly(external.instance);
-  volkLoadDeviceTable(&ctx->table_, external.device);
+  Dispatch& vk = *ctx->dispatch_;
+  load_instance_functions(vk, get, external.instance);
+  load_device_functions(vk, external.device);
   // Debug names work only if the host enabled VK_EXT_debug_utils; the entry point says so.
-  ctx->debug_utils_ = vkSetDebugUtilsObjectNameEXT != nullptr;
+  ctx->debug_utils_ = vk.vkSetDebugUtilsObjectNameEXT != nullptr;
   ctx->load_device_info();
   return ctx;
 }
 
 void Context::load_device_info() {
-  vkGetPhysicalDeviceProperties(physical_device_, &properties_);
-  vkGetPhysicalDeviceMemoryProperties(physical_device_, &memory_);
+  const Dispatch& vk = *dispatch_;
+  vk.vkGetPhysicalDeviceProperties(physical_device_, &properties_);
+  vk.vkGetPhysicalDeviceMemoryProperties(physical_device_, &memory_);
   uint32_t count = 0;
-  vkGetPhysicalDeviceQueueFamilyProperties(physical_device_, &count, nullptr);
+  vk.vkGetPhysicalDeviceQueueFamilyProperties(physical_device_, &count, nullptr);
   std::vector<VkQueueFamilyProperties> families(count);
-  vkGetPhysicalDeviceQueueFamilyProperties(physical_device_, &count, families.data());
+  vk.vkGetPhysicalDeviceQueueFamilyProperties(physical_device_, &count, families.data());
   if (queue_family_ >= count) throw std::invalid_argument("queue family index out of range");
   if (!(families[queue_family_].queueFlags & VK_QUEUE_COMPUTE_BIT))
     throw std::invalid_argument("the queue family given to tfmatch has no compute capability");
@@ -294,10 +298,12 @@ void Context::load_device_info() {
   subgroup.pNext = &maint3;
   VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
   props2.pNext = &subgroup;
-  vkGetPhysicalDeviceProperties2(physical_device_, &props2);
+  vk.vkGetPhysicalDeviceProperties2(physical_device_, &props2);
   subgroup_size_ = subgroup.subgroupSize;
   max_allocation_bytes_ = maint3.maxMemoryAllocationSize;
 }
+
+PFN_vkGetDeviceProcAddr Context::get_device_proc_addr() const { return dispatch_->vkGetDeviceProcAddr; }
 
 uint64_t Context::max_buffer_bytes() const {
   uint64_t limit = properties_.limits.maxStorageBufferRange;
@@ -307,12 +313,13 @@ uint64_t Context::max_buffer_bytes() const {
 
 Context::~Context() {
   if (!owns_) return;
+  const Dispatch& vk = *dispatch_;
   if (device_) {
-    table_.vkDeviceWaitIdle(device_);
-    table_.vkDestroyDevice(device_, nullptr);
+    vk.vkDeviceWaitIdle(device_);
+    vk.vkDestroyDevice(device_, nullptr);
   }
-  if (messenger_) vkDestroyDebugUtilsMessengerEXT(instance_, messenger_, nullptr);
-  if (instance_) vkDestroyInstance(instance_, nullptr);
+  if (messenger_) vk.vkDestroyDebugUtilsMessengerEXT(instance_, messenger_, nullptr);
+  if (instance_ && vk.vkDestroyInstance) vk.vkDestroyInstance(instance_, nullptr);
 }
 
 std::vector<std::string> Context::take_validation_messages() {
@@ -321,12 +328,12 @@ std::vector<std::string> Context::take_validation_messages() {
 }
 
 void Context::set_debug_name(VkObjectType type, uint64_t handle, const char* name) const {
-  if (!debug_utils_ || !vkSetDebugUtilsObjectNameEXT || !name) return;
+  if (!debug_utils_ || !dispatch_->vkSetDebugUtilsObjectNameEXT || !name) return;
   VkDebugUtilsObjectNameInfoEXT info{VK_STRUCTURE_TYPE_DEBUG_UTILS_OBJECT_NAME_INFO_EXT};
   info.objectType = type;
   info.objectHandle = handle;
   info.pObjectName = name;
-  vkSetDebugUtilsObjectNameEXT(device_, &info);
+  dispatch_->vkSetDebugUtilsObjectNameEXT(device_, &info);
 }
 
 VKAPI_ATTR VkBool32 VKAPI_CALL Context::debug_callback(VkDebugUtilsMessageSeverityFlagBitsEXT severity,

@@ -1,4 +1,7 @@
 // The Vulkan device tfmatch computes on: created and owned here, or adopted from a host application.
+// Like every engine header it needs Vulkan's types only, so it works in a host that uses the
+// loader's prototypes (<vulkan/vulkan.h>, before or after) and in one that uses its own volk
+// (which, as volk asks, defines VK_NO_PROTOTYPES or includes volk.h first).
 #pragma once
 
 #include <atomic>
@@ -9,9 +12,11 @@
 #include <string>
 #include <vector>
 
-#include <volk.h>
+#include <vulkan/vulkan_core.h>
 
 namespace tfm {
+
+struct Dispatch;  // engine/vk_dispatch.h, private to engine/*.cpp
 
 // How to choose and create a device. Environment variables fill what is left unset:
 // TFMATCH_DEVICE (index or name substring), TFMATCH_VALIDATION=1.
@@ -31,7 +36,8 @@ struct ExternalDevice {
   VkDevice device = VK_NULL_HANDLE;
   VkQueue queue = VK_NULL_HANDLE;
   uint32_t queue_family_index = 0;
-  // The host's vkGetInstanceProcAddr; null means the system Vulkan loader.
+  // The host's vkGetInstanceProcAddr, through which tfmatch then resolves every command it calls
+  // on these handles; null means the system Vulkan loader's.
   PFN_vkGetInstanceProcAddr get_instance_proc_addr = nullptr;
 };
 
@@ -59,8 +65,8 @@ class Context {
   // Creates instance, device and compute queue. Throws std::runtime_error when no suitable
   // device exists or the selection matches none (the message lists the devices).
   static std::unique_ptr<Context> create(const ContextOptions& options = {});
-  // Wraps a host application's objects without taking ownership; throws VulkanError if the
-  // loader cannot be initialized.
+  // Wraps a host application's objects without taking ownership (never touching a host's volk);
+  // throws VulkanError if the loader cannot be initialized or resolves no vkGetDeviceProcAddr.
   static std::unique_ptr<Context> adopt(const ExternalDevice& external);
 
   ~Context();
@@ -73,8 +79,10 @@ class Context {
   VkQueue queue() const { return queue_; }
   uint32_t queue_family() const { return queue_family_; }
   bool owns_device() const { return owns_; }
-  // Device-level entry points of this device (never volk's globals, which a host may own).
-  const VolkDeviceTable& vk() const { return table_; }
+  // This device's vkGetDeviceProcAddr, for a host that records its own commands on it.
+  PFN_vkGetDeviceProcAddr get_device_proc_addr() const;
+  // The entry points tfmatch calls for this context; the type is known to engine/*.cpp only.
+  const Dispatch& vk() const { return *dispatch_; }
 
   const VkPhysicalDeviceProperties& properties() const { return properties_; }
   const VkPhysicalDeviceLimits& limits() const { return properties_.limits; }
@@ -108,7 +116,7 @@ class Context {
   }
 
  private:
-  Context() = default;
+  Context();
   void load_device_info();
   static VKAPI_ATTR VkBool32 VKAPI_CALL debug_callback(VkDebugUtilsMessageSeverityFlagBitsEXT,
                                                       VkDebugUtilsMessageTypeFlagsEXT,
@@ -124,7 +132,7 @@ class Context {
   bool validation_ = false;
   bool debug_utils_ = false;
   VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
-  VolkDeviceTable table_{};
+  std::unique_ptr<Dispatch> dispatch_;
   VkPhysicalDeviceProperties properties_{};
   VkPhysicalDeviceMemoryProperties memory_{};
   uint32_t timestamp_valid_bits_ = 0;

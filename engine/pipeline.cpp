@@ -6,6 +6,7 @@
 
 #include "context.h"
 #include "vk_check.h"
+#include "vk_dispatch.h"
 
 namespace tfm {
 

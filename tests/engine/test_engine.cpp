@@ -1,5 +1,5 @@
-// Engine: transfers, dispatch argument checks, split fields, result names, and adoption of a
-// device created by a host application.
+// Engine: transfers, dispatch argument checks, split fields, result names, and argument checks of
+// adoption (hosts that adopt their own device, with the loader or volk: tests/engine/).
 #include <cstdlib>
 #include <cstring>
 #include <numeric>
@@ -10,7 +10,6 @@
 #include "buffer.h"
 #include "commands.h"
 #include "device_field.h"
-#include "gpu_voxel_ops.h"
 #include "pipeline.h"
 #include "shared_layout.h"
 #include "vk_check.h"
@@ -119,111 +118,6 @@ TEST(DeviceSelection, BadSelectionsListTheDevices) {
   EXPECT_NO_THROW(Context::create(ok));
 }
 
-// A host application's own instance, device and queue (with its own validation messenger).
-struct HostApp {
-  VkInstance instance = VK_NULL_HANDLE;
-  VkPhysicalDevice physical = VK_NULL_HANDLE;
-  VkDevice device = VK_NULL_HANDLE;
-  VkQueue queue = VK_NULL_HANDLE;
-  uint32_t family = 0;
-  VkDebugUtilsMessengerEXT messenger = VK_NULL_HANDLE;
-  PFN_vkDestroyDevice destroy_device = nullptr;
-  PFN_vkDeviceWaitIdle wait_idle = nullptr;
-  std::vector<std::string> messages;
-
-  static VKAPI_ATTR VkBool32 VKAPI_CALL on_message(VkDebugUtilsMessageSeverityFlagBitsEXT,
-                                                   VkDebugUtilsMessageTypeFlagsEXT,
-                                                   const VkDebugUtilsMessengerCallbackDataEXT* d, void* user) {
-    static_cast<HostApp*>(user)->messages.push_back(d->pMessage);
-    return VK_FALSE;
-  }
-
-  // Creates everything; a member function so gtest assertions may stop it early.
-  void create() {
-    ASSERT_EQ(volkInitialize(), VK_SUCCESS);
-    uint32_t count = 0;
-    vkEnumerateInstanceLayerProperties(&count, nullptr);
-    std::vector<VkLayerProperties> layers(count);
-    vkEnumerateInstanceLayerProperties(&count, layers.data());
-    bool validation = false;
-    for (auto& l : layers) validation |= std::strcmp(l.layerName, "VK_LAYER_KHRONOS_validation") == 0;
-    const char* layer = "VK_LAYER_KHRONOS_validation";
-    const char* ext = VK_EXT_DEBUG_UTILS_EXTENSION_NAME;
-    VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
-    app.apiVersion = VK_API_VERSION_1_2;
-    VkInstanceCreateInfo ii{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
-    ii.pApplicationInfo = &app;
-    ii.enabledLayerCount = validation ? 1 : 0;
-    ii.ppEnabledLayerNames = &layer;
-    ii.enabledExtensionCount = 1;
-    ii.ppEnabledExtensionNames = &ext;
-    ASSERT_EQ(vkCreateInstance(&ii, nullptr, &instance), VK_SUCCESS);
-    volkLoadInstanceOnly(instance);
-    VkDebugUtilsMessengerCreateInfoEXT mi{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
-    mi.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
-    mi.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT;
-    mi.pfnUserCallback = &HostApp::on_message;
-    mi.pUserData = this;
-    ASSERT_EQ(vkCreateDebugUtilsMessengerEXT(instance, &mi, nullptr, &messenger), VK_SUCCESS);
-    uint32_t n = 1;
-    VkResult r = vkEnumeratePhysicalDevices(instance, &n, &physical);
-    ASSERT_TRUE(r == VK_SUCCESS || r == VK_INCOMPLETE);
-    uint32_t fc = 0;
-    vkGetPhysicalDeviceQueueFamilyProperties(physical, &fc, nullptr);
-    std::vector<VkQueueFamilyProperties> fams(fc);
-    vkGetPhysicalDeviceQueueFamilyProperties(physical, &fc, fams.data());
-    while (family < fc && !(fams[family].queueFlags & VK_QUEUE_COMPUTE_BIT)) ++family;
-    ASSERT_LT(family, fc);
-    float prio = 1.0f;
-    VkDeviceQueueCreateInfo qi{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
-    qi.queueFamilyIndex = family;
-    qi.queueCount = 1;
-    qi.pQueuePriorities = &prio;
-    VkDeviceCreateInfo di{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
-    di.queueCreateInfoCount = 1;
-    di.pQueueCreateInfos = &qi;
-    ASSERT_EQ(vkCreateDevice(physical, &di, nullptr, &device), VK_SUCCESS);
-    // The host resolves its own device entry points, as an application using the loader would.
-    auto get = reinterpret_cast<PFN_vkGetDeviceProcAddr>(vkGetInstanceProcAddr(instance, "vkGetDeviceProcAddr"));
-    auto get_queue = reinterpret_cast<PFN_vkGetDeviceQueue>(get(device, "vkGetDeviceQueue"));
-    destroy_device = reinterpret_cast<PFN_vkDestroyDevice>(get(device, "vkDestroyDevice"));
-    wait_idle = reinterpret_cast<PFN_vkDeviceWaitIdle>(get(device, "vkDeviceWaitIdle"));
-    get_queue(device, family, 0, &queue);
-  }
-  ~HostApp() {
-    if (device) destroy_device(device, nullptr);
-    if (messenger) vkDestroyDebugUtilsMessengerEXT(instance, messenger, nullptr);
-    if (instance) vkDestroyInstance(instance, nullptr);
-  }
-};
-
-TEST(Adoption, RunsKernelsOnAHostDeviceWithoutOwningIt) {
-  std::vector<float> ref(777), opt(777);
-  for (size_t i = 0; i < ref.size(); ++i) ref[i] = float(i % 50) / 49.0f, opt[i] = float((i * 7) % 31) / 30.0f;
-  TransferFunction tf;
-  tf.rgba = {{0, 0.2, 0.4, 0.0}, {1, 0.5, 0.1, 0.7}, {0.3, 0.9, 0.6, 1.0}};
-  FieldMapping rm = make_mapping({0, 1}, 3), om = make_mapping({0, 1}, 8);
-  NormalEquations cpu = assemble_normal_equations_cpu(ref, opt, rm, om, tf);
-
-  HostApp host;
-  ASSERT_NO_FATAL_FAILURE(host.create());
-  {
-    ExternalDevice ext{host.instance, host.physical, host.device, host.queue, host.family, nullptr};
-    auto ctx = Context::adopt(ext);
-    EXPECT_FALSE(ctx->owns_device());
-    DeviceField r(*ctx, ref, "ref"), o(*ctx, opt, "opt");
-    Buffer tfb = upload_tf(*ctx, tf, "tf");
-    GpuNormalEquations gpu(*ctx, 8);
-    gpu.add(r, o, rm, om, tfb);
-    NormalEquations g = gpu.result();
-    EXPECT_EQ(g.voxels, cpu.voxels);
-    for (uint32_t j = 0; j < 8; ++j) EXPECT_NEAR(g.diag[j], cpu.diag[j], 1e-6 * cpu.diag[j] + 1e-9);
-  }
-  // The context is gone; the host's device is intact and still usable.
-  EXPECT_EQ(host.wait_idle(host.device), VK_SUCCESS);
-  for (const auto& m : host.messages) ADD_FAILURE() << "validation: " << m;
-}
-
 TEST(Adoption, RejectsMissingHandles) {
   EXPECT_THROW(Context::adopt(ExternalDevice{}), std::invalid_argument);
 }
@@ -247,8 +141,11 @@ TEST(Validation, CatchesAnInvalidCall) {
   info.size = 0;  // invalid: size must be greater than 0
   info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
   VkBuffer buffer = VK_NULL_HANDLE;
-  VkResult r = ctx.vk().vkCreateBuffer(ctx.device(), &info, nullptr, &buffer);
-  if (r == VK_SUCCESS && buffer) ctx.vk().vkDestroyBuffer(ctx.device(), buffer, nullptr);
+  auto create = reinterpret_cast<PFN_vkCreateBuffer>(ctx.get_device_proc_addr()(ctx.device(), "vkCreateBuffer"));
+  auto destroy = reinterpret_cast<PFN_vkDestroyBuffer>(ctx.get_device_proc_addr()(ctx.device(), "vkDestroyBuffer"));
+  ASSERT_TRUE(create && destroy);
+  VkResult r = create(ctx.device(), &info, nullptr, &buffer);
+  if (r == VK_SUCCESS && buffer) destroy(ctx.device(), buffer, nullptr);
   auto messages = ctx.take_validation_messages();
   ASSERT_FALSE(messages.empty());
   EXPECT_NE(messages[0].find("size"), std::string::npos) << messages[0];
