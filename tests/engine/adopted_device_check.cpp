@@ -11,7 +11,7 @@
 #include "buffer.h"
 #include "device_field.h"
 #include "gpu_voxel_ops.h"
-#include "normal_equations.h"
+#include "normal_equations_cpu.h"
 
 namespace tfm::test {
 
