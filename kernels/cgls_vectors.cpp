@@ -9,13 +9,20 @@ namespace tfm {
 
 static_assert(sizeof(gpu::CglsPush) == 32, "CglsPush must match the GLSL std430 block");
 
+namespace {
+// Bindings in the order record() lists its buffers.
+constexpr auto kCglsBindingCounts =
+    gpu::binding_counts({TFM_CGLS_BINDING_S_ACCUM, TFM_CGLS_BINDING_DELTA_ACCUM, TFM_CGLS_BINDING_INV_DIAG,
+                         TFM_CGLS_BINDING_X, TFM_CGLS_BINDING_P, TFM_CGLS_BINDING_STATE});
+}  // namespace
+
 CglsVectorsKernel::CglsVectorsKernel(Context& ctx) {
   PipelineDesc desc;
   desc.shader = "cgls_vectors";
-  desc.binding_counts = {1, 1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kCglsBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::CglsPush);
   desc.workgroup_size = TFM_VECTOR_WORKGROUP;
-  desc.specialization = {TFM_VECTOR_WORKGROUP};
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VECTOR_WORKGROUP}});
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 

@@ -38,16 +38,29 @@ Groups tiles(const gpu::RenderPush& push, uint32_t row_count, uint32_t tile) {
   return {(push.width + tile - 1) / tile, (row_count + tile - 1) / tile, push.view_count};
 }
 
+// Bindings in the order record() lists each pass's buffers.
+constexpr auto kForwardBindingCounts =
+    gpu::binding_counts({TFM_DIFFDVR_FWD_BINDING_FIELD, TFM_DIFFDVR_FWD_BINDING_TF, TFM_DIFFDVR_FWD_BINDING_VIEWS,
+                         TFM_DIFFDVR_FWD_BINDING_STATE, TFM_DIFFDVR_FWD_BINDING_STOP},
+                        TFM_DIFFDVR_FWD_BINDING_FIELD, TFM_RENDER_MAX_CHUNKS);
+constexpr auto kBackwardBindingCounts = gpu::binding_counts(
+    {TFM_DIFFDVR_BWD_BINDING_FIELD, TFM_DIFFDVR_BWD_BINDING_TF, TFM_DIFFDVR_BWD_BINDING_VIEWS,
+     TFM_DIFFDVR_BWD_BINDING_STATE, TFM_DIFFDVR_BWD_BINDING_STOP, TFM_DIFFDVR_BWD_BINDING_TARGET,
+     TFM_DIFFDVR_BWD_BINDING_ACCUM},
+    TFM_DIFFDVR_BWD_BINDING_FIELD, TFM_RENDER_MAX_CHUNKS);
+
 }  // namespace
 
 DiffDvrForwardKernel::DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks) : chunks_(field_chunks) {
   check_chunks(field_chunks);
   PipelineDesc desc;
   desc.shader = "diffdvr_forward";
-  desc.binding_counts = {TFM_RENDER_MAX_CHUNKS, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kForwardBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::RenderPush);
   desc.workgroup_size = TFM_DIFFDVR_FORWARD_TILE * TFM_DIFFDVR_FORWARD_TILE;
-  desc.specialization = {TFM_DIFFDVR_FORWARD_TILE, TFM_DIFFDVR_FORWARD_TILE, field_chunks};
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_DIFFDVR_FORWARD_TILE},
+                                    {TFM_SPEC_WORKGROUP_Y, TFM_DIFFDVR_FORWARD_TILE},
+                                    {TFM_RENDER_SPEC_CHUNKS, field_chunks}});
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 
@@ -56,6 +69,7 @@ void DiffDvrForwardKernel::record(CommandBatch& batch, const DeviceField& field,
                                   uint32_t row_begin, uint32_t row_count) const {
   check_pass(field, chunks_, tf, views, push, state, stop, row_begin, row_count);
   push.row_offset = row_begin;
+  // Buffers in the binding order of kForwardBindingCounts.
   batch.dispatch(*pipeline_, {field.chunk_array(TFM_RENDER_MAX_CHUNKS), tf, views, state, stop}, push,
                  tiles(push, row_count, TFM_DIFFDVR_FORWARD_TILE));
 }
@@ -69,15 +83,15 @@ DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks
   use_shared_ = !force_global && shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
   PipelineDesc desc;
   desc.shader = "diffdvr_backward";
-  desc.binding_counts = {TFM_RENDER_MAX_CHUNKS, 1, 1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kBackwardBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::RenderPush);
   desc.workgroup_size = TFM_DIFFDVR_BACKWARD_TILE * TFM_DIFFDVR_BACKWARD_TILE;
-  desc.specialization = {TFM_DIFFDVR_BACKWARD_TILE,
-                         TFM_DIFFDVR_BACKWARD_TILE,
-                         field_chunks,
-                         static_cast<uint32_t>(loss),
-                         use_shared_ ? 2 * slots() : 2u,
-                         use_shared_ ? 1u : 0u};
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_DIFFDVR_BACKWARD_TILE},
+                                    {TFM_SPEC_WORKGROUP_Y, TFM_DIFFDVR_BACKWARD_TILE},
+                                    {TFM_RENDER_SPEC_CHUNKS, field_chunks},
+                                    {TFM_DIFFDVR_SPEC_LOSS, static_cast<uint32_t>(loss)},
+                                    {TFM_DIFFDVR_SPEC_SHARED_WORDS, use_shared_ ? 2 * slots() : 2u},
+                                    {TFM_DIFFDVR_SPEC_USE_SHARED, use_shared_ ? 1u : 0u}});
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 
@@ -89,6 +103,7 @@ void DiffDvrBackwardKernel::record(CommandBatch& batch, const DeviceField& field
   if (target.size() < state.size()) throw std::invalid_argument("diffdvr: target image smaller than the state");
   if (accum.size() < uint64_t(slots()) * 8) throw std::invalid_argument("diffdvr: accumulator buffer too small");
   push.row_offset = row_begin;
+  // Buffers in the binding order of kBackwardBindingCounts.
   batch.dispatch(*pipeline_, {field.chunk_array(TFM_RENDER_MAX_CHUNKS), tf, views, state, stop, target, accum}, push,
                  tiles(push, row_count, TFM_DIFFDVR_BACKWARD_TILE));
 }

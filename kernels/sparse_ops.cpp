@@ -16,6 +16,17 @@ static_assert(sizeof(gpu::CglsState) == 112, "CglsState must match the GLSL std4
 
 namespace {
 constexpr uint64_t kRgbaBytes = 4 * sizeof(float);
+
+// Bindings in the order record() lists each kernel's buffers.
+constexpr auto kPrepareBindingCounts =
+    gpu::binding_counts({TFM_PREPARE_BINDING_REF_FIELD, TFM_PREPARE_BINDING_OPT_FIELD, TFM_PREPARE_BINDING_REF_TF,
+                         TFM_PREPARE_BINDING_COORD, TFM_PREPARE_BINDING_RGBA});
+constexpr auto kGatherBindingCounts =
+    gpu::binding_counts({TFM_GATHER_BINDING_COORD, TFM_GATHER_BINDING_X, TFM_GATHER_BINDING_OUT,
+                         TFM_GATHER_BINDING_NORM, TFM_GATHER_BINDING_STATE});
+constexpr auto kScatterBindingCounts =
+    gpu::binding_counts({TFM_SCATTER_BINDING_COORD, TFM_SCATTER_BINDING_RESIDUAL, TFM_SCATTER_BINDING_P,
+                         TFM_SCATTER_BINDING_STATE, TFM_SCATTER_BINDING_ACCUM});
 }  // namespace
 
 VoxelVectors::VoxelVectors(Context& ctx, const DeviceField& ref, const DeviceField& opt, uint64_t max_chunk_voxels)
@@ -69,10 +80,10 @@ std::vector<float> VoxelVectors::read_rgba(Context& ctx) const {
 SparsePrepareKernel::SparsePrepareKernel(Context& ctx) : ctx_(ctx) {
   PipelineDesc desc;
   desc.shader = "sparse_prepare";
-  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kPrepareBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::PreparePush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  desc.specialization = {TFM_VOXEL_WORKGROUP};
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP}});
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 
@@ -101,10 +112,13 @@ SparseGatherKernel::SparseGatherKernel(Context& ctx, bool write_out, bool accumu
     : ctx_(ctx), scaled_(scaled), dummy_state_(ctx, sizeof(gpu::CglsState), MemoryUsage::Device, "gather unused state") {
   PipelineDesc desc;
   desc.shader = "sparse_gather";
-  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kGatherBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::SparsePush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  desc.specialization = {TFM_VOXEL_WORKGROUP, write_out ? 1u : 0u, accumulate_norm ? 1u : 0u, scaled ? 1u : 0u};
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
+                                    {TFM_GATHER_SPEC_WRITE_OUT, write_out ? 1u : 0u},
+                                    {TFM_GATHER_SPEC_ACCUMULATE_NORM, accumulate_norm ? 1u : 0u},
+                                    {TFM_GATHER_SPEC_NORM_SCALED, scaled ? 1u : 0u}});
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 
@@ -157,11 +171,14 @@ SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool up
   if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
   PipelineDesc desc;
   desc.shader = "sparse_scatter";
-  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kScatterBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::SparsePush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
   const uint32_t shared_words = use_shared_ ? uint32_t(signed_accumulator_bytes(tf_size) / 4) : TFM_SIGNED_SLOT_WORDS;
-  desc.specialization = {TFM_VOXEL_WORKGROUP, shared_words, use_shared_ ? 1u : 0u, update_residual ? 1u : 0u};
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
+                                    {TFM_SCATTER_SPEC_SHARED_WORDS, shared_words},
+                                    {TFM_SCATTER_SPEC_USE_SHARED, use_shared_ ? 1u : 0u},
+                                    {TFM_SCATTER_SPEC_UPDATE_RESIDUAL, update_residual ? 1u : 0u}});
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 

@@ -11,6 +11,16 @@ namespace tfm {
 
 static_assert(sizeof(gpu::VoxelPairPush) == 32, "VoxelPairPush must match the GLSL std430 block");
 
+namespace {
+// Bindings in the order record() lists each kernel's buffers.
+constexpr auto kAssembleBindingCounts =
+    gpu::binding_counts({TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD, TFM_ASSEMBLE_BINDING_REF_TF,
+                         TFM_ASSEMBLE_BINDING_ACCUM});
+constexpr auto kLossBindingCounts =
+    gpu::binding_counts({TFM_LOSS_BINDING_REF_FIELD, TFM_LOSS_BINDING_OPT_FIELD, TFM_LOSS_BINDING_REF_TF,
+                         TFM_LOSS_BINDING_OPT_TF, TFM_LOSS_BINDING_ACCUM});
+}  // namespace
+
 gpu::VoxelPairPush make_voxel_pair_push(const FieldMapping& ref, const FieldMapping& opt) {
   gpu::VoxelPairPush p{};
   p.opt_tf_size = opt.tf_size;
@@ -49,15 +59,17 @@ AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint3
   use_shared_ = !force_global && shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
   PipelineDesc desc;
   desc.shader = "assemble_normal_equations";
-  desc.binding_counts = {1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kAssembleBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
   if (run == 0) {
     run = TFM_ASSEMBLE_RUN;
     if (const char* env = std::getenv("TFMATCH_ASSEMBLE_RUN")) run = uint32_t(std::clamp(std::atoi(env), 1, 1024));
   }
-  desc.specialization = {TFM_VOXEL_WORKGROUP, use_shared_ ? 2 * TFM_ASSEMBLE_SLOTS(tf_size) : 2u, use_shared_ ? 1u : 0u,
-                         run};
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
+                                    {TFM_ASSEMBLE_SPEC_SHARED_WORDS, use_shared_ ? 2 * TFM_ASSEMBLE_SLOTS(tf_size) : 2u},
+                                    {TFM_ASSEMBLE_SPEC_USE_SHARED, use_shared_ ? 1u : 0u},
+                                    {TFM_ASSEMBLE_SPEC_RUN, run}});
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 
@@ -82,10 +94,10 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
 VoxelLossKernel::VoxelLossKernel(Context& ctx) : ctx_(ctx) {
   PipelineDesc desc;
   desc.shader = "voxel_loss";
-  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kLossBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  desc.specialization = {TFM_VOXEL_WORKGROUP};
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP}});
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 

@@ -7,12 +7,12 @@
 #include "shared_layout.h"
 #include "tf_common.glsl"
 
-layout(local_size_x_id = 0) in;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 // Words of workgroup-shared accumulators (2 per slot); 2 when accumulating straight to memory.
-layout(constant_id = 1) const uint SHARED_WORDS = 2u;
-layout(constant_id = 2) const bool USE_SHARED = true;
+layout(constant_id = TFM_ASSEMBLE_SPEC_SHARED_WORDS) const uint SHARED_WORDS = 2u;
+layout(constant_id = TFM_ASSEMBLE_SPEC_USE_SHARED) const bool USE_SHARED = true;
 // Contiguous voxels one invocation accumulates in registers before touching shared memory.
-layout(constant_id = 3) const uint RUN = TFM_ASSEMBLE_RUN;
+layout(constant_id = TFM_ASSEMBLE_SPEC_RUN) const uint RUN = TFM_ASSEMBLE_RUN;
 
 layout(std430, binding = TFM_ASSEMBLE_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
 layout(std430, binding = TFM_ASSEMBLE_BINDING_OPT_FIELD) readonly buffer OptField { float opt_field[]; };

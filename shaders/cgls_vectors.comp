@@ -9,7 +9,7 @@
 #include "tf_common.glsl"
 #include "solver_common.glsl"
 
-layout(local_size_x_id = 0) in;  // a power of two (the reduction halves it)
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;  // a power of two (the reduction halves it)
 
 layout(std430, binding = TFM_CGLS_BINDING_S_ACCUM) readonly buffer SAccum { uint s_accum[]; };
 layout(std430, binding = TFM_CGLS_BINDING_DELTA_ACCUM) readonly buffer DeltaAccum { uint delta_accum[]; };

@@ -30,7 +30,7 @@
 #define TFM_WANT_RENDER_PUSH
 #include "diffdvr_layout.h"
 
-layout(local_size_x_id = 0, local_size_y_id = 1) in;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X, local_size_y_id = TFM_SPEC_WORKGROUP_Y) in;
 layout(constant_id = TFM_DIFFDVR_SPEC_LOSS) const uint LOSS = TFM_DIFFDVR_LOSS_L2;
 layout(constant_id = TFM_DIFFDVR_SPEC_SHARED_WORDS) const uint SHARED_WORDS = 2u;
 layout(constant_id = TFM_DIFFDVR_SPEC_USE_SHARED) const bool USE_SHARED = true;

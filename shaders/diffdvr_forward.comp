@@ -7,7 +7,7 @@
 #define TFM_WANT_RENDER_PUSH
 #include "diffdvr_layout.h"
 
-layout(local_size_x_id = 0, local_size_y_id = 1) in;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X, local_size_y_id = TFM_SPEC_WORKGROUP_Y) in;
 
 TFM_DECLARE_RAYMARCH_BINDINGS(TFM_DIFFDVR_FWD_BINDING_FIELD, TFM_DIFFDVR_FWD_BINDING_TF)
 #include "raymarch.glsl"

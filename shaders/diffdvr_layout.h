@@ -11,6 +11,8 @@
 // render_image.comp's forward march, but the state written per pixel is (C, T): premultiplied
 // colour and the transmittance itself. The backward pass divides T by each sample's tau, so it
 // needs T exactly; 1 - (1 - T) in float loses it (to 0 when T < 6e-8).
+// Specialization constants: workgroup x, y (TFM_SPEC_WORKGROUP_X/Y, both TFM_RENDER_TILE), field
+// chunks (TFM_RENDER_SPEC_CHUNKS).
 #define TFM_DIFFDVR_FORWARD_TILE TFM_RENDER_TILE
 #define TFM_DIFFDVR_FWD_BINDING_FIELD 0  // float chunks [TFM_RENDER_MAX_CHUNKS]
 #define TFM_DIFFDVR_FWD_BINDING_TF 1     // vec4 TF entries
@@ -31,8 +33,8 @@
 #define TFM_DIFFDVR_BWD_BINDING_TARGET 5  // target image, forward state layout (C, T)
 #define TFM_DIFFDVR_BWD_BINDING_ACCUM 6   // TFM_DIFFDVR_SLOTS(n) accumulators, 2 uints each
 
-// Specialization constants: 0, 1 = workgroup x, y; TFM_RENDER_SPEC_CHUNKS (2) = field chunks;
-// then these.
+// Specialization constants: workgroup x, y (TFM_SPEC_WORKGROUP_X/Y, both
+// TFM_DIFFDVR_BACKWARD_TILE), field chunks (TFM_RENDER_SPEC_CHUNKS), then these.
 #define TFM_DIFFDVR_SPEC_LOSS 3          // TFM_DIFFDVR_LOSS_*
 #define TFM_DIFFDVR_SPEC_SHARED_WORDS 4  // words of workgroup-shared accumulators (2 per slot)
 #define TFM_DIFFDVR_SPEC_USE_SHARED 5    // 0: add straight to the global accumulators (large N)

@@ -9,11 +9,11 @@
 #include "tf_common.glsl"
 #include "solver_common.glsl"
 
-layout(local_size_x_id = 0) in;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 // Words of workgroup-shared gradient accumulators; 4 when adding straight to memory.
-layout(constant_id = 1) const uint SHARED_WORDS = 4u;
-layout(constant_id = 2) const bool USE_SHARED = true;
-layout(constant_id = 3) const bool LOSS_L1 = false;
+layout(constant_id = TFM_GD_SPEC_SHARED_WORDS) const uint SHARED_WORDS = 4u;
+layout(constant_id = TFM_GD_SPEC_USE_SHARED) const bool USE_SHARED = true;
+layout(constant_id = TFM_GD_SPEC_LOSS_L1) const bool LOSS_L1 = false;
 
 layout(std430, binding = TFM_GD_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
 layout(std430, binding = TFM_GD_BINDING_OPT_FIELD) readonly buffer OptField { float opt_field[]; };

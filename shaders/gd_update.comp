@@ -8,7 +8,7 @@
 #include "tf_common.glsl"
 #include "solver_common.glsl"
 
-layout(local_size_x_id = 0) in;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 
 layout(std430, binding = TFM_GD_UPDATE_BINDING_ACCUM) readonly buffer Accum { uint accum[]; };
 layout(std430, binding = TFM_GD_UPDATE_BINDING_X) buffer X { vec4 x[]; };

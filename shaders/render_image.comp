@@ -5,7 +5,7 @@
 #define TFM_WANT_RENDER_PUSH
 #include "render_layout.h"
 
-layout(local_size_x_id = 0, local_size_y_id = 1) in;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X, local_size_y_id = TFM_SPEC_WORKGROUP_Y) in;
 layout(constant_id = TFM_RENDER_SPEC_MODE) const uint MODE = TFM_RENDER_MODE_FORWARD;
 
 TFM_DECLARE_RAYMARCH_BINDINGS(TFM_RENDER_BINDING_FIELD, TFM_RENDER_BINDING_TF)

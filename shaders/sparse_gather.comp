@@ -9,10 +9,10 @@
 #include "tf_common.glsl"
 #include "solver_common.glsl"
 
-layout(local_size_x_id = 0) in;
-layout(constant_id = 1) const bool WRITE_OUT = true;
-layout(constant_id = 2) const bool ACCUMULATE_NORM = false;
-layout(constant_id = 3) const bool NORM_SCALED = false;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
+layout(constant_id = TFM_GATHER_SPEC_WRITE_OUT) const bool WRITE_OUT = true;
+layout(constant_id = TFM_GATHER_SPEC_ACCUMULATE_NORM) const bool ACCUMULATE_NORM = false;
+layout(constant_id = TFM_GATHER_SPEC_NORM_SCALED) const bool NORM_SCALED = false;
 
 layout(std430, binding = TFM_GATHER_BINDING_COORD) readonly buffer Coord { float coord[]; };
 layout(std430, binding = TFM_GATHER_BINDING_X) readonly buffer X { vec4 x[]; };

@@ -8,12 +8,12 @@
 #include "tf_common.glsl"
 #include "solver_common.glsl"
 
-layout(local_size_x_id = 0) in;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 // Words of workgroup-shared accumulators (TFM_SIGNED_SLOT_WORDS per slot); 4 when adding
 // straight to memory.
-layout(constant_id = 1) const uint SHARED_WORDS = 4u;
-layout(constant_id = 2) const bool USE_SHARED = true;
-layout(constant_id = 3) const bool UPDATE_RESIDUAL = false;
+layout(constant_id = TFM_SCATTER_SPEC_SHARED_WORDS) const uint SHARED_WORDS = 4u;
+layout(constant_id = TFM_SCATTER_SPEC_USE_SHARED) const bool USE_SHARED = true;
+layout(constant_id = TFM_SCATTER_SPEC_UPDATE_RESIDUAL) const bool UPDATE_RESIDUAL = false;
 
 layout(std430, binding = TFM_SCATTER_BINDING_COORD) readonly buffer Coord { float coord[]; };
 layout(std430, binding = TFM_SCATTER_BINDING_RESIDUAL) buffer Residual { vec4 r[]; };
