@@ -1,4 +1,5 @@
-// Pipelines and dispatch recording of the DiffDVR forward and backward kernels.
+// Pipelines and dispatch recording of the DiffDVR passes: the forward pass is render_image.comp in
+// its DiffDVR state mode, the backward pass diffdvr_backward.comp.
 #include "diffdvr.h"
 
 #include <stdexcept>
@@ -38,11 +39,7 @@ Groups tiles(const gpu::RenderPush& push, uint32_t row_count, uint32_t tile) {
   return {(push.width + tile - 1) / tile, (row_count + tile - 1) / tile, push.view_count};
 }
 
-// Bindings in the order record() lists each pass's buffers.
-constexpr auto kForwardBindingCounts =
-    gpu::binding_counts({TFM_DIFFDVR_FWD_BINDING_FIELD, TFM_DIFFDVR_FWD_BINDING_TF, TFM_DIFFDVR_FWD_BINDING_VIEWS,
-                         TFM_DIFFDVR_FWD_BINDING_STATE, TFM_DIFFDVR_FWD_BINDING_STOP},
-                        TFM_DIFFDVR_FWD_BINDING_FIELD, TFM_RENDER_MAX_CHUNKS);
+// diffdvr_backward.comp's bindings in the order record() lists its buffers.
 constexpr auto kBackwardBindingCounts = gpu::binding_counts(
     {TFM_DIFFDVR_BWD_BINDING_FIELD, TFM_DIFFDVR_BWD_BINDING_TF, TFM_DIFFDVR_BWD_BINDING_VIEWS,
      TFM_DIFFDVR_BWD_BINDING_STATE, TFM_DIFFDVR_BWD_BINDING_STOP, TFM_DIFFDVR_BWD_BINDING_TARGET,
@@ -53,14 +50,13 @@ constexpr auto kBackwardBindingCounts = gpu::binding_counts(
 
 DiffDvrForwardKernel::DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks) : chunks_(field_chunks) {
   check_chunks(field_chunks);
+  // The renderer's pipeline in the mode that stores (C, T): the same march as every image shown.
   PipelineDesc desc;
-  desc.shader = "diffdvr_forward";
-  desc.binding_counts = gpu::to_vector(kForwardBindingCounts);
+  desc.shader = "render_image";
+  desc.binding_counts = gpu::to_vector(gpu::kRenderBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::RenderPush);
-  desc.workgroup_size = TFM_DIFFDVR_FORWARD_TILE * TFM_DIFFDVR_FORWARD_TILE;
-  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_DIFFDVR_FORWARD_TILE},
-                                    {TFM_SPEC_WORKGROUP_Y, TFM_DIFFDVR_FORWARD_TILE},
-                                    {TFM_RENDER_SPEC_CHUNKS, field_chunks}});
+  desc.workgroup_size = TFM_RENDER_TILE * TFM_RENDER_TILE;
+  desc.specialization = gpu::render_specialization(field_chunks, TFM_RENDER_MODE_DIFFDVR_STATE);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 
@@ -69,9 +65,9 @@ void DiffDvrForwardKernel::record(CommandBatch& batch, const DeviceField& field,
                                   uint32_t row_begin, uint32_t row_count) const {
   check_pass(field, chunks_, tf, views, push, state, stop, row_begin, row_count);
   push.row_offset = row_begin;
-  // Buffers in the binding order of kForwardBindingCounts.
+  // Buffers in the binding order of gpu::kRenderBindingCounts; the state is the renderer's image.
   batch.dispatch(*pipeline_, {field.chunk_array(TFM_RENDER_MAX_CHUNKS), tf, views, state, stop}, push,
-                 tiles(push, row_count, TFM_DIFFDVR_FORWARD_TILE));
+                 tiles(push, row_count, TFM_RENDER_TILE));
 }
 
 DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks, uint32_t tf_size, ImageLoss loss,

@@ -17,8 +17,9 @@
 // and the optical-depth clamp (TFM_MAX_SAMPLE_OPTICAL_DEPTH = 20) keeps every tau >= exp(-20),
 // so the final T >= (1 - opacity) exp(-20) ~ 2e-11 for the default 0.99: a normal float, and
 // each T recovered on the way back is larger still. The forward pass hands T over exactly
-// (diffdvr_forward.comp stores T, not 1 - T). Only T enters the adjoint; C is inverted too (it
-// is free: dead code the compiler drops) so the march reads as the forward one reversed.
+// (render_image.comp in TFM_RENDER_MODE_DIFFDVR_STATE stores T, not 1 - T). Only T enters the
+// adjoint; C is inverted too (it is free: dead code the compiler drops) so the march reads as the
+// forward one reversed.
 //
 // Gradient sums: each invocation keeps the two entries of its current TF interval in float
 // registers while consecutive samples stay in it (smooth fields mostly do), converts the sums
@@ -37,7 +38,6 @@ layout(constant_id = TFM_DIFFDVR_SPEC_USE_SHARED) const bool USE_SHARED = true;
 
 TFM_DECLARE_RAYMARCH_BINDINGS(TFM_DIFFDVR_BWD_BINDING_FIELD, TFM_DIFFDVR_BWD_BINDING_TF)
 #include "raymarch.glsl"
-#include "diffdvr_layout.h"
 
 layout(std430, binding = TFM_DIFFDVR_BWD_BINDING_VIEWS) readonly buffer Views { RenderView views[]; };
 layout(std430, binding = TFM_DIFFDVR_BWD_BINDING_STATE) readonly buffer State { vec4 state[]; };
@@ -77,7 +77,7 @@ void flush(uint j, vec4 g0, vec4 g1) {
 void backpropagate_pixel(uvec2 pixel, uint view) {
   const MarchParams mp = march_params_from_push();
   const Ray ray = view_ray(views[view], pixel, mp);
-  const uint index = (view * rp.height + pixel.y) * rp.width + pixel.x;
+  const uint index = pixel_index(pixel, view);
   const vec4 s = state[index];
   const vec4 t = target[index];
   // Images as the renderer writes them: (C, opacity = 1 - T).
@@ -139,9 +139,9 @@ void main() {
   barrier();
 
   // No early return: every invocation must reach the barrier below.
-  const uvec2 pixel = uvec2(gl_GlobalInvocationID.x, gl_GlobalInvocationID.y + rp.row_offset);
-  const uint view = gl_GlobalInvocationID.z;
-  if (pixel.x < rp.width && pixel.y < rp.height && view < rp.view_count) backpropagate_pixel(pixel, view);
+  uvec2 pixel;
+  uint view;
+  if (invocation_pixel(pixel, view)) backpropagate_pixel(pixel, view);
 
   if (USE_SHARED) {
     // Every shared add of this workgroup is complete before the totals are flushed.
