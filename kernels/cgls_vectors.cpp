@@ -31,7 +31,8 @@ void CglsVectorsKernel::record(CommandBatch& batch, uint32_t stage, uint32_t tf_
   if (!b.s_accum || !b.delta_accum || !b.inv_diag || !b.x || !b.p || !b.state)
     throw std::invalid_argument("cgls_vectors: missing buffer");
   const uint64_t rgba = uint64_t(tf_size) * 16;
-  if (b.s_accum->size() < signed_accumulator_bytes(tf_size) || b.delta_accum->size() < TFM_GATHER_NORM_SLOTS * 8 ||
+  if (b.s_accum->size() < signed_accumulator_bytes(tf_size) ||
+      b.delta_accum->size() < TFM_GATHER_NORM_SLOTS * gpu::kFixedSlotBytes ||
       b.inv_diag->size() < uint64_t(tf_size) * 4 || b.x->size() < rgba || b.p->size() < rgba ||
       b.state->size() < sizeof(gpu::CglsState))
     throw std::invalid_argument("cgls_vectors: a buffer is smaller than N entries need");

@@ -75,18 +75,19 @@ DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks
     : chunks_(field_chunks), tf_size_(tf_size) {
   check_chunks(field_chunks);
   if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
-  const uint64_t shared_bytes = uint64_t(slots()) * 2 * sizeof(uint32_t);
+  const uint64_t shared_bytes = slots() * gpu::kFixedSlotBytes;
   use_shared_ = !force_global && shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
   PipelineDesc desc;
   desc.shader = "diffdvr_backward";
   desc.binding_counts = gpu::to_vector(kBackwardBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::RenderPush);
   desc.workgroup_size = TFM_DIFFDVR_BACKWARD_TILE * TFM_DIFFDVR_BACKWARD_TILE;
+  const uint32_t shared_slots = use_shared_ ? slots() : 1u;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_DIFFDVR_BACKWARD_TILE},
                                     {TFM_SPEC_WORKGROUP_Y, TFM_DIFFDVR_BACKWARD_TILE},
                                     {TFM_RENDER_SPEC_CHUNKS, field_chunks},
                                     {TFM_DIFFDVR_SPEC_LOSS, static_cast<uint32_t>(loss)},
-                                    {TFM_DIFFDVR_SPEC_SHARED_WORDS, use_shared_ ? 2 * slots() : 2u},
+                                    {TFM_DIFFDVR_SPEC_SHARED_WORDS, shared_slots * TFM_FIXED_SLOT_WORDS},
                                     {TFM_DIFFDVR_SPEC_USE_SHARED, use_shared_ ? 1u : 0u}});
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -97,7 +98,8 @@ void DiffDvrBackwardKernel::record(CommandBatch& batch, const DeviceField& field
   check_pass(field, chunks_, tf, views, push, state, stop, row_begin, row_count);
   if (push.tf_size != tf_size_) throw std::invalid_argument("diffdvr: TF size differs from the kernel's");
   if (target.size() < state.size()) throw std::invalid_argument("diffdvr: target image smaller than the state");
-  if (accum.size() < uint64_t(slots()) * 8) throw std::invalid_argument("diffdvr: accumulator buffer too small");
+  if (accum.size() < slots() * gpu::kFixedSlotBytes)
+    throw std::invalid_argument("diffdvr: accumulator buffer too small");
   push.row_offset = row_begin;
   // Buffers in the binding order of kBackwardBindingCounts.
   batch.dispatch(*pipeline_, {field.chunk_array(TFM_RENDER_MAX_CHUNKS), tf, views, state, stop, target, accum}, push,

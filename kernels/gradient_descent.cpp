@@ -31,9 +31,9 @@ GdGradientKernel::GdGradientKernel(Context& ctx, uint32_t tf_size, bool l1, bool
   desc.binding_counts = gpu::to_vector(kGradientBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  const uint32_t shared_words = use_shared_ ? uint32_t(signed_accumulator_bytes(tf_size) / 4) : TFM_SIGNED_SLOT_WORDS;
+  const uint32_t shared_slots = use_shared_ ? TFM_TF_GRADIENT_SLOTS(tf_size) : 1u;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
-                                    {TFM_GD_SPEC_SHARED_WORDS, shared_words},
+                                    {TFM_GD_SPEC_SHARED_WORDS, shared_slots * TFM_FIXED_SLOT_WORDS},
                                     {TFM_GD_SPEC_USE_SHARED, use_shared_ ? 1u : 0u},
                                     {TFM_GD_SPEC_LOSS_L1, l1 ? 1u : 0u}});
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);

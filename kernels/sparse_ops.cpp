@@ -6,6 +6,7 @@
 #include <string>
 
 #include "context.h"
+#include "diffdvr.h"  // FixedPointTotals, the decoder of signed accumulators
 #include "voxel_pair.h"
 
 namespace tfm {
@@ -126,7 +127,7 @@ void SparseGatherKernel::record(CommandBatch& batch, VoxelVectors& v, uint32_t t
                                 Buffer& norm_accum, const Buffer* state) const {
   if (tf_size < 2 || x.size() < uint64_t(tf_size) * kRgbaBytes)
     throw std::invalid_argument("sparse_gather: TF buffer smaller than N RGBA entries");
-  if (norm_accum.size() < TFM_GATHER_NORM_SLOTS * 2 * sizeof(uint32_t))
+  if (norm_accum.size() < TFM_GATHER_NORM_SLOTS * gpu::kFixedSlotBytes)
     throw std::invalid_argument("sparse_gather: norm accumulator too small");
   if (scaled_ && (!state || state->size() < sizeof(gpu::CglsState)))
     throw std::invalid_argument("sparse_gather: the scaled norm needs the CGLS state");
@@ -142,7 +143,7 @@ void SparseGatherKernel::record(CommandBatch& batch, VoxelVectors& v, uint32_t t
 }
 
 uint64_t signed_accumulator_bytes(uint32_t tf_size) {
-  return uint64_t(4) * tf_size * TFM_SIGNED_SLOT_WORDS * sizeof(uint32_t);
+  return TFM_TF_GRADIENT_SLOTS(uint64_t(tf_size)) * gpu::kFixedSlotBytes;
 }
 
 bool signed_slots_fit_shared(const Context& ctx, uint32_t tf_size) {
@@ -150,15 +151,9 @@ bool signed_slots_fit_shared(const Context& ctx, uint32_t tf_size) {
 }
 
 std::vector<double> decode_signed_fixed_point(const std::vector<uint32_t>& words) {
-  std::vector<double> out(words.size() / TFM_SIGNED_SLOT_WORDS);
-  for (size_t k = 0; k < out.size(); ++k) {
-    const uint32_t* w = &words[TFM_SIGNED_SLOT_WORDS * k];
-    const uint64_t pos = (uint64_t(w[1]) << 32) | w[0];
-    const uint64_t neg = (uint64_t(w[3]) << 32) | w[2];
-    // Exact difference in integers, then one rounding to double.
-    out[k] = pos >= neg ? double(pos - neg) / TFM_FIXED_ONE : -double(neg - pos) / TFM_FIXED_ONE;
-  }
-  return out;
+  FixedPointTotals totals(words.size() / TFM_FIXED_SLOT_WORDS);
+  totals.add(words.data());
+  return totals.values();
 }
 
 SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool update_residual, bool force_global)
@@ -174,9 +169,9 @@ SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool up
   desc.binding_counts = gpu::to_vector(kScatterBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::SparsePush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  const uint32_t shared_words = use_shared_ ? uint32_t(signed_accumulator_bytes(tf_size) / 4) : TFM_SIGNED_SLOT_WORDS;
+  const uint32_t shared_slots = use_shared_ ? TFM_TF_GRADIENT_SLOTS(tf_size) : 1u;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
-                                    {TFM_SCATTER_SPEC_SHARED_WORDS, shared_words},
+                                    {TFM_SCATTER_SPEC_SHARED_WORDS, shared_slots * TFM_FIXED_SLOT_WORDS},
                                     {TFM_SCATTER_SPEC_USE_SHARED, use_shared_ ? 1u : 0u},
                                     {TFM_SCATTER_SPEC_UPDATE_RESIDUAL, update_residual ? 1u : 0u}});
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);

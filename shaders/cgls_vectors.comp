@@ -6,8 +6,7 @@
 #extension GL_GOOGLE_include_directive : require
 #define TFM_WANT_CGLS_PUSH
 #include "solver_layout.h"
-#include "tf_common.glsl"
-#include "solver_common.glsl"
+#include "fixed_point.glsl"
 
 layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;  // a power of two (the reduction halves it)
 
@@ -69,8 +68,8 @@ vec4 p_scale_of(vec4 local_max) {
 vec4 s_entry(uint j) {
   vec4 s;
   for (uint c = 0u; c < 4u; ++c) {
-    const uint k = TFM_SIGNED_SLOT_WORDS * (4u * j + c);
-    s[c] = fx_signed_to_float(uvec2(s_accum[k], s_accum[k + 1u]), uvec2(s_accum[k + 2u], s_accum[k + 3u]));
+    const uint k = 4u * j + c;  // signed slot of entry j, channel c
+    s[c] = fx_signed_to_float(uvec2(s_accum[2u * k], s_accum[2u * k + 1u]));
   }
   return s;
 }

@@ -23,13 +23,14 @@
 //
 // Gradient sums: each invocation keeps the two entries of its current TF interval in float
 // registers while consecutive samples stay in it (smooth fields mostly do), converts the sums
-// to 32.32 fixed point when the interval changes, and adds them with integer atomics into the
-// workgroup's shared accumulators, flushed once per workgroup into the global ones. Integer
-// sums are exact, so the result does not depend on scheduling.
+// to signed 32.32 fixed point (fixed_point.glsl) when the interval changes, and adds them with
+// integer atomics into the workgroup's shared accumulators, flushed once per workgroup into the
+// global ones. Integer sums are exact, so the result does not depend on scheduling.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #define TFM_WANT_RENDER_PUSH
 #include "diffdvr_layout.h"
+#include "fixed_point.glsl"
 
 layout(local_size_x_id = TFM_SPEC_WORKGROUP_X, local_size_y_id = TFM_SPEC_WORKGROUP_Y) in;
 layout(constant_id = TFM_DIFFDVR_SPEC_LOSS) const uint LOSS = TFM_DIFFDVR_LOSS_L2;
@@ -47,32 +48,9 @@ layout(std430, binding = TFM_DIFFDVR_BWD_BINDING_ACCUM) buffer Accum { uint accu
 
 shared uint s_acc[SHARED_WORDS];
 
-#define ADD(slot, value)                  \
-  if (USE_SHARED) {                       \
-    FX_ATOMIC_ADD(s_acc, (slot), (value)) \
-  } else {                                \
-    FX_ATOMIC_ADD(accum, (slot), (value)) \
-  }
-
-// v as a signed 32.32 fixed-point number in two's complement (|v| < 2^31; run sums of one ray
-// are far below). Truncates towards zero like fx_from_float, so the error is below 2^-32.
-uvec2 fx_from_signed(float v) {
-  uvec2 m = fx_from_float(abs(v));
-  if (v < 0.0) {
-    m = ~m;  // -m = ~m + 1 modulo 2^64
-    m.x += 1u;
-    if (m.x == 0u) m.y += 1u;
-  }
-  return m;
-}
-
-// Adds the register sums of TF entries j and j + 1 to the accumulators.
-void flush(uint j, vec4 g0, vec4 g1) {
-  for (uint c = 0u; c < 4u; ++c) {
-    ADD(4u * j + c, fx_from_signed(g0[c]));
-    ADD(4u * (j + 1u) + c, fx_from_signed(g1[c]));
-  }
-}
+// Adds the register sums of TF entries j and j + 1 to the accumulators (run sums of one ray are
+// far below fx_from_signed's 2^31).
+void flush(uint j, vec4 g0, vec4 g1) { FX_ADD_TF_PAIR(USE_SHARED, s_acc, accum, j, g0, g1) }
 
 void backpropagate_pixel(uvec2 pixel, uint view) {
   const MarchParams mp = march_params_from_push();
@@ -91,7 +69,7 @@ void backpropagate_pixel(uvec2 pixel, uint view) {
     g = 2.0 * diff;
     loss = dot(diff, diff);
   }
-  ADD(4u * mp.tf_size, fx_from_float(loss));
+  FX_ATOMIC_ADD_TO(USE_SHARED, s_acc, accum, 4u * mp.tf_size, fx_from_float(loss))
 
   const vec3 g_color = g.rgb;
   float g_trans = -g.a;  // A = 1 - T
@@ -129,26 +107,12 @@ void backpropagate_pixel(uvec2 pixel, uint view) {
 
 void main() {
   const uint slots = TFM_DIFFDVR_SLOTS(rp.tf_size);
-  const uint lid = gl_LocalInvocationIndex;
-  const uint group_size = gl_WorkGroupSize.x * gl_WorkGroupSize.y;
-  if (USE_SHARED) {
-    for (uint k = lid; k < 2u * slots; k += group_size) s_acc[k] = 0u;
-  }
-  // The zeroed shared accumulators are visible before any invocation adds to them.
-  memoryBarrierShared();
-  barrier();
+  if (USE_SHARED) FX_SHARED_ZERO(s_acc, slots)
 
-  // No early return: every invocation must reach the barrier below.
+  // No early return: every invocation must reach the flush's barrier.
   uvec2 pixel;
   uint view;
   if (invocation_pixel(pixel, view)) backpropagate_pixel(pixel, view);
 
-  if (USE_SHARED) {
-    // Every shared add of this workgroup is complete before the totals are flushed.
-    memoryBarrierShared();
-    barrier();
-    for (uint k = lid; k < slots; k += group_size) {
-      FX_ATOMIC_ADD(accum, k, uvec2(s_acc[2u * k], s_acc[2u * k + 1u]));
-    }
-  }
+  if (USE_SHARED) FX_SHARED_FLUSH(s_acc, slots, accum)
 }

@@ -29,11 +29,9 @@
 #define TFM_DIFFDVR_LOSS_L2 0u           // sum over RGBA of (X - R)^2
 #define TFM_DIFFDVR_LOSS_L1 1u           // sum over RGBA of |X - R|
 
-// Accumulators, each a 64-bit 32.32 fixed-point number as two uints (low word first):
+// Accumulators, each a 32.32 fixed-point slot of shaders/fixed_point.glsl (two uints):
 //   slot 4j + c (j < n, c < 4): dLoss/dT_o[j][c] of the SUM loss, signed (two's complement);
 //   slot 4n: the loss itself (non-negative).
-// Integer addition modulo 2^64 is exact and associative, so the totals have the same bits
-// whatever the scheduling, and a negative term is added like any other.
 #define TFM_DIFFDVR_SLOTS(n) (4u * (n) + 1u)
 
 #endif  // TFMATCH_DIFFDVR_LAYOUT_H

@@ -29,12 +29,16 @@ using uint = std::uint32_t;
 // Workgroup size of the 1-D voxel kernels.
 #define TFM_VOXEL_WORKGROUP 256
 
-// Fixed-point accumulators: a 64-bit unsigned 32.32 number kept as two 32-bit words
-// (low word first). Only core 32-bit atomics are needed, and integer addition is associative,
-// so sums are bit-identical whatever the scheduling.
+// Fixed-point accumulators (shaders/fixed_point.glsl): each slot is one 64-bit 32.32 number kept
+// as two 32-bit words (low word first), unsigned or two's complement. Only core 32-bit atomics
+// are needed, and integer addition is associative, so sums are bit-identical whatever the
+// scheduling.
 #define TFM_FIXED_ONE 4294967296.0
+#define TFM_FIXED_SLOT_WORDS 2u
 
 #ifdef __cplusplus
+inline constexpr std::uint64_t kFixedSlotBytes = TFM_FIXED_SLOT_WORDS * sizeof(uint);
+
 // The engine takes descriptor counts and specialization values as lists indexed by binding
 // number and constant_id, and a dispatch's buffers in binding order. These helpers let a wrapper
 // name every position instead of relying on the order of a brace list.
@@ -78,7 +82,7 @@ inline std::vector<uint> by_id(std::initializer_list<std::pair<uint, uint>> valu
 #endif
 
 // ---- assemble_normal_equations.comp -------------------------------------------------------
-// Accumulator slots (each two uints): M diagonal [0, N), M super-diagonal [N, 2N-1),
+// Accumulator slots (unsigned): M diagonal [0, N), M super-diagonal [N, 2N-1),
 // S^T b as [2N-1 + 4j + c], b^T b per channel [6N-1 + c], voxel count [6N+3].
 #define TFM_ASSEMBLE_BINDING_REF_FIELD 0
 #define TFM_ASSEMBLE_BINDING_OPT_FIELD 1
@@ -109,8 +113,8 @@ TFM_PUSH_CONSTANTS(VoxelPairPush) {
 #endif
 
 // ---- voxel_loss.comp ----------------------------------------------------------------------
-// Specialization: workgroup size only. Accumulator slots: sum of squared difference per channel
-// [0,4), sum of absolute difference per channel [4,8), voxel count [8].
+// Specialization: workgroup size only. Accumulator slots (unsigned): sum of squared difference
+// per channel [0,4), sum of absolute difference per channel [4,8), voxel count [8].
 #define TFM_LOSS_BINDING_REF_FIELD 0
 #define TFM_LOSS_BINDING_OPT_FIELD 1
 #define TFM_LOSS_BINDING_REF_TF 2

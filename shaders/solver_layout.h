@@ -21,11 +21,9 @@ struct uvec4 { uint x, y, z, w; };
 // of smooth fields mostly share a bin, so most fixed-point conversions and atomics disappear.
 #define TFM_SOLVER_RUN 16u
 
-// Signed 32.32 fixed-point accumulators: slot k is four words, a non-negative total of the
-// positive terms (words 4k, 4k+1) and one of the negated negative terms (4k+2, 4k+3); the value
-// is their difference, taken in 64-bit integer arithmetic before any rounding. Slot of TF entry j,
-// channel c: 4j + c.
-#define TFM_SIGNED_SLOT_WORDS 4u
+// Signed sums over a TF (S^T r, gradients): 4N signed 32.32 fixed-point slots (fixed_point.glsl,
+// two's complement, TFM_FIXED_SLOT_WORDS words each), the slot of TF entry j, channel c is 4j + c.
+#define TFM_TF_GRADIENT_SLOTS(n) (4u * (n))
 
 // Coordinate field: per voxel the TF coordinate x = clamp((v - lo) * scale, 0, N-1) of the
 // optimized field (exactly as tf_coordinate computes it), or TFM_NO_DATA when either field has
@@ -68,8 +66,9 @@ TFM_PUSH_CONSTANTS(PreparePush) {
 #define TFM_GATHER_NORM_SLOTS 4u
 
 // ---- sparse_scatter.comp: s += S^T r (signed slots), optionally after r -= alpha (S p) ----------
-// Specialization: workgroup size (TFM_SPEC_WORKGROUP_X), then these.
-#define TFM_SCATTER_SPEC_SHARED_WORDS 1     // words of workgroup-shared accumulators
+// Accumulators: TFM_TF_GRADIENT_SLOTS(N) signed slots. Specialization: workgroup size
+// (TFM_SPEC_WORKGROUP_X), then these.
+#define TFM_SCATTER_SPEC_SHARED_WORDS 1     // words of workgroup-shared accumulators (2 per slot)
 #define TFM_SCATTER_SPEC_USE_SHARED 2       // 0: add straight to the global accumulators
 #define TFM_SCATTER_SPEC_UPDATE_RESIDUAL 3  // r -= alpha (S p) first, alpha from the CGLS state
 #define TFM_SCATTER_BINDING_COORD 0
@@ -123,9 +122,9 @@ TFM_PUSH_CONSTANTS(CglsPush) {
 
 // ---- gd_gradient.comp: loss and signed gradient accumulators over one chunk ----------------------
 // Uses VoxelPairPush (shared_layout.h). Specialization: workgroup size (TFM_SPEC_WORKGROUP_X),
-// then these. Slots: gradient 4N signed slots (4 words each), then the loss per channel as 4
-// unsigned slots (2 words each) at word offset 16N.
-#define TFM_GD_SPEC_SHARED_WORDS 1  // words of workgroup-shared gradient accumulators
+// then these. Slots: the gradient, TFM_TF_GRADIENT_SLOTS(N) signed slots, then the loss per
+// channel as 4 unsigned slots from TFM_GD_LOSS_SLOT(N) (word 2 TFM_GD_LOSS_SLOT(N)).
+#define TFM_GD_SPEC_SHARED_WORDS 1  // words of workgroup-shared gradient accumulators (2 per slot)
 #define TFM_GD_SPEC_USE_SHARED 2    // 0: add straight to the global accumulators
 #define TFM_GD_SPEC_LOSS_L1 3       // 1: l1 loss, 0: l2
 #define TFM_GD_BINDING_REF_FIELD 0
@@ -133,7 +132,8 @@ TFM_PUSH_CONSTANTS(CglsPush) {
 #define TFM_GD_BINDING_REF_TF 2
 #define TFM_GD_BINDING_X 3
 #define TFM_GD_BINDING_ACCUM 4
-#define TFM_GD_ACCUM_WORDS(n) (16u * (n) + 8u)
+#define TFM_GD_LOSS_SLOT(n) TFM_TF_GRADIENT_SLOTS(n)
+#define TFM_GD_ACCUM_WORDS(n) (TFM_FIXED_SLOT_WORDS * (TFM_GD_LOSS_SLOT(n) + 4u))
 
 // ---- gd_update.comp: one SGD or Adam step on the TF, projected to [0,1] ---------------------------
 // Specialization: workgroup size only.
