@@ -25,6 +25,7 @@ void reduce2(inout vec4 a, inout vec4 b) {
   const uint lid = gl_LocalInvocationID.x;
   red_a[lid] = a;
   red_b[lid] = b;
+  // Every invocation's terms are visible before the first level adds them.
   memoryBarrierShared();
   barrier();
   for (uint half_size = gl_WorkGroupSize.x / 2u; half_size > 0u; half_size /= 2u) {
@@ -46,6 +47,7 @@ shared vec4 red_max[gl_WorkGroupSize.x];
 vec4 p_scale_of(vec4 local_max) {
   const uint lid = gl_LocalInvocationID.x;
   red_max[lid] = local_max;
+  // Every invocation's maximum is visible before the first level compares them.
   memoryBarrierShared();
   barrier();
   for (uint half_size = gl_WorkGroupSize.x / 2u; half_size > 0u; half_size /= 2u) {
