@@ -11,13 +11,20 @@ namespace tfm {
 
 static_assert(sizeof(gpu::CglsPush) == 32, "CglsPush must match the GLSL std430 block");
 
+namespace {
+// Bindings in the order record() lists its buffers.
+constexpr auto kCglsBindingCounts =
+    gpu::binding_counts({TFM_CGLS_BINDING_S_ACCUM, TFM_CGLS_BINDING_DELTA_ACCUM, TFM_CGLS_BINDING_INV_DIAG,
+                         TFM_CGLS_BINDING_X, TFM_CGLS_BINDING_P, TFM_CGLS_BINDING_STATE});
+}  // namespace
+
 CglsVectorsKernel::CglsVectorsKernel(Context& ctx) {
   PipelineDesc desc;
   desc.shader = "cgls_vectors";
-  desc.binding_counts = {1, 1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kCglsBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::CglsPush);
   desc.workgroup_size = TFM_VECTOR_WORKGROUP;
-  desc.specialization = {TFM_VECTOR_WORKGROUP};
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VECTOR_WORKGROUP}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -27,7 +34,8 @@ void CglsVectorsKernel::record(CommandBatch& batch, uint32_t stage, uint32_t tf_
   if (!b.s_accum || !b.delta_accum || !b.inv_diag || !b.x || !b.p || !b.state)
     throw std::invalid_argument("cgls_vectors: missing buffer");
   const uint64_t rgba = uint64_t(tf_size) * 16;
-  if (b.s_accum->size() < signed_accumulator_bytes(tf_size) || b.delta_accum->size() < TFM_GATHER_NORM_SLOTS * 8 ||
+  if (b.s_accum->size() < signed_accumulator_bytes(tf_size) ||
+      b.delta_accum->size() < TFM_GATHER_NORM_SLOTS * gpu::kFixedSlotBytes ||
       b.inv_diag->size() < uint64_t(tf_size) * 4 || b.x->size() < rgba || b.p->size() < rgba ||
       b.state->size() < sizeof(gpu::CglsState))
     throw std::invalid_argument("cgls_vectors: a buffer is smaller than N entries need");

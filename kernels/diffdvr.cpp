@@ -1,4 +1,5 @@
-// Pipelines and dispatch recording of the DiffDVR forward and backward kernels.
+// Pipelines and dispatch recording of the DiffDVR passes: the forward pass is render_image.comp in
+// its DiffDVR state mode, the backward pass diffdvr_backward.comp.
 #include "diffdvr.h"
 
 #include "shader_registry.h"
@@ -49,16 +50,24 @@ Groups tiles(const gpu::RenderPush& push, uint32_t row_count, uint32_t tile) {
   return {(push.width + tile - 1) / tile, (row_count + tile - 1) / tile, push.view_count};
 }
 
+// diffdvr_backward.comp's bindings in the order record() lists its buffers.
+constexpr auto kBackwardBindingCounts = gpu::binding_counts(
+    {TFM_DIFFDVR_BWD_BINDING_FIELD, TFM_DIFFDVR_BWD_BINDING_TF, TFM_DIFFDVR_BWD_BINDING_VIEWS,
+     TFM_DIFFDVR_BWD_BINDING_STATE, TFM_DIFFDVR_BWD_BINDING_STOP, TFM_DIFFDVR_BWD_BINDING_TARGET,
+     TFM_DIFFDVR_BWD_BINDING_ACCUM},
+    TFM_DIFFDVR_BWD_BINDING_FIELD, TFM_RENDER_MAX_CHUNKS);
+
 }  // namespace
 
 DiffDvrForwardKernel::DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks) : chunks_(field_chunks) {
   check_chunks(field_chunks);
+  // The renderer's pipeline in the mode that stores (C, T): the same march as every image shown.
   PipelineDesc desc;
-  desc.shader = "diffdvr_forward";
-  desc.binding_counts = {TFM_RENDER_MAX_CHUNKS, 1, 1, 1, 1};
+  desc.shader = "render_image";
+  desc.binding_counts = gpu::to_vector(gpu::kRenderBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::RenderPush);
-  desc.workgroup_size = TFM_DIFFDVR_FORWARD_TILE * TFM_DIFFDVR_FORWARD_TILE;
-  desc.specialization = {TFM_DIFFDVR_FORWARD_TILE, TFM_DIFFDVR_FORWARD_TILE, field_chunks};
+  desc.workgroup_size = TFM_RENDER_TILE * TFM_RENDER_TILE;
+  desc.specialization = gpu::render_specialization(field_chunks, TFM_RENDER_MODE_DIFFDVR_STATE);
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -68,8 +77,9 @@ void DiffDvrForwardKernel::record(CommandBatch& batch, const DeviceField& field,
                                   uint32_t row_begin, uint32_t row_count) const {
   check_pass(field, chunks_, tf, views, push, state, stop, row_begin, row_count);
   push.row_offset = row_begin;
+  // Buffers in the binding order of gpu::kRenderBindingCounts; the state is the renderer's image.
   batch.dispatch(*pipeline_, {field.chunk_array(TFM_RENDER_MAX_CHUNKS), tf, views, state, stop}, push,
-                 tiles(push, row_count, TFM_DIFFDVR_FORWARD_TILE));
+                 tiles(push, row_count, TFM_RENDER_TILE));
 }
 
 DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks, uint32_t tf_size, ImageLoss loss,
@@ -77,19 +87,20 @@ DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks
     : chunks_(field_chunks), tf_size_(tf_size) {
   check_chunks(field_chunks);
   if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
-  const uint64_t shared_bytes = uint64_t(slots()) * 2 * sizeof(uint32_t);
+  const uint64_t shared_bytes = slots() * gpu::kFixedSlotBytes;
   use_shared_ = !force_global && shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
   PipelineDesc desc;
   desc.shader = "diffdvr_backward";
-  desc.binding_counts = {TFM_RENDER_MAX_CHUNKS, 1, 1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kBackwardBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::RenderPush);
   desc.workgroup_size = TFM_DIFFDVR_BACKWARD_TILE * TFM_DIFFDVR_BACKWARD_TILE;
-  desc.specialization = {TFM_DIFFDVR_BACKWARD_TILE,
-                         TFM_DIFFDVR_BACKWARD_TILE,
-                         field_chunks,
-                         static_cast<uint32_t>(loss),
-                         use_shared_ ? 2 * slots() : 2u,
-                         use_shared_ ? 1u : 0u};
+  const uint32_t shared_slots = use_shared_ ? slots() : 1u;
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_DIFFDVR_BACKWARD_TILE},
+                                    {TFM_SPEC_WORKGROUP_Y, TFM_DIFFDVR_BACKWARD_TILE},
+                                    {TFM_RENDER_SPEC_CHUNKS, field_chunks},
+                                    {TFM_DIFFDVR_SPEC_LOSS, static_cast<uint32_t>(loss)},
+                                    {TFM_DIFFDVR_SPEC_SHARED_WORDS, shared_slots * TFM_FIXED_SLOT_WORDS},
+                                    {TFM_DIFFDVR_SPEC_USE_SHARED, use_shared_ ? 1u : 0u}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -100,8 +111,10 @@ void DiffDvrBackwardKernel::record(CommandBatch& batch, const DeviceField& field
   check_pass(field, chunks_, tf, views, push, state, stop, row_begin, row_count);
   if (push.tf_size != tf_size_) throw std::invalid_argument("diffdvr: TF size differs from the kernel's");
   if (target.size() < state.size()) throw std::invalid_argument("diffdvr: target image smaller than the state");
-  if (accum.size() < uint64_t(slots()) * 8) throw std::invalid_argument("diffdvr: accumulator buffer too small");
+  if (accum.size() < slots() * gpu::kFixedSlotBytes)
+    throw std::invalid_argument("diffdvr: accumulator buffer too small");
   push.row_offset = row_begin;
+  // Buffers in the binding order of kBackwardBindingCounts.
   batch.dispatch(*pipeline_, {field.chunk_array(TFM_RENDER_MAX_CHUNKS), tf, views, state, stop, target, accum}, push,
                  tiles(push, row_count, TFM_DIFFDVR_BACKWARD_TILE));
 }

@@ -1,7 +1,7 @@
-// Wrappers of the DiffDVR kernels: the forward pass (diffdvr_forward.comp) writes each pixel's
-// final state (C, T) and k_stop for a batch of cameras; the backward pass (diffdvr_backward.comp)
-// re-marches from that state and adds the image loss and its TF gradient to fixed-point
-// accumulators. Both take the renderer's push block (make_render_push of render_image.h).
+// Wrappers of the DiffDVR kernels: the forward pass (render_image.comp in its DiffDVR state
+// mode) writes each pixel's final state (C, T) and k_stop for a batch of cameras; the backward
+// pass (diffdvr_backward.comp) re-marches from that state and adds the image loss and its TF
+// gradient to fixed-point accumulators. Both take the renderer's push block (make_render_push of render_image.h).
 #pragma once
 
 #include <cstdint>

@@ -13,6 +13,16 @@ namespace tfm {
 
 static_assert(sizeof(gpu::GdUpdatePush) == 48, "GdUpdatePush must match the GLSL std430 block");
 
+namespace {
+// Bindings in the order record() lists each kernel's buffers.
+constexpr auto kGradientBindingCounts =
+    gpu::binding_counts({TFM_GD_BINDING_REF_FIELD, TFM_GD_BINDING_OPT_FIELD, TFM_GD_BINDING_REF_TF, TFM_GD_BINDING_X,
+                         TFM_GD_BINDING_ACCUM});
+constexpr auto kUpdateBindingCounts =
+    gpu::binding_counts({TFM_GD_UPDATE_BINDING_ACCUM, TFM_GD_UPDATE_BINDING_X, TFM_GD_UPDATE_BINDING_M,
+                         TFM_GD_UPDATE_BINDING_V, TFM_GD_UPDATE_BINDING_INV_DIAG, TFM_GD_UPDATE_BINDING_GRADIENT});
+}  // namespace
+
 uint64_t gd_accumulator_bytes(uint32_t tf_size) { return uint64_t(TFM_GD_ACCUM_WORDS(tf_size)) * sizeof(uint32_t); }
 
 GdGradientKernel::GdGradientKernel(Context& ctx, uint32_t tf_size, bool l1, bool force_global)
@@ -20,11 +30,14 @@ GdGradientKernel::GdGradientKernel(Context& ctx, uint32_t tf_size, bool l1, bool
   if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
   PipelineDesc desc;
   desc.shader = "gd_gradient";
-  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kGradientBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  const uint32_t shared_words = use_shared_ ? uint32_t(signed_accumulator_bytes(tf_size) / 4) : TFM_SIGNED_SLOT_WORDS;
-  desc.specialization = {TFM_VOXEL_WORKGROUP, shared_words, use_shared_ ? 1u : 0u, l1 ? 1u : 0u};
+  const uint32_t shared_slots = use_shared_ ? TFM_TF_GRADIENT_SLOTS(tf_size) : 1u;
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
+                                    {TFM_GD_SPEC_SHARED_WORDS, shared_slots * TFM_FIXED_SLOT_WORDS},
+                                    {TFM_GD_SPEC_USE_SHARED, use_shared_ ? 1u : 0u},
+                                    {TFM_GD_SPEC_LOSS_L1, l1 ? 1u : 0u}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -50,10 +63,10 @@ void GdGradientKernel::record(CommandBatch& batch, const DeviceField& ref, const
 GdUpdateKernel::GdUpdateKernel(Context& ctx) {
   PipelineDesc desc;
   desc.shader = "gd_update";
-  desc.binding_counts = {1, 1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kUpdateBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::GdUpdatePush);
   desc.workgroup_size = TFM_VECTOR_WORKGROUP;
-  desc.specialization = {TFM_VECTOR_WORKGROUP};
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VECTOR_WORKGROUP}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }

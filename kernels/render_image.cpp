@@ -21,10 +21,10 @@ RenderImageKernel::RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32
                              std::to_string(TFM_RENDER_MAX_CHUNKS) + " (volume too large for this device)");
   PipelineDesc desc;
   desc.shader = "render_image";
-  desc.binding_counts = {TFM_RENDER_MAX_CHUNKS, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(gpu::kRenderBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::RenderPush);
   desc.workgroup_size = TFM_RENDER_TILE * TFM_RENDER_TILE;
-  desc.specialization = {TFM_RENDER_TILE, TFM_RENDER_TILE, field_chunks, mode};
+  desc.specialization = gpu::render_specialization(field_chunks, mode);
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -43,6 +43,7 @@ void RenderImageKernel::record(CommandBatch& batch, const DeviceField& field, co
   push.row_offset = row_begin;
   const Groups groups{(push.width + TFM_RENDER_TILE - 1) / TFM_RENDER_TILE,
                       (row_count + TFM_RENDER_TILE - 1) / TFM_RENDER_TILE, push.view_count};
+  // Buffers in the binding order of gpu::kRenderBindingCounts.
   batch.dispatch(*pipeline_, {field.chunk_array(TFM_RENDER_MAX_CHUNKS), tf, views, image, stop}, push, groups);
 }
 

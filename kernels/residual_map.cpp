@@ -11,13 +11,20 @@
 
 namespace tfm {
 
+namespace {
+// Bindings in the order record() lists its buffers.
+constexpr auto kResidualBindingCounts =
+    gpu::binding_counts({TFM_RESIDUAL_BINDING_REF_FIELD, TFM_RESIDUAL_BINDING_OPT_FIELD, TFM_RESIDUAL_BINDING_REF_TF,
+                         TFM_RESIDUAL_BINDING_OPT_TF, TFM_RESIDUAL_BINDING_OUT});
+}  // namespace
+
 ResidualMapKernel::ResidualMapKernel(Context& ctx) : ctx_(ctx) {
   PipelineDesc desc;
   desc.shader = "residual_map";
-  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kResidualBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = TFM_RESIDUAL_WORKGROUP;
-  desc.specialization = {TFM_RESIDUAL_WORKGROUP};
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_RESIDUAL_WORKGROUP}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }

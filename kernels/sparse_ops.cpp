@@ -8,6 +8,7 @@
 #include <string>
 
 #include "context.h"
+#include "diffdvr.h"  // FixedPointTotals, the decoder of signed accumulators
 #include "voxel_pair.h"
 
 namespace tfm {
@@ -18,6 +19,17 @@ static_assert(sizeof(gpu::CglsState) == 112, "CglsState must match the GLSL std4
 
 namespace {
 constexpr uint64_t kRgbaBytes = 4 * sizeof(float);
+
+// Bindings in the order record() lists each kernel's buffers.
+constexpr auto kPrepareBindingCounts =
+    gpu::binding_counts({TFM_PREPARE_BINDING_REF_FIELD, TFM_PREPARE_BINDING_OPT_FIELD, TFM_PREPARE_BINDING_REF_TF,
+                         TFM_PREPARE_BINDING_COORD, TFM_PREPARE_BINDING_RGBA});
+constexpr auto kGatherBindingCounts =
+    gpu::binding_counts({TFM_GATHER_BINDING_COORD, TFM_GATHER_BINDING_X, TFM_GATHER_BINDING_OUT,
+                         TFM_GATHER_BINDING_NORM, TFM_GATHER_BINDING_STATE});
+constexpr auto kScatterBindingCounts =
+    gpu::binding_counts({TFM_SCATTER_BINDING_COORD, TFM_SCATTER_BINDING_RESIDUAL, TFM_SCATTER_BINDING_P,
+                         TFM_SCATTER_BINDING_STATE, TFM_SCATTER_BINDING_ACCUM});
 }  // namespace
 
 VoxelVectors::VoxelVectors(Context& ctx, const DeviceField& ref, const DeviceField& opt, uint64_t max_chunk_voxels)
@@ -71,10 +83,10 @@ std::vector<float> VoxelVectors::read_rgba(Context& ctx) const {
 SparsePrepareKernel::SparsePrepareKernel(Context& ctx) : ctx_(ctx) {
   PipelineDesc desc;
   desc.shader = "sparse_prepare";
-  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kPrepareBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::PreparePush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  desc.specialization = {TFM_VOXEL_WORKGROUP};
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -104,10 +116,13 @@ SparseGatherKernel::SparseGatherKernel(Context& ctx, bool write_out, bool accumu
     : ctx_(ctx), scaled_(scaled), dummy_state_(ctx, sizeof(gpu::CglsState), MemoryUsage::Device, "gather unused state") {
   PipelineDesc desc;
   desc.shader = "sparse_gather";
-  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kGatherBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::SparsePush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  desc.specialization = {TFM_VOXEL_WORKGROUP, write_out ? 1u : 0u, accumulate_norm ? 1u : 0u, scaled ? 1u : 0u};
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
+                                    {TFM_GATHER_SPEC_WRITE_OUT, write_out ? 1u : 0u},
+                                    {TFM_GATHER_SPEC_ACCUMULATE_NORM, accumulate_norm ? 1u : 0u},
+                                    {TFM_GATHER_SPEC_NORM_SCALED, scaled ? 1u : 0u}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -116,7 +131,7 @@ void SparseGatherKernel::record(CommandBatch& batch, VoxelVectors& v, uint32_t t
                                 Buffer& norm_accum, const Buffer* state) const {
   if (tf_size < 2 || x.size() < uint64_t(tf_size) * kRgbaBytes)
     throw std::invalid_argument("sparse_gather: TF buffer smaller than N RGBA entries");
-  if (norm_accum.size() < TFM_GATHER_NORM_SLOTS * 2 * sizeof(uint32_t))
+  if (norm_accum.size() < TFM_GATHER_NORM_SLOTS * gpu::kFixedSlotBytes)
     throw std::invalid_argument("sparse_gather: norm accumulator too small");
   if (scaled_ && (!state || state->size() < sizeof(gpu::CglsState)))
     throw std::invalid_argument("sparse_gather: the scaled norm needs the CGLS state");
@@ -132,7 +147,7 @@ void SparseGatherKernel::record(CommandBatch& batch, VoxelVectors& v, uint32_t t
 }
 
 uint64_t signed_accumulator_bytes(uint32_t tf_size) {
-  return uint64_t(4) * tf_size * TFM_SIGNED_SLOT_WORDS * sizeof(uint32_t);
+  return TFM_TF_GRADIENT_SLOTS(uint64_t(tf_size)) * gpu::kFixedSlotBytes;
 }
 
 bool signed_slots_fit_shared(const Context& ctx, uint32_t tf_size) {
@@ -140,15 +155,9 @@ bool signed_slots_fit_shared(const Context& ctx, uint32_t tf_size) {
 }
 
 std::vector<double> decode_signed_fixed_point(const std::vector<uint32_t>& words) {
-  std::vector<double> out(words.size() / TFM_SIGNED_SLOT_WORDS);
-  for (size_t k = 0; k < out.size(); ++k) {
-    const uint32_t* w = &words[TFM_SIGNED_SLOT_WORDS * k];
-    const uint64_t pos = (uint64_t(w[1]) << 32) | w[0];
-    const uint64_t neg = (uint64_t(w[3]) << 32) | w[2];
-    // Exact difference in integers, then one rounding to double.
-    out[k] = pos >= neg ? double(pos - neg) / TFM_FIXED_ONE : -double(neg - pos) / TFM_FIXED_ONE;
-  }
-  return out;
+  FixedPointTotals totals(words.size() / TFM_FIXED_SLOT_WORDS);
+  totals.add(words.data());
+  return totals.values();
 }
 
 SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool update_residual, bool force_global)
@@ -161,11 +170,14 @@ SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool up
   if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
   PipelineDesc desc;
   desc.shader = "sparse_scatter";
-  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kScatterBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::SparsePush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  const uint32_t shared_words = use_shared_ ? uint32_t(signed_accumulator_bytes(tf_size) / 4) : TFM_SIGNED_SLOT_WORDS;
-  desc.specialization = {TFM_VOXEL_WORKGROUP, shared_words, use_shared_ ? 1u : 0u, update_residual ? 1u : 0u};
+  const uint32_t shared_slots = use_shared_ ? TFM_TF_GRADIENT_SLOTS(tf_size) : 1u;
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
+                                    {TFM_SCATTER_SPEC_SHARED_WORDS, shared_slots * TFM_FIXED_SLOT_WORDS},
+                                    {TFM_SCATTER_SPEC_USE_SHARED, use_shared_ ? 1u : 0u},
+                                    {TFM_SCATTER_SPEC_UPDATE_RESIDUAL, update_residual ? 1u : 0u}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }

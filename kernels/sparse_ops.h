@@ -81,7 +81,7 @@ class SparseGatherKernel {
   Buffer dummy_state_;
 };
 
-// s += S^T r, r = the vectors' RGBA chunks, into 4N signed slots (TFM_SIGNED_SLOT_WORDS words each:
+// s += S^T r, r = the vectors' RGBA chunks, into 4N signed slots (TFM_FIXED_SLOT_WORDS words each:
 // signed_accumulator_bytes(N)). With `update_residual` first r -= alpha (S p), alpha from the
 // CGLS state. Accumulates in shared memory when it fits (`force_global`: never).
 class SparseScatterKernel {
@@ -107,7 +107,7 @@ class SparseScatterKernel {
 
 // Bytes of 4N signed 32.32 accumulators.
 uint64_t signed_accumulator_bytes(uint32_t tf_size);
-// Decodes signed accumulators read back as uint32 words: value k = (pos - neg) / 2^32.
+// Decodes signed accumulators read back as uint32 words (two's complement 32.32, as FixedPointTotals).
 std::vector<double> decode_signed_fixed_point(const std::vector<uint32_t>& words);
 // Whether 4N signed slots fit the device's workgroup-shared memory.
 bool signed_slots_fit_shared(const Context& ctx, uint32_t tf_size);

@@ -13,6 +13,16 @@ namespace tfm {
 
 static_assert(sizeof(gpu::VoxelPairPush) == 32, "VoxelPairPush must match the GLSL std430 block");
 
+namespace {
+// Bindings in the order record() lists each kernel's buffers.
+constexpr auto kAssembleBindingCounts =
+    gpu::binding_counts({TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD, TFM_ASSEMBLE_BINDING_REF_TF,
+                         TFM_ASSEMBLE_BINDING_ACCUM});
+constexpr auto kLossBindingCounts =
+    gpu::binding_counts({TFM_LOSS_BINDING_REF_FIELD, TFM_LOSS_BINDING_OPT_FIELD, TFM_LOSS_BINDING_REF_TF,
+                         TFM_LOSS_BINDING_OPT_TF, TFM_LOSS_BINDING_ACCUM});
+}  // namespace
+
 gpu::VoxelPairPush make_voxel_pair_push(const FieldMapping& ref, const FieldMapping& opt) {
   gpu::VoxelPairPush p{};
   p.opt_tf_size = opt.tf_size;
@@ -32,7 +42,8 @@ uint32_t voxel_groups(const Context& ctx, uint64_t voxels) {
 }
 
 std::vector<double> decode_fixed_point(const std::vector<uint32_t>& words) {
-  std::vector<double> out(words.size() / 2);
+  // Unsigned slots of shaders/fixed_point.glsl (signed ones: FixedPointTotals).
+  std::vector<double> out(words.size() / TFM_FIXED_SLOT_WORDS);
   for (size_t k = 0; k < out.size(); ++k)
     out[k] = (double(words[2 * k + 1]) * TFM_FIXED_ONE + double(words[2 * k])) / TFM_FIXED_ONE;
   return out;
@@ -47,19 +58,22 @@ AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint3
                                                              uint32_t run)
     : ctx_(ctx), tf_size_(tf_size) {
   if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
-  const uint64_t shared_bytes = uint64_t(TFM_ASSEMBLE_SLOTS(tf_size)) * 2 * sizeof(uint32_t);
+  const uint64_t shared_bytes = TFM_ASSEMBLE_SLOTS(tf_size) * gpu::kFixedSlotBytes;
   use_shared_ = !force_global && shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
   PipelineDesc desc;
   desc.shader = "assemble_normal_equations";
-  desc.binding_counts = {1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kAssembleBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
   if (run == 0) {
     run = TFM_ASSEMBLE_RUN;
     if (const char* env = std::getenv("TFMATCH_ASSEMBLE_RUN")) run = uint32_t(std::clamp(std::atoi(env), 1, 1024));
   }
-  desc.specialization = {TFM_VOXEL_WORKGROUP, use_shared_ ? 2 * TFM_ASSEMBLE_SLOTS(tf_size) : 2u, use_shared_ ? 1u : 0u,
-                         run};
+  const uint32_t shared_slots = use_shared_ ? TFM_ASSEMBLE_SLOTS(tf_size) : 1u;
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
+                                    {TFM_ASSEMBLE_SPEC_SHARED_WORDS, shared_slots * TFM_FIXED_SLOT_WORDS},
+                                    {TFM_ASSEMBLE_SPEC_USE_SHARED, use_shared_ ? 1u : 0u},
+                                    {TFM_ASSEMBLE_SPEC_RUN, run}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -71,7 +85,8 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
                                            const Buffer& ref_tf, Buffer& accum) const {
   check_pair(ref, opt);
   if (opt_map.tf_size != tf_size_) throw std::invalid_argument("assemble: mapping TF size differs from kernel's");
-  if (accum.size() < uint64_t(slots()) * 8) throw std::invalid_argument("assemble: accumulator buffer too small");
+  if (accum.size() < slots() * gpu::kFixedSlotBytes)
+    throw std::invalid_argument("assemble: accumulator buffer too small");
   gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
   for (size_t c = 0; c < ref.chunk_count(); ++c) {
     push.voxel_count = static_cast<uint32_t>(ref.chunk_size(c));
@@ -85,10 +100,10 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
 VoxelLossKernel::VoxelLossKernel(Context& ctx) : ctx_(ctx) {
   PipelineDesc desc;
   desc.shader = "voxel_loss";
-  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.binding_counts = gpu::to_vector(kLossBindingCounts);
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  desc.specialization = {TFM_VOXEL_WORKGROUP};
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -97,7 +112,8 @@ void VoxelLossKernel::record(CommandBatch& batch, const DeviceField& ref, const 
                              const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
                              const Buffer& opt_tf, Buffer& accum) const {
   check_pair(ref, opt);
-  if (accum.size() < uint64_t(TFM_LOSS_SLOTS) * 8) throw std::invalid_argument("voxel loss: accumulator too small");
+  if (accum.size() < TFM_LOSS_SLOTS * gpu::kFixedSlotBytes)
+    throw std::invalid_argument("voxel loss: accumulator too small");
   gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
   for (size_t c = 0; c < ref.chunk_count(); ++c) {
     push.voxel_count = static_cast<uint32_t>(ref.chunk_size(c));

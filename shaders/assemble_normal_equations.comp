@@ -6,13 +6,14 @@
 #define TFM_WANT_VOXEL_PAIR_PUSH
 #include "shared_layout.h"
 #include "tf_common.glsl"
+#include "fixed_point.glsl"
 
-layout(local_size_x_id = 0) in;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 // Words of workgroup-shared accumulators (2 per slot); 2 when accumulating straight to memory.
-layout(constant_id = 1) const uint SHARED_WORDS = 2u;
-layout(constant_id = 2) const bool USE_SHARED = true;
+layout(constant_id = TFM_ASSEMBLE_SPEC_SHARED_WORDS) const uint SHARED_WORDS = 2u;
+layout(constant_id = TFM_ASSEMBLE_SPEC_USE_SHARED) const bool USE_SHARED = true;
 // Contiguous voxels one invocation accumulates in registers before touching shared memory.
-layout(constant_id = 3) const uint RUN = TFM_ASSEMBLE_RUN;
+layout(constant_id = TFM_ASSEMBLE_SPEC_RUN) const uint RUN = TFM_ASSEMBLE_RUN;
 
 layout(std430, binding = TFM_ASSEMBLE_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
 layout(std430, binding = TFM_ASSEMBLE_BINDING_OPT_FIELD) readonly buffer OptField { float opt_field[]; };
@@ -21,24 +22,14 @@ layout(std430, binding = TFM_ASSEMBLE_BINDING_ACCUM) buffer Accum { uint accum[]
 
 shared uint s_acc[SHARED_WORDS];
 
-#define ADD(slot, value)                      \
-  if (USE_SHARED) {                           \
-    FX_ATOMIC_ADD(s_acc, (slot), (value))     \
-  } else {                                    \
-    FX_ATOMIC_ADD(accum, (slot), (value))     \
-  }
+#define ADD(slot, value) FX_ATOMIC_ADD_TO(USE_SHARED, s_acc, accum, (slot), (value))
 
 void main() {
   const uint n = pc.opt_tf_size;
   const uint slots = TFM_ASSEMBLE_SLOTS(n);
   const uint stb = 2u * n - 1u;
   const uint lid = gl_LocalInvocationID.x;
-  if (USE_SHARED) {
-    for (uint k = lid; k < 2u * slots; k += gl_WorkGroupSize.x) s_acc[k] = 0u;
-  }
-  // The zeroed shared accumulators are visible before any invocation adds to them.
-  memoryBarrierShared();
-  barrier();
+  if (USE_SHARED) FX_SHARED_ZERO(s_acc, slots)
 
   // Each invocation walks a contiguous run of TFM_ASSEMBLE_RUN voxels and keeps the sums of the
   // current TF bin in registers (exact 32.32 integer adds), touching the shared accumulators only
@@ -98,12 +89,5 @@ void main() {
   for (uint c = 0u; c < 4u; ++c) ADD(6u * n - 1u + c, btb[c]);
   ADD(6u * n + 3u, count);
 
-  if (USE_SHARED) {
-    // Every shared add of this workgroup is complete before the totals are flushed.
-    memoryBarrierShared();
-    barrier();
-    for (uint k = lid; k < slots; k += gl_WorkGroupSize.x) {
-      FX_ATOMIC_ADD(accum, k, uvec2(s_acc[2u * k], s_acc[2u * k + 1u]));
-    }
-  }
+  if (USE_SHARED) FX_SHARED_FLUSH(s_acc, slots, accum)
 }

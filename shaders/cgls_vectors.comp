@@ -6,10 +6,9 @@
 #extension GL_GOOGLE_include_directive : require
 #define TFM_WANT_CGLS_PUSH
 #include "solver_layout.h"
-#include "tf_common.glsl"
-#include "solver_common.glsl"
+#include "fixed_point.glsl"
 
-layout(local_size_x_id = 0) in;  // a power of two (the reduction halves it)
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;  // a power of two (the reduction halves it)
 
 layout(std430, binding = TFM_CGLS_BINDING_S_ACCUM) readonly buffer SAccum { uint s_accum[]; };
 layout(std430, binding = TFM_CGLS_BINDING_DELTA_ACCUM) readonly buffer DeltaAccum { uint delta_accum[]; };
@@ -26,6 +25,7 @@ void reduce2(inout vec4 a, inout vec4 b) {
   const uint lid = gl_LocalInvocationID.x;
   red_a[lid] = a;
   red_b[lid] = b;
+  // Every invocation's terms are visible before the first level adds them.
   memoryBarrierShared();
   barrier();
   for (uint half_size = gl_WorkGroupSize.x / 2u; half_size > 0u; half_size /= 2u) {
@@ -47,6 +47,7 @@ shared vec4 red_max[gl_WorkGroupSize.x];
 vec4 p_scale_of(vec4 local_max) {
   const uint lid = gl_LocalInvocationID.x;
   red_max[lid] = local_max;
+  // Every invocation's maximum is visible before the first level compares them.
   memoryBarrierShared();
   barrier();
   for (uint half_size = gl_WorkGroupSize.x / 2u; half_size > 0u; half_size /= 2u) {
@@ -69,8 +70,8 @@ vec4 p_scale_of(vec4 local_max) {
 vec4 s_entry(uint j) {
   vec4 s;
   for (uint c = 0u; c < 4u; ++c) {
-    const uint k = TFM_SIGNED_SLOT_WORDS * (4u * j + c);
-    s[c] = fx_signed_to_float(uvec2(s_accum[k], s_accum[k + 1u]), uvec2(s_accum[k + 2u], s_accum[k + 3u]));
+    const uint k = 4u * j + c;  // signed slot of entry j, channel c
+    s[c] = fx_signed_to_float(uvec2(s_accum[2u * k], s_accum[2u * k + 1u]));
   }
   return s;
 }

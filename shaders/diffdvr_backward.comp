@@ -17,27 +17,28 @@
 // and the optical-depth clamp (TFM_MAX_SAMPLE_OPTICAL_DEPTH = 20) keeps every tau >= exp(-20),
 // so the final T >= (1 - opacity) exp(-20) ~ 2e-11 for the default 0.99: a normal float, and
 // each T recovered on the way back is larger still. The forward pass hands T over exactly
-// (diffdvr_forward.comp stores T, not 1 - T). Only T enters the adjoint; C is inverted too (it
-// is free: dead code the compiler drops) so the march reads as the forward one reversed.
+// (render_image.comp in TFM_RENDER_MODE_DIFFDVR_STATE stores T, not 1 - T). Only T enters the
+// adjoint; C is inverted too (it is free: dead code the compiler drops) so the march reads as the
+// forward one reversed.
 //
 // Gradient sums: each invocation keeps the two entries of its current TF interval in float
 // registers while consecutive samples stay in it (smooth fields mostly do), converts the sums
-// to 32.32 fixed point when the interval changes, and adds them with integer atomics into the
-// workgroup's shared accumulators, flushed once per workgroup into the global ones. Integer
-// sums are exact, so the result does not depend on scheduling.
+// to signed 32.32 fixed point (fixed_point.glsl) when the interval changes, and adds them with
+// integer atomics into the workgroup's shared accumulators, flushed once per workgroup into the
+// global ones. Integer sums are exact, so the result does not depend on scheduling.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #define TFM_WANT_RENDER_PUSH
 #include "diffdvr_layout.h"
+#include "fixed_point.glsl"
 
-layout(local_size_x_id = 0, local_size_y_id = 1) in;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X, local_size_y_id = TFM_SPEC_WORKGROUP_Y) in;
 layout(constant_id = TFM_DIFFDVR_SPEC_LOSS) const uint LOSS = TFM_DIFFDVR_LOSS_L2;
 layout(constant_id = TFM_DIFFDVR_SPEC_SHARED_WORDS) const uint SHARED_WORDS = 2u;
 layout(constant_id = TFM_DIFFDVR_SPEC_USE_SHARED) const bool USE_SHARED = true;
 
 TFM_DECLARE_RAYMARCH_BINDINGS(TFM_DIFFDVR_BWD_BINDING_FIELD, TFM_DIFFDVR_BWD_BINDING_TF)
 #include "raymarch.glsl"
-#include "diffdvr_layout.h"
 
 layout(std430, binding = TFM_DIFFDVR_BWD_BINDING_VIEWS) readonly buffer Views { RenderView views[]; };
 layout(std430, binding = TFM_DIFFDVR_BWD_BINDING_STATE) readonly buffer State { vec4 state[]; };
@@ -47,37 +48,14 @@ layout(std430, binding = TFM_DIFFDVR_BWD_BINDING_ACCUM) buffer Accum { uint accu
 
 shared uint s_acc[SHARED_WORDS];
 
-#define ADD(slot, value)                  \
-  if (USE_SHARED) {                       \
-    FX_ATOMIC_ADD(s_acc, (slot), (value)) \
-  } else {                                \
-    FX_ATOMIC_ADD(accum, (slot), (value)) \
-  }
-
-// v as a signed 32.32 fixed-point number in two's complement (|v| < 2^31; run sums of one ray
-// are far below). Truncates towards zero like fx_from_float, so the error is below 2^-32.
-uvec2 fx_from_signed(float v) {
-  uvec2 m = fx_from_float(abs(v));
-  if (v < 0.0) {
-    m = ~m;  // -m = ~m + 1 modulo 2^64
-    m.x += 1u;
-    if (m.x == 0u) m.y += 1u;
-  }
-  return m;
-}
-
-// Adds the register sums of TF entries j and j + 1 to the accumulators.
-void flush(uint j, vec4 g0, vec4 g1) {
-  for (uint c = 0u; c < 4u; ++c) {
-    ADD(4u * j + c, fx_from_signed(g0[c]));
-    ADD(4u * (j + 1u) + c, fx_from_signed(g1[c]));
-  }
-}
+// Adds the register sums of TF entries j and j + 1 to the accumulators (run sums of one ray are
+// far below fx_from_signed's 2^31).
+void flush(uint j, vec4 g0, vec4 g1) { FX_ADD_TF_PAIR(USE_SHARED, s_acc, accum, j, g0, g1) }
 
 void backpropagate_pixel(uvec2 pixel, uint view) {
   const MarchParams mp = march_params_from_push();
   const Ray ray = view_ray(views[view], pixel, mp);
-  const uint index = (view * rp.height + pixel.y) * rp.width + pixel.x;
+  const uint index = pixel_index(pixel, view);
   const vec4 s = state[index];
   const vec4 t = target[index];
   // Images as the renderer writes them: (C, opacity = 1 - T).
@@ -91,7 +69,7 @@ void backpropagate_pixel(uvec2 pixel, uint view) {
     g = 2.0 * diff;
     loss = dot(diff, diff);
   }
-  ADD(4u * mp.tf_size, fx_from_float(loss));
+  FX_ATOMIC_ADD_TO(USE_SHARED, s_acc, accum, 4u * mp.tf_size, fx_from_float(loss))
 
   const vec3 g_color = g.rgb;
   float g_trans = -g.a;  // A = 1 - T
@@ -129,26 +107,12 @@ void backpropagate_pixel(uvec2 pixel, uint view) {
 
 void main() {
   const uint slots = TFM_DIFFDVR_SLOTS(rp.tf_size);
-  const uint lid = gl_LocalInvocationIndex;
-  const uint group_size = gl_WorkGroupSize.x * gl_WorkGroupSize.y;
-  if (USE_SHARED) {
-    for (uint k = lid; k < 2u * slots; k += group_size) s_acc[k] = 0u;
-  }
-  // The zeroed shared accumulators are visible before any invocation adds to them.
-  memoryBarrierShared();
-  barrier();
+  if (USE_SHARED) FX_SHARED_ZERO(s_acc, slots)
 
-  // No early return: every invocation must reach the barrier below.
-  const uvec2 pixel = uvec2(gl_GlobalInvocationID.x, gl_GlobalInvocationID.y + rp.row_offset);
-  const uint view = gl_GlobalInvocationID.z;
-  if (pixel.x < rp.width && pixel.y < rp.height && view < rp.view_count) backpropagate_pixel(pixel, view);
+  // No early return: every invocation must reach the flush's barrier.
+  uvec2 pixel;
+  uint view;
+  if (invocation_pixel(pixel, view)) backpropagate_pixel(pixel, view);
 
-  if (USE_SHARED) {
-    // Every shared add of this workgroup is complete before the totals are flushed.
-    memoryBarrierShared();
-    barrier();
-    for (uint k = lid; k < slots; k += group_size) {
-      FX_ATOMIC_ADD(accum, k, uvec2(s_acc[2u * k], s_acc[2u * k + 1u]));
-    }
-  }
+  if (USE_SHARED) FX_SHARED_FLUSH(s_acc, slots, accum)
 }

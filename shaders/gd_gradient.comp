@@ -7,13 +7,13 @@
 #define TFM_WANT_VOXEL_PAIR_PUSH
 #include "solver_layout.h"
 #include "tf_common.glsl"
-#include "solver_common.glsl"
+#include "fixed_point.glsl"
 
-layout(local_size_x_id = 0) in;
-// Words of workgroup-shared gradient accumulators; 4 when adding straight to memory.
-layout(constant_id = 1) const uint SHARED_WORDS = 4u;
-layout(constant_id = 2) const bool USE_SHARED = true;
-layout(constant_id = 3) const bool LOSS_L1 = false;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
+// Words of workgroup-shared gradient accumulators (2 per slot); 2 when adding straight to memory.
+layout(constant_id = TFM_GD_SPEC_SHARED_WORDS) const uint SHARED_WORDS = 2u;
+layout(constant_id = TFM_GD_SPEC_USE_SHARED) const bool USE_SHARED = true;
+layout(constant_id = TFM_GD_SPEC_LOSS_L1) const bool LOSS_L1 = false;
 
 layout(std430, binding = TFM_GD_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
 layout(std430, binding = TFM_GD_BINDING_OPT_FIELD) readonly buffer OptField { float opt_field[]; };
@@ -30,27 +30,14 @@ shared uint s_acc[SHARED_WORDS];
 vec4 lo_sum, hi_sum;
 
 void flush_bin(uint j) {
-  for (uint c = 0u; c < 4u; ++c) {
-    if (USE_SHARED) {
-      FX_SIGNED_ATOMIC_ADD(s_acc, 4u * j + c, lo_sum[c])
-      FX_SIGNED_ATOMIC_ADD(s_acc, 4u * (j + 1u) + c, hi_sum[c])
-    } else {
-      FX_SIGNED_ATOMIC_ADD(accum, 4u * j + c, lo_sum[c])
-      FX_SIGNED_ATOMIC_ADD(accum, 4u * (j + 1u) + c, hi_sum[c])
-    }
-  }
+  FX_ADD_TF_PAIR(USE_SHARED, s_acc, accum, j, lo_sum, hi_sum)
   lo_sum = hi_sum = vec4(0.0);
 }
 
 void main() {
   const uint n = pc.opt_tf_size;
   const uint lid = gl_LocalInvocationID.x;
-  if (USE_SHARED) {
-    for (uint k = lid; k < TFM_SIGNED_SLOT_WORDS * 4u * n; k += gl_WorkGroupSize.x) s_acc[k] = 0u;
-  }
-  // The zeroed shared accumulators are visible before any invocation adds to them.
-  memoryBarrierShared();
-  barrier();
+  if (USE_SHARED) FX_SHARED_ZERO(s_acc, TFM_TF_GRADIENT_SLOTS(n))
 
   uvec2 loss[4] = uvec2[4](uvec2(0u), uvec2(0u), uvec2(0u), uvec2(0u));
   lo_sum = hi_sum = vec4(0.0);
@@ -82,17 +69,7 @@ void main() {
     if (cur != 0xFFFFFFFFu) flush_bin(cur);
     cur = 0xFFFFFFFFu;
   }
-  const uint loss_word = TFM_SIGNED_SLOT_WORDS * 4u * n;
-  for (uint c = 0u; c < 4u; ++c) {
-    FX_ATOMIC_ADD(accum, loss_word / 2u + c, loss[c]);
-  }
+  for (uint c = 0u; c < 4u; ++c) FX_ATOMIC_ADD(accum, TFM_GD_LOSS_SLOT(n) + c, loss[c]);
 
-  if (USE_SHARED) {
-    // Every shared add of this workgroup is complete before the totals are flushed.
-    memoryBarrierShared();
-    barrier();
-    for (uint k = lid; k < 2u * 4u * n; k += gl_WorkGroupSize.x) {
-      FX_ATOMIC_ADD(accum, k, uvec2(s_acc[2u * k], s_acc[2u * k + 1u]));
-    }
-  }
+  if (USE_SHARED) FX_SHARED_FLUSH(s_acc, TFM_TF_GRADIENT_SLOTS(n), accum)
 }

@@ -5,10 +5,9 @@
 #extension GL_GOOGLE_include_directive : require
 #define TFM_WANT_GD_UPDATE_PUSH
 #include "solver_layout.h"
-#include "tf_common.glsl"
-#include "solver_common.glsl"
+#include "fixed_point.glsl"
 
-layout(local_size_x_id = 0) in;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 
 layout(std430, binding = TFM_GD_UPDATE_BINDING_ACCUM) readonly buffer Accum { uint accum[]; };
 layout(std430, binding = TFM_GD_UPDATE_BINDING_X) buffer X { vec4 x[]; };
@@ -24,8 +23,8 @@ void main() {
   for (uint j = lid; j < n; j += gl_WorkGroupSize.x) {
     vec4 sum;
     for (uint c = 0u; c < 4u; ++c) {
-      const uint k = TFM_SIGNED_SLOT_WORDS * (4u * j + c);
-      sum[c] = fx_signed_to_float(uvec2(accum[k], accum[k + 1u]), uvec2(accum[k + 2u], accum[k + 3u]));
+      const uint k = 4u * j + c;  // signed slot of entry j, channel c
+      sum[c] = fx_signed_to_float(uvec2(accum[2u * k], accum[2u * k + 1u]));
     }
     const vec4 xj = x[j];
     vec4 d = vec4(0.0);

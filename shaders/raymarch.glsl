@@ -13,13 +13,23 @@
 // below 1 guarantees (T >= (1 - threshold) * tau_min when the ray stops). So a backward pass
 // re-marches k = k_stop-1 .. 0 from the final (C, T) without storing per-sample data.
 //
-// The including shader declares, before including this file:
+// Every marching kernel takes the renderer's push block and cameras, and marches through
+//   march_params_from_push(), view_ray()  the rays of RenderPush `rp` and a RenderView
+//   invocation_pixel(), pixel_index()     which pixel of which view an invocation handles
+// so renderer, DiffDVR forward and backward pass trace the same rays with the same constants.
+//
+// The including shader defines TFM_WANT_RENDER_PUSH before including render_layout.h (for the
+// push block `rp`) and declares, before including this file:
 //   layout(constant_id = TFM_RENDER_SPEC_CHUNKS) const uint FIELD_CHUNKS;
 //   buffer array `field_chunks[TFM_RENDER_MAX_CHUNKS]` with member `float v[]`
 //   buffer `tf_table` with member `vec4 entries[]`
 // (TFM_DECLARE_RAYMARCH_BINDINGS of render_layout.h declares exactly these.)
 #ifndef TFMATCH_RAYMARCH_GLSL
 #define TFMATCH_RAYMARCH_GLSL
+
+#ifndef TFM_WANT_RENDER_PUSH
+#error "raymarch.glsl marches with the render push block: define TFM_WANT_RENDER_PUSH first"
+#endif
 
 #include "tf_common.glsl"
 
@@ -74,6 +84,41 @@ bool setup_ray(vec3 eye, vec3 forward, vec3 right, vec3 up, float tan_half_fov, 
   ray.steps = uint(min(count, float(mp.max_steps)));
   return ray.steps > 0u;
 }
+
+// The marching constants of the render push block (make_render_push fills it on the host).
+MarchParams march_params_from_push() {
+  MarchParams mp;
+  mp.dims = uvec3(rp.dim_x, rp.dim_y, rp.dim_z);
+  mp.chunk_voxels = rp.chunk_voxels;
+  mp.inv_axis = vec3(rp.inv_axis_x, rp.inv_axis_y, rp.inv_axis_z);
+  mp.dt = rp.dt;
+  mp.depth_per_alpha = rp.depth_per_alpha;
+  mp.stop_transmittance = rp.stop_transmittance;
+  mp.max_steps = rp.max_steps;
+  mp.tf_lo = rp.tf_lo;
+  mp.tf_scale = rp.tf_scale;
+  mp.tf_size = rp.tf_size;
+  return mp;
+}
+
+// The ray of `pixel` seen from camera `v` (steps = 0 on a miss).
+Ray view_ray(RenderView v, uvec2 pixel, MarchParams mp) {
+  Ray ray;
+  setup_ray(v.eye.xyz, v.forward.xyz, v.right.xyz, v.up.xyz, v.eye.w, v.forward.w, pixel,
+            uvec2(rp.width, rp.height), mp, ray);
+  return ray;
+}
+
+// The pixel and view of this invocation: x, y (offset by the dispatch's first row) and z of the
+// global id. False past the image or the views.
+bool invocation_pixel(out uvec2 pixel, out uint view) {
+  pixel = uvec2(gl_GlobalInvocationID.x, gl_GlobalInvocationID.y + rp.row_offset);
+  view = gl_GlobalInvocationID.z;
+  return pixel.x < rp.width && pixel.y < rp.height && view < rp.view_count;
+}
+
+// Index of a pixel of a view in the per-pixel buffers (image, state, stop, target).
+uint pixel_index(uvec2 pixel, uint view) { return (view * rp.height + pixel.y) * rp.width + pixel.x; }
 
 vec3 sample_position(Ray ray, uint k, float dt) {
   return ray.entry + ((float(k) + 0.5) * dt) * ray.dir;

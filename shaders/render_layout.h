@@ -1,7 +1,8 @@
-// Interface of the direct volume renderer and the residual-map kernel, shared by GLSL and C++:
-// bindings, workgroup sizes, specialization-constant ids, the per-view camera record and the
-// push-constant block. Only 4-byte scalars and vec4s, so std430 and C++ layouts coincide
-// (kernels/render_image.cpp and kernels/residual_map.cpp static_assert the sizes).
+// Interface of the direct volume renderer (also the DiffDVR forward pass, one of its modes) and
+// the residual-map kernel, shared by GLSL and C++: bindings, workgroup sizes,
+// specialization-constant ids, the per-view camera record and the push-constant block. Only
+// 4-byte scalars and vec4s, so std430 and C++ layouts coincide (kernels/render_image.cpp and
+// kernels/residual_map.cpp static_assert the sizes).
 #ifndef TFMATCH_RENDER_LAYOUT_H
 #define TFMATCH_RENDER_LAYOUT_H
 
@@ -26,17 +27,22 @@ namespace tfm::gpu {
 #define TFM_RENDER_BINDING_FIELD 0   // float chunks [TFM_RENDER_MAX_CHUNKS]
 #define TFM_RENDER_BINDING_TF 1      // vec4 TF entries
 #define TFM_RENDER_BINDING_VIEWS 2   // RenderView per view
-#define TFM_RENDER_BINDING_IMAGE 3   // vec4 per pixel per view: premultiplied RGB, opacity
+#define TFM_RENDER_BINDING_IMAGE 3   // vec4 per pixel per view: as TFM_RENDER_MODE_* says
 #define TFM_RENDER_BINDING_STOP 4    // uint per pixel per view: samples marched (k_stop)
-// Specialization constants: 0, 1 = workgroup x, y; 2 = chunks of the field (1..MAX_CHUNKS);
-// 3 = mode (TFM_RENDER_MODE_*).
-#define TFM_RENDER_SPEC_CHUNKS 2
-#define TFM_RENDER_SPEC_MODE 3
+// Specialization constants: workgroup x, y (TFM_SPEC_WORKGROUP_X/Y, both TFM_RENDER_TILE), then
+// these. Every marching kernel (render_image, diffdvr_backward) declares TFM_RENDER_SPEC_CHUNKS.
+#define TFM_RENDER_SPEC_CHUNKS 2  // chunks of the field (1..TFM_RENDER_MAX_CHUNKS)
+#define TFM_RENDER_SPEC_MODE 3    // TFM_RENDER_MODE_*
+// The image: per pixel (premultiplied colour C, opacity 1 - T).
 #define TFM_RENDER_MODE_FORWARD 0u
 // Forward, then re-march k = k_stop-1 .. 0 inverting each compositing step (what DiffDVR's
 // backward pass does) and write the recovered start state (colour, 1 - transmittance), which
 // must be ~0: a self-check that forward and backward see identical samples.
 #define TFM_RENDER_MODE_INVERSE_CHECK 1u
+// The DiffDVR forward pass: the same march, but the state written per pixel is (C, T), the
+// transmittance itself. The backward pass divides T by each sample's tau, so it needs T exactly;
+// 1 - (1 - T) in float loses it (to 0 when T < 6e-8).
+#define TFM_RENDER_MODE_DIFFDVR_STATE 2u
 
 // Optical depth of one sample is clamped here so a sample's transmittance exp(-depth) stays a
 // normal float far from 0 (exp(-20) = 2e-9): the backward pass divides by it. The clamp
@@ -58,6 +64,22 @@ TFM_RENDER_STRUCT(RenderView) {
   layout(std430, binding = field_binding) readonly buffer FieldChunk { float v[]; }              \
       field_chunks[TFM_RENDER_MAX_CHUNKS];                                                       \
   layout(std430, binding = tf_binding) readonly buffer TfTable { vec4 entries[]; } tf_table;
+#endif
+
+#ifdef __cplusplus
+// The pipeline interface of render_image.comp in any mode (RenderImageKernel, and
+// DiffDvrForwardKernel in TFM_RENDER_MODE_DIFFDVR_STATE). Its wrappers dispatch the buffers in
+// this order: field chunks, TF, views, image, stop.
+inline constexpr auto kRenderBindingCounts =
+    binding_counts({TFM_RENDER_BINDING_FIELD, TFM_RENDER_BINDING_TF, TFM_RENDER_BINDING_VIEWS, TFM_RENDER_BINDING_IMAGE,
+                    TFM_RENDER_BINDING_STOP},
+                   TFM_RENDER_BINDING_FIELD, TFM_RENDER_MAX_CHUNKS);
+inline std::vector<uint> render_specialization(uint field_chunks, uint mode) {
+  return by_id({{TFM_SPEC_WORKGROUP_X, TFM_RENDER_TILE},
+                {TFM_SPEC_WORKGROUP_Y, TFM_RENDER_TILE},
+                {TFM_RENDER_SPEC_CHUNKS, field_chunks},
+                {TFM_RENDER_SPEC_MODE, mode}});
+}
 #endif
 
 #if defined(__cplusplus) || defined(TFM_WANT_RENDER_PUSH)
@@ -85,7 +107,7 @@ TFM_PUSH_CONSTANTS(RenderPush) {
 
 // ---- residual_map.comp ----------------------------------------------------------------------
 // 1-D over one chunk of voxels, push constants: VoxelPairPush (shared_layout.h), whose
-// `opt_*` fields describe the second field and its TF.
+// `opt_*` fields describe the second field and its TF. Specialization: workgroup size only.
 #define TFM_RESIDUAL_WORKGROUP 256
 #define TFM_RESIDUAL_BINDING_REF_FIELD 0
 #define TFM_RESIDUAL_BINDING_OPT_FIELD 1

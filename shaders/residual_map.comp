@@ -6,7 +6,7 @@
 #include "render_layout.h"
 #include "tf_common.glsl"
 
-layout(local_size_x_id = 0) in;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 
 layout(std430, binding = TFM_RESIDUAL_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
 layout(std430, binding = TFM_RESIDUAL_BINDING_OPT_FIELD) readonly buffer OptField { float opt_field[]; };

@@ -5,7 +5,14 @@
 #define TFMATCH_SHARED_LAYOUT_H
 
 #ifdef __cplusplus
+#include <array>
+#include <cstddef>
 #include <cstdint>
+#include <initializer_list>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
 namespace tfm::gpu {
 using uint = std::uint32_t;
 #define TFM_PUSH_CONSTANTS(Name) struct Name
@@ -15,22 +22,77 @@ using uint = std::uint32_t;
 #define TFM_PUSH_INSTANCE(instance) instance
 #endif
 
-// Default workgroup size of the 1-D voxel kernels (specialization constant 0 may lower it).
+// Specialization ids of the workgroup size in every kernel (layout(local_size_x_id = ...)).
+#define TFM_SPEC_WORKGROUP_X 0
+#define TFM_SPEC_WORKGROUP_Y 1
+
+// Workgroup size of the 1-D voxel kernels.
 #define TFM_VOXEL_WORKGROUP 256
 
-// Fixed-point accumulators: a 64-bit unsigned 32.32 number kept as two 32-bit words
-// (low word first). Only core 32-bit atomics are needed, and integer addition is associative,
-// so sums are bit-identical whatever the scheduling.
+// Fixed-point accumulators (shaders/fixed_point.glsl): each slot is one 64-bit 32.32 number kept
+// as two 32-bit words (low word first), unsigned or two's complement. Only core 32-bit atomics
+// are needed, and integer addition is associative, so sums are bit-identical whatever the
+// scheduling.
 #define TFM_FIXED_ONE 4294967296.0
+#define TFM_FIXED_SLOT_WORDS 2u
+
+#ifdef __cplusplus
+inline constexpr std::uint64_t kFixedSlotBytes = TFM_FIXED_SLOT_WORDS * sizeof(uint);
+
+// The engine takes descriptor counts and specialization values as lists indexed by binding
+// number and constant_id, and a dispatch's buffers in binding order. These helpers let a wrapper
+// name every position instead of relying on the order of a brace list.
+
+// Descriptor counts of bindings 0..n-1, given by name in binding order (the order in which the
+// wrapper lists its buffers at dispatch): one buffer each, `array_count` for `array_binding`.
+// Throws std::logic_error when the names are not 0, 1, ..., n-1; evaluated into a constexpr
+// variable, such a list does not compile.
+template <std::size_t N>
+constexpr std::array<uint, N> binding_counts(const uint (&ids)[N], uint array_binding = ~0u, uint array_count = 1u) {
+  std::array<uint, N> counts{};
+  for (std::size_t i = 0; i < N; ++i) {
+    if (ids[i] != i) throw std::logic_error("bindings are not listed in binding order");
+    counts[i] = ids[i] == array_binding ? array_count : 1u;
+  }
+  return counts;
+}
+
+template <std::size_t N>
+std::vector<uint> to_vector(const std::array<uint, N>& a) {
+  return {a.begin(), a.end()};
+}
+
+// Specialization values indexed by constant_id from (id, value) pairs. Ids missing from the list
+// get 0 (Vulkan ignores map entries of ids a shader does not declare). Throws std::logic_error
+// when an id is given twice.
+inline std::vector<uint> by_id(std::initializer_list<std::pair<uint, uint>> values) {
+  std::vector<uint> out;
+  std::vector<bool> set;
+  for (const auto& [id, value] : values) {
+    if (id >= out.size()) {
+      out.resize(id + 1, 0u);
+      set.resize(id + 1, false);
+    }
+    if (set[id]) throw std::logic_error("specialization constant " + std::to_string(id) + " given twice");
+    out[id] = value;
+    set[id] = true;
+  }
+  return out;
+}
+#endif
 
 // ---- assemble_normal_equations.comp -------------------------------------------------------
-// Accumulator slots (each two uints): M diagonal [0, N), M super-diagonal [N, 2N-1),
+// Accumulator slots (unsigned): M diagonal [0, N), M super-diagonal [N, 2N-1),
 // S^T b as [2N-1 + 4j + c], b^T b per channel [6N-1 + c], voxel count [6N+3].
 #define TFM_ASSEMBLE_BINDING_REF_FIELD 0
 #define TFM_ASSEMBLE_BINDING_OPT_FIELD 1
 #define TFM_ASSEMBLE_BINDING_REF_TF 2
 #define TFM_ASSEMBLE_BINDING_ACCUM 3
 #define TFM_ASSEMBLE_SLOTS(n) (6u * (n) + 4u)
+// Specialization: workgroup size (TFM_SPEC_WORKGROUP_X), then these.
+#define TFM_ASSEMBLE_SPEC_SHARED_WORDS 1  // words of workgroup-shared accumulators (2 per slot)
+#define TFM_ASSEMBLE_SPEC_USE_SHARED 2    // 0: add straight to the global accumulators
+#define TFM_ASSEMBLE_SPEC_RUN 3           // voxels per register run (default TFM_ASSEMBLE_RUN)
 // Contiguous voxels one invocation accumulates in registers before touching shared memory.
 #define TFM_ASSEMBLE_RUN 16u
 
@@ -51,8 +113,8 @@ TFM_PUSH_CONSTANTS(VoxelPairPush) {
 #endif
 
 // ---- voxel_loss.comp ----------------------------------------------------------------------
-// Accumulator slots: sum of squared difference per channel [0,4), sum of absolute difference
-// per channel [4,8), voxel count [8].
+// Specialization: workgroup size only. Accumulator slots (unsigned): sum of squared difference
+// per channel [0,4), sum of absolute difference per channel [4,8), voxel count [8].
 #define TFM_LOSS_BINDING_REF_FIELD 0
 #define TFM_LOSS_BINDING_OPT_FIELD 1
 #define TFM_LOSS_BINDING_REF_TF 2

@@ -21,11 +21,9 @@ struct uvec4 { uint x, y, z, w; };
 // of smooth fields mostly share a bin, so most fixed-point conversions and atomics disappear.
 #define TFM_SOLVER_RUN 16u
 
-// Signed 32.32 fixed-point accumulators: slot k is four words, a non-negative total of the
-// positive terms (words 4k, 4k+1) and one of the negated negative terms (4k+2, 4k+3); the value
-// is their difference, taken in 64-bit integer arithmetic before any rounding. Slot of TF entry j,
-// channel c: 4j + c.
-#define TFM_SIGNED_SLOT_WORDS 4u
+// Signed sums over a TF (S^T r, gradients): 4N signed 32.32 fixed-point slots (fixed_point.glsl,
+// two's complement, TFM_FIXED_SLOT_WORDS words each), the slot of TF entry j, channel c is 4j + c.
+#define TFM_TF_GRADIENT_SLOTS(n) (4u * (n))
 
 // Coordinate field: per voxel the TF coordinate x = clamp((v - lo) * scale, 0, N-1) of the
 // optimized field (exactly as tf_coordinate computes it), or TFM_NO_DATA when either field has
@@ -33,6 +31,7 @@ struct uvec4 { uint x, y, z, w; };
 #define TFM_NO_DATA (-1.0)
 
 // ---- sparse_prepare.comp: coordinates and b (reference colours) per voxel ------------------------
+// Specialization: workgroup size only.
 #define TFM_PREPARE_BINDING_REF_FIELD 0
 #define TFM_PREPARE_BINDING_OPT_FIELD 1
 #define TFM_PREPARE_BINDING_REF_TF 2
@@ -53,9 +52,12 @@ TFM_PUSH_CONSTANTS(PreparePush) {
 #endif
 
 // ---- sparse_gather.comp: q = S x per voxel, optionally ||q||^2 per channel -----------------------
-// Specialization: 0 workgroup size, 1 WRITE_OUT (store q), 2 ACCUMULATE_NORM (add ||q_c||^2 to
-// 4 unsigned 32.32 slots), 3 NORM_SCALED: the norm is of q / p_scale (CGLS state), a power of two
-// >= max |x|, so the squares keep their relative precision in fixed point however small x gets.
+// Specialization: workgroup size (TFM_SPEC_WORKGROUP_X), then these. NORM_SCALED: the norm is of
+// q / p_scale (CGLS state), a power of two >= max |x|, so the squares keep their relative
+// precision in fixed point however small x gets.
+#define TFM_GATHER_SPEC_WRITE_OUT 1        // store q
+#define TFM_GATHER_SPEC_ACCUMULATE_NORM 2  // add ||q_c||^2 to TFM_GATHER_NORM_SLOTS unsigned slots
+#define TFM_GATHER_SPEC_NORM_SCALED 3
 #define TFM_GATHER_BINDING_COORD 0
 #define TFM_GATHER_BINDING_X 1
 #define TFM_GATHER_BINDING_OUT 2
@@ -64,8 +66,11 @@ TFM_PUSH_CONSTANTS(PreparePush) {
 #define TFM_GATHER_NORM_SLOTS 4u
 
 // ---- sparse_scatter.comp: s += S^T r (signed slots), optionally after r -= alpha (S p) ----------
-// Specialization: 0 workgroup size, 1 shared words, 2 USE_SHARED, 3 UPDATE_RESIDUAL (alpha from
-// the CGLS state).
+// Accumulators: TFM_TF_GRADIENT_SLOTS(N) signed slots. Specialization: workgroup size
+// (TFM_SPEC_WORKGROUP_X), then these.
+#define TFM_SCATTER_SPEC_SHARED_WORDS 1     // words of workgroup-shared accumulators (2 per slot)
+#define TFM_SCATTER_SPEC_USE_SHARED 2       // 0: add straight to the global accumulators
+#define TFM_SCATTER_SPEC_UPDATE_RESIDUAL 3  // r -= alpha (S p) first, alpha from the CGLS state
 #define TFM_SCATTER_BINDING_COORD 0
 #define TFM_SCATTER_BINDING_RESIDUAL 1
 #define TFM_SCATTER_BINDING_P 2
@@ -81,6 +86,7 @@ TFM_PUSH_CONSTANTS(SparsePush) {
 #endif
 
 // ---- cgls_vectors.comp: the TF-sized steps of Jacobi-preconditioned CGLS, four channels at once --
+// Specialization: workgroup size (a power of two) only.
 #define TFM_CGLS_BINDING_S_ACCUM 0     // signed slots of S^T r (from sparse_scatter)
 #define TFM_CGLS_BINDING_DELTA_ACCUM 1 // ||S p||^2 (from sparse_gather)
 #define TFM_CGLS_BINDING_INV_DIAG 2    // 1 / diag(M + R) per entry, 0 for unreferenced entries
@@ -115,17 +121,22 @@ TFM_PUSH_CONSTANTS(CglsPush) {
 #endif
 
 // ---- gd_gradient.comp: loss and signed gradient accumulators over one chunk ----------------------
-// Uses VoxelPairPush (shared_layout.h). Specialization: 0 workgroup size, 1 shared words,
-// 2 USE_SHARED, 3 LOSS_L1. Slots: gradient 4N signed slots (4 words each), then the loss per
-// channel as 4 unsigned slots (2 words each) at word offset 16N.
+// Uses VoxelPairPush (shared_layout.h). Specialization: workgroup size (TFM_SPEC_WORKGROUP_X),
+// then these. Slots: the gradient, TFM_TF_GRADIENT_SLOTS(N) signed slots, then the loss per
+// channel as 4 unsigned slots from TFM_GD_LOSS_SLOT(N) (word 2 TFM_GD_LOSS_SLOT(N)).
+#define TFM_GD_SPEC_SHARED_WORDS 1  // words of workgroup-shared gradient accumulators (2 per slot)
+#define TFM_GD_SPEC_USE_SHARED 2    // 0: add straight to the global accumulators
+#define TFM_GD_SPEC_LOSS_L1 3       // 1: l1 loss, 0: l2
 #define TFM_GD_BINDING_REF_FIELD 0
 #define TFM_GD_BINDING_OPT_FIELD 1
 #define TFM_GD_BINDING_REF_TF 2
 #define TFM_GD_BINDING_X 3
 #define TFM_GD_BINDING_ACCUM 4
-#define TFM_GD_ACCUM_WORDS(n) (16u * (n) + 8u)
+#define TFM_GD_LOSS_SLOT(n) TFM_TF_GRADIENT_SLOTS(n)
+#define TFM_GD_ACCUM_WORDS(n) (TFM_FIXED_SLOT_WORDS * (TFM_GD_LOSS_SLOT(n) + 4u))
 
 // ---- gd_update.comp: one SGD or Adam step on the TF, projected to [0,1] ---------------------------
+// Specialization: workgroup size only.
 #define TFM_GD_UPDATE_BINDING_ACCUM 0
 #define TFM_GD_UPDATE_BINDING_X 1
 #define TFM_GD_UPDATE_BINDING_M 2

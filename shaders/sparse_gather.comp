@@ -7,12 +7,12 @@
 #define TFM_WANT_SPARSE_PUSH
 #include "solver_layout.h"
 #include "tf_common.glsl"
-#include "solver_common.glsl"
+#include "fixed_point.glsl"
 
-layout(local_size_x_id = 0) in;
-layout(constant_id = 1) const bool WRITE_OUT = true;
-layout(constant_id = 2) const bool ACCUMULATE_NORM = false;
-layout(constant_id = 3) const bool NORM_SCALED = false;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
+layout(constant_id = TFM_GATHER_SPEC_WRITE_OUT) const bool WRITE_OUT = true;
+layout(constant_id = TFM_GATHER_SPEC_ACCUMULATE_NORM) const bool ACCUMULATE_NORM = false;
+layout(constant_id = TFM_GATHER_SPEC_NORM_SCALED) const bool NORM_SCALED = false;
 
 layout(std430, binding = TFM_GATHER_BINDING_COORD) readonly buffer Coord { float coord[]; };
 layout(std430, binding = TFM_GATHER_BINDING_X) readonly buffer X { vec4 x[]; };
@@ -23,13 +23,7 @@ layout(std430, binding = TFM_GATHER_BINDING_STATE) readonly buffer State { CglsS
 shared uint s_norm[2u * TFM_GATHER_NORM_SLOTS];
 
 void main() {
-  const uint lid = gl_LocalInvocationID.x;
-  if (ACCUMULATE_NORM) {
-    for (uint k = lid; k < 2u * TFM_GATHER_NORM_SLOTS; k += gl_WorkGroupSize.x) s_norm[k] = 0u;
-  }
-  // Zeroed shared accumulators are visible before any invocation adds to them.
-  memoryBarrierShared();
-  barrier();
+  if (ACCUMULATE_NORM) FX_SHARED_ZERO(s_norm, TFM_GATHER_NORM_SLOTS)
 
   // Scaling by a power of two is exact: the norm is exactly that of q, times 1 / p_scale^2.
   const vec4 inv_scale = NORM_SCALED ? 1.0 / state.p_scale : vec4(1.0);
@@ -48,11 +42,6 @@ void main() {
   }
   if (ACCUMULATE_NORM) {
     for (uint c = 0u; c < 4u; ++c) FX_ATOMIC_ADD(s_norm, c, acc[c]);
-    // Every shared add of this workgroup is complete before the flush.
-    memoryBarrierShared();
-    barrier();
-    for (uint k = lid; k < TFM_GATHER_NORM_SLOTS; k += gl_WorkGroupSize.x) {
-      FX_ATOMIC_ADD(norm_accum, k, uvec2(s_norm[2u * k], s_norm[2u * k + 1u]));
-    }
+    FX_SHARED_FLUSH(s_norm, TFM_GATHER_NORM_SLOTS, norm_accum)
   }
 }

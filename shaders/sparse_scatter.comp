@@ -6,14 +6,13 @@
 #define TFM_WANT_SPARSE_PUSH
 #include "solver_layout.h"
 #include "tf_common.glsl"
-#include "solver_common.glsl"
+#include "fixed_point.glsl"
 
-layout(local_size_x_id = 0) in;
-// Words of workgroup-shared accumulators (TFM_SIGNED_SLOT_WORDS per slot); 4 when adding
-// straight to memory.
-layout(constant_id = 1) const uint SHARED_WORDS = 4u;
-layout(constant_id = 2) const bool USE_SHARED = true;
-layout(constant_id = 3) const bool UPDATE_RESIDUAL = false;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
+// Words of workgroup-shared accumulators (2 per slot); 2 when adding straight to memory.
+layout(constant_id = TFM_SCATTER_SPEC_SHARED_WORDS) const uint SHARED_WORDS = 2u;
+layout(constant_id = TFM_SCATTER_SPEC_USE_SHARED) const bool USE_SHARED = true;
+layout(constant_id = TFM_SCATTER_SPEC_UPDATE_RESIDUAL) const bool UPDATE_RESIDUAL = false;
 
 layout(std430, binding = TFM_SCATTER_BINDING_COORD) readonly buffer Coord { float coord[]; };
 layout(std430, binding = TFM_SCATTER_BINDING_RESIDUAL) buffer Residual { vec4 r[]; };
@@ -30,15 +29,7 @@ shared uint s_acc[SHARED_WORDS];
 vec4 lo_sum, hi_sum;
 
 void flush_bin(uint j) {
-  for (uint c = 0u; c < 4u; ++c) {
-    if (USE_SHARED) {
-      FX_SIGNED_ATOMIC_ADD(s_acc, 4u * j + c, lo_sum[c])
-      FX_SIGNED_ATOMIC_ADD(s_acc, 4u * (j + 1u) + c, hi_sum[c])
-    } else {
-      FX_SIGNED_ATOMIC_ADD(accum, 4u * j + c, lo_sum[c])
-      FX_SIGNED_ATOMIC_ADD(accum, 4u * (j + 1u) + c, hi_sum[c])
-    }
-  }
+  FX_ADD_TF_PAIR(USE_SHARED, s_acc, accum, j, lo_sum, hi_sum)
   lo_sum = hi_sum = vec4(0.0);
 }
 
@@ -47,12 +38,7 @@ void main() {
   if (UPDATE_RESIDUAL && all(equal(state.running, uvec4(0u)))) return;
   const uint n = pc.tf_size;
   const uint lid = gl_LocalInvocationID.x;
-  if (USE_SHARED) {
-    for (uint k = lid; k < TFM_SIGNED_SLOT_WORDS * 4u * n; k += gl_WorkGroupSize.x) s_acc[k] = 0u;
-  }
-  // The zeroed shared accumulators are visible before any invocation adds to them.
-  memoryBarrierShared();
-  barrier();
+  if (USE_SHARED) FX_SHARED_ZERO(s_acc, TFM_TF_GRADIENT_SLOTS(n))
 
   vec4 alpha = vec4(0.0);
   if (UPDATE_RESIDUAL) alpha = state.alpha;
@@ -86,13 +72,5 @@ void main() {
     cur = 0xFFFFFFFFu;
   }
 
-  if (USE_SHARED) {
-    // Every shared add of this workgroup is complete before the totals are flushed.
-    memoryBarrierShared();
-    barrier();
-    // Two-word halves of the signed slots are independent unsigned totals.
-    for (uint k = lid; k < 2u * 4u * n; k += gl_WorkGroupSize.x) {
-      FX_ATOMIC_ADD(accum, k, uvec2(s_acc[2u * k], s_acc[2u * k + 1u]));
-    }
-  }
+  if (USE_SHARED) FX_SHARED_FLUSH(s_acc, TFM_TF_GRADIENT_SLOTS(n), accum)
 }

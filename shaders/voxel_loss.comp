@@ -6,8 +6,9 @@
 #define TFM_WANT_VOXEL_PAIR_PUSH
 #include "shared_layout.h"
 #include "tf_common.glsl"
+#include "fixed_point.glsl"
 
-layout(local_size_x_id = 0) in;
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 
 layout(std430, binding = TFM_LOSS_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
 layout(std430, binding = TFM_LOSS_BINDING_OPT_FIELD) readonly buffer OptField { float opt_field[]; };
@@ -18,11 +19,7 @@ layout(std430, binding = TFM_LOSS_BINDING_ACCUM) buffer Accum { uint accum[]; };
 shared uint s_acc[2u * TFM_LOSS_SLOTS];
 
 void main() {
-  const uint lid = gl_LocalInvocationID.x;
-  for (uint k = lid; k < 2u * TFM_LOSS_SLOTS; k += gl_WorkGroupSize.x) s_acc[k] = 0u;
-  // Zeroed accumulators are visible before any invocation adds to them.
-  memoryBarrierShared();
-  barrier();
+  FX_SHARED_ZERO(s_acc, TFM_LOSS_SLOTS)
 
   uvec2 acc[TFM_LOSS_SLOTS];
   for (uint k = 0u; k < TFM_LOSS_SLOTS; ++k) acc[k] = uvec2(0u);
@@ -42,10 +39,5 @@ void main() {
     fx_add(acc[8], uvec2(0u, 1u));  // 1.0 in 32.32
   }
   for (uint k = 0u; k < TFM_LOSS_SLOTS; ++k) FX_ATOMIC_ADD(s_acc, k, acc[k]);
-  // All shared adds of this workgroup are complete before the flush.
-  memoryBarrierShared();
-  barrier();
-  for (uint k = lid; k < TFM_LOSS_SLOTS; k += gl_WorkGroupSize.x) {
-    FX_ATOMIC_ADD(accum, k, uvec2(s_acc[2u * k], s_acc[2u * k + 1u]));
-  }
+  FX_SHARED_FLUSH(s_acc, TFM_LOSS_SLOTS, accum)
 }

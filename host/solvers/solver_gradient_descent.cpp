@@ -70,7 +70,8 @@ SolverOutput solve_with_gradient_descent(VoxelProblem& p, const SolverSettings& 
   out.tf = tf_from_floats(xs);
   std::vector<uint32_t> words(gd_accumulator_bytes(n) / 4);
   readback(ctx, accum, words.data(), words.size() * 4);
-  std::vector<double> loss = decode_fixed_point(std::vector<uint32_t>(words.begin() + 16 * n, words.end()));
+  const auto loss_words = words.begin() + TFM_FIXED_SLOT_WORDS * TFM_GD_LOSS_SLOT(n);
+  std::vector<double> loss = decode_fixed_point(std::vector<uint32_t>(loss_words, words.end()));
   double total = 0.0;
   for (double l : loss) total += l;
   out.details["box"] = "projected";  // every iterate is projected to [0,1]

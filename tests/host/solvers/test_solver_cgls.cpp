@@ -48,9 +48,9 @@ TEST_F(SolverCgls, MediumProblemWithNaNsAndSplitChunks) {
 }
 
 TEST_F(SolverCgls, LargeTfUsesGlobalAccumulatorsAndSeveralVectorBlocks) {
-  // N = 600: more entries than the vector kernel's 256 invocations, and signed slots (38 KB)
+  // N = 1200: more entries than the vector kernel's 256 invocations, and signed slots (38 KB)
   // beyond lavapipe's 32 KB of shared memory, so the scatter adds straight to memory.
-  test::SolverProblem p = test::make_solver_problem(40000, 600, 50, 0.2, 0.8, 10);
+  test::SolverProblem p = test::make_solver_problem(80000, 1200, 50, 0.2, 0.8, 10);
   p.upload(ctx());
   const SolverOutput out = p.solve(ctx(), "cgls");
   const SolveResult exact = solve_normal_equations(p.cpu_equations());

@@ -55,8 +55,9 @@ TEST_F(SolverGradientDescent, GradientKernelMatchesCpu) {
         batch.submit_and_wait();
         std::vector<uint32_t> words(gd_accumulator_bytes(n) / 4);
         readback(ctx(), accum, words.data(), words.size() * 4);
-        const std::vector<double> grad = decode_signed_fixed_point(std::vector<uint32_t>(words.begin(), words.begin() + 16 * n));
-        const std::vector<double> loss = decode_fixed_point(std::vector<uint32_t>(words.begin() + 16 * n, words.end()));
+        const auto loss_words = words.begin() + TFM_FIXED_SLOT_WORDS * TFM_GD_LOSS_SLOT(n);
+        const std::vector<double> grad = decode_signed_fixed_point(std::vector<uint32_t>(words.begin(), loss_words));
+        const std::vector<double> loss = decode_fixed_point(std::vector<uint32_t>(loss_words, words.end()));
 
         std::vector<double> expected(4 * n, 0.0), tol(4 * n, 1e-12);
         double expected_loss[4] = {0, 0, 0, 0}, loss_tol = double(voxels) * std::ldexp(1.0, -32) + 1e-12;
@@ -89,12 +90,11 @@ TEST_F(SolverGradientDescent, GradientKernelMatchesCpu) {
 
 // Signed 32.32 accumulator words for the given sums (exact for multiples of 2^-20 here).
 std::vector<uint32_t> encode_signed(const std::vector<double>& sums) {
-  std::vector<uint32_t> words(4 * sums.size() + 8, 0u);
+  std::vector<uint32_t> words(TFM_GD_ACCUM_WORDS(sums.size() / 4), 0u);
   for (size_t k = 0; k < sums.size(); ++k) {
-    const uint64_t v = uint64_t(std::llround(std::abs(sums[k]) * 4294967296.0));
-    const size_t at = 4 * k + (sums[k] < 0 ? 2 : 0);
-    words[at] = uint32_t(v);
-    words[at + 1] = uint32_t(v >> 32);
+    const uint64_t v = uint64_t(std::llround(sums[k] * 4294967296.0));  // two's complement
+    words[2 * k] = uint32_t(v);
+    words[2 * k + 1] = uint32_t(v >> 32);
   }
   return words;
 }
