@@ -5,6 +5,7 @@
 
 #include "atomic_file.h"
 #include "cli.h"
+#include "result_json.h"
 #include "optimize.h"
 #include "progress.h"
 #include "render_options.h"
@@ -50,7 +51,7 @@ int run(const DemoArgs& a) {
   auto ctx = make_context();
   OptimizeResult result = run_optimize(*ctx, req);
   write_tf_json(dir / "optimized_tf.json", result.tf);
-  write_file_atomically(dir / "summary.json", result.to_json().dump(2) + "\n");
+  write_file_atomically(dir / "summary.json", to_json(result).dump(2) + "\n");
   if (!globals().quiet) {
     std::cout << "demo: reference = smooth blobs; field = nonlinear, partly non-monotone remap of it in other\n"
                  "      units, plus a sphere of real structural difference no TF can explain\n";

@@ -5,6 +5,7 @@
 
 #include "atomic_file.h"
 #include "cli.h"
+#include "result_json.h"
 #include "input_options.h"
 #include "optimize.h"
 #include "progress.h"
@@ -61,7 +62,7 @@ int run(const OptimizeArgs& a) {
   auto ctx = make_context();
   OptimizeResult result = run_optimize(*ctx, req);
   write_transfer_function(a.out, result.tf);
-  if (!a.json.empty()) write_file_atomically(a.json, result.to_json().dump(2) + "\n");
+  if (!a.json.empty()) write_file_atomically(a.json, to_json(result).dump(2) + "\n");
   if (!globals().quiet) {
     result.print_summary(std::cout);
     std::cout << "  wrote " << a.out << (a.json.empty() ? "" : " and " + a.json) << "\n";

@@ -7,6 +7,7 @@
 
 #include "atomic_file.h"
 #include "cli.h"
+#include "result_json.h"
 #include "input_options.h"
 #include "solver_comparison.h"
 #include "synthetic.h"
@@ -71,7 +72,7 @@ int run(const SolversArgs& a) {
         std::cerr << "  [" << i << "/" << count << "] " << row.solver
                   << (row.error.empty() ? ": " + std::to_string(int(row.total_ms)) + " ms" : ": failed") << "\n";
       });
-  const std::string json = result.to_json().dump(2) + "\n";
+  const std::string json = to_json(result).dump(2) + "\n";
   if (a.json == "-") {
     std::cout << json;
   } else {
