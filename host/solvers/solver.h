@@ -2,9 +2,10 @@
 // its typed and documented options, and solve(); the explicit registry of all solvers; and the
 // central parsing of option values from text into typed, range-checked values.
 //
-// Adding a solver: a solver_<name>.cpp that defines a Solver subclass and a factory
-// `std::unique_ptr<Solver> make_<name>_solver()`, and one line in make_solvers()
-// (solver_registry.cpp). The command line's flags and help follow from options().
+// Adding a solver touches two files: a new solver_<name>.cpp that defines a Solver subclass and
+// a factory `std::unique_ptr<Solver> make_<name>_solver()`, and solver_registry.cpp, which
+// declares the factory and calls it in make_solvers(). The command line's flags and help follow
+// from options(); tests/test_solver_registry.cpp lists the expected names.
 #pragma once
 
 #include <cstdint>
