@@ -57,13 +57,15 @@ Image plot_loss_curve(std::span<const double> curve, uint32_t width, uint32_t he
 }
 
 std::vector<ReportFigure> solver_report_figures(const OptimizeResult& r, uint32_t width) {
-  if (!r.details.contains("loss_curve") || !r.details["loss_curve"].is_array() || r.details["loss_curve"].empty())
-    return {};
-  const std::vector<double> curve = r.details["loss_curve"].get<std::vector<double>>();
-  const std::string loss = r.details.value("loss", std::string("image"));
+  const DetailValue* curve_value = r.details.find("loss_curve");
+  if (!curve_value || !curve_value->is_list() || curve_value->size() == 0) return {};
+  const std::vector<double> curve = curve_value->get<std::vector<double>>();
+  const DetailValue* loss_value = r.details.find("loss");
+  const std::string loss = loss_value && loss_value->is_text() ? loss_value->get<std::string>() : "image";
+  const DetailValue* views = r.details.find("views_per_iteration");
   const std::string title = r.solver + ": mean " + loss + " image loss per iteration";
   std::string caption = "before each step, on that step's cameras (" +
-                        std::to_string(r.details.value("views_per_iteration", 0)) + " views)";
+                        std::to_string(views && views->is_number() ? views->get<uint64_t>() : 0) + " views)";
   return {{"Loss curve", "loss.png", plot_loss_curve(curve, std::max<uint32_t>(width, 256), 200, title), caption}};
 }
 

@@ -12,6 +12,7 @@
 #include "progress.h"
 #include "render.h"
 #include "render_report_html.h"
+#include "result_json.h"
 #include "residual.h"
 #include "tf_plot.h"
 
@@ -185,7 +186,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
                          {"max_optimized_tf", out.residual_max_after},
                          {"display_range", {res_range.lo, res_range.hi}}};
   metrics["render_settings"] = settings_json(s);
-  metrics["optimize"] = r.to_json();
+  metrics["optimize"] = to_json(r);
   metrics["fields"] = {{"reference", in.ref.name}, {"field", in.field.name}, {"dims", in.ref.dims}};
   if (!in.extra_metrics.is_null()) metrics["extra"] = in.extra_metrics;
   write_file_atomically(dir / "metrics.json", metrics.dump(2) + "\n");

@@ -2,12 +2,14 @@
 // Per iteration: ||S p||^2 (sparse_gather), alpha and x (cgls_vectors), r -= alpha S p with
 // s = S^T r (sparse_scatter), beta and p (cgls_vectors). Iterations are recorded in batches; the
 // stop test runs on the GPU per channel, so a stopped channel's later iterations change nothing.
+#include "solver_cgls.h"
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
 
 #include "cgls_vectors.h"
-#include "solver_registry.h"
 #include "commands.h"
 #include "solver_support.h"
 #include "sparse_ops.h"
@@ -18,19 +20,26 @@ namespace {
 // Iterations per submission: the host reads the stop flags once per batch.
 constexpr uint32_t kIterationsPerBatch = 4;
 
-SolverOutput solve_with_cgls(VoxelProblem& p, const SolverSettings& settings) {
-  const double tolerance = settings.number("tolerance", 1e-6);
-  if (!(tolerance > 0.0 && tolerance < 1.0))
-    throw std::runtime_error("--tolerance: expected a number in (0, 1), got " + settings.text("tolerance", ""));
-  const uint32_t max_iterations = positive_integer(settings, "max-iterations", 1000);
-  const uint64_t max_chunk = uint64_t(settings.number("max-chunk-voxels", 0));  // tests force chunking
+}  // namespace
+
+uint32_t CglsGpuResult::max_iterations() const { return *std::max_element(iterations.begin(), iterations.end()); }
+
+double CglsGpuResult::worst_relative_residual() const {
+  return *std::max_element(relative_residual.begin(), relative_residual.end());
+}
+
+CglsGpuResult solve_cgls_gpu(VoxelProblem& p, const CglsGpuOptions& options) {
+  if (!(options.tolerance > 0.0 && options.tolerance < 1.0))
+    throw std::invalid_argument("solve_cgls_gpu: tolerance must be in (0, 1)");
+  if (options.max_iterations < 1) throw std::invalid_argument("solve_cgls_gpu: max_iterations must be >= 1");
+  const uint32_t max_iterations = options.max_iterations;
   Context& ctx = p.ctx;
   const uint32_t n = p.opt_map.tf_size;
 
-  SolverOutput out;
+  CglsGpuResult out;
   auto t0 = std::chrono::steady_clock::now();
-  JacobiSetup js = jacobi_setup(p, settings);
-  VoxelVectors vectors(ctx, p.ref, p.opt, max_chunk);
+  JacobiSetup js = jacobi_setup(p, options.regularization);
+  VoxelVectors vectors(ctx, p.ref, p.opt, options.max_chunk_voxels);
   Buffer inv_diag = make_buffer<float>(ctx, js.inv_diag, "CGLS inverse diagonal");
   Buffer s_accum(ctx, signed_accumulator_bytes(n), MemoryUsage::Device, "CGLS S^T r accumulators");
   Buffer delta_accum(ctx, TFM_GATHER_NORM_SLOTS * 8, MemoryUsage::Device, "CGLS ||S p||^2 accumulators");
@@ -43,7 +52,7 @@ SolverOutput solve_with_cgls(VoxelProblem& p, const SolverSettings& settings) {
   const SparseScatterKernel scatter_update(ctx, n, true);
   const CglsVectorsKernel vectors_kernel(ctx);
   const CglsBuffers buffers{&s_accum, &delta_accum, &inv_diag, &x, &dir, &state};
-  const float ridge = float(js.reg.ridge), smooth = float(js.reg.smooth), tol = float(tolerance);
+  const float ridge = float(js.reg.ridge), smooth = float(js.reg.smooth), tol = float(options.tolerance);
 
   double setup_gpu_ms = js.gpu_ms;
   {
@@ -96,42 +105,58 @@ SolverOutput solve_with_cgls(VoxelProblem& p, const SolverSettings& settings) {
 
   std::vector<float> xs(size_t(n) * 4);
   readback(ctx, x, xs.data(), xs.size() * sizeof(float));
-  uint32_t clamped = 0;
-  out.tf = tf_from_floats(xs, &clamped);
-
-  const uint32_t iterations[4] = {st.iterations.x, st.iterations.y, st.iterations.z, st.iterations.w};
+  out.tf = tf_from_floats(xs, &out.clamped_values);
+  out.iterations = {st.iterations.x, st.iterations.y, st.iterations.z, st.iterations.w};
   const float s2[4] = {st.s_norm2.x, st.s_norm2.y, st.s_norm2.z, st.s_norm2.w};
   const float s02[4] = {st.s0_norm2.x, st.s0_norm2.y, st.s0_norm2.z, st.s0_norm2.w};
-  nlohmann::json iters = nlohmann::json::array(), residuals = nlohmann::json::array();
-  uint32_t max_iter = 0;
-  double worst = 0.0;
-  for (int c = 0; c < 4; ++c) {
-    const double rel = s02[c] > 0.0f ? std::sqrt(double(s2[c]) / double(s02[c])) : 0.0;
-    iters.push_back(iterations[c]);
-    residuals.push_back(rel);
-    max_iter = std::max(max_iter, iterations[c]);
-    worst = std::max(worst, rel);
-  }
-  out.details["iterations"] = max_iter;
-  out.details["iterations_per_channel"] = iters;
-  out.details["relative_residual"] = worst;  // ||S^T r - R x|| / ||S^T b||, worst channel
-  out.details["relative_residual_per_channel"] = residuals;
-  out.details["tolerance"] = tolerance;
-  out.details["clamped_values"] = clamped;
-  out.details["voxel_chunks"] = vectors.chunk_count();
-  out.details["ridge"] = settings.solve.ridge;
-  out.details["smooth"] = settings.solve.smooth;
-  if (worst > tolerance) {
-    std::ostringstream os;
-    os << "CGLS stopped at --max-iterations " << max_iterations << " with relative residual " << worst
-       << " above --tolerance " << tolerance;
-    out.warnings.push_back(os.str());
-  }
+  for (int c = 0; c < 4; ++c)
+    out.relative_residual[size_t(c)] = s02[c] > 0.0f ? std::sqrt(double(s2[c]) / double(s02[c])) : 0.0;
+  out.voxel_chunks = uint32_t(vectors.chunk_count());
   return out;
 }
 
+namespace {
+
+class CglsSolver final : public Solver {
+ public:
+  std::string_view name() const override { return "cgls"; }
+  std::string_view summary() const override {
+    return "matrix-free Jacobi-preconditioned CGLS on the GPU, four channels at once";
+  }
+  SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true}; }
+  std::vector<SolverOption> options() const override { return cgls_stop_options(); }
+
+  SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
+    CglsGpuOptions o;
+    o.tolerance = args.number("tolerance");
+    o.max_iterations = uint32_t(args.integer("max-iterations"));
+    o.regularization = args.solve;
+    const CglsGpuResult r = solve_cgls_gpu(p, o);
+    SolverOutput out;
+    out.tf = r.tf;
+    out.phases = r.phases;
+    const double worst = r.worst_relative_residual();
+    out.details["iterations"] = r.max_iterations();
+    out.details["iterations_per_channel"] = std::vector<uint32_t>(r.iterations.begin(), r.iterations.end());
+    out.details["relative_residual"] = worst;  // ||S^T r - R x|| / ||S^T b||, worst channel
+    out.details["relative_residual_per_channel"] = std::vector<double>(r.relative_residual.begin(), r.relative_residual.end());
+    out.details["tolerance"] = o.tolerance;
+    out.details["clamped_values"] = r.clamped_values;
+    out.details["voxel_chunks"] = r.voxel_chunks;
+    out.details["ridge"] = args.solve.ridge;
+    out.details["smooth"] = args.solve.smooth;
+    if (worst > o.tolerance) {
+      std::ostringstream os;
+      os << "CGLS stopped at --max-iterations " << o.max_iterations << " with relative residual " << worst
+         << " above --tolerance " << o.tolerance;
+      out.warnings.push_back(os.str());
+    }
+    return out;
+  }
+};
 
 }  // namespace
-SolverOutput run_cgls_solver(VoxelProblem& p, const SolverSettings& s) { return solve_with_cgls(p, s); }
+
+std::unique_ptr<Solver> make_cgls_solver() { return std::make_unique<CglsSolver>(); }
 
 }  // namespace tfm

@@ -39,19 +39,37 @@ std::string format_g(double v, int digits = 3) {
 
 }  // namespace
 
-ComparisonResult compare_solvers(Context& ctx, const OptimizeRequest& request, std::vector<std::string> solvers,
-                                 const std::function<void(const ComparisonRow&, size_t, size_t)>& on_row) {
+ComparisonPlan plan_comparison(const SolverSettings& settings, std::vector<std::string> solvers) {
   if (solvers.empty()) {
-    solvers = solver_names();
-    // The image-based solver optimizes renderings, not voxel colours, and takes minutes at its
-    // defaults: name it explicitly to include it.
-    solvers.erase(std::remove(solvers.begin(), solvers.end(), "diffdvr"), solvers.end());
+    // Image-based solvers optimize renderings, not voxel colours, and take minutes at their
+    // defaults: name them explicitly to include them.
+    for (const auto& s : tfm::solvers())
+      if (!s->image_based()) solvers.emplace_back(s->name());
   }
-  for (const std::string& s : solvers)
-    if (!solver_registry().count(s)) throw std::runtime_error("unknown solver '" + s + "'");
+  for (const std::string& s : solvers) require_solver(s);
   solvers.erase(std::remove(solvers.begin(), solvers.end(), "qp"), solvers.end());
   solvers.insert(solvers.begin(), "qp");
+  // Every option must be some chosen solver's; each solver gets its own.
+  check_options_apply(settings, solvers);
+  ComparisonPlan plan;
+  for (const std::string& name : solvers) {
+    const Solver& solver = require_solver(name);
+    const std::vector<SolverOption> declared = solver.options();
+    SolverSettings own = settings;
+    std::erase_if(own.extra, [&](const auto& option) {
+      return std::none_of(declared.begin(), declared.end(), [&](const SolverOption& o) { return o.name == option.first; });
+    });
+    parse_solver_args(solver, own);  // bad values fail before anything runs
+    plan.solvers.push_back(name);
+    plan.settings.push_back(std::move(own));
+  }
+  return plan;
+}
 
+ComparisonResult compare_solvers(Context& ctx, const OptimizeRequest& request, std::vector<std::string> names,
+                                 const std::function<void(const ComparisonRow&, size_t, size_t)>& on_row) {
+  const ComparisonPlan plan = plan_comparison(request.settings, std::move(names));
+  const std::vector<std::string>& solvers = plan.solvers;
   ComparisonResult out;
   out.device = ctx.device_name();
   out.tf_size = request.tf_size;
@@ -61,11 +79,13 @@ ComparisonResult compare_solvers(Context& ctx, const OptimizeRequest& request, s
   NormalEquations eq;
   Tridiagonal h;
   Eigen::MatrixX4d x_qp;
-  for (const std::string& name : solvers) {
+  for (size_t i = 0; i < solvers.size(); ++i) {
+    const std::string& name = solvers[i];
     ComparisonRow row;
     row.solver = name;
     OptimizeRequest req = request;
     req.solver = name;
+    req.settings = plan.settings[i];
     OptimizeResult r;
     try {
       r = run_optimize(ctx, req);
@@ -95,51 +115,15 @@ ComparisonResult compare_solvers(Context& ctx, const OptimizeRequest& request, s
     row.max_diff_to_qp = (x - x_qp).cwiseAbs().maxCoeff();
     for (int c = 0; c < 4; ++c) row.kkt = std::max(row.kkt, box_kkt_residual(h, eq.rhs.col(c), x.col(c)));
     // Solvers that keep x in the box say how in details["box"]; the others clamp their result.
-    row.box = r.details.value("box", "clamped " + std::to_string(r.details.value("clamped_values", 0u)));
+    const DetailValue* box = r.details.find("box");
+    const DetailValue* clamped = r.details.find("clamped_values");
+    row.box = box ? box->get<std::string>() : "clamped " + std::to_string(clamped ? clamped->get<uint32_t>() : 0u);
     row.warnings = r.warnings;
     row.details = r.details;
     out.rows.push_back(row);
     if (on_row) on_row(out.rows.back(), out.rows.size(), solvers.size());
   }
   return out;
-}
-
-nlohmann::json ComparisonResult::to_json() const {
-  nlohmann::json j;
-  j["device"] = device;
-  j["voxels"] = voxels;
-  j["voxels_with_data"] = voxels_with_data;
-  j["tf_size"] = tf_size;
-  j["voxel_rmse_reference_tf"] = rmse_reference_tf;
-  j["reference_solver"] = "qp";
-  auto rows_json = nlohmann::json::array();
-  for (const ComparisonRow& r : rows) {
-    nlohmann::json rj{{"solver", r.solver}};
-    if (!r.error.empty()) {
-      rj["error"] = r.error;
-      rows_json.push_back(rj);
-      continue;
-    }
-    auto phases = nlohmann::json::array();
-    for (const PhaseTime& p : r.phases) {
-      nlohmann::json pj{{"name", p.name}, {"wall_ms", p.wall_ms}};
-      if (p.gpu_ms >= 0) pj["gpu_ms"] = p.gpu_ms;
-      phases.push_back(pj);
-    }
-    rj["phases"] = phases;
-    rj["total_ms"] = r.total_ms;
-    rj["iterations"] = r.iterations >= 0 ? nlohmann::json(r.iterations) : nlohmann::json(nullptr);
-    rj["voxel_rmse"] = r.rmse;
-    rj["voxel_mae"] = r.mae;
-    rj["max_diff_to_qp"] = r.max_diff_to_qp;
-    rj["box"] = r.box;
-    rj["kkt_residual"] = r.kkt;
-    rj["warnings"] = r.warnings;
-    rj["details"] = r.details;
-    rows_json.push_back(rj);
-  }
-  j["rows"] = rows_json;
-  return j;
 }
 
 void ComparisonResult::print_table(std::ostream& os) const {

@@ -8,8 +8,6 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
 #include "optimize.h"
 
 namespace tfm {
@@ -25,7 +23,7 @@ struct ComparisonRow {
   std::string box;                   // "enforced", "projected" or "clamped K"
   double kkt = 0.0;                  // box KKT residual of the returned TF (TF units), 0 = optimal
   std::vector<std::string> warnings;
-  nlohmann::json details;
+  Details details;
 };
 
 struct ComparisonResult {
@@ -35,13 +33,24 @@ struct ComparisonResult {
   double rmse_reference_tf = 0.0;    // the field shown with the reference TF
   std::vector<ComparisonRow> rows;   // the QP reference first
 
-  nlohmann::json to_json() const;
-  void print_table(std::ostream& os) const;
+  void print_table(std::ostream& os) const;  // JSON: host/report/result_json.h
 };
 
-// Runs `solvers` (empty: every registered voxel solver, i.e. all but diffdvr) on the problem of `request` (its solver field is
-// ignored), `qp` always first as the reference. A solver that throws gets an error row; the QP
-// reference throwing ends the comparison (std::runtime_error).
+// The runs of a comparison: `solvers` (empty: every solver that is not image-based), `qp`
+// first, and the settings each gets (the options of settings.extra it declares, checked).
+// Throws std::runtime_error for an unknown solver, an option none of them has, or a bad value.
+struct ComparisonPlan {
+  std::vector<std::string> solvers;
+  std::vector<SolverSettings> settings;
+};
+ComparisonPlan plan_comparison(const SolverSettings& settings, std::vector<std::string> solvers);
+
+// Runs `solvers` (empty: every solver that is not image-based, i.e. all but diffdvr) on the
+// problem of `request` (its solver field is ignored), `qp` always first as the reference. Each
+// solver gets the options of request.settings.extra it declares. Throws std::runtime_error
+// before running anything for an unknown solver, an option none of them has, or a bad value.
+// A solver that throws while solving gets an error row; the QP reference throwing ends the
+// comparison (std::runtime_error).
 // `on_row`, when given, sees each row as soon as its solver is done (progress on long runs).
 ComparisonResult compare_solvers(Context& ctx, const OptimizeRequest& request, std::vector<std::string> solvers,
                                  const std::function<void(const ComparisonRow&, size_t index, size_t count)>& on_row = {});

@@ -9,7 +9,6 @@
 #include <sstream>
 
 #include "cuda_solvers.h"
-#include "solver_registry.h"
 #include "eigen_baseline.h"
 #include "solver_support.h"
 
@@ -34,9 +33,7 @@ ExplicitSystem build_system(const VoxelProblem& p) {
   return sys;
 }
 
-nlohmann::json cond_json(double cond) { return std::isfinite(cond) ? nlohmann::json(cond) : nlohmann::json("inf"); }
-
-SolverOutput solve_with_cuda_normal_equations(VoxelProblem& p, const SolverSettings& settings) {
+SolverOutput solve_with_cuda_normal_equations(VoxelProblem& p, const SolverArgs& args) {
   cuda::require_device("cuda-normal-equations");
   SolverOutput out;
   const uint32_t n = p.opt_map.tf_size;
@@ -77,13 +74,13 @@ SolverOutput solve_with_cuda_normal_equations(VoxelProblem& p, const SolverSetti
   }
 
   t0 = std::chrono::steady_clock::now();
-  const SolveResult r = solve_normal_equations(eq, settings.solve);
+  const SolveResult r = solve_normal_equations(eq, args.solve);
   out.phases.push_back({"solve", ms_since(t0), -1.0});
   out.tf = r.tf;
   out.warnings = r.warnings;
   out.details["device"] = cuda::device_name();
   out.details["factorization"] = r.factorization;
-  out.details["cond"] = cond_json(r.cond);
+  out.details["cond"] = cond_detail(r.cond);
   out.details["clamped_values"] = r.clamped_values;
   out.details["unreferenced_entries"] = r.unreferenced_entries;
   out.details["nonzeros"] = sys.a.nonZeros();
@@ -96,11 +93,9 @@ SolverOutput solve_with_cuda_normal_equations(VoxelProblem& p, const SolverSetti
   return out;
 }
 
-SolverOutput solve_with_cuda_cgls(VoxelProblem& p, const SolverSettings& settings) {
-  const double tolerance = settings.number("tolerance", 1e-6);
-  if (!(tolerance > 0.0 && tolerance < 1.0))
-    throw std::runtime_error("--tolerance: expected a number in (0, 1), got " + settings.text("tolerance", ""));
-  const uint32_t max_iterations = positive_integer(settings, "max-iterations", 1000);
+SolverOutput solve_with_cuda_cgls(VoxelProblem& p, const SolverArgs& args) {
+  const double tolerance = args.number("tolerance");
+  const uint32_t max_iterations = uint32_t(args.integer("max-iterations"));
   cuda::require_device("cuda-cgls");
   SolverOutput out;
   const uint32_t n = p.opt_map.tf_size;
@@ -112,7 +107,7 @@ SolverOutput solve_with_cuda_cgls(VoxelProblem& p, const SolverSettings& setting
   for (Eigen::Index row = 0; row < sys.a.outerSize(); row += 4)
     for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(sys.a, row); it; ++it)
       eq.diag[size_t(it.col() / 4)] += it.value() * it.value();
-  const Regularization reg = absolute_regularization(eq, settings.solve);
+  const Regularization reg = absolute_regularization(eq, args.solve);
   const Tridiagonal h = regularized_matrix(eq, reg);
   std::vector<double> inv_diag(n);
   for (uint32_t j = 0; j < n; ++j) inv_diag[j] = h.diag[j] > 0.0 ? 1.0 / h.diag[j] : 0.0;
@@ -136,7 +131,8 @@ SolverOutput solve_with_cuda_cgls(VoxelProblem& p, const SolverSettings& setting
     for (int c = 0; c < 4; ++c) x(j, c) = r.x[4 * j + c];
   uint32_t clamped = 0;
   out.tf = clamp_to_tf(x, &clamped);
-  nlohmann::json iters = nlohmann::json::array(), residuals = nlohmann::json::array();
+  std::vector<uint32_t> iters;
+  std::vector<double> residuals;
   uint32_t max_iter = 0;
   double worst = 0.0;
   for (int c = 0; c < 4; ++c) {
@@ -153,8 +149,8 @@ SolverOutput solve_with_cuda_cgls(VoxelProblem& p, const SolverSettings& setting
   out.details["tolerance"] = tolerance;
   out.details["clamped_values"] = clamped;
   out.details["nonzeros"] = sys.a.nonZeros();
-  out.details["ridge"] = settings.solve.ridge;
-  out.details["smooth"] = settings.solve.smooth;
+  out.details["ridge"] = args.solve.ridge;
+  out.details["smooth"] = args.solve.smooth;
   if (worst > tolerance) {
     std::ostringstream os;
     os << "cuda-cgls stopped at --max-iterations " << max_iterations << " with relative residual " << worst
@@ -165,9 +161,31 @@ SolverOutput solve_with_cuda_cgls(VoxelProblem& p, const SolverSettings& setting
 }
 
 
+class CudaNormalEquationsSolver final : public Solver {
+ public:
+  std::string_view name() const override { return "cuda-normal-equations"; }
+  std::string_view summary() const override {
+    return "CUDA: A^T A and A^T b from the explicit CSR A by cuSPARSE (as the paper), host tridiagonal solve";
+  }
+  SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true}; }
+  SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
+    return solve_with_cuda_normal_equations(p, args);
+  }
+};
+
+class CudaCglsSolver final : public Solver {
+ public:
+  std::string_view name() const override { return "cuda-cgls"; }
+  std::string_view summary() const override { return "CUDA: Jacobi-preconditioned CGLS with cuSPARSE SpMV"; }
+  SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true}; }
+  std::vector<SolverOption> options() const override { return cgls_stop_options(); }
+  SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override { return solve_with_cuda_cgls(p, args); }
+};
+
 }  // namespace
-SolverOutput run_cuda_normal_equations_solver(VoxelProblem& p, const SolverSettings& s) { return solve_with_cuda_normal_equations(p, s); }
-SolverOutput run_cuda_cgls_solver(VoxelProblem& p, const SolverSettings& s) { return solve_with_cuda_cgls(p, s); }
+
+std::unique_ptr<Solver> make_cuda_normal_equations_solver() { return std::make_unique<CudaNormalEquationsSolver>(); }
+std::unique_ptr<Solver> make_cuda_cgls_solver() { return std::make_unique<CudaCglsSolver>(); }
 
 }  // namespace tfm
 

@@ -1,6 +1,6 @@
 // Image-based TF optimization (DiffDVR, solver "diffdvr"): the GPU evaluation of the image loss
-// and its gradient w.r.t. the TF for a batch of cameras, and the options of the optimizer loop
-// (tools/app/solver_diffdvr_optimize.cpp).
+// and its gradient w.r.t. the TF for a batch of cameras, and the optimizer loop as a typed call
+// (solver_diffdvr_optimize.cpp).
 #pragma once
 
 #include <cstdint>
@@ -15,8 +15,9 @@
 #include "diffdvr.h"
 #include "diffdvr_cpu.h"
 #include "field_mapping.h"
-#include "optimize.h"
+#include "normal_equations.h"
 #include "render_settings.h"
+#include "solver.h"
 #include "transfer_function.h"
 
 namespace tfm {
@@ -76,27 +77,38 @@ class DiffDvrGradient {
   std::vector<OrbitCamera> cached_cameras_;  // whose reference images the target buffer holds
 };
 
-// Settings of the optimizer, from SolverSettings::extra and SolverSettings::render.
+enum class DiffDvrStart { Reference, NormalEquations };
+
+// Settings of the optimizer loop (solver "diffdvr": its options and SolverArgs::render).
 struct DiffDvrOptions {
   ImageLoss loss = ImageLoss::L2;
-  uint32_t iterations = 200;
-  uint32_t views_per_iteration = 8;
-  uint32_t image_size = 512;
-  uint64_t seed = 1;
-  bool fibonacci = false;                // fixed Fibonacci-sphere cameras instead of random ones
-  std::string init = "reference";        // or "normal-equations"
-  double learning_rate = 0.02;
-  double smooth = 0.0;                   // weight of the TF's squared first differences
-  RenderSettings render;                 // optical model and camera distance / fov
-
-  // Throws std::runtime_error naming the flag for a bad value.
-  static DiffDvrOptions from(const SolverSettings& settings);
+  uint32_t iterations = 200;               // >= 1
+  uint32_t views_per_iteration = 8;        // >= 1
+  uint64_t seed = 1;                       // of the random cameras
+  bool fibonacci = false;                  // fixed Fibonacci-sphere cameras instead of random ones
+  DiffDvrStart start = DiffDvrStart::Reference;  // the reference TF resampled, or the normal-equations TF
+  SolveOptions normal_equations;           // for start = NormalEquations
+  double learning_rate = 0.02;             // Adam, in (0, 1]
+  double smooth = 0.0;                     // weight of the TF's squared first differences, >= 0
+  RenderSettings render;                   // optical model, camera distance / fov, image width and height
 };
 
-// The "diffdvr" solver: projected Adam on the mean image loss (plus the smoothness prior).
-// details: loss_curve (mean loss plus penalty before each step, on that step's views),
-// fixed_view_loss (mean image loss of the initial and final TF on the Fibonacci views), the
-// options used, GPU times per pass.
-SolverOutput solve_with_diffdvr(VoxelProblem& problem, const SolverSettings& settings);
+struct DiffDvrResult {
+  TransferFunction tf;                     // in [0,1]
+  std::vector<double> loss_curve;          // mean loss plus penalty before each step, on that step's views
+  double fixed_view_loss_initial = 0.0;    // mean image loss of the initial and final TF on the
+  double fixed_view_loss_final = 0.0;      // Fibonacci views (comparable between runs and seeds)
+  uint32_t fixed_views = 0;
+  uint32_t views_per_group = 0;            // views per dispatch
+  double forward_gpu_ms = -1.0, backward_gpu_ms = -1.0;  // summed over iterations; -1 without timestamps
+  std::vector<PhaseTime> phases;
+  std::vector<std::string> warnings;
+};
+
+// Projected Adam on the mean image loss (plus the smoothness prior) over batches of cameras.
+// Deterministic for a seed. Throws std::invalid_argument for options out of range,
+// std::runtime_error for invalid render settings or a field too large for the kernels,
+// VulkanError for device failures.
+DiffDvrResult solve_diffdvr_gpu(VoxelProblem& problem, const DiffDvrOptions& options);
 
 }  // namespace tfm

@@ -1,41 +1,20 @@
-// The "diffdvr" solver: options, the projected-Adam loop over batches of cameras, registration.
+// The "diffdvr" solver: the projected-Adam loop over batches of cameras, its options.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 
 #include "adam.h"
-#include "solver_registry.h"
 #include "cameras.h"
 #include "progress.h"
 #include "solver_diffdvr.h"
+#include "solver_normal_equations.h"
+#include "solver_support.h"
 
 namespace tfm {
 namespace {
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
-uint32_t integer_flag(const SolverSettings& s, const std::string& name, uint32_t fallback, uint32_t lo, uint32_t hi) {
-  const double v = s.number(name, fallback);
-  if (!(v >= lo && v <= hi) || v != std::floor(v))
-    throw std::runtime_error("--" + name + ": expected an integer in [" + std::to_string(lo) + ", " +
-                             std::to_string(hi) + "], got '" + s.text(name, "") + "'");
-  return uint32_t(v);
-}
-
-uint64_t seed_flag(const SolverSettings& s) {
-  const std::string text = s.text("seed", "1");
-  try {
-    size_t used = 0;
-    const unsigned long long v = std::stoull(text, &used);
-    if (used == text.size() && text.find('-') == std::string::npos) return v;
-  } catch (const std::exception&) {
-  }
-  throw std::runtime_error("--seed: expected a non-negative integer below 2^64, got '" + text + "'");
-}
 
 // lambda (N-1) sum_j sum_c (T[j+1][c] - T[j][c])^2, about lambda * integral of |T'(t)|^2 dt, so a
 // weight means the same for any N. Adds its gradient to `grad`; returns the penalty.
@@ -56,42 +35,20 @@ double add_smoothness(const std::vector<double>& x, double lambda, std::vector<d
 
 }  // namespace
 
-DiffDvrOptions DiffDvrOptions::from(const SolverSettings& s) {
-  DiffDvrOptions o;
-  o.loss = parse_image_loss(s.text("loss", "l2"));
-  if (s.text("optimizer", "adam") != "adam")
-    throw std::runtime_error("--optimizer: diffdvr supports adam only, got '" + s.text("optimizer", "") + "'");
-  o.iterations = integer_flag(s, "iterations", o.iterations, 1, 1000000);
-  o.views_per_iteration = integer_flag(s, "views-per-iteration", o.views_per_iteration, 1, 4096);
-  o.image_size = integer_flag(s, "image-size", o.image_size, 1, 16384);
-  o.seed = seed_flag(s);
-  const std::string cameras = s.text("cameras", "random");
-  if (cameras != "random" && cameras != "fibonacci")
-    throw std::runtime_error("--cameras: expected random or fibonacci, got '" + cameras + "'");
-  o.fibonacci = cameras == "fibonacci";
-  o.init = s.text("init", "reference");
-  if (o.init != "reference" && o.init != "normal-equations")
-    throw std::runtime_error("--init: expected reference or normal-equations, got '" + o.init + "'");
-  o.learning_rate = s.number("lr", o.learning_rate);
+DiffDvrResult solve_diffdvr_gpu(VoxelProblem& p, const DiffDvrOptions& o) {
+  if (o.iterations < 1 || o.views_per_iteration < 1)
+    throw std::invalid_argument("solve_diffdvr_gpu: iterations and views per iteration must be >= 1");
   if (!(o.learning_rate > 0 && o.learning_rate <= 1))
-    throw std::runtime_error("--lr: expected a learning rate in (0, 1], got '" + s.text("lr", "") + "'");
-  o.smooth = s.solve.smooth;
-  if (!(o.smooth >= 0) || !std::isfinite(o.smooth)) throw std::runtime_error("--smooth: expected a weight >= 0");
-  o.render = s.render;
-  o.render.width = o.render.height = o.image_size;
+    throw std::invalid_argument("solve_diffdvr_gpu: learning rate must be in (0, 1]");
+  if (!(o.smooth >= 0) || !std::isfinite(o.smooth)) throw std::invalid_argument("solve_diffdvr_gpu: smooth must be >= 0");
   validate(o.render);
-  return o;
-}
-
-SolverOutput solve_with_diffdvr(VoxelProblem& p, const SolverSettings& settings) {
-  const DiffDvrOptions o = DiffDvrOptions::from(settings);
-  SolverOutput out;
+  DiffDvrResult out;
   TransferFunction tf = p.initial;
-  if (o.init == "normal-equations") {
-    SolverOutput init = solver_registry().at("normal-equations")(p, settings);
+  if (o.start == DiffDvrStart::NormalEquations) {
+    NormalEquationsGpuResult init = solve_normal_equations_gpu(p, o.normal_equations);
     for (PhaseTime& ph : init.phases) out.phases.push_back({"init: " + ph.name, ph.wall_ms, ph.gpu_ms});
-    for (std::string& w : init.warnings) out.warnings.push_back("init: " + w);
-    tf = init.tf;
+    for (std::string& w : init.solve.warnings) out.warnings.push_back("init: " + w);
+    tf = init.solve.tf;
   }
   const size_t n = tf.size();
   auto t0 = std::chrono::steady_clock::now();
@@ -147,25 +104,91 @@ SolverOutput solve_with_diffdvr(VoxelProblem& p, const SolverSettings& settings)
   const double final_fixed_loss = fixed_view_loss();
   out.tf = tf;
 
-  nlohmann::json& d = out.details;
-  d["loss_curve"] = curve;
-  // The smoothness penalty is part of the curve, not of these image losses.
-  d["fixed_view_loss"] = {{"initial", initial_fixed_loss}, {"final", final_fixed_loss}, {"views", fixed.size()}};
-  d["loss"] = image_loss_name(o.loss);
-  d["iterations"] = o.iterations;
-  d["views_per_iteration"] = o.views_per_iteration;
-  d["image_size"] = o.image_size;
-  d["cameras"] = o.fibonacci ? "fibonacci" : "random";
-  d["seed"] = o.seed;
-  d["lr"] = o.learning_rate;
-  d["init"] = o.init;
-  d["smooth"] = o.smooth;
-  d["views_per_group"] = gradient.views_per_group();
-  if (timed) d["gpu_ms"] = {{"forward", forward_ms}, {"backward", backward_ms}};
+  out.loss_curve = std::move(curve);
+  out.fixed_view_loss_initial = initial_fixed_loss;
+  out.fixed_view_loss_final = final_fixed_loss;
+  out.fixed_views = uint32_t(fixed.size());
+  out.views_per_group = gradient.views_per_group();
+  if (timed) out.forward_gpu_ms = forward_ms, out.backward_gpu_ms = backward_ms;
   return out;
 }
 
+namespace {
 
-SolverOutput run_diffdvr_solver(VoxelProblem& p, const SolverSettings& s) { return solve_with_diffdvr(p, s); }
+class DiffDvrSolver final : public Solver {
+ public:
+  std::string_view name() const override { return "diffdvr"; }
+  std::string_view summary() const override {
+    return "image-based: projected Adam on the image loss over random views, gradients by DiffDVR's inversion "
+           "(minutes on large fields)";
+  }
+  // --smooth is its own prior here (see below); --ridge does not apply.
+  SolverConstraints constraints() const override { return {BoxHandling::Projected, false, true}; }
+  bool image_based() const override { return true; }
+  std::vector<SolverOption> options() const override {
+    return {SolverOption::choice("loss", "l2", {"l2", "l1"}, "image loss over RGBA"),
+            SolverOption::choice("optimizer", "adam", {"adam"}, "step rule"),
+            SolverOption::number("lr", 0.02, {.min = 0.0, .max = 1.0, .min_open = true}, "Adam learning rate"),
+            SolverOption::integer("iterations", 200, 1, 1000000, "iterations"),
+            SolverOption::integer("views-per-iteration", 8, 1, 4096, "cameras per iteration"),
+            SolverOption::integer("image-size", 512, 1, 16384, "image width and height in pixels"),
+            SolverOption::integer("seed", 1, 0, std::numeric_limits<uint64_t>::max(), "seed of the random cameras"),
+            SolverOption::choice("cameras", "random", {"random", "fibonacci"},
+                                 "new random views each iteration, or fixed Fibonacci-sphere views"),
+            SolverOption::choice("init", "reference", {"reference", "normal-equations"}, "initial TF")};
+  }
+
+  SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
+    DiffDvrOptions o;
+    o.loss = args.text("loss") == "l1" ? ImageLoss::L1 : ImageLoss::L2;
+    o.iterations = uint32_t(args.integer("iterations"));
+    o.views_per_iteration = uint32_t(args.integer("views-per-iteration"));
+    o.seed = args.integer("seed");
+    o.fibonacci = args.text("cameras") == "fibonacci";
+    o.start = args.text("init") == "normal-equations" ? DiffDvrStart::NormalEquations : DiffDvrStart::Reference;
+    o.normal_equations = args.solve;
+    o.learning_rate = args.number("lr");
+    // The weight of (N-1) sum of squared TF differences, added to the mean image loss.
+    o.smooth = args.solve.smooth;
+    if (!(o.smooth >= 0) || !std::isfinite(o.smooth)) throw std::runtime_error("--smooth: expected a weight >= 0");
+    o.render = args.render;
+    o.render.width = o.render.height = uint32_t(args.integer("image-size"));
+    const DiffDvrResult r = solve_diffdvr_gpu(p, o);
+
+    SolverOutput out;
+    out.tf = r.tf;
+    out.phases = r.phases;
+    out.warnings = r.warnings;
+    Details& d = out.details;
+    d["loss_curve"] = r.loss_curve;
+    // The smoothness penalty is part of the curve, not of these image losses.
+    Details fixed;
+    fixed["initial"] = r.fixed_view_loss_initial;
+    fixed["final"] = r.fixed_view_loss_final;
+    fixed["views"] = r.fixed_views;
+    d["fixed_view_loss"] = fixed;
+    d["loss"] = image_loss_name(o.loss);
+    d["iterations"] = o.iterations;
+    d["views_per_iteration"] = o.views_per_iteration;
+    d["image_size"] = o.render.width;
+    d["cameras"] = args.text("cameras");
+    d["seed"] = o.seed;
+    d["lr"] = o.learning_rate;
+    d["init"] = args.text("init");
+    d["smooth"] = o.smooth;
+    d["views_per_group"] = r.views_per_group;
+    if (r.forward_gpu_ms >= 0) {
+      Details gpu_ms;
+      gpu_ms["forward"] = r.forward_gpu_ms;
+      gpu_ms["backward"] = r.backward_gpu_ms;
+      d["gpu_ms"] = gpu_ms;
+    }
+    return out;
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<Solver> make_diffdvr_solver() { return std::make_unique<DiffDvrSolver>(); }
 
 }  // namespace tfm

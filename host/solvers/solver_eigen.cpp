@@ -6,7 +6,6 @@
 #include <sstream>
 
 #include "cgls_cpu.h"
-#include "solver_registry.h"
 #include "eigen_baseline.h"
 #include "solver_support.h"
 
@@ -17,7 +16,7 @@ ExplicitSystem build_system(const VoxelProblem& p) {
   return build_explicit_system(p.ref_volume.values, p.opt_volume.values, p.ref_map, p.opt_map, p.ref_tf);
 }
 
-SolverOutput solve_with_eigen_normal_equations(VoxelProblem& p, const SolverSettings& settings) {
+SolverOutput solve_with_eigen_normal_equations(VoxelProblem& p, const SolverArgs& args) {
   SolverOutput out;
   const uint32_t n = p.opt_map.tf_size;
   auto t0 = std::chrono::steady_clock::now();
@@ -33,12 +32,12 @@ SolverOutput solve_with_eigen_normal_equations(VoxelProblem& p, const SolverSett
   }
   out.phases.push_back({"A^T A", ms_since(t0), -1.0});
   t0 = std::chrono::steady_clock::now();
-  const SolveResult r = solve_normal_equations(eq, settings.solve);
+  const SolveResult r = solve_normal_equations(eq, args.solve);
   out.phases.push_back({"solve", ms_since(t0), -1.0});
   out.tf = r.tf;
   out.warnings = r.warnings;
   out.details["factorization"] = r.factorization;
-  out.details["cond"] = std::isfinite(r.cond) ? nlohmann::json(r.cond) : nlohmann::json("inf");
+  out.details["cond"] = cond_detail(r.cond);
   out.details["clamped_values"] = r.clamped_values;
   out.details["unreferenced_entries"] = r.unreferenced_entries;
   out.details["nonzeros"] = sys.a.nonZeros();
@@ -60,12 +59,11 @@ Eigen::SparseMatrix<double> interleaved_regularization(uint32_t n, const Regular
   return r;
 }
 
-SolverOutput solve_with_eigen_cgls(VoxelProblem& p, const SolverSettings& settings) {
+SolverOutput solve_with_eigen_cgls(VoxelProblem& p, const SolverArgs& args) {
   CglsOptions o;
-  o.tolerance = settings.number("tolerance", 1e-6);
-  if (!(o.tolerance > 0.0 && o.tolerance < 1.0))
-    throw std::runtime_error("--tolerance: expected a number in (0, 1), got " + settings.text("tolerance", ""));
-  o.max_iterations = positive_integer(settings, "max-iterations", 1000);
+  o.tolerance = args.number("tolerance");
+  o.max_iterations = uint32_t(args.integer("max-iterations"));
+  const SolveOptions& solve = args.solve;
   SolverOutput out;
   const uint32_t n = p.opt_map.tf_size;
   auto t0 = std::chrono::steady_clock::now();
@@ -74,13 +72,13 @@ SolverOutput solve_with_eigen_cgls(VoxelProblem& p, const SolverSettings& settin
   out.phases.push_back({"build A", ms_since(t0), -1.0});
   t0 = std::chrono::steady_clock::now();
   Regularization reg;
-  if (settings.solve.ridge > 0.0 || settings.solve.smooth > 0.0) {
+  if (solve.ridge > 0.0 || solve.smooth > 0.0) {
     // mean(diag M) from the squared column norms of A (channel 0 columns).
     double sum = 0.0;
     for (Eigen::Index row = 0; row < sys.a.outerSize(); row += 4)
       for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(sys.a, row); it; ++it)
         sum += it.value() * it.value();
-    reg = {settings.solve.ridge * sum / n, settings.solve.smooth * sum / n};
+    reg = {solve.ridge * sum / n, solve.smooth * sum / n};
   }
   const CglsResult r = cgls_jacobi(sys.a, sys.b, interleaved_regularization(n, reg), o);
   out.phases.push_back({"iterate", ms_since(t0), -1.0});
@@ -104,8 +102,32 @@ SolverOutput solve_with_eigen_cgls(VoxelProblem& p, const SolverSettings& settin
 }
 
 
+class EigenNormalEquationsSolver final : public Solver {
+ public:
+  std::string_view name() const override { return "eigen-normal-equations"; }
+  std::string_view summary() const override {
+    return "CPU baseline: explicit sparse A, A^T A and A^T b by Eigen sparse products, then the tridiagonal solve";
+  }
+  SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true}; }
+  SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
+    return solve_with_eigen_normal_equations(p, args);
+  }
+};
+
+class EigenCglsSolver final : public Solver {
+ public:
+  std::string_view name() const override { return "eigen-cgls"; }
+  std::string_view summary() const override {
+    return "CPU baseline: Jacobi-preconditioned CGLS on the explicit sparse A (Eigen, double precision)";
+  }
+  SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true}; }
+  std::vector<SolverOption> options() const override { return cgls_stop_options(); }
+  SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override { return solve_with_eigen_cgls(p, args); }
+};
+
 }  // namespace
-SolverOutput run_eigen_normal_equations_solver(VoxelProblem& p, const SolverSettings& s) { return solve_with_eigen_normal_equations(p, s); }
-SolverOutput run_eigen_cgls_solver(VoxelProblem& p, const SolverSettings& s) { return solve_with_eigen_cgls(p, s); }
+
+std::unique_ptr<Solver> make_eigen_normal_equations_solver() { return std::make_unique<EigenNormalEquationsSolver>(); }
+std::unique_ptr<Solver> make_eigen_cgls_solver() { return std::make_unique<EigenCglsSolver>(); }
 
 }  // namespace tfm

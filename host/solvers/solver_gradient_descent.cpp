@@ -3,30 +3,34 @@
 // solvers). The learning rate follows a cosine schedule from --lr down to 1% of it at the last
 // iteration, which lets the l1 iteration (a subgradient method) settle on its minimizer.
 #include "solver_gradient_descent.h"
-#include "solver_registry.h"
 
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <stdexcept>
 
 #include "commands.h"
 #include "gradient_descent.h"
 #include "solver_support.h"
 #include "sparse_ops.h"
+#include "voxel_pair.h"
 
 namespace tfm {
 namespace {
 
 constexpr uint32_t kIterationsPerBatch = 32;
 
-SolverOutput solve_with_gradient_descent(VoxelProblem& p, const SolverSettings& settings) {
-  const GdOptions o = gd_options(settings);
+}  // namespace
+
+GradientDescentResult solve_gradient_descent_gpu(VoxelProblem& p, const GradientDescentOptions& o) {
+  if (!(o.lr > 0.0) || !std::isfinite(o.lr)) throw std::invalid_argument("solve_gradient_descent_gpu: lr must be > 0");
+  if (o.iterations < 1) throw std::invalid_argument("solve_gradient_descent_gpu: iterations must be >= 1");
   Context& ctx = p.ctx;
   const uint32_t n = p.opt_map.tf_size;
 
-  SolverOutput out;
+  GradientDescentResult out;
   auto t0 = std::chrono::steady_clock::now();
-  JacobiSetup js = jacobi_setup(p, settings);
+  JacobiSetup js = jacobi_setup(p, o.regularization);
   Buffer inv_diag = make_buffer<float>(ctx, js.inv_diag, "GD inverse diagonal");
   Buffer x(ctx, uint64_t(n) * 16, MemoryUsage::Device, "GD x");
   Buffer m(ctx, uint64_t(n) * 16, MemoryUsage::Device, "GD Adam m");
@@ -74,42 +78,17 @@ SolverOutput solve_with_gradient_descent(VoxelProblem& p, const SolverSettings& 
   std::vector<double> loss = decode_fixed_point(std::vector<uint32_t>(loss_words, words.end()));
   double total = 0.0;
   for (double l : loss) total += l;
-  out.details["box"] = "projected";  // every iterate is projected to [0,1]
-  out.details["iterations"] = o.iterations;
-  out.details["loss"] = o.l1 ? "l1" : "l2";
-  out.details["optimizer"] = o.adam ? "adam" : "sgd";
-  out.details["lr"] = o.lr;
   // Mean over voxels and RGBA of e^2 (l2) or |e| (l1) at the last gradient evaluation.
-  out.details["last_loss"] = total / (4.0 * double(js.eq.voxels));
-  out.details["ridge"] = settings.solve.ridge;
-  out.details["smooth"] = settings.solve.smooth;
+  out.last_loss = total / (4.0 * double(js.eq.voxels));
   return out;
 }
 
-
-}  // namespace
-
-GdOptions gd_options(const SolverSettings& settings) {
-  GdOptions o;
-  const std::string loss = settings.text("loss", "l2");
-  if (loss != "l2" && loss != "l1") throw std::runtime_error("--loss: expected l2 or l1, got '" + loss + "'");
-  const std::string optimizer = settings.text("optimizer", "adam");
-  if (optimizer != "adam" && optimizer != "sgd")
-    throw std::runtime_error("--optimizer: expected adam or sgd, got '" + optimizer + "'");
-  o.l1 = loss == "l1";
-  o.adam = optimizer == "adam";
-  o.lr = settings.number("lr", o.adam ? 0.02 : 1.0);
-  if (!(o.lr > 0.0) || !std::isfinite(o.lr)) throw std::runtime_error("--lr: expected a positive number");
-  o.iterations = positive_integer(settings, "iterations", 300);
-  return o;
-}
-
-double gd_learning_rate(const GdOptions& o, uint32_t t) {
+double gd_learning_rate(const GradientDescentOptions& o, uint32_t t) {
   const double progress = o.iterations > 1 ? double(t - 1) / double(o.iterations - 1) : 0.0;
   return o.lr * (o.final_lr_fraction + (1.0 - o.final_lr_fraction) * 0.5 * (1.0 + std::cos(std::numbers::pi * progress)));
 }
 
-gpu::GdUpdatePush gd_push(const GdOptions& o, uint32_t tf_size, uint64_t voxels, const Regularization& reg) {
+gpu::GdUpdatePush gd_push(const GradientDescentOptions& o, uint32_t tf_size, uint64_t voxels, const Regularization& reg) {
   gpu::GdUpdatePush push{};
   push.tf_size = tf_size;
   push.optimizer = o.adam ? TFM_GD_OPTIMIZER_ADAM : TFM_GD_OPTIMIZER_SGD;
@@ -125,7 +104,7 @@ gpu::GdUpdatePush gd_push(const GdOptions& o, uint32_t tf_size, uint64_t voxels,
   return push;
 }
 
-gpu::GdUpdatePush gd_step_push(const gpu::GdUpdatePush& base, const GdOptions& o, uint32_t t) {
+gpu::GdUpdatePush gd_step_push(const gpu::GdUpdatePush& base, const GradientDescentOptions& o, uint32_t t) {
   gpu::GdUpdatePush push = base;
   push.lr = float(gd_learning_rate(o, t));
   push.bias1 = float(1.0 / (1.0 - std::pow(o.beta1, double(t))));
@@ -133,6 +112,52 @@ gpu::GdUpdatePush gd_step_push(const gpu::GdUpdatePush& base, const GdOptions& o
   return push;
 }
 
-SolverOutput run_gradient_descent_solver(VoxelProblem& p, const SolverSettings& s) { return solve_with_gradient_descent(p, s); }
+namespace {
+
+class GradientDescentSolver final : public Solver {
+ public:
+  std::string_view name() const override { return "gradient-descent"; }
+  std::string_view summary() const override {
+    return "matrix-free projected gradient descent on the GPU, l2 or l1 voxel loss, Adam or Jacobi-scaled SGD";
+  }
+  SolverConstraints constraints() const override { return {BoxHandling::Projected, true, true}; }
+  std::vector<SolverOption> options() const override {
+    SolverOption lr = SolverOption::number("lr", 0.0, {.min = 0.0, .min_open = true},
+                                           "initial step (adam: TF units; sgd: fraction of a diagonal Newton "
+                                           "step), cosine schedule down to 1% of it");
+    lr.default_value = std::monostate{};  // depends on --optimizer
+    lr.default_help = "0.02 with adam, 1 with sgd";
+    return {SolverOption::choice("loss", "l2", {"l2", "l1"}, "voxel loss: least squares or least absolute deviations"),
+            SolverOption::choice("optimizer", "adam", {"adam", "sgd"}, "step rule"),
+            lr,
+            SolverOption::integer("iterations", 300, 1, 1000000000, "iterations")};
+  }
+
+  SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
+    GradientDescentOptions o;
+    o.l1 = args.text("loss") == "l1";
+    o.adam = args.text("optimizer") == "adam";
+    o.lr = args.has("lr") ? args.number("lr") : (o.adam ? 0.02 : 1.0);
+    o.iterations = uint32_t(args.integer("iterations"));
+    o.regularization = args.solve;
+    const GradientDescentResult r = solve_gradient_descent_gpu(p, o);
+    SolverOutput out;
+    out.tf = r.tf;
+    out.phases = r.phases;
+    out.details["box"] = "projected";  // every iterate is projected to [0,1]
+    out.details["iterations"] = o.iterations;
+    out.details["loss"] = o.l1 ? "l1" : "l2";
+    out.details["optimizer"] = o.adam ? "adam" : "sgd";
+    out.details["lr"] = o.lr;
+    out.details["last_loss"] = r.last_loss;
+    out.details["ridge"] = args.solve.ridge;
+    out.details["smooth"] = args.solve.smooth;
+    return out;
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<Solver> make_gradient_descent_solver() { return std::make_unique<GradientDescentSolver>(); }
 
 }  // namespace tfm

@@ -13,27 +13,27 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-JacobiSetup jacobi_setup(VoxelProblem& p, const SolverSettings& settings) {
+JacobiSetup jacobi_setup(VoxelProblem& p, const SolveOptions& options) {
   JacobiSetup js;
   GpuNormalEquations gpu(p.ctx, p.opt_map.tf_size);
   js.gpu_ms = gpu.add(p.ref, p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer);
   js.eq = gpu.result();
   if (js.eq.voxels == 0) throw std::runtime_error("no voxel has data in both fields (all NaN?): nothing to fit");
-  if (settings.solve.ridge < 0 || settings.solve.smooth < 0)
-    throw std::invalid_argument("regularization weights must be >= 0");
-  js.reg = absolute_regularization(js.eq, settings.solve);
+  if (options.ridge < 0 || options.smooth < 0) throw std::invalid_argument("regularization weights must be >= 0");
+  js.reg = absolute_regularization(js.eq, options);
   const Tridiagonal h = regularized_matrix(js.eq, js.reg);
   js.inv_diag.resize(js.eq.n);
   for (uint32_t j = 0; j < js.eq.n; ++j) js.inv_diag[j] = h.diag[j] > 0.0 ? float(1.0 / h.diag[j]) : 0.0f;
   return js;
 }
 
-uint32_t positive_integer(const SolverSettings& settings, const std::string& name, uint32_t fallback) {
-  const double v = settings.number(name, fallback);
-  if (!(v >= 1.0) || v != std::floor(v) || v > 1e9)
-    throw std::runtime_error("--" + name + ": expected a positive integer, got " + settings.text(name, ""));
-  return static_cast<uint32_t>(v);
+std::vector<SolverOption> cgls_stop_options() {
+  return {SolverOption::number("tolerance", 1e-6, {.min = 0.0, .max = 1.0, .min_open = true, .max_open = true},
+                               "stop a channel at this relative residual ||S^T r - R x|| / ||S^T b||"),
+          SolverOption::integer("max-iterations", 1000, 1, 1000000000, "iteration cap")};
 }
+
+DetailValue cond_detail(double cond) { return std::isfinite(cond) ? DetailValue(cond) : DetailValue("inf"); }
 
 TransferFunction clamp_to_tf(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x, uint32_t* clamped) {
   TransferFunction tf;

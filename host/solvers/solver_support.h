@@ -1,5 +1,5 @@
-// Helpers shared by the solvers of tools/app/solver_*.cpp: timing, the Jacobi diagonal from the
-// GPU assembly, reading solver flags, and turning an unconstrained solution into a TF.
+// Helpers shared by the solvers of host/solvers/solver_*.cpp: timing, the Jacobi diagonal from
+// the GPU assembly, options several solvers share, and turning an unconstrained solution into a TF.
 #pragma once
 
 #include <chrono>
@@ -10,7 +10,7 @@
 #include <Eigen/Core>
 
 #include "normal_equations.h"
-#include "optimize.h"
+#include "solver.h"
 #include "transfer_function.h"
 
 namespace tfm {
@@ -18,19 +18,22 @@ namespace tfm {
 double ms_since(std::chrono::steady_clock::time_point t0);
 
 // The assembled system of a problem (GPU, deterministic) with the absolute regularization weights
-// of the settings, and 1 / diag(M + R) per entry (0 where that diagonal is 0: an unreferenced
-// entry no iterative solver can move).
+// of `options`, and 1 / diag(M + R) per entry (0 where that diagonal is 0: an unreferenced
+// entry no iterative solver can move). Throws std::runtime_error when no voxel has data and
+// std::invalid_argument for negative weights.
 struct JacobiSetup {
   NormalEquations eq;
   Regularization reg;
   std::vector<float> inv_diag;
   double gpu_ms = -1.0;
 };
-JacobiSetup jacobi_setup(VoxelProblem& problem, const SolverSettings& settings);
+JacobiSetup jacobi_setup(VoxelProblem& problem, const SolveOptions& options);
 
-// settings.number(name) as a positive integer (default `fallback`); throws std::runtime_error
-// naming the flag otherwise.
-uint32_t positive_integer(const SolverSettings& settings, const std::string& name, uint32_t fallback);
+// --tolerance and --max-iterations of the CGLS solvers (cgls, eigen-cgls, cuda-cgls).
+std::vector<SolverOption> cgls_stop_options();
+
+// cond(M) as a detail: the number, or "inf" for a singular M.
+DetailValue cond_detail(double cond);
 
 // x (N x 4) clamped to [0,1] as a TF; counts the components that moved.
 TransferFunction clamp_to_tf(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x, uint32_t* clamped = nullptr);

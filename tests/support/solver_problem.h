@@ -13,7 +13,7 @@
 #include "field_mapping.h"
 #include "gpu_voxel_ops.h"
 #include "normal_equations.h"
-#include "optimize.h"
+#include "solver.h"
 #include "volume.h"
 
 namespace tfm::test {
@@ -34,10 +34,15 @@ struct SolverProblem {
   NormalEquations cpu_equations() const {
     return assemble_normal_equations_cpu(ref_volume.values, opt_volume.values, ref_map, opt_map, ref_tf);
   }
+  // The problem on the device (upload() first), for the typed solver calls.
+  VoxelProblem problem(Context& ctx) const {
+    return VoxelProblem{ctx, ref_volume, opt_volume, *ref, *opt, ref_map, opt_map, ref_tf, *ref_tf_buffer,
+                        ref_tf.resampled(opt_map.tf_size)};
+  }
+  // Runs the registered solver `solver` with `settings` (options parsed as the command line's).
   SolverOutput solve(Context& ctx, const std::string& solver, const SolverSettings& settings = {}) {
-    VoxelProblem p{ctx, ref_volume, opt_volume, *ref, *opt, ref_map, opt_map, ref_tf, *ref_tf_buffer,
-                   ref_tf.resampled(opt_map.tf_size)};
-    return solver_registry().at(solver)(p, settings);
+    VoxelProblem p = problem(ctx);
+    return run_solver(solver, p, settings);
   }
 };
 

@@ -174,7 +174,7 @@ nlohmann::json bench_cube(Context& ctx, const BenchArgs& a) {
     std::map<std::string, std::string> extra;
   };
   std::vector<Run> runs = {{"normal-equations", "normal-equations", {}}};
-  if (solver_registry().count("cgls")) runs.push_back({"cgls", "cgls", {}});
+  if (find_solver("cgls")) runs.push_back({"cgls", "cgls", {}});
   const std::map<std::string, std::string> dd = {{"iterations", std::to_string(a.iterations)},
                                                  {"views-per-iteration", std::to_string(a.views)},
                                                  {"image-size", std::to_string(a.cube_image)}};

@@ -10,6 +10,8 @@
 #include "render_options.h"
 #include "report.h"
 #include "loss_plot.h"
+#include "result_json.h"
+#include "solver_options.h"
 #include "synthetic.h"
 #include "volume_io.h"
 #include "tf_json.h"
@@ -24,10 +26,14 @@ struct DemoArgs {
   std::string report;        // empty: the output directory
   bool no_report = false;
   RenderSettings render;
-  std::map<std::string, std::string> extra;  // solver-specific flags, passed through as optimize does
+  std::map<std::string, std::string> extra;  // solver options (solver_options.h), as optimize has
 };
 
 int run(const DemoArgs& a) {
+  SolverSettings settings;
+  settings.render = a.render;  // image-based solvers render as the report does
+  settings.extra = a.extra;
+  parse_solver_args(require_solver(a.solver), settings);  // bad solver flags fail before any work
   if (!a.no_report) validate(a.render);
   std::filesystem::create_directories(a.out);
   const std::filesystem::path dir = a.out;
@@ -45,12 +51,11 @@ int run(const DemoArgs& a) {
   req.ref_tf = ref_tf;
   req.tf_size = 64;
   req.solver = a.solver;
-  req.settings.render = a.render;  // image-based solvers render as the report does
-  req.settings.extra = a.extra;
+  req.settings = settings;
   auto ctx = make_context();
   OptimizeResult result = run_optimize(*ctx, req);
   write_tf_json(dir / "optimized_tf.json", result.tf);
-  write_file_atomically(dir / "summary.json", result.to_json().dump(2) + "\n");
+  write_file_atomically(dir / "summary.json", to_json(result).dump(2) + "\n");
   if (!globals().quiet) {
     std::cout << "demo: reference = smooth blobs; field = nonlinear, partly non-monotone remap of it in other\n"
                  "      units, plus a sphere of real structural difference no TF can explain\n";
@@ -78,15 +83,13 @@ CommandRegistration reg(0, [](CLI::App& app) {
   auto* sub = app.add_subcommand("demo", "Run the optimizer on a built-in pair of fields and write the results");
   sub->add_option("--out", args->out, "Output directory")->capture_default_str();
   sub->add_option("--size", args->size, "Grid size per axis")->check(CLI::Range(8, 512))->capture_default_str();
-  sub->add_option("--solver", args->solver, "Solver (see optimize --help)")->capture_default_str();
+  sub->add_option("--solver", args->solver, "Solver: " + solver_name_list() + " (described below)")
+      ->capture_default_str();
   sub->add_option("--report", args->report, "Report directory (default: the output directory)");
   sub->add_flag("--no-report", args->no_report, "Skip the report (renderings, metrics, index.html)");
-  for (const char* flag : {"loss", "lr", "iterations", "seed", "views-per-iteration", "image-size", "init", "cameras"}) {
-    const std::string name = flag;
-    sub->add_option_function<std::string>("--" + name, [args, name](const std::string& v) { args->extra[name] = v; },
-                                           "Solver option (see optimize --help)");
-  }
+  add_solver_options(sub, args->extra);
   add_render_options(sub, args->render);
+  sub->footer(solver_descriptions());
   sub->callback([args] { exit_code() = run(*args); });
 });
 

@@ -11,6 +11,8 @@
 #include "render_options.h"
 #include "report.h"
 #include "loss_plot.h"
+#include "result_json.h"
+#include "solver_options.h"
 #include "tf_formats.h"
 #include "volume.h"
 
@@ -23,45 +25,33 @@ struct OptimizeArgs {
   std::string solver = "normal-equations";
   double ridge = 0.0, smooth = 0.0;
   std::string factorization = "auto";
-  std::map<std::string, std::string> extra;  // solver-specific flags, passed through
+  std::map<std::string, std::string> extra;  // solver options (solver_options.h), checked by the solver
   std::string report;                         // report directory (renderings, metrics, index.html)
   RenderSettings render;
 };
 
-// Solver-specific flags: each solver reads those it understands from SolverSettings::extra.
-const std::pair<const char*, const char*> kSolverFlags[] = {
-    {"loss", "gradient-descent/diffdvr: l2 or l1"},
-    {"optimizer", "gradient-descent: adam or sgd; diffdvr: adam"},
-    {"lr", "gradient-descent/diffdvr: learning rate"},
-    {"iterations", "gradient-descent/diffdvr: iterations"},
-    {"tolerance", "iterative solvers: relative residual of the normal equations to stop at"},
-    {"max-iterations", "iterative solvers: iteration cap"},
-    {"seed", "diffdvr: seed of the random cameras"},
-    {"views-per-iteration", "diffdvr: cameras per iteration"},
-    {"image-size", "diffdvr: image width and height in pixels"},
-    {"init", "diffdvr: initial TF, reference or normal-equations"},
-    {"cameras", "diffdvr: random or fibonacci"},
-};
-
 int run(const OptimizeArgs& a) {
+  SolverSettings settings;
+  settings.render = a.render;  // image-based solvers render as the report does
+  settings.solve.ridge = a.ridge;
+  settings.solve.smooth = a.smooth;
+  settings.extra = a.extra;
+  settings.solve.factorization = a.factorization == "ldlt" ? Factorization::LDLT
+                                 : a.factorization == "qr" ? Factorization::QR
+                                                           : Factorization::Auto;
+  parse_solver_args(require_solver(a.solver), settings);  // bad solver flags fail before loading
+  if (!a.report.empty()) validate(a.render);  // fail before the solve, not after
   LoadedInputs loaded;
   load_inputs(a.in, loaded);
   const Volume& ref = loaded.ref;
   const Volume& field = loaded.field;
   OptimizeRequest& req = loaded.request;
   req.solver = a.solver;
-  req.settings.render = a.render;  // image-based solvers render as the report does
-  req.settings.solve.ridge = a.ridge;
-  req.settings.solve.smooth = a.smooth;
-  req.settings.extra = a.extra;
-  req.settings.solve.factorization = a.factorization == "ldlt" ? Factorization::LDLT
-                                     : a.factorization == "qr" ? Factorization::QR
-                                                               : Factorization::Auto;
-  if (!a.report.empty()) validate(a.render);  // fail before the solve, not after
+  req.settings = settings;
   auto ctx = make_context();
   OptimizeResult result = run_optimize(*ctx, req);
   write_transfer_function(a.out, result.tf);
-  if (!a.json.empty()) write_file_atomically(a.json, result.to_json().dump(2) + "\n");
+  if (!a.json.empty()) write_file_atomically(a.json, to_json(result).dump(2) + "\n");
   if (!globals().quiet) {
     result.print_summary(std::cout);
     std::cout << "  wrote " << a.out << (a.json.empty() ? "" : " and " + a.json) << "\n";
@@ -85,11 +75,8 @@ CommandRegistration reg(10, [](CLI::App& app) {
   auto* sub = app.add_subcommand("optimize", "Optimize a transfer function for FIELD to match REF rendered with REF-TF");
   add_input_options(sub, args->in, /*required=*/true);
   sub->add_option("--out", args->out, "Optimized transfer function (.json, .xml or .paraview.json)")->required();
-  sub->add_option("--solver", args->solver, "Solver: " + [] {
-    std::string s;
-    for (auto& n : solver_names()) s += (s.empty() ? "" : ", ") + n;
-    return s;
-  }())->capture_default_str();
+  sub->add_option("--solver", args->solver, "Solver: " + solver_name_list() + " (described below)")
+      ->capture_default_str();
   sub->add_option("--ridge", args->ridge, "Tikhonov weight, relative to the mean diagonal of M")
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--smooth", args->smooth, "First-difference smoothness weight, relative to the mean diagonal of M (diffdvr: "
@@ -98,14 +85,11 @@ CommandRegistration reg(10, [](CLI::App& app) {
   sub->add_option("--factorization", args->factorization, "normal-equations: auto, ldlt or qr")
       ->check(CLI::IsMember({"auto", "ldlt", "qr"}))->capture_default_str();
   sub->add_option("--json", args->json, "Also write the summary as JSON");
-  for (const auto& [flag, help] : kSolverFlags) {
-    std::string name = flag;
-    sub->add_option_function<std::string>("--" + name, [args, name](const std::string& v) { args->extra[name] = v; },
-                                           help);
-  }
+  add_solver_options(sub, args->extra);
   sub->add_option("--report", args->report, "Write a report into this directory: renderings before/after, residual "
                   "maps, TF plots, metrics.json, index.html");
   add_render_options(sub, args->render);
+  sub->footer(solver_descriptions());
   sub->callback([args] { exit_code() = run(*args); });
 });
 

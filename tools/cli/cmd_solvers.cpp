@@ -8,7 +8,9 @@
 #include "atomic_file.h"
 #include "cli.h"
 #include "input_options.h"
+#include "result_json.h"
 #include "solver_comparison.h"
+#include "solver_options.h"
 #include "synthetic.h"
 
 namespace tfm::cli {
@@ -21,16 +23,7 @@ struct SolversArgs {
   std::vector<std::string> solvers;
   double ridge = 0.0, smooth = 0.0;
   std::string json;
-  std::map<std::string, std::string> extra;
-};
-
-const std::pair<const char*, const char*> kSolverFlags[] = {
-    {"loss", "gradient-descent: l2 or l1"},
-    {"optimizer", "gradient-descent: adam or sgd"},
-    {"lr", "gradient-descent: initial learning rate"},
-    {"iterations", "gradient-descent: iterations"},
-    {"tolerance", "cgls, eigen-cgls, cuda-cgls: relative residual of the normal equations to stop at"},
-    {"max-iterations", "cgls, eigen-cgls, cuda-cgls: iteration cap"},
+  std::map<std::string, std::string> extra;  // solver options (solver_options.h)
 };
 
 std::array<uint64_t, 3> parse_size(const std::string& s) {
@@ -43,6 +36,11 @@ std::array<uint64_t, 3> parse_size(const std::string& s) {
 }
 
 int run(const SolversArgs& a) {
+  SolverSettings settings;
+  settings.solve.ridge = a.ridge;
+  settings.solve.smooth = a.smooth;
+  settings.extra = a.extra;
+  plan_comparison(settings, a.solvers);  // unknown solvers and bad solver flags fail before loading
   LoadedInputs in;
   if (a.synthetic) {
     if (!a.input.ref.empty() || !a.input.field.empty() || !a.input.ref_tf.empty())
@@ -59,9 +57,7 @@ int run(const SolversArgs& a) {
       throw std::runtime_error("give --ref, --ref-tf and --field, or --synthetic");
     load_inputs(a.input, in);
   }
-  in.request.settings.solve.ridge = a.ridge;
-  in.request.settings.solve.smooth = a.smooth;
-  in.request.settings.extra = a.extra;
+  in.request.settings = settings;
   auto ctx = make_context();
   // One line per finished solver on stderr: a full comparison on large data takes minutes.
   const bool progress = !globals().quiet && a.json != "-";
@@ -71,7 +67,7 @@ int run(const SolversArgs& a) {
         std::cerr << "  [" << i << "/" << count << "] " << row.solver
                   << (row.error.empty() ? ": " + std::to_string(int(row.total_ms)) + " ms" : ": failed") << "\n";
       });
-  const std::string json = result.to_json().dump(2) + "\n";
+  const std::string json = to_json(result).dump(2) + "\n";
   if (a.json == "-") {
     std::cout << json;
   } else {
@@ -100,11 +96,8 @@ CommandRegistration reg(15, [](CLI::App& app) {
   sub->add_option("--smooth", args->smooth, "First-difference smoothness weight, relative to the mean diagonal of M")
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--json", args->json, "Write the comparison as JSON to this file ('-': stdout, no table)");
-  for (const auto& [flag, help] : kSolverFlags) {
-    std::string name = flag;
-    sub->add_option_function<std::string>("--" + name, [args, name](const std::string& v) { args->extra[name] = v; },
-                                           help);
-  }
+  add_solver_options(sub, args->extra);
+  sub->footer(solver_descriptions());
   sub->callback([args] { exit_code() = run(*args); });
 });
 

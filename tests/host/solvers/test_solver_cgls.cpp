@@ -9,6 +9,7 @@
 
 #include "cgls_cpu.h"
 #include "eigen_baseline.h"
+#include "solver_cgls.h"
 #include "solver_problem.h"
 #include "vk_test_env.h"
 
@@ -38,10 +39,11 @@ TEST_F(SolverCgls, MatchesNormalEquationsWhenConstraintsAreInactive) {
 TEST_F(SolverCgls, MediumProblemWithNaNsAndSplitChunks) {
   test::SolverProblem p = test::make_solver_problem(60000, 64, 40, 0.1, 0.9, 4, 0.02, 17);
   p.upload(ctx(), 20480);  // three field chunks
-  SolverSettings s;
-  s.extra["max-chunk-voxels"] = "5000";  // voxel vectors in chunks that divide the field chunks
-  const SolverOutput out = p.solve(ctx(), "cgls", s);
-  EXPECT_GT(out.details["voxel_chunks"].get<int>(), 3);
+  CglsGpuOptions o;
+  o.max_chunk_voxels = 5000;  // voxel vectors in chunks that divide the field chunks
+  VoxelProblem problem = p.problem(ctx());
+  const CglsGpuResult out = solve_cgls_gpu(problem, o);
+  EXPECT_GT(out.voxel_chunks, 3u);
   const SolveResult exact = solve_normal_equations(p.cpu_equations());
   EXPECT_LT(test::max_difference(out.tf, exact.tf), kCglsTolerance);
   EXPECT_TRUE(test::all_finite_in_box(out.tf));

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli_runner.h"
+#include "result_json.h"
 #include "solver_comparison.h"
 #include "solver_problem.h"
 #include "vk_test_env.h"
@@ -49,7 +50,7 @@ TEST_F(SolverComparison, AllSolversAgreeWhenConstraintsAreInactive) {
     EXPECT_FALSE(row.phases.empty());
     EXPECT_GT(row.total_ms, 0.0);
   }
-  const nlohmann::json j = r.to_json();
+  const nlohmann::json j = to_json(r);
   EXPECT_EQ(j["rows"].size(), kVoxelSolvers.size());
   EXPECT_EQ(j["rows"][0]["box"], "enforced");
   EXPECT_TRUE(j["rows"][0].contains("kkt_residual"));
@@ -76,7 +77,7 @@ TEST_F(SolverComparison, RankDeficientWithAndWithoutSmoothnessHasNoNaN) {
       EXPECT_TRUE(std::isfinite(row.rmse));
       EXPECT_TRUE(std::isfinite(row.max_diff_to_qp));
       EXPECT_TRUE(std::isfinite(row.kkt));
-      EXPECT_FALSE(r.to_json().dump().find("nan") != std::string::npos);
+      EXPECT_FALSE(to_json(r).dump().find("nan") != std::string::npos);
       // The direct and CGLS solvers agree with the QP on the referenced entries and put 0 (no
       // smoothness) or the smooth continuation into the others.
       if (row.solver != "gradient-descent") EXPECT_LT(row.max_diff_to_qp, 1e-4);

@@ -177,7 +177,9 @@ TEST_F(SolverGradientDescent, TwoIterationsMatchACpuReplay) {
   const SolverOutput out = p.solve(ctx(), "gradient-descent", s);
   // Replay in double: x0 = 0, gradient of mean squared error over voxels and RGBA, Adam with the
   // solver's schedule (gd_learning_rate) and bias corrections, projection to [0,1].
-  const GdOptions o = gd_options(s);
+  GradientDescentOptions o;  // as the solver reads the options above
+  o.iterations = 2;
+  o.lr = 0.1;
   const uint32_t n = 4;
   std::vector<double> x(4 * n, 0.0), m(4 * n, 0.0), v(4 * n, 0.0);
   size_t voxels = 0;

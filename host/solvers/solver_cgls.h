@@ -1,0 +1,39 @@
+// The GPU CGLS loop (solver `cgls`) as a typed call: matrix-free, Jacobi-preconditioned CGLS on
+// the voxel least-squares problem, four channels at once.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "normal_equations.h"
+#include "solver.h"
+
+namespace tfm {
+
+struct CglsGpuOptions {
+  // Stop a channel when ||S^T r - R x|| <= tolerance ||S^T b||; in (0, 1).
+  double tolerance = 1e-6;
+  uint32_t max_iterations = 1000;  // >= 1
+  SolveOptions regularization;     // ridge and smooth (relative weights); factorization unused
+  uint64_t max_chunk_voxels = 0;   // voxel vectors in blocks of at most this many voxels; 0: device limit
+};
+
+struct CglsGpuResult {
+  TransferFunction tf;                          // the iterate, clamped to [0,1]
+  std::array<uint32_t, 4> iterations{};         // per RGBA channel
+  std::array<double, 4> relative_residual{};    // ||S^T r - R x|| / ||S^T b|| per channel at the end
+  uint32_t clamped_values = 0;                  // components moved into [0,1]
+  uint32_t voxel_chunks = 0;                    // blocks of the voxel vectors
+  std::vector<PhaseTime> phases;                // "setup", "iterate"
+  uint32_t max_iterations() const;              // over channels
+  double worst_relative_residual() const;       // over channels
+};
+
+// Runs CGLS from x = 0 on the GPU until every channel meets the tolerance or max_iterations.
+// Deterministic: the same problem gives the same bits. Throws std::invalid_argument for options
+// out of range or negative weights, std::runtime_error when no voxel has data in both fields,
+// VulkanError for device failures.
+CglsGpuResult solve_cgls_gpu(VoxelProblem& problem, const CglsGpuOptions& options);
+
+}  // namespace tfm

@@ -1,0 +1,56 @@
+// The `normal-equations` solver: GPU assembly of M and S^T b, tridiagonal solve on the host.
+#include "solver_normal_equations.h"
+
+#include <cmath>
+
+#include "gpu_voxel_ops.h"
+#include "solver_support.h"
+
+namespace tfm {
+
+NormalEquationsGpuResult solve_normal_equations_gpu(VoxelProblem& p, const SolveOptions& options) {
+  NormalEquationsGpuResult out;
+  auto t0 = std::chrono::steady_clock::now();
+  GpuNormalEquations gpu(p.ctx, p.opt_map.tf_size);
+  const double gpu_ms = gpu.add(p.ref, p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer);
+  const NormalEquations eq = gpu.result();
+  out.phases.push_back({"assemble", ms_since(t0), gpu_ms});
+  t0 = std::chrono::steady_clock::now();
+  out.solve = solve_normal_equations(eq, options);
+  out.phases.push_back({"solve", ms_since(t0), -1.0});
+  return out;
+}
+
+namespace {
+
+class NormalEquationsSolver final : public Solver {
+ public:
+  std::string_view name() const override { return "normal-equations"; }
+  std::string_view summary() const override {
+    return "M and S^T b assembled on the GPU, tridiagonal LDL^T or QR on the host (fast, exact up to clamping)";
+  }
+  SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true}; }
+
+  SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
+    NormalEquationsGpuResult r = solve_normal_equations_gpu(p, args.solve);
+    SolverOutput out;
+    out.tf = r.solve.tf;
+    out.phases = std::move(r.phases);
+    out.warnings = r.solve.warnings;
+    out.details["factorization"] = r.solve.factorization;
+    out.details["cond"] = cond_detail(r.solve.cond);
+    out.details["lambda_min"] = r.solve.lambda_min;
+    out.details["lambda_max"] = r.solve.lambda_max;
+    out.details["unreferenced_entries"] = r.solve.unreferenced_entries;
+    out.details["clamped_values"] = r.solve.clamped_values;
+    out.details["ridge"] = args.solve.ridge;
+    out.details["smooth"] = args.solve.smooth;
+    return out;
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<Solver> make_normal_equations_solver() { return std::make_unique<NormalEquationsSolver>(); }
+
+}  // namespace tfm
