@@ -33,6 +33,9 @@ int& exit_code();
 // collected are printed to stderr as the context is released, and the exit code becomes 3.
 std::shared_ptr<Context> make_context();
 
+// `tfmatch --version`: version, git commit, build type, Vulkan headers, compiler (one per line).
+std::string version_text();
+
 // Parses "lo,hi"; throws CLI::ValidationError with a clear message.
 FieldRange parse_range(const std::string& text, const std::string& flag);
 
