@@ -37,7 +37,7 @@ static bool& validation_failed() {
   return failed;
 }
 
-std::shared_ptr<Context> make_context() {
+std::shared_ptr<Context> make_context(bool validation_when_installed) {
   ContextOptions options;
   const std::string& d = globals().device;
   if (!d.empty()) {
@@ -47,6 +47,8 @@ std::shared_ptr<Context> make_context() {
   if (globals().validation) {
     options.validation = true;
     options.require_validation = true;
+  } else if (validation_when_installed) {
+    options.validation = true;
   }
   return std::shared_ptr<Context>(Context::create(options).release(), [](Context* ctx) {
     auto messages = ctx->take_validation_messages();
