@@ -144,9 +144,9 @@ void add_voxel_cases(CaseList& cases) {
   add_assemble({past_group, 64, Path::Shared}, true);
   add_assemble({past_group, 64, Path::Global}, true);
   add_assemble({past_group, 2, Path::Auto}, true);
-  add_assemble({5000, 16, Path::Shared, 1}, true);
-  add_assemble({5000, 16, Path::Global, 64}, true);
-  add_assemble({5000, 16, Path::Auto, 0, 1024}, true);
+  add_assemble({5000, 64, Path::Shared, 1}, true);
+  add_assemble({5000, 64, Path::Global, 64}, true);
+  add_assemble({5000, 64, Path::Auto, 0, 1024}, true);
   // 6N+4 slots of 8 bytes: 72 KiB for N = 1500, beyond many devices' shared memory (skipped
   // there on the shared path); where it does not fit, the kernel adds straight to memory.
   add_assemble({20000, 1500, Path::Shared}, true);
