@@ -31,7 +31,11 @@ int& exit_code();
 
 // Creates the Vulkan context from the global options. When validation is on, the messages it
 // collected are printed to stderr as the context is released, and the exit code becomes 3.
-std::shared_ptr<Context> make_context();
+// `validation_when_installed` turns the layer on without --validation where it is installed.
+std::shared_ptr<Context> make_context(bool validation_when_installed = false);
+
+// `tfmatch --version`: version, git commit, build type, Vulkan headers, compiler (one per line).
+std::string version_text();
 
 // Parses "lo,hi"; throws CLI::ValidationError with a clear message.
 FieldRange parse_range(const std::string& text, const std::string& flag);

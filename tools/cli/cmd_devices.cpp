@@ -1,22 +1,44 @@
-// `tfmatch devices`: the Vulkan devices and the features tfmatch uses.
+// `tfmatch devices`: the Vulkan devices and the features tfmatch uses, as text or JSON.
 #include <iomanip>
 #include <iostream>
 
+#include <nlohmann/json.hpp>
+
+#include "atomic_file.h"
 #include "cli.h"
 
 namespace tfm::cli {
 namespace {
 
-int run_devices() {
-  auto devices = enumerate_devices();
-  if (devices.empty()) {
-    std::cout << "no Vulkan devices (install mesa-vulkan-drivers for the lavapipe CPU device)\n";
-    return 1;
-  }
+std::string version_string(uint32_t v) {
+  return std::to_string(VK_API_VERSION_MAJOR(v)) + "." + std::to_string(VK_API_VERSION_MINOR(v)) + "." +
+         std::to_string(VK_API_VERSION_PATCH(v));
+}
+
+// The text output's fields, in bytes where the text shows MiB, KiB or GiB.
+nlohmann::json devices_json(const std::vector<DeviceSummary>& devices) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const DeviceSummary& d : devices)
+    list.push_back({{"index", d.index},
+                    {"name", d.name},
+                    {"type", d.type},
+                    {"driver", d.driver},
+                    {"vulkan", version_string(d.api_version)},
+                    {"compute_queue", d.compute_queue},
+                    {"timestamps", d.timestamps},
+                    {"shader_float64", d.shader_float64},
+                    {"max_storage_buffer_range_bytes", d.max_storage_buffer_range},
+                    {"max_shared_memory_bytes", d.max_shared_memory_bytes},
+                    {"max_workgroup_invocations", d.max_workgroup_invocations},
+                    {"subgroup_size", d.subgroup_size},
+                    {"device_local_bytes", d.device_local_bytes}});
+  return {{"devices", list}};
+}
+
+void print_devices(const std::vector<DeviceSummary>& devices) {
   for (const DeviceSummary& d : devices) {
     std::cout << "[" << d.index << "] " << d.name << " (" << d.type << ")\n"
-              << "    driver: " << d.driver << ", Vulkan " << VK_API_VERSION_MAJOR(d.api_version) << "."
-              << VK_API_VERSION_MINOR(d.api_version) << "." << VK_API_VERSION_PATCH(d.api_version) << "\n"
+              << "    driver: " << d.driver << ", Vulkan " << version_string(d.api_version) << "\n"
               << "    compute queue: " << (d.compute_queue ? "yes" : "no")
               << ", timestamps: " << (d.timestamps ? "yes" : "no") << ", shaderFloat64: "
               << (d.shader_float64 ? "yes" : "no") << "\n"
@@ -26,12 +48,32 @@ int run_devices() {
               << "    device-local memory: " << std::fixed << std::setprecision(1)
               << double(d.device_local_bytes) / double(1ull << 30) << " GiB\n";
   }
-  return 0;
+}
+
+// `json`: empty for text, "-" for JSON on stdout, else a file to write the JSON to.
+int run_devices(const std::string& json) {
+  auto devices = enumerate_devices();
+  if (!json.empty()) {
+    const std::string text = devices_json(devices).dump(2) + "\n";
+    if (json == "-") std::cout << text;
+    else write_file_atomically(json, text);
+  } else if (devices.empty()) {
+    std::cout << "no Vulkan devices (install mesa-vulkan-drivers for the lavapipe CPU device)\n";
+  } else {
+    print_devices(devices);
+  }
+  return devices.empty() ? 1 : 0;
 }
 
 CommandRegistration reg(90, [](CLI::App& app) {
+  auto json = std::make_shared<std::string>();
   auto* sub = app.add_subcommand("devices", "List Vulkan devices with the features tfmatch uses");
-  sub->callback([] { exit_code() = run_devices(); });
+  sub->add_option("--json", *json, "Print JSON instead of text ('-' or no value: stdout; else a file to write)")
+      ->expected(0, 1);
+  sub->callback([json, sub] {
+    const bool as_json = sub->count("--json") > 0;
+    exit_code() = run_devices(as_json && json->empty() ? std::string("-") : *json);
+  });
 });
 
 }  // namespace

@@ -3,8 +3,10 @@
 #include <cstdlib>
 #include <exception>
 #include <iostream>
+#include <sstream>
 
 #include "cli.h"
+#include "tfmatch_version.h"  // generated in the build directory (top-level CMakeLists.txt)
 #include "vk_check.h"
 
 namespace tfm::cli {
@@ -35,7 +37,7 @@ static bool& validation_failed() {
   return failed;
 }
 
-std::shared_ptr<Context> make_context() {
+std::shared_ptr<Context> make_context(bool validation_when_installed) {
   ContextOptions options;
   const std::string& d = globals().device;
   if (!d.empty()) {
@@ -45,6 +47,8 @@ std::shared_ptr<Context> make_context() {
   if (globals().validation) {
     options.validation = true;
     options.require_validation = true;
+  } else if (validation_when_installed) {
+    options.validation = true;
   }
   return std::shared_ptr<Context>(Context::create(options).release(), [](Context* ctx) {
     auto messages = ctx->take_validation_messages();
@@ -70,6 +74,17 @@ FieldRange parse_range(const std::string& text, const std::string& flag) {
   }
 }
 
+std::string version_text() {
+  std::ostringstream os;
+  os << "tfmatch " << TFMATCH_VERSION << "\n"
+     << "commit: " << TFMATCH_GIT_COMMIT << "\n"
+     << "build type: " << TFMATCH_BUILD_TYPE << "\n"
+     << "Vulkan headers: " << VK_API_VERSION_MAJOR(VK_HEADER_VERSION_COMPLETE) << "."
+     << VK_API_VERSION_MINOR(VK_HEADER_VERSION_COMPLETE) << "." << VK_HEADER_VERSION << "\n"
+     << "compiler: " << TFMATCH_COMPILER;
+  return os.str();
+}
+
 }  // namespace tfm::cli
 
 int main(int argc, char** argv) {
@@ -77,6 +92,7 @@ int main(int argc, char** argv) {
   CLI::App app{"tfmatch: optimize a transfer function so a second field's volume renderings match a reference's"};
   app.require_subcommand(1);
   app.set_help_all_flag("--help-all", "Print help for every subcommand");
+  app.set_version_flag("--version", version_text(), "Print the version, git commit, build type, Vulkan headers and compiler");
   app.add_option("--device", globals().device, "Vulkan device: index or name substring (env TFMATCH_DEVICE)");
   app.add_flag("--validation", globals().validation, "Enable the Khronos validation layer (env TFMATCH_VALIDATION=1)");
   app.add_flag("-q,--quiet", globals().quiet, "Print only errors");

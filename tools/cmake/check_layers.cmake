@@ -6,7 +6,7 @@
 # engine, shaders, kernels and host/core (field_mapping.h), and only host/solvers uses it.
 
 cmake_policy(SET CMP0057 NEW)
-set(layers engine shaders kernels cuda host/core host/reference host/solvers host/io host/report tools)
+set(layers engine shaders kernels cuda host/core host/reference host/selftest host/solvers host/io host/report tools)
 # cuda may include host/core's field_mapping.h (an inline mirror of the shader arithmetic).
 set(allowed_exceptions "cuda:host/core/field_mapping.h")
 

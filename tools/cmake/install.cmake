@@ -47,7 +47,7 @@ install(TARGETS tfmatch RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 # Public headers: every header of the library layers except the private ones (named *_private.h
 # or listed in TFMATCH_PRIVATE_HEADERS by their layer).
 set(tfm_public_headers)
-foreach(dir engine shaders kernels host/core host/reference host/solvers host/io host/report)
+foreach(dir engine shaders kernels host/core host/reference host/selftest host/solvers host/io host/report)
   file(GLOB headers ${CMAKE_SOURCE_DIR}/${dir}/*.h)
   list(APPEND tfm_public_headers ${headers})
 endforeach()

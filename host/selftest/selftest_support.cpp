@@ -1,0 +1,101 @@
+// The self-test's comparison record and shared test data.
+#include "selftest_support.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <sstream>
+
+namespace tfm::selftest {
+
+void Check::near(const char* what, uint64_t index, double device, double reference, double bound) {
+  if (!perturbed_) {
+    device += perturbation_;
+    perturbed_ = true;
+  }
+  ++compared_;
+  double error = std::abs(device - reference);
+  if (std::isnan(error)) error = std::numeric_limits<double>::infinity();
+  const bool ok = error <= bound;
+  // Ratio to the bound; an exact comparison (bound 0) is at ratio 0 when equal, infinite when not.
+  const double ratio = bound > 0.0 ? error / bound : (error == 0.0 ? 0.0 : std::numeric_limits<double>::infinity());
+  if (ratio > worst_ratio_) {
+    worst_ratio_ = ratio;
+    worst_error_ = error;
+    worst_bound_ = bound;
+  }
+  if (!ok && failure_.empty()) {
+    std::ostringstream os;
+    os.precision(9);
+    os << what << " " << index << ": device " << device << ", reference " << reference << " (bound " << bound << ")";
+    failure_ = os.str();
+  }
+}
+
+void Check::require(bool ok, const std::string& message) {
+  if (!ok && failure_.empty()) failure_ = "case precondition: " + message;
+}
+
+FieldPair random_pair(size_t voxels, uint32_t seed, const FieldRange& opt_range, uint32_t opt_tf_size) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-0.1f, 1.1f);
+  const float lo = float(opt_range.lo), width = float(opt_range.hi - opt_range.lo);
+  FieldPair p{std::vector<float>(voxels), std::vector<float>(voxels)};
+  for (size_t i = 0; i < voxels; ++i) {
+    p.ref[i] = u(rng);
+    p.opt[i] = lo + width * u(rng);
+    if (i % 7 == 3) p.opt[i] = lo + width * float(rng() % opt_tf_size) / float(opt_tf_size - 1);  // on a node
+    if (i % 11 == 5) p.ref[i] = NAN;
+    if (i % 13 == 6) p.opt[i] = NAN;
+  }
+  return p;
+}
+
+TransferFunction random_tf(uint32_t n, uint32_t seed, double lo, double hi) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(lo, hi);
+  TransferFunction tf;
+  tf.rgba.resize(n);
+  for (auto& e : tf.rgba) e = {u(rng), u(rng), u(rng), u(rng)};
+  return tf;
+}
+
+std::vector<float> random_floats(size_t count, uint32_t seed, float lo, float hi) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(lo, hi);
+  std::vector<float> v(count);
+  for (float& x : v) x = u(rng);
+  return v;
+}
+
+bool classify(const std::vector<float>& tf, const FieldMapping& map, float v, double out[4]) {
+  uint32_t j;
+  float w;
+  if (!tf_coordinate(v, map, j, w)) return false;
+  for (int c = 0; c < 4; ++c)
+    out[c] = std::clamp((1.0 - double(w)) * tf[4 * j + c] + double(w) * tf[4 * (j + 1) + c], 0.0, 1.0);
+  return true;
+}
+
+std::vector<uint32_t> read_words(Context& ctx, const Buffer& buffer, size_t words) {
+  std::vector<uint32_t> out(words);
+  readback(ctx, buffer, out.data(), words * sizeof(uint32_t));
+  return out;
+}
+
+bool fits_shared_memory(const Context& ctx, uint64_t bytes) {
+  return bytes <= ctx.limits().maxComputeSharedMemorySize;
+}
+
+std::string needs_shared_memory(const Context& ctx, uint64_t bytes) {
+  std::ostringstream os;
+  os.precision(3);
+  os << "needs " << double(bytes) / 1024.0 << " KiB of workgroup shared memory (maxComputeSharedMemorySize "
+     << double(ctx.limits().maxComputeSharedMemorySize) / 1024.0 << " KiB)";
+  return os.str();
+}
+
+std::string voxels_name(size_t voxels) { return std::to_string(voxels) + (voxels == 1 ? " voxel" : " voxels"); }
+
+}  // namespace tfm::selftest

@@ -1,0 +1,104 @@
+// Internals of the self-test (host/selftest/selftest.h): the comparison record every case fills,
+// the case table, and the deterministic test data the cases share.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "buffer.h"
+#include "context.h"
+#include "field_mapping.h"
+#include "transfer_function.h"
+
+namespace tfm::selftest {
+
+// What one case compared: the element nearest to (or furthest past) its bound, the first element
+// past its bound, or why the case could not run on this device.
+class Check {
+ public:
+  explicit Check(double perturbation) : perturbation_(perturbation) {}
+
+  // |device - reference| <= bound. `what` and `index` name the element in a failure message.
+  // A NaN on either side fails.
+  void near(const char* what, uint64_t index, double device, double reference, double bound);
+  void equal(const char* what, uint64_t index, double device, double reference) {
+    near(what, index, device, reference, 0.0);
+  }
+  // A precondition of the case itself (the scene must exercise what it claims to).
+  void require(bool ok, const std::string& message);
+  // The device lacks what the case needs: `reason` reads "needs ...".
+  void skip(const std::string& reason) { skipped_ = reason; }
+
+  bool failed() const { return !failure_.empty(); }
+  const std::string& failure() const { return failure_; }
+  const std::string& skipped() const { return skipped_; }
+  double worst_error() const { return worst_error_; }
+  double worst_bound() const { return worst_bound_; }
+  uint64_t compared() const { return compared_; }
+
+ private:
+  double perturbation_;
+  bool perturbed_ = false;
+  double worst_ratio_ = -1.0, worst_error_ = 0.0, worst_bound_ = 0.0;
+  uint64_t compared_ = 0;
+  std::string failure_, skipped_;
+};
+
+// One case of the table. `run` builds its data, runs the kernel and compares through `check`;
+// exceptions fail the case.
+// The workgroup shape of a kernel: Vulkan guarantees only 128 invocations (and 128 along x).
+struct Workgroup {
+  Workgroup(uint32_t x_, uint32_t y_ = 1) : x(x_), y(y_) {}  // NOLINT: a bare size reads as 1-D
+  uint32_t x, y;
+};
+
+struct CaseSpec {
+  std::string kernel;   // shader name
+  std::string wrapper;  // class of kernels/ that drives it
+  std::string name;
+  bool quick = true;    // part of --quick
+  Workgroup workgroup;  // checked against the device's limits before the case runs
+  std::function<void(Context&, Check&)> run;
+  // Storage-buffer descriptors the kernel binds (an array binding counts each element); Vulkan
+  // guarantees only 4 per stage.
+  uint32_t storage_buffers = 6;
+};
+using CaseList = std::vector<CaseSpec>;
+
+// The cases of each group of kernels, appended in report order.
+void add_voxel_cases(CaseList& cases);   // assemble_normal_equations, voxel_loss, residual_map
+void add_sparse_cases(CaseList& cases);  // sparse_prepare, sparse_gather, sparse_scatter, cgls_vectors
+void add_gd_cases(CaseList& cases);      // gd_gradient, gd_update
+void add_render_cases(CaseList& cases);  // render_image, diffdvr_forward, diffdvr_backward
+
+// ---- test data (fixed seeds) ----------------------------------------------------------------
+
+// A reference field on [0, 1] and a second field on `opt_range`, both reaching 10% past their
+// ranges (clamped), every 7th second-field value exactly on one of the `opt_tf_size` TF nodes,
+// NaN at every 11th reference voxel (from 5) and every 13th second-field voxel (from 6).
+struct FieldPair {
+  std::vector<float> ref, opt;
+};
+FieldPair random_pair(size_t voxels, uint32_t seed, const FieldRange& opt_range, uint32_t opt_tf_size);
+
+// N entries with every component uniform in [lo, hi].
+TransferFunction random_tf(uint32_t n, uint32_t seed, double lo = 0.0, double hi = 1.0);
+std::vector<float> random_floats(size_t count, uint32_t seed, float lo, float hi);
+
+// The TF at voxel value v through `map` as the kernels compute it (float TF entries and the
+// bit-identical float coordinate, interpolated in double), clamped to [0, 1]; false for NaN.
+bool classify(const std::vector<float>& tf_floats, const FieldMapping& map, float v, double out[4]);
+
+// The words of a device buffer.
+std::vector<uint32_t> read_words(Context& ctx, const Buffer& buffer, size_t words);
+
+// "needs N KiB of workgroup shared memory (device: M KiB)".
+std::string needs_shared_memory(const Context& ctx, uint64_t bytes);
+bool fits_shared_memory(const Context& ctx, uint64_t bytes);
+
+// Case names: "1 voxel", "257 voxels", ...
+std::string voxels_name(size_t voxels);
+
+}  // namespace tfm::selftest

@@ -1,0 +1,183 @@
+// Self-test cases of the voxel-pair kernels: assemble_normal_equations (shared-memory and
+// global-atomics paths, run lengths, chunked fields, TF sizes past shared memory), voxel_loss and
+// residual_map, each against its double-precision CPU reference.
+#include <cmath>
+#include <string>
+
+#include "commands.h"
+#include "gpu_voxel_ops.h"
+#include "normal_equations_cpu.h"
+#include "render_layout.h"
+#include "residual_map.h"
+#include "selftest_support.h"
+
+namespace tfm::selftest {
+namespace {
+
+const FieldRange kOptRange{3.0, 8.0};
+
+enum class Path { Auto, Shared, Global };
+
+struct AssembleCase {
+  size_t voxels;
+  uint32_t tf_size;
+  Path path;
+  uint32_t run = 0;             // voxels per invocation between flushes (0: the default)
+  uint64_t chunk_voxels = 0;    // field chunks (0: one)
+};
+
+// Bounds (tests/test_assembly.cpp): every term the kernel adds is non-negative, so per entry
+// |device - reference| <= (float rounding of at most 4 operations per term, 4 * 2^-24 relative)
+// * entry + (fixed-point truncation, < 2^-32 per term) * terms; 1e-6 relative covers the first
+// with margin, the second is the absolute part. The voxel count is exact.
+void assemble(Context& ctx, Check& check, const AssembleCase& c) {
+  const uint64_t shared_bytes = uint64_t(TFM_ASSEMBLE_SLOTS(c.tf_size)) * 8;
+  if (c.path == Path::Shared && !fits_shared_memory(ctx, shared_bytes))
+    return check.skip(needs_shared_memory(ctx, shared_bytes));
+  const FieldPair p = random_pair(c.voxels, 1234u + uint32_t(c.voxels), kOptRange, c.tf_size);
+  const TransferFunction ref_tf = random_tf(17, 99);
+  const FieldMapping ref_map = make_mapping({0.0, 1.0}, 17), opt_map = make_mapping(kOptRange, c.tf_size);
+  DeviceField ref(ctx, p.ref, "selftest reference", c.chunk_voxels), opt(ctx, p.opt, "selftest field", c.chunk_voxels);
+  if (c.chunk_voxels) check.require(ref.chunk_count() > 1, "the field is not split into chunks");
+  Buffer tf = upload_tf(ctx, ref_tf, "selftest reference TF");
+  GpuNormalEquations gpu(ctx, c.tf_size, c.path == Path::Global, c.run);
+  if (c.path == Path::Shared) check.require(gpu.kernel().uses_shared_memory(), "the kernel did not take the shared-memory path");
+  gpu.add(ref, opt, ref_map, opt_map, tf);
+  const NormalEquations g = gpu.result();
+  const NormalEquations r = assemble_normal_equations_cpu(p.ref, p.opt, ref_map, opt_map, ref_tf);
+  check.equal("voxel count", 0, double(g.voxels), double(r.voxels));
+  const double abs_bound = double(c.voxels) * std::ldexp(1.0, -32) + 1e-12;
+  auto near = [&](const char* what, size_t j, double device, double reference) {
+    check.near(what, j, device, reference, 1e-6 * std::abs(reference) + abs_bound);
+  };
+  for (size_t j = 0; j < r.diag.size(); ++j) near("M diagonal", j, g.diag[j], r.diag[j]);
+  for (size_t j = 0; j < r.off.size(); ++j) near("M off-diagonal", j, g.off[j], r.off[j]);
+  for (Eigen::Index j = 0; j < r.rhs.rows(); ++j)
+    for (int ch = 0; ch < 4; ++ch) near("S^T b (4j+c)", size_t(4 * j + ch), g.rhs(j, ch), r.rhs(j, ch));
+  for (int ch = 0; ch < 4; ++ch) near("b^T b channel", size_t(ch), g.btb[ch], r.btb[ch]);
+}
+
+std::string assemble_name(const AssembleCase& c) {
+  std::string s = voxels_name(c.voxels) + ", N=" + std::to_string(c.tf_size);
+  s += c.path == Path::Shared ? ", shared memory" : c.path == Path::Global ? ", global atomics" : "";
+  if (c.run) s += ", run " + std::to_string(c.run);
+  if (c.chunk_voxels) s += ", chunks of " + std::to_string(c.chunk_voxels);
+  return s;
+}
+
+// Reference voxel loss: per channel sums of d^2 and |d|, d = clamp(T_o(F_o)) - clamp(T_r(F_r)).
+// Bound per channel: each d is formed in float from values in [-0.1, 1.1] (two products and two
+// sums per colour, then a difference: < 6e-7), so d^2 moves by < 2 |d| 6e-7 + 2^-24 < 2e-6 and
+// |d| by < 1e-6; each term is truncated to 2^-32 in fixed point. The voxel count is exact.
+void voxel_loss(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels) {
+  const uint32_t n = 23;
+  const FieldPair p = random_pair(voxels, 77u + uint32_t(voxels), kOptRange, n);
+  const TransferFunction ref_tf = random_tf(17, 5, -0.1, 1.1), opt_tf = random_tf(n, 6, -0.1, 1.1);
+  const FieldMapping ref_map = make_mapping({0.0, 1.0}, 17), opt_map = make_mapping(kOptRange, n);
+  DeviceField ref(ctx, p.ref, "selftest reference", chunk_voxels), opt(ctx, p.opt, "selftest field", chunk_voxels);
+  Buffer rtf = upload_tf(ctx, ref_tf, "selftest reference TF"), otf = upload_tf(ctx, opt_tf, "selftest TF");
+  const VoxelLoss g = voxel_loss_gpu(ctx, ref, opt, ref_map, opt_map, rtf, otf);
+  const std::vector<float> rf = ref_tf.as_floats(), of = opt_tf.as_floats();
+  double squared[4] = {0, 0, 0, 0}, absolute[4] = {0, 0, 0, 0};
+  uint64_t counted = 0;
+  for (size_t i = 0; i < voxels; ++i) {
+    double b[4], v[4];
+    if (!classify(rf, ref_map, p.ref[i], b) || !classify(of, opt_map, p.opt[i], v)) continue;
+    ++counted;
+    for (int ch = 0; ch < 4; ++ch) {
+      squared[ch] += (v[ch] - b[ch]) * (v[ch] - b[ch]);
+      absolute[ch] += std::abs(v[ch] - b[ch]);
+    }
+  }
+  check.equal("voxel count", 0, double(g.voxels), double(counted));
+  const double per_term = std::ldexp(1.0, -32) + 1e-12;
+  for (int ch = 0; ch < 4; ++ch) {
+    check.near("sum of squares, channel", ch, g.squared[ch], squared[ch], double(counted) * (2e-6 + per_term));
+    check.near("sum of |d|, channel", ch, g.absolute[ch], absolute[ch], double(counted) * (1e-6 + per_term));
+  }
+}
+
+// Reference residual || premul(T_r(F_r)) - premul(T_o(F_o)) ||_2. Bound (tests/
+// test_residual_map.cpp): float interpolation and premultiplication of values in [0,1] (a few
+// roundings of 2^-24 each) and a float sqrt of a sum <= 4 stay below 1e-6. Voxels without data
+// are exactly 0.
+void residual(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels) {
+  const uint32_t n = 64;
+  const FieldPair p = random_pair(voxels, 31u + uint32_t(voxels), {20.0, 25.0}, n);
+  const TransferFunction ref_tf = random_tf(23, 7), opt_tf = random_tf(n, 8);
+  const FieldMapping ref_map = make_mapping({0.0, 1.0}, 23), opt_map = make_mapping({20.0, 25.0}, n);
+  DeviceField ref(ctx, p.ref, "selftest reference", chunk_voxels), opt(ctx, p.opt, "selftest field", chunk_voxels);
+  DeviceField out(ctx, voxels, "selftest residual", ref.chunk_voxels());
+  Buffer rtf = upload_tf(ctx, ref_tf, "selftest reference TF"), otf = upload_tf(ctx, opt_tf, "selftest TF");
+  const ResidualMapKernel kernel(ctx);
+  CommandBatch batch(ctx);
+  kernel.record(batch, ref, opt, ref_map, opt_map, rtf, otf, out);
+  batch.submit_and_wait();
+  std::vector<float> g(voxels);
+  for (size_t c = 0; c < out.chunk_count(); ++c)
+    readback(ctx, out.chunk(c), g.data() + out.chunk_begin(c), out.chunk_size(c) * sizeof(float));
+  const std::vector<float> rf = ref_tf.as_floats(), of = opt_tf.as_floats();
+  for (size_t i = 0; i < voxels; ++i) {
+    double b[4], v[4];
+    if (!classify(rf, ref_map, p.ref[i], b) || !classify(of, opt_map, p.opt[i], v)) {
+      check.equal("voxel without data", i, g[i], 0.0);
+      continue;
+    }
+    const double pb[4] = {b[0] * b[3], b[1] * b[3], b[2] * b[3], b[3]};
+    const double pv[4] = {v[0] * v[3], v[1] * v[3], v[2] * v[3], v[3]};
+    double s = 0.0;
+    for (int ch = 0; ch < 4; ++ch) s += (pb[ch] - pv[ch]) * (pb[ch] - pv[ch]);
+    check.near("voxel", i, g[i], std::sqrt(s), 1e-6);
+  }
+}
+
+}  // namespace
+
+void add_voxel_cases(CaseList& cases) {
+  auto add_assemble = [&](const AssembleCase& c, bool quick) {
+    cases.push_back({"assemble_normal_equations", "AssembleNormalEquationsKernel", assemble_name(c), quick,
+                     TFM_VOXEL_WORKGROUP, [c](Context& ctx, Check& check) { assemble(ctx, check, c); }});
+  };
+  const size_t past_group = TFM_VOXEL_WORKGROUP + 1;
+  add_assemble({1, 64, Path::Shared}, true);
+  add_assemble({13, 64, Path::Shared}, true);
+  add_assemble({past_group, 64, Path::Shared}, true);
+  add_assemble({past_group, 64, Path::Global}, true);
+  add_assemble({past_group, 2, Path::Auto}, true);
+  add_assemble({5000, 64, Path::Shared, 1}, true);
+  add_assemble({5000, 64, Path::Global, 64}, true);
+  add_assemble({5000, 64, Path::Auto, 0, 1024}, true);
+  // 6N+4 slots of 8 bytes: 72 KiB for N = 1500, beyond many devices' shared memory (skipped
+  // there on the shared path); where it does not fit, the kernel adds straight to memory.
+  add_assemble({20000, 1500, Path::Shared}, true);
+  add_assemble({20000, 1500, Path::Auto}, false);
+  add_assemble({100003, 256, Path::Shared}, false);
+  add_assemble({100003, 64, Path::Global}, false);
+  add_assemble({100003, 64, Path::Auto, 0, 16384}, false);
+
+  auto add_loss = [&](size_t voxels, uint64_t chunk, bool quick) {
+    std::string name = voxels_name(voxels) + (chunk ? ", chunks of " + std::to_string(chunk) : "");
+    cases.push_back({"voxel_loss", "VoxelLossKernel", name, quick, TFM_VOXEL_WORKGROUP,
+                     [=](Context& ctx, Check& check) { voxel_loss(ctx, check, voxels, chunk); }});
+  };
+  add_loss(1, 0, true);
+  add_loss(13, 0, true);
+  add_loss(past_group, 0, true);
+  add_loss(5000, 1024, true);
+  add_loss(100003, 0, false);
+  add_loss(100003, 16384, false);
+
+  auto add_residual = [&](size_t voxels, uint64_t chunk, bool quick) {
+    std::string name = voxels_name(voxels) + (chunk ? ", chunks of " + std::to_string(chunk) : "");
+    cases.push_back({"residual_map", "ResidualMapKernel", name, quick, TFM_RESIDUAL_WORKGROUP,
+                     [=](Context& ctx, Check& check) { residual(ctx, check, voxels, chunk); }});
+  };
+  add_residual(1, 0, true);
+  add_residual(13, 0, true);
+  add_residual(TFM_RESIDUAL_WORKGROUP + 1, 0, true);
+  add_residual(5000, 1024, true);
+  add_residual(100003, 0, false);
+  add_residual(100003, 16384, false);
+}
+
+}  // namespace tfm::selftest

@@ -1,0 +1,182 @@
+// The conformance self-test (host/selftest/selftest.h) and the commands around it: the quick run
+// passes on the test device and covers every shaders/*.comp kernel, every check can fail (a
+// perturbed device value fails every case), and `tfmatch selftest`, `tfmatch --version` and
+// `tfmatch devices --json` work as a tester runs them.
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <regex>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "cli_runner.h"
+#include "selftest.h"
+#include "vk_test_env.h"
+
+namespace tfm {
+namespace {
+
+// The stems of shaders/*.comp, listed at configure time (tests/CMakeLists.txt).
+std::vector<std::string> shader_names() {
+  std::vector<std::string> out;
+  std::stringstream ss(TFMATCH_SHADER_STEMS);
+  for (std::string s; std::getline(ss, s, ',');)
+    if (!s.empty()) out.push_back(s);
+  return out;
+}
+
+// The JSON document in a command's output (stdout alone when run with -q).
+nlohmann::json parse_json(const std::string& output) {
+  const size_t begin = output.find('{'), end = output.rfind('}');
+  if (begin == std::string::npos || end == std::string::npos) return nlohmann::json();
+  return nlohmann::json::parse(output.substr(begin, end - begin + 1), nullptr, false);
+}
+
+TEST(Selftest, CoversEveryComputeShader) {
+  const std::vector<std::string> shaders = shader_names();
+  ASSERT_GE(shaders.size(), 10u) << "the shader list did not reach the test: " << TFMATCH_SHADER_STEMS;
+  const std::vector<std::string> covered = selftest_kernels();
+  for (const std::string& s : shaders)
+    EXPECT_NE(std::find(covered.begin(), covered.end(), s), covered.end()) << "no self-test case runs " << s << ".comp";
+}
+
+using SelftestGpu = test::GpuTest;
+
+TEST_F(SelftestGpu, QuickRunPassesAndNamesEveryKernel) {
+  const SelftestReport report = run_selftest(ctx(), SelftestOptions{.quick = true});
+  std::ostringstream table;
+  print_selftest_table(table, report);
+  std::cout << table.str();
+  EXPECT_TRUE(report.passed()) << table.str();
+  std::set<std::string> ran;
+  for (const SelftestCase& c : report.cases) {
+    if (c.status == SelftestStatus::Skipped) continue;
+    ran.insert(c.kernel);
+    EXPECT_GT(c.compared, 0u) << c.kernel << " (" << c.name << ") compared nothing";
+    EXPECT_LE(c.max_error, c.bound) << c.kernel << " (" << c.name << ")";
+  }
+  // Every kernel of the shader directory ran at least one case here (lavapipe has every limit
+  // the cases need; another device may skip some), and all of them passed (above).
+  for (const std::string& s : shader_names()) EXPECT_TRUE(ran.count(s)) << s << " ran no case";
+  EXPECT_EQ(report.validation, ctx().validation_enabled());
+  // A case whose shared-memory path needs more than the device has is skipped, saying what.
+  const bool fits = uint64_t(6 * 1500 + 4) * 8 <= ctx().limits().maxComputeSharedMemorySize;
+  bool found = false;
+  for (const SelftestCase& c : report.cases)
+    if (c.kernel == "assemble_normal_equations" && c.name.find("N=1500, shared memory") != std::string::npos) {
+      found = true;
+      EXPECT_EQ(c.status, fits ? SelftestStatus::Pass : SelftestStatus::Skipped) << c.detail;
+      if (!fits) EXPECT_EQ(c.detail.rfind("needs ", 0), 0u) << c.detail;
+    }
+  EXPECT_TRUE(found);
+}
+
+// Every check can fail: a device value moved by 1 (far above every bound) fails every case, and
+// the failure names the element with its device and reference values.
+TEST_F(SelftestGpu, PerturbedDeviceValueFailsEveryCase) {
+  SelftestOptions options;
+  options.quick = true;
+  options.perturbation = 1.0;
+  const SelftestReport report = run_selftest(ctx(), options);
+  ASSERT_FALSE(report.cases.empty());
+  for (const SelftestCase& c : report.cases) {
+    if (c.status == SelftestStatus::Skipped) continue;
+    EXPECT_EQ(c.status, SelftestStatus::Fail) << c.kernel << " (" << c.name << ") passed a perturbed value";
+    EXPECT_NE(c.detail.find("device"), std::string::npos) << c.detail;
+    EXPECT_NE(c.detail.find("reference"), std::string::npos) << c.detail;
+    EXPECT_GT(c.max_error, c.bound) << c.kernel << " (" << c.name << ")";
+  }
+  EXPECT_FALSE(report.passed());
+}
+
+TEST_F(SelftestGpu, SelectsKernelsAndRejectsUnknownNames) {
+  SelftestOptions options;
+  options.quick = true;
+  options.kernels = {"residual_map", "gd_update"};
+  const SelftestReport report = run_selftest(ctx(), options);
+  ASSERT_FALSE(report.cases.empty());
+  for (const SelftestCase& c : report.cases) EXPECT_TRUE(c.kernel == "residual_map" || c.kernel == "gd_update") << c.kernel;
+  EXPECT_TRUE(report.passed());
+  options.kernels = {"no_such_kernel"};
+  EXPECT_THROW(run_selftest(ctx(), options), std::invalid_argument);
+}
+
+TEST(SelftestCli, QuickJsonPassesAndListsEveryKernel) {
+  const test::CliResult r = test::run_cli("-q selftest --quick --json -");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = parse_json(r.output);
+  ASSERT_TRUE(j.is_object()) << r.output;
+  EXPECT_TRUE(j["passed"].get<bool>());
+  EXPECT_EQ(j["counts"]["fail"].get<int>(), 0);
+  EXPECT_FALSE(j["device"].get<std::string>().empty());
+  std::set<std::string> kernels;
+  for (const auto& k : j["kernels"]) kernels.insert(k.get<std::string>());
+  for (const std::string& s : shader_names()) EXPECT_TRUE(kernels.count(s)) << s << " missing from the JSON";
+  ASSERT_FALSE(j["cases"].empty());
+  for (const auto& c : j["cases"]) {
+    for (const char* key : {"kernel", "wrapper", "case", "status", "max_error", "bound", "time_ms"})
+      EXPECT_TRUE(c.contains(key)) << key << " missing in " << c.dump();
+    EXPECT_NE(c["status"].get<std::string>(), "fail") << c.dump();
+  }
+}
+
+TEST(SelftestCli, PrintsAnAlignedTableAndExitsOneOnFailure) {
+  const test::CliResult r = test::run_cli("selftest --quick --kernel residual_map");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("kernel"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("max error"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("residual_map"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(" 0 failed"), std::string::npos) << r.output;
+  // The header's columns line up with the rows': "case" starts where every case name does.
+  std::istringstream lines(r.output);
+  std::string header, row;
+  while (std::getline(lines, header) && header.rfind("kernel", 0) != 0) {
+  }
+  ASSERT_TRUE(std::getline(lines, row)) << r.output;
+  EXPECT_EQ(header.find("case"), row.find_first_not_of(' ', std::string("residual_map").size())) << header << "\n" << row;
+  const test::CliResult bad = test::run_cli("selftest --quick --kernel nope");
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.output.find("no kernel named 'nope'"), std::string::npos) << bad.output;
+}
+
+TEST(VersionCli, PrintsVersionCommitAndBuild) {
+  const test::CliResult r = test::run_cli("--version");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find(std::string("tfmatch ") + TFMATCH_EXPECTED_VERSION), std::string::npos) << r.output;
+  // A short hash (with -dirty for a modified tree) or "unknown" outside a git checkout.
+  EXPECT_TRUE(std::regex_search(r.output, std::regex("commit: ([0-9a-f]{7,40}(-dirty)?|unknown)\n"))) << r.output;
+  EXPECT_NE(r.output.find("build type: "), std::string::npos) << r.output;
+  EXPECT_TRUE(std::regex_search(r.output, std::regex("Vulkan headers: 1\\.[0-9]+\\.[0-9]+"))) << r.output;
+  EXPECT_NE(r.output.find("compiler: "), std::string::npos) << r.output;
+}
+
+TEST(DevicesCli, JsonListsAtLeastOneDevice) {
+  for (const char* args : {"devices --json -", "devices --json"}) {
+    const test::CliResult r = test::run_cli(args);
+    EXPECT_EQ(r.exit_code, 0) << args << ": " << r.output;
+    const nlohmann::json j = parse_json(r.output);
+    ASSERT_TRUE(j.is_object() && j["devices"].is_array()) << args << ": " << r.output;
+    ASSERT_GE(j["devices"].size(), 1u);
+    const auto& d = j["devices"][0];
+    EXPECT_FALSE(d["name"].get<std::string>().empty());
+    EXPECT_TRUE(d["compute_queue"].is_boolean());
+    EXPECT_GT(d["max_workgroup_invocations"].get<uint64_t>(), 0u);
+    EXPECT_TRUE(std::regex_match(d["vulkan"].get<std::string>(), std::regex("1\\.[0-9]+\\.[0-9]+")));
+  }
+  test::TempDir dir;
+  const test::CliResult r = test::run_cli("devices --json " + (dir / "devices.json"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(dir / "devices.json");
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  ASSERT_TRUE(j.is_object());
+  EXPECT_GE(j["devices"].size(), 1u);
+}
+
+}  // namespace
+}  // namespace tfm

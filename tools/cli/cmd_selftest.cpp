@@ -1,0 +1,114 @@
+// `tfmatch selftest`: every kernel against its double-precision CPU reference on the chosen device
+// (host/selftest/selftest.h), as a table or JSON; exit 1 when any case fails.
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include "atomic_file.h"
+#include "cli.h"
+#include "selftest.h"
+#include "tfmatch_version.h"
+
+namespace tfm::cli {
+namespace {
+
+struct SelftestArgs {
+  bool quick = false;
+  bool no_validation = false;
+  std::string json;
+  std::vector<std::string> kernels;
+};
+
+// A non-finite error (NaN read back, say) becomes null: JSON has no infinity.
+nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+
+nlohmann::json report_json(const SelftestReport& r) {
+  nlohmann::json cases = nlohmann::json::array();
+  for (const SelftestCase& c : r.cases)
+    cases.push_back({{"kernel", c.kernel},
+                     {"wrapper", c.wrapper},
+                     {"case", c.name},
+                     {"status", selftest_status_name(c.status)},
+                     {"max_error", number(c.max_error)},
+                     {"bound", number(c.bound)},
+                     {"compared", c.compared},
+                     {"detail", c.detail},
+                     {"time_ms", c.time_ms}});
+  nlohmann::json kernels = nlohmann::json::array();
+  for (const SelftestCase& c : r.cases)
+    if (std::find(kernels.begin(), kernels.end(), c.kernel) == kernels.end()) kernels.push_back(c.kernel);
+  return {{"tfmatch", {{"version", TFMATCH_VERSION}, {"commit", TFMATCH_GIT_COMMIT}, {"build_type", TFMATCH_BUILD_TYPE}}},
+          {"device", r.device},
+          {"driver", r.driver},
+          {"vulkan",
+           std::to_string(VK_API_VERSION_MAJOR(r.api_version)) + "." + std::to_string(VK_API_VERSION_MINOR(r.api_version)) +
+               "." + std::to_string(VK_API_VERSION_PATCH(r.api_version))},
+          {"validation", r.validation},
+          {"quick", r.quick},
+          {"passed", r.passed()},
+          {"counts",
+           {{"pass", r.count(SelftestStatus::Pass)},
+            {"fail", r.count(SelftestStatus::Fail)},
+            {"skipped", r.count(SelftestStatus::Skipped)}}},
+          {"time_ms", r.time_ms},
+          {"kernels", kernels},
+          {"cases", cases}};
+}
+
+int run_selftest_command(const SelftestArgs& a) {
+  // The driver's name, listed before the context exists: enumerating devices creates an instance
+  // of its own, which must not happen while a context lives.
+  const std::vector<DeviceSummary> devices = enumerate_devices();
+  auto ctx = make_context(!a.no_validation);
+  SelftestOptions options;
+  options.quick = a.quick;
+  options.kernels = a.kernels;
+  // On a terminal, the case being run (a full run takes tens of seconds on a CPU device).
+  const bool progress = !globals().quiet && isatty(STDERR_FILENO);
+  SelftestReport report =
+      run_selftest(*ctx, options, [progress](size_t i, size_t total, const SelftestCase& c) {
+        if (progress) std::cerr << "\r\033[K[" << i + 1 << "/" << total << "] " << c.kernel << ": " << c.name << std::flush;
+      });
+  if (progress) std::cerr << "\r\033[K" << std::flush;
+  for (const DeviceSummary& d : devices)
+    if (d.name == ctx->device_name() && d.api_version == ctx->properties().apiVersion) report.driver = d.driver;
+  const std::string json = report_json(report).dump(2) + "\n";
+  if (a.json == "-") {
+    std::cout << json;
+    if (!globals().quiet || !report.passed()) {
+      // The table's last line, and every failure, on stderr: stdout is the JSON alone.
+      for (const SelftestCase& c : report.cases)
+        if (c.status == SelftestStatus::Fail)
+          std::cerr << "FAIL " << c.kernel << " (" << c.name << "): " << c.detail << "\n";
+      std::cerr << "selftest: " << report.count(SelftestStatus::Pass) << " passed, "
+                << report.count(SelftestStatus::Fail) << " failed, " << report.count(SelftestStatus::Skipped)
+                << " skipped on " << report.device << "\n";
+    }
+  } else {
+    if (!a.json.empty()) write_file_atomically(a.json, json);
+    if (!globals().quiet || !report.passed()) print_selftest_table(std::cout, report);
+    if (!globals().quiet && !a.json.empty()) std::cout << "wrote " << a.json << "\n";
+  }
+  return report.passed() ? 0 : 1;
+}
+
+CommandRegistration reg(95, [](CLI::App& app) {
+  auto args = std::make_shared<SelftestArgs>();
+  auto* sub = app.add_subcommand(
+      "selftest", "Run every kernel against its double-precision CPU reference on awkward sizes on the chosen device "
+                  "(the Khronos validation layer on where installed; any message fails the case); exit 1 on a failure");
+  sub->add_flag("--quick", args->quick, "Small sizes only (seconds on lavapipe)");
+  sub->add_option("--json", args->json, "Write the report as JSON to this file ('-': stdout, no table)");
+  sub->add_option("--kernel", args->kernels, "Run only these kernels (shader names; repeat or comma-separate)")
+      ->delimiter(',');
+  sub->add_flag("--no-validation", args->no_validation,
+                "Do not turn the validation layer on by default (--validation or TFMATCH_VALIDATION=1 still do)");
+  sub->callback([args] { exit_code() = run_selftest_command(*args); });
+});
+
+}  // namespace
+}  // namespace tfm::cli
