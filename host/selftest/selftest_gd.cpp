@@ -51,8 +51,9 @@ void gradient(Context& ctx, Check& check, const GradientCase& c) {
   kernel.record(batch, ref, opt, ref_map, opt_map, tf, xb, accum);
   batch.submit_and_wait();
   const std::vector<uint32_t> words = read_words(ctx, accum, gd_accumulator_bytes(n) / 4);
-  const std::vector<double> grad = decode_signed_fixed_point(std::vector<uint32_t>(words.begin(), words.begin() + 16 * n));
-  const std::vector<double> loss = decode_fixed_point(std::vector<uint32_t>(words.begin() + 16 * n, words.end()));
+  const size_t loss_word = size_t(TFM_FIXED_SLOT_WORDS) * TFM_GD_LOSS_SLOT(n);
+  const std::vector<double> grad = decode_signed_fixed_point(std::vector<uint32_t>(words.begin(), words.begin() + loss_word));
+  const std::vector<double> loss = decode_fixed_point(std::vector<uint32_t>(words.begin() + loss_word, words.end()));
 
   std::vector<double> expected(4 * n, 0.0), bound(4 * n, 1e-12);
   double expected_loss[4] = {0, 0, 0, 0}, loss_bound = double(c.voxels) * std::ldexp(1.0, -32) + 1e-12;
@@ -77,14 +78,14 @@ void gradient(Context& ctx, Check& check, const GradientCase& c) {
   for (int ch = 0; ch < 4; ++ch) check.near("loss, channel", ch, loss[ch], expected_loss[ch], loss_bound);
 }
 
-// Signed 32.32 accumulator words of `sums` (exact: every sum is a multiple of 2^-10).
+// Signed 32.32 accumulator words of `sums` (two's complement over two words, shaders/fixed_point.glsl;
+// exact: every sum is a multiple of 2^-10), followed by the loss slots.
 std::vector<uint32_t> encode_signed(const std::vector<double>& sums) {
-  std::vector<uint32_t> words(4 * sums.size() + 8, 0u);
+  std::vector<uint32_t> words(TFM_FIXED_SLOT_WORDS * (sums.size() + 4), 0u);
   for (size_t k = 0; k < sums.size(); ++k) {
-    const uint64_t v = uint64_t(std::llround(std::abs(sums[k]) * 4294967296.0));
-    const size_t at = 4 * k + (sums[k] < 0 ? 2 : 0);
-    words[at] = uint32_t(v);
-    words[at + 1] = uint32_t(v >> 32);
+    const uint64_t v = uint64_t(std::llround(sums[k] * 4294967296.0));
+    words[TFM_FIXED_SLOT_WORDS * k] = uint32_t(v);
+    words[TFM_FIXED_SLOT_WORDS * k + 1] = uint32_t(v >> 32);
   }
   return words;
 }
