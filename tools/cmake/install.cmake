@@ -26,19 +26,13 @@ endforeach()
 add_library(tfmatch_library INTERFACE)
 set_target_properties(tfmatch_library PROPERTIES EXPORT_NAME tfmatch)
 target_link_libraries(tfmatch_library INTERFACE tfmatch_solvers)
-add_library(tfmatch_io_library INTERFACE)
-set_target_properties(tfmatch_io_library PROPERTIES EXPORT_NAME io)
-target_link_libraries(tfmatch_io_library INTERFACE tfmatch_io)
-add_library(tfmatch_report_library INTERFACE)
-set_target_properties(tfmatch_report_library PROPERTIES EXPORT_NAME report)
-target_link_libraries(tfmatch_report_library INTERFACE tfmatch_report)
+# tfmatch_io and tfmatch_report export as tfmatch::io and tfmatch::report (their EXPORT_NAMEs).
 # The same names inside this build (tests, examples built in-tree).
 add_library(tfmatch::tfmatch ALIAS tfmatch_library)
-add_library(tfmatch::io ALIAS tfmatch_io_library)
-add_library(tfmatch::report ALIAS tfmatch_report_library)
+add_library(tfmatch::io ALIAS tfmatch_io)
+add_library(tfmatch::report ALIAS tfmatch_report)
 
-install(TARGETS ${tfm_layer_libraries} ${TFMATCH_PRIVATE_INSTALL_TARGETS} tfmatch_library tfmatch_io_library
-                tfmatch_report_library
+install(TARGETS ${tfm_layer_libraries} tfmatch_library
         EXPORT tfmatchTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
