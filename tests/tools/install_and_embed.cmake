@@ -39,6 +39,21 @@ foreach(header context.h gpu_voxel_ops.h normal_equations.h)
   endif()
 endforeach()
 
+# pkg-config (for builds without CMake) finds the headers and libraries where they were installed.
+find_program(PKG_CONFIG pkg-config)
+if(PKG_CONFIG)
+  set(ENV{PKG_CONFIG_PATH} ${prefix}/lib/pkgconfig)
+  run(${PKG_CONFIG} --cflags --libs tfmatch)
+  file(REAL_PATH ${prefix} real_prefix)
+  string(REGEX MATCH "-I([^ ]+)/include/tfmatch" include_flag "${run_output}")
+  file(REAL_PATH "${CMAKE_MATCH_1}" pc_prefix)
+  if(NOT pc_prefix STREQUAL real_prefix OR NOT run_output MATCHES "-ltfmatch_engine")
+    message(FATAL_ERROR "tfmatch.pc does not point into ${prefix}: ${run_output}")
+  endif()
+else()
+  message(STATUS "pkg-config not installed: tfmatch.pc not checked")
+endif()
+
 run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/tools/examples/embed -B ${WORK_DIR}/example -G ${GENERATOR}
     -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_BUILD_TYPE=Release)
 run(${CMAKE_COMMAND} --build ${WORK_DIR}/example)

@@ -63,6 +63,9 @@ install(FILES ${CMAKE_BINARY_DIR}/tfmatchConfig.cmake ${CMAKE_BINARY_DIR}/tfmatc
         DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/tfmatch)
 
 # pkg-config, for builds without CMake: the core package (static libraries, in link order).
+# The prefix is found from the .pc file's own place, so `cmake --install --prefix P` gives a
+# correct file for any P (CMAKE_INSTALL_PREFIX at configure time may be another directory).
+file(RELATIVE_PATH tfm_pc_up /prefix/${CMAKE_INSTALL_LIBDIR}/pkgconfig /prefix)
 set(tfm_pc_libs "-ltfmatch_solvers -ltfmatch_core -ltfmatch_kernels -ltfmatch_shaders -ltfmatch_engine")
 configure_file(${CMAKE_SOURCE_DIR}/tools/cmake/tfmatch.pc.in ${CMAKE_BINARY_DIR}/tfmatch.pc @ONLY)
 install(FILES ${CMAKE_BINARY_DIR}/tfmatch.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)
