@@ -1,0 +1,89 @@
+// Correlation fields of an ensemble (shaders/correlation_*.comp): per voxel, a dependence measure
+// between the member series at a reference point and the member series at that voxel.
+//
+// An ensemble in memory is member-major: member m's value at voxel v is values[m * voxel_count + v]
+// (each member a whole field, x fastest), so one invocation per voxel reads consecutive addresses.
+// Results are deterministic: the same bits on every run, chunking and device.
+//
+// Conventions every measure shares (the CPU references in host/reference/correlation_cpu.h too):
+// - NaN in the reference series or in a voxel's series (any member) gives NaN at that voxel.
+// - A constant series (either one): pearson, spearman and kendall give NaN (no variance);
+//   mi-binned, mi-kraskov and mi-coefficient give 0 (a constant carries no information).
+// - At least 3 members (std::invalid_argument otherwise).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace tfm {
+
+class Context;
+
+enum class CorrelationMeasure {
+  Pearson,        // sample correlation coefficient
+  Spearman,       // Pearson of fractional ranks (ties get the mean rank)
+  Kendall,        // tau-b with every tie term (scipy.stats.kendalltau's default), O(M log M)
+  MiBinned,       // mutual information (nats), `bins` equal-width bins over each series' min..max
+  MiKraskov,      // Kraskov-Stoegbauer-Grassberger estimator 1, max-norm, `k` neighbours (nats)
+  MiCoefficient,  // sqrt(1 - exp(-2 max(MI, 0))) of the Kraskov estimate, in [0, 1)
+};
+
+struct CorrelationParams {
+  CorrelationMeasure measure = CorrelationMeasure::Pearson;
+  uint32_t bins = 16;  // MiBinned: 2 .. kMaxCorrelationBins
+  uint32_t k = 3;      // MiKraskov, MiCoefficient: 1 .. member_count - 1
+};
+constexpr uint32_t kMaxCorrelationBins = 64;
+
+// "pearson", "spearman", "kendall", "mi-binned", "mi-kraskov", "mi-coefficient".
+const char* correlation_measure_name(CorrelationMeasure m);
+// Throws std::invalid_argument listing the names when unknown.
+CorrelationMeasure parse_correlation_measure(const std::string& name);
+std::vector<std::string> correlation_measure_names();
+// Throws std::invalid_argument when params do not suit `member_count` (fewer than 3 members,
+// bins or k out of range).
+void validate_correlation_params(const CorrelationParams& params, uint32_t member_count);
+
+// A member-major ensemble held by the caller (see above).
+struct EnsembleView {
+  const float* values = nullptr;
+  uint32_t member_count = 0;
+  uint64_t voxel_count = 0;
+  float at(uint32_t member, uint64_t voxel) const { return values[member * voxel_count + voxel]; }
+};
+
+// The series of `ens` at one voxel (member_count values).
+std::vector<float> ensemble_series(const EnsembleView& ens, uint64_t voxel);
+
+// Called after each chunk of voxels with (voxels done, voxels in all).
+using CorrelationProgress = std::function<void(uint64_t done, uint64_t total)>;
+
+// Builds the pipelines once per context; compute() may be called any number of times.
+class CorrelationKernel {
+ public:
+  explicit CorrelationKernel(Context& ctx);
+  ~CorrelationKernel();
+  CorrelationKernel(const CorrelationKernel&) = delete;
+  CorrelationKernel& operator=(const CorrelationKernel&) = delete;
+
+  // The field of `params.measure` between `reference` (member_count values) and every voxel's
+  // series; voxel_count values. Uploads the ensemble in chunks of voxels whose device memory
+  // stays within `max_device_bytes` (0: a default that fits every device), so ensembles larger
+  // than device memory work. Throws std::invalid_argument on bad params or sizes.
+  std::vector<float> compute(const EnsembleView& ens, std::span<const float> reference, const CorrelationParams& params,
+                             const CorrelationProgress& progress = {}, uint64_t max_device_bytes = 0);
+
+  // Which strategy compute() uses for `member_count` (for messages and the benchmark), e.g.
+  // "one invocation per voxel" or "one workgroup per voxel, shared-memory sort".
+  static std::string strategy(const CorrelationParams& params, uint32_t member_count);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace tfm
