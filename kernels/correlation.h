@@ -9,7 +9,7 @@
 // - NaN in the reference series or in a voxel's series (any member) gives NaN at that voxel.
 // - A constant series (either one): pearson, spearman and kendall give NaN (no variance);
 //   mi-binned, mi-kraskov and mi-coefficient give 0 (a constant carries no information).
-// - At least 3 members (std::invalid_argument otherwise).
+// - At least 3 members and at most kMaxCorrelationMembers (std::invalid_argument otherwise).
 #pragma once
 
 #include <cstdint>
@@ -40,6 +40,10 @@ struct CorrelationParams {
 constexpr uint32_t kMaxCorrelationBins = 64;
 // The kernels keep each point's k nearest distances in registers (shaders/correlation_layout.h).
 constexpr uint32_t kMaxCorrelationK = 16;
+// One invocation's loops over the members of one voxel stay below the 65535 loop iterations
+// llvmpipe allows an invocation (pearson runs 2 M). Measures that sort need workgroup shared
+// memory for M values too: CorrelationKernel::shared_memory_bytes.
+constexpr uint32_t kMaxCorrelationMembers = 16384;
 
 // "pearson", "spearman", "kendall", "mi-binned", "mi-kraskov", "mi-coefficient".
 const char* correlation_measure_name(CorrelationMeasure m);
@@ -82,8 +86,9 @@ class CorrelationKernel {
   // Which strategy compute() uses for `member_count` (for messages and the benchmark), e.g.
   // "one invocation per voxel" or "one workgroup per voxel, shared-memory sort".
   static std::string strategy(const CorrelationParams& params, uint32_t member_count);
-  // Workgroup shared memory the kernel needs for `member_count` members (compute() throws
-  // std::runtime_error naming maxComputeSharedMemorySize when the device has less).
+  // Invocations per workgroup and workgroup shared memory the kernel needs for `member_count`
+  // members (compute() throws std::runtime_error naming the device limit it exceeds).
+  static uint32_t workgroup_size(const CorrelationParams& params, uint32_t member_count);
   static uint64_t shared_memory_bytes(const CorrelationParams& params, uint32_t member_count);
   // The largest |compute() - correlation_field_reference()| the float kernels can show where
   // every comparison of member values is exact in float (series of multiples of 2^-10 whose

@@ -200,7 +200,7 @@ TEST_F(CorrelationKernelGpu, RejectsBadInputWithClearMessages) {
     return "no exception";
   };
   const EnsembleView two{e.values.data(), 2, 4};
-  EXPECT_NE(message(two, std::span(reference).first(2), {}).find("at least 3 members"), std::string::npos);
+  EXPECT_NE(message(two, std::span(reference).first(2), {}).find("needs 3..16384 members (got 2)"), std::string::npos);
   EXPECT_NE(message(e.view(), std::span(reference).first(9), {}).find("9 values for 10 members"), std::string::npos);
   EXPECT_NE(message(e.view(), reference, {CorrelationMeasure::MiBinned, 1}).find("bins must be 2..64"), std::string::npos);
   EXPECT_NE(message(e.view(), reference, {CorrelationMeasure::MiBinned, 65}).find("bins"), std::string::npos);
@@ -208,14 +208,38 @@ TEST_F(CorrelationKernelGpu, RejectsBadInputWithClearMessages) {
   EXPECT_NE(message(e.view(), reference, {CorrelationMeasure::MiKraskov, 16, 10}).find("k must be"), std::string::npos);
   EXPECT_NE(message(e.view(), reference, {}, 100).find("max_device_bytes"), std::string::npos);
   EXPECT_NE(message({nullptr, 10, 4}, reference, {}).find("no voxels"), std::string::npos);
-  // More members than the workgroup's shared memory holds: a runtime error naming the limit.
-  const uint32_t huge = uint32_t(ctx().limits().maxComputeSharedMemorySize);
-  const std::vector<float> many(huge);
-  try {
-    kernel.compute({many.data(), huge, 1}, many, {CorrelationMeasure::Kendall});
-    ADD_FAILURE() << "no exception for " << huge << " members";
-  } catch (const std::runtime_error& ex) {
-    EXPECT_NE(std::string(ex.what()).find("maxComputeSharedMemorySize"), std::string::npos) << ex.what();
+  const std::vector<float> too_many(kMaxCorrelationMembers + 1);
+  EXPECT_NE(message({too_many.data(), kMaxCorrelationMembers + 1, 1}, too_many, {}).find("(got 16385)"), std::string::npos);
+  // More members than the workgroup's shared memory holds (on lavapipe's 32 KiB): a runtime error
+  // naming the limit.
+  const CorrelationParams kraskov{CorrelationMeasure::MiKraskov};
+  if (CorrelationKernel::shared_memory_bytes(kraskov, kMaxCorrelationMembers) > ctx().limits().maxComputeSharedMemorySize) {
+    const std::vector<float> many(kMaxCorrelationMembers, 1.0f);
+    try {
+      kernel.compute({many.data(), kMaxCorrelationMembers, 1}, many, kraskov);
+      ADD_FAILURE() << "no exception for " << kMaxCorrelationMembers << " members";
+    } catch (const std::runtime_error& ex) {
+      EXPECT_NE(std::string(ex.what()).find("maxComputeSharedMemorySize"), std::string::npos) << ex.what();
+    }
+  }
+}
+
+// More workgroups than one dispatch row holds (maxComputeWorkGroupCount[0], 65535 on lavapipe):
+// the rows of a 2-D dispatch cover every voxel once.
+TEST_F(CorrelationKernelGpu, ChunksOfMoreGroupsThanOneRowHolds) {
+  const CorrelationParams params{CorrelationMeasure::MiBinned, 6};
+  const uint64_t voxels = std::min<uint64_t>(ctx().limits().maxComputeWorkGroupCount[0], 1u << 20) + 300;
+  const CorrelationEnsemble e = correlation_test_ensemble(33, voxels, 8);
+  const std::vector<float> reference = e.reference();
+  CorrelationKernel kernel(ctx());
+  uint32_t chunks = 0;
+  const std::vector<float> g = kernel.compute(e.view(), reference, params, [&](uint64_t, uint64_t) { ++chunks; });
+  ASSERT_EQ(chunks, 1u);
+  const std::vector<float> c = correlation_field_cpu(e.view(), reference, params);
+  const double bound = CorrelationKernel::error_bound(params, 33);
+  for (uint64_t v = 0; v < voxels; ++v) {
+    if (std::isnan(c[v])) ASSERT_TRUE(std::isnan(g[v])) << "voxel " << v;
+    else ASSERT_NEAR(g[v], c[v], bound) << "voxel " << v;
   }
 }
 
