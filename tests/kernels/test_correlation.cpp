@@ -30,6 +30,12 @@ const CorrelationParams kMeasures[] = {
     {CorrelationMeasure::MiKraskov, 16, 3},  {CorrelationMeasure::MiCoefficient, 16, 2},
 };
 
+// Mutual information is 0 for a constant series, the coefficients NaN (kernels/correlation.h).
+bool is_mutual_information(const CorrelationParams& p) {
+  return p.measure == CorrelationMeasure::MiBinned || p.measure == CorrelationMeasure::MiKraskov ||
+         p.measure == CorrelationMeasure::MiCoefficient;
+}
+
 std::string measure_label(const CorrelationParams& p) {
   std::string s = correlation_measure_name(p.measure);
   for (char& c : s)
@@ -38,6 +44,18 @@ std::string measure_label(const CorrelationParams& p) {
 }
 
 class CorrelationGpu : public test::GpuTest, public ::testing::WithParamInterface<CorrelationParams> {};
+
+// Every voxel of `device` within `bound` of `expected`; NaN exactly where `expected` is NaN.
+template <class T>
+void expect_field_near(const std::vector<float>& device, const std::vector<T>& expected, double bound) {
+  ASSERT_EQ(device.size(), expected.size());
+  for (size_t v = 0; v < device.size(); ++v) {
+    if (std::isnan(double(expected[v])))
+      ASSERT_TRUE(std::isnan(device[v])) << "voxel " << v << ": device " << device[v] << ", expected NaN";
+    else
+      ASSERT_NEAR(device[v], expected[v], bound) << "voxel " << v;
+  }
+}
 
 // Every voxel within CorrelationKernel::error_bound of the reference (the test ensemble makes each
 // comparison of member values exact in float); NaN exactly where the reference is NaN.
@@ -55,20 +73,11 @@ void expect_matches_reference(Context& ctx, CorrelationParams params, uint32_t m
   const std::vector<float> g = kernel.compute(e.view(), reference, params);
   const std::vector<double> r = correlation_field_reference(e.view(), reference, params);
   const double bound = CorrelationKernel::error_bound(params, members);
-  ASSERT_EQ(g.size(), voxels);
-  for (uint64_t v = 0; v < voxels; ++v) {
-    if (std::isnan(r[v])) {
-      ASSERT_TRUE(std::isnan(g[v])) << "voxel " << v << ": device " << g[v] << ", reference NaN";
-    } else {
-      ASSERT_NEAR(g[v], r[v], bound) << "voxel " << v;
-    }
-  }
+  expect_field_near(g, r, bound);
   // The test data reach the conventions: the reference voxel, a NaN member, a constant series.
   if (voxels > 7) {
     EXPECT_TRUE(std::isnan(g[5]));
-    const bool mi = params.measure == CorrelationMeasure::MiBinned || params.measure == CorrelationMeasure::MiKraskov ||
-                    params.measure == CorrelationMeasure::MiCoefficient;
-    if (mi) EXPECT_EQ(g[7], 0.0f); else EXPECT_TRUE(std::isnan(g[7]));
+    if (is_mutual_information(params)) EXPECT_EQ(g[7], 0.0f); else EXPECT_TRUE(std::isnan(g[7]));
   }
   if (params.measure == CorrelationMeasure::Pearson || params.measure == CorrelationMeasure::Spearman ||
       params.measure == CorrelationMeasure::Kendall)
@@ -99,11 +108,7 @@ TEST_P(CorrelationGpu, ReferenceWithTwoValues) {
   CorrelationKernel kernel(ctx());
   const std::vector<float> g = kernel.compute(e.view(), reference, params);
   const std::vector<double> r = correlation_field_reference(e.view(), reference, params);
-  const double bound = CorrelationKernel::error_bound(params, members);
-  for (uint64_t v = 0; v < g.size(); ++v) {
-    if (std::isnan(r[v])) EXPECT_TRUE(std::isnan(g[v])) << "voxel " << v;
-    else EXPECT_NEAR(g[v], r[v], bound) << "voxel " << v;
-  }
+  expect_field_near(g, r, CorrelationKernel::error_bound(params, members));
 }
 
 TEST_P(CorrelationGpu, SameBitsOnEveryRunAndChunking) {
@@ -201,10 +206,8 @@ TEST_F(CorrelationKernelGpu, ConstantReferenceFollowsTheConventions) {
     CorrelationKernel kernel(ctx());
     for (const CorrelationParams& p : kMeasures) {
       const std::vector<float> g = kernel.compute(e.view(), reference, p);
-      const bool mi = p.measure == CorrelationMeasure::MiBinned || p.measure == CorrelationMeasure::MiKraskov ||
-                      p.measure == CorrelationMeasure::MiCoefficient;
       for (uint64_t v = 0; v < g.size(); ++v) {
-        if (v == 5 || !mi) EXPECT_TRUE(std::isnan(g[v])) << correlation_measure_name(p.measure) << " voxel " << v;
+        if (v == 5 || !is_mutual_information(p)) EXPECT_TRUE(std::isnan(g[v])) << correlation_measure_name(p.measure) << " voxel " << v;
         else EXPECT_EQ(g[v], 0.0f) << correlation_measure_name(p.measure) << " voxel " << v;
       }
     }
@@ -261,11 +264,7 @@ TEST_F(CorrelationKernelGpu, ChunksOfMoreGroupsThanOneRowHolds) {
   const std::vector<float> g = kernel.compute(e.view(), reference, params, [&](uint64_t, uint64_t) { ++chunks; });
   ASSERT_EQ(chunks, 1u);
   const std::vector<float> c = correlation_field_cpu(e.view(), reference, params);
-  const double bound = CorrelationKernel::error_bound(params, 33);
-  for (uint64_t v = 0; v < voxels; ++v) {
-    if (std::isnan(c[v])) ASSERT_TRUE(std::isnan(g[v])) << "voxel " << v;
-    else ASSERT_NEAR(g[v], c[v], bound) << "voxel " << v;
-  }
+  expect_field_near(g, c, CorrelationKernel::error_bound(params, 33));
 }
 
 }  // namespace
