@@ -12,10 +12,11 @@
 //   Sorting 32 values takes one invocation a few hundred steps; no barriers are needed, and
 //   neighbouring invocations read neighbouring addresses of the member-major chunk.
 // - M > 32: one workgroup per voxel. The series is loaded once into shared memory (M floats per
-//   region, up to ~2600 members in 32 KiB with three regions); the workgroup merge-sorts it
-//   cooperatively (merge path: each invocation merges its own tile of every level, O(M log M) work
-//   in all) and every invocation handles members q = lid, lid + T, ... of the per-member work.
-//   The chunk is voxel-major so a workgroup reads its series at consecutive addresses.
+//   region: 32 KiB hold 3968 members in two regions, 2368 for mi-kraskov's three); the
+//   workgroup merge-sorts it cooperatively (merge path: each invocation merges its own tile of
+//   every level, O(M log M) work in all) and every invocation handles members q = lid, lid + T,
+//   ... of the per-member work. The chunk is voxel-major so a workgroup reads its series at
+//   consecutive addresses.
 //
 // Determinism: integer totals use 32-bit integer atomics (exact, so order does not matter);
 // float totals are summed by each invocation in a fixed member order and then over the
