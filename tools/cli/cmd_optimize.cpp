@@ -27,6 +27,7 @@ struct OptimizeArgs {
   std::string factorization = "auto";
   std::map<std::string, std::string> extra;  // solver options (solver_options.h), checked by the solver
   std::string report;                         // report directory (renderings, metrics, index.html)
+  std::vector<std::string> markers;           // drawn on the report's renderings
   RenderSettings render;
 };
 
@@ -41,9 +42,12 @@ int run(const OptimizeArgs& a) {
                                                            : Factorization::Auto;
   parse_solver_args(require_solver(a.solver), settings);  // bad solver flags fail before loading
   if (!a.report.empty()) validate(a.render);  // fail before the solve, not after
+  if (a.report.empty() && !a.markers.empty())
+    throw CLI::ValidationError("--marker", "markers are drawn on the report's renderings: add --report DIR");
   LoadedInputs loaded;
   load_inputs(a.in, loaded);
   const Volume& ref = loaded.ref;
+  const std::vector<GridIndex> markers = resolve_markers(ref, a.markers);
   const Volume& field = loaded.field;
   OptimizeRequest& req = loaded.request;
   req.solver = a.solver;
@@ -61,6 +65,7 @@ int run(const OptimizeArgs& a) {
     ReportInputs inputs{ref, field, req.ref_tf, result, a.render};
     inputs.extra_figures = solver_report_figures(result, a.render.width);  // diffdvr: loss curve
     inputs.title = "tfmatch: " + field.name + " matched to " + ref.name;
+    inputs.markers = markers;
     ReportSummary summary = write_report(*ctx, inputs, a.report);
     if (!globals().quiet)
       std::cout << "  images vs reference: reference TF " << summary.before.to_string() << "\n"
@@ -89,6 +94,7 @@ CommandRegistration reg(10, [](CLI::App& app) {
   sub->add_option("--report", args->report, "Write a report into this directory: renderings before/after, residual "
                   "maps, TF plots, metrics.json, index.html");
   add_render_options(sub, args->render);
+  add_marker_option(sub, args->markers);
   sub->footer(solver_descriptions());
   sub->callback([args] { exit_code() = run(*args); });
 });

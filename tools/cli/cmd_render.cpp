@@ -16,6 +16,7 @@ namespace {
 
 struct RenderArgs {
   std::string volume, tf, out, range;
+  std::vector<std::string> markers;
   VolumeFlags volume_flags;
   RenderSettings settings;
 };
@@ -29,6 +30,7 @@ int run(const RenderArgs& a) {
   const FieldRange* given = !a.range.empty() ? &user : (tf.range ? &*tf.range : nullptr);
   const FieldRange range = resolve_range(volume.values, given, volume.name);
   validate(a.settings);
+  const std::vector<GridIndex> markers = resolve_markers(volume, a.markers);
 
   auto ctx = make_context();
   const auto t0 = std::chrono::steady_clock::now();
@@ -38,7 +40,9 @@ int run(const RenderArgs& a) {
     image = render_volume(*ctx, volume, tf, range, a.settings, &progress);
   }
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  write_png(a.out, composite_over(image, a.settings.background));
+  Image picture = composite_over(image, a.settings.background);
+  draw_markers(picture, VolumeGeometry::from(volume.dims, volume.spacing), a.settings, markers);
+  write_png(a.out, picture);
   if (!globals().quiet)
     std::cout << "rendered " << volume.name << " (" << volume.dims[0] << "x" << volume.dims[1] << "x"
               << volume.dims[2] << ", range [" << range.lo << ", " << range.hi << "]) at " << a.settings.width
@@ -56,6 +60,7 @@ CommandRegistration reg(20, [](CLI::App& app) {
   sub->add_option("--range", args->range, "Field range lo,hi mapped to the TF (default: TF file's, else finite min/max)");
   add_volume_flags(sub, args->volume_flags);
   add_render_options(sub, args->settings);
+  add_marker_option(sub, args->markers);
   sub->callback([args] { exit_code() = run(*args); });
 });
 
