@@ -68,7 +68,8 @@ std::vector<float> ensemble_series(const EnsembleView& ens, uint64_t voxel);
 // Called after each chunk of voxels with (voxels done, voxels in all).
 using CorrelationProgress = std::function<void(uint64_t done, uint64_t total)>;
 
-// Builds the pipelines once per context; compute() may be called any number of times.
+// Builds each pipeline (per measure and member-count class) on first use and keeps it; compute()
+// may be called any number of times.
 class CorrelationKernel {
  public:
   explicit CorrelationKernel(Context& ctx);
@@ -79,7 +80,9 @@ class CorrelationKernel {
   // The field of `params.measure` between `reference` (member_count values) and every voxel's
   // series; voxel_count values. Uploads the ensemble in chunks of voxels whose device memory
   // stays within `max_device_bytes` (0: a default that fits every device), so ensembles larger
-  // than device memory work. Throws std::invalid_argument on bad params or sizes.
+  // than device memory work. Throws std::invalid_argument on bad params or sizes (or a budget too
+  // small for one voxel), std::runtime_error when the device lacks the workgroup size or shared
+  // memory this member count needs (the message names the limit).
   std::vector<float> compute(const EnsembleView& ens, std::span<const float> reference, const CorrelationParams& params,
                              const CorrelationProgress& progress = {}, uint64_t max_device_bytes = 0);
 
