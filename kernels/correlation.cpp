@@ -240,11 +240,15 @@ std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span
   const Plan plan = make_plan(params.measure, members);
   // The region and histogram sizes are fixed by the member count; a device with less shared
   // memory than they need cannot run this measure at this size.
-  const uint64_t shared_limit = ctx.limits().maxComputeSharedMemorySize;
-  if (plan.shared_bytes > shared_limit)
-    throw std::runtime_error(name + " with " + std::to_string(members) + " members needs " +
-                             std::to_string(plan.shared_bytes) + " bytes of workgroup shared memory; the device has " +
-                             std::to_string(shared_limit) + " (maxComputeSharedMemorySize)");
+  const VkPhysicalDeviceLimits& limits = ctx.limits();
+  const std::string what = name + " with " + std::to_string(members) + " members needs ";
+  if (plan.shared_bytes > limits.maxComputeSharedMemorySize)
+    throw std::runtime_error(what + std::to_string(plan.shared_bytes) + " bytes of workgroup shared memory; the device has " +
+                             std::to_string(limits.maxComputeSharedMemorySize) + " (maxComputeSharedMemorySize)");
+  const uint32_t max_workgroup = std::min(limits.maxComputeWorkGroupInvocations, limits.maxComputeWorkGroupSize[0]);
+  if (plan.workgroup > max_workgroup)
+    throw std::runtime_error(what + "workgroups of " + std::to_string(plan.workgroup) + " invocations; the device allows " +
+                             std::to_string(max_workgroup) + " (maxComputeWorkGroupInvocations, maxComputeWorkGroupSize[0])");
   const ComputePipeline& pipeline = impl_->pipeline(plan);
 
   // Device memory: the reference buffers, then per voxel its series twice (staging and device

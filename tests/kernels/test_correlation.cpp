@@ -238,16 +238,22 @@ TEST_F(CorrelationKernelGpu, RejectsBadInputWithClearMessages) {
   EXPECT_NE(message({nullptr, 10, 4}, reference, {}).find("no voxels"), std::string::npos);
   const std::vector<float> too_many(kMaxCorrelationMembers + 1);
   EXPECT_NE(message({too_many.data(), kMaxCorrelationMembers + 1, 1}, too_many, {}).find("(got 16385)"), std::string::npos);
-  // More members than the workgroup's shared memory holds (on lavapipe's 32 KiB): a runtime error
-  // naming the limit.
-  const CorrelationParams kraskov{CorrelationMeasure::MiKraskov};
-  if (CorrelationKernel::shared_memory_bytes(kraskov, kMaxCorrelationMembers) > ctx().limits().maxComputeSharedMemorySize) {
-    const std::vector<float> many(kMaxCorrelationMembers, 1.0f);
+  // More members than the device's workgroups hold: a runtime error naming the limit (shared
+  // memory on lavapipe's 32 KiB; the workgroup size for mi-kraskov, 8192 invocations here).
+  const std::vector<float> many(kMaxCorrelationMembers, 1.0f);
+  for (const CorrelationParams& p : {CorrelationParams{CorrelationMeasure::Kendall}, {CorrelationMeasure::MiKraskov}}) {
+    const bool fits = CorrelationKernel::shared_memory_bytes(p, kMaxCorrelationMembers) <=
+                          ctx().limits().maxComputeSharedMemorySize &&
+                      CorrelationKernel::workgroup_size(p, kMaxCorrelationMembers) <=
+                          ctx().limits().maxComputeWorkGroupInvocations;
+    if (fits) continue;
     try {
-      kernel.compute({many.data(), kMaxCorrelationMembers, 1}, many, kraskov);
+      kernel.compute({many.data(), kMaxCorrelationMembers, 1}, many, p);
       ADD_FAILURE() << "no exception for " << kMaxCorrelationMembers << " members";
     } catch (const std::runtime_error& ex) {
-      EXPECT_NE(std::string(ex.what()).find("maxComputeSharedMemorySize"), std::string::npos) << ex.what();
+      EXPECT_NE(std::string(ex.what()).find(std::string(correlation_measure_name(p.measure)) + " with 16384 members needs"),
+                std::string::npos) << ex.what();
+      EXPECT_NE(std::string(ex.what()).find("maxCompute"), std::string::npos) << ex.what();
     }
   }
 }
