@@ -69,10 +69,12 @@ Ensemble synthetic_ensemble(uint64_t nx, uint64_t ny, uint64_t nz, uint32_t memb
     e.member_names.push_back("synthetic member " + std::to_string(m));
     const double z1 = rng.normal(), z2 = rng.normal();
     const double q = (z1 * z1 - 1.0) / std::numbers::sqrt2;
-    // Three plane waves with random directions (about two periods across the box) and phases.
+    // Three plane waves with random directions and phases, about five periods across the box:
+    // smooth to look at, yet correlated over short distances only (the noise of one point says
+    // little about a point a fifth of the box away).
     std::array<std::array<double, 4>, 3> waves;
-    for (auto& wv : waves) wv = {rng.normal() * 2.0 / double(nx), rng.normal() * 2.0 / double(ny),
-                                 rng.normal() * 2.0 / double(nz), rng.uniform()};
+    const double n_max = double(std::max({nx, ny, nz}));
+    for (auto& wv : waves) wv = {rng.normal() * 5.0 / n_max, rng.normal() * 5.0 / n_max, rng.normal() * 5.0 / n_max, rng.uniform()};
     float* out = e.values.data() + uint64_t(m) * voxels;
     for (uint64_t k = 0, i = 0; k < nz; ++k)
       for (uint64_t j = 0; j < ny; ++j)
