@@ -82,6 +82,8 @@ const Array& pick_grid_array(const std::vector<Array>& arrays, const ArraySelect
 // "<what>: ..." when k is out of range.
 std::vector<float> select_component(std::vector<float> interleaved, uint64_t components,
                                     std::optional<uint64_t> component, const std::string& what);
+// One tuple's value under select_component()'s rule (`component` < `components`, unchecked).
+float reduce_tuple(const float* tuple, uint64_t components, std::optional<uint64_t> component);
 
 // Parses one number from a text token (locale-independent, accepts a leading '+', nan, inf).
 std::optional<double> parse_number(std::string_view token);
@@ -114,6 +116,11 @@ FileInfo describe_dat(const std::filesystem::path& path, const VolumeOptions& op
 // In-memory parsers (what the fuzz targets drive). `name` prefixes every error message.
 Volume parse_vtk_legacy(std::string_view bytes, const std::string& name, const VolumeOptions& options);
 Volume parse_vti(std::string_view bytes, const std::string& name, const VolumeOptions& options);
+// NetCDF and GRIB from memory (netCDF-C's nc_open_mem, ecCodes through fmemopen), as from a file.
+Volume parse_netcdf(std::string_view bytes, const std::string& name, const VolumeOptions& options);
+FileInfo describe_netcdf_bytes(std::string_view bytes, const std::string& name);
+Volume parse_grib(std::string_view bytes, const std::string& name, const VolumeOptions& options);
+FileInfo describe_grib_bytes(std::string_view bytes, const std::string& name);
 // `open_data_file(relative_name)` returns the bytes of a detached data file (NRRD "data file").
 using DataFileLoader = std::function<std::string(const std::string& relative_name)>;
 Volume parse_nrrd(std::string_view bytes, const std::string& name, const VolumeOptions& options,

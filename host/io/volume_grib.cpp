@@ -26,6 +26,8 @@
 #include <stdexcept>
 #include <tuple>
 
+#include "cancellation.h"
+#include "memory_budget.h"
 #include "volume_formats.h"
 #include "volume_info.h"
 #include "volume_io.h"
@@ -93,12 +95,27 @@ std::string time_text(const std::tuple<long, long, long, long>& t) {
   return os.str();
 }
 
+// A GRIB file on disk, or its bytes in memory (through fmemopen: ecCodes reads a FILE*).
+struct GribSource {
+  std::string name;
+  std::unique_ptr<FILE, int (*)(FILE*)> file{nullptr, &std::fclose};
+
+  explicit GribSource(const std::filesystem::path& path) : name(path.string()) {
+    file.reset(std::fopen(name.c_str(), "rb"));
+    if (!file) throw std::runtime_error(name + ": cannot open");
+  }
+  GribSource(std::string_view bytes, std::string name_) : name(std::move(name_)) {
+    if (bytes.empty()) throw std::runtime_error(name + ": empty file");
+    file.reset(::fmemopen(const_cast<char*>(bytes.data()), bytes.size(), "rb"));
+    if (!file) throw std::runtime_error(name + ": cannot open in memory");
+  }
+};
+
 // Reads every message's metadata; keeps the handles of messages whose shortName passes `keep`.
 template <class Keep>
-std::vector<Message> scan(const std::filesystem::path& path, Keep keep) {
-  const std::string file = path.string();
-  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(file.c_str(), "rb"), &std::fclose);
-  if (!f) throw std::runtime_error(file + ": cannot open");
+std::vector<Message> scan(const GribSource& source, Keep keep) {
+  const std::string& file = source.name;
+  FILE* f = source.file.get();
   std::vector<Message> out;
   int err = 0;
   // GRIB2 messages may hold several fields (NCEP packs u and v together); count each field.
@@ -106,9 +123,10 @@ std::vector<Message> scan(const std::filesystem::path& path, Keep keep) {
   struct ResetMulti {
     FILE* f;
     ~ResetMulti() { codes_grib_multi_support_reset_file(nullptr, f); }
-  } reset{f.get()};
+  } reset{f};
   for (int index = 1;; ++index) {
-    Handle h(codes_handle_new_from_file(nullptr, f.get(), PRODUCT_GRIB, &err));
+    checkpoint("load");
+    Handle h(codes_handle_new_from_file(nullptr, f, PRODUCT_GRIB, &err));
     if (!h) {
       if (err != CODES_SUCCESS)
         throw std::runtime_error(file + ": GRIB message " + std::to_string(index) + " is unreadable (" +
@@ -168,6 +186,7 @@ std::vector<double> message_values(const Message& m, const std::string& file) {
   if (m.ni <= 0 || m.nj <= 0 || n != size_t(m.ni) * size_t(m.nj))
     throw std::runtime_error(where + ": " + m.grid_type + " grid with " + std::to_string(n) +
                              " values is not a rectangular Ni x Nj grid (reduced grids are not supported)");
+  check_memory(uint64_t(n) * sizeof(double), where + ": " + std::to_string(n) + " values");
   std::vector<double> v(n);
   int err = codes_get_double_array(h, "values", v.data(), &n);
   if (err != CODES_SUCCESS) throw std::runtime_error(where + ": cannot decode values (" + codes_get_error_message(err) + ")");
@@ -183,17 +202,15 @@ std::vector<T> distinct_sorted(const std::vector<Message>& ms, F get) {
   return {s.begin(), s.end()};
 }
 
-}  // namespace
-
-Volume read_grib_volume(const std::filesystem::path& path, const VolumeOptions& options) {
-  const std::string file = path.string();
+Volume read_grib(const GribSource& source, const VolumeOptions& options) {
+  const std::string& file = source.name;
   std::string want = options.variable, want_level;
   if (auto at = want.find('@'); at != std::string::npos) {
     want_level = want.substr(at + 1);
     want = want.substr(0, at);
   }
   std::set<std::string> all_names;
-  std::vector<Message> msgs = scan(path, [&](const std::string& n) {
+  std::vector<Message> msgs = scan(source, [&](const std::string& n) {
     all_names.insert(n);
     return want.empty() || n == want;
   });
@@ -252,17 +269,20 @@ Volume read_grib_volume(const std::filesystem::path& path, const VolumeOptions& 
   v.name = file + ":" + want + "@" + want_level;
   if (times.size() > 1) v.name += ",time=" + std::to_string(t);
   if (members.size() > 1) v.name += ",member=" + std::to_string(k);
+  check_memory(v.voxel_count() * sizeof(float), what + ": " + std::to_string(v.dims[0]) + "x" + std::to_string(v.dims[1]) +
+                                                   "x" + std::to_string(v.dims[2]) + " values");
   v.values.reserve(v.voxel_count());
   for (const auto& m : msgs) {
+    checkpoint("load");
     std::vector<double> values = message_values(m, file);
     for (double x : values) v.values.push_back(static_cast<float>(x));
   }
   return v;
 }
 
-FileInfo describe_grib(const std::filesystem::path& path, const VolumeOptions&) {
-  const std::string file = path.string();
-  std::vector<Message> msgs = scan(path, [](const std::string&) { return true; });
+FileInfo describe_grib(const GribSource& source) {
+  const std::string& file = source.name;
+  std::vector<Message> msgs = scan(source, [](const std::string&) { return true; });
   if (msgs.empty()) throw std::runtime_error(file + ": no GRIB messages (not a GRIB file?)");
   FileInfo info{file, "GRIB", {}, {}};
   std::set<long> editions;
@@ -322,6 +342,22 @@ FileInfo describe_grib(const std::filesystem::path& path, const VolumeOptions&) 
     info.arrays.push_back(std::move(a));
   }
   return info;
+}
+
+}  // namespace
+
+Volume read_grib_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  return read_grib(GribSource(path), options);
+}
+
+FileInfo describe_grib(const std::filesystem::path& path, const VolumeOptions&) { return describe_grib(GribSource(path)); }
+
+Volume parse_grib(std::string_view bytes, const std::string& name, const VolumeOptions& options) {
+  return read_grib(GribSource(bytes, name), options);
+}
+
+FileInfo describe_grib_bytes(std::string_view bytes, const std::string& name) {
+  return describe_grib(GribSource(bytes, name));
 }
 
 }  // namespace tfm
