@@ -36,6 +36,13 @@ class GpuRenderer {
   RenderImageKernel kernel_;
 };
 
+// Throws std::runtime_error, before anything is allocated, when a settings.width x
+// settings.height image cannot be rendered here: its image buffer (16 bytes a pixel) must fit the
+// device's largest storage buffer (maxStorageBufferRange) and its memory heap, and the image read
+// back (20 bytes a pixel) must fit the memory budget (memory_budget.h). The message names the
+// largest square image that fits. GpuRenderer::render calls it; commands call it up front.
+void check_render_size(const Context& ctx, const RenderSettings& settings);
+
 // Uploads `volume` and `tf` and renders them; `range` maps the field to the TF.
 RenderedImage render_volume(Context& ctx, const Volume& volume, const TransferFunction& tf, const FieldRange& range,
                             const RenderSettings& settings, Progress* progress = nullptr);
