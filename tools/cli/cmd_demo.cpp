@@ -2,11 +2,14 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <optional>
 
 #include "atomic_file.h"
 #include "cli.h"
 #include "optimize.h"
+#include "output_check.h"
 #include "progress.h"
+#include "render.h"
 #include "render_options.h"
 #include "report.h"
 #include "loss_plot.h"
@@ -34,15 +37,24 @@ int run(const DemoArgs& a) {
   settings.render = a.render;  // image-based solvers render as the report does
   settings.extra = a.extra;
   parse_solver_args(require_solver(a.solver), settings);  // bad solver flags fail before any work
+  const std::string dims = std::to_string(a.size) + "x" + std::to_string(a.size) + "x" + std::to_string(a.size);
+  const std::string ref_raw = "reference_" + dims + "_float32.raw", field_raw = "field_" + dims + "_float32.raw";
+  const std::filesystem::path report_dir = a.report.empty() ? std::filesystem::path(a.out) : std::filesystem::path(a.report);
+  FilePlan()
+      .output_directory(a.out, "--out", {ref_raw, field_raw, "reference_tf.json", "optimized_tf.json", "summary.json"})
+      .output_directory(a.no_report ? std::filesystem::path() : report_dir, a.report.empty() ? "--out" : "--report",
+                        report_file_names())
+      .check();
   if (!a.no_report) validate(a.render);
-  std::filesystem::create_directories(a.out);
-  const std::filesystem::path dir = a.out;
+  auto ctx = make_context();
+  if (!a.no_report) check_render_size(*ctx, a.render);
+  OutputBatch outputs;  // the directory and its files appear when the demo is complete
+  const std::filesystem::path dir = outputs.directory(a.out);
   Volume ref = synthetic_reference(a.size, a.size, a.size);
   Volume field = synthetic_remapped(ref);
   TransferFunction ref_tf = demo_transfer_function(64);
-  const std::string dims = std::to_string(a.size) + "x" + std::to_string(a.size) + "x" + std::to_string(a.size);
-  write_raw_float32(dir / ("reference_" + dims + "_float32.raw"), ref);
-  write_raw_float32(dir / ("field_" + dims + "_float32.raw"), field);
+  write_raw_float32(dir / ref_raw, ref);
+  write_raw_float32(dir / field_raw, field);
   write_tf_json(dir / "reference_tf.json", ref_tf);
 
   OptimizeRequest req;
@@ -52,7 +64,6 @@ int run(const DemoArgs& a) {
   req.tf_size = 64;
   req.solver = a.solver;
   req.settings = settings;
-  auto ctx = make_context();
   OptimizeResult result = run_optimize(*ctx, req);
   write_tf_json(dir / "optimized_tf.json", result.tf);
   write_file_atomically(dir / "summary.json", to_json(result).dump(2) + "\n");
@@ -60,20 +71,23 @@ int run(const DemoArgs& a) {
     std::cout << "demo: reference = smooth blobs; field = nonlinear, partly non-monotone remap of it in other\n"
                  "      units, plus a sphere of real structural difference no TF can explain\n";
     result.print_summary(std::cout);
-    std::cout << "  wrote " << dir.string() << "/{reference,field}_" << dims
-              << "_float32.raw, reference_tf.json, optimized_tf.json, summary.json\n";
   }
+  std::optional<ReportSummary> summary;
   if (!a.no_report) {
     set_progress_enabled(!globals().quiet);
-    const std::filesystem::path report_dir = a.report.empty() ? dir : std::filesystem::path(a.report);
     ReportInputs inputs{ref, field, ref_tf, result, a.render};
     inputs.extra_figures = solver_report_figures(result, a.render.width);  // diffdvr: loss curve
     inputs.title = "tfmatch demo: synthetic reference vs remapped field";
-    ReportSummary summary = write_report(*ctx, inputs, report_dir);
-    if (!globals().quiet)
-      std::cout << "  images vs reference: reference TF " << summary.before.to_string() << "\n"
-                << "                       optimized TF " << summary.after.to_string() << "\n"
-                << "  report: " << summary.index.string() << "\n";
+    summary = write_report(*ctx, inputs, report_dir);
+  }
+  outputs.commit();
+  if (!globals().quiet) {
+    std::cout << "  wrote " << a.out << "/{reference,field}_" << dims
+              << "_float32.raw, reference_tf.json, optimized_tf.json, summary.json\n";
+    if (summary)
+      std::cout << "  images vs reference: reference TF " << summary->before.to_string() << "\n"
+                << "                       optimized TF " << summary->after.to_string() << "\n"
+                << "  report: " << summary->index.string() << "\n";
   }
   return 0;
 }
