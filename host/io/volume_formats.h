@@ -40,6 +40,10 @@ uint64_t checked_voxel_count(const std::array<uint64_t, 3>& dims, const std::str
 // a*b, or throws "<file>: <what> overflows" when it exceeds `limit`.
 uint64_t checked_mul(uint64_t a, uint64_t b, uint64_t limit, const std::string& file, const std::string& what);
 
+// Reads `n` bytes at `offset` of a file (on disk or in memory) into `out`; false past the end.
+// What checks of a file's structure use before a library parses it.
+using ByteReader = std::function<bool(uint64_t offset, uint64_t n, char* out)>;
+
 // Whole file in memory; throws "<file>: cannot open (...)".
 std::string read_file_bytes(const std::filesystem::path& path);
 

@@ -26,6 +26,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <sstream>
 #include <stdexcept>
 
@@ -44,11 +45,25 @@ class NcFile {
   // A file on disk, or (`memory` not empty) its bytes in memory, named `name` in messages.
   NcFile(const std::filesystem::path& path, std::string_view memory = {}) : name_(path.string()) {
     if (memory.empty()) {
-      check(nc_open(name_.c_str(), NC_NOWRITE, &id_), "cannot open as NetCDF");
       std::error_code ec;
       size_ = std::filesystem::file_size(path, ec);
       if (ec) size_ = 0;
+      std::ifstream in(path, std::ios::binary);
+      check_netcdf_classic_header(
+          [&](uint64_t offset, uint64_t n, char* out) {
+            in.seekg(std::streamoff(offset));
+            return bool(in.read(out, std::streamsize(n)));
+          },
+          size_, name_);
+      check(nc_open(name_.c_str(), NC_NOWRITE, &id_), "cannot open as NetCDF");
     } else {
+      check_netcdf_classic_header(
+          [&](uint64_t offset, uint64_t n, char* out) {
+            if (offset > memory.size() || n > memory.size() - offset) return false;
+            std::memcpy(out, memory.data() + offset, n);
+            return true;
+          },
+          memory.size(), name_);
       // netCDF-C does not write to memory opened without NC_WRITE.
       check(nc_open_mem(name_.c_str(), NC_NOWRITE, memory.size(), const_cast<char*>(memory.data()), &id_),
             "cannot open as NetCDF");
