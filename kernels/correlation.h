@@ -35,9 +35,11 @@ enum class CorrelationMeasure {
 struct CorrelationParams {
   CorrelationMeasure measure = CorrelationMeasure::Pearson;
   uint32_t bins = 16;  // MiBinned: 2 .. kMaxCorrelationBins
-  uint32_t k = 3;      // MiKraskov, MiCoefficient: 1 .. member_count - 1
+  uint32_t k = 3;      // MiKraskov, MiCoefficient: 1 .. min(member_count - 1, kMaxCorrelationK)
 };
 constexpr uint32_t kMaxCorrelationBins = 64;
+// The kernels keep each point's k nearest distances in registers (shaders/correlation_layout.h).
+constexpr uint32_t kMaxCorrelationK = 16;
 
 // "pearson", "spearman", "kendall", "mi-binned", "mi-kraskov", "mi-coefficient".
 const char* correlation_measure_name(CorrelationMeasure m);
@@ -80,6 +82,18 @@ class CorrelationKernel {
   // Which strategy compute() uses for `member_count` (for messages and the benchmark), e.g.
   // "one invocation per voxel" or "one workgroup per voxel, shared-memory sort".
   static std::string strategy(const CorrelationParams& params, uint32_t member_count);
+  // Workgroup shared memory the kernel needs for `member_count` members (compute() throws
+  // std::runtime_error naming maxComputeSharedMemorySize when the device has less).
+  static uint64_t shared_memory_bytes(const CorrelationParams& params, uint32_t member_count);
+  // The largest |compute() - correlation_field_reference()| the float kernels can show where
+  // every comparison of member values is exact in float (series of multiples of 2^-10 whose
+  // ranges are powers of two, as the tests use): a few roundings of the final float operations
+  // for pearson, spearman and kendall (their counts and rank sums are exact integers); for mutual
+  // information, the rounding of the float sum of M per-member terms in the kernel's order and of
+  // the tabulated logarithms or digamma values; sqrt(2 b) + that for mi-coefficient, b the
+  // bound of its MI. Elsewhere a value within float rounding of a bin edge or of another
+  // distance may count differently from the double reference.
+  static double error_bound(const CorrelationParams& params, uint32_t member_count);
 
  private:
   struct Impl;

@@ -50,7 +50,8 @@ for t in "${targets[@]}"; do
   seeds=()
   for d in "$root/tests/fuzz/seeds/$t" "$build/fuzz-seeds/$t"; do [ -d "$d" ] && seeds+=("$d"); done
   # New inputs go to the first directory (kept between runs); the seeds are read only.
-  if ! "$build/tests/fuzz/fuzz_$t" "${args[@]}" "$corpus" "${seeds[@]}" 2>"$build/fuzz-$t.log"; then
+  if ! LSAN_OPTIONS="suppressions=$root/tests/fuzz/lsan.supp:print_suppressions=0" \
+      "$build/tests/fuzz/fuzz_$t" "${args[@]}" "$corpus" "${seeds[@]}" 2>"$build/fuzz-$t.log"; then
     failed+=("$t")
     tail -40 "$build/fuzz-$t.log"
   else

@@ -55,6 +55,18 @@ CameraFrame orbit_frame(const OrbitCamera& camera, const VolumeGeometry& geometr
   return f;
 }
 
+std::optional<glm::dvec2> project_to_pixel(const CameraFrame& f, const VolumeGeometry& g, const glm::dvec3& index_point,
+                                           uint32_t width, uint32_t height) {
+  const glm::dvec3 d = index_point * g.axis_scale - f.eye;
+  const double depth = glm::dot(d, f.forward);
+  if (!(depth > 0.0)) return std::nullopt;
+  // pixel_ray: sx = (2 (px + 0.5) / width - 1) tan aspect, sy = (1 - 2 (py + 0.5) / height) tan.
+  const double sx = glm::dot(d, f.right) / depth, sy = glm::dot(d, f.up) / depth;
+  const double px = 0.5 * width * (sx / (f.tan_half_fov * f.aspect) + 1.0) - 0.5;
+  const double py = 0.5 * height * (1.0 - sy / f.tan_half_fov) - 0.5;
+  return glm::dvec2(px, py);
+}
+
 MarchConstants march_constants(const RenderSettings& s, const VolumeGeometry& g) {
   validate(s);
   MarchConstants m;

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 
 #include <glm/glm.hpp>
 
@@ -66,6 +67,12 @@ struct RaySegment {
 
 RaySegment pixel_ray(const CameraFrame& frame, const VolumeGeometry& geometry, const MarchConstants& march,
                      uint32_t px, uint32_t py, uint32_t width, uint32_t height, double tolerance = 1e-4);
+
+// Where a point given in index space (voxel centres at integers) appears in the image: pixel
+// coordinates whose integer + 0.5 is a pixel centre (the inverse of pixel_ray's mapping), or
+// nothing when the point is behind the eye.
+std::optional<glm::dvec2> project_to_pixel(const CameraFrame& frame, const VolumeGeometry& geometry,
+                                           const glm::dvec3& index_point, uint32_t width, uint32_t height);
 
 // The GPU records of a camera frame and of one render dispatch (shaders/render_layout.h).
 gpu::RenderView make_render_view(const CameraFrame& frame);

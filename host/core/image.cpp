@@ -126,6 +126,16 @@ void draw_line(Image& img, double x0, double y0, double x1, double y1, Rgb8 c, d
     }
 }
 
+void draw_dot(Image& img, double x, double y, double radius, Rgb8 fill, Rgb8 outline) {
+  const double outer = radius + 1.0;
+  for (int j = int(std::floor(y - outer - 1)); j <= int(std::ceil(y + outer + 1)); ++j)
+    for (int i = int(std::floor(x - outer - 1)); i <= int(std::ceil(x + outer + 1)); ++i) {
+      const double d = std::hypot(i + 0.5 - x, j + 0.5 - y);
+      img.blend(i, j, outline, std::clamp(outer + 0.5 - d, 0.0, 1.0));
+      img.blend(i, j, fill, std::clamp(radius + 0.5 - d, 0.0, 1.0));
+    }
+}
+
 int draw_text(Image& img, int x, int y, const std::string& text, Rgb8 c, int scale) {
   int pen = x;
   for (unsigned char ch : text) {

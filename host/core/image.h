@@ -52,6 +52,9 @@ int draw_text(Image& img, int x, int y, const std::string& text, Rgb8 c, int sca
 int text_width(const std::string& text, int scale = 1);
 int text_height(int scale = 1);
 void blit(Image& dst, const Image& src, int x, int y);
+// A filled disc centred at (x, y) in the coordinates of draw_line (pixel (i, j) covers
+// [i, i+1) x [j, j+1)), anti-aliased, inside a one-pixel ring of `outline`.
+void draw_dot(Image& img, double x, double y, double radius, Rgb8 fill, Rgb8 outline);
 
 // Pictures side by side in rows of `columns`, each with its label centred above it.
 struct Panel {

@@ -86,4 +86,17 @@ RenderedImage render_volume(Context& ctx, const Volume& volume, const TransferFu
   return renderer.render(make_mapping(range, uint32_t(tf.size())), tf_buffer, settings, progress);
 }
 
+void draw_markers(Image& image, const VolumeGeometry& geometry, const RenderSettings& settings,
+                  const std::vector<std::array<uint64_t, 3>>& markers) {
+  if (markers.empty()) return;
+  const CameraFrame frame = orbit_frame(settings.camera, geometry, image.width, image.height);
+  // About 1 % of the image's short side, at least 2.5 pixels, so dots stay visible on thumbnails.
+  const double radius = std::max(2.5, 0.012 * std::min(image.width, image.height));
+  for (const auto& m : markers) {
+    const auto p = project_to_pixel(frame, geometry, glm::dvec3(double(m[0]), double(m[1]), double(m[2])), image.width,
+                                    image.height);
+    if (p) draw_dot(image, p->x + 0.5, p->y + 0.5, radius, {220, 20, 20}, {255, 255, 255});
+  }
+}
+
 }  // namespace tfm

@@ -19,9 +19,7 @@ Volume residual_map_gpu(Context& ctx, const Volume& grid, const DeviceField& ref
   CommandBatch batch(ctx);
   kernel.record(batch, ref, opt, ref_map, opt_map, ref_tf, opt_tf, out);
   batch.submit_and_wait();
-  Volume v;
-  v.dims = grid.dims;
-  v.spacing = grid.spacing;
+  Volume v = empty_like(grid);
   v.name = "residual map";
   v.values.resize(out.voxel_count());
   for (size_t c = 0; c < out.chunk_count(); ++c)

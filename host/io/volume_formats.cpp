@@ -125,6 +125,14 @@ ArraySelector parse_array_selector(const std::string& text, const std::string& f
   return sel;
 }
 
+std::array<double, 3> origin_of(const std::array<double, 3>& origin, const std::array<double, 3>& spacing,
+                                const std::string& section) {
+  std::array<double, 3> o = origin;
+  if (section == "cell data")
+    for (int i = 0; i < 3; ++i) o[i] += 0.5 * spacing[i];
+  return o;
+}
+
 std::vector<float> select_component(std::vector<float> values, uint64_t components,
                                     std::optional<uint64_t> component, const std::string& what) {
   if (components == 0) throw std::runtime_error(what + ": array has 0 components");

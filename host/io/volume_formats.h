@@ -89,6 +89,11 @@ std::vector<float> select_component(std::vector<float> interleaved, uint64_t com
 // One tuple's value under select_component()'s rule (`component` < `components`, unchecked).
 float reduce_tuple(const float* tuple, uint64_t components, std::optional<uint64_t> component);
 
+// The position of an array's first value in VTK's image data: the grid's origin for point data,
+// the centre of the first cell (origin + spacing / 2) for cell data.
+std::array<double, 3> origin_of(const std::array<double, 3>& origin, const std::array<double, 3>& spacing,
+                                const std::string& section);
+
 // Parses one number from a text token (locale-independent, accepts a leading '+', nan, inf).
 std::optional<double> parse_number(std::string_view token);
 
@@ -108,6 +113,9 @@ Volume read_grib_volume(const std::filesystem::path& path, const VolumeOptions& 
 Volume read_vtk_legacy_volume(const std::filesystem::path& path, const VolumeOptions& options);
 Volume read_vti_volume(const std::filesystem::path& path, const VolumeOptions& options);
 Volume read_nrrd_volume(const std::filesystem::path& path, const VolumeOptions& options);
+// How many members `options` select from (the row's count_members).
+uint64_t count_netcdf_members(const std::filesystem::path& path, const VolumeOptions& options);
+uint64_t count_grib_members(const std::filesystem::path& path, const VolumeOptions& options);
 // What `tfmatch info` says; only raw and .dat use `options`.
 FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions& options);
 FileInfo describe_grib(const std::filesystem::path& path, const VolumeOptions& options);

@@ -282,7 +282,13 @@ std::vector<T> distinct_sorted(const std::vector<Message>& ms, F get) {
   return {s.begin(), s.end()};
 }
 
-Volume read_grib(const GribSource& source, const VolumeOptions& options) {
+// The messages of the parameter and level type `options` select (every time and member).
+struct Selection {
+  std::vector<Message> messages;
+  std::string parameter, level_type;
+};
+
+Selection select_messages(const GribSource& source, const VolumeOptions& options) {
   const std::string& file = source.name;
   std::string want = options.variable, want_level;
   if (auto at = want.find('@'); at != std::string::npos) {
@@ -319,7 +325,32 @@ Volume read_grib(const GribSource& source, const VolumeOptions& options) {
     throw std::runtime_error(file + ": parameter " + want + " has no level type '" + want_level + "' (it has: " + types + ")");
   }
   std::erase_if(msgs, [&](const Message& m) { return m.level_type != want_level; });
+  return {std::move(msgs), want, want_level};
+}
 
+// Longitudes (x) and latitudes (y) of a regular or Gaussian grid, from its corners.
+void set_horizontal_axes(Volume& v, const Message& m) {
+  if (m.grid_type != "regular_ll" && m.grid_type != "regular_gg") return;
+  for (int k = 0; k < 2; ++k) {
+    const long n = k == 0 ? m.ni : m.nj;
+    const double first = m.corners[k == 0 ? 1 : 0], last = m.corners[k == 0 ? 3 : 2];
+    GridAxis& a = v.axes[k];
+    a.name = k == 0 ? "longitude" : "latitude";
+    a.units = k == 0 ? "degrees_east" : "degrees_north";
+    a.coordinates.resize(size_t(n));
+    double span = last - first;
+    if (k == 0 && span < 0) span += 360.0;  // a grid crossing the date line / meridian 0
+    for (long i = 0; i < n; ++i) a.coordinates[size_t(i)] = n > 1 ? first + span * double(i) / double(n - 1) : first;
+    v.origin[k] = first;
+  }
+}
+
+Volume read_grib(const GribSource& source, const VolumeOptions& options) {
+  const std::string& file = source.name;
+  Selection sel = select_messages(source, options);
+  std::vector<Message>& msgs = sel.messages;
+  const std::string& want = sel.parameter;
+  const std::string& want_level = sel.level_type;
   const auto times = distinct_sorted<std::tuple<long, long, long, long>>(msgs, [](const Message& m) { return m.time; });
   const auto members = distinct_sorted<long>(msgs, [](const Message& m) { return m.member; });
   const std::string what = file + ": " + want + "@" + want_level;
@@ -346,6 +377,11 @@ Volume read_grib(const GribSource& source, const VolumeOptions& options) {
   checked_voxel_count(v.dims, file);
   const auto hs = horizontal_spacing(msgs[0]);
   v.spacing = {hs[0], hs[1], 1.0};
+  set_horizontal_axes(v, msgs[0]);
+  v.axes[2].name = want_level;
+  for (const auto& m : msgs) v.axes[2].coordinates.push_back(m.level);
+  if (want_level == "isobaricInhPa") v.axes[2].units = "hPa";
+  v.origin[2] = v.axes[2].coordinates.front();
   v.name = file + ":" + want + "@" + want_level;
   if (times.size() > 1) v.name += ",time=" + std::to_string(t);
   if (members.size() > 1) v.name += ",member=" + std::to_string(k);
@@ -425,6 +461,11 @@ FileInfo describe_grib(const GribSource& source) {
 }
 
 }  // namespace
+
+uint64_t count_grib_members(const std::filesystem::path& path, const VolumeOptions& options) {
+  const Selection sel = select_messages(GribSource(path), options);
+  return distinct_sorted<long>(sel.messages, [](const Message& m) { return m.member; }).size();
+}
 
 Volume read_grib_volume(const std::filesystem::path& path, const VolumeOptions& options) {
   return read_grib(GribSource(path), options);

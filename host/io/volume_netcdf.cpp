@@ -201,7 +201,15 @@ struct Layout {
   }
 };
 
-Layout layout_of(const NcFile& f, int varid) {
+// Dimensions that name ensemble members (lower case); never spatial.
+bool is_member_dimension(const std::string& name, const std::string& member_dim) {
+  if (!member_dim.empty()) return name == member_dim;
+  std::string l = name;
+  std::transform(l.begin(), l.end(), l.begin(), [](unsigned char c) { return std::tolower(c); });
+  return l == "member" || l == "members" || l == "ensemble" || l == "realization" || l == "number";
+}
+
+Layout layout_of(const NcFile& f, int varid, const std::string& member_dim = "") {
   Layout L;
   L.varid = varid;
   char name[NC_MAX_NAME + 1];
@@ -218,6 +226,7 @@ Layout layout_of(const NcFile& f, int varid) {
     L.dim_names.push_back(dn);
     L.dim_sizes.push_back(len);
     if (L.time_axis < 0 && nd > 1 && is_time_dimension(f.id(), L.dimids[i], dn)) L.time_axis = i;
+    else if (nd > 1 && is_member_dimension(dn, member_dim)) L.extra_axes.push_back(i);
     else nontime.push_back(i);
   }
   L.is_coordinate = nd == 1 && L.dim_names[0] == L.name;
@@ -233,6 +242,7 @@ Layout layout_of(const NcFile& f, int varid) {
   }
   for (int i : nontime)
     if (i != L.spatial[0] && i != L.spatial[1] && i != L.spatial[2]) L.extra_axes.push_back(i);
+  std::sort(L.extra_axes.begin(), L.extra_axes.end());
   return L;
 }
 
@@ -411,7 +421,13 @@ void for_each_slab(const NcFile& f, const Layout& L, std::vector<size_t> start, 
   }
 }
 
-Volume read_netcdf(const NcFile& f, const VolumeOptions& options) {
+// The variable `options` select, its layout and its member axis (-1: none).
+struct Selection {
+  Layout layout;
+  int member_axis = -1;
+};
+
+Selection select_variable(const NcFile& f, const VolumeOptions& options) {
   const std::string& file = f.name();
   std::string var = options.variable;
   if (var.empty()) {
@@ -425,18 +441,49 @@ Volume read_netcdf(const NcFile& f, const VolumeOptions& options) {
   int varid;
   if (nc_inq_varid(f.id(), var.c_str(), &varid) != NC_NOERR)
     throw std::runtime_error(file + ": no variable '" + var + "' (volume variables: " + join(volume_variables(f)) + ")");
-  Layout L = layout_of(f, varid);
+  Selection sel{layout_of(f, varid, options.member_dim), -1};
+  const Layout& L = sel.layout;
   if (!is_numeric(L.type))
     throw std::runtime_error(file + ": variable " + var + " has type " + nc_type_name(L.type) + ", not a numeric type");
   if (L.spatial_count == 0) throw std::runtime_error(file + ": variable " + var + " is a scalar");
-  int member_axis = -1;
-  for (int a : L.extra_axes) {
-    if (L.dim_sizes[a] <= 1) continue;
-    if (member_axis >= 0)
-      throw std::runtime_error(file + ": variable " + var + " has two leading dimensions besides time (" +
-                               L.dim_names[member_axis] + ", " + L.dim_names[a] + "); only one can be chosen with --member");
-    member_axis = a;
+  if (!options.member_dim.empty()) {
+    auto it = std::find(L.dim_names.begin(), L.dim_names.end(), options.member_dim);
+    if (it == L.dim_names.end())
+      throw std::runtime_error(file + ": variable " + var + " has no dimension '" + options.member_dim + "' (--member-dim); its shape is " +
+                               L.shape());
+    sel.member_axis = int(it - L.dim_names.begin());
   }
+  for (int a : L.extra_axes) {
+    if (L.dim_sizes[a] <= 1 || a == sel.member_axis) continue;
+    if (sel.member_axis >= 0)
+      throw std::runtime_error(file + ": variable " + var + " has two leading dimensions besides time (" +
+                               L.dim_names[sel.member_axis] + ", " + L.dim_names[a] +
+                               "); only one can be chosen with --member (name it with --member-dim)");
+    sel.member_axis = a;
+  }
+  return sel;
+}
+
+// Name, units and values of the coordinate variable of a spatial axis (nothing when it has none).
+GridAxis grid_axis(const NcFile& f, const Layout& L, int axis) {
+  GridAxis g;
+  g.name = L.dim_names[axis];
+  const int cv = coordinate_var(f.id(), L.dimids[axis], L.dim_names[axis]);
+  nc_type t;
+  if (cv < 0 || nc_inq_vartype(f.id(), cv, &t) != NC_NOERR || !is_numeric(t)) return g;
+  g.units = att_text(f.id(), cv, "units").value_or("");
+  std::vector<double> c(L.dim_sizes[axis]);
+  if (nc_get_var_double(f.id(), cv, c.data()) != NC_NOERR) return g;
+  if (std::all_of(c.begin(), c.end(), [](double x) { return std::isfinite(x); })) g.coordinates = std::move(c);
+  return g;
+}
+
+Volume read_netcdf(const NcFile& f, const VolumeOptions& options) {
+  const std::string& file = f.name();
+  const Selection sel = select_variable(f, options);
+  const Layout& L = sel.layout;
+  const std::string& var = L.name;
+  const int member_axis = sel.member_axis;
   std::vector<size_t> start(L.dim_sizes.size(), 0);
   const size_t t = pick_index(L, L.time_axis, options.time_index, "time", file);
   const size_t m = pick_index(L, member_axis, options.member_index, "member", file);
@@ -454,6 +501,11 @@ Volume read_netcdf(const NcFile& f, const VolumeOptions& options) {
                                                                            : (f.size() > 0 && voxels > f.size()))
     throw std::runtime_error(file + ": variable " + var + " is larger than the file can hold (" + L.shape() + ")");
   v.spacing = spacing_of(f, L);
+  for (int k = 0; k < 3; ++k) {
+    if (L.spatial[k] < 0) continue;
+    v.axes[k] = grid_axis(f, L, L.spatial[k]);
+    if (!v.axes[k].coordinates.empty()) v.origin[k] = v.axes[k].coordinates.front();
+  }
   v.name = file + ":" + var;
   if (L.time_axis >= 0 && L.dim_sizes[L.time_axis] > 1) v.name += ",time=" + std::to_string(t);
   if (member_axis >= 0) v.name += ",member=" + std::to_string(m);
@@ -465,7 +517,7 @@ Volume read_netcdf(const NcFile& f, const VolumeOptions& options) {
   return v;
 }
 
-FileInfo describe_netcdf(const NcFile& f) {
+FileInfo describe_netcdf(const NcFile& f, const VolumeOptions& options) {
   FileInfo info;
   info.path = f.name();
   int format = 0;
@@ -482,7 +534,7 @@ FileInfo describe_netcdf(const NcFile& f) {
   int nvars = 0;
   f.check(nc_inq_nvars(f.id(), &nvars), "cannot list variables");
   for (int v = 0; v < nvars; ++v) {
-    Layout L = layout_of(f, v);
+    Layout L = layout_of(f, v, options.member_dim);
     ArrayInfo a;
     a.name = L.name;
     a.kind = L.is_coordinate ? "coordinate" : "variable";
@@ -519,11 +571,19 @@ FileInfo describe_netcdf(const NcFile& f) {
 
 }  // namespace
 
+uint64_t count_netcdf_members(const std::filesystem::path& path, const VolumeOptions& options) {
+  NcFile f(path);
+  const Selection sel = select_variable(f, options);
+  return sel.member_axis >= 0 ? sel.layout.dim_sizes[sel.member_axis] : 1;
+}
+
 Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions& options) {
   return read_netcdf(NcFile(path), options);
 }
 
-FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions&) { return describe_netcdf(NcFile(path)); }
+FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions& options) {
+  return describe_netcdf(NcFile(path), options);
+}
 
 Volume parse_netcdf(std::string_view bytes, const std::string& name, const VolumeOptions& options) {
   if (bytes.empty()) throw std::runtime_error(name + ": empty file");
@@ -532,7 +592,7 @@ Volume parse_netcdf(std::string_view bytes, const std::string& name, const Volum
 
 FileInfo describe_netcdf_bytes(std::string_view bytes, const std::string& name) {
   if (bytes.empty()) throw std::runtime_error(name + ": empty file");
-  return describe_netcdf(NcFile(name, bytes));
+  return describe_netcdf(NcFile(name, bytes), {});
 }
 
 }  // namespace tfm

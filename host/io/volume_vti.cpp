@@ -45,6 +45,7 @@ struct VtiDocument {
   bool compressed = false;
   std::array<uint64_t, 3> dims{0, 0, 0};
   std::array<double, 3> spacing{1, 1, 1};
+  std::array<double, 3> origin{0, 0, 0};
   std::vector<VtiArray> arrays;
   std::string active_scalars;
   bool has_appended = false;
@@ -151,6 +152,11 @@ VtiDocument parse_document(std::string_view bytes, const std::string& file) {
   }
   const uint64_t points = checked_voxel_count(doc.dims, file);
   doc.spacing = parse_numbers<3>(image->attribute("Spacing"), {1.0, 1.0, 1.0}, file + ": Spacing");
+  doc.origin = parse_numbers<3>(image->attribute("Origin"), {0.0, 0.0, 0.0}, file + ": Origin");
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(doc.origin[i])) throw std::runtime_error(file + ": Origin must be finite");
+    doc.origin[i] += extent[2 * i] * doc.spacing[i];  // the position of the first point of the extent
+  }
   for (double& s : doc.spacing) {
     if (!std::isfinite(s) || s == 0) throw std::runtime_error(file + ": Spacing must be finite and non-zero");
     s = std::abs(s);  // a negative spacing mirrors the axis; the voxel size is its magnitude
@@ -377,6 +383,7 @@ Volume parse_vti(std::string_view bytes, const std::string& file, const VolumeOp
   Volume v;
   v.dims = grid_of(doc, pick);
   v.spacing = doc.spacing;
+  v.origin = origin_of(doc.origin, doc.spacing, pick.section);
   v.name = file + ":" + pick.name + (sel.component ? "[" + std::to_string(*sel.component) + "]" : "");
   v.values = select_component(decode_array(bytes, doc, pick, file), pick.components, sel.component, v.name);
   return v;
@@ -428,7 +435,8 @@ void write_vti(const std::filesystem::path& path, const std::vector<std::pair<st
   xml << "<?xml version=\"1.0\"?>\n<VTKFile type=\"ImageData\" version=\"1.0\" byte_order=\"LittleEndian\" "
          "header_type=\"UInt64\""
       << (options.compress ? " compressor=\"vtkZLibDataCompressor\"" : "") << ">\n"
-      << "  <ImageData WholeExtent=\"" << extent << "\" Origin=\"0 0 0\" Spacing=\"" << format_double(first.spacing[0]) << " "
+      << "  <ImageData WholeExtent=\"" << extent << "\" Origin=\"" << format_double(first.origin[0]) << " "
+      << format_double(first.origin[1]) << " " << format_double(first.origin[2]) << "\" Spacing=\"" << format_double(first.spacing[0]) << " "
       << format_double(first.spacing[1]) << " " << format_double(first.spacing[2]) << "\">\n"
       << "    <Piece Extent=\"" << extent << "\">\n"
       << "      <PointData Scalars=\"" << xml_escape(arrays.front().first) << "\">\n";

@@ -98,6 +98,7 @@ struct VtkDocument {
   bool binary = false;
   std::array<uint64_t, 3> dims{0, 0, 0};
   std::array<double, 3> spacing{1, 1, 1};
+  std::array<double, 3> origin{0, 0, 0};
   std::vector<VtkArray> arrays;
 };
 
@@ -278,7 +279,7 @@ VtkDocument parse_document(std::string_view bytes, const std::string& file) {
       for (int i = 0; i < 3; ++i) {
         if (key == "dimensions") doc.dims[i] = parse_count(t[1 + i], c, "DIMENSIONS");
         else if (key != "origin") doc.spacing[i] = parse_real(t[1 + i], c, std::string(t[0]));
-        else parse_real(t[1 + i], c, "ORIGIN");
+        else doc.origin[i] = parse_real(t[1 + i], c, "ORIGIN");
       }
       if (key == "dimensions") {
         checked_voxel_count(doc.dims, file);
@@ -348,6 +349,7 @@ Volume parse_vtk_legacy(std::string_view bytes, const std::string& file, const V
   Volume v;
   v.dims = grid_of(doc, pick);
   v.spacing = doc.spacing;
+  v.origin = origin_of(doc.origin, doc.spacing, pick.section);
   v.name = file + ":" + pick.name + (sel.component ? "[" + std::to_string(*sel.component) + "]" : "");
   v.values = select_component(decode_array(bytes, doc, pick, file), pick.components, sel.component, v.name);
   return v;

@@ -74,7 +74,14 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
     << in.ref.dims[1] << "&times;" << in.ref.dims[2] << " &middot; solver: " << escape(r.solver)
     << " &middot; device: " << escape(r.device) << "</div>\n";
 
-  h << "<h2>Renderings</h2>\n<div class=\"grid g3\">\n"
+  h << "<h2>Renderings</h2>\n";
+  if (!in.markers.empty()) {
+    h << "<p class=\"note\">Red dots: reference point" << (in.markers.size() > 1 ? "s" : "");
+    for (size_t i = 0; i < in.markers.size(); ++i)
+      h << (i ? ", " : " ") << escape(describe_grid_point(in.ref, in.markers[i]));
+    h << " (drawn over the volume, visible from every side).</p>\n";
+  }
+  h << "<div class=\"grid g3\">\n"
     << figure("reference.png", "Reference field, reference TF")
     << figure("field_reference_tf.png", "Second field, reference TF (before)")
     << figure("field_optimized_tf.png", "Second field, optimized TF (after)")

@@ -135,16 +135,18 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   GpuRenderer field_renderer(ctx, field, geometry);
 
   advance("rendering the reference");
-  const Image ref_img = composite_over(ref_renderer.render(ref_map, ref_tf, s), s.background);
+  Image ref_img = composite_over(ref_renderer.render(ref_map, ref_tf, s), s.background);
   advance("rendering the field with the reference TF");
-  const Image before_img = composite_over(field_renderer.render(field_ref_tf_map, ref_tf, s), s.background);
+  Image before_img = composite_over(field_renderer.render(field_ref_tf_map, ref_tf, s), s.background);
   advance("rendering the field with the optimized TF");
-  const Image after_img = composite_over(field_renderer.render(field_opt_tf_map, opt_tf, s), s.background);
+  Image after_img = composite_over(field_renderer.render(field_opt_tf_map, opt_tf, s), s.background);
+  out.before = compare_images(ref_img, before_img);
+  out.after = compare_images(ref_img, after_img);
+  // The pictures show the markers; the metrics above were taken without them.
+  for (Image* img : {&ref_img, &before_img, &after_img}) draw_markers(*img, geometry, s, in.markers);
   save("reference.png", ref_img);
   save("field_reference_tf.png", before_img);
   save("field_optimized_tf.png", after_img);
-  out.before = compare_images(ref_img, before_img);
-  out.after = compare_images(ref_img, after_img);
 
   advance("residual maps");
   const Volume res_before = residual_map_gpu(ctx, in.ref, ref, field, ref_map, field_ref_tf_map, ref_tf, ref_tf);
@@ -161,6 +163,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   for (int k = 0; k < 2; ++k) {
     DeviceField res(ctx, (k == 0 ? res_before : res_after).values, "report: residual map");
     res_imgs[k] = composite_over(GpuRenderer(ctx, res, geometry).render(res_map, res_tf_buf, s), s.background);
+    draw_markers(res_imgs[k], geometry, s, in.markers);
   }
   save("residual_reference_tf.png", res_imgs[0]);
   save("residual_optimized_tf.png", res_imgs[1]);
@@ -205,6 +208,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   metrics["render_settings"] = settings_json(s);
   metrics["optimize"] = to_json(r);
   metrics["fields"] = {{"reference", in.ref.name}, {"field", in.field.name}, {"dims", in.ref.dims}};
+  if (!in.markers.empty()) metrics["markers"] = in.markers;
   if (!in.extra_metrics.is_null()) metrics["extra"] = in.extra_metrics;
   write_file_atomically(dir / "metrics.json", metrics.dump(2) + "\n");
   out.files.push_back("metrics.json");

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "context.h"
+#include "grid_point.h"
 #include "image.h"
 #include "metrics.h"
 #include "optimize.h"
@@ -35,6 +36,9 @@ struct ReportInputs {
   const OptimizeResult& result;    // optimized TF, both ranges, voxel losses, solver details
   RenderSettings settings;         // one camera and optical model for every rendering
   std::string title = "tfmatch report";
+  // Grid points drawn as red dots on every rendering (correlation reference points); the image
+  // metrics are computed on the renderings without them.
+  std::vector<GridIndex> markers;
   std::vector<ReportFigure> extra_figures;
   nlohmann::json extra_metrics;    // merged into metrics.json under "extra" when not null
 };

@@ -115,34 +115,51 @@ TEST_F(CliOutputs, ReportGoesIntoANewNestedDirectoryWhole) {
 }
 
 // Item 5's messages, each saying the true problem.
-TEST_F(CliOutputs, MessagesSayTheTrueProblem) {
-  const std::string ref = dir / "ref_8x8x8_float32.raw";
-  // A size inside the accepted range that the device cannot hold: said before loading, with the
-  // largest size that fits, not a raw VK_ERROR_OUT_OF_DEVICE_MEMORY.
-  test::CliResult r = run_cli("render --volume " + ref + " --tf " + dir / "tf.json" + " --out " + dir / "big.png" +
-                              " --width 16384 --height 16384");
+
+// A size inside the accepted range that the device cannot hold: said before loading, with the
+// largest size that fits, not a raw VK_ERROR_OUT_OF_DEVICE_MEMORY from a buffer.
+TEST_F(CliOutputs, RenderSizeTheDeviceCannotHoldIsNamed) {
+  test::CliResult r = run_cli("render --volume " + dir / "ref_8x8x8_float32.raw" + " --tf " + dir / "tf.json" +
+                              " --out " + dir / "big.png" + " --width 16384 --height 16384");
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("16384x16384 image needs a 4.00 GiB image buffer"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("at most about"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("VK_ERROR"), std::string::npos) << r.output;
-  // A TF file's range beyond float32: named as such, with the file.
+}
+
+// A TF file's range beyond float32: named as such, with the file, not "too narrow".
+TEST_F(CliOutputs, RangeBeyondFloat32IsNamed) {
   std::ofstream(dir / "wide.json") << R"({"rgba": [[0,0,0,0],[1,1,1,1]], "range": [-1e308, 1e308]})";
-  r = run_cli("render --volume " + ref + " --tf " + dir / "wide.json" + " --out " + dir / "w.png");
+  test::CliResult r = run_cli("render --volume " + dir / "ref_8x8x8_float32.raw" + " --tf " + dir / "wide.json" +
+                              " --out " + dir / "w.png");
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("wide.json: range -1e+308,1e+308 lies beyond float32"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("too narrow"), std::string::npos) << r.output;
-  // Infinite ends are not "empty or reversed".
-  r = run_cli("render --volume " + ref + " --tf " + dir / "tf.json" + " --out " + dir / "i.png" + " --range -inf,inf");
+}
+
+// Infinite ends are not "empty or reversed".
+TEST_F(CliOutputs, InfiniteRangeIsNamed) {
+  test::CliResult r = run_cli("render --volume " + dir / "ref_8x8x8_float32.raw" + " --tf " + dir / "tf.json" +
+                              " --out " + dir / "i.png" + " --range -inf,inf");
   EXPECT_NE(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("--range: range -inf,inf: both ends must be finite numbers"), std::string::npos) << r.output;
-  // A negative grid size is not an overflow.
-  r = run_cli("info " + ref + " --dims -64,64,64 --type float32");
+  EXPECT_EQ(r.output.find("reversed"), std::string::npos) << r.output;
+}
+
+// A negative grid size is not an overflow.
+TEST_F(CliOutputs, NegativeDimsAreNamed) {
+  test::CliResult r = run_cli("info " + dir / "ref_8x8x8_float32.raw" + " --dims -64,64,64 --type float32");
   EXPECT_NE(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("expected a positive integer, got '-64'"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("overflow"), std::string::npos) << r.output;
-  // The residual of a field with itself is 0 everywhere, and the summary says so.
-  r = run_cli("residual --ref " + ref + " --field " + ref + " --ref-tf " + dir / "tf.json" + " --field-tf " +
-              dir / "tf.json" + " --out " + dir / "res_8x8x8_float32.raw");
+}
+
+// The residual of a field with itself is 0 everywhere, and the summary says so (not "max 1",
+// the display range's fallback).
+TEST_F(CliOutputs, ResidualOfAFieldWithItselfSaysZero) {
+  const std::string ref = dir / "ref_8x8x8_float32.raw";
+  test::CliResult r = run_cli("residual --ref " + ref + " --field " + ref + " --ref-tf " + dir / "tf.json" +
+                              " --field-tf " + dir / "tf.json" + " --out " + dir / "res_8x8x8_float32.raw");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("mean 0, max 0 "), std::string::npos) << r.output;
 }

@@ -29,6 +29,7 @@ struct OptimizeArgs {
   std::string factorization = "auto";
   std::map<std::string, std::string> extra;  // solver options (solver_options.h), checked by the solver
   std::string report;                         // report directory (renderings, metrics, index.html)
+  std::vector<std::string> markers;           // drawn on the report's renderings
   RenderSettings render;
 };
 
@@ -50,12 +51,15 @@ int run(const OptimizeArgs& a) {
       .output_directory(a.report, "--report", report_file_names())
       .check();
   if (!a.report.empty()) validate(a.render);  // fail before the solve, not after
+  if (a.report.empty() && !a.markers.empty())
+    throw CLI::ValidationError("--marker", "markers are drawn on the report's renderings: add --report DIR");
   auto ctx = make_context();
   if (!a.report.empty()) check_render_size(*ctx, a.render);
   OutputBatch outputs;  // nothing appears unless every output is complete
   LoadedInputs loaded;
   load_inputs(a.in, loaded);
   const Volume& ref = loaded.ref;
+  const std::vector<GridIndex> markers = resolve_markers(ref, a.markers);
   const Volume& field = loaded.field;
   OptimizeRequest& req = loaded.request;
   req.solver = a.solver;
@@ -70,6 +74,7 @@ int run(const OptimizeArgs& a) {
     ReportInputs inputs{ref, field, req.ref_tf, result, a.render};
     inputs.extra_figures = solver_report_figures(result, a.render.width);  // diffdvr: loss curve
     inputs.title = "tfmatch: " + field.name + " matched to " + ref.name;
+    inputs.markers = markers;
     summary = write_report(*ctx, inputs, a.report);
   }
   outputs.commit();
@@ -103,6 +108,7 @@ CommandRegistration reg(10, [](CLI::App& app) {
   sub->add_option("--report", args->report, "Write a report into this directory: renderings before/after, residual "
                   "maps, TF plots, metrics.json, index.html");
   add_render_options(sub, args->render);
+  add_marker_option(sub, args->markers);
   sub->footer(solver_descriptions());
   sub->callback([args] { exit_code() = run(*args); });
 });

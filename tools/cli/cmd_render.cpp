@@ -18,6 +18,7 @@ namespace {
 
 struct RenderArgs {
   std::string volume, tf, out, range;
+  std::vector<std::string> markers;
   VolumeFlags volume_flags;
   RenderSettings settings;
 };
@@ -35,6 +36,7 @@ int run(const RenderArgs& a) {
   TransferFunction tf = read_transfer_function(a.tf);
   const FieldRange* given = !a.range.empty() ? &user : (tf.range ? &*tf.range : nullptr);
   const FieldRange range = resolve_range(volume.values, given, volume.name);
+  const std::vector<GridIndex> markers = resolve_markers(volume, a.markers);
 
   const auto t0 = std::chrono::steady_clock::now();
   RenderedImage image;
@@ -43,7 +45,9 @@ int run(const RenderArgs& a) {
     image = render_volume(*ctx, volume, tf, range, a.settings, &progress);
   }
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  write_png(a.out, composite_over(image, a.settings.background));
+  Image picture = composite_over(image, a.settings.background);
+  draw_markers(picture, VolumeGeometry::from(volume.dims, volume.spacing), a.settings, markers);
+  write_png(a.out, picture);
   outputs.commit();
   if (!globals().quiet)
     std::cout << "rendered " << volume.name << " (" << volume.dims[0] << "x" << volume.dims[1] << "x"
@@ -62,6 +66,7 @@ CommandRegistration reg(20, [](CLI::App& app) {
   sub->add_option("--range", args->range, "Field range lo,hi mapped to the TF (default: TF file's, else finite min/max)");
   add_volume_flags(sub, args->volume_flags);
   add_render_options(sub, args->settings);
+  add_marker_option(sub, args->markers);
   sub->callback([args] { exit_code() = run(*args); });
 });
 

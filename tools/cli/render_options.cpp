@@ -60,6 +60,24 @@ void add_volume_flags(CLI::App* sub, VolumeFlags& f) {
   sub->add_flag("--big-endian", f.big_endian, "Raw files: big-endian data")->group(g);
 }
 
+void add_marker_option(CLI::App* sub, std::vector<std::string>& markers) {
+  sub->add_option("--marker", markers,
+                  "Draw a red dot at this grid point: I,J,K (I along x) or lon=..,lat=..,level=..; repeatable")
+      ->expected(1)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)->group("Rendering");
+}
+
+std::vector<GridIndex> resolve_markers(const Volume& grid, const std::vector<std::string>& texts) {
+  std::vector<GridIndex> out;
+  for (const auto& t : texts) {
+    try {
+      out.push_back(resolve_grid_point(grid, t, "--marker"));
+    } catch (const std::invalid_argument& e) {
+      throw CLI::ValidationError("--marker", e.what());
+    }
+  }
+  return out;
+}
+
 void add_render_options(CLI::App* sub, RenderSettings& s) {
   const std::string g = "Rendering";
   sub->add_option("--azimuth", s.camera.azimuth_deg, "Camera azimuth about the grid's z axis, degrees")

@@ -8,6 +8,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "grid_point.h"
 #include "render_settings.h"
 #include "volume.h"
 #include "volume_io.h"
@@ -27,6 +28,12 @@ struct VolumeFlags {
   VolumeOptions options() const;
 };
 void add_volume_flags(CLI::App* sub, VolumeFlags& flags);
+
+// --marker (repeatable): grid points drawn as red dots on the renderings (reference points of a
+// correlation field), as I,J,K indices or lon=..,lat=..,level=.. coordinates.
+void add_marker_option(CLI::App* sub, std::vector<std::string>& markers);
+// Resolves the --marker texts on `grid`; throws CLI::ValidationError saying what is wrong.
+std::vector<GridIndex> resolve_markers(const Volume& grid, const std::vector<std::string>& texts);
 
 // "white", "black", "gray", "#rrggbb" or "r,g,b" with components in [0,1]. Throws
 // CLI::ValidationError naming the flag.
