@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "cancellation.h"
+
 namespace tfm {
 
 void check_reference_point(const EnsembleView& ens, uint64_t voxel, CorrelationMeasure measure) {
@@ -32,9 +34,12 @@ std::vector<float> correlation_field(Context& ctx, const EnsembleView& ens, cons
   if (r.point2) check_reference_point(ens, *r.point2, r.params.measure);
   CorrelationKernel kernel(ctx);
   const uint64_t passes = r.point2 ? 2 : 1;
+  // Called after every chunk of voxels: a cancellation stops the field between chunks.
   auto pass_progress = [&](uint64_t pass) -> CorrelationProgress {
-    if (!progress) return {};
-    return [&, pass](uint64_t done, uint64_t total) { progress(pass * total + done, passes * total); };
+    return [&, pass](uint64_t done, uint64_t total) {
+      checkpoint("correlate");
+      if (progress) progress(pass * total + done, passes * total);
+    };
   };
   std::vector<float> out =
       kernel.compute(ens, ensemble_series(ens, r.point), r.params, pass_progress(0), r.max_device_bytes);

@@ -25,10 +25,14 @@ struct FiniteStats {
 // Finite min/max and NaN count of a field.
 FiniteStats finite_stats(std::span<const float> values);
 
-// Range of a field: `user` if given, else the finite min/max. Throws std::runtime_error naming
-// `what` when the field has no finite value or is constant (hi == lo), or when a user range is
-// empty or reversed.
+// Range of a field: `user` if given (checked by check_range), else the finite min/max. Throws
+// std::runtime_error naming `what` when the field has no finite value or is constant (hi == lo).
 FieldRange resolve_range(std::span<const float> values, const FieldRange* user, const std::string& what);
+
+// Throws std::runtime_error "<what>: range lo,hi ..." saying what is wrong with a given range:
+// an end that is not a finite number, lo >= hi, an end beyond float32 (the kernels map values in
+// float32), or ends float32 cannot tell apart.
+void check_range(const FieldRange& range, const std::string& what);
 
 
 FieldMapping make_mapping(const FieldRange& range, uint32_t tf_size);

@@ -38,6 +38,13 @@ class GpuRenderer {
   RenderImageKernel kernel_;
 };
 
+// Throws std::runtime_error, before anything is allocated, when a settings.width x
+// settings.height image cannot be rendered here: its image buffer (16 bytes a pixel) must fit the
+// device's largest storage buffer (maxStorageBufferRange) and its memory heap, and the image read
+// back (20 bytes a pixel) must fit the memory budget (memory_budget.h). The message names the
+// largest square image that fits. GpuRenderer::render calls it; commands call it up front.
+void check_render_size(const Context& ctx, const RenderSettings& settings);
+
 // Draws each grid point of `markers` (voxel indices) as a red dot where the camera of
 // `settings` sees it on an image of the same size (the paper's reference-point markers). The
 // dots are drawn over the rendering, visible from every side.

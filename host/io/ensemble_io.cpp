@@ -9,6 +9,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "memory_budget.h"
 #include "volume_format_table.h"
 #include "volume_formats.h"
 
@@ -27,6 +28,8 @@ void add_member(Ensemble& e, Volume&& v, uint64_t expected_members) {
     if (voxels != 0 && expected_members > std::numeric_limits<uint64_t>::max() / voxels / sizeof(float))
       throw std::runtime_error(v.name + ": an ensemble of " + std::to_string(expected_members) + " members of " +
                                std::to_string(voxels) + " voxels is too large");
+    check_memory(expected_members * voxels * sizeof(float),
+                 v.name + ": an ensemble of " + std::to_string(expected_members) + " members of " + grid_text(v));
     e.values.reserve(expected_members * voxels);
   } else if (v.dims != e.grid.dims) {
     throw std::runtime_error("ensemble members are on different grids: " + e.member_names.front() + " is " +

@@ -21,13 +21,17 @@
 //   only when it is regular and has the same units as x (a Cartesian grid); pressure or model
 //   levels give 1.
 #include <netcdf.h>
+#include <netcdf_mem.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <sstream>
 #include <stdexcept>
 
+#include "cancellation.h"
+#include "memory_budget.h"
 #include "netcdf_classic.h"
 #include "volume_formats.h"
 #include "volume_info.h"
@@ -38,19 +42,42 @@ namespace {
 
 class NcFile {
  public:
-  explicit NcFile(const std::filesystem::path& path) : name_(path.string()) {
-    check(nc_open(name_.c_str(), NC_NOWRITE, &id_), "cannot open as NetCDF");
+  // A file on disk, or (`memory` not empty) its bytes in memory, named `name` in messages.
+  NcFile(const std::filesystem::path& path, std::string_view memory = {}) : name_(path.string()) {
+    if (memory.empty()) {
+      std::error_code ec;
+      size_ = std::filesystem::file_size(path, ec);
+      if (ec) size_ = 0;
+      std::ifstream in(path, std::ios::binary);
+      check_netcdf_classic_header(
+          [&](uint64_t offset, uint64_t n, char* out) {
+            in.seekg(std::streamoff(offset));
+            return bool(in.read(out, std::streamsize(n)));
+          },
+          size_, name_);
+      check(nc_open(name_.c_str(), NC_NOWRITE, &id_), "cannot open as NetCDF");
+    } else {
+      check_netcdf_classic_header(
+          [&](uint64_t offset, uint64_t n, char* out) {
+            if (offset > memory.size() || n > memory.size() - offset) return false;
+            std::memcpy(out, memory.data() + offset, n);
+            return true;
+          },
+          memory.size(), name_);
+      // netCDF-C does not write to memory opened without NC_WRITE.
+      check(nc_open_mem(name_.c_str(), NC_NOWRITE, memory.size(), const_cast<char*>(memory.data()), &id_),
+            "cannot open as NetCDF");
+      size_ = memory.size();
+    }
     // netCDF-C reads missing bytes of a truncated classic file as zeros: refuse such a file.
     int format = 0;
-    std::error_code ec;
-    const uint64_t size = std::filesystem::file_size(path, ec);
-    if (nc_inq_format(id_, &format) == NC_NOERR && !ec) {
+    if (nc_inq_format(id_, &format) == NC_NOERR && size_ > 0) {
       const uint64_t needed = netcdf_classic_minimum_size(id_, format);
-      if (needed > size) {
+      if (needed > size_) {
         nc_close(id_);
         id_ = -1;
         throw std::runtime_error(name_ + ": truncated: its header describes at least " + std::to_string(needed) +
-                                 " bytes, the file has " + std::to_string(size));
+                                 " bytes, the file has " + std::to_string(size_));
       }
     }
   }
@@ -61,6 +88,7 @@ class NcFile {
   NcFile& operator=(const NcFile&) = delete;
   int id() const { return id_; }
   const std::string& name() const { return name_; }
+  uint64_t size() const { return size_; }  // bytes of the file (0: unknown)
   void check(int status, const std::string& what) const {
     if (status != NC_NOERR) throw std::runtime_error(name_ + ": " + what + " (" + nc_strerror(status) + ")");
   }
@@ -68,6 +96,7 @@ class NcFile {
  private:
   std::string name_;
   int id_ = -1;
+  uint64_t size_ = 0;
 };
 
 bool is_numeric(nc_type t) {
@@ -373,10 +402,12 @@ void for_each_slab(const NcFile& f, const Layout& L, std::vector<size_t> start, 
     if (L.spatial[k] >= 0) count[L.spatial[k]] = L.dim_sizes[L.spatial[k]];
   size_t slab = 1;
   for (size_t c : count) slab *= c;
+  check_memory(uint64_t(slab) * (sizeof(double) + sizeof(float)), f.name() + ": reading variable " + L.name + " " + L.shape());
   std::vector<double> buf(slab);
   const Unpacker u = unpacker_of(f, L);
   std::vector<float> out(slab);
   while (true) {
+    checkpoint("load");
     f.check(nc_get_vara_double(f.id(), L.varid, start.data(), count.data(), buf.data()), "cannot read variable " + L.name);
     for (size_t i = 0; i < slab; ++i) out[i] = u(buf[i]);
     fn(out.data(), slab);
@@ -447,16 +478,7 @@ GridAxis grid_axis(const NcFile& f, const Layout& L, int axis) {
   return g;
 }
 
-}  // namespace
-
-uint64_t count_netcdf_members(const std::filesystem::path& path, const VolumeOptions& options) {
-  NcFile f(path);
-  const Selection sel = select_variable(f, options);
-  return sel.member_axis >= 0 ? sel.layout.dim_sizes[sel.member_axis] : 1;
-}
-
-Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions& options) {
-  NcFile f(path);
+Volume read_netcdf(const NcFile& f, const VolumeOptions& options) {
   const std::string& file = f.name();
   const Selection sel = select_variable(f, options);
   const Layout& L = sel.layout;
@@ -475,10 +497,8 @@ Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions
   f.check(nc_inq_format(f.id(), &format), "cannot read the format");
   // A classic file stores every value, so a slab cannot exceed the file (checked before
   // allocating); compressed netCDF-4 has no such bound, so cap it at 2^34 voxels (64 GiB).
-  std::error_code ec;
-  const uint64_t file_size = std::filesystem::file_size(path, ec);
   if ((format == NC_FORMAT_NETCDF4 || format == NC_FORMAT_NETCDF4_CLASSIC) ? voxels > (uint64_t(1) << 34)
-                                                                           : (!ec && voxels > file_size))
+                                                                           : (f.size() > 0 && voxels > f.size()))
     throw std::runtime_error(file + ": variable " + var + " is larger than the file can hold (" + L.shape() + ")");
   v.spacing = spacing_of(f, L);
   for (int k = 0; k < 3; ++k) {
@@ -489,6 +509,7 @@ Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions
   v.name = file + ":" + var;
   if (L.time_axis >= 0 && L.dim_sizes[L.time_axis] > 1) v.name += ",time=" + std::to_string(t);
   if (member_axis >= 0) v.name += ",member=" + std::to_string(m);
+  check_memory(voxels * sizeof(float), file + ": variable " + var + " " + L.shape());
   v.values.reserve(voxels);
   std::vector<int> iterate;
   if (L.spatial[2] >= 0) iterate.push_back(L.spatial[2]);
@@ -496,8 +517,7 @@ Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions
   return v;
 }
 
-FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions& options) {
-  NcFile f(path);
+FileInfo describe_netcdf(const NcFile& f, const VolumeOptions& options) {
   FileInfo info;
   info.path = f.name();
   int format = 0;
@@ -547,6 +567,32 @@ FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions&
     info.arrays.push_back(std::move(a));
   }
   return info;
+}
+
+}  // namespace
+
+uint64_t count_netcdf_members(const std::filesystem::path& path, const VolumeOptions& options) {
+  NcFile f(path);
+  const Selection sel = select_variable(f, options);
+  return sel.member_axis >= 0 ? sel.layout.dim_sizes[sel.member_axis] : 1;
+}
+
+Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  return read_netcdf(NcFile(path), options);
+}
+
+FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions& options) {
+  return describe_netcdf(NcFile(path), options);
+}
+
+Volume parse_netcdf(std::string_view bytes, const std::string& name, const VolumeOptions& options) {
+  if (bytes.empty()) throw std::runtime_error(name + ": empty file");
+  return read_netcdf(NcFile(name, bytes), options);
+}
+
+FileInfo describe_netcdf_bytes(std::string_view bytes, const std::string& name) {
+  if (bytes.empty()) throw std::runtime_error(name + ": empty file");
+  return describe_netcdf(NcFile(name, bytes), {});
 }
 
 }  // namespace tfm

@@ -7,6 +7,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <sstream>
@@ -16,6 +17,8 @@
 
 #include "atomic_file.h"
 #include "base64.h"
+#include "cancellation.h"
+#include "memory_budget.h"
 #include "volume_formats.h"
 #include "volume_info.h"
 #include "xml_tree.h"
@@ -240,16 +243,19 @@ uint64_t read_header_uint(ByteSource& src, const VtiDocument& doc) {
   return v;
 }
 
-// The array's decompressed bytes, exactly `expected` of them.
-std::string read_binary(ByteSource& src, const VtiDocument& doc, uint64_t expected, const std::string& where) {
-  std::string out;
+// The array's decompressed bytes, exactly `expected` of them, handed to `sink` a block at a time
+// (a zlib block, or a slice of uncompressed data): the whole array's bytes never exist at once.
+void read_binary(ByteSource& src, const VtiDocument& doc, uint64_t expected, const std::string& where,
+                 const std::function<void(std::string_view)>& sink) {
   if (!doc.compressed) {
     const uint64_t n = read_header_uint(src, doc);
     if (n != expected)
       throw std::runtime_error(where + ": its header says " + std::to_string(n) + " bytes, the array needs " +
                                std::to_string(expected));
-    out.assign(src.read(n));
-    return out;
+    if (n > src.upper_bound()) src.read(n);  // throws "data truncated", before anything is decoded
+    constexpr uint64_t kSlice = uint64_t(16) << 20;
+    for (uint64_t done = 0; done < n; done += kSlice) sink(src.read(std::min(kSlice, n - done)));
+    return;
   }
   const uint64_t hb = doc.header64 ? 8 : 4;
   const uint64_t blocks = read_header_uint(src, doc);
@@ -275,25 +281,29 @@ std::string read_binary(ByteSource& src, const VtiDocument& doc, uint64_t expect
   if (expected > kMaxDeflateRatio * compressed + 1024)
     throw std::runtime_error(where + ": " + std::to_string(compressed) + " compressed bytes cannot hold " +
                              std::to_string(expected) + " bytes");
-  out.resize(expected);
-  uint64_t done = 0;
+  // One block at a time; a block cannot expand past zlib's ratio either, which bounds the buffer.
+  std::string block;
   for (uint64_t b = 0; b < blocks; ++b) {
     const uint64_t want = (b + 1 == blocks && last_size) ? last_size : block_size;
     std::string_view in = src.read(sizes[b]);
+    if (want > kMaxDeflateRatio * in.size() + 1024)
+      throw std::runtime_error(where + ": zlib block " + std::to_string(b) + " of " + std::to_string(in.size()) +
+                               " bytes cannot hold " + std::to_string(want));
+    block.resize(want);
     uLongf got = static_cast<uLongf>(want);
-    const int rc = uncompress(reinterpret_cast<Bytef*>(out.data() + done), &got,
-                              reinterpret_cast<const Bytef*>(in.data()), static_cast<uLong>(in.size()));
+    const int rc = uncompress(reinterpret_cast<Bytef*>(block.data()), &got, reinterpret_cast<const Bytef*>(in.data()),
+                              static_cast<uLong>(in.size()));
     if (rc != Z_OK || got != want)
       throw std::runtime_error(where + ": zlib block " + std::to_string(b) + " is corrupt (" +
                                (rc == Z_OK ? "wrong size" : zError(rc)) + ")");
-    done += want;
+    sink(block);
   }
-  return out;
 }
 
 std::vector<float> decode_array(std::string_view bytes, const VtiDocument& doc, const VtiArray& a, const std::string& file) {
   const std::string where = file + ": array '" + a.name + "'";
   const uint64_t count = checked_mul(a.tuples, a.components, kMaxVoxels, file, "array '" + a.name + "'");
+  check_memory(count * sizeof(float), where + ": " + std::to_string(count) + " values");
   std::vector<float> v;
   if (a.format == "ascii") {
     std::string_view text = bytes.substr(a.content_begin, a.content_end - a.content_begin);
@@ -318,15 +328,31 @@ std::vector<float> decode_array(std::string_view bytes, const VtiDocument& doc, 
   std::string_view region = a.format == "binary" ? bytes.substr(a.content_begin, a.content_end - a.content_begin)
                                                  : bytes.substr(doc.appended_begin + a.offset);
   ByteSource src(region, a.format == "binary" || doc.appended_base64);
-  std::string raw;
+  // Bytes arrive in blocks that need not end on an element: a partial element waits in `carry`.
+  const uint64_t elem = element_bytes(a.type);
+  uint64_t filled = 0;
+  std::string carry;
+  auto decode = [&](std::string_view bytes) {
+    // Allocated with the first bytes, once read_binary has checked the sizes its header claims.
+    if (v.size() != count) v.resize(count);
+    if (!carry.empty()) {
+      const size_t take = std::min<size_t>(elem - carry.size(), bytes.size());
+      carry.append(bytes.substr(0, take));
+      bytes.remove_prefix(take);
+      if (carry.size() == elem) decode_elements(carry.data(), 1, a.type, doc.big_endian, v.data() + filled++), carry.clear();
+    }
+    const uint64_t whole = bytes.size() / elem;
+    decode_elements(bytes.data(), whole, a.type, doc.big_endian, v.data() + filled);
+    filled += whole;
+    carry.assign(bytes.substr(whole * elem));
+    checkpoint("load");
+  };
   try {
-    raw = read_binary(src, doc, count * element_bytes(a.type), where);
+    read_binary(src, doc, count * elem, where, decode);
   } catch (const std::runtime_error& e) {
     const std::string m = e.what();
     throw std::runtime_error(m.rfind(file, 0) == 0 ? m : where + ": " + m);
   }
-  v.resize(count);
-  decode_elements(raw.data(), count, a.type, doc.big_endian, v.data());
   return v;
 }
 

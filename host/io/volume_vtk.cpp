@@ -8,6 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "memory_budget.h"
 #include "volume_formats.h"
 #include "volume_info.h"
 #include "volume_io.h"
@@ -313,6 +314,7 @@ VtkDocument parse_document(std::string_view bytes, const std::string& file) {
 
 std::vector<float> decode_array(std::string_view bytes, const VtkDocument& doc, const VtkArray& a, const std::string& file) {
   const uint64_t count = a.tuples * a.components;  // checked in skip_data
+  check_memory(count * sizeof(float), file + ": array '" + a.name + "': " + std::to_string(count) + " values");
   std::vector<float> v(count);
   if (doc.binary) {
     decode_elements(bytes.data() + a.data_begin, count, a.type, true, v.data());

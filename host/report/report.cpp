@@ -7,7 +7,9 @@
 
 #include "atomic_file.h"
 #include "camera.h"
+#include "cancellation.h"
 #include "gpu_voxel_ops.h"
+#include "memory_budget.h"
 #include "png_io.h"
 #include "progress.h"
 #include "render.h"
@@ -86,16 +88,28 @@ nlohmann::json settings_json(const RenderSettings& s) {
 
 }  // namespace
 
-ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::filesystem::path& dir) {
+std::vector<std::string> report_file_names() {
+  return {"reference.png",       "field_reference_tf.png", "field_optimized_tf.png", "residual_reference_tf.png",
+          "residual_optimized_tf.png", "tf_reference.png",  "tf_field_reference.png", "tf_optimized.png",
+          "tf_residual.png",     "loss.png",               "overview.png",           "metrics.json",
+          "index.html"};
+}
+
+ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::filesystem::path& final_dir) {
   require_same_grid(in.ref, in.field);
   const OptimizeResult& r = in.result;
   const RenderSettings& s = in.settings;
   validate(s);
-  std::filesystem::create_directories(dir);
+  check_render_size(ctx, s);
+  // Everything goes to temporary names (a staged directory when `final_dir` is new) that appear
+  // together when the report is complete, or, inside a command's batch, when the command is.
+  OutputBatch batch;
+  const std::filesystem::path dir = batch.directory(final_dir);
   ReportSummary out;
   Progress progress("report", 10);
   uint64_t step = 0;
   auto advance = [&](const char* what) {
+    checkpoint("report");
     progress.set_label(std::string("report: ") + what);
     progress.update(++step);
   };
@@ -104,7 +118,10 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
     out.files.push_back(name);
   };
 
-  // Both fields and the three TF tables on the device once; every picture below reuses them.
+  // Both fields and the three TF tables on the device once; every picture below reuses them, and
+  // the residual maps (host and device copies) come on top.
+  check_device_memory(ctx, 3 * in.ref.values.size() * sizeof(float), "report: uploading both fields");
+  check_memory(2 * in.ref.values.size() * sizeof(float), "report: residual maps");
   const VolumeGeometry geometry = VolumeGeometry::from(in.ref.dims, in.ref.spacing);
   DeviceField ref(ctx, in.ref.values, "report: reference field");
   DeviceField field(ctx, in.field.values, "report: second field", ref.chunk_voxels());
@@ -199,7 +216,8 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   advance("index.html");
   write_file_atomically(dir / "index.html", report_html(in, out, metrics));
   out.files.push_back("index.html");
-  out.index = dir / "index.html";
+  out.index = final_dir / "index.html";
+  batch.commit();
   progress.finish();
   return out;
 }

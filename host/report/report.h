@@ -51,9 +51,14 @@ struct ReportSummary {
   std::vector<std::string> files;  // every file written, relative to the report directory
 };
 
-// Renders, measures and writes the report into `dir` (created if missing; files inside are
-// replaced atomically). Shows progress on a terminal. Throws std::runtime_error for unusable
-// input (grids differ) or when a file cannot be written.
+// Renders, measures and writes the report into `dir` (created if missing; other files there are
+// kept). Its files appear together when it is complete (host/io/atomic_file.h: an OutputBatch of
+// its own, or the caller's), so a failed or interrupted report leaves nothing behind. Shows
+// progress on a terminal. Throws std::runtime_error for unusable input (grids differ, an image
+// too large for the device) or when a file cannot be written.
 ReportSummary write_report(Context& ctx, const ReportInputs& inputs, const std::filesystem::path& dir);
+
+// The names write_report() may write inside its directory (for FilePlan::output_directory).
+std::vector<std::string> report_file_names();
 
 }  // namespace tfm

@@ -6,6 +6,8 @@
 #include <iomanip>
 #include <stdexcept>
 
+#include "cancellation.h"
+#include "memory_budget.h"
 #include "solver_support.h"
 
 namespace tfm {
@@ -25,6 +27,7 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   out.ref_range = resolve_range(req.ref->values, ref_user, req.ref->name);
   out.field_range = resolve_range(req.field->values, req.field_range ? &*req.field_range : nullptr, req.field->name);
 
+  check_device_memory(ctx, 2 * req.ref->values.size() * sizeof(float), "uploading both fields");
   auto t0 = std::chrono::steady_clock::now();
   DeviceField ref(ctx, req.ref->values, "reference field", req.max_chunk_voxels);
   DeviceField opt(ctx, req.field->values, "second field", req.max_chunk_voxels);
@@ -51,6 +54,7 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   if (out.before.voxels == 0)
     throw std::runtime_error("no voxel has data in both " + req.ref->name + " and " + req.field->name);
 
+  checkpoint("solve");  // every solver passes here, however few steps of its own it checks
   SolverOutput solved = solver.solve(problem, args);
   for (auto& p : solved.phases) out.phases.push_back(p);
   out.warnings = solved.warnings;

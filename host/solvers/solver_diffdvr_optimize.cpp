@@ -8,6 +8,7 @@
 
 #include "adam.h"
 #include "cameras.h"
+#include "cancellation.h"
 #include "progress.h"
 #include "solver_diffdvr.h"
 #include "solver_normal_equations.h"
@@ -82,6 +83,7 @@ DiffDvrResult solve_diffdvr_gpu(VoxelProblem& p, const DiffDvrOptions& o) {
   Progress progress("diffdvr", o.iterations);
   t0 = std::chrono::steady_clock::now();
   for (uint32_t it = 0; it < o.iterations; ++it) {
+    checkpoint("solve");
     const std::vector<OrbitCamera> cameras = o.fibonacci ? fixed : random.next(o.views_per_iteration);
     to_tf();
     const ImageLossGradient r = gradient.evaluate(tf, cameras);

@@ -37,7 +37,11 @@ std::shared_ptr<Context> make_context(bool validation_when_installed = false);
 // `tfmatch --version`: version, git commit, build type, Vulkan headers, compiler (one per line).
 std::string version_text();
 
-// Parses "lo,hi"; throws CLI::ValidationError with a clear message.
+// Parses "lo,hi"; throws CLI::ValidationError with a clear message (check_range's for a range
+// that is not finite, reversed, or beyond float32).
 FieldRange parse_range(const std::string& text, const std::string& flag);
+
+// Accepts a positive integer only: CLI11 alone reads "-64" into an unsigned as 2^64 - 64.
+const CLI::Validator& positive_integer();
 
 }  // namespace tfm::cli

@@ -14,6 +14,7 @@
 #include "atomic_file.h"
 #include "cli.h"
 #include "commands.h"
+#include "output_check.h"
 #include "eigen_baseline.h"
 #include "gpu_voxel_ops.h"
 #include "synthetic.h"
@@ -60,6 +61,7 @@ double copy_ms(Context& ctx, const DeviceField& field, int repeats) {
 }
 
 int run(const BenchArgs& a) {
+  FilePlan().output(a.json, "--json").check();
   auto ctx = make_context();
   if (!ctx->timestamps_supported()) throw std::runtime_error("this device has no timestamps; cannot benchmark");
   nlohmann::json out;

@@ -11,10 +11,12 @@
 #include <nlohmann/json.hpp>
 
 #include "atomic_file.h"
+#include "cancellation.h"
 #include "cli.h"
 #include "correlation.h"
 #include "correlation_cpu.h"
 #include "grid_point.h"
+#include "output_check.h"
 #include "progress.h"
 #include "synthetic_ensemble.h"
 
@@ -68,6 +70,7 @@ BenchEnsemble bench_ensemble(uint32_t members, uint64_t voxels) {
 
 int run(BenchArgs a) {
   set_progress_enabled(!globals().quiet);
+  FilePlan().output(a.json == "-" ? "" : a.json, "--json").check();
   if (a.quick) {
     a.voxels = std::min<uint64_t>(a.voxels, 2000);
     a.members = {10, 40};
@@ -98,7 +101,10 @@ int run(BenchArgs a) {
       kernel.compute(warm, ensemble_series(warm, 0), p);  // pipeline creation is not measured
       Progress progress(name + " M=" + std::to_string(members) + " GPU", voxels);
       auto t0 = std::chrono::steady_clock::now();
-      const std::vector<float> gpu = kernel.compute(ens, reference, p, [&](uint64_t done, uint64_t) { progress.update(done); });
+      const std::vector<float> gpu = kernel.compute(ens, reference, p, [&](uint64_t done, uint64_t) {
+        checkpoint("correlate");
+        progress.update(done);
+      });
       const double gpu_s = seconds_since(t0);
       progress.set_label(name + " M=" + std::to_string(members) + " CPU");
       t0 = std::chrono::steady_clock::now();

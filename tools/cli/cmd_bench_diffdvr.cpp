@@ -14,6 +14,7 @@
 #include "gpu_voxel_ops.h"
 #include "metrics.h"
 #include "optimize.h"
+#include "output_check.h"
 #include "progress.h"
 #include "render.h"
 #include "render_options.h"
@@ -200,6 +201,7 @@ nlohmann::json bench_cube(Context& ctx, const BenchArgs& a) {
 
 int run(const BenchArgs& a) {
   set_progress_enabled(!globals().quiet);
+  FilePlan().output(a.json, "--json").check();
   validate(a.settings);
   auto ctx = make_context();
   nlohmann::json j{{"device", ctx->device_name()}};

@@ -10,6 +10,7 @@
 #include "cli.h"
 #include "cpu_renderer.h"
 #include "gpu_voxel_ops.h"
+#include "output_check.h"
 #include "progress.h"
 #include "render.h"
 #include "render_options.h"
@@ -33,6 +34,7 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
 
 int run(const BenchArgs& a) {
   set_progress_enabled(!globals().quiet);
+  FilePlan().output(a.json, "--json").check();
   auto ctx = make_context();
   const bool quiet = globals().quiet;
   if (!quiet) std::cerr << "generating the " << a.size << "^3 synthetic volume...\n";

@@ -11,6 +11,7 @@
 #include "correlation_field.h"
 #include "ensemble_io.h"
 #include "grid_point.h"
+#include "output_check.h"
 #include "progress.h"
 #include "render_options.h"
 #include "volume_vti.h"
@@ -50,13 +51,20 @@ int run(const CorrelateArgs& a) {
   if (ext == ".png" || ext == ".json")
     throw CLI::ValidationError("--out", "'" + a.out + "' would hold a field: name it .vti (ParaView) or .raw (float32)");
 
+  const std::vector<std::string> member_files = a.members.empty() ? std::vector<std::string>{}
+                                                                     : expand_member_patterns(a.members);
+  FilePlan files;
+  files.input_spec(a.ensemble, "--ensemble");
+  for (const std::string& m : member_files) files.input_spec(m, "--members");
+  files.output(a.out, "--out").output(a.json == "-" ? "" : a.json, "--json").check();
+  OutputBatch outputs;
+
   VolumeOptions vo = a.volume_flags.options();
   vo.variable = a.var;
   vo.time_index = a.time;
   vo.member_dim = a.member_dim;
   const auto t0 = std::chrono::steady_clock::now();
-  const Ensemble ens = a.ensemble.empty() ? load_ensemble_members(expand_member_patterns(a.members), vo)
-                                          : load_ensemble(a.ensemble, vo);
+  const Ensemble ens = a.ensemble.empty() ? load_ensemble_members(member_files, vo) : load_ensemble(a.ensemble, vo);
   const std::string source = ens.grid.name;
   if (ens.member_count < 3)
     throw std::runtime_error(source + ": " + std::to_string(ens.member_count) +
@@ -124,8 +132,9 @@ int run(const CorrelateArgs& a) {
   if (params.measure == CorrelationMeasure::MiBinned) j["bins"] = params.bins;
   if (params.measure == CorrelationMeasure::MiKraskov || params.measure == CorrelationMeasure::MiCoefficient) j["k"] = params.k;
   if (p2) j["point2"] = *p2, j["point2_description"] = describe_grid_point(ens.grid, *p2);
+  if (!a.json.empty() && a.json != "-") write_file_atomically(a.json, j.dump(2) + "\n");
+  outputs.commit();
   if (a.json == "-") std::cout << j.dump(2) << "\n";
-  else if (!a.json.empty()) write_file_atomically(a.json, j.dump(2) + "\n");
   if (!globals().quiet && a.json != "-") {
     const auto& d = ens.grid.dims;
     std::cout << "ensemble " << source << ": " << ens.member_count << " members on " << d[0] << "x" << d[1] << "x" << d[2]

@@ -2,12 +2,15 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <optional>
 
 #include "atomic_file.h"
 #include "correlation_field.h"
 #include "cli.h"
 #include "optimize.h"
+#include "output_check.h"
 #include "progress.h"
+#include "render.h"
 #include "render_options.h"
 #include "report.h"
 #include "loss_plot.h"
@@ -101,15 +104,36 @@ DemoInputs ensemble_demo(Context& ctx, const DemoArgs& a, const std::filesystem:
   return in;
 }
 
+// The files the demo writes into its output directory.
+std::vector<std::string> demo_file_names(const DemoArgs& a) {
+  std::vector<std::string> names = {"reference_tf.json", "optimized_tf.json", "summary.json"};
+  if (a.ensemble) {
+    for (CorrelationMeasure m : {CorrelationMeasure::MiCoefficient, CorrelationMeasure::Pearson})
+      names.push_back(std::string(correlation_measure_name(m)) + ".vti");
+  } else {
+    const uint64_t n = a.size ? a.size : 96;
+    const std::string dims = std::to_string(n) + "x" + std::to_string(n) + "x" + std::to_string(n);
+    for (const char* name : {"reference_", "field_"}) names.push_back(name + dims + "_float32.raw");
+  }
+  return names;
+}
+
 int run(const DemoArgs& a) {
   SolverSettings settings;
   settings.render = a.render;  // image-based solvers render as the report does
   settings.extra = a.extra;
   parse_solver_args(require_solver(a.solver), settings);  // bad solver flags fail before any work
+  const std::filesystem::path report_dir = a.report.empty() ? std::filesystem::path(a.out) : std::filesystem::path(a.report);
+  FilePlan()
+      .output_directory(a.out, "--out", demo_file_names(a))
+      .output_directory(a.no_report ? std::filesystem::path() : report_dir, a.report.empty() ? "--out" : "--report",
+                        report_file_names())
+      .check();
   if (!a.no_report) validate(a.render);
-  std::filesystem::create_directories(a.out);
-  const std::filesystem::path dir = a.out;
   auto ctx = make_context();
+  if (!a.no_report) check_render_size(*ctx, a.render);
+  OutputBatch outputs;  // the directory and its files appear when the demo is complete
+  const std::filesystem::path dir = outputs.directory(a.out);
   set_progress_enabled(!globals().quiet);
   DemoInputs in = a.ensemble ? ensemble_demo(*ctx, a, dir) : fields_demo(a, dir);
   write_tf_json(dir / "reference_tf.json", in.ref_tf);
@@ -127,21 +151,24 @@ int run(const DemoArgs& a) {
   if (!globals().quiet) {
     std::cout << in.description;
     result.print_summary(std::cout);
-    std::cout << "  wrote " << dir.string() << "/{";
-    for (const auto& f : in.written) std::cout << f << ", ";
-    std::cout << "reference_tf.json, optimized_tf.json, summary.json}\n";
   }
+  std::optional<ReportSummary> summary;
   if (!a.no_report) {
-    const std::filesystem::path report_dir = a.report.empty() ? dir : std::filesystem::path(a.report);
     ReportInputs inputs{in.ref, in.field, in.ref_tf, result, a.render};
     inputs.extra_figures = solver_report_figures(result, a.render.width);  // diffdvr: loss curve
     inputs.title = in.title;
     inputs.markers = in.markers;
-    ReportSummary summary = write_report(*ctx, inputs, report_dir);
-    if (!globals().quiet)
-      std::cout << "  images vs reference: reference TF " << summary.before.to_string() << "\n"
-                << "                       optimized TF " << summary.after.to_string() << "\n"
-                << "  report: " << summary.index.string() << "\n";
+    summary = write_report(*ctx, inputs, report_dir);
+  }
+  outputs.commit();
+  if (!globals().quiet) {
+    std::cout << "  wrote " << a.out << "/{";
+    for (const auto& f : in.written) std::cout << f << ", ";
+    std::cout << "reference_tf.json, optimized_tf.json, summary.json}\n";
+    if (summary)
+      std::cout << "  images vs reference: reference TF " << summary->before.to_string() << "\n"
+                << "                       optimized TF " << summary->after.to_string() << "\n"
+                << "  report: " << summary->index.string() << "\n";
   }
   return 0;
 }

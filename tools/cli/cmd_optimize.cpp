@@ -1,13 +1,15 @@
 // `tfmatch optimize`: fit a TF for a second field to a reference field and its TF.
-#include <fstream>
 #include <iostream>
 #include <map>
+#include <optional>
 
 #include "atomic_file.h"
 #include "cli.h"
 #include "input_options.h"
 #include "optimize.h"
+#include "output_check.h"
 #include "progress.h"
+#include "render.h"
 #include "render_options.h"
 #include "report.h"
 #include "loss_plot.h"
@@ -37,13 +39,23 @@ int run(const OptimizeArgs& a) {
   settings.solve.ridge = a.ridge;
   settings.solve.smooth = a.smooth;
   settings.extra = a.extra;
-  settings.solve.factorization = a.factorization == "ldlt" ? Factorization::LDLT
-                                 : a.factorization == "qr" ? Factorization::QR
-                                                           : Factorization::Auto;
+  settings.solve.factorization = a.factorization == "ldlt" ? Factorization::LDLT : Factorization::Auto;
   parse_solver_args(require_solver(a.solver), settings);  // bad solver flags fail before loading
+  // Every file checked before any work: no output replaces an input or another output.
+  FilePlan()
+      .input_spec(a.in.ref, "--ref")
+      .input_spec(a.in.field, "--field")
+      .input_spec(a.in.ref_tf, "--ref-tf")
+      .output(a.out, "--out")
+      .output(a.json, "--json")
+      .output_directory(a.report, "--report", report_file_names())
+      .check();
   if (!a.report.empty()) validate(a.render);  // fail before the solve, not after
   if (a.report.empty() && !a.markers.empty())
     throw CLI::ValidationError("--marker", "markers are drawn on the report's renderings: add --report DIR");
+  auto ctx = make_context();
+  if (!a.report.empty()) check_render_size(*ctx, a.render);
+  OutputBatch outputs;  // nothing appears unless every output is complete
   LoadedInputs loaded;
   load_inputs(a.in, loaded);
   const Volume& ref = loaded.ref;
@@ -52,25 +64,26 @@ int run(const OptimizeArgs& a) {
   OptimizeRequest& req = loaded.request;
   req.solver = a.solver;
   req.settings = settings;
-  auto ctx = make_context();
   OptimizeResult result = run_optimize(*ctx, req);
+  if (!globals().quiet) result.print_summary(std::cout);
   write_transfer_function(a.out, result.tf);
   if (!a.json.empty()) write_file_atomically(a.json, to_json(result).dump(2) + "\n");
-  if (!globals().quiet) {
-    result.print_summary(std::cout);
-    std::cout << "  wrote " << a.out << (a.json.empty() ? "" : " and " + a.json) << "\n";
-  }
+  std::optional<ReportSummary> summary;
   if (!a.report.empty()) {
     set_progress_enabled(!globals().quiet);
     ReportInputs inputs{ref, field, req.ref_tf, result, a.render};
     inputs.extra_figures = solver_report_figures(result, a.render.width);  // diffdvr: loss curve
     inputs.title = "tfmatch: " + field.name + " matched to " + ref.name;
     inputs.markers = markers;
-    ReportSummary summary = write_report(*ctx, inputs, a.report);
-    if (!globals().quiet)
-      std::cout << "  images vs reference: reference TF " << summary.before.to_string() << "\n"
-                << "                       optimized TF " << summary.after.to_string() << "\n"
-                << "  report: " << summary.index.string() << "\n";
+    summary = write_report(*ctx, inputs, a.report);
+  }
+  outputs.commit();
+  if (!globals().quiet) {
+    std::cout << "  wrote " << a.out << (a.json.empty() ? "" : " and " + a.json) << "\n";
+    if (summary)
+      std::cout << "  images vs reference: reference TF " << summary->before.to_string() << "\n"
+                << "                       optimized TF " << summary->after.to_string() << "\n"
+                << "  report: " << summary->index.string() << "\n";
   }
   return 0;
 }
@@ -87,8 +100,9 @@ CommandRegistration reg(10, [](CLI::App& app) {
   sub->add_option("--smooth", args->smooth, "First-difference smoothness weight, relative to the mean diagonal of M (diffdvr: "
                   "weight of (N-1) sum of squared TF differences, added to the mean image loss)")
       ->check(CLI::NonNegativeNumber);
-  sub->add_option("--factorization", args->factorization, "normal-equations: auto, ldlt or qr")
-      ->check(CLI::IsMember({"auto", "ldlt", "qr"}))->capture_default_str();
+  sub->add_option("--factorization", args->factorization, "normal-equations: auto (LDL^T deciding the rank entry by "
+                  "entry: the minimum-norm solution when M is singular) or ldlt (no rank decision)")
+      ->check(CLI::IsMember({"auto", "ldlt"}))->capture_default_str();
   sub->add_option("--json", args->json, "Also write the summary as JSON");
   add_solver_options(sub, args->extra);
   sub->add_option("--report", args->report, "Write a report into this directory: renderings before/after, residual "

@@ -2,7 +2,9 @@
 #include <chrono>
 #include <iostream>
 
+#include "atomic_file.h"
 #include "cli.h"
+#include "output_check.h"
 #include "png_io.h"
 #include "progress.h"
 #include "render.h"
@@ -23,16 +25,19 @@ struct RenderArgs {
 
 int run(const RenderArgs& a) {
   set_progress_enabled(!globals().quiet);
-  Volume volume = load_volume(a.volume, a.volume_flags.options());
-  TransferFunction tf = read_transfer_function(a.tf);
+  FilePlan().input_spec(a.volume, "--volume").input_spec(a.tf, "--tf").output(a.out, "--out").check();
   FieldRange user;
   if (!a.range.empty()) user = parse_range(a.range, "--range");
+  validate(a.settings);
+  auto ctx = make_context();
+  check_render_size(*ctx, a.settings);  // before loading: a too-large image fails in a second
+  OutputBatch outputs;
+  Volume volume = load_volume(a.volume, a.volume_flags.options());
+  TransferFunction tf = read_transfer_function(a.tf);
   const FieldRange* given = !a.range.empty() ? &user : (tf.range ? &*tf.range : nullptr);
   const FieldRange range = resolve_range(volume.values, given, volume.name);
-  validate(a.settings);
   const std::vector<GridIndex> markers = resolve_markers(volume, a.markers);
 
-  auto ctx = make_context();
   const auto t0 = std::chrono::steady_clock::now();
   RenderedImage image;
   {
@@ -43,6 +48,7 @@ int run(const RenderArgs& a) {
   Image picture = composite_over(image, a.settings.background);
   draw_markers(picture, VolumeGeometry::from(volume.dims, volume.spacing), a.settings, markers);
   write_png(a.out, picture);
+  outputs.commit();
   if (!globals().quiet)
     std::cout << "rendered " << volume.name << " (" << volume.dims[0] << "x" << volume.dims[1] << "x"
               << volume.dims[2] << ", range [" << range.lo << ", " << range.hi << "]) at " << a.settings.width

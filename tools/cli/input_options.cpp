@@ -25,7 +25,7 @@ void add_input_options(CLI::App* sub, InputArgs& a, bool required) {
   sub->add_option("--ref-range", a.ref_range, "Reference field range lo,hi (default: TF file's, else finite min/max)");
   sub->add_option("--field-range", a.field_range, "Field range lo,hi (default: finite min/max)");
   sub->add_option("--dims", a.dims, "Raw files: grid size X Y Z (when the file name does not say)")->expected(3)
-      ->delimiter(',');
+      ->delimiter(',')->check(positive_integer());
   sub->add_option("--type", a.type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)");
   sub->add_flag("--big-endian", a.big_endian, "Raw files: big-endian data");
   // Which formats have variables, times and members comes from the format table.

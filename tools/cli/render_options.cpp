@@ -1,11 +1,13 @@
 // The shared render flags.
 #include "render_options.h"
-#include "volume_io.h"
 
 #include <cctype>
 #include <cstdlib>
 #include <memory>
 #include <stdexcept>
+
+#include "cli.h"
+#include "volume_io.h"
 
 namespace tfm::cli {
 
@@ -53,7 +55,7 @@ VolumeOptions VolumeFlags::options() const {
 void add_volume_flags(CLI::App* sub, VolumeFlags& f) {
   const std::string g = "Raw volumes";
   sub->add_option("--dims", f.dims, "Raw files: grid size X,Y,Z (when the file name does not say)")->expected(3)
-      ->delimiter(',')->group(g);
+      ->delimiter(',')->check(positive_integer())->group(g);
   sub->add_option("--type", f.type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)")->group(g);
   sub->add_flag("--big-endian", f.big_endian, "Raw files: big-endian data")->group(g);
 }

@@ -1,6 +1,8 @@
 // The optimization report: every picture and file written, metrics.json consistent with the
 // PNGs on disk, the optimized TF moving the images closer on the demo pair, and a page that
 // references every picture.
+#include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -43,6 +45,12 @@ TEST_F(Report, WritesPicturesMetricsAndPage) {
   in.title = "test <report>";
   in.extra_figures.push_back({"Loss", "loss.png", Image(20, 10, {0, 0, 255}), "a curve"});
   const ReportSummary s = write_report(ctx(), in, dir.path);
+  // Every file written is one report_file_names() lists (the output plan of the commands relies
+  // on it), and the directory holds those files only: no temporary file is left.
+  const std::vector<std::string> names = report_file_names();
+  for (const std::string& f : s.files) EXPECT_NE(std::find(names.begin(), names.end(), f), names.end()) << f;
+  EXPECT_EQ(size_t(std::distance(std::filesystem::directory_iterator(dir.path), std::filesystem::directory_iterator{})),
+            s.files.size());
 
   for (const char* name : {"reference.png", "field_reference_tf.png", "field_optimized_tf.png",
                            "residual_reference_tf.png", "residual_optimized_tf.png"}) {
