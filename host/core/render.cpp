@@ -52,7 +52,7 @@ RenderedImage GpuRenderer::render(const FieldMapping& mapping, const Buffer& tf,
 
 RenderedImage render_volume(Context& ctx, const Volume& volume, const TransferFunction& tf, const FieldRange& range,
                             const RenderSettings& settings, Progress* progress) {
-  const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing);
+  const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing, settings.z_scale);
   if (volume.values.size() != volume.voxel_count())
     throw std::runtime_error(volume.name + ": value count differs from the grid size");
   DeviceField field(ctx, volume.values, volume.name.empty() ? "render field" : volume.name);

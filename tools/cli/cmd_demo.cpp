@@ -31,6 +31,7 @@ struct DemoArgs {
   bool ensemble = false;     // the ensemble use case instead of the field pair
   uint32_t members = 64;
   RenderSettings render;
+  std::string histogram = "log";             // report TF plots: log or linear counts
   std::map<std::string, std::string> extra;  // solver options (solver_options.h), as optimize has
 };
 
@@ -137,6 +138,9 @@ int run(const DemoArgs& a) {
     inputs.extra_figures = solver_report_figures(result, a.render.width);  // diffdvr: loss curve
     inputs.title = in.title;
     inputs.markers = in.markers;
+    inputs.histogram_log = a.histogram == "log";
+    inputs.command_line = globals().command_line;
+    inputs.version = version_line();
     ReportSummary summary = write_report(*ctx, inputs, report_dir);
     if (!globals().quiet)
       std::cout << "  images vs reference: reference TF " << summary.before.to_string() << "\n"
@@ -163,6 +167,7 @@ CommandRegistration reg(0, [](CLI::App& app) {
       ->capture_default_str();
   add_solver_options(sub, args->extra);
   add_render_options(sub, args->render);
+  add_histogram_option(sub, args->histogram);
   sub->footer(solver_descriptions());
   sub->callback([args] { exit_code() = run(*args); });
 });

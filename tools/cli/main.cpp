@@ -1,9 +1,11 @@
 // The `tfmatch` program: parses the command line and runs the chosen subcommand.
 #include <algorithm>
+#include <cctype>
 #include <cstdlib>
 #include <exception>
 #include <iostream>
 #include <sstream>
+#include <string_view>
 
 #include "cli.h"
 #include "tfmatch_version.h"  // generated in the build directory (top-level CMakeLists.txt)
@@ -85,10 +87,28 @@ std::string version_text() {
   return os.str();
 }
 
+std::string version_line() { return std::string("tfmatch ") + TFMATCH_VERSION + " (commit " + TFMATCH_GIT_COMMIT + ")"; }
+
+// argv as a shell would need it typed: words with anything but [A-Za-z0-9_./:=,+-@%] single-quoted.
+static std::string quoted_command_line(int argc, char** argv) {
+  std::string out;
+  for (int i = 0; i < argc; ++i) {
+    const std::string w = argv[i];
+    const bool plain = !w.empty() && std::all_of(w.begin(), w.end(), [](char c) {
+      return std::isalnum(static_cast<unsigned char>(c)) || std::string_view("_./:=,+-@%").find(c) != std::string_view::npos;
+    });
+    std::string q = "'";
+    for (char c : w) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    out += (i ? " " : "") + (plain ? w : q + "'");
+  }
+  return out;
+}
+
 }  // namespace tfm::cli
 
 int main(int argc, char** argv) {
   using namespace tfm::cli;
+  globals().command_line = quoted_command_line(argc, argv);
   CLI::App app{"tfmatch: optimize a transfer function so a second field's volume renderings match a reference's"};
   app.require_subcommand(1);
   app.set_help_all_flag("--help-all", "Print help for every subcommand");
