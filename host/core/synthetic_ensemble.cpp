@@ -89,23 +89,14 @@ Ensemble synthetic_ensemble(uint64_t nx, uint64_t ny, uint64_t nz, uint32_t memb
 }
 
 TransferFunction correlation_transfer_function(uint32_t n) {
-  // Colour stops (t, r, g, b); opacity a smooth step from 0 below t = 0.3 to 0.9 at the top, so
-  // weak dependence is transparent and strong dependence shows as a solid core.
-  struct Stop { double t, r, g, b; };
-  const Stop stops[] = {{0.0, 0.25, 0.05, 0.45}, {0.5, 0.85, 0.25, 0.35}, {0.8, 0.98, 0.62, 0.15},
-                        {1.0, 0.99, 0.95, 0.55}};
-  TransferFunction tf;
-  tf.rgba.resize(n);
-  for (uint32_t j = 0; j < n; ++j) {
-    const double t = double(j) / (n - 1);
-    size_t k = 0;
-    while (k + 2 < std::size(stops) && t > stops[k + 1].t) ++k;
-    const double w = std::clamp((t - stops[k].t) / (stops[k + 1].t - stops[k].t), 0.0, 1.0);
+  // Opacity a smooth step from 0 below t = 0.3 to 0.9 at the top, so weak dependence is
+  // transparent and strong dependence shows as a solid core.
+  const ColorStop stops[] = {{0.0, 0.25, 0.05, 0.45}, {0.5, 0.85, 0.25, 0.35}, {0.8, 0.98, 0.62, 0.15},
+                             {1.0, 0.99, 0.95, 0.55}};
+  return tf_from_color_stops(n, stops, [](double t) {
     const double u = std::clamp((t - 0.3) / 0.7, 0.0, 1.0);
-    tf.rgba[j] = {(1 - w) * stops[k].r + w * stops[k + 1].r, (1 - w) * stops[k].g + w * stops[k + 1].g,
-                  (1 - w) * stops[k].b + w * stops[k + 1].b, 0.9 * u * u * (3 - 2 * u)};
-  }
-  return tf;
+    return 0.9 * u * u * (3 - 2 * u);
+  });
 }
 
 }  // namespace tfm
