@@ -115,8 +115,8 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
     << metric_row("Voxel MAE (RGBA)", r.before.mae(), r.after.mae(), 5, false)
     << metric_row("Residual max", s.residual_max_before, s.residual_max_after, 4, false) << "</table>\n"
     << "<p class=\"note\">Image metrics compare each rendering of the second field with the reference "
-       "rendering on the PNGs as written: 8-bit sRGB after compositing over the background in linear RGB "
-       "(without the box outline and markers drawn on the pictures). SSIM: Wang et al. 2004, 11&times;11 "
+       "rendering on the 8-bit sRGB pictures as written to the PNGs (composited over the background in "
+       "linear RGB), measured before the box outline and markers are drawn on them. SSIM: Wang et al. 2004, 11&times;11 "
        "Gaussian window (&sigma; = 1.5), K1 = 0.01, K2 = 0.03. LPIPS is not computed (it needs "
        "pretrained network weights). All numbers are in <a href=\"metrics.json\">metrics.json</a>.</p>\n";
 
