@@ -15,6 +15,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "output_check.h"
+#include "output_options.h"
 #include "eigen_baseline.h"
 #include "gpu_voxel_ops.h"
 #include "synthetic.h"
@@ -61,7 +62,8 @@ double copy_ms(Context& ctx, const DeviceField& field, int repeats) {
 }
 
 int run(const BenchArgs& a) {
-  FilePlan().output(a.json, "--json").check();
+  const JsonOutput json(a.json);  // first: with '-', stdout holds only the JSON
+  FilePlan().output(json.file(), "--json").check();
   auto ctx = make_context();
   if (!ctx->timestamps_supported()) throw std::runtime_error("this device has no timestamps; cannot benchmark");
   nlohmann::json out;
@@ -145,7 +147,7 @@ int run(const BenchArgs& a) {
               << max_rel << std::defaultfloat << "\n";
     out["runs"].push_back(entry);
   }
-  if (!a.json.empty()) write_file_atomically(a.json, out.dump(2) + "\n");
+  json.write(out);
   return 0;
 }
 
@@ -158,7 +160,7 @@ CommandRegistration reg(80, [](CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--cpu-max-voxels", args->cpu_max_voxels, "Skip the Eigen baseline above this size")
       ->capture_default_str();
-  sub->add_option("--json", args->json, "Also write the numbers as JSON");
+  add_json_option(sub, args->json, "the numbers");
   sub->callback([args] { exit_code() = run(*args); });
 });
 
