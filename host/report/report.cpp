@@ -131,13 +131,14 @@ nlohmann::json settings_json(const RenderSettings& s) {
             {"fov_deg", s.camera.fov_deg}}}};
 }
 
-// The slices through in.slice_point (default: the middle), one picture per axis with the four
+// The slices through in.slice_point (default: the first marker, else the middle), one picture per axis with the four
 // quantities side by side: the plane normal to z first (a map view for geophysical grids).
 template <class Save>
 void write_slices(const ReportInputs& in, const Volume& residual, const TransferFunction& res_tf,
                   const FieldRange& res_range, ReportSummary& out, Save& save) {
   const auto& d = in.ref.dims;
-  out.slice_point = in.slice_point ? *in.slice_point : GridIndex{d[0] / 2, d[1] / 2, d[2] / 2};
+  out.slice_point = in.slice_point ? *in.slice_point
+                                   : (!in.markers.empty() ? in.markers.front() : GridIndex{d[0] / 2, d[1] / 2, d[2] / 2});
   const OptimizeResult& r = in.result;
   SliceStyle style;
   style.background = in.settings.background;

@@ -41,7 +41,7 @@ struct ReportInputs {
   // metrics are computed on the renderings without them.
   std::vector<GridIndex> markers;
   // Axis-aligned slices (reference, field with each TF, residual after) go through this voxel;
-  // the grid's middle when not given.
+  // when not given, through the first marker, else the grid's middle.
   std::optional<GridIndex> slice_point;
   std::vector<ReportFigure> extra_figures;
   nlohmann::json extra_metrics;    // merged into metrics.json under "extra" when not null

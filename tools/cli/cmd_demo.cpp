@@ -163,7 +163,6 @@ int run(const DemoArgs& a) {
     inputs.extra_figures = solver_report_figures(result, a.render.width);  // diffdvr: loss curve
     inputs.title = in.title;
     inputs.markers = in.markers;
-    if (!in.markers.empty()) inputs.slice_point = in.markers.front();  // slices through the reference point
     inputs.histogram_log = a.histogram == "log";
     inputs.command_line = globals().command_line;
     inputs.version = version_line();

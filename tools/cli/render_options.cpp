@@ -93,7 +93,7 @@ void add_histogram_option(CLI::App* sub, std::string& histogram) {
 void add_slice_point_option(CLI::App* sub, std::string& point) {
   sub->add_option("--slice-point", point,
                   "The report's axis-aligned slices go through this voxel: I,J,K or lon=..,lat=..,level=.. "
-                  "(default: the middle)")
+                  "(default: the first --marker, else the middle)")
       ->group("Rendering");
 }
 
