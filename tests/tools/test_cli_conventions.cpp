@@ -254,8 +254,13 @@ TEST_F(CliConventions, OutputNamesMustNameTheFormatWritten) {
   expect_usage_error("convert-volume " + nc + ":A " + dir / "v.raw", {"v.raw", "name it .vti"}, dir / "v.raw");
   expect_usage_error("correlate --ensemble " + nc + ":E --point 1,1,1 --out " + dir / "c.png", {"name it .vti or .raw"},
                      dir / "c.png");
-  // Extensions compare without case; a ParaView preset is a .json.
+  // Extensions compare without case, for the check and for the format written; a ParaView preset
+  // is a .json.
   EXPECT_EQ(run_cli(render + dir / "X.PNG").exit_code, 0);
+  ASSERT_EQ(run_cli(residual + " --out " + dir / "R.VTI").exit_code, 0);
+  std::ifstream vti(dir / "R.VTI");
+  const std::string head((std::istreambuf_iterator<char>(vti)), std::istreambuf_iterator<char>());
+  EXPECT_NE(head.find("<VTKFile"), std::string::npos) << "R.VTI was not written as VTK ImageData";
   EXPECT_EQ(run_cli("convert-tf " + tf + " " + dir / "t.paraview.json").exit_code, 0);
 }
 

@@ -102,7 +102,7 @@ int run(const CorrelateArgs& a) {
   }
   const double compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
 
-  const bool vti = std::filesystem::path(a.out).extension() == ".vti";
+  const bool vti = has_extension(a.out, ".vti");
   if (vti) write_vti(a.out, field, field.name);
   else write_raw_float32(a.out, field);
 

@@ -57,7 +57,7 @@ int run(const ResidualArgs& a) {
 
   Volume residual = residual_map(*ctx, ref, ref_tf, ref_range, field, field_tf, field_range);
   // .vti opens in ParaView with its grid and spacing; anything else is float32 raw.
-  const bool vti = std::filesystem::path(a.out).extension() == ".vti";
+  const bool vti = has_extension(a.out, ".vti");
   if (vti) write_vti(a.out, residual, "residual");
   else write_raw_float32(a.out, residual);
   const FieldRange shown = display ? *display : residual_display_range({&residual});

@@ -51,11 +51,14 @@ const OutputFormat& vti_format() {
   return f;
 }
 
+bool has_extension(const std::string& path, const std::string& extension) {
+  return ends_with(lower(std::filesystem::path(path).filename().string()), extension);
+}
+
 // The problem with `path` as a file of `format`, or empty when its name fits.
 static std::string output_format_problem(const std::string& path, const OutputFormat& format) {
-  const std::string name = lower(std::filesystem::path(path).filename().string());
   for (const std::string& ext : format.extensions)
-    if (ends_with(name, ext)) return {};
+    if (has_extension(path, ext)) return {};
   std::string names;
   for (const std::string& ext : format.extensions) names += (names.empty() ? "" : " or ") + ext;
   return "'" + path + "' would hold a " + format.name + ": name it " + names;

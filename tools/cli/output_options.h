@@ -27,6 +27,9 @@ const OutputFormat& vti_format();
 // Throws CLI::ValidationError "ROLE: 'PATH' would hold a FORMAT: name it .EXT" when `path` does not
 // end in one of the format's extensions. An empty path (option not given) passes.
 void check_output_format(const std::string& path, const OutputFormat& format, const std::string& role);
+// True when the file name of `path` ends in `extension` (".vti"), compared without case as
+// check_output_format compares: how a command that writes two formats picks one.
+bool has_extension(const std::string& path, const std::string& extension);
 // The same check as a CLI11 validator, for an option whose value is an output file ('-' passes
 // when `allow_stdout`).
 CLI::Validator output_format(const OutputFormat& format, bool allow_stdout = false);
