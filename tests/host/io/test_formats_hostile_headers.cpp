@@ -63,6 +63,49 @@ TEST(FormatsHostileHeaders, NetcdfClassicHeaderClaimingGigabytesIsRefused) {
   expect_refused([&] { load_volume(dir / "name.nc"); }, {"name.nc: NetCDF header"});
 }
 
+// A CDF-1 file with dimensions (name, length) and one float variable "v" over `var_dims`.
+std::string netcdf_with(const std::vector<std::pair<std::string, uint32_t>>& dims, const std::vector<uint32_t>& var_dims,
+                        uint32_t var_type = 5) {
+  auto name = [](std::string& s, const std::string& n) {
+    put(s, n.size(), 4);
+    s += n;
+    s.resize((s.size() + 3) / 4 * 4, '\0');
+  };
+  std::string s = std::string("CDF\x01", 4);
+  put(s, 0, 4);
+  put(s, 0x0A, 4);
+  put(s, dims.size(), 4);
+  for (const auto& [n, len] : dims) name(s, n), put(s, len, 4);
+  put(s, 0, 8);  // no global attributes
+  put(s, 0x0B, 4);
+  put(s, 1, 4);
+  name(s, "v");
+  put(s, var_dims.size(), 4);
+  for (uint32_t d : var_dims) put(s, d, 4);
+  put(s, 0, 8);  // no attributes
+  put(s, var_type, 4);
+  put(s, 4, 4);  // vsize
+  put(s, uint32_t(s.size() + 4), 4);  // begin: right after the header
+  s.resize(s.size() + 256, '\0');
+  return s;
+}
+
+// Shapes of header that crash netCDF-C itself (what the fuzzer found next): a name longer than
+// the NC_MAX_NAME buffers it copies into, the unlimited dimension after the first (a division by
+// zero while sizing the variable), a type that is no classic type.
+TEST(FormatsHostileHeaders, NetcdfHeadersThatCrashNetcdfCAreRefused) {
+  expect_refused([&] { parse_netcdf(netcdf_with({{std::string(300, 'x'), 4}}, {0}), "long.nc", {}); },
+                 {"long.nc: NetCDF header", "300 bytes, more than netCDF's 256"});
+  expect_refused([&] { parse_netcdf(netcdf_with({{"x", 4}, {"t", 0}}, {0, 1}), "rec.nc", {}); },
+                 {"rec.nc: NetCDF header", "unlimited dimension in position 1"});
+  expect_refused([&] { parse_netcdf(netcdf_with({{"x", 4}}, {0}, 9), "type.nc", {}); }, {"type.nc", "9 is not a classic type"});
+  expect_refused([&] { parse_netcdf(netcdf_with({{"x", 4}}, {3}), "dim.nc", {}); }, {"names dimension 3 of 1"});
+  // The same layout with sound values opens (the checks do not refuse real files).
+  VolumeOptions v;
+  v.variable = "v";
+  EXPECT_EQ(parse_netcdf(netcdf_with({{"t", 0}, {"y", 2}, {"x", 4}}, {1, 2}), "ok.nc", v).voxel_count(), 8u);
+}
+
 // A GRIB 2 message: indicator (16 bytes) with `length`, then the given sections, then 7777.
 std::string grib2(const std::vector<std::pair<uint32_t, int>>& sections, int64_t length = -1) {
   std::string body;
