@@ -69,9 +69,13 @@ Plan make_plan(CorrelationMeasure measure, uint32_t members) {
   uint32_t regions = mi.regions;
   if (p.group_per_voxel) {
     const uint32_t capacity = (members + TFM_CORR_CAPACITY_STEP - 1) / TFM_CORR_CAPACITY_STEP * TFM_CORR_CAPACITY_STEP;
-    // Tiles of about 4 values per invocation and merge level: enough invocations to share the
-    // work, few enough that the searches that start each tile stay cheap.
-    p.workgroup = std::clamp<uint32_t>(std::bit_floor(capacity / 4), 32, TFM_CORR_GROUP_MAX_WORKGROUP);
+    p.workgroup = TFM_CORR_GROUP_WORKGROUP;
+    // A Kraskov neighbour search may walk past every member (a reference with few distinct
+    // values): enough invocations that ceil(M / T) of them stay within the loop budget.
+    if (measure == CorrelationMeasure::MiKraskov || measure == CorrelationMeasure::MiCoefficient) {
+      const uint64_t walks = (uint64_t(members) * members + TFM_CORR_LOOP_BUDGET - 1) / TFM_CORR_LOOP_BUDGET;
+      p.workgroup = uint32_t(std::max<uint64_t>(p.workgroup, std::bit_ceil(walks)));
+    }
     p.region_floats = capacity;
     if (measure == CorrelationMeasure::MiBinned) regions = 0;  // the histogram needs no series storage
   } else {
@@ -104,9 +108,9 @@ CorrelationMeasure parse_correlation_measure(const std::string& name) {
 
 void validate_correlation_params(const CorrelationParams& params, uint32_t member_count) {
   const char* name = correlation_measure_name(params.measure);
-  if (member_count < 3)
-    throw std::invalid_argument(std::string(name) + ": an ensemble needs at least 3 members (got " +
-                                std::to_string(member_count) + ")");
+  if (member_count < 3 || member_count > kMaxCorrelationMembers)
+    throw std::invalid_argument(std::string(name) + ": an ensemble needs 3.." + std::to_string(kMaxCorrelationMembers) +
+                                " members (got " + std::to_string(member_count) + ")");
   if (params.measure == CorrelationMeasure::MiBinned && (params.bins < 2 || params.bins > kMaxCorrelationBins))
     throw std::invalid_argument("mi-binned: bins must be 2.." + std::to_string(kMaxCorrelationBins) + " (got " +
                                 std::to_string(params.bins) + ")");
@@ -134,7 +138,11 @@ std::string CorrelationKernel::strategy(const CorrelationParams& params, uint32_
     return p.group_per_voxel ? "one workgroup per voxel, shared-memory joint histogram"
                              : "one invocation per voxel, pairwise bin counts";
   return p.group_per_voxel ? "one workgroup per voxel, shared-memory merge sort"
-                           : "one invocation per voxel, sequential merge sort in a shared-memory slice";
+                           : "one invocation per voxel, merge sort in a shared-memory slice";
+}
+
+uint32_t CorrelationKernel::workgroup_size(const CorrelationParams& params, uint32_t member_count) {
+  return make_plan(params.measure, member_count).workgroup;
 }
 
 uint64_t CorrelationKernel::shared_memory_bytes(const CorrelationParams& params, uint32_t member_count) {
@@ -149,11 +157,11 @@ double CorrelationKernel::error_bound(const CorrelationParams& params, uint32_t 
   if (m == CorrelationMeasure::Pearson || m == CorrelationMeasure::Spearman || m == CorrelationMeasure::Kendall)
     return final_ops;
   // A float sum of n terms of magnitude <= t errs by <= n eps (n t) at worst; per member (the
-  // mean) n eps t. n is the longest chain of additions: one invocation's members, then the tree.
+  // mean) n eps t. n is the longest chain of additions: one invocation's members, then the
+  // workgroup's partials in order.
   const Plan p = make_plan(m, member_count);
-  const double additions = p.group_per_voxel
-                               ? std::ceil(double(member_count) / p.workgroup) + std::log2(double(p.workgroup))
-                               : double(member_count);
+  const double additions =
+      p.group_per_voxel ? std::ceil(double(member_count) / p.workgroup) + p.workgroup : double(member_count);
   const double ln_m = std::log(double(member_count));
   // |ln c_xy - ln c_x - ln c_y| <= 3 ln M; |digamma(n_x + 1) + digamma(n_y + 1)| <= 2 (ln M + 1).
   const double term = m == CorrelationMeasure::MiBinned ? 3 * ln_m : 2 * (ln_m + 1);
@@ -232,11 +240,15 @@ std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span
   const Plan plan = make_plan(params.measure, members);
   // The region and histogram sizes are fixed by the member count; a device with less shared
   // memory than they need cannot run this measure at this size.
-  const uint64_t shared_limit = ctx.limits().maxComputeSharedMemorySize;
-  if (plan.shared_bytes > shared_limit)
-    throw std::runtime_error(name + " with " + std::to_string(members) + " members needs " +
-                             std::to_string(plan.shared_bytes) + " bytes of workgroup shared memory; the device has " +
-                             std::to_string(shared_limit) + " (maxComputeSharedMemorySize)");
+  const VkPhysicalDeviceLimits& limits = ctx.limits();
+  const std::string what = name + " with " + std::to_string(members) + " members needs ";
+  if (plan.shared_bytes > limits.maxComputeSharedMemorySize)
+    throw std::runtime_error(what + std::to_string(plan.shared_bytes) + " bytes of workgroup shared memory; the device has " +
+                             std::to_string(limits.maxComputeSharedMemorySize) + " (maxComputeSharedMemorySize)");
+  const uint32_t max_workgroup = std::min(limits.maxComputeWorkGroupInvocations, limits.maxComputeWorkGroupSize[0]);
+  if (plan.workgroup > max_workgroup)
+    throw std::runtime_error(what + "workgroups of " + std::to_string(plan.workgroup) + " invocations; the device allows " +
+                             std::to_string(max_workgroup) + " (maxComputeWorkGroupInvocations, maxComputeWorkGroupSize[0])");
   const ComputePipeline& pipeline = impl_->pipeline(plan);
 
   // Device memory: the reference buffers, then per voxel its series twice (staging and device
@@ -259,7 +271,7 @@ std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span
   Buffer result(ctx, chunk * sizeof(float), MemoryUsage::Device, "correlation result chunk");
   Buffer readback(ctx, chunk * sizeof(float), MemoryUsage::Readback, "correlation result readback");
   gpu::CorrelationPush push = make_push(ref);
-  const uint64_t max_groups = ctx.limits().maxComputeWorkGroupCount[0];
+  const uint64_t max_x = ctx.limits().maxComputeWorkGroupCount[0];
   for (uint64_t v0 = 0; v0 < voxels; v0 += chunk) {
     const uint32_t n = uint32_t(std::min(chunk, voxels - v0));
     // The chunk layout of the strategy (shaders/correlation_layout.h): member-major for one
@@ -271,14 +283,16 @@ std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span
       for (uint32_t m = 0; m < members; ++m)
         std::memcpy(dst + uint64_t(m) * n, ens.values + m * voxels + v0, uint64_t(n) * sizeof(float));
     push.voxel_count = n;
+    // One voxel per workgroup or invocation, never more (shaders/correlation_common.glsl): rows
+    // of at most maxComputeWorkGroupCount[0] groups (the limits guarantee 65535 rows).
     const uint64_t groups = plan.group_per_voxel ? n : (n + plan.workgroup - 1) / plan.workgroup;
+    const uint64_t groups_x = std::min(groups, max_x);
     CommandBatch batch(ctx);
     batch.copy(staging, 0, series, 0, uint64_t(n) * members * sizeof(float));
     // The chunk is on the device before the kernel reads it.
     batch.barrier();
-    // More voxels than groups: the kernels stride over the chunk.
     batch.dispatch(pipeline, {series, result, values, order, group, table}, push,
-                   {uint32_t(std::min(groups, max_groups))});
+                   {uint32_t(groups_x), uint32_t((groups + groups_x - 1) / groups_x)});
     // The results are written before they are copied out.
     batch.barrier();
     batch.copy(result, 0, readback, 0, uint64_t(n) * sizeof(float));

@@ -12,14 +12,16 @@
 //   Sorting 32 values takes one invocation a few hundred steps; no barriers are needed, and
 //   neighbouring invocations read neighbouring addresses of the member-major chunk.
 // - M > 32: one workgroup per voxel. The series is loaded once into shared memory (M floats per
-//   region, up to ~2600 members in 32 KiB with three regions); the workgroup merge-sorts it
-//   cooperatively (merge path: each invocation merges its own tile of every level, O(M log M) work
-//   in all) and every invocation handles members q = lid, lid + T, ... of the per-member work.
-//   The chunk is voxel-major so a workgroup reads its series at consecutive addresses.
+//   region: 32 KiB hold 3968 members in two regions, 2368 for mi-kraskov's three); the
+//   workgroup merge-sorts it cooperatively (merge path: each invocation merges its own tile of
+//   every level, O(M log M) work in all) and every invocation handles members q = lid, lid + T,
+//   ... of the per-member work. The chunk is voxel-major so a workgroup reads its series at
+//   consecutive addresses.
 //
 // Determinism: integer totals use 32-bit integer atomics (exact, so order does not matter);
-// float totals are summed by each invocation in a fixed member order and then in a fixed binary
-// tree, so every result has the same bits on every run and however the voxels are chunked.
+// float totals are summed by each invocation in a fixed member order and then over the
+// invocations in a fixed order, so every result has the same bits on every run and however the
+// voxels are chunked.
 #ifndef TFMATCH_CORRELATION_COMMON_GLSL
 #define TFMATCH_CORRELATION_COMMON_GLSL
 
@@ -61,49 +63,50 @@ float series_value(uint v, uint m) {
 #define CORR_STEP (GROUP_PER_VOXEL ? gl_WorkGroupSize.x : 1u)
 #define CORR_FOR_EACH(q, count) for (uint q = CORR_FIRST; q < (count); q += CORR_STEP)
 
-// The voxels of this dispatch: one per invocation or one per workgroup, striding over the chunk
-// (the number of workgroups is capped by the device). In the workgroup strategy the loop is
-// uniform across the workgroup, so barriers inside it are allowed.
-#define CORR_FOR_EACH_VOXEL(v)                                                                         \
-  for (uint v = GROUP_PER_VOXEL ? gl_WorkGroupID.x : gl_GlobalInvocationID.x; v < pc.voxel_count;     \
-       v += GROUP_PER_VOXEL ? gl_NumWorkGroups.x : gl_NumWorkGroups.x * gl_WorkGroupSize.x)
+// The voxel of this invocation (one invocation per voxel) or of this workgroup (one workgroup per
+// voxel); past the chunk's end when >= pc.voxel_count. Dispatches are 2-D when a chunk needs more
+// than maxComputeWorkGroupCount[0] groups. No kernel loops over voxels: llvmpipe (lavapipe) ends
+// an invocation's loops once all of them together have run 65535 iterations, so one invocation
+// must never take on several voxels' work (kernels/correlation.cpp caps M for the same reason).
+uint corr_voxel() {
+  const uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+  return GROUP_PER_VOXEL ? group : group * gl_WorkGroupSize.x + gl_LocalInvocationIndex;
+}
 
 shared vec4 s_reduce[gl_WorkGroupSize.x];
 shared uint s_counts[4];
 
-// (sum, min, max, max) of vec4 terms, combined in a fixed binary tree over the invocations.
+// (sum, min, max, max) of vec4 terms.
 vec4 corr_combine(vec4 a, vec4 b) { return vec4(a.x + b.x, min(a.y, b.y), max(a.z, b.z), max(a.w, b.w)); }
 
 // The voxel's total of per-invocation partial results: the value itself for one invocation per
-// voxel; the tree over the workgroup otherwise (every invocation gets it). Workgroup size is a
-// power of two (the wrapper checks).
+// voxel; otherwise every invocation combines the workgroup's partials in invocation order (a
+// fixed order, and two barriers where a tree takes log2(T) + 1: barriers are what a workgroup
+// per voxel pays for on lavapipe, whose invocations switch contexts at each).
 vec4 corr_total(vec4 v) {
   if (!GROUP_PER_VOXEL) return v;
-  const uint lid = gl_LocalInvocationIndex;
   // Every invocation has read the previous total before s_reduce is overwritten.
   barrier();
-  s_reduce[lid] = v;
-  for (uint s = gl_WorkGroupSize.x / 2u; s > 0u; s >>= 1u) {
-    // The level above is written before it is combined.
-    memoryBarrierShared();
-    barrier();
-    if (lid < s) s_reduce[lid] = corr_combine(s_reduce[lid], s_reduce[lid + s]);
-  }
-  // The root is complete before anyone reads it.
+  s_reduce[gl_LocalInvocationIndex] = v;
+  // Every partial is written before any is read.
   memoryBarrierShared();
   barrier();
-  return s_reduce[0];
+  vec4 total = s_reduce[0];
+  for (uint i = 1u; i < gl_WorkGroupSize.x; ++i) total = corr_combine(total, s_reduce[i]);
+  return total;
 }
 
-// Integer totals over the workgroup (exact 32-bit atomics; counts here stay far below 2^32).
+// Clears the integer totals of corr_count_total; call before the first barrier of the voxel
+// (which then orders the clearing before every add).
+void corr_clear_counts() {
+  if (GROUP_PER_VOXEL && gl_LocalInvocationIndex == 0u)
+    for (uint c = 0u; c < 4u; ++c) s_counts[c] = 0u;
+}
+
+// Integer totals over the workgroup (exact 32-bit atomics; counts here stay far below 2^32);
+// once per voxel, after corr_clear_counts.
 uvec4 corr_count_total(uvec4 v) {
   if (!GROUP_PER_VOXEL) return v;
-  // The previous totals have been read before they are cleared.
-  barrier();
-  if (gl_LocalInvocationIndex == 0u) for (uint c = 0u; c < 4u; ++c) s_counts[c] = 0u;
-  // Cleared before any invocation adds.
-  memoryBarrierShared();
-  barrier();
   for (uint c = 0u; c < 4u; ++c)
     if (v[c] != 0u) atomicAdd(s_counts[c], v[c]);
   // Every add is done before the totals are read.

@@ -37,7 +37,14 @@ namespace tfm::gpu {
 // workgroup reads its series at consecutive addresses. A region holds the series of one voxel:
 // M rounded up to a multiple of TFM_CORR_CAPACITY_STEP floats (fewer pipelines than one per M).
 #define TFM_CORR_CAPACITY_STEP 64u
-#define TFM_CORR_GROUP_MAX_WORKGROUP 128u  // Vulkan guarantees 128 invocations per workgroup
+// 32 invocations (a warp; half a wave on older AMD parts) share a voxel's work: the merge levels
+// below a tile of ceil(M / 32) values run without barriers, and barriers are what a workgroup per
+// voxel pays for on lavapipe (its invocations switch contexts at each). mi-kraskov takes more
+// when one invocation's neighbour walks could exceed the loop budget.
+#define TFM_CORR_GROUP_WORKGROUP 32u
+// Loop iterations one invocation may run for one voxel: half of llvmpipe's 65535, after which it
+// silently ends every loop of the invocation.
+#define TFM_CORR_LOOP_BUDGET 32768u
 
 // Kraskov neighbours: each invocation keeps the k smallest distances in a private array.
 #define TFM_CORR_MAX_K 16u

@@ -69,36 +69,36 @@ uint count_within(uint r, uint n, float c, float eps) {
 
 void main() {
   const uint n = pc.member_count, k = pc.param;
-  CORR_FOR_EACH_VOXEL(v) {
-    const uint r0 = corr_region(0u), yx = corr_region(1u), r2 = corr_region(2u);
-    vec4 part = CORR_STATS_EMPTY;
-    CORR_FOR_EACH(p, n) {
-      s_work[yx + p] = series_value(v, ref_order[p]);
-      const float y = series_value(v, p);
-      s_work[r2 + p] = y;
-      part = corr_combine(part, corr_stats_term(y));
-    }
-    if (corr_special_case(v, corr_total(part), 0.0)) continue;
-    uint unused;
-    const uint ys = corr_sort(r2, r0, n, false, unused);
-    // x goes to the sort's other region, free once the sort's last barrier has passed.
-    const uint xs = ys == r0 ? r2 : r0;
-    CORR_FOR_EACH(p, n) s_work[xs + p] = ref_values[p];
-    if (GROUP_PER_VOXEL) {
-      // x is in place before any invocation searches it.
-      memoryBarrierShared();
-      barrier();
-    }
-    float sum = 0.0;
-    CORR_FOR_EACH(p, n) {
-      const float eps = kth_neighbour_distance(xs, yx, n, p, k);
-      // Both counts include point p itself when eps > 0 (none do when eps = 0).
-      const uint self = eps > 0.0 ? 1u : 0u;
-      const uint nx = count_within(xs, n, s_work[xs + p], eps) - self;
-      const uint ny = count_within(ys, n, s_work[yx + p], eps) - self;
-      sum += count_table[nx + 1u] + count_table[ny + 1u];
-    }
-    const float mi = pc.mi_offset - corr_total(vec4(sum, 0.0, 0.0, 0.0)).x / float(n);
-    corr_write(v, COEFFICIENT ? sqrt(1.0 - exp(-2.0 * max(mi, 0.0))) : mi);
+  const uint v = corr_voxel();
+  if (v >= pc.voxel_count) return;  // uniform across a workgroup per voxel
+  const uint r0 = corr_region(0u), yx = corr_region(1u), r2 = corr_region(2u);
+  vec4 part = CORR_STATS_EMPTY;
+  CORR_FOR_EACH(p, n) {
+    s_work[yx + p] = series_value(v, ref_order[p]);
+    const float y = series_value(v, p);
+    s_work[r2 + p] = y;
+    part = corr_combine(part, corr_stats_term(y));
   }
+  if (corr_special_case(v, corr_total(part), 0.0)) return;
+  uint unused;
+  const uint ys = corr_sort(r2, r0, n, false, unused);
+  // x goes to the sort's other region, free once the sort's last barrier has passed.
+  const uint xs = ys == r0 ? r2 : r0;
+  CORR_FOR_EACH(p, n) s_work[xs + p] = ref_values[p];
+  if (GROUP_PER_VOXEL) {
+    // x is in place before any invocation searches it.
+    memoryBarrierShared();
+    barrier();
+  }
+  float sum = 0.0;
+  CORR_FOR_EACH(p, n) {
+    const float eps = kth_neighbour_distance(xs, yx, n, p, k);
+    // Both counts include point p itself when eps > 0 (none do when eps = 0).
+    const uint self = eps > 0.0 ? 1u : 0u;
+    const uint nx = count_within(xs, n, s_work[xs + p], eps) - self;
+    const uint ny = count_within(ys, n, s_work[yx + p], eps) - self;
+    sum += count_table[nx + 1u] + count_table[ny + 1u];
+  }
+  const float mi = pc.mi_offset - corr_total(vec4(sum, 0.0, 0.0, 0.0)).x / float(n);
+  corr_write(v, COEFFICIENT ? sqrt(1.0 - exp(-2.0 * max(mi, 0.0))) : mi);
 }

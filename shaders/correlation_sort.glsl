@@ -56,12 +56,15 @@ uint corr_merge_tile(uint src, uint dst, uint b0, uint len_l, uint len_r, uint d
 // every invocation must call it (barriers) after the values are in place and visible.
 uint corr_sort(uint a, uint b, uint n, bool by_group, out uint inversions) {
   inversions = 0u;
-  // This invocation's tile of every level: all of it, or a 1/T share of the workgroup's.
-  uint t0 = 0u, t1 = n;
+  // This invocation's tile of outputs at every level: all of them, or an aligned power-of-two
+  // share of the workgroup's. Levels whose blocks fit in a tile read only what this invocation
+  // wrote, so only the levels above need barriers.
+  uint tile = n, t0 = 0u, t1 = n;
   if (GROUP_PER_VOXEL) {
     const uint per = (n + gl_WorkGroupSize.x - 1u) / gl_WorkGroupSize.x;
-    t0 = min(gl_LocalInvocationIndex * per, n);
-    t1 = min(t0 + per, n);
+    tile = per <= 1u ? 1u : 1u << (findMSB(per - 1u) + 1);
+    t0 = min(gl_LocalInvocationIndex * tile, n);
+    t1 = min(t0 + tile, n);
   }
   for (uint w = 1u; w < n; w <<= 1u) {
     for (uint pos = t0; pos < t1;) {
@@ -71,8 +74,9 @@ uint corr_sort(uint a, uint b, uint n, bool by_group, out uint inversions) {
       inversions += corr_merge_tile(a, b, b0, len_l, len_r, pos - b0, end - b0, by_group);
       pos = end;
     }
-    if (GROUP_PER_VOXEL) {
-      // The level is complete before the next one reads it.
+    // The next level's blocks (4w wide) reach into other tiles, or this was the last level: the
+    // level is complete before anyone reads it (the branch is uniform).
+    if (GROUP_PER_VOXEL && (4u * w > tile || 2u * w >= n)) {
       memoryBarrierShared();
       barrier();
     }

@@ -15,15 +15,9 @@
 shared uint s_wide[2u * TFM_FIXED_SLOT_WORDS];
 
 // The workgroup's exact totals of two 64-bit integers (each invocation's own in one invocation
-// per voxel).
+// per voxel). s_wide is cleared at the start of the voxel, before its first barrier.
 void wide_totals(inout uvec2 a, inout uvec2 b) {
   if (!GROUP_PER_VOXEL) return;
-  // The previous totals have been read before they are cleared.
-  barrier();
-  if (gl_LocalInvocationIndex < 2u * TFM_FIXED_SLOT_WORDS) s_wide[gl_LocalInvocationIndex] = 0u;
-  // Cleared before any invocation adds.
-  memoryBarrierShared();
-  barrier();
   FX_ATOMIC_ADD(s_wide, 0u, a)
   FX_ATOMIC_ADD(s_wide, 1u, b)
   // Every add is done before the totals are read.
@@ -38,27 +32,28 @@ float wide_to_float(uvec2 v) { return fx_signed_to_float(v) * TFM_FIXED_ONE; }
 
 void main() {
   const uint n = pc.member_count;
-  CORR_FOR_EACH_VOXEL(v) {
-    const uint a = corr_region(0u), b = corr_region(1u);
-    vec4 part = CORR_STATS_EMPTY;
-    CORR_FOR_EACH(m, n) {
-      const float y = series_value(v, m);
-      s_work[a + m] = y;
-      part = corr_combine(part, corr_stats_term(y));
-    }
-    if (corr_special_case(v, corr_total(part), CORR_NAN)) continue;
-    uint unused;
-    const uint sorted = corr_sort(a, b, n, false, unused);
-    uvec2 sxy = uvec2(0u), syy = uvec2(0u);
-    CORR_FOR_EACH(m, n) {
-      const float y = series_value(v, m);
-      const int cy = int(corr_lower_bound(sorted, 0u, n, y) + corr_upper_bound(sorted, 0u, n, y) + 1u) - int(n + 1u);
-      const int p = int(ref_values[m]) * cy;
-      fx_add(sxy, p < 0 ? fx_negate(uvec2(uint(-p), 0u)) : uvec2(uint(p), 0u));
-      fx_add(syy, uvec2(uint(cy * cy), 0u));
-    }
-    wide_totals(sxy, syy);
-    const float r = wide_to_float(sxy) / (sqrt(pc.ref_norm) * sqrt(wide_to_float(syy)));
-    corr_write(v, clamp(r, -1.0, 1.0));
+  const uint v = corr_voxel();
+  if (v >= pc.voxel_count) return;  // uniform across a workgroup per voxel
+  const uint a = corr_region(0u), b = corr_region(1u);
+  if (GROUP_PER_VOXEL && gl_LocalInvocationIndex < 2u * TFM_FIXED_SLOT_WORDS) s_wide[gl_LocalInvocationIndex] = 0u;
+  vec4 part = CORR_STATS_EMPTY;
+  CORR_FOR_EACH(m, n) {
+    const float y = series_value(v, m);
+    s_work[a + m] = y;
+    part = corr_combine(part, corr_stats_term(y));
   }
+  if (corr_special_case(v, corr_total(part), CORR_NAN)) return;
+  uint unused;
+  const uint sorted = corr_sort(a, b, n, false, unused);
+  uvec2 sxy = uvec2(0u), syy = uvec2(0u);
+  CORR_FOR_EACH(m, n) {
+    const float y = series_value(v, m);
+    const int cy = int(corr_lower_bound(sorted, 0u, n, y) + corr_upper_bound(sorted, 0u, n, y) + 1u) - int(n + 1u);
+    const int p = int(ref_values[m]) * cy;
+    fx_add(sxy, p < 0 ? fx_negate(uvec2(uint(-p), 0u)) : uvec2(uint(p), 0u));
+    fx_add(syy, uvec2(uint(cy * cy), 0u));
+  }
+  wide_totals(sxy, syy);
+  const float r = wide_to_float(sxy) / (sqrt(pc.ref_norm) * sqrt(wide_to_float(syy)));
+  corr_write(v, clamp(r, -1.0, 1.0));
 }

@@ -69,10 +69,8 @@ void add_correlation_cases(CaseList& cases) {
   for (const auto& m : measures) {
     auto add = [&](uint32_t members, uint64_t voxels, uint64_t max_bytes, bool quick) {
       const CorrelationCase c{m.params, members, voxels, max_bytes};
-      const CorrelationParams p = m.params;
-      const bool group = p.measure != M::Pearson && members > TFM_CORR_INVOCATION_MAX_MEMBERS;
-      const uint32_t workgroup = group ? TFM_CORR_GROUP_MAX_WORKGROUP : TFM_CORR_INVOCATION_WORKGROUP;
-      cases.push_back({m.shader, "CorrelationKernel", correlation_name(c), quick, workgroup,
+      cases.push_back({m.shader, "CorrelationKernel", correlation_name(c), quick,
+                       CorrelationKernel::workgroup_size(m.params, members),
                        [c](Context& ctx, Check& check) { correlation(ctx, check, c); }});
     };
     // One invocation per voxel: one past a workgroup of voxels, in chunks (4 KiB hold ~60 voxels).

@@ -30,6 +30,12 @@ const CorrelationParams kMeasures[] = {
     {CorrelationMeasure::MiKraskov, 16, 3},  {CorrelationMeasure::MiCoefficient, 16, 2},
 };
 
+// Mutual information is 0 for a constant series, the coefficients NaN (kernels/correlation.h).
+bool is_mutual_information(const CorrelationParams& p) {
+  return p.measure == CorrelationMeasure::MiBinned || p.measure == CorrelationMeasure::MiKraskov ||
+         p.measure == CorrelationMeasure::MiCoefficient;
+}
+
 std::string measure_label(const CorrelationParams& p) {
   std::string s = correlation_measure_name(p.measure);
   for (char& c : s)
@@ -39,36 +45,43 @@ std::string measure_label(const CorrelationParams& p) {
 
 class CorrelationGpu : public test::GpuTest, public ::testing::WithParamInterface<CorrelationParams> {};
 
+// Every voxel of `device` within `bound` of `expected`; NaN exactly where `expected` is NaN.
+template <class T>
+void expect_field_near(const std::vector<float>& device, const std::vector<T>& expected, double bound) {
+  ASSERT_EQ(device.size(), expected.size());
+  for (size_t v = 0; v < device.size(); ++v) {
+    if (std::isnan(double(expected[v])))
+      ASSERT_TRUE(std::isnan(device[v])) << "voxel " << v << ": device " << device[v] << ", expected NaN";
+    else
+      ASSERT_NEAR(device[v], expected[v], bound) << "voxel " << v;
+  }
+}
+
 // Every voxel within CorrelationKernel::error_bound of the reference (the test ensemble makes each
 // comparison of member values exact in float); NaN exactly where the reference is NaN.
-void expect_matches_reference(Context& ctx, CorrelationParams params, uint32_t members, uint64_t voxels) {
+// `reference_voxel` 0 is the ensemble's reference series; 2 is a series rounded to multiples of
+// 1/4, so the reference has many ties (kendall's x tie groups, repeated Kraskov points).
+void expect_matches_reference(Context& ctx, CorrelationParams params, uint32_t members, uint64_t voxels,
+                              uint64_t reference_voxel = 0) {
   params.k = std::min(params.k, members - 1);  // k < M
   SCOPED_TRACE("M = " + std::to_string(members) + ", " + std::to_string(voxels) + " voxels, k = " +
-               std::to_string(params.k) + ", " + CorrelationKernel::strategy(params, members));
+               std::to_string(params.k) + ", reference voxel " + std::to_string(reference_voxel) + ", " +
+               CorrelationKernel::strategy(params, members));
   const CorrelationEnsemble e = correlation_test_ensemble(members, voxels, 11u * members + uint32_t(voxels));
-  const std::vector<float> reference = e.reference();
+  const std::vector<float> reference = ensemble_series(e.view(), reference_voxel);
   CorrelationKernel kernel(ctx);
   const std::vector<float> g = kernel.compute(e.view(), reference, params);
   const std::vector<double> r = correlation_field_reference(e.view(), reference, params);
   const double bound = CorrelationKernel::error_bound(params, members);
-  ASSERT_EQ(g.size(), voxels);
-  for (uint64_t v = 0; v < voxels; ++v) {
-    if (std::isnan(r[v])) {
-      ASSERT_TRUE(std::isnan(g[v])) << "voxel " << v << ": device " << g[v] << ", reference NaN";
-    } else {
-      ASSERT_NEAR(g[v], r[v], bound) << "voxel " << v;
-    }
-  }
+  expect_field_near(g, r, bound);
   // The test data reach the conventions: the reference voxel, a NaN member, a constant series.
   if (voxels > 7) {
     EXPECT_TRUE(std::isnan(g[5]));
-    const bool mi = params.measure == CorrelationMeasure::MiBinned || params.measure == CorrelationMeasure::MiKraskov ||
-                    params.measure == CorrelationMeasure::MiCoefficient;
-    if (mi) EXPECT_EQ(g[7], 0.0f); else EXPECT_TRUE(std::isnan(g[7]));
+    if (is_mutual_information(params)) EXPECT_EQ(g[7], 0.0f); else EXPECT_TRUE(std::isnan(g[7]));
   }
   if (params.measure == CorrelationMeasure::Pearson || params.measure == CorrelationMeasure::Spearman ||
       params.measure == CorrelationMeasure::Kendall)
-    EXPECT_NEAR(g[0], 1.0, bound);
+    EXPECT_NEAR(g[reference_voxel], 1.0, bound);
 }
 
 TEST_P(CorrelationGpu, MatchesReferenceOnAwkwardSizes) {
@@ -77,8 +90,25 @@ TEST_P(CorrelationGpu, MatchesReferenceOnAwkwardSizes) {
   for (uint32_t members : {3u, 4u, 31u, 32u, 33u}) {
     expect_matches_reference(ctx(), params, members, 1);
     expect_matches_reference(ctx(), params, members, past_workgroup);
+    expect_matches_reference(ctx(), params, members, past_workgroup, 2);
   }
   expect_matches_reference(ctx(), params, 1000, 9);
+  expect_matches_reference(ctx(), params, 1000, 9, 2);
+}
+
+// A reference with two values, 500 members each: two huge x tie groups for kendall, and for
+// mi-kraskov the longest neighbour walks (every point of its tie group lies at |dx| = 0), which
+// must stay within what one invocation may loop on lavapipe.
+TEST_P(CorrelationGpu, ReferenceWithTwoValues) {
+  CorrelationParams params = GetParam();
+  const uint32_t members = 1000;
+  const CorrelationEnsemble e = correlation_test_ensemble(members, 9, 77);
+  std::vector<float> reference(members);
+  for (uint32_t m = 0; m < members; ++m) reference[m] = m % 2 ? 4.0f : 0.0f;
+  CorrelationKernel kernel(ctx());
+  const std::vector<float> g = kernel.compute(e.view(), reference, params);
+  const std::vector<double> r = correlation_field_reference(e.view(), reference, params);
+  expect_field_near(g, r, CorrelationKernel::error_bound(params, members));
 }
 
 TEST_P(CorrelationGpu, SameBitsOnEveryRunAndChunking) {
@@ -176,10 +206,8 @@ TEST_F(CorrelationKernelGpu, ConstantReferenceFollowsTheConventions) {
     CorrelationKernel kernel(ctx());
     for (const CorrelationParams& p : kMeasures) {
       const std::vector<float> g = kernel.compute(e.view(), reference, p);
-      const bool mi = p.measure == CorrelationMeasure::MiBinned || p.measure == CorrelationMeasure::MiKraskov ||
-                      p.measure == CorrelationMeasure::MiCoefficient;
       for (uint64_t v = 0; v < g.size(); ++v) {
-        if (v == 5 || !mi) EXPECT_TRUE(std::isnan(g[v])) << correlation_measure_name(p.measure) << " voxel " << v;
+        if (v == 5 || !is_mutual_information(p)) EXPECT_TRUE(std::isnan(g[v])) << correlation_measure_name(p.measure) << " voxel " << v;
         else EXPECT_EQ(g[v], 0.0f) << correlation_measure_name(p.measure) << " voxel " << v;
       }
     }
@@ -200,7 +228,7 @@ TEST_F(CorrelationKernelGpu, RejectsBadInputWithClearMessages) {
     return "no exception";
   };
   const EnsembleView two{e.values.data(), 2, 4};
-  EXPECT_NE(message(two, std::span(reference).first(2), {}).find("at least 3 members"), std::string::npos);
+  EXPECT_NE(message(two, std::span(reference).first(2), {}).find("needs 3..16384 members (got 2)"), std::string::npos);
   EXPECT_NE(message(e.view(), std::span(reference).first(9), {}).find("9 values for 10 members"), std::string::npos);
   EXPECT_NE(message(e.view(), reference, {CorrelationMeasure::MiBinned, 1}).find("bins must be 2..64"), std::string::npos);
   EXPECT_NE(message(e.view(), reference, {CorrelationMeasure::MiBinned, 65}).find("bins"), std::string::npos);
@@ -208,15 +236,41 @@ TEST_F(CorrelationKernelGpu, RejectsBadInputWithClearMessages) {
   EXPECT_NE(message(e.view(), reference, {CorrelationMeasure::MiKraskov, 16, 10}).find("k must be"), std::string::npos);
   EXPECT_NE(message(e.view(), reference, {}, 100).find("max_device_bytes"), std::string::npos);
   EXPECT_NE(message({nullptr, 10, 4}, reference, {}).find("no voxels"), std::string::npos);
-  // More members than the workgroup's shared memory holds: a runtime error naming the limit.
-  const uint32_t huge = uint32_t(ctx().limits().maxComputeSharedMemorySize);
-  const std::vector<float> many(huge);
-  try {
-    kernel.compute({many.data(), huge, 1}, many, {CorrelationMeasure::Kendall});
-    ADD_FAILURE() << "no exception for " << huge << " members";
-  } catch (const std::runtime_error& ex) {
-    EXPECT_NE(std::string(ex.what()).find("maxComputeSharedMemorySize"), std::string::npos) << ex.what();
+  const std::vector<float> too_many(kMaxCorrelationMembers + 1);
+  EXPECT_NE(message({too_many.data(), kMaxCorrelationMembers + 1, 1}, too_many, {}).find("(got 16385)"), std::string::npos);
+  // More members than the device's workgroups hold: a runtime error naming the limit (shared
+  // memory on lavapipe's 32 KiB; the workgroup size for mi-kraskov, 8192 invocations here).
+  const std::vector<float> many(kMaxCorrelationMembers, 1.0f);
+  for (const CorrelationParams& p : {CorrelationParams{CorrelationMeasure::Kendall}, {CorrelationMeasure::MiKraskov}}) {
+    const bool fits = CorrelationKernel::shared_memory_bytes(p, kMaxCorrelationMembers) <=
+                          ctx().limits().maxComputeSharedMemorySize &&
+                      CorrelationKernel::workgroup_size(p, kMaxCorrelationMembers) <=
+                          ctx().limits().maxComputeWorkGroupInvocations;
+    if (fits) continue;
+    try {
+      kernel.compute({many.data(), kMaxCorrelationMembers, 1}, many, p);
+      ADD_FAILURE() << "no exception for " << kMaxCorrelationMembers << " members";
+    } catch (const std::runtime_error& ex) {
+      EXPECT_NE(std::string(ex.what()).find(std::string(correlation_measure_name(p.measure)) + " with 16384 members needs"),
+                std::string::npos) << ex.what();
+      EXPECT_NE(std::string(ex.what()).find("maxCompute"), std::string::npos) << ex.what();
+    }
   }
+}
+
+// More workgroups than one dispatch row holds (maxComputeWorkGroupCount[0], 65535 on lavapipe):
+// the rows of a 2-D dispatch cover every voxel once.
+TEST_F(CorrelationKernelGpu, ChunksOfMoreGroupsThanOneRowHolds) {
+  const CorrelationParams params{CorrelationMeasure::MiBinned, 6};
+  const uint64_t voxels = std::min<uint64_t>(ctx().limits().maxComputeWorkGroupCount[0], 1u << 20) + 300;
+  const CorrelationEnsemble e = correlation_test_ensemble(33, voxels, 8);
+  const std::vector<float> reference = e.reference();
+  CorrelationKernel kernel(ctx());
+  uint32_t chunks = 0;
+  const std::vector<float> g = kernel.compute(e.view(), reference, params, [&](uint64_t, uint64_t) { ++chunks; });
+  ASSERT_EQ(chunks, 1u);
+  const std::vector<float> c = correlation_field_cpu(e.view(), reference, params);
+  expect_field_near(g, c, CorrelationKernel::error_bound(params, 33));
 }
 
 }  // namespace
