@@ -96,13 +96,36 @@ std::string time_text(const std::tuple<long, long, long, long>& t) {
   return os.str();
 }
 
+// GRIB 1 sections (3-byte lengths) in order: product definition, then the grid and bitmap
+// sections where the product's flag octet says so, then the binary data; each at least its fixed
+// header and inside the message before "7777". ecCodes aborts the process (an assertion in its
+// bitmap accessor) on a bitmap section shorter than its 6-byte header.
+template <class Number, class Fail>
+void check_grib1_sections(int index, uint64_t start, uint64_t length, Number number, Fail fail) {
+  const uint64_t end = start + length - 4;
+  uint64_t at = start + 8;
+  auto section = [&](const char* name, uint64_t minimum) {
+    const uint64_t bytes = at + 3 <= end ? number(at, 3) : 0;
+    if (bytes < minimum || bytes > end - at)
+      fail(index, start, std::string(name) + " section at byte " + std::to_string(at - start) + " claims " +
+                             std::to_string(bytes) + " bytes (at least " + std::to_string(minimum) +
+                             ", within the message's " + std::to_string(length) + ")");
+    at += bytes;
+  };
+  const uint64_t flags = at + 8 <= end ? number(at + 7, 1) : 0;
+  section("product definition", 28);
+  if (flags & 0x80) section("grid description", 6);
+  if (flags & 0x40) section("bitmap", 6);
+  section("binary data", 11);
+}
+
 // The framing of every message, checked before ecCodes sees the file: ecCodes trusts section
 // lengths, and a hostile message whose section claims to run past the message's end makes it
 // return fields without end (gigabytes from a 2 KB file, then a double free). A message starts
 // at "GRIB" (junk between messages is skipped, as ecCodes does); GRIB 2: its 8-byte length must
 // fit the file, end in "7777", and its sections (4-byte length >= 5, number 1 to 7) must tile it
-// exactly; GRIB 1: its 3-byte length must fit the file and end in "7777" (ECMWF's large-message
-// encoding, top bit set, is left to ecCodes).
+// exactly; GRIB 1: its 3-byte length must fit the file and end in "7777", and its sections must
+// fit it (ECMWF's large-message encoding, top bit set, is left to ecCodes).
 void check_grib_framing(const ByteReader& read, uint64_t size, const std::string& file) {
   auto fail = [&](int index, uint64_t at, const std::string& what) {
     throw std::runtime_error(file + ": GRIB message " + std::to_string(index) + " (at byte " + std::to_string(at) +
@@ -149,6 +172,8 @@ void check_grib_framing(const ByteReader& read, uint64_t size, const std::string
       if (length & 0x800000) length = 0;  // ECMWF large message: ecCodes decides
       else if (length < 8 + 4 || length > size - start || !ends_in_7777(start + length))
         fail(index, start, "claims " + std::to_string(length) + " bytes, which do not fit the file or end in 7777");
+      else
+        check_grib1_sections(index, start, length, number, fail);
     }
     pos = start + std::max<uint64_t>(length, 4);
   }

@@ -1,7 +1,8 @@
 // Hostile headers that the libraries would trust (what the NetCDF and GRIB fuzz targets found):
 // a classic NetCDF header whose name length or counts claim gigabytes (netCDF-C allocates them
-// before reading), and GRIB 2 messages whose length or sections run past their end (ecCodes then
-// returns fields without end). tfmatch's own checks refuse them first, naming the file and what
+// before reading), GRIB 2 messages whose length or sections run past their end (ecCodes then
+// returns fields without end), and a GRIB 1 bitmap section shorter than its header (ecCodes
+// aborts). tfmatch's own checks refuse them first, naming the file and what
 // is wrong, from a file and from memory alike.
 #include <gtest/gtest.h>
 
@@ -134,6 +135,42 @@ TEST(FormatsHostileHeaders, GribSectionsPastTheirMessageAreRefused) {
   test::TempDir dir;
   std::ofstream(dir / "sec.grib2", std::ios::binary) << bad_section;
   expect_refused([&] { load_volume(dir / "sec.grib2"); }, {"sec.grib2: GRIB message 1", "past the message's end"});
+}
+
+// A GRIB 1 message with product, grid and bitmap sections (flags 0xC0) whose bitmap section
+// claims `bitmap_bytes`; the sections' contents are zero.
+std::string grib1_with_bitmap(uint32_t bitmap_bytes) {
+  std::string body;
+  auto section = [&](uint32_t bytes, uint32_t stored, int flag_at = -1) {
+    const size_t at = body.size();
+    put(body, stored, 3);
+    body.resize(at + bytes, '\0');
+    if (flag_at >= 0) body[at + size_t(flag_at)] = char(0xC0);
+  };
+  section(28, 28, 7);              // product definition, flag octet 8: grid and bitmap present
+  section(32, 32);                 // grid description
+  section(8, bitmap_bytes);        // bitmap: 8 bytes, claiming bitmap_bytes
+  section(12, 12);                 // binary data
+  std::string m = "GRIB";
+  put(m, 8 + body.size() + 4, 3);
+  m.push_back(char(1));
+  return m + body + "7777";
+}
+
+TEST(FormatsHostileHeaders, Grib1SectionsShorterThanTheirHeaderAreRefused) {
+  // A bitmap section claiming 0 bytes makes ecCodes abort the process (an assertion in its bitmap
+  // accessor; what the GRIB fuzz target found); a grid section claiming past the message's end.
+  expect_refused([&] { parse_grib(grib1_with_bitmap(0), "bms.grib", {}); },
+                 {"bms.grib: GRIB message 1", "bitmap section at byte 68 claims 0 bytes"});
+  expect_refused([&] { describe_grib_bytes(grib1_with_bitmap(3), "bms.grib"); }, {"bitmap section", "claims 3 bytes"});
+  const std::string two = grib1_with_bitmap(8) + grib1_with_bitmap(70000);
+  expect_refused([&] { describe_grib_bytes(two, "two.grib"); }, {"GRIB message 2", "claims 70000 bytes"});
+  // The well-framed message passes the framing check (ecCodes then reads or refuses its contents).
+  try {
+    describe_grib_bytes(grib1_with_bitmap(8), "ok.grib");
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()).find("section at byte"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
