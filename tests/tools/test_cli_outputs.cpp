@@ -1,8 +1,8 @@
 // The command line's outputs, checked before any work (issue 15, item 2 and the report case of
 // item 5): one file for two outputs, an output that is an input (by name, symbolic or hard link),
-// a read-only target, a --report that is a file; reports into new nested directories; and the
-// messages of item 5 (render size, ranges beyond float32 or infinite, negative --dims, the
-// residual of a field with itself). Each runs the real program.
+// a read-only target, a --report that is a file, for every command that writes; reports into new
+// nested directories; and the messages of item 5 (render size, ranges beyond float32 or infinite,
+// negative --dims, the residual of a field with itself). Each runs the real program.
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -112,6 +112,37 @@ TEST_F(CliOutputs, ReportGoesIntoANewNestedDirectoryWhole) {
   // Nothing hidden (temporary files, staged directories) is left anywhere.
   for (const std::string& f : files_under(dir.path)) EXPECT_EQ(f.find("/."), std::string::npos) << f;
   for (const std::string& f : files_under(dir.path)) EXPECT_NE(f[0], '.') << f;
+}
+
+// Every other command that writes files declares them in the same check (FilePlan) before any
+// work: correlate and the benchmarks, selftest, solvers, devices, convert-tf and demo; one bad
+// output each, of the kinds above.
+TEST_F(CliOutputs, EveryCommandThatWritesChecksItsFilesFirst) {
+  for (int m = 1; m <= 3; ++m) write_floats(dir / ("m" + std::to_string(m) + "_8x8x8_float32.raw"), std::vector<float>(512, float(m)));
+  const std::string members = "--members '" + dir / "m*_8x8x8_float32.raw" + "' --point 1,1,1";
+  std::ofstream(dir / "ro.json") << "keep";
+  fs::permissions(dir / "ro.json", fs::perms::owner_read);
+  std::ofstream(dir / "afile") << "a file";
+  expect_refused("correlate " + members + " --out " + dir / "x.vti" + " --json " + dir / "x.vti",
+                 {"--json", "same file as --out"});
+  expect_refused("correlate " + members + " --out " + dir / "m2_8x8x8_float32.raw", {"--out", "same file as --members"});
+  expect_refused("bench-correlate --quick --json " + dir / "ro.json", {"--json", "read-only"});
+  expect_refused("bench --json " + dir / "nodir/b.json", {"--json", "does not exist"});
+  expect_refused("bench-render --json " + dir / "ro.json", {"--json", "read-only"});
+  expect_refused("bench-diffdvr --json " + dir / "nodir/b.json", {"--json", "does not exist"});
+  expect_refused("bench-solve " + inputs() + " --json " + dir / "tf.json", {"--json", "same file as --ref-tf"});
+  expect_refused("selftest --json " + dir / "nodir/s.json", {"--json", "does not exist"});
+  expect_refused("solvers --json " + dir / "ro.json", {"--json", "read-only"});
+  expect_refused("devices --json " + dir / "afile/d.json", {"--json", "afile"});
+  expect_refused("convert-tf " + dir / "tf.json" + " " + dir / "tf.json", {"output", "same file as input"});
+  expect_refused("demo --out " + dir / "afile", {"--out", "not a directory"});
+  // A correlate that fails after its check (a point outside the grid) writes neither output.
+  const test::CliResult r = run_cli("correlate --members '" + dir / "m*_8x8x8_float32.raw" + "' --point 9,1,1 --out " +
+                                    dir / "c.vti" + " --json " + dir / "c.json");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "c.vti"));
+  EXPECT_FALSE(fs::exists(dir / "c.json"));
+  for (const std::string& f : files_under(dir.path)) EXPECT_EQ(f.find("/."), std::string::npos) << f;
 }
 
 // Item 5's messages, each saying the true problem.
