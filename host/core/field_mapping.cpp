@@ -2,6 +2,7 @@
 #include "field_mapping.h"
 
 #include <algorithm>
+#include <iomanip>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -53,6 +54,38 @@ FieldRange resolve_range(std::span<const float> values, const FieldRange* user, 
     throw std::runtime_error(os.str());
   }
   return {s.lo, s.hi};
+}
+
+RangeCoverage range_coverage(std::span<const float> values, const FieldRange& range) {
+  RangeCoverage c;
+  for (float v : values) {
+    if (!std::isfinite(v)) continue;
+    ++c.finite;
+    c.below += double(v) < range.lo;
+    c.above += double(v) > range.hi;
+  }
+  return c;
+}
+
+std::string check_range_coverage(std::span<const float> values, const FieldRange& range, const std::string& what,
+                                 const std::string& source, bool allow) {
+  const RangeCoverage c = range_coverage(values, range);
+  const double f = c.outside_fraction();
+  if (!(f > kRangeWarnFraction)) return "";
+  const FiniteStats s = finite_stats(values);
+  std::ostringstream os;
+  os.precision(6);
+  os << what << ": " << std::fixed << std::setprecision(1) << 100.0 * f << std::defaultfloat << std::setprecision(6)
+     << " % of its finite values lie outside " << source << " [" << range.lo << ", " << range.hi << "] (" << c.below
+     << " below, " << c.above << " above, of " << c.finite << "; the field spans [" << s.lo << ", " << s.hi
+     << "]); they all take the TF's end colours";
+  if (f > kRangeErrorFraction) {
+    if (!allow)
+      throw std::runtime_error(os.str() + ". The range does not fit this field: give its range (--ref-range, "
+                               "--field-range or --range) or pass --allow-out-of-range");
+    os << " (--allow-out-of-range)";
+  }
+  return os.str();
 }
 
 FieldMapping make_mapping(const FieldRange& range, uint32_t tf_size) {

@@ -76,7 +76,7 @@ RenderedImage GpuRenderer::render(const FieldMapping& mapping, const Buffer& tf,
 
 RenderedImage render_volume(Context& ctx, const Volume& volume, const TransferFunction& tf, const FieldRange& range,
                             const RenderSettings& settings, Progress* progress) {
-  const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing);
+  const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing, settings.z_scale);
   if (volume.values.size() != volume.voxel_count())
     throw std::runtime_error(volume.name + ": value count differs from the grid size");
   check_device_memory(ctx, volume.values.size() * sizeof(float), volume.name + ": uploading the field");

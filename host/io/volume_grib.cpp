@@ -4,10 +4,12 @@
 // Conventions (README "Formats"):
 // - Selection: "file.grib2:SHORTNAME" or "file.grib2:SHORTNAME@TYPEOFLEVEL". Without a level type
 //   the one with the most distinct levels is taken (isobaricInhPa for GFS u, v, t, ...).
-// - z: the selected messages sorted by increasing level value (for pressure levels z = 0 is the
-//   lowest pressure, i.e. the top); two messages at one level are an error.
+// - z: the selected messages sorted by level value, two messages at one level being an error.
 // - x, y: the message's grid points in its scanning order (x = i along a row, y = rows), as
 //   ecCodes returns them; for most global grids row 0 is the northernmost.
+// - World orientation (grid_orientation.h), applied last: latitudes increasing with y,
+//   longitudes with x, pressure (and hybrid model levels) decreasing with z so the surface is
+//   at z = 0, heights increasing, depths decreasing; data and coordinates reversed together.
 // - --time picks among the distinct (reference date and time, forecast step) pairs, sorted
 //   (analysis times of a reanalysis, forecast steps of a run); --member among the distinct
 //   ensemble numbers ("number"), sorted. Both default to the first.
@@ -29,6 +31,7 @@
 
 #include "cancellation.h"
 #include "memory_budget.h"
+#include "grid_orientation.h"
 #include "volume_formats.h"
 #include "volume_info.h"
 #include "volume_io.h"
@@ -370,6 +373,15 @@ void set_horizontal_axes(Volume& v, const Message& m) {
   }
 }
 
+// The z axis of a level type, without coordinates.
+GridAxis level_axis(const std::string& level_type) {
+  GridAxis a;
+  a.name = level_type;
+  if (level_type == "isobaricInhPa") a.units = "hPa";
+  if (level_type == "isobaricInPa") a.units = "Pa";
+  return a;
+}
+
 Volume read_grib(const GribSource& source, const VolumeOptions& options) {
   const std::string& file = source.name;
   Selection sel = select_messages(source, options);
@@ -403,10 +415,8 @@ Volume read_grib(const GribSource& source, const VolumeOptions& options) {
   const auto hs = horizontal_spacing(msgs[0]);
   v.spacing = {hs[0], hs[1], 1.0};
   set_horizontal_axes(v, msgs[0]);
-  v.axes[2].name = want_level;
+  v.axes[2] = level_axis(want_level);
   for (const auto& m : msgs) v.axes[2].coordinates.push_back(m.level);
-  if (want_level == "isobaricInhPa") v.axes[2].units = "hPa";
-  v.origin[2] = v.axes[2].coordinates.front();
   v.name = file + ":" + want + "@" + want_level;
   if (times.size() > 1) v.name += ",time=" + std::to_string(t);
   if (members.size() > 1) v.name += ",member=" + std::to_string(k);
@@ -418,6 +428,7 @@ Volume read_grib(const GribSource& source, const VolumeOptions& options) {
     std::vector<double> values = message_values(m, file);
     for (double x : values) v.values.push_back(static_cast<float>(x));
   }
+  apply_world_orientation(v, world_orientation(v.axes, v.dims));
   return v;
 }
 
@@ -465,6 +476,13 @@ FileInfo describe_grib(const GribSource& source) {
       a.grid = {uint64_t(first.ni), uint64_t(first.nj), levels.size()};
       auto hs = horizontal_spacing(first);
       a.spacing = {hs[0], hs[1], 1.0};
+      Volume grid;  // the axes as loaded, without values
+      set_horizontal_axes(grid, first);
+      grid.axes[2] = level_axis(key.second);
+      for (const auto& l : levels) grid.axes[2].coordinates.push_back(l.first);
+      const WorldOrientation o = world_orientation(grid.axes, a.grid);
+      orient_axes(grid.axes, a.origin, o);
+      a.orientation = orientation_lines(grid.axes, a.origin, a.spacing, o);
     } else {
       a.notes.push_back(same_grid ? "not a rectangular grid: cannot be loaded" : "messages on different grids: cannot be stacked");
     }

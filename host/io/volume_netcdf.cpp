@@ -20,6 +20,9 @@
 //   the mean step (so Gaussian latitudes count as regular), else 1; z takes its coordinate's step
 //   only when it is regular and has the same units as x (a Cartesian grid); pressure or model
 //   levels give 1.
+// - World orientation (grid_orientation.h): longitudes and latitudes increasing with x and y,
+//   pressure and depth decreasing with z, heights increasing (CF "positive" counts); an axis
+//   stored the other way is reversed, data and coordinates. Origin = first coordinate.
 #include <netcdf.h>
 #include <netcdf_mem.h>
 
@@ -32,6 +35,7 @@
 
 #include "cancellation.h"
 #include "memory_budget.h"
+#include "grid_orientation.h"
 #include "netcdf_classic.h"
 #include "volume_formats.h"
 #include "volume_info.h"
@@ -478,6 +482,19 @@ GridAxis grid_axis(const NcFile& f, const Layout& L, int axis) {
   return g;
 }
 
+// The spatial axes' names, units and coordinates, and which to reverse for world orientation.
+std::pair<std::array<GridAxis, 3>, WorldOrientation> oriented_axes(const NcFile& f, const Layout& L) {
+  std::array<GridAxis, 3> axes;
+  std::array<std::string, 3> positive;
+  for (int k = 0; k < 3; ++k) {
+    if (L.spatial[k] < 0) continue;
+    axes[k] = grid_axis(f, L, L.spatial[k]);
+    const int cv = coordinate_var(f.id(), L.dimids[L.spatial[k]], L.dim_names[L.spatial[k]]);
+    if (cv >= 0) positive[k] = att_text(f.id(), cv, "positive").value_or("");
+  }
+  return {axes, world_orientation(axes, L.grid(), positive)};
+}
+
 Volume read_netcdf(const NcFile& f, const VolumeOptions& options) {
   const std::string& file = f.name();
   const Selection sel = select_variable(f, options);
@@ -501,11 +518,8 @@ Volume read_netcdf(const NcFile& f, const VolumeOptions& options) {
                                                                            : (f.size() > 0 && voxels > f.size()))
     throw std::runtime_error(file + ": variable " + var + " is larger than the file can hold (" + L.shape() + ")");
   v.spacing = spacing_of(f, L);
-  for (int k = 0; k < 3; ++k) {
-    if (L.spatial[k] < 0) continue;
-    v.axes[k] = grid_axis(f, L, L.spatial[k]);
-    if (!v.axes[k].coordinates.empty()) v.origin[k] = v.axes[k].coordinates.front();
-  }
+  const auto [axes, orientation] = oriented_axes(f, L);
+  v.axes = axes;
   v.name = file + ":" + var;
   if (L.time_axis >= 0 && L.dim_sizes[L.time_axis] > 1) v.name += ",time=" + std::to_string(t);
   if (member_axis >= 0) v.name += ",member=" + std::to_string(m);
@@ -514,6 +528,7 @@ Volume read_netcdf(const NcFile& f, const VolumeOptions& options) {
   std::vector<int> iterate;
   if (L.spatial[2] >= 0) iterate.push_back(L.spatial[2]);
   for_each_slab(f, L, start, iterate, [&](const float* s, size_t n) { v.values.insert(v.values.end(), s, s + n); });
+  apply_world_orientation(v, orientation);
   return v;
 }
 
@@ -549,6 +564,9 @@ FileInfo describe_netcdf(const NcFile& f, const VolumeOptions& options) {
     }
     a.grid = L.grid();
     a.spacing = spacing_of(f, L);
+    auto [axes, orientation] = oriented_axes(f, L);  // as loaded: reversed axes and their origin
+    orient_axes(axes, a.origin, orientation);
+    a.orientation = orientation_lines(axes, a.origin, a.spacing, orientation);
     if (L.time_axis >= 0)
       a.choices.push_back("time: " + L.dim_names[L.time_axis] + " = " + std::to_string(L.dim_sizes[L.time_axis]) + " (--time)");
     for (int e : L.extra_axes)

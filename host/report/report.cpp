@@ -4,10 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 
 #include "atomic_file.h"
 #include "camera.h"
 #include "cancellation.h"
+#include "font.h"
 #include "gpu_voxel_ops.h"
 #include "memory_budget.h"
 #include "png_io.h"
@@ -16,6 +18,7 @@
 #include "render_report_html.h"
 #include "result_json.h"
 #include "residual.h"
+#include "tf_json.h"
 #include "tf_plot.h"
 
 namespace tfm {
@@ -26,6 +29,13 @@ double max_value(const Volume& v) {
   for (float x : v.values)
     if (std::isfinite(x)) m = std::max(m, double(x));
   return m;
+}
+
+// The field's name for an axis: its file name with the variable and selectors, without directories.
+std::string field_label(const Volume& v) {
+  const std::string name = v.name;
+  const size_t slash = name.find_last_of('/');
+  return slash == std::string::npos ? name : name.substr(slash + 1);
 }
 
 // Rows of panels stacked top to bottom, each row centred.
@@ -41,33 +51,64 @@ Image stack_rows(const std::vector<Image>& rows, Rgb8 background) {
   return out;
 }
 
-// The numbers as a picture, for overview.png (the HTML page has them as a table).
+// The numbers as a picture, for overview.png (the HTML page has them as a table): three columns
+// at fixed positions (the font is proportional), then the warnings, wrapped to the panel.
 Image metrics_panel(const ReportSummary& s, const OptimizeResult& r, uint32_t width, uint32_t height) {
   Image img(width, height);
-  const Rgb8 ink{30, 30, 30}, muted{110, 110, 110};
-  auto cell = [](const std::string& text, size_t w) { return text + std::string(text.size() < w ? w - text.size() : 1, ' '); };
-  auto row = [&](const std::string& name, double before, double after, int digits) {
-    return cell(name, 13) + cell(report_number(before, digits), 9) + report_number(after, digits);
+  const Rgb8 ink{30, 30, 30}, muted{110, 110, 110}, warn{150, 80, 0};
+  struct Row {
+    std::string name, before, after;
   };
-  const std::vector<std::pair<std::string, Rgb8>> lines = {
-      {cell("", 13) + cell("ref TF", 9) + "opt TF", muted},
-      {row("image RMSE", s.before.rmse, s.after.rmse, 4), ink},
-      {row("PSNR dB", s.before.psnr, s.after.psnr, 4), ink},
-      {row("SSIM", s.before.ssim, s.after.ssim, 3), ink},
-      {"", ink},
-      {row("voxel RMSE", r.before.rmse(), r.after.rmse(), 3), ink},
-      {row("residual max", s.residual_max_before, s.residual_max_after, 3), ink},
-      {"", ink},
-      {"solver: " + r.solver, muted},
+  auto row = [](const std::string& name, double before, double after, int digits) {
+    return Row{name, report_number(before, digits), report_number(after, digits)};
   };
-  // Scale 2 when the widest line fits, else 1 (small test images).
-  size_t widest = 0;
-  for (const auto& l : lines) widest = std::max(widest, l.first.size());
-  const int scale = text_width(std::string(widest, 'x'), 2) + 24 <= int(width) ? 2 : 1;
-  int y = 16;
-  for (const auto& [text, colour] : lines) {
-    draw_text(img, 12, y, text, colour, scale);
-    y += text_height(scale) + 4 * scale + (text.empty() ? -4 * scale : 0);
+  const std::vector<Row> rows = {{"", "ref TF", "opt TF"},
+                                 row("image RMSE", s.before.rmse, s.after.rmse, 4),
+                                 row("PSNR dB", s.before.psnr, s.after.psnr, 4),
+                                 row("SSIM", s.before.ssim, s.after.ssim, 3),
+                                 row("voxel RMSE", r.before.rmse(), r.after.rmse(), 3),
+                                 row("residual max", s.residual_max_before, s.residual_max_after, 3)};
+  // Scale 2 when the table fits, else 1 (small images).
+  auto widths = [&](int scale) {
+    int a = 0, b = 0, c = 0;
+    for (const Row& x : rows)
+      a = std::max(a, text_width(x.name, scale)), b = std::max(b, text_width(x.before, scale)),
+      c = std::max(c, text_width(x.after, scale));
+    return std::array<int, 3>{a, b, c};
+  };
+  const int scale = [&] {
+    const auto w = widths(2);
+    return w[0] + w[1] + w[2] + 2 * 16 + 24 <= int(width) ? 2 : 1;
+  }();
+  const auto w = widths(scale);
+  const int gap = 8 * scale, line = text_height(scale) + 3 * scale;
+  int y = 12;
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const Rgb8 c = i == 0 ? muted : ink;
+    draw_text(img, 12, y, rows[i].name, c, scale);
+    draw_text(img, 12 + w[0] + gap, y, rows[i].before, c, scale);
+    draw_text(img, 12 + w[0] + w[1] + 2 * gap, y, rows[i].after, c, scale);
+    y += line;
+  }
+  draw_text(img, 12, y, "solver: " + r.solver, muted, scale);
+  y += line + 4;
+  // Warnings, word-wrapped at scale 1, as many as fit.
+  for (const std::string& text : r.warnings) {
+    std::string current = "warning:";
+    std::istringstream words(text);
+    for (std::string word; words >> word;) {
+      if (text_width(current + " " + word, 1) > int(width) - 24) {
+        if (y + text_height(1) > int(height)) return img;
+        draw_text(img, 12, y, current, warn, 1);
+        y += text_height(1) + 2;
+        current = "  " + word;
+      } else {
+        current += " " + word;
+      }
+    }
+    if (y + text_height(1) > int(height)) return img;
+    draw_text(img, 12, y, current, warn, 1);
+    y += text_height(1) + 6;
   }
   return img;
 }
@@ -79,6 +120,9 @@ nlohmann::json settings_json(const RenderSettings& s) {
           {"opacity_scale", s.opacity_scale},
           {"background", s.background},
           {"termination_opacity", s.termination_opacity},
+          {"background_encoding", "linear RGB (PNGs are sRGB)"},
+          {"z_scale", s.z_scale},
+          {"box_outline", s.box_outline},
           {"camera",
            {{"azimuth_deg", s.camera.azimuth_deg},
             {"elevation_deg", s.camera.elevation_deg},
@@ -92,7 +136,7 @@ std::vector<std::string> report_file_names() {
   return {"reference.png",       "field_reference_tf.png", "field_optimized_tf.png", "residual_reference_tf.png",
           "residual_optimized_tf.png", "tf_reference.png",  "tf_field_reference.png", "tf_optimized.png",
           "tf_residual.png",     "loss.png",               "overview.png",           "metrics.json",
-          "index.html"};
+          "command.txt",         "reference_tf.json",      "optimized_tf.json",      "index.html"};
 }
 
 ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::filesystem::path& final_dir) {
@@ -105,6 +149,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   // together when the report is complete, or, inside a command's batch, when the command is.
   OutputBatch batch;
   const std::filesystem::path dir = batch.directory(final_dir);
+  const std::string font = install_report_font();  // every label below in DejaVu Sans when installed
   ReportSummary out;
   Progress progress("report", 10);
   uint64_t step = 0;
@@ -122,7 +167,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   // the residual maps (host and device copies) come on top.
   check_device_memory(ctx, 3 * in.ref.values.size() * sizeof(float), "report: uploading both fields");
   check_memory(2 * in.ref.values.size() * sizeof(float), "report: residual maps");
-  const VolumeGeometry geometry = VolumeGeometry::from(in.ref.dims, in.ref.spacing);
+  const VolumeGeometry geometry = VolumeGeometry::from(in.ref.dims, in.ref.spacing, s.z_scale);
   DeviceField ref(ctx, in.ref.values, "report: reference field");
   DeviceField field(ctx, in.field.values, "report: second field", ref.chunk_voxels());
   Buffer ref_tf = upload_tf(ctx, in.ref_tf, "report: reference TF");
@@ -142,8 +187,11 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   Image after_img = composite_over(field_renderer.render(field_opt_tf_map, opt_tf, s), s.background);
   out.before = compare_images(ref_img, before_img);
   out.after = compare_images(ref_img, after_img);
-  // The pictures show the markers; the metrics above were taken without them.
-  for (Image* img : {&ref_img, &before_img, &after_img}) draw_markers(*img, geometry, s, in.markers);
+  // The pictures show the markers and the box outline; the metrics above were taken without them.
+  for (Image* img : {&ref_img, &before_img, &after_img}) {
+    draw_box_outline(*img, geometry, s);
+    draw_markers(*img, geometry, s, in.markers);
+  }
   save("reference.png", ref_img);
   save("field_reference_tf.png", before_img);
   save("field_optimized_tf.png", after_img);
@@ -163,6 +211,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   for (int k = 0; k < 2; ++k) {
     DeviceField res(ctx, (k == 0 ? res_before : res_after).values, "report: residual map");
     res_imgs[k] = composite_over(GpuRenderer(ctx, res, geometry).render(res_map, res_tf_buf, s), s.background);
+    draw_box_outline(res_imgs[k], geometry, s);
     draw_markers(res_imgs[k], geometry, s, in.markers);
   }
   save("residual_reference_tf.png", res_imgs[0]);
@@ -170,14 +219,18 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
 
   advance("TF plots");
   TfPlotOptions plot;
-  plot.width = std::max<uint32_t>(s.width, 256);
+  plot.width = std::max<uint32_t>(s.width, 320);
+  plot.log_counts = in.histogram_log;
   plot.title = "Reference TF, reference field histogram";
+  plot.axis_label = field_label(in.ref);
   const Image plot_ref = plot_transfer_function(in.ref_tf, in.ref.values, r.ref_range, plot);
   plot.title = "Reference TF, field histogram";
+  plot.axis_label = field_label(in.field);
   const Image plot_before = plot_transfer_function(in.ref_tf, in.field.values, r.field_range, plot);
   plot.title = "Optimized TF, field histogram";
   const Image plot_opt = plot_transfer_function(r.tf, in.field.values, r.field_range, plot);
   plot.title = "Residual TF, histogram after";
+  plot.axis_label = "residual (RGBA distance)";
   const Image plot_res = plot_transfer_function(res_tf, res_after.values, res_range, plot);
   save("tf_reference.png", plot_ref);
   save("tf_field_reference.png", plot_before);
@@ -206,12 +259,23 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
                          {"max_optimized_tf", out.residual_max_after},
                          {"display_range", {res_range.lo, res_range.hi}}};
   metrics["render_settings"] = settings_json(s);
+  metrics["histogram"] = in.histogram_log ? "log" : "linear";
+  metrics["font"] = font.empty() ? "built-in 5x7 bitmap (DejaVu Sans not found)" : font;
+  if (!in.command_line.empty()) metrics["command_line"] = in.command_line;
+  if (!in.version.empty()) metrics["version"] = in.version;
   metrics["optimize"] = to_json(r);
   metrics["fields"] = {{"reference", in.ref.name}, {"field", in.field.name}, {"dims", in.ref.dims}};
   if (!in.markers.empty()) metrics["markers"] = in.markers;
   if (!in.extra_metrics.is_null()) metrics["extra"] = in.extra_metrics;
   write_file_atomically(dir / "metrics.json", metrics.dump(2) + "\n");
   out.files.push_back("metrics.json");
+
+  // What reproduces the page: the command, the version, and both TFs as used (linear tables).
+  write_file_atomically(dir / "command.txt", (in.command_line.empty() ? std::string("(library call)") : in.command_line) +
+                                                 "\n" + (in.version.empty() ? "" : in.version + "\n"));
+  write_file_atomically(dir / "reference_tf.json", tf_to_json(in.ref_tf));
+  write_file_atomically(dir / "optimized_tf.json", tf_to_json(r.tf));
+  for (const char* f : {"command.txt", "reference_tf.json", "optimized_tf.json"}) out.files.push_back(f);
 
   advance("index.html");
   write_file_atomically(dir / "index.html", report_html(in, out, metrics));

@@ -41,6 +41,10 @@ struct ReportInputs {
   std::vector<GridIndex> markers;
   std::vector<ReportFigure> extra_figures;
   nlohmann::json extra_metrics;    // merged into metrics.json under "extra" when not null
+  bool histogram_log = true;       // TF plots: log(1 + count) bars, else counts (each plot says which)
+  // Saved with the report (command.txt, the page) so that it can be reproduced.
+  std::string command_line;
+  std::string version;
 };
 
 struct ReportSummary {

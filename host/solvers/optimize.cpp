@@ -26,6 +26,18 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   const FieldRange* ref_user = req.ref_range ? &*req.ref_range : (req.ref_tf.range ? &*req.ref_tf.range : nullptr);
   out.ref_range = resolve_range(req.ref->values, ref_user, req.ref->name);
   out.field_range = resolve_range(req.field->values, req.field_range ? &*req.field_range : nullptr, req.field->name);
+  // A range from a TF file or the user can miss the field (a [0, 1] TF on temperatures in K):
+  // every voxel would clamp to one entry and the fit would look perfect. Say so, or stop.
+  if (ref_user) {
+    const std::string source = req.ref_range ? "the given reference range" : "the reference TF file's range";
+    std::string w = check_range_coverage(req.ref->values, out.ref_range, req.ref->name, source, req.allow_out_of_range);
+    if (!w.empty()) out.warnings.push_back(std::move(w));
+  }
+  if (req.field_range) {
+    std::string w = check_range_coverage(req.field->values, out.field_range, req.field->name, "the given field range",
+                                         req.allow_out_of_range);
+    if (!w.empty()) out.warnings.push_back(std::move(w));
+  }
 
   check_device_memory(ctx, 2 * req.ref->values.size() * sizeof(float), "uploading both fields");
   auto t0 = std::chrono::steady_clock::now();
@@ -57,7 +69,7 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   checkpoint("solve");  // every solver passes here, however few steps of its own it checks
   SolverOutput solved = solver.solve(problem, args);
   for (auto& p : solved.phases) out.phases.push_back(p);
-  out.warnings = solved.warnings;
+  out.warnings.insert(out.warnings.end(), solved.warnings.begin(), solved.warnings.end());
   out.details = solved.details;
   out.tf = solved.tf;
   out.tf.range = out.field_range;

@@ -25,6 +25,8 @@ struct OptimizeRequest {
   std::string solver = "normal-equations";
   SolverSettings settings;                // options of `solver` (checked before anything is loaded)
   uint64_t max_chunk_voxels = 0;          // 0: device limit
+  // A range not from the field leaving > 95 % of its values outside is an error unless this.
+  bool allow_out_of_range = false;
 };
 
 struct OptimizeResult {
@@ -35,7 +37,7 @@ struct OptimizeResult {
   VoxelLoss after;                        // field with the optimized TF
   uint64_t voxels_total = 0;
   std::vector<PhaseTime> phases;
-  std::vector<std::string> warnings;
+  std::vector<std::string> warnings;     // ranges not fitting the fields, then the solver's
   Details details;                        // the solver's (JSON: host/report/result_json.h)
   std::string device;
 

@@ -53,7 +53,7 @@ DiffDvrResult solve_diffdvr_gpu(VoxelProblem& p, const DiffDvrOptions& o) {
   }
   const size_t n = tf.size();
   auto t0 = std::chrono::steady_clock::now();
-  const VolumeGeometry geometry = VolumeGeometry::from(p.opt_volume.dims, p.opt_volume.spacing);
+  const VolumeGeometry geometry = VolumeGeometry::from(p.opt_volume.dims, p.opt_volume.spacing, o.render.z_scale);
   DiffDvrGradient gradient(p.ctx, p.ref, p.opt, geometry, p.ref_map, p.ref_tf_buffer, p.opt_map, o.render, o.loss);
   out.phases.push_back({"diffdvr setup", ms_since(t0), -1.0});
 

@@ -130,7 +130,7 @@ nlohmann::json bench_iterations(Context& ctx, const BenchArgs& a) {
   const Volume ref = synthetic_reference(a.size, a.size, a.size), field = synthetic_remapped(ref);
   const TransferFunction tf = demo_transfer_function(64);
   const FieldRange field_range = resolve_range(field.values, nullptr, "field");
-  const VolumeGeometry geo = VolumeGeometry::from(ref.dims, ref.spacing);
+  const VolumeGeometry geo = VolumeGeometry::from(ref.dims, ref.spacing, a.settings.z_scale);
   DeviceField ref_dev(ctx, ref.values, "bench reference"), opt_dev(ctx, field.values, "bench field");
   Buffer tf_buf = upload_tf(ctx, tf, "bench TF");
   const FieldMapping ref_map = make_mapping({0, 1}, 64), opt_map = make_mapping(field_range, 64);

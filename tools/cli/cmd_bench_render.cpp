@@ -41,7 +41,7 @@ int run(const BenchArgs& a) {
   Volume volume = synthetic_reference(a.size, a.size, a.size);
   const TransferFunction tf = demo_transfer_function(64);
   const FieldRange range{0.0, 1.0};
-  const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing);
+  const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing, a.settings.z_scale);
   DeviceField field(*ctx, volume.values, "bench field");
   Buffer tf_buffer = upload_tf(*ctx, tf, "bench TF");
   const FieldMapping mapping = make_mapping(range, uint32_t(tf.size()));

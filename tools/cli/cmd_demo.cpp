@@ -34,6 +34,7 @@ struct DemoArgs {
   bool ensemble = false;     // the ensemble use case instead of the field pair
   uint32_t members = 64;
   RenderSettings render;
+  std::string histogram = "log";             // report TF plots: log or linear counts
   std::map<std::string, std::string> extra;  // solver options (solver_options.h), as optimize has
 };
 
@@ -104,9 +105,13 @@ DemoInputs ensemble_demo(Context& ctx, const DemoArgs& a, const std::filesystem:
   return in;
 }
 
-// The files the demo writes into its output directory.
+// Whether the report goes into the demo's own directory; it then writes both TFs there itself.
+bool report_in_out_dir(const DemoArgs& a) { return !a.no_report && a.report.empty(); }
+
+// The files the demo writes into its output directory (besides the report's).
 std::vector<std::string> demo_file_names(const DemoArgs& a) {
-  std::vector<std::string> names = {"reference_tf.json", "optimized_tf.json", "summary.json"};
+  std::vector<std::string> names = {"summary.json"};
+  if (!report_in_out_dir(a)) names.insert(names.end(), {"reference_tf.json", "optimized_tf.json"});
   if (a.ensemble) {
     for (CorrelationMeasure m : {CorrelationMeasure::MiCoefficient, CorrelationMeasure::Pearson})
       names.push_back(std::string(correlation_measure_name(m)) + ".vti");
@@ -136,7 +141,7 @@ int run(const DemoArgs& a) {
   const std::filesystem::path dir = outputs.directory(a.out);
   set_progress_enabled(!globals().quiet);
   DemoInputs in = a.ensemble ? ensemble_demo(*ctx, a, dir) : fields_demo(a, dir);
-  write_tf_json(dir / "reference_tf.json", in.ref_tf);
+  if (!report_in_out_dir(a)) write_tf_json(dir / "reference_tf.json", in.ref_tf);
 
   OptimizeRequest req;
   req.ref = &in.ref;
@@ -146,7 +151,7 @@ int run(const DemoArgs& a) {
   req.solver = a.solver;
   req.settings = settings;
   OptimizeResult result = run_optimize(*ctx, req);
-  write_tf_json(dir / "optimized_tf.json", result.tf);
+  if (!report_in_out_dir(a)) write_tf_json(dir / "optimized_tf.json", result.tf);
   write_file_atomically(dir / "summary.json", to_json(result).dump(2) + "\n");
   if (!globals().quiet) {
     std::cout << in.description;
@@ -158,6 +163,9 @@ int run(const DemoArgs& a) {
     inputs.extra_figures = solver_report_figures(result, a.render.width);  // diffdvr: loss curve
     inputs.title = in.title;
     inputs.markers = in.markers;
+    inputs.histogram_log = a.histogram == "log";
+    inputs.command_line = globals().command_line;
+    inputs.version = version_line();
     summary = write_report(*ctx, inputs, report_dir);
   }
   outputs.commit();
@@ -190,6 +198,7 @@ CommandRegistration reg(0, [](CLI::App& app) {
       ->capture_default_str();
   add_solver_options(sub, args->extra);
   add_render_options(sub, args->render);
+  add_histogram_option(sub, args->histogram);
   sub->footer(solver_descriptions());
   sub->callback([args] { exit_code() = run(*args); });
 });

@@ -30,6 +30,7 @@ struct OptimizeArgs {
   std::map<std::string, std::string> extra;  // solver options (solver_options.h), checked by the solver
   std::string report;                         // report directory (renderings, metrics, index.html)
   std::vector<std::string> markers;           // drawn on the report's renderings
+  std::string histogram = "log";              // report TF plots: log or linear counts
   RenderSettings render;
 };
 
@@ -75,6 +76,9 @@ int run(const OptimizeArgs& a) {
     inputs.extra_figures = solver_report_figures(result, a.render.width);  // diffdvr: loss curve
     inputs.title = "tfmatch: " + field.name + " matched to " + ref.name;
     inputs.markers = markers;
+    inputs.histogram_log = a.histogram == "log";
+    inputs.command_line = globals().command_line;
+    inputs.version = version_line();
     summary = write_report(*ctx, inputs, a.report);
   }
   outputs.commit();
@@ -109,6 +113,7 @@ CommandRegistration reg(10, [](CLI::App& app) {
                   "maps, TF plots, metrics.json, index.html");
   add_render_options(sub, args->render);
   add_marker_option(sub, args->markers);
+  add_histogram_option(sub, args->histogram);
   sub->footer(solver_descriptions());
   sub->callback([args] { exit_code() = run(*args); });
 });

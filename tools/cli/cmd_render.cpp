@@ -4,6 +4,7 @@
 
 #include "atomic_file.h"
 #include "cli.h"
+#include "input_options.h"
 #include "output_check.h"
 #include "png_io.h"
 #include "progress.h"
@@ -18,6 +19,7 @@ namespace {
 
 struct RenderArgs {
   std::string volume, tf, out, range;
+  bool allow_out_of_range = false;
   std::vector<std::string> markers;
   VolumeFlags volume_flags;
   RenderSettings settings;
@@ -26,16 +28,14 @@ struct RenderArgs {
 int run(const RenderArgs& a) {
   set_progress_enabled(!globals().quiet);
   FilePlan().input_spec(a.volume, "--volume").input_spec(a.tf, "--tf").output(a.out, "--out").check();
-  FieldRange user;
-  if (!a.range.empty()) user = parse_range(a.range, "--range");
+  if (!a.range.empty()) parse_range(a.range, "--range");  // a bad range fails before anything loads
   validate(a.settings);
   auto ctx = make_context();
   check_render_size(*ctx, a.settings);  // before loading: a too-large image fails in a second
   OutputBatch outputs;
   Volume volume = load_volume(a.volume, a.volume_flags.options());
   TransferFunction tf = read_transfer_function(a.tf);
-  const FieldRange* given = !a.range.empty() ? &user : (tf.range ? &*tf.range : nullptr);
-  const FieldRange range = resolve_range(volume.values, given, volume.name);
+  const FieldRange range = field_range_for(volume, tf, a.range, "--range", a.allow_out_of_range);
   const std::vector<GridIndex> markers = resolve_markers(volume, a.markers);
 
   const auto t0 = std::chrono::steady_clock::now();
@@ -46,7 +46,9 @@ int run(const RenderArgs& a) {
   }
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   Image picture = composite_over(image, a.settings.background);
-  draw_markers(picture, VolumeGeometry::from(volume.dims, volume.spacing), a.settings, markers);
+  const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing, a.settings.z_scale);
+  draw_box_outline(picture, geometry, a.settings);
+  draw_markers(picture, geometry, a.settings, markers);
   write_png(a.out, picture);
   outputs.commit();
   if (!globals().quiet)
@@ -64,6 +66,7 @@ CommandRegistration reg(20, [](CLI::App& app) {
   sub->add_option("--tf", args->tf, "Transfer function (tfmatch JSON, framework XML or ParaView preset[:NAME])")->required();
   sub->add_option("--out", args->out, "Output image (PNG)")->required();
   sub->add_option("--range", args->range, "Field range lo,hi mapped to the TF (default: TF file's, else finite min/max)");
+  add_allow_out_of_range_flag(sub, args->allow_out_of_range);
   add_volume_flags(sub, args->volume_flags);
   add_render_options(sub, args->settings);
   add_marker_option(sub, args->markers);

@@ -7,6 +7,7 @@
 
 #include "atomic_file.h"
 #include "cli.h"
+#include "input_options.h"
 #include "output_check.h"
 #include "png_io.h"
 #include "render.h"
@@ -23,16 +24,10 @@ namespace {
 struct ResidualArgs {
   std::string ref, ref_tf, field, field_tf, out, image;
   std::string ref_range, field_range, display_range;
+  bool allow_out_of_range = false;
   VolumeFlags volume_flags;
   RenderSettings settings;
 };
-
-FieldRange range_of(const Volume& v, const TransferFunction& tf, const std::string& flag_value, const std::string& flag) {
-  FieldRange user;
-  if (!flag_value.empty()) user = parse_range(flag_value, flag);
-  const FieldRange* given = !flag_value.empty() ? &user : (tf.range ? &*tf.range : nullptr);
-  return resolve_range(v.values, given, v.name);
-}
 
 int run(const ResidualArgs& a) {
   set_progress_enabled(!globals().quiet);
@@ -56,8 +51,8 @@ int run(const ResidualArgs& a) {
   require_same_grid(ref, field);
   TransferFunction ref_tf = read_transfer_function(a.ref_tf);
   TransferFunction field_tf = read_transfer_function(a.field_tf);
-  const FieldRange ref_range = range_of(ref, ref_tf, a.ref_range, "--ref-range");
-  const FieldRange field_range = range_of(field, field_tf, a.field_range, "--field-range");
+  const FieldRange ref_range = field_range_for(ref, ref_tf, a.ref_range, "--ref-range", a.allow_out_of_range);
+  const FieldRange field_range = field_range_for(field, field_tf, a.field_range, "--field-range", a.allow_out_of_range);
 
   Volume residual = residual_map(*ctx, ref, ref_tf, ref_range, field, field_tf, field_range);
   // .vti opens in ParaView with its grid and spacing; anything else is float32 raw.
@@ -69,7 +64,9 @@ int run(const ResidualArgs& a) {
     Progress progress("rendering the residual", a.settings.height);
     RenderedImage img = render_volume(*ctx, residual, residual_transfer_function(), shown, a.settings, &progress);
     progress.finish();
-    write_png(a.image, composite_over(img, a.settings.background));
+    Image picture = composite_over(img, a.settings.background);
+    draw_box_outline(picture, VolumeGeometry::from(residual.dims, residual.spacing, a.settings.z_scale), a.settings);
+    write_png(a.image, picture);
   }
   outputs.commit();
   if (!globals().quiet) {
@@ -106,6 +103,7 @@ CommandRegistration reg(21, [](CLI::App& app) {
   sub->add_option("--image", args->image, "Also render the residual map into this PNG");
   sub->add_option("--ref-range", args->ref_range, "Reference range lo,hi (default: TF file's, else finite min/max)");
   sub->add_option("--field-range", args->field_range, "Field range lo,hi (default: TF file's, else finite min/max)");
+  add_allow_out_of_range_flag(sub, args->allow_out_of_range);
   sub->add_option("--display-range", args->display_range, "Residual range lo,hi the image maps (default: 0,max)");
   add_volume_flags(sub, args->volume_flags);
   add_render_options(sub, args->settings);

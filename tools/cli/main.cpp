@@ -1,10 +1,12 @@
 // The `tfmatch` program: parses the command line and runs the chosen subcommand.
 #include <algorithm>
+#include <cctype>
 #include <cstdlib>
 #include <exception>
 #include <iostream>
 #include <new>
 #include <sstream>
+#include <string_view>
 
 #include "cancellation.h"
 #include "cli.h"
@@ -106,11 +108,29 @@ std::string version_text() {
   return os.str();
 }
 
+std::string version_line() { return std::string("tfmatch ") + TFMATCH_VERSION + " (commit " + TFMATCH_GIT_COMMIT + ")"; }
+
+// argv as a shell would need it typed: words with anything but [A-Za-z0-9_./:=,+-@%] single-quoted.
+static std::string quoted_command_line(int argc, char** argv) {
+  std::string out;
+  for (int i = 0; i < argc; ++i) {
+    const std::string w = argv[i];
+    const bool plain = !w.empty() && std::all_of(w.begin(), w.end(), [](char c) {
+      return std::isalnum(static_cast<unsigned char>(c)) || std::string_view("_./:=,+-@%").find(c) != std::string_view::npos;
+    });
+    std::string q = "'";
+    for (char c : w) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    out += (i ? " " : "") + (plain ? w : q + "'");
+  }
+  return out;
+}
+
 }  // namespace tfm::cli
 
 int main(int argc, char** argv) {
   using namespace tfm::cli;
   install_interrupt_handlers();
+  globals().command_line = quoted_command_line(argc, argv);
   CLI::App app{"tfmatch: optimize a transfer function so a second field's volume renderings match a reference's"};
   app.require_subcommand(1);
   // Global flags are accepted after the subcommand too (`tfmatch info big.nrrd --max-memory 1G`).

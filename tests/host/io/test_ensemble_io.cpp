@@ -140,9 +140,10 @@ TEST(EnsembleIo, Era5GribMembersWithCoordinates) {
   EXPECT_EQ(e.member(3).values, m3.values);
   EXPECT_EQ(e.grid.axes[0].coordinates.front(), 0.0);
   EXPECT_DOUBLE_EQ(e.grid.axes[0].coordinates.back(), 357.0);
-  EXPECT_EQ(e.grid.axes[1].coordinates.front(), 90.0);
-  EXPECT_EQ(e.grid.axes[1].coordinates.back(), -90.0);
-  EXPECT_EQ(e.grid.axes[2].coordinates, (std::vector<double>{500, 850}));
+  // North up and the surface down, as every loader orients geographic grids.
+  EXPECT_EQ(e.grid.axes[1].coordinates.front(), -90.0);
+  EXPECT_EQ(e.grid.axes[1].coordinates.back(), 90.0);
+  EXPECT_EQ(e.grid.axes[2].coordinates, (std::vector<double>{850, 500}));
   EXPECT_EQ(e.grid.axes[2].units, "hPa");
 }
 

@@ -13,6 +13,7 @@
 #include "png_io.h"
 #include "report.h"
 #include "synthetic.h"
+#include "tf_formats.h"
 #include "vk_test_env.h"
 
 namespace tfm {
@@ -37,12 +38,17 @@ TEST_F(Report, WritesPicturesMetricsAndPage) {
   req.field = &field;
   req.ref_tf = ref_tf;
   req.tf_size = 32;
-  const OptimizeResult result = run_optimize(ctx(), req);
+  OptimizeResult result = run_optimize(ctx(), req);
+  result.warnings.push_back("cond(M) <test warning>");
 
   ReportInputs in{ref, field, ref_tf, result, RenderSettings{}};
   in.settings.width = 48;
   in.settings.height = 40;
+  in.settings.box_outline = false;  // so that the PNGs on disk are the pictures measured
   in.title = "test <report>";
+  in.command_line = "tfmatch optimize --ref 'a b.nc:T' --out x.json";
+  in.version = "tfmatch 9.9.9 (commit test)";
+  in.histogram_log = false;
   in.extra_figures.push_back({"Loss", "loss.png", Image(20, 10, {0, 0, 255}), "a curve"});
   const ReportSummary s = write_report(ctx(), in, dir.path);
   // Every file written is one report_file_names() lists (the output plan of the commands relies
@@ -81,6 +87,46 @@ TEST_F(Report, WritesPicturesMetricsAndPage) {
     if (f.ends_with(".png") && f != "overview.png") EXPECT_NE(html.find("src=\"" + f + "\""), std::string::npos) << f;
   EXPECT_NE(html.find("test &lt;report&gt;"), std::string::npos) << "title is escaped";
   EXPECT_NE(html.find("LPIPS"), std::string::npos);
+  // Warnings on the page; what reproduces it saved beside it; the histogram scale named.
+  EXPECT_NE(html.find("cond(M) &lt;test warning&gt;"), std::string::npos);
+  EXPECT_NE(html.find("tfmatch optimize --ref 'a b.nc:T' --out x.json"), std::string::npos) << html;
+  EXPECT_NE(html.find("tfmatch 9.9.9 (commit test)"), std::string::npos);
+  EXPECT_NE(html.find("histograms linear counts"), std::string::npos);
+  EXPECT_EQ(read_text(dir / "command.txt"), in.command_line + "\n" + in.version + "\n");
+  EXPECT_EQ(read_transfer_function(dir / "reference_tf.json").rgba, ref_tf.rgba);
+  const TransferFunction saved = read_transfer_function(dir / "optimized_tf.json");
+  EXPECT_EQ(saved.rgba, result.tf.rgba);
+  ASSERT_TRUE(saved.range);
+  EXPECT_EQ(saved.range->lo, result.field_range.lo);
+  EXPECT_EQ(m["histogram"], "linear");
+  EXPECT_EQ(m["command_line"], in.command_line);
+}
+
+TEST_F(Report, PicturesCarryTheBoxOutline) {
+  test::TempDir dir;
+  const Volume ref = synthetic_reference(10, 9, 8);
+  const Volume field = synthetic_remapped(ref);
+  OptimizeRequest req;
+  req.ref = &ref;
+  req.field = &field;
+  req.ref_tf = demo_transfer_function(16);
+  req.tf_size = 16;
+  const OptimizeResult result = run_optimize(ctx(), req);
+  ReportInputs in{ref, field, req.ref_tf, result, RenderSettings{}};
+  in.settings.width = in.settings.height = 40;
+  const ReportSummary s = write_report(ctx(), in, dir.path);
+  // The outline is on by default: grey box edges on the picture written.
+  const auto m = nlohmann::json::parse(read_text(dir / "metrics.json"));
+  EXPECT_EQ(m["render_settings"]["box_outline"], true);
+  const Image img = read_png(dir / "reference.png");
+  size_t grey = 0;
+  for (uint32_t y = 0; y < img.height; ++y)
+    for (uint32_t x = 0; x < img.width; ++x) {
+      const uint8_t* p = img.at(x, y);
+      grey += p[0] == p[1] && p[1] == p[2] && p[0] > 100 && p[0] < 200;
+    }
+  EXPECT_GT(grey, 20u) << "outline pixels";
+  EXPECT_FALSE(s.files.empty());
 }
 
 TEST_F(Report, RejectsFieldsOnDifferentGrids) {
