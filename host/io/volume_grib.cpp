@@ -295,6 +295,12 @@ std::vector<double> message_values(const Message& m, const std::string& file) {
     throw std::runtime_error(where + ": " + m.grid_type + " grid with " + std::to_string(n) +
                              " values is not a rectangular Ni x Nj grid (reduced grids are not supported)");
   check_memory(uint64_t(n) * sizeof(double), where + ": " + std::to_string(n) + " values");
+  // ecCodes allocates the coded values by the count the data representation section states
+  // (numberOfValues), not by the grid's: a hostile count made it ask for 2 GiB for a 12-point
+  // grid (found by fuzz_grib). With a bitmap fewer values are coded than the grid has, never more.
+  if (const std::optional<long> coded = get_long(h, "numberOfValues"); coded && (*coded < 0 || uint64_t(*coded) > n))
+    throw std::runtime_error(where + ": states " + std::to_string(*coded) + " coded values for a grid of " +
+                             std::to_string(n) + " points");
   std::vector<double> v(n);
   int err = codes_get_double_array(h, "values", v.data(), &n);
   if (err != CODES_SUCCESS) throw std::runtime_error(where + ": cannot decode values (" + codes_get_error_message(err) + ")");
