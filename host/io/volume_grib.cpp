@@ -122,12 +122,24 @@ void check_grib1_sections(int index, uint64_t start, uint64_t length, Number num
   section("binary data", 11);
 }
 
+// GRIB 2's section order: 1, optionally 2, then 3, 4, 5, 6, 7, where the runs 2-7, 3-7 or 4-7
+// may repeat (several fields in one message). A message out of this order made ecCodes 2.28
+// build accessors without end (gigabytes within seconds, found by fuzz_grib).
+bool grib2_section_may_follow(uint64_t previous, uint64_t id) {
+  switch (previous) {
+    case 0: return id == 1;
+    case 1: return id == 2 || id == 3;
+    case 7: return id == 2 || id == 3 || id == 4;
+    default: return id == previous + 1;
+  }
+}
+
 // The framing of every message, checked before ecCodes sees the file: ecCodes trusts section
 // lengths, and a hostile message whose section claims to run past the message's end makes it
 // return fields without end (gigabytes from a 2 KB file, then a double free). A message starts
 // at "GRIB" (junk between messages is skipped, as ecCodes does); GRIB 2: its 8-byte length must
-// fit the file, end in "7777", and its sections (4-byte length >= 5, number 1 to 7) must tile it
-// exactly; GRIB 1: its 3-byte length must fit the file and end in "7777", and its sections must
+// fit the file, end in "7777", and its sections (4-byte length >= 5, number 1 to 7, in order) must
+// tile it exactly; GRIB 1: its 3-byte length must fit the file and end in "7777", and its sections must
 // fit it (ECMWF's large-message encoding, top bit set, is left to ecCodes).
 void check_grib_framing(const ByteReader& read, uint64_t size, const std::string& file) {
   auto fail = [&](int index, uint64_t at, const std::string& what) {
@@ -162,14 +174,20 @@ void check_grib_framing(const ByteReader& read, uint64_t size, const std::string
       length = number(start + 8, 8);
       if (length < 16 + 4 || length > size - start) fail(index, start, "claims " + std::to_string(length) + " bytes, the file has " + std::to_string(size - start) + " from there");
       if (!ends_in_7777(start + length)) fail(index, start, "does not end in 7777 where its length says");
-      uint64_t at = start + 16;
+      uint64_t at = start + 16, previous = 0;
       while (at < start + length - 4) {
         const uint64_t section = number(at, 4), id = number(at + 4, 1);
         if (section < 5 || section > start + length - 4 - at || id < 1 || id > 7)
           fail(index, start, "section " + std::to_string(id) + " at byte " + std::to_string(at - start) + " claims " +
                                  std::to_string(section) + " bytes, past the message's end");
+        if (!grib2_section_may_follow(previous, id))
+          fail(index, start, "section " + std::to_string(id) + " at byte " + std::to_string(at - start) +
+                                 (previous ? " follows section " + std::to_string(previous) : " comes first") +
+                                 ", out of GRIB 2's order");
+        previous = id;
         at += section;
       }
+      if (previous != 7) fail(index, start, "ends after section " + std::to_string(previous) + ", not after section 7");
     } else if (edition == 1) {
       length = number(start + 4, 3);
       if (length & 0x800000) length = 0;  // ECMWF large message: ecCodes decides

@@ -1,7 +1,7 @@
 // Hostile headers that the libraries would trust (what the NetCDF and GRIB fuzz targets found):
 // a classic NetCDF header whose name length or counts claim gigabytes (netCDF-C allocates them
 // before reading), GRIB 2 messages whose length or sections run past their end (ecCodes then
-// returns fields without end), and a GRIB 1 bitmap section shorter than its header (ecCodes
+// returns fields without end) or come out of order (ecCodes then allocates without end), and a GRIB 1 bitmap section shorter than its header (ecCodes
 // aborts). tfmatch's own checks refuse them first, naming the file and what
 // is wrong, from a file and from memory alike.
 #include <gtest/gtest.h>
@@ -130,8 +130,23 @@ TEST(FormatsHostileHeaders, GribSectionsPastTheirMessageAreRefused) {
   const std::string long_message = grib2({{21, 1}}, 1 << 30);
   expect_refused([&] { describe_grib_bytes(long_message, "len.grib2"); }, {"len.grib2: GRIB message 1", "claims 1073741824 bytes"});
   // The second message of a file is checked too, after a well-framed first one.
-  const std::string two = grib2({{21, 1}}) + grib2({{21, 1}, {4, 3}});
+  const std::vector<std::pair<uint32_t, int>> whole = {{21, 1}, {14, 3}, {9, 4}, {11, 5}, {6, 6}, {5, 7}};
+  const std::string two = grib2(whole) + grib2({{21, 1}, {4, 3}});
   expect_refused([&] { parse_grib(two, "two.grib2", {}); }, {"GRIB message 2"});
+  // Sections out of GRIB 2's order (ecCodes then built accessors without end: gigabytes in
+  // seconds, what the fuzzer found): a repeated section 6, a message ending before section 7.
+  expect_refused([&] { describe_grib_bytes(grib2({{21, 1}, {14, 3}, {9, 4}, {11, 5}, {6, 6}, {6, 6}}), "order.grib2"); },
+                 {"order.grib2: GRIB message 1", "section 6 at byte 77 follows section 6"});
+  expect_refused([&] { parse_grib(grib2({{21, 1}, {14, 3}, {9, 4}, {11, 5}, {6, 6}}), "short.grib2", {}); },
+                 {"ends after section 6, not after section 7"});
+  // Several fields in one message (the runs 4-7 and 3-7 repeated) are in order.
+  try {
+    describe_grib_bytes(grib2({{21, 1}, {14, 3}, {9, 4}, {11, 5}, {6, 6}, {5, 7}, {9, 4}, {11, 5}, {6, 6}, {5, 7},
+                               {14, 3}, {9, 4}, {11, 5}, {6, 6}, {5, 7}}),
+                        "multi.grib2");
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()).find("order"), std::string::npos) << e.what();
+  }
   test::TempDir dir;
   std::ofstream(dir / "sec.grib2", std::ios::binary) << bad_section;
   expect_refused([&] { load_volume(dir / "sec.grib2"); }, {"sec.grib2: GRIB message 1", "past the message's end"});
