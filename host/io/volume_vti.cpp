@@ -37,6 +37,7 @@ struct VtiArray {
   size_t content_begin = 0, content_end = 0;
   uint64_t offset = 0;
   int line = 0;
+  std::string axis_name, units;  // field data written by tfmatch: an axis's coordinates (see write_vti)
 };
 
 struct VtiDocument {
@@ -193,6 +194,8 @@ VtiDocument parse_document(std::string_view bytes, const std::string& file) {
         if (!doc.has_appended) throw std::runtime_error(where + " '" + a.name + "' is appended, but the file has no AppendedData");
         a.offset = parse_uint(da->attribute("offset"), 0, where + " offset");
       }
+      if (const std::string* n = da->attribute("axis_name")) a.axis_name = *n;
+      if (const std::string* u = da->attribute("units")) a.units = *u;
       a.content_begin = da->content_begin;
       a.content_end = da->content_end;
       doc.arrays.push_back(a);
@@ -386,6 +389,19 @@ Volume parse_vti(std::string_view bytes, const std::string& file, const VolumeOp
   v.origin = origin_of(doc.origin, doc.spacing, pick.section);
   v.name = file + ":" + pick.name + (sel.component ? "[" + std::to_string(*sel.component) + "]" : "");
   v.values = select_component(decode_array(bytes, doc, pick, file), pick.components, sel.component, v.name);
+  // Axis coordinates tfmatch wrote as field data (x_coordinates, ...), when they fit the grid.
+  static const char* kAxes[3] = {"x", "y", "z"};
+  for (const VtiArray& a : doc.arrays) {
+    for (int k = 0; k < 3; ++k) {
+      if (a.section != "field data" || a.name != std::string(kAxes[k]) + "_coordinates" || a.components != 1 ||
+          a.tuples != v.dims[size_t(k)])
+        continue;
+      const std::vector<float> c = decode_array(bytes, doc, a, file);
+      v.axes[size_t(k)].coordinates.assign(c.begin(), c.end());
+      v.axes[size_t(k)].name = a.axis_name;
+      v.axes[size_t(k)].units = a.units;
+    }
+  }
   return v;
 }
 
@@ -429,8 +445,29 @@ void write_vti(const std::filesystem::path& path, const std::vector<std::pair<st
       throw std::runtime_error(path.string() + ": arrays to write are on different grids (" + arrays.front().first + ", " + name + ")");
     if (v->values.size() != v->voxel_count()) throw std::invalid_argument("write_vti: volume size does not match its dims");
   }
-  std::ostringstream xml;
   const auto& d = first.dims;
+  // Axis coordinates (latitudes, pressure levels, ...) as field data, so that what the regular
+  // Origin/Spacing cannot say (Gaussian latitudes, uneven levels, units) travels with the grid:
+  // Float64 ascii arrays "x_coordinates" ... with the axis name and units as extra attributes
+  // (VTK readers keep the arrays and ignore the attributes; tfmatch restores both).
+  std::ostringstream fd;
+  bool any_coordinates = false;
+  for (int k = 0; k < 3; ++k) any_coordinates |= first.axes[size_t(k)].coordinates.size() == d[size_t(k)];
+  if (any_coordinates) {
+    fd << "    <FieldData>\n";
+    static const char* kAxes[3] = {"x", "y", "z"};
+    for (int k = 0; k < 3; ++k) {
+      const GridAxis& a = first.axes[size_t(k)];
+      if (a.coordinates.size() != d[size_t(k)]) continue;
+      fd << "      <DataArray type=\"Float64\" Name=\"" << kAxes[k] << "_coordinates\" NumberOfTuples=\""
+          << a.coordinates.size() << "\" format=\"ascii\" axis_name=\"" << xml_escape(a.name) << "\" units=\""
+          << xml_escape(a.units) << "\">";
+      for (size_t i = 0; i < a.coordinates.size(); ++i) fd << (i ? " " : "") << format_double(a.coordinates[i]);
+      fd << "</DataArray>\n";
+    }
+    fd << "    </FieldData>\n";
+  }
+  std::ostringstream xml;
   const std::string extent = "0 " + std::to_string(d[0] - 1) + " 0 " + std::to_string(d[1] - 1) + " 0 " + std::to_string(d[2] - 1);
   xml << "<?xml version=\"1.0\"?>\n<VTKFile type=\"ImageData\" version=\"1.0\" byte_order=\"LittleEndian\" "
          "header_type=\"UInt64\""
@@ -438,7 +475,7 @@ void write_vti(const std::filesystem::path& path, const std::vector<std::pair<st
       << "  <ImageData WholeExtent=\"" << extent << "\" Origin=\"" << format_double(first.origin[0]) << " "
       << format_double(first.origin[1]) << " " << format_double(first.origin[2]) << "\" Spacing=\"" << format_double(first.spacing[0]) << " "
       << format_double(first.spacing[1]) << " " << format_double(first.spacing[2]) << "\">\n"
-      << "    <Piece Extent=\"" << extent << "\">\n"
+      << fd.str() << "    <Piece Extent=\"" << extent << "\">\n"
       << "      <PointData Scalars=\"" << xml_escape(arrays.front().first) << "\">\n";
   std::string appended;
   for (const auto& [name, v] : arrays) {

@@ -107,6 +107,15 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
     << figure("residual_optimized_tf.png", "Residual with the optimized TF (after)")
     << figure("tf_residual.png", "Residual TF over the histogram of the residual after") << "</div>\n";
 
+  if (!s.slices.empty()) {
+    h << "<h2>Slices</h2>\n<p class=\"note\">Axis-aligned planes through voxel "
+      << escape(describe_grid_point(in.ref, s.slice_point))
+      << ": each voxel's TF colour over the background, its opacity scaled so the TF's most opaque entry "
+         "is opaque (a slice shows one sample, not a ray's integral); the residual on the scale above. "
+         "North and up are up; grey is no data.</p>\n";
+    for (const auto& sl : s.slices) h << figure(sl.file, sl.caption);
+  }
+
   h << "<h2>Metrics</h2>\n<table>\n<tr><th></th><th>reference TF</th><th>optimized TF</th><th></th></tr>\n"
     << metric_row("Image RMSE (0&ndash;255)", s.before.rmse, s.after.rmse, 5, false)
     << metric_row("Image PSNR (dB)", s.before.psnr, s.after.psnr, 5, true)

@@ -16,6 +16,7 @@
 #include "progress.h"
 #include "render.h"
 #include "render_report_html.h"
+#include "slice.h"
 #include "result_json.h"
 #include "residual.h"
 #include "tf_json.h"
@@ -130,13 +131,47 @@ nlohmann::json settings_json(const RenderSettings& s) {
             {"fov_deg", s.camera.fov_deg}}}};
 }
 
+// The slices through in.slice_point (default: the first marker, else the middle), one picture per axis with the four
+// quantities side by side: the plane normal to z first (a map view for geophysical grids).
+template <class Save>
+void write_slices(const ReportInputs& in, const Volume& residual, const TransferFunction& res_tf,
+                  const FieldRange& res_range, ReportSummary& out, Save& save) {
+  const auto& d = in.ref.dims;
+  out.slice_point = in.slice_point ? *in.slice_point
+                                   : (!in.markers.empty() ? in.markers.front() : GridIndex{d[0] / 2, d[1] / 2, d[2] / 2});
+  const OptimizeResult& r = in.result;
+  SliceStyle style;
+  style.background = in.settings.background;
+  style.z_scale = in.settings.z_scale;
+  style.max_size = std::clamp<uint32_t>(in.settings.width * 3 / 4, 160, 480);
+  style.opacity_scale = max_opacity(in.ref_tf);  // one scale for the three classified fields
+  SliceStyle res_style = style;
+  res_style.opacity_scale = max_opacity(res_tf);
+  static const char* names[3] = {"x", "y", "z"};
+  for (int axis : {2, 1, 0}) {
+    const SliceValues ref = extract_slice(in.ref, axis, out.slice_point[size_t(axis)]);
+    if (ref.width < 2 || ref.height < 2) continue;  // a line, not a plane
+    const SliceValues field = extract_slice(in.field, axis, out.slice_point[size_t(axis)]);
+    const SliceValues res = extract_slice(residual, axis, out.slice_point[size_t(axis)]);
+    const Image row = compose_panels({{slice_image(in.ref, ref, in.ref_tf, r.ref_range, style), "Reference"},
+                                      {slice_image(in.field, field, in.ref_tf, r.field_range, style), "Field, reference TF"},
+                                      {slice_image(in.field, field, r.tf, r.field_range, style), "Field, optimized TF"},
+                                      {slice_image(residual, res, res_tf, res_range, res_style), "Residual, optimized TF"}},
+                                     4);
+    const std::string file = std::string("slices_") + names[axis] + ".png";
+    save(file, row);
+    out.slices.push_back({file, describe_slice(in.ref, axis, out.slice_point[size_t(axis)])});
+  }
+}
+
 }  // namespace
 
 std::vector<std::string> report_file_names() {
   return {"reference.png",       "field_reference_tf.png", "field_optimized_tf.png", "residual_reference_tf.png",
           "residual_optimized_tf.png", "tf_reference.png",  "tf_field_reference.png", "tf_optimized.png",
           "tf_residual.png",     "loss.png",               "overview.png",           "metrics.json",
-          "command.txt",         "reference_tf.json",      "optimized_tf.json",      "index.html"};
+          "command.txt",         "reference_tf.json",      "optimized_tf.json",      "slices_x.png",
+          "slices_y.png",        "slices_z.png",           "index.html"};
 }
 
 ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::filesystem::path& final_dir) {
@@ -144,6 +179,11 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   const OptimizeResult& r = in.result;
   const RenderSettings& s = in.settings;
   validate(s);
+  if (in.slice_point)
+    for (int k = 0; k < 3; ++k)
+      if ((*in.slice_point)[size_t(k)] >= in.ref.dims[size_t(k)])
+        throw std::runtime_error("report: slice point " + describe_grid_point(in.ref, *in.slice_point) +
+                                 " is outside the grid");
   check_render_size(ctx, s);
   // Everything goes to temporary names (a staged directory when `final_dir` is new) that appear
   // together when the report is complete, or, inside a command's batch, when the command is.
@@ -217,6 +257,9 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   save("residual_reference_tf.png", res_imgs[0]);
   save("residual_optimized_tf.png", res_imgs[1]);
 
+  advance("slices");
+  write_slices(in, res_after, res_tf, res_range, out, save);
+
   advance("TF plots");
   TfPlotOptions plot;
   plot.width = std::max<uint32_t>(s.width, 320);
@@ -266,6 +309,8 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   metrics["optimize"] = to_json(r);
   metrics["fields"] = {{"reference", in.ref.name}, {"field", in.field.name}, {"dims", in.ref.dims}};
   if (!in.markers.empty()) metrics["markers"] = in.markers;
+  metrics["slices"] = {{"point", out.slice_point}, {"files", nlohmann::json::array()}};
+  for (const auto& sl : out.slices) metrics["slices"]["files"].push_back({{"file", sl.file}, {"plane", sl.caption}});
   if (!in.extra_metrics.is_null()) metrics["extra"] = in.extra_metrics;
   write_file_atomically(dir / "metrics.json", metrics.dump(2) + "\n");
   out.files.push_back("metrics.json");

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,9 @@ struct ReportInputs {
   // Grid points drawn as red dots on every rendering (correlation reference points); the image
   // metrics are computed on the renderings without them.
   std::vector<GridIndex> markers;
+  // Axis-aligned slices (reference, field with each TF, residual after) go through this voxel;
+  // when not given, through the first marker, else the grid's middle.
+  std::optional<GridIndex> slice_point;
   std::vector<ReportFigure> extra_figures;
   nlohmann::json extra_metrics;    // merged into metrics.json under "extra" when not null
   bool histogram_log = true;       // TF plots: log(1 + count) bars, else counts (each plot says which)
@@ -52,6 +56,12 @@ struct ReportSummary {
   ImageMetrics after;   // reference image vs the field with the optimized TF
   double residual_max_before = 0.0, residual_max_after = 0.0;
   std::filesystem::path index;  // index.html
+  struct Slice {
+    std::string file;     // slices_z.png, ...
+    std::string caption;  // "z = 12 (level 500 hPa)"
+  };
+  std::vector<Slice> slices;    // one per axis whose plane is at least 2 x 2 voxels
+  GridIndex slice_point{};
   std::vector<std::string> files;  // every file written, relative to the report directory
 };
 

@@ -30,6 +30,7 @@ struct OptimizeArgs {
   std::map<std::string, std::string> extra;  // solver options (solver_options.h), checked by the solver
   std::string report;                         // report directory (renderings, metrics, index.html)
   std::vector<std::string> markers;           // drawn on the report's renderings
+  std::string slice_point;                    // the report's slices go through it
   std::string histogram = "log";              // report TF plots: log or linear counts
   RenderSettings render;
 };
@@ -54,6 +55,8 @@ int run(const OptimizeArgs& a) {
   if (!a.report.empty()) validate(a.render);  // fail before the solve, not after
   if (a.report.empty() && !a.markers.empty())
     throw CLI::ValidationError("--marker", "markers are drawn on the report's renderings: add --report DIR");
+  if (a.report.empty() && !a.slice_point.empty())
+    throw CLI::ValidationError("--slice-point", "slices are part of the report: add --report DIR");
   auto ctx = make_context();
   if (!a.report.empty()) check_render_size(*ctx, a.render);
   OutputBatch outputs;  // nothing appears unless every output is complete
@@ -61,6 +64,7 @@ int run(const OptimizeArgs& a) {
   load_inputs(a.in, loaded);
   const Volume& ref = loaded.ref;
   const std::vector<GridIndex> markers = resolve_markers(ref, a.markers);
+  const std::optional<GridIndex> slice_point = resolve_slice_point(ref, a.slice_point);
   const Volume& field = loaded.field;
   OptimizeRequest& req = loaded.request;
   req.solver = a.solver;
@@ -76,6 +80,7 @@ int run(const OptimizeArgs& a) {
     inputs.extra_figures = solver_report_figures(result, a.render.width);  // diffdvr: loss curve
     inputs.title = "tfmatch: " + field.name + " matched to " + ref.name;
     inputs.markers = markers;
+    inputs.slice_point = slice_point;
     inputs.histogram_log = a.histogram == "log";
     inputs.command_line = globals().command_line;
     inputs.version = version_line();
@@ -113,6 +118,7 @@ CommandRegistration reg(10, [](CLI::App& app) {
                   "maps, TF plots, metrics.json, index.html");
   add_render_options(sub, args->render);
   add_marker_option(sub, args->markers);
+  add_slice_point_option(sub, args->slice_point);
   add_histogram_option(sub, args->histogram);
   sub->footer(solver_descriptions());
   sub->callback([args] { exit_code() = run(*args); });

@@ -90,6 +90,22 @@ void add_histogram_option(CLI::App* sub, std::string& histogram) {
       ->check(CLI::IsMember({"log", "linear"}))->capture_default_str()->group("Rendering");
 }
 
+void add_slice_point_option(CLI::App* sub, std::string& point) {
+  sub->add_option("--slice-point", point,
+                  "The report's axis-aligned slices go through this voxel: I,J,K or lon=..,lat=..,level=.. "
+                  "(default: the first --marker, else the middle)")
+      ->group("Rendering");
+}
+
+std::optional<GridIndex> resolve_slice_point(const Volume& grid, const std::string& text) {
+  if (text.empty()) return std::nullopt;
+  try {
+    return resolve_grid_point(grid, text, "--slice-point");
+  } catch (const std::invalid_argument& e) {
+    throw CLI::ValidationError("--slice-point", e.what());
+  }
+}
+
 std::vector<GridIndex> resolve_markers(const Volume& grid, const std::vector<std::string>& texts) {
   std::vector<GridIndex> out;
   for (const auto& t : texts) {

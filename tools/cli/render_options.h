@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -37,8 +38,13 @@ void add_marker_option(CLI::App* sub, std::vector<std::string>& markers);
 // --histogram log|linear: how the report's TF plots scale the histogram bars.
 void add_histogram_option(CLI::App* sub, std::string& histogram);
 
+// --slice-point: the voxel the report's slices go through (default: the grid's middle).
+void add_slice_point_option(CLI::App* sub, std::string& point);
+
 // Resolves the --marker texts on `grid`; throws CLI::ValidationError saying what is wrong.
 std::vector<GridIndex> resolve_markers(const Volume& grid, const std::vector<std::string>& texts);
+// Resolves --slice-point (empty: none); throws CLI::ValidationError saying what is wrong.
+std::optional<GridIndex> resolve_slice_point(const Volume& grid, const std::string& text);
 
 // The range `v` is mapped to `tf` with: the flag's value (lo,hi) if given, else the TF file's,
 // else the field's finite min/max. A range not from the field is checked against it

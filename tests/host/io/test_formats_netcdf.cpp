@@ -5,12 +5,17 @@
 #include <netcdf.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
 
 #include "formats_test_util.h"
 #include "vk_test_env.h"
 #include "volume.h"
 #include "volume_info.h"
 #include "volume_io.h"
+#include "volume_vti.h"
 
 namespace tfm {
 namespace {
@@ -244,6 +249,42 @@ TEST(NetcdfOrientation, LoadsNorthUpAndSurfaceDown) {
             "z (plev): 100000 .. 1000 Pa, up (pressure decreasing, surface at z = 0), reversed from the file's order");
   const std::string text = format_file_info(info);
   EXPECT_NE(text.find("origin 0 -60 100000"), std::string::npos) << text;
+}
+
+// The oriented grid written as .vti keeps origin, spacing and coordinates: read back by tfmatch
+// and by VTK's own reader (python3-vtk9; the test skips visibly without it).
+TEST(NetcdfOrientation, VtiOutputCarriesOriginSpacingAndCoordinates) {
+  TempDir dir;
+  const Volume t = load_volume(make_upside_down_file(dir).string() + ":T");
+  const std::filesystem::path vti = dir.path() / "t.vti";
+  write_vti(vti, t, "T");
+  const Volume back = load_volume(vti.string());
+  EXPECT_EQ(back.origin, t.origin);
+  EXPECT_EQ(back.spacing, t.spacing);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(back.axes[size_t(k)].coordinates, t.axes[size_t(k)].coordinates) << k;
+    EXPECT_EQ(back.axes[size_t(k)].name, t.axes[size_t(k)].name) << k;
+    EXPECT_EQ(back.axes[size_t(k)].units, t.axes[size_t(k)].units) << k;
+  }
+  EXPECT_EQ(back.values, t.values);
+
+  const std::string python = std::filesystem::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+  if (std::system((python + " -c 'import vtk' >/dev/null 2>&1").c_str()) != 0)
+    GTEST_SKIP() << "VTK's Python package is not installed (Debian python3-vtk9): no independent read-back";
+  const std::string script = std::string(TFMATCH_SOURCE_DIR) + "/tests/host/io/vti_with_vtk.py";
+  const std::filesystem::path out = dir.path() / "vtk.json";
+  ASSERT_EQ(std::system((python + " " + script + " " + vti.string() + " T 1,0,0 3,2,2 > " + out.string()).c_str()), 0);
+  std::ifstream in(out);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j["dims"], nlohmann::json({4, 3, 3}));
+  EXPECT_EQ(j["origin"], nlohmann::json({0.0, -60.0, 100000.0}));
+  EXPECT_EQ(j["spacing"], nlohmann::json({90.0, 60.0, 1.0}));
+  // North up and surface down as VTK sees it: (1, 0, 0) is the file's last latitude and level.
+  EXPECT_EQ(j["points"]["1,0,0"].get<double>(), 100 * 2 + 10 * 2 + 1);
+  EXPECT_EQ(j["points"]["3,2,2"].get<double>(), 3);
+  EXPECT_EQ(j["field_data"]["y_coordinates"], nlohmann::json({-60.0, 0.0, 60.0}));
+  EXPECT_EQ(j["field_data"]["z_coordinates"], nlohmann::json({100000.0, 50000.0, 1000.0}));
+  EXPECT_EQ(j["field_data"]["x_coordinates"], nlohmann::json({0.0, 90.0, 180.0, 270.0}));
 }
 
 TEST_P(NetcdfGenerated, ErrorsNameFileAndProblem) {

@@ -100,6 +100,43 @@ TEST_F(Report, WritesPicturesMetricsAndPage) {
   EXPECT_EQ(saved.range->lo, result.field_range.lo);
   EXPECT_EQ(m["histogram"], "linear");
   EXPECT_EQ(m["command_line"], in.command_line);
+
+  // Slices through the middle, one picture per axis, four panels each, on the page.
+  ASSERT_EQ(s.slices.size(), 3u);
+  EXPECT_EQ(s.slice_point, (GridIndex{10, 9, 8}));
+  EXPECT_EQ(s.slices[0].file, "slices_z.png");
+  EXPECT_EQ(s.slices[0].caption, "z = 8");
+  for (const auto& sl : s.slices) {
+    const Image img = read_png(dir / sl.file);
+    EXPECT_GT(img.width, 3 * img.height) << sl.file;  // four panels side by side
+    EXPECT_NE(html.find(sl.caption), std::string::npos) << sl.caption;
+  }
+  EXPECT_EQ(m["slices"]["point"], nlohmann::json({10, 9, 8}));
+}
+
+TEST_F(Report, SlicesGoThroughTheChosenPointAndSkipLines) {
+  test::TempDir dir;
+  const Volume ref3 = synthetic_reference(12, 10, 1);  // one level: only the z plane is a plane
+  const Volume field3 = synthetic_remapped(ref3);
+  const TransferFunction ref_tf = demo_transfer_function(16);
+  OptimizeRequest req;
+  req.ref = &ref3;
+  req.field = &field3;
+  req.ref_tf = ref_tf;
+  req.tf_size = 16;
+  const OptimizeResult result = run_optimize(ctx(), req);
+  ReportInputs in{ref3, field3, ref_tf, result, RenderSettings{}};
+  in.settings.width = 32;
+  in.settings.height = 32;
+  in.slice_point = GridIndex{3, 7, 0};
+  const ReportSummary s = write_report(ctx(), in, dir.path);
+  ASSERT_EQ(s.slices.size(), 1u);
+  EXPECT_EQ(s.slices[0].file, "slices_z.png");
+  EXPECT_FALSE(std::filesystem::exists(dir / "slices_x.png"));
+  in.slice_point = GridIndex{3, 10, 0};  // y outside the grid: refused before anything is written
+  test::TempDir other;
+  EXPECT_THROW(write_report(ctx(), in, other.path / "r"), std::runtime_error);
+  EXPECT_FALSE(std::filesystem::exists(other.path / "r"));
 }
 
 TEST_F(Report, PicturesCarryTheBoxOutline) {
