@@ -123,7 +123,10 @@ TEST_F(CliOutputs, EveryCommandThatWritesChecksItsFilesFirst) {
   std::ofstream(dir / "ro.json") << "keep";
   fs::permissions(dir / "ro.json", fs::perms::owner_read);
   std::ofstream(dir / "afile") << "a file";
-  expect_refused("correlate " + members + " --out " + dir / "x.vti" + " --json " + dir / "x.vti",
+  // Names must fit their formats (.vti, .json), so one file under both takes a hard link.
+  std::ofstream(dir / "x.vti") << "old";
+  fs::create_hard_link(dir / "x.vti", dir / "x.json");
+  expect_refused("correlate " + members + " --out " + dir / "x.vti" + " --json " + dir / "x.json",
                  {"--json", "same file as --out"});
   expect_refused("correlate " + members + " --out " + dir / "m2_8x8x8_float32.raw", {"--out", "same file as --members"});
   expect_refused("bench-correlate --quick --json " + dir / "ro.json", {"--json", "read-only"});
