@@ -62,9 +62,9 @@ TransferFunction histogram_matching_tf(const FieldHistogram& ref, const FieldHis
   for (uint32_t j = 0; j < opt_map.tf_size; ++j) {
     const double v = double(opt_map.lo) + double(j) / double(opt_map.scale);
     const double u = quantile_at(ref, er, cdf_at(opt, eo, v));
-    uint32_t i;
-    float w;
-    tf_coordinate(float(u), ref_map, i, w);
+    uint32_t i = 0;
+    float w = 0.0f;
+    tf_coordinate(float(u), ref_map, i, w);  // u is finite: a quantile of finite values
     for (int c = 0; c < 4; ++c)
       tf.rgba[j][c] = std::clamp((1.0 - w) * ref_tf.rgba[i][c] + double(w) * ref_tf.rgba[i + 1][c], 0.0, 1.0);
   }
