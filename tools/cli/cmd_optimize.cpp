@@ -49,6 +49,7 @@ int run(const OptimizeArgs& a) {
   req.solver = a.solver;
   req.settings = settings;
   auto ctx = make_context();
+  req.voxel_mae = !a.json.empty() || !a.report.empty();  // both show the mean absolute error
   OptimizeResult result = run_optimize(*ctx, req);
   write_transfer_function(a.out, result.tf);
   if (!a.json.empty()) write_file_atomically(a.json, to_json(result).dump(2) + "\n");
