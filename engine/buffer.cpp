@@ -42,7 +42,20 @@ Buffer::Buffer(Context& ctx, uint64_t bytes, MemoryUsage usage, const std::strin
   info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
                VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-  VK_CHECK(vk.vkCreateBuffer(ctx.device(), &info, nullptr, &buffer_));
+  // A size past every memory heap fails in vkCreateBuffer or vkAllocateMemory with a bare
+  // VK_ERROR_OUT_OF_DEVICE_MEMORY; say what was asked and what the device has instead.
+  uint64_t largest_heap = 0;
+  const VkPhysicalDeviceMemoryProperties& heaps = ctx.memory_properties();
+  for (uint32_t i = 0; i < heaps.memoryHeapCount; ++i) largest_heap = std::max<uint64_t>(largest_heap, heaps.memoryHeaps[i].size);
+  if (bytes > largest_heap)
+    throw VulkanError("buffer '" + debug_name + "': " + std::to_string(bytes) + " bytes asked for, more than the " +
+                          "device's largest memory heap (" + std::to_string(largest_heap) + " bytes)",
+                      VK_ERROR_OUT_OF_DEVICE_MEMORY);
+  const VkResult created = vk.vkCreateBuffer(ctx.device(), &info, nullptr, &buffer_);
+  if (created != VK_SUCCESS)
+    throw VulkanError("creating buffer '" + debug_name + "' of " + std::to_string(bytes) + " bytes failed with " +
+                          vk_result_name(created),
+                      created);
   ctx.set_debug_name(VK_OBJECT_TYPE_BUFFER, reinterpret_cast<uint64_t>(buffer_), debug_name.c_str());
 
   VkMemoryRequirements req{};

@@ -9,7 +9,7 @@
 // - NaN in the reference series or in a voxel's series (any member) gives NaN at that voxel.
 // - A constant series (either one): pearson, spearman and kendall give NaN (no variance);
 //   mi-binned, mi-kraskov and mi-coefficient give 0 (a constant carries no information).
-// - At least 3 members (std::invalid_argument otherwise).
+// - At least 3 members and at most kMaxCorrelationMembers (std::invalid_argument otherwise).
 #pragma once
 
 #include <cstdint>
@@ -35,9 +35,15 @@ enum class CorrelationMeasure {
 struct CorrelationParams {
   CorrelationMeasure measure = CorrelationMeasure::Pearson;
   uint32_t bins = 16;  // MiBinned: 2 .. kMaxCorrelationBins
-  uint32_t k = 3;      // MiKraskov, MiCoefficient: 1 .. member_count - 1
+  uint32_t k = 3;      // MiKraskov, MiCoefficient: 1 .. min(member_count - 1, kMaxCorrelationK)
 };
 constexpr uint32_t kMaxCorrelationBins = 64;
+// The kernels keep each point's k nearest distances in registers (shaders/correlation_layout.h).
+constexpr uint32_t kMaxCorrelationK = 16;
+// One invocation's loops over the members of one voxel stay below the 65535 loop iterations
+// llvmpipe allows an invocation (pearson runs 2 M). Measures that sort need workgroup shared
+// memory for M values too: CorrelationKernel::shared_memory_bytes.
+constexpr uint32_t kMaxCorrelationMembers = 16384;
 
 // "pearson", "spearman", "kendall", "mi-binned", "mi-kraskov", "mi-coefficient".
 const char* correlation_measure_name(CorrelationMeasure m);
@@ -62,7 +68,8 @@ std::vector<float> ensemble_series(const EnsembleView& ens, uint64_t voxel);
 // Called after each chunk of voxels with (voxels done, voxels in all).
 using CorrelationProgress = std::function<void(uint64_t done, uint64_t total)>;
 
-// Builds the pipelines once per context; compute() may be called any number of times.
+// Builds each pipeline (per measure and member-count class) on first use and keeps it; compute()
+// may be called any number of times.
 class CorrelationKernel {
  public:
   explicit CorrelationKernel(Context& ctx);
@@ -73,13 +80,28 @@ class CorrelationKernel {
   // The field of `params.measure` between `reference` (member_count values) and every voxel's
   // series; voxel_count values. Uploads the ensemble in chunks of voxels whose device memory
   // stays within `max_device_bytes` (0: a default that fits every device), so ensembles larger
-  // than device memory work. Throws std::invalid_argument on bad params or sizes.
+  // than device memory work. Throws std::invalid_argument on bad params or sizes (or a budget too
+  // small for one voxel), std::runtime_error when the device lacks the workgroup size or shared
+  // memory this member count needs (the message names the limit).
   std::vector<float> compute(const EnsembleView& ens, std::span<const float> reference, const CorrelationParams& params,
                              const CorrelationProgress& progress = {}, uint64_t max_device_bytes = 0);
 
   // Which strategy compute() uses for `member_count` (for messages and the benchmark), e.g.
   // "one invocation per voxel" or "one workgroup per voxel, shared-memory sort".
   static std::string strategy(const CorrelationParams& params, uint32_t member_count);
+  // Invocations per workgroup and workgroup shared memory the kernel needs for `member_count`
+  // members (compute() throws std::runtime_error naming the device limit it exceeds).
+  static uint32_t workgroup_size(const CorrelationParams& params, uint32_t member_count);
+  static uint64_t shared_memory_bytes(const CorrelationParams& params, uint32_t member_count);
+  // The largest |compute() - correlation_field_reference()| the float kernels can show where
+  // every comparison of member values is exact in float (series of multiples of 2^-10 whose
+  // ranges are powers of two, as the tests use): a few roundings of the final float operations
+  // for pearson, spearman and kendall (their counts and rank sums are exact integers); for mutual
+  // information, the rounding of the float sum of M per-member terms in the kernel's order and of
+  // the tabulated logarithms or digamma values; sqrt(2 b) + that for mi-coefficient, b the
+  // bound of its MI. Elsewhere a value within float rounding of a bin edge or of another
+  // distance may count differently from the double reference.
+  static double error_bound(const CorrelationParams& params, uint32_t member_count);
 
  private:
   struct Impl;

@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets of the hand-written parsers (legacy VTK, VTI, NRRD, .dat, TF XML,
-# TF JSON) with clang + ASan/UBSan and runs each for a fixed time, starting from the seeds in
-# tests/fuzz/seeds. Exits non-zero when a target finds a crash, leak, timeout or huge allocation;
-# the input that did it is left in $BUILD/fuzz-artifacts.
+# TF JSON) and of tfmatch's code around the NetCDF, GRIB and PNG libraries with clang + ASan/UBSan
+# and runs each for a fixed time, starting from the seeds in tests/fuzz/seeds (and, for netcdf,
+# grib and png, files that fuzz_make_seeds writes through the libraries). Exits non-zero when a
+# target finds a crash, leak, timeout or huge allocation; the input that did it is left in
+# $BUILD/fuzz-artifacts.
 #
 #   tools/fuzz.sh [SECONDS_PER_TARGET=30] [TARGET...]     e.g. tools/fuzz.sh 60 vti nrrd
 #
@@ -14,12 +16,13 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 seconds=${1:-30}
 [ $# -gt 0 ] && shift
 targets=("$@")
-[ ${#targets[@]} -eq 0 ] && targets=(vtk_legacy vti nrrd dat tf_xml tf_json)
+[ ${#targets[@]} -eq 0 ] && targets=(vtk_legacy vti nrrd dat tf_xml tf_json netcdf grib png)
 build=${TFMATCH_FUZZ_BUILD:-$root/build-fuzz}
 
 cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ -DTFMATCH_FUZZ=ON >/dev/null
-cmake --build "$build" -j "${FUZZ_JOBS:-2}" --target "${targets[@]/#/fuzz_}"
+cmake --build "$build" -j "${FUZZ_JOBS:-2}" --target "${targets[@]/#/fuzz_}" fuzz_make_seeds
+"$build/tests/fuzz/fuzz_make_seeds" "$build/fuzz-seeds"
 
 dict_for() {
   case $1 in
@@ -27,6 +30,9 @@ dict_for() {
     vti) echo vti.dict ;;
     nrrd) echo nrrd.dict ;;
     tf_xml | tf_json) echo tf.dict ;;
+    netcdf) echo netcdf.dict ;;
+    grib) echo grib.dict ;;
+    png) echo png.dict ;;
     *) echo "" ;;
   esac
 }
@@ -41,8 +47,11 @@ for t in "${targets[@]}"; do
   dict=$(dict_for "$t")
   [ -n "$dict" ] && args+=(-dict="$root/tests/fuzz/$dict")
   echo "== fuzz_$t for ${seconds}s"
+  seeds=()
+  for d in "$root/tests/fuzz/seeds/$t" "$build/fuzz-seeds/$t"; do [ -d "$d" ] && seeds+=("$d"); done
   # New inputs go to the first directory (kept between runs); the seeds are read only.
-  if ! "$build/tests/fuzz/fuzz_$t" "${args[@]}" "$corpus" "$root/tests/fuzz/seeds/$t" 2>"$build/fuzz-$t.log"; then
+  if ! LSAN_OPTIONS="suppressions=$root/tests/fuzz/lsan.supp:print_suppressions=0" \
+      "$build/tests/fuzz/fuzz_$t" "${args[@]}" "$corpus" "${seeds[@]}" 2>"$build/fuzz-$t.log"; then
     failed+=("$t")
     tail -40 "$build/fuzz-$t.log"
   else

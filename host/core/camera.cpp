@@ -10,16 +10,19 @@ namespace tfm {
 
 static_assert(kMaxSampleOpticalDepth == TFM_MAX_SAMPLE_OPTICAL_DEPTH, "CPU and GPU clamp the same depth");
 
-VolumeGeometry VolumeGeometry::from(const std::array<uint64_t, 3>& dims, const std::array<double, 3>& spacing) {
+VolumeGeometry VolumeGeometry::from(const std::array<uint64_t, 3>& dims, const std::array<double, 3>& spacing,
+                                    double z_scale) {
   for (int a = 0; a < 3; ++a) {
     if (dims[a] == 0) throw std::runtime_error("volume geometry: empty grid");
     if (!(spacing[a] > 0) || !std::isfinite(spacing[a]))
       throw std::runtime_error("volume geometry: spacing must be positive and finite");
   }
-  const double finest = std::min({spacing[0], spacing[1], spacing[2]});
+  if (!(z_scale > 0) || !std::isfinite(z_scale)) throw std::runtime_error("volume geometry: z scale must be positive");
+  const glm::dvec3 physical(spacing[0], spacing[1], spacing[2] * z_scale);
+  const double finest = std::min({physical.x, physical.y, physical.z});
   VolumeGeometry g;
   g.dims = dims;
-  g.axis_scale = glm::dvec3(spacing[0], spacing[1], spacing[2]) / finest;
+  g.axis_scale = physical / finest;
   return g;
 }
 
@@ -44,7 +47,6 @@ CameraFrame orbit_frame(const OrbitCamera& camera, const VolumeGeometry& geometr
   const double ca = std::cos(az), sa = std::sin(az), ce = std::cos(el), se = std::sin(el);
   CameraFrame f;
   const glm::dvec3 outward(ce * ca, ce * sa, se);  // box centre -> eye
-  f.eye = geometry.center() + camera.distance * geometry.radius() * outward;
   f.forward = -outward;
   // d(outward)/d(azimuth) / cos(el) and d(outward)/d(elevation): unit length and orthogonal to
   // the view direction for every elevation, so nothing degenerates at +-90 degrees.
@@ -52,7 +54,35 @@ CameraFrame orbit_frame(const OrbitCamera& camera, const VolumeGeometry& geometr
   f.up = glm::dvec3(-se * ca, -se * sa, ce);
   f.tan_half_fov = std::tan(0.5 * camera.fov_deg * deg);
   f.aspect = double(width) / double(height);
+  double distance = camera.distance * geometry.radius();
+  if (camera.distance == 0) {
+    // A corner c (relative to the centre) lies at depth D - c.outward in front of the eye, at
+    // c.right and c.up across: D must make both ratios fit the half-angles (with a margin), and
+    // keep every corner in front of the eye.
+    const double margin = 0.94, tx = f.tan_half_fov * f.aspect * margin, ty = f.tan_half_fov * margin;
+    const glm::dvec3 h = geometry.half_extent();
+    distance = 0.0;
+    for (int corner = 0; corner < 8; ++corner) {
+      const glm::dvec3 c((corner & 1 ? 1 : -1) * h.x, (corner & 2 ? 1 : -1) * h.y, (corner & 4 ? 1 : -1) * h.z);
+      const double along = glm::dot(c, outward);
+      distance = std::max({distance, along + std::abs(glm::dot(c, f.right)) / tx, along + std::abs(glm::dot(c, f.up)) / ty,
+                           along + 0.05 * geometry.radius()});
+    }
+  }
+  f.eye = geometry.center() + distance * outward;
   return f;
+}
+
+std::optional<glm::dvec2> project_to_pixel(const CameraFrame& f, const VolumeGeometry& g, const glm::dvec3& index_point,
+                                           uint32_t width, uint32_t height) {
+  const glm::dvec3 d = index_point * g.axis_scale - f.eye;
+  const double depth = glm::dot(d, f.forward);
+  if (!(depth > 0.0)) return std::nullopt;
+  // pixel_ray: sx = (2 (px + 0.5) / width - 1) tan aspect, sy = (1 - 2 (py + 0.5) / height) tan.
+  const double sx = glm::dot(d, f.right) / depth, sy = glm::dot(d, f.up) / depth;
+  const double px = 0.5 * width * (sx / (f.tan_half_fov * f.aspect) + 1.0) - 0.5;
+  const double py = 0.5 * height * (1.0 - sy / f.tan_half_fov) - 0.5;
+  return glm::dvec2(px, py);
 }
 
 MarchConstants march_constants(const RenderSettings& s, const VolumeGeometry& g) {
@@ -96,6 +126,21 @@ RaySegment pixel_ray(const CameraFrame& f, const VolumeGeometry& g, const MarchC
   r.steps = static_cast<uint32_t>(std::min(std::floor(q + 0.5), double(m.max_steps)));
   r.steps_ambiguous = std::abs(q - std::floor(q) - 0.5) < tolerance;
   return r;
+}
+
+void draw_box_outline(Image& image, const VolumeGeometry& g, const RenderSettings& s) {
+  if (!s.box_outline) return;
+  const CameraFrame frame = orbit_frame(s.camera, g, image.width, image.height);
+  const glm::dvec3 lo(-0.5), hi(double(g.dims[0]) - 0.5, double(g.dims[1]) - 0.5, double(g.dims[2]) - 0.5);
+  auto corner = [&](int i) { return glm::dvec3(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z); };
+  for (int a = 0; a < 8; ++a)
+    for (int bit : {1, 2, 4}) {
+      if (a & bit) continue;  // each edge once: from the corner with the bit clear
+      const auto p = project_to_pixel(frame, g, corner(a), image.width, image.height);
+      const auto q = project_to_pixel(frame, g, corner(a | bit), image.width, image.height);
+      // Pixel coordinates are centred at integer + 0.5 in draw_line's convention.
+      if (p && q) draw_line(image, p->x + 0.5, p->y + 0.5, q->x + 0.5, q->y + 0.5, {128, 128, 128}, 1.0);
+    }
 }
 
 gpu::RenderView make_render_view(const CameraFrame& f) {

@@ -4,11 +4,13 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 
 #include <glm/glm.hpp>
 
 #include "device_field.h"
 #include "field_mapping.h"
+#include "image.h"
 #include "render_layout.h"
 #include "render_settings.h"
 
@@ -21,8 +23,10 @@ struct VolumeGeometry {
   std::array<uint64_t, 3> dims{1, 1, 1};
   glm::dvec3 axis_scale{1.0};  // world = index * axis_scale
 
-  // Throws std::runtime_error for an empty grid or non-positive / non-finite spacing.
-  static VolumeGeometry from(const std::array<uint64_t, 3>& dims, const std::array<double, 3>& spacing);
+  // Throws std::runtime_error for an empty grid or non-positive / non-finite spacing. `z_scale`
+  // stretches z (RenderSettings::z_scale, vertical exaggeration).
+  static VolumeGeometry from(const std::array<uint64_t, 3>& dims, const std::array<double, 3>& spacing,
+                             double z_scale = 1.0);
   glm::dvec3 center() const;       // world
   glm::dvec3 half_extent() const;  // world
   double radius() const;           // of the bounding sphere, world
@@ -37,7 +41,9 @@ struct CameraFrame {
 
 // The orbit camera's frame. The basis is written in closed form (right = azimuth tangent,
 // up = elevation tangent), so it is continuous and orthonormal at every elevation, the poles
-// included, where a cross product with a fixed up vector would vanish.
+// included, where a cross product with a fixed up vector would vanish. Distance 0 frames the
+// box: the eye backs off along the view direction until every corner projects inside 94 % of
+// the image's half-width and half-height.
 CameraFrame orbit_frame(const OrbitCamera& camera, const VolumeGeometry& geometry, uint32_t width, uint32_t height);
 
 // Optical depth of one sample is clamped to this so its transmittance exp(-depth) stays a normal
@@ -66,6 +72,16 @@ struct RaySegment {
 
 RaySegment pixel_ray(const CameraFrame& frame, const VolumeGeometry& geometry, const MarchConstants& march,
                      uint32_t px, uint32_t py, uint32_t width, uint32_t height, double tolerance = 1e-4);
+
+// Where a point given in index space (voxel centres at integers) appears in the image: pixel
+// coordinates whose integer + 0.5 is a pixel centre (the inverse of pixel_ray's mapping), or
+// nothing when the point is behind the eye.
+std::optional<glm::dvec2> project_to_pixel(const CameraFrame& frame, const VolumeGeometry& geometry,
+                                           const glm::dvec3& index_point, uint32_t width, uint32_t height);
+
+// The twelve edges of the box rays march through ([-0.5, n - 0.5] per axis), projected and drawn
+// as thin grey lines: where the data ends, and which way is up, even where the TF is clear.
+void draw_box_outline(Image& image, const VolumeGeometry& geometry, const RenderSettings& settings);
 
 // The GPU records of a camera frame and of one render dispatch (shaders/render_layout.h).
 gpu::RenderView make_render_view(const CameraFrame& frame);

@@ -2,6 +2,7 @@
 #include "field_mapping.h"
 
 #include <algorithm>
+#include <iomanip>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -21,13 +22,27 @@ FiniteStats finite_stats(std::span<const float> values) {
   return s;
 }
 
+void check_range(const FieldRange& r, const std::string& what) {
+  std::ostringstream os;
+  os << what << ": range " << r.lo << "," << r.hi;
+  const float flo = static_cast<float>(r.lo), fhi = static_cast<float>(r.hi);
+  if (!std::isfinite(r.lo) || !std::isfinite(r.hi))
+    os << ": both ends must be finite numbers";
+  else if (!(r.hi > r.lo))
+    os << " is empty or reversed (need lo < hi)";
+  else if (!std::isfinite(flo) || !std::isfinite(fhi))
+    os << " lies beyond float32, in which the kernels map values (|lo| and |hi| must stay below "
+       << std::numeric_limits<float>::max() << ")";
+  else if (!(fhi > flo) || !std::isfinite(1.0 / (double(fhi) - double(flo))))
+    os << " is too narrow: lo and hi are the same number in float32, in which the kernels map values";
+  else
+    return;
+  throw std::runtime_error(os.str());
+}
+
 FieldRange resolve_range(std::span<const float> values, const FieldRange* user, const std::string& what) {
   if (user) {
-    if (!std::isfinite(user->lo) || !std::isfinite(user->hi) || !(user->hi > user->lo)) {
-      std::ostringstream os;
-      os << what << ": range " << user->lo << "," << user->hi << " is empty or reversed (need lo < hi)";
-      throw std::runtime_error(os.str());
-    }
+    check_range(*user, what);
     return *user;
   }
   FiniteStats s = finite_stats(values);
@@ -41,14 +56,51 @@ FieldRange resolve_range(std::span<const float> values, const FieldRange* user, 
   return {s.lo, s.hi};
 }
 
+RangeCoverage range_coverage(std::span<const float> values, const FieldRange& range) {
+  RangeCoverage c;
+  for (float v : values) {
+    if (!std::isfinite(v)) continue;
+    ++c.finite;
+    c.below += double(v) < range.lo;
+    c.above += double(v) > range.hi;
+  }
+  return c;
+}
+
+std::string check_range_coverage(std::span<const float> values, const FieldRange& range, const std::string& what,
+                                 const std::string& source, bool allow) {
+  const RangeCoverage c = range_coverage(values, range);
+  const double f = c.outside_fraction();
+  if (!(f > kRangeWarnFraction)) return "";
+  const FiniteStats s = finite_stats(values);
+  std::ostringstream os;
+  os.precision(6);
+  os << what << ": " << std::fixed << std::setprecision(1) << 100.0 * f << std::defaultfloat << std::setprecision(6)
+     << " % of its finite values lie outside " << source << " [" << range.lo << ", " << range.hi << "] (" << c.below
+     << " below, " << c.above << " above, of " << c.finite << "; the field spans [" << s.lo << ", " << s.hi
+     << "]); they all take the TF's end colours";
+  if (f > kRangeErrorFraction) {
+    if (!allow)
+      throw std::runtime_error(os.str() + ". The range does not fit this field: give its range (--ref-range, "
+                               "--field-range or --range) or pass --allow-out-of-range");
+    os << " (--allow-out-of-range)";
+  }
+  return os.str();
+}
+
 FieldMapping make_mapping(const FieldRange& range, uint32_t tf_size) {
   if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
   FieldMapping m;
   m.lo = static_cast<float>(range.lo);
   m.scale = static_cast<float>(double(tf_size - 1) / (range.hi - range.lo));
   m.tf_size = tf_size;
-  if (!std::isfinite(m.scale) || m.scale <= 0.0f)
-    throw std::runtime_error("field range too narrow to map to a transfer function in float32");
+  if (!std::isfinite(m.lo) || !std::isfinite(m.scale) || m.scale <= 0.0f) {
+    std::ostringstream os;
+    os << "range " << range.lo << "," << range.hi << " cannot be mapped to a " << tf_size
+       << "-entry transfer function in float32 ("
+       << (!std::isfinite(m.lo) ? "beyond float32" : !(m.scale > 0.0f) ? "too wide" : "too narrow") << ")";
+    throw std::runtime_error(os.str());
+  }
   return m;
 }
 

@@ -25,11 +25,33 @@ struct FiniteStats {
 // Finite min/max and NaN count of a field.
 FiniteStats finite_stats(std::span<const float> values);
 
-// Range of a field: `user` if given, else the finite min/max. Throws std::runtime_error naming
-// `what` when the field has no finite value or is constant (hi == lo), or when a user range is
-// empty or reversed.
+// Range of a field: `user` if given (checked by check_range), else the finite min/max. Throws
+// std::runtime_error naming `what` when the field has no finite value or is constant (hi == lo).
 FieldRange resolve_range(std::span<const float> values, const FieldRange* user, const std::string& what);
 
+// Throws std::runtime_error "<what>: range lo,hi ..." saying what is wrong with a given range:
+// an end that is not a finite number, lo >= hi, an end beyond float32 (the kernels map values in
+// float32), or ends float32 cannot tell apart.
+void check_range(const FieldRange& range, const std::string& what);
+
+// A range that does not come from the field (a TF file's, or given) may leave values outside;
+// they clamp to the TF's end entries. Counts of finite values below and above it.
+struct RangeCoverage {
+  uint64_t finite = 0, below = 0, above = 0;
+  double outside_fraction() const { return finite ? double(below + above) / double(finite) : 0.0; }
+};
+RangeCoverage range_coverage(std::span<const float> values, const FieldRange& range);
+
+// Above this fraction of finite values outside, a warning; above the second, an error.
+inline constexpr double kRangeWarnFraction = 0.05;
+inline constexpr double kRangeErrorFraction = 0.95;
+
+// Checks `range` (described by `source`, e.g. "the reference TF file's range") against the
+// field's finite values: returns a warning with the counts below and above when more than 5 %
+// lie outside, and throws std::runtime_error when more than 95 % do, unless `allow` (then the
+// warning says the check was overridden). Empty when the range fits.
+std::string check_range_coverage(std::span<const float> values, const FieldRange& range, const std::string& what,
+                                 const std::string& source, bool allow);
 
 FieldMapping make_mapping(const FieldRange& range, uint32_t tf_size);
 

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "color_spaces.h"
+
 namespace tfm {
 namespace {
 
@@ -60,20 +62,26 @@ constexpr uint8_t kFont[95][7] = {
     {0x00, 0x00, 0x08, 0x15, 0x02, 0x00, 0x00},                                              // ~
 };
 
-uint8_t to_byte(double v) { return static_cast<uint8_t>(std::lround(std::clamp(v, 0.0, 1.0) * 255.0)); }
-
 template <class T>
 Image composite(std::span<const T> rgba, uint32_t width, uint32_t height, const std::array<double, 3>& bg) {
   if (rgba.size() != size_t(width) * height * 4) throw std::invalid_argument("composite_over: size mismatch");
   Image out(width, height);
   for (size_t i = 0; i < size_t(width) * height; ++i) {
     const double a = double(rgba[4 * i + 3]);
-    for (int c = 0; c < 3; ++c) out.rgb[3 * i + c] = to_byte(double(rgba[4 * i + c]) + (1.0 - a) * bg[c]);
+    for (int c = 0; c < 3; ++c) out.rgb[3 * i + c] = srgb_byte(double(rgba[4 * i + c]) + (1.0 - a) * bg[c]);
   }
   return out;
 }
 
 }  // namespace
+
+uint8_t srgb_byte(double linear) {
+  // NaN clamps to 0 rather than propagating into the cast.
+  const double v = std::isnan(linear) ? 0.0 : std::clamp(linear, 0.0, 1.0);
+  return static_cast<uint8_t>(std::lround(linear_to_srgb(v) * 255.0));
+}
+
+Rgb8 srgb8(double r, double g, double b) { return {srgb_byte(r), srgb_byte(g), srgb_byte(b)}; }
 
 Image::Image(uint32_t w, uint32_t h, Rgb8 fill) : width(w), height(h), rgb(size_t(w) * h * 3) {
   for (size_t i = 0; i < size_t(w) * h; ++i) std::copy(fill.begin(), fill.end(), rgb.begin() + 3 * i);
@@ -126,7 +134,22 @@ void draw_line(Image& img, double x0, double y0, double x1, double y1, Rgb8 c, d
     }
 }
 
-int draw_text(Image& img, int x, int y, const std::string& text, Rgb8 c, int scale) {
+void draw_dot(Image& img, double x, double y, double radius, Rgb8 fill, Rgb8 outline) {
+  const double outer = radius + 1.0;
+  for (int j = int(std::floor(y - outer - 1)); j <= int(std::ceil(y + outer + 1)); ++j)
+    for (int i = int(std::floor(x - outer - 1)); i <= int(std::ceil(x + outer + 1)); ++i) {
+      const double d = std::hypot(i + 0.5 - x, j + 0.5 - y);
+      img.blend(i, j, outline, std::clamp(outer + 0.5 - d, 0.0, 1.0));
+      img.blend(i, j, fill, std::clamp(radius + 0.5 - d, 0.0, 1.0));
+    }
+}
+
+namespace {
+
+// The face draw_text uses; process-wide so that every plot and panel of a report shares it.
+const TextFace* g_face = nullptr;
+
+int draw_bitmap_text(Image& img, int x, int y, const std::string& text, Rgb8 c, int scale) {
   int pen = x;
   for (unsigned char ch : text) {
     const int g = (ch >= 32 && ch <= 126) ? ch - 32 : '?' - 32;
@@ -138,8 +161,20 @@ int draw_text(Image& img, int x, int y, const std::string& text, Rgb8 c, int sca
   return pen - x;
 }
 
-int text_width(const std::string& text, int scale) { return text.empty() ? 0 : int(text.size()) * 6 * scale - scale; }
-int text_height(int scale) { return 7 * scale; }
+}  // namespace
+
+void set_text_face(const TextFace* face) { g_face = face; }
+
+int draw_text(Image& img, int x, int y, const std::string& text, Rgb8 c, int scale) {
+  return g_face ? g_face->draw(img, x, y, text, c, scale) : draw_bitmap_text(img, x, y, text, c, scale);
+}
+
+int text_width(const std::string& text, int scale) {
+  if (g_face) return g_face->width(text, scale);
+  return text.empty() ? 0 : int(text.size()) * 6 * scale - scale;
+}
+
+int text_height(int scale) { return g_face ? g_face->height(scale) : 7 * scale; }
 
 void blit(Image& dst, const Image& src, int x, int y) {
   for (uint32_t yy = 0; yy < src.height; ++yy)

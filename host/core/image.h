@@ -37,7 +37,14 @@ struct RenderedImage {
   uint64_t samples() const;       // sum of stop: samples marched
 };
 
-// C + (1 - A) * background per channel, rounded to 8 bits (colours as stored: no gamma).
+// Linear RGB in [0,1] (clamped) to the 8-bit sRGB a PNG holds: the exact piecewise sRGB
+// transfer curve, rounded once. Every picture written for people goes through this, so a
+// linear 0.5 grey shows as 188 and a ParaView preset's sRGB 0.5 grey as 128, as in ParaView.
+uint8_t srgb_byte(double linear);
+Rgb8 srgb8(double r, double g, double b);
+
+// C + (1 - A) * background per channel in linear RGB (the background is linear too), then
+// encoded to 8-bit sRGB with srgb_byte.
 Image composite_over(const RenderedImage& image, const std::array<double, 3>& background);
 Image composite_over(std::span<const double> rgba, uint32_t width, uint32_t height,
                      const std::array<double, 3>& background);
@@ -46,12 +53,29 @@ Image composite_over(std::span<const double> rgba, uint32_t width, uint32_t heig
 void fill_rect(Image& img, int x, int y, int w, int h, Rgb8 c);
 // A line of `width` pixels, anti-aliased by distance to the segment.
 void draw_line(Image& img, double x0, double y0, double x1, double y1, Rgb8 c, double width = 1.0);
-// Text in the built-in 5x7 font (ASCII 32..126; lower case drawn as small capitals), each font
+// Text with its top-left corner at (x, y), in the installed TextFace (below) if there is one,
+// else in the built-in 5x7 font (ASCII 32..126; lower case drawn as small capitals), each font
 // pixel drawn as scale x scale. Returns the width drawn.
 int draw_text(Image& img, int x, int y, const std::string& text, Rgb8 c, int scale = 1);
 int text_width(const std::string& text, int scale = 1);
 int text_height(int scale = 1);
+
+// A real font for the pictures people read (host/report/font.h installs one rendered with
+// FreeType). Core keeps no font dependency: without a face, text falls back to the bitmap font.
+// `scale` 1 is body text (about 13 px), 2 headings.
+class TextFace {
+ public:
+  virtual ~TextFace() = default;
+  virtual int draw(Image& img, int x, int y, const std::string& text, Rgb8 c, int scale) const = 0;
+  virtual int width(const std::string& text, int scale) const = 0;
+  virtual int height(int scale) const = 0;
+};
+// Installs `face` for every later draw_text (nullptr: the bitmap font); it must outlive its use.
+void set_text_face(const TextFace* face);
 void blit(Image& dst, const Image& src, int x, int y);
+// A filled disc centred at (x, y) in the coordinates of draw_line (pixel (i, j) covers
+// [i, i+1) x [j, j+1)), anti-aliased, inside a one-pixel ring of `outline`.
+void draw_dot(Image& img, double x, double y, double radius, Rgb8 fill, Rgb8 outline);
 
 // Pictures side by side in rows of `columns`, each with its label centred above it.
 struct Panel {

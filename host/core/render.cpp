@@ -2,11 +2,33 @@
 #include "render.h"
 
 #include <algorithm>
+#include <cmath>
 
+#include "cancellation.h"
 #include "commands.h"
 #include "gpu_voxel_ops.h"
+#include "memory_budget.h"
 
 namespace tfm {
+
+void check_render_size(const Context& ctx, const RenderSettings& s) {
+  const uint64_t pixels = uint64_t(s.width) * s.height;
+  const uint64_t image_bytes = pixels * 16;  // RGBA float32 on the device
+  uint64_t largest_heap = 0;
+  const VkPhysicalDeviceMemoryProperties& mem = ctx.memory_properties();
+  for (uint32_t i = 0; i < mem.memoryHeapCount; ++i) largest_heap = std::max<uint64_t>(largest_heap, mem.memoryHeaps[i].size);
+  const uint64_t device_limit = std::min<uint64_t>(ctx.limits().maxStorageBufferRange, largest_heap);
+  const std::string size = std::to_string(s.width) + "x" + std::to_string(s.height);
+  if (image_bytes > device_limit) {
+    const uint64_t side = uint64_t(std::sqrt(double(device_limit / 16)));
+    throw std::runtime_error("render settings: a " + size + " image needs a " + format_bytes(image_bytes) +
+                             " image buffer, more than " + ctx.device_name() + " can bind (maxStorageBufferRange " +
+                             format_bytes(ctx.limits().maxStorageBufferRange) + ", largest memory heap " +
+                             format_bytes(largest_heap) + "); at most about " + std::to_string(side) + "x" +
+                             std::to_string(side) + " pixels fit");
+  }
+  check_memory(pixels * 20 + pixels * 3, "render settings: reading back a " + size + " image");
+}
 
 GpuRenderer::GpuRenderer(Context& ctx, const DeviceField& field, const VolumeGeometry& geometry)
     : ctx_(ctx), field_(field), geometry_(geometry), kernel_(ctx, uint32_t(field.chunk_count())) {}
@@ -18,6 +40,7 @@ RenderedImage GpuRenderer::render(const FieldMapping& mapping, const Buffer& tf,
   const gpu::RenderView view = make_render_view(frame);
   const gpu::RenderPush push = make_render_push(geometry_, march, mapping, field_, s.width, s.height, 1);
   const uint64_t pixels = uint64_t(s.width) * s.height;
+  check_render_size(ctx_, s);
   Buffer views = make_buffer<gpu::RenderView>(ctx_, std::span(&view, 1), "render camera");
   Buffer image(ctx_, pixels * 16, MemoryUsage::Device, "render image");
   Buffer stop(ctx_, pixels * 4, MemoryUsage::Device, "render stop index");
@@ -27,6 +50,7 @@ RenderedImage GpuRenderer::render(const FieldMapping& mapping, const Buffer& tf,
   double total_ms = 0.0;
   bool timed = ctx_.timestamps_supported();
   for (uint32_t row = 0; row < s.height; row += band) {
+    checkpoint("render");
     const uint32_t rows = std::min(band, s.height - row);
     CommandBatch batch(ctx_);
     const uint32_t t0 = batch.timestamp();
@@ -52,13 +76,27 @@ RenderedImage GpuRenderer::render(const FieldMapping& mapping, const Buffer& tf,
 
 RenderedImage render_volume(Context& ctx, const Volume& volume, const TransferFunction& tf, const FieldRange& range,
                             const RenderSettings& settings, Progress* progress) {
-  const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing);
+  const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing, settings.z_scale);
   if (volume.values.size() != volume.voxel_count())
     throw std::runtime_error(volume.name + ": value count differs from the grid size");
+  check_device_memory(ctx, volume.values.size() * sizeof(float), volume.name + ": uploading the field");
   DeviceField field(ctx, volume.values, volume.name.empty() ? "render field" : volume.name);
   Buffer tf_buffer = upload_tf(ctx, tf, "render TF");
   GpuRenderer renderer(ctx, field, geometry);
   return renderer.render(make_mapping(range, uint32_t(tf.size())), tf_buffer, settings, progress);
+}
+
+void draw_markers(Image& image, const VolumeGeometry& geometry, const RenderSettings& settings,
+                  const std::vector<std::array<uint64_t, 3>>& markers) {
+  if (markers.empty()) return;
+  const CameraFrame frame = orbit_frame(settings.camera, geometry, image.width, image.height);
+  // About 1 % of the image's short side, at least 2.5 pixels, so dots stay visible on thumbnails.
+  const double radius = std::max(2.5, 0.012 * std::min(image.width, image.height));
+  for (const auto& m : markers) {
+    const auto p = project_to_pixel(frame, geometry, glm::dvec3(double(m[0]), double(m[1]), double(m[2])), image.width,
+                                    image.height);
+    if (p) draw_dot(image, p->x + 0.5, p->y + 0.5, radius, {220, 20, 20}, {255, 255, 255});
+  }
 }
 
 }  // namespace tfm

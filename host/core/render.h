@@ -2,7 +2,9 @@
 // that upload a volume and its TF, render with RenderSettings and read the image back.
 #pragma once
 
+#include <array>
 #include <memory>
+#include <vector>
 
 #include "camera.h"
 #include "context.h"
@@ -35,6 +37,19 @@ class GpuRenderer {
   VolumeGeometry geometry_;
   RenderImageKernel kernel_;
 };
+
+// Throws std::runtime_error, before anything is allocated, when a settings.width x
+// settings.height image cannot be rendered here: its image buffer (16 bytes a pixel) must fit the
+// device's largest storage buffer (maxStorageBufferRange) and its memory heap, and the image read
+// back (20 bytes a pixel) must fit the memory budget (memory_budget.h). The message names the
+// largest square image that fits. GpuRenderer::render calls it; commands call it up front.
+void check_render_size(const Context& ctx, const RenderSettings& settings);
+
+// Draws each grid point of `markers` (voxel indices) as a red dot where the camera of
+// `settings` sees it on an image of the same size (the paper's reference-point markers). The
+// dots are drawn over the rendering, visible from every side.
+void draw_markers(Image& image, const VolumeGeometry& geometry, const RenderSettings& settings,
+                  const std::vector<std::array<uint64_t, 3>>& markers);
 
 // Uploads `volume` and `tf` and renders them; `range` maps the field to the TF.
 RenderedImage render_volume(Context& ctx, const Volume& volume, const TransferFunction& tf, const FieldRange& range,

@@ -16,7 +16,10 @@ namespace tfm {
 struct OrbitCamera {
   double azimuth_deg = 30.0;    // from +x towards +y
   double elevation_deg = 20.0;  // above the xy plane, in [-90, 90]
-  double distance = 3.6;        // eye to box centre, in bounding-sphere radii (> 1: outside)
+  // Eye to box centre, in bounding-sphere radii (> 1: outside). 0: framed, the nearest distance
+  // at which all eight box corners fit in the image with a small margin, so a thin or elongated
+  // box (a geophysical grid of 26 levels over 144 x 73 columns) is neither cut off nor tiny.
+  double distance = 0.0;
   double fov_deg = 30.0;        // vertical field of view, in (0, 180)
 };
 
@@ -33,6 +36,12 @@ struct RenderSettings {
   // A ray stops once its opacity reaches this. Must be < 1: DiffDVR's backward pass inverts
   // compositing by dividing by the remaining transmittance (shaders/raymarch.glsl).
   double termination_opacity = 0.99;
+  // Vertical exaggeration: the box's z extent is multiplied by this (geometry only; the field's
+  // values and the opacity per box length are unchanged).
+  double z_scale = 1.0;
+  // Pictures for people get a thin outline of the box (drawn after compositing, so never part of
+  // an image that is optimized or measured).
+  bool box_outline = true;
   OrbitCamera camera;
 };
 
@@ -50,7 +59,9 @@ inline void validate(const RenderSettings& s) {
   const OrbitCamera& c = s.camera;
   if (!std::isfinite(c.azimuth_deg)) bad("azimuth must be finite");
   if (!(c.elevation_deg >= -90 && c.elevation_deg <= 90)) bad("elevation must be in [-90, 90] degrees");
-  if (!(c.distance > 1 && c.distance <= 1e4)) bad("distance must be in (1, 10000] bounding-sphere radii");
+  if (!(c.distance == 0 || (c.distance > 1 && c.distance <= 1e4)))
+    bad("distance must be 0 (framed) or in (1, 10000] bounding-sphere radii");
+  if (!(s.z_scale >= 1e-3 && s.z_scale <= 1e4)) bad("z scale must be in [0.001, 10000]");
   if (!(c.fov_deg > 0 && c.fov_deg < 180)) bad("field of view must be in (0, 180) degrees");
 }
 

@@ -6,6 +6,7 @@
 
 #include "commands.h"
 #include "gpu_voxel_ops.h"
+#include "memory_budget.h"
 #include "residual_map.h"
 
 namespace tfm {
@@ -18,9 +19,7 @@ Volume residual_map_gpu(Context& ctx, const Volume& grid, const DeviceField& ref
   CommandBatch batch(ctx);
   kernel.record(batch, ref, opt, ref_map, opt_map, ref_tf, opt_tf, out);
   batch.submit_and_wait();
-  Volume v;
-  v.dims = grid.dims;
-  v.spacing = grid.spacing;
+  Volume v = empty_like(grid);
   v.name = "residual map";
   v.values.resize(out.voxel_count());
   for (size_t c = 0; c < out.chunk_count(); ++c)
@@ -31,6 +30,9 @@ Volume residual_map_gpu(Context& ctx, const Volume& grid, const DeviceField& ref
 Volume residual_map(Context& ctx, const Volume& ref, const TransferFunction& ref_tf, const FieldRange& ref_range,
                     const Volume& field, const TransferFunction& field_tf, const FieldRange& field_range) {
   require_same_grid(ref, field);
+  // Both fields and the map on the device, and the map read back.
+  check_device_memory(ctx, 3 * ref.values.size() * sizeof(float), "residual map of " + ref.name);
+  check_memory(ref.values.size() * sizeof(float), "residual map of " + ref.name);
   DeviceField ref_dev(ctx, ref.values, "residual: reference field");
   DeviceField opt_dev(ctx, field.values, "residual: second field", ref_dev.chunk_voxels());
   Buffer ref_tf_buf = upload_tf(ctx, ref_tf, "residual: reference TF");

@@ -58,24 +58,12 @@ Volume synthetic_remapped(const Volume& ref, bool with_structural_difference) {
 }
 
 TransferFunction demo_transfer_function(uint32_t n) {
-  // Colour stops (t, r, g, b) and opacity: low values transparent, peaks at mid and high values.
-  struct Stop { double t, r, g, b; };
-  const Stop stops[] = {{0.0, 0.10, 0.15, 0.60}, {0.35, 0.10, 0.70, 0.85}, {0.6, 0.95, 0.90, 0.25},
-                        {1.0, 0.85, 0.10, 0.10}};
-  TransferFunction tf;
-  tf.rgba.resize(n);
-  for (uint32_t j = 0; j < n; ++j) {
-    double t = double(j) / (n - 1);
-    size_t k = 0;
-    while (k + 2 < std::size(stops) && t > stops[k + 1].t) ++k;
-    double w = std::clamp((t - stops[k].t) / (stops[k + 1].t - stops[k].t), 0.0, 1.0);
-    double r = (1 - w) * stops[k].r + w * stops[k + 1].r;
-    double g = (1 - w) * stops[k].g + w * stops[k + 1].g;
-    double b = (1 - w) * stops[k].b + w * stops[k + 1].b;
-    double a = 0.05 * t + 0.45 * std::exp(-std::pow((t - 0.45) / 0.07, 2)) +
-               0.8 * std::exp(-std::pow((t - 0.8) / 0.1, 2));
-    tf.rgba[j] = {r, g, b, std::min(a, 1.0)};
-  }
+  // Blue-cyan-yellow-red; low values transparent, opacity peaks at mid and high values.
+  const ColorStop stops[] = {{0.0, 0.10, 0.15, 0.60}, {0.35, 0.10, 0.70, 0.85}, {0.6, 0.95, 0.90, 0.25},
+                             {1.0, 0.85, 0.10, 0.10}};
+  TransferFunction tf = tf_from_color_stops(n, stops, [](double t) {
+    return 0.05 * t + 0.45 * std::exp(-std::pow((t - 0.45) / 0.07, 2)) + 0.8 * std::exp(-std::pow((t - 0.8) / 0.1, 2));
+  });
   tf.range = FieldRange{0.0, 1.0};
   return tf;
 }

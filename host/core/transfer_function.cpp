@@ -38,4 +38,19 @@ std::vector<float> TransferFunction::as_floats() const {
 }
 
 
+TransferFunction tf_from_color_stops(uint32_t n, std::span<const ColorStop> stops, const std::function<double(double)>& alpha) {
+  if (n < 2 || stops.size() < 2) throw std::invalid_argument("tf_from_color_stops: needs 2 or more entries and stops");
+  TransferFunction tf;
+  tf.rgba.resize(n);
+  for (uint32_t j = 0; j < n; ++j) {
+    const double t = double(j) / (n - 1);
+    size_t k = 0;
+    while (k + 2 < stops.size() && t > stops[k + 1].t) ++k;
+    const double w = std::clamp((t - stops[k].t) / (stops[k + 1].t - stops[k].t), 0.0, 1.0);
+    tf.rgba[j] = {(1 - w) * stops[k].r + w * stops[k + 1].r, (1 - w) * stops[k].g + w * stops[k + 1].g,
+                  (1 - w) * stops[k].b + w * stops[k + 1].b, std::clamp(alpha(t), 0.0, 1.0)};
+  }
+  return tf;
+}
+
 }  // namespace tfm

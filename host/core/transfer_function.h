@@ -2,6 +2,8 @@
 #pragma once
 
 #include <array>
+#include <functional>
+#include <span>
 #include <optional>
 #include <string>
 #include <vector>
@@ -25,6 +27,14 @@ struct TransferFunction {
   // Entries as float RGBA (for device upload).
   std::vector<float> as_floats() const;
 };
+
+// A colour stop of a colour map: colour (r, g, b) at t, linear between stops (t increasing).
+struct ColorStop {
+  double t, r, g, b;
+};
+// N entries whose colours interpolate `stops` and whose opacity is alpha(t) clamped to [0, 1];
+// no range. Throws std::invalid_argument for fewer than 2 entries or stops.
+TransferFunction tf_from_color_stops(uint32_t n, std::span<const ColorStop> stops, const std::function<double(double)>& alpha);
 
 // Uploads the table as vec4 floats (kernels/gpu_voxel_ops.h upload_tf).
 inline Buffer upload_tf(Context& ctx, const TransferFunction& tf, const std::string& name) {

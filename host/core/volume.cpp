@@ -7,6 +7,22 @@
 
 namespace tfm {
 
+double axis_coordinate(const Volume& v, int axis, uint64_t i) {
+  const auto& c = v.axes[axis].coordinates;
+  if (i < c.size()) return c[i];
+  return v.origin[axis] + double(i) * v.spacing[axis];
+}
+
+Volume empty_like(const Volume& like) {
+  Volume v;
+  v.dims = like.dims;
+  v.spacing = like.spacing;
+  v.origin = like.origin;
+  v.axes = like.axes;
+  v.name = like.name;
+  return v;
+}
+
 void require_same_grid(const Volume& a, const Volume& b) {
   if (a.dims != b.dims) {
     std::ostringstream os;

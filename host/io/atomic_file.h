@@ -1,12 +1,59 @@
-// Output files appear whole or not at all: written to a temporary name, then renamed.
+// Outputs appear whole or not at all. Each file is written to a temporary name beside it and
+// renamed into place when complete; while an OutputBatch is open (a command opens one around its
+// work), the renames wait until the batch commits, so a run that fails or is interrupted changes
+// no output at all. Every temporary path is registered until it is renamed or removed, so an
+// interrupt can remove them even when the writing thread cannot unwind in time.
 #pragma once
 
 #include <filesystem>
+#include <map>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 namespace tfm {
 
-// Throws std::runtime_error naming `path` when it cannot be written.
+struct OutputBatchState;  // atomic_file.cpp
+
+// Writes `bytes` to `path` through ".NAME.tmp-PID-K" in the same directory, in blocks with a
+// cancellation checkpoint ("write", host/core/cancellation.h) after each. Renames it over `path`
+// at once, or when the open OutputBatch commits. On any error or cancellation the temporary file
+// is removed. Throws std::runtime_error naming `path` when it is a directory, an existing
+// read-only file, or cannot be written.
 void write_file_atomically(const std::filesystem::path& path, std::string_view bytes);
+
+// The outputs of one piece of work, committed together. Single-threaded: open, write and commit
+// on one thread. A batch opened while another is open joins it: its directory() works the same,
+// its commit() does nothing and the outermost batch commits everything.
+class OutputBatch {
+ public:
+  OutputBatch();
+  // Without commit(): removes every temporary file and staged directory of the batch.
+  ~OutputBatch();
+  OutputBatch(const OutputBatch&) = delete;
+  OutputBatch& operator=(const OutputBatch&) = delete;
+
+  // Where to write the files of directory `dir`: `dir` itself when it exists, else a staged
+  // directory (".NAME.tmp-PID-K" beside the first missing ancestor, which holds the missing
+  // levels) that commit() renames into place. Throws std::runtime_error when `dir` or an ancestor
+  // is a file, or the staged directory cannot be created.
+  std::filesystem::path directory(const std::filesystem::path& dir);
+
+  // Renames every file, then every staged directory, into place. Throws std::runtime_error
+  // naming the path when a rename fails (what is not renamed yet is removed by the destructor).
+  void commit();
+
+ private:
+  OutputBatchState* state_;  // the outermost batch's (shared by the batches that join it)
+  bool outermost_;
+};
+
+// Temporary files and staged directories created and not yet renamed into place or removed.
+std::vector<std::filesystem::path> pending_temporary_paths();
+
+// Removes every pending temporary path and makes any later attempt to create one throw
+// Cancelled(signal). For the command line's interrupt watchdog when the working thread does not
+// stop in time; callable from any thread.
+void abandon_temporary_paths(int signal);
 
 }  // namespace tfm

@@ -4,6 +4,7 @@
 
 #include <netcdf.h>
 
+#include <stdexcept>
 #include <vector>
 
 namespace tfm {
@@ -44,7 +45,86 @@ bool attributes_size(int nc, int var, const Sizes& s, uint64_t& out) {
   return true;
 }
 
+// The header walk: a cursor that refuses to go past the end of the file.
+class HeaderCursor {
+ public:
+  HeaderCursor(const ByteReader& read, uint64_t size, const std::string& name, const Sizes& s)
+      : read_(read), size_(size), name_(name), s_(s) {}
+  uint64_t left() const { return size_ - pos_; }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw std::runtime_error(name_ + ": NetCDF header: " + what + " at byte " + std::to_string(pos_) +
+                             ", beyond the file's " + std::to_string(size_) + " bytes");
+  }
+  uint64_t number(uint64_t bytes, const char* what) {
+    unsigned char b[8];
+    if (bytes > left() || !read_(pos_, bytes, reinterpret_cast<char*>(b))) fail(std::string(what) + " ends the file");
+    pos_ += bytes;
+    uint64_t v = 0;
+    for (uint64_t i = 0; i < bytes; ++i) v = (v << 8) | b[i];  // big-endian
+    return v;
+  }
+  uint64_t count() { return number(s_.non_neg, "a count"); }
+  // Skips `n` bytes of which each element needs `each` at least: the count must fit.
+  void skip(uint64_t n, uint64_t each, const std::string& what) {
+    if (each > 0 && n > left() / each) fail(what + " (" + std::to_string(n) + " of them) need more bytes than are left");
+    pos_ += pad4(n * each);
+    if (pos_ > size_) fail(what + " run past the end");
+  }
+  void name(const char* of) { skip(count(), 1, std::string("the name of ") + of); }
+  // A list (dim, att or var) that is ABSENT or `tag` + nelems; returns nelems, checked against the
+  // least bytes one element takes.
+  uint64_t list(uint32_t tag, uint64_t least_each, const char* what) {
+    const uint64_t t = number(4, what), n = count();
+    if (t == 0 && n == 0) return 0;
+    if (t != tag) fail(std::string(what) + " has tag " + std::to_string(t));
+    if (n > left() / least_each) fail(std::string(what) + " claims " + std::to_string(n) + " entries");
+    return n;
+  }
+  void attributes() {
+    const uint64_t n = list(0x0C, 4 + s_.non_neg + 4 + s_.non_neg, "an attribute list");
+    for (uint64_t a = 0; a < n; ++a) {
+      name("an attribute");
+      const uint64_t type = number(4, "an attribute type");
+      static const uint64_t sizes[] = {0, 1, 1, 2, 4, 4, 8, 1, 2, 4, 8, 8};  // NC_BYTE .. NC_UINT64
+      if (type == 0 || type > 11) fail("attribute type " + std::to_string(type) + " is not a classic type");
+      skip(count(), sizes[type], "attribute values");
+    }
+  }
+
+ private:
+  const ByteReader& read_;
+  uint64_t size_;
+  const std::string& name_;
+  Sizes s_;
+  uint64_t pos_ = 0;
+};
+
 }  // namespace
+
+void check_netcdf_classic_header(const ByteReader& read, uint64_t size, const std::string& name) {
+  char magic[4];
+  if (size < 4 || !read(0, 4, magic) || magic[0] != 'C' || magic[1] != 'D' || magic[2] != 'F') return;
+  if (magic[3] != 1 && magic[3] != 2 && magic[3] != 5) return;  // netCDF-C says what is wrong
+  const Sizes s{magic[3] == 5 ? 8u : 4u, magic[3] == 1 ? 4u : 8u};
+  HeaderCursor c(read, size, name, s);
+  c.number(4, "the magic number");
+  c.count();  // numrecs
+  const uint64_t dims = c.list(0x0A, s.non_neg + s.non_neg, "the dimension list");
+  for (uint64_t d = 0; d < dims; ++d) {
+    c.name("a dimension");
+    c.count();  // its length
+  }
+  c.attributes();  // global attributes
+  const uint64_t vars = c.list(0x0B, 4 * s.non_neg + 8 + s.offset, "the variable list");
+  for (uint64_t v = 0; v < vars; ++v) {
+    c.name("a variable");
+    c.skip(c.count(), s.non_neg, "a variable's dimension ids");
+    c.attributes();
+    c.number(4, "a variable type");
+    c.number(s.non_neg, "a variable size");
+    c.number(s.offset, "a variable offset");
+  }
+}
 
 uint64_t netcdf_classic_minimum_size(int nc, int format) {
   if (format != NC_FORMAT_CLASSIC && format != NC_FORMAT_64BIT_OFFSET && format != NC_FORMAT_CDF5) return 0;

@@ -314,7 +314,11 @@ TransferFunction read_transfer_function(const std::filesystem::path& path_in, co
   std::error_code ec;
   if (std::filesystem::file_size(path, ec) > (uint64_t(64) << 20) && !ec)
     throw std::runtime_error(path.string() + ": too large for a transfer function file (over 64 MiB)");
-  return parse_transfer_function(read_file_bytes(path), path.string(), options, notes);
+  TransferFunction tf = parse_transfer_function(read_file_bytes(path), path.string(), options, notes);
+  // A range the file gives maps the reference field as a user range would: check it here, where
+  // the message can name the file.
+  if (tf.range) check_range(*tf.range, path.string());
+  return tf;
 }
 
 void write_transfer_function(const std::filesystem::path& path, const TransferFunction& tf) {

@@ -39,6 +39,7 @@ std::vector<VolumeFormat> make_table() {
       .selects = "variable",
       .has_times = true,
       .has_members = true,  // any extra leading dimension
+      .count_members = count_netcdf_members,
       .read = read_netcdf_volume,
       .describe = describe_netcdf,
   });
@@ -51,6 +52,7 @@ std::vector<VolumeFormat> make_table() {
       .selects = "shortName[@typeOfLevel]",
       .has_times = true,
       .has_members = true,  // ensemble number
+      .count_members = count_grib_members,
       .read = read_grib_volume,
       .describe = describe_grib,
   });

@@ -29,6 +29,9 @@ struct VolumeFormat {
   bool has_components = false;  // "NAME[k]" / "[k]" picks a component of a vector array
   bool has_times = false;       // ",time=N" / --time
   bool has_members = false;     // ",member=N" / --member
+  // With has_members: how many members the array `options` select has (1 when it has no member
+  // axis); an ensemble is read member by member (host/io/ensemble.h).
+  uint64_t (*count_members)(const std::filesystem::path& path, const VolumeOptions& options) = nullptr;
   // Reads one volume; throws std::runtime_error "<file>: <what is wrong>".
   Volume (*read)(const std::filesystem::path& path, const VolumeOptions& options) = nullptr;
   // What `tfmatch info` prints for the file; options matter where the file does not describe itself.

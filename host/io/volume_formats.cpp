@@ -11,6 +11,9 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "cancellation.h"
+#include "memory_budget.h"
+
 namespace tfm {
 namespace {
 
@@ -90,11 +93,18 @@ std::string read_file_bytes(const std::filesystem::path& path) {
   if (std::filesystem::is_directory(path, ec)) throw std::runtime_error(path.string() + ": is a directory");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error(path.string() + ": cannot open");
-  std::string bytes;
-  uint64_t size = std::filesystem::file_size(path, ec);
-  if (!ec) bytes.reserve(size);
-  bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  if (in.bad()) throw std::runtime_error(path.string() + ": read failed");
+  const uint64_t size = std::filesystem::file_size(path, ec);
+  if (ec) throw std::runtime_error(path.string() + ": cannot read its size (" + ec.message() + ")");
+  check_memory(size, path.string() + ": reading the file");
+  std::string bytes(size, '\0');
+  // In blocks, so that an interrupt stops a large read within a fraction of a second.
+  constexpr uint64_t kBlock = uint64_t(16) << 20;
+  for (uint64_t done = 0; done < size; done += kBlock) {
+    checkpoint("load");
+    in.read(bytes.data() + done, std::streamsize(std::min(kBlock, size - done)));
+    if (!in) throw std::runtime_error(path.string() + ": read failed (" + std::to_string(done + uint64_t(in.gcount())) +
+                                      " of " + std::to_string(size) + " bytes)");
+  }
   return bytes;
 }
 
@@ -115,6 +125,14 @@ ArraySelector parse_array_selector(const std::string& text, const std::string& f
   return sel;
 }
 
+std::array<double, 3> origin_of(const std::array<double, 3>& origin, const std::array<double, 3>& spacing,
+                                const std::string& section) {
+  std::array<double, 3> o = origin;
+  if (section == "cell data")
+    for (int i = 0; i < 3; ++i) o[i] += 0.5 * spacing[i];
+  return o;
+}
+
 std::vector<float> select_component(std::vector<float> values, uint64_t components,
                                     std::optional<uint64_t> component, const std::string& what) {
   if (components == 0) throw std::runtime_error(what + ": array has 0 components");
@@ -124,18 +142,16 @@ std::vector<float> select_component(std::vector<float> values, uint64_t componen
   if (components == 1) return values;
   const uint64_t tuples = values.size() / components;
   std::vector<float> out(tuples);
-  for (uint64_t i = 0; i < tuples; ++i) {
-    const float* t = values.data() + i * components;
-    if (component) {
-      out[i] = t[*component];
-    } else {
-      // Magnitude in double: NaN in any component gives NaN (no data), as it should.
-      double s = 0.0;
-      for (uint64_t c = 0; c < components; ++c) s += double(t[c]) * double(t[c]);
-      out[i] = static_cast<float>(std::sqrt(s));
-    }
-  }
+  for (uint64_t i = 0; i < tuples; ++i) out[i] = reduce_tuple(values.data() + i * components, components, component);
   return out;
+}
+
+float reduce_tuple(const float* tuple, uint64_t components, std::optional<uint64_t> component) {
+  if (component) return tuple[*component];
+  // Magnitude in double: NaN in any component gives NaN (no data), as it should.
+  double s = 0.0;
+  for (uint64_t c = 0; c < components; ++c) s += double(tuple[c]) * double(tuple[c]);
+  return static_cast<float>(std::sqrt(s));
 }
 
 std::optional<double> parse_number(std::string_view token) {

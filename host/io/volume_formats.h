@@ -40,6 +40,10 @@ uint64_t checked_voxel_count(const std::array<uint64_t, 3>& dims, const std::str
 // a*b, or throws "<file>: <what> overflows" when it exceeds `limit`.
 uint64_t checked_mul(uint64_t a, uint64_t b, uint64_t limit, const std::string& file, const std::string& what);
 
+// Reads `n` bytes at `offset` of a file (on disk or in memory) into `out`; false past the end.
+// What checks of a file's structure use before a library parses it.
+using ByteReader = std::function<bool(uint64_t offset, uint64_t n, char* out)>;
+
 // Whole file in memory; throws "<file>: cannot open (...)".
 std::string read_file_bytes(const std::filesystem::path& path);
 
@@ -82,6 +86,13 @@ const Array& pick_grid_array(const std::vector<Array>& arrays, const ArraySelect
 // "<what>: ..." when k is out of range.
 std::vector<float> select_component(std::vector<float> interleaved, uint64_t components,
                                     std::optional<uint64_t> component, const std::string& what);
+// One tuple's value under select_component()'s rule (`component` < `components`, unchecked).
+float reduce_tuple(const float* tuple, uint64_t components, std::optional<uint64_t> component);
+
+// The position of an array's first value in VTK's image data: the grid's origin for point data,
+// the centre of the first cell (origin + spacing / 2) for cell data.
+std::array<double, 3> origin_of(const std::array<double, 3>& origin, const std::array<double, 3>& spacing,
+                                const std::string& section);
 
 // Parses one number from a text token (locale-independent, accepts a leading '+', nan, inf).
 std::optional<double> parse_number(std::string_view token);
@@ -102,6 +113,9 @@ Volume read_grib_volume(const std::filesystem::path& path, const VolumeOptions& 
 Volume read_vtk_legacy_volume(const std::filesystem::path& path, const VolumeOptions& options);
 Volume read_vti_volume(const std::filesystem::path& path, const VolumeOptions& options);
 Volume read_nrrd_volume(const std::filesystem::path& path, const VolumeOptions& options);
+// How many members `options` select from (the row's count_members).
+uint64_t count_netcdf_members(const std::filesystem::path& path, const VolumeOptions& options);
+uint64_t count_grib_members(const std::filesystem::path& path, const VolumeOptions& options);
 // What `tfmatch info` says; only raw and .dat use `options`.
 FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions& options);
 FileInfo describe_grib(const std::filesystem::path& path, const VolumeOptions& options);
@@ -114,6 +128,11 @@ FileInfo describe_dat(const std::filesystem::path& path, const VolumeOptions& op
 // In-memory parsers (what the fuzz targets drive). `name` prefixes every error message.
 Volume parse_vtk_legacy(std::string_view bytes, const std::string& name, const VolumeOptions& options);
 Volume parse_vti(std::string_view bytes, const std::string& name, const VolumeOptions& options);
+// NetCDF and GRIB from memory (netCDF-C's nc_open_mem, ecCodes through fmemopen), as from a file.
+Volume parse_netcdf(std::string_view bytes, const std::string& name, const VolumeOptions& options);
+FileInfo describe_netcdf_bytes(std::string_view bytes, const std::string& name);
+Volume parse_grib(std::string_view bytes, const std::string& name, const VolumeOptions& options);
+FileInfo describe_grib_bytes(std::string_view bytes, const std::string& name);
 // `open_data_file(relative_name)` returns the bytes of a detached data file (NRRD "data file").
 using DataFileLoader = std::function<std::string(const std::string& relative_name)>;
 Volume parse_nrrd(std::string_view bytes, const std::string& name, const VolumeOptions& options,

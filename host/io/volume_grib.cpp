@@ -4,10 +4,12 @@
 // Conventions (README "Formats"):
 // - Selection: "file.grib2:SHORTNAME" or "file.grib2:SHORTNAME@TYPEOFLEVEL". Without a level type
 //   the one with the most distinct levels is taken (isobaricInhPa for GFS u, v, t, ...).
-// - z: the selected messages sorted by increasing level value (for pressure levels z = 0 is the
-//   lowest pressure, i.e. the top); two messages at one level are an error.
+// - z: the selected messages sorted by level value, two messages at one level being an error.
 // - x, y: the message's grid points in its scanning order (x = i along a row, y = rows), as
 //   ecCodes returns them; for most global grids row 0 is the northernmost.
+// - World orientation (grid_orientation.h), applied last: latitudes increasing with y,
+//   longitudes with x, pressure (and hybrid model levels) decreasing with z so the surface is
+//   at z = 0, heights increasing, depths decreasing; data and coordinates reversed together.
 // - --time picks among the distinct (reference date and time, forecast step) pairs, sorted
 //   (analysis times of a reanalysis, forecast steps of a run); --member among the distinct
 //   ensemble numbers ("number"), sorted. Both default to the first.
@@ -19,6 +21,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <map>
 #include <memory>
 #include <set>
@@ -26,6 +29,9 @@
 #include <stdexcept>
 #include <tuple>
 
+#include "cancellation.h"
+#include "memory_budget.h"
+#include "grid_orientation.h"
 #include "volume_formats.h"
 #include "volume_info.h"
 #include "volume_io.h"
@@ -93,22 +99,117 @@ std::string time_text(const std::tuple<long, long, long, long>& t) {
   return os.str();
 }
 
+// The framing of every message, checked before ecCodes sees the file: ecCodes trusts section
+// lengths, and a hostile message whose section claims to run past the message's end makes it
+// return fields without end (gigabytes from a 2 KB file, then a double free). A message starts
+// at "GRIB" (junk between messages is skipped, as ecCodes does); GRIB 2: its 8-byte length must
+// fit the file, end in "7777", and its sections (4-byte length >= 5, number 1 to 7) must tile it
+// exactly; GRIB 1: its 3-byte length must fit the file and end in "7777" (ECMWF's large-message
+// encoding, top bit set, is left to ecCodes).
+void check_grib_framing(const ByteReader& read, uint64_t size, const std::string& file) {
+  auto fail = [&](int index, uint64_t at, const std::string& what) {
+    throw std::runtime_error(file + ": GRIB message " + std::to_string(index) + " (at byte " + std::to_string(at) +
+                             "): " + what);
+  };
+  auto number = [&](uint64_t at, int bytes) {
+    unsigned char b[8] = {};
+    if (at > size || uint64_t(bytes) > size - at || !read(at, uint64_t(bytes), reinterpret_cast<char*>(b))) return ~uint64_t(0);
+    uint64_t v = 0;
+    for (int i = 0; i < bytes; ++i) v = (v << 8) | b[i];
+    return v;
+  };
+  auto ends_in_7777 = [&](uint64_t end) { return end >= 4 && number(end - 4, 4) == 0x37373737u; };
+  std::vector<char> window(uint64_t(1) << 16);
+  uint64_t pos = 0;
+  for (int index = 1;; ++index) {
+    // The next "GRIB" at or after pos.
+    uint64_t start = size;
+    for (uint64_t at = pos; at + 4 <= size && start == size;) {
+      const uint64_t n = std::min<uint64_t>(window.size(), size - at);
+      if (!read(at, n, window.data())) return;
+      const std::string_view w(window.data(), n);
+      const size_t hit = w.find("GRIB");
+      if (hit != std::string_view::npos) start = at + hit;
+      else at += n > 3 ? n - 3 : n;  // a magic split across windows is found next time
+    }
+    if (start + 8 > size) return;
+    const uint64_t edition = number(start + 7, 1);
+    uint64_t length = 0;
+    if (edition == 2) {
+      length = number(start + 8, 8);
+      if (length < 16 + 4 || length > size - start) fail(index, start, "claims " + std::to_string(length) + " bytes, the file has " + std::to_string(size - start) + " from there");
+      if (!ends_in_7777(start + length)) fail(index, start, "does not end in 7777 where its length says");
+      uint64_t at = start + 16;
+      while (at < start + length - 4) {
+        const uint64_t section = number(at, 4), id = number(at + 4, 1);
+        if (section < 5 || section > start + length - 4 - at || id < 1 || id > 7)
+          fail(index, start, "section " + std::to_string(id) + " at byte " + std::to_string(at - start) + " claims " +
+                                 std::to_string(section) + " bytes, past the message's end");
+        at += section;
+      }
+    } else if (edition == 1) {
+      length = number(start + 4, 3);
+      if (length & 0x800000) length = 0;  // ECMWF large message: ecCodes decides
+      else if (length < 8 + 4 || length > size - start || !ends_in_7777(start + length))
+        fail(index, start, "claims " + std::to_string(length) + " bytes, which do not fit the file or end in 7777");
+    }
+    pos = start + std::max<uint64_t>(length, 4);
+  }
+}
+
+// A GRIB file on disk, or its bytes in memory (through fmemopen: ecCodes reads a FILE*).
+struct GribSource {
+  std::string name;
+  std::unique_ptr<FILE, int (*)(FILE*)> file{nullptr, &std::fclose};
+  uint64_t size = 0;  // bytes of the file (0: unknown)
+
+  explicit GribSource(const std::filesystem::path& path) : name(path.string()) {
+    file.reset(std::fopen(name.c_str(), "rb"));
+    if (!file) throw std::runtime_error(name + ": cannot open");
+    std::error_code ec;
+    size = std::filesystem::file_size(path, ec);
+    if (ec) size = 0;
+    FILE* f = file.get();
+    check_grib_framing(
+        [f](uint64_t offset, uint64_t n, char* out) {
+          return fseeko(f, off_t(offset), SEEK_SET) == 0 && std::fread(out, 1, n, f) == n;
+        },
+        size, name);
+    std::rewind(f);
+  }
+  GribSource(std::string_view bytes, std::string name_) : name(std::move(name_)), size(bytes.size()) {
+    if (bytes.empty()) throw std::runtime_error(name + ": empty file");
+    check_grib_framing(
+        [bytes](uint64_t offset, uint64_t n, char* out) {
+          if (offset > bytes.size() || n > bytes.size() - offset) return false;
+          std::memcpy(out, bytes.data() + offset, n);
+          return true;
+        },
+        bytes.size(), name);
+    file.reset(::fmemopen(const_cast<char*>(bytes.data()), bytes.size(), "rb"));
+    if (!file) throw std::runtime_error(name + ": cannot open in memory");
+  }
+};
+
 // Reads every message's metadata; keeps the handles of messages whose shortName passes `keep`.
 template <class Keep>
-std::vector<Message> scan(const std::filesystem::path& path, Keep keep) {
-  const std::string file = path.string();
-  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(file.c_str(), "rb"), &std::fclose);
-  if (!f) throw std::runtime_error(file + ": cannot open");
+std::vector<Message> scan(const GribSource& source, Keep keep) {
+  const std::string& file = source.name;
+  FILE* f = source.file.get();
   std::vector<Message> out;
   int err = 0;
   // GRIB2 messages may hold several fields (NCEP packs u and v together); count each field.
   codes_grib_multi_support_on(nullptr);
+  // Handles of a multi-field message can share ecCodes' buffer of it: the scan only ends inside a
+  // message through an error ecCodes reports, never through an exception of tfmatch's.
   struct ResetMulti {
     FILE* f;
     ~ResetMulti() { codes_grib_multi_support_reset_file(nullptr, f); }
-  } reset{f.get()};
+  } reset{f};
+  // No cancellation checkpoint in this loop: unwinding from inside a multi-field message is
+  // what the note above is about, and reading the metadata is quick; the values are read later.
   for (int index = 1;; ++index) {
-    Handle h(codes_handle_new_from_file(nullptr, f.get(), PRODUCT_GRIB, &err));
+    Handle h(codes_handle_new_from_file(nullptr, f, PRODUCT_GRIB, &err));
     if (!h) {
       if (err != CODES_SUCCESS)
         throw std::runtime_error(file + ": GRIB message " + std::to_string(index) + " is unreadable (" +
@@ -168,6 +269,7 @@ std::vector<double> message_values(const Message& m, const std::string& file) {
   if (m.ni <= 0 || m.nj <= 0 || n != size_t(m.ni) * size_t(m.nj))
     throw std::runtime_error(where + ": " + m.grid_type + " grid with " + std::to_string(n) +
                              " values is not a rectangular Ni x Nj grid (reduced grids are not supported)");
+  check_memory(uint64_t(n) * sizeof(double), where + ": " + std::to_string(n) + " values");
   std::vector<double> v(n);
   int err = codes_get_double_array(h, "values", v.data(), &n);
   if (err != CODES_SUCCESS) throw std::runtime_error(where + ": cannot decode values (" + codes_get_error_message(err) + ")");
@@ -183,17 +285,21 @@ std::vector<T> distinct_sorted(const std::vector<Message>& ms, F get) {
   return {s.begin(), s.end()};
 }
 
-}  // namespace
+// The messages of the parameter and level type `options` select (every time and member).
+struct Selection {
+  std::vector<Message> messages;
+  std::string parameter, level_type;
+};
 
-Volume read_grib_volume(const std::filesystem::path& path, const VolumeOptions& options) {
-  const std::string file = path.string();
+Selection select_messages(const GribSource& source, const VolumeOptions& options) {
+  const std::string& file = source.name;
   std::string want = options.variable, want_level;
   if (auto at = want.find('@'); at != std::string::npos) {
     want_level = want.substr(at + 1);
     want = want.substr(0, at);
   }
   std::set<std::string> all_names;
-  std::vector<Message> msgs = scan(path, [&](const std::string& n) {
+  std::vector<Message> msgs = scan(source, [&](const std::string& n) {
     all_names.insert(n);
     return want.empty() || n == want;
   });
@@ -222,7 +328,41 @@ Volume read_grib_volume(const std::filesystem::path& path, const VolumeOptions& 
     throw std::runtime_error(file + ": parameter " + want + " has no level type '" + want_level + "' (it has: " + types + ")");
   }
   std::erase_if(msgs, [&](const Message& m) { return m.level_type != want_level; });
+  return {std::move(msgs), want, want_level};
+}
 
+// Longitudes (x) and latitudes (y) of a regular or Gaussian grid, from its corners.
+void set_horizontal_axes(Volume& v, const Message& m) {
+  if (m.grid_type != "regular_ll" && m.grid_type != "regular_gg") return;
+  for (int k = 0; k < 2; ++k) {
+    const long n = k == 0 ? m.ni : m.nj;
+    const double first = m.corners[k == 0 ? 1 : 0], last = m.corners[k == 0 ? 3 : 2];
+    GridAxis& a = v.axes[k];
+    a.name = k == 0 ? "longitude" : "latitude";
+    a.units = k == 0 ? "degrees_east" : "degrees_north";
+    a.coordinates.resize(size_t(n));
+    double span = last - first;
+    if (k == 0 && span < 0) span += 360.0;  // a grid crossing the date line / meridian 0
+    for (long i = 0; i < n; ++i) a.coordinates[size_t(i)] = n > 1 ? first + span * double(i) / double(n - 1) : first;
+    v.origin[k] = first;
+  }
+}
+
+// The z axis of a level type, without coordinates.
+GridAxis level_axis(const std::string& level_type) {
+  GridAxis a;
+  a.name = level_type;
+  if (level_type == "isobaricInhPa") a.units = "hPa";
+  if (level_type == "isobaricInPa") a.units = "Pa";
+  return a;
+}
+
+Volume read_grib(const GribSource& source, const VolumeOptions& options) {
+  const std::string& file = source.name;
+  Selection sel = select_messages(source, options);
+  std::vector<Message>& msgs = sel.messages;
+  const std::string& want = sel.parameter;
+  const std::string& want_level = sel.level_type;
   const auto times = distinct_sorted<std::tuple<long, long, long, long>>(msgs, [](const Message& m) { return m.time; });
   const auto members = distinct_sorted<long>(msgs, [](const Message& m) { return m.member; });
   const std::string what = file + ": " + want + "@" + want_level;
@@ -249,20 +389,27 @@ Volume read_grib_volume(const std::filesystem::path& path, const VolumeOptions& 
   checked_voxel_count(v.dims, file);
   const auto hs = horizontal_spacing(msgs[0]);
   v.spacing = {hs[0], hs[1], 1.0};
+  set_horizontal_axes(v, msgs[0]);
+  v.axes[2] = level_axis(want_level);
+  for (const auto& m : msgs) v.axes[2].coordinates.push_back(m.level);
   v.name = file + ":" + want + "@" + want_level;
   if (times.size() > 1) v.name += ",time=" + std::to_string(t);
   if (members.size() > 1) v.name += ",member=" + std::to_string(k);
+  check_memory(v.voxel_count() * sizeof(float), what + ": " + std::to_string(v.dims[0]) + "x" + std::to_string(v.dims[1]) +
+                                                   "x" + std::to_string(v.dims[2]) + " values");
   v.values.reserve(v.voxel_count());
   for (const auto& m : msgs) {
+    checkpoint("load");
     std::vector<double> values = message_values(m, file);
     for (double x : values) v.values.push_back(static_cast<float>(x));
   }
+  apply_world_orientation(v, world_orientation(v.axes, v.dims));
   return v;
 }
 
-FileInfo describe_grib(const std::filesystem::path& path, const VolumeOptions&) {
-  const std::string file = path.string();
-  std::vector<Message> msgs = scan(path, [](const std::string&) { return true; });
+FileInfo describe_grib(const GribSource& source) {
+  const std::string& file = source.name;
+  std::vector<Message> msgs = scan(source, [](const std::string&) { return true; });
   if (msgs.empty()) throw std::runtime_error(file + ": no GRIB messages (not a GRIB file?)");
   FileInfo info{file, "GRIB", {}, {}};
   std::set<long> editions;
@@ -304,6 +451,13 @@ FileInfo describe_grib(const std::filesystem::path& path, const VolumeOptions&) 
       a.grid = {uint64_t(first.ni), uint64_t(first.nj), levels.size()};
       auto hs = horizontal_spacing(first);
       a.spacing = {hs[0], hs[1], 1.0};
+      Volume grid;  // the axes as loaded, without values
+      set_horizontal_axes(grid, first);
+      grid.axes[2] = level_axis(key.second);
+      for (const auto& l : levels) grid.axes[2].coordinates.push_back(l.first);
+      const WorldOrientation o = world_orientation(grid.axes, a.grid);
+      orient_axes(grid.axes, a.origin, o);
+      a.orientation = orientation_lines(grid.axes, a.origin, a.spacing, o);
     } else {
       a.notes.push_back(same_grid ? "not a rectangular grid: cannot be loaded" : "messages on different grids: cannot be stacked");
     }
@@ -322,6 +476,27 @@ FileInfo describe_grib(const std::filesystem::path& path, const VolumeOptions&) 
     info.arrays.push_back(std::move(a));
   }
   return info;
+}
+
+}  // namespace
+
+uint64_t count_grib_members(const std::filesystem::path& path, const VolumeOptions& options) {
+  const Selection sel = select_messages(GribSource(path), options);
+  return distinct_sorted<long>(sel.messages, [](const Message& m) { return m.member; }).size();
+}
+
+Volume read_grib_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  return read_grib(GribSource(path), options);
+}
+
+FileInfo describe_grib(const std::filesystem::path& path, const VolumeOptions&) { return describe_grib(GribSource(path)); }
+
+Volume parse_grib(std::string_view bytes, const std::string& name, const VolumeOptions& options) {
+  return read_grib(GribSource(bytes, name), options);
+}
+
+FileInfo describe_grib_bytes(std::string_view bytes, const std::string& name) {
+  return describe_grib(GribSource(bytes, name));
 }
 
 }  // namespace tfm

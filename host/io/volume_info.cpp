@@ -44,7 +44,10 @@ std::string format_file_info(const FileInfo& info) {
       os << "      grid " << a.grid[0] << "x" << a.grid[1] << "x" << a.grid[2] << " (x,y,z)";
       if (a.spacing != std::array<double, 3>{1, 1, 1})
         os << ", spacing " << a.spacing[0] << " " << a.spacing[1] << " " << a.spacing[2];
+      if (a.origin != std::array<double, 3>{0, 0, 0})
+        os << ", origin " << a.origin[0] << " " << a.origin[1] << " " << a.origin[2];
       os << "\n";
+      for (const auto& line : a.orientation) os << "      " << line << "\n";
     } else {
       os << "      not loadable as a volume\n";
     }
@@ -74,6 +77,8 @@ nlohmann::json file_info_json(const FileInfo& info) {
     x["shape"] = a.shape;
     x["grid"] = a.grid;
     x["spacing"] = a.spacing;
+    x["origin"] = a.origin;
+    if (!a.orientation.empty()) x["orientation"] = a.orientation;
     x["components"] = a.components;
     x["choices"] = a.choices;
     x["notes"] = a.notes;

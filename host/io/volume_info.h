@@ -23,6 +23,8 @@ struct ArrayInfo {
   std::string shape;                      // as the file describes it, e.g. "(time=1, lev=14, lat=64, lon=128)"
   std::array<uint64_t, 3> grid{0, 0, 0};  // x, y, z when loaded; all 0 when it is not loadable as a volume
   std::array<double, 3> spacing{1, 1, 1};
+  std::array<double, 3> origin{0, 0, 0};  // position of voxel (0, 0, 0) as loaded
+  std::vector<std::string> orientation;   // per axis: coordinates, units, world direction (geo grids)
   uint64_t components = 1;
   std::vector<std::string> choices;       // e.g. "time: 4 (--time 0..3)"
   std::vector<std::string> notes;         // units, long name, fill value, packing, ...

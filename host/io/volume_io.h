@@ -27,6 +27,7 @@ struct VolumeOptions {
   std::string variable;                          // NetCDF variable / GRIB shortName / VTK array
   std::optional<uint64_t> time_index;            // NetCDF/GRIB: time step
   std::optional<uint64_t> member_index;          // NetCDF: extra dimension; GRIB: ensemble number
+  std::string member_dim;                        // NetCDF: the member dimension's name (--member-dim)
 };
 
 // Loads a volume. `spec` is a path, optionally followed by ":VAR[@LEVELTYPE][,time=N][,member=N]"

@@ -20,14 +20,22 @@
 //   the mean step (so Gaussian latitudes count as regular), else 1; z takes its coordinate's step
 //   only when it is regular and has the same units as x (a Cartesian grid); pressure or model
 //   levels give 1.
+// - World orientation (grid_orientation.h): longitudes and latitudes increasing with x and y,
+//   pressure and depth decreasing with z, heights increasing (CF "positive" counts); an axis
+//   stored the other way is reversed, data and coordinates. Origin = first coordinate.
 #include <netcdf.h>
+#include <netcdf_mem.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <sstream>
 #include <stdexcept>
 
+#include "cancellation.h"
+#include "memory_budget.h"
+#include "grid_orientation.h"
 #include "netcdf_classic.h"
 #include "volume_formats.h"
 #include "volume_info.h"
@@ -38,19 +46,42 @@ namespace {
 
 class NcFile {
  public:
-  explicit NcFile(const std::filesystem::path& path) : name_(path.string()) {
-    check(nc_open(name_.c_str(), NC_NOWRITE, &id_), "cannot open as NetCDF");
+  // A file on disk, or (`memory` not empty) its bytes in memory, named `name` in messages.
+  NcFile(const std::filesystem::path& path, std::string_view memory = {}) : name_(path.string()) {
+    if (memory.empty()) {
+      std::error_code ec;
+      size_ = std::filesystem::file_size(path, ec);
+      if (ec) size_ = 0;
+      std::ifstream in(path, std::ios::binary);
+      check_netcdf_classic_header(
+          [&](uint64_t offset, uint64_t n, char* out) {
+            in.seekg(std::streamoff(offset));
+            return bool(in.read(out, std::streamsize(n)));
+          },
+          size_, name_);
+      check(nc_open(name_.c_str(), NC_NOWRITE, &id_), "cannot open as NetCDF");
+    } else {
+      check_netcdf_classic_header(
+          [&](uint64_t offset, uint64_t n, char* out) {
+            if (offset > memory.size() || n > memory.size() - offset) return false;
+            std::memcpy(out, memory.data() + offset, n);
+            return true;
+          },
+          memory.size(), name_);
+      // netCDF-C does not write to memory opened without NC_WRITE.
+      check(nc_open_mem(name_.c_str(), NC_NOWRITE, memory.size(), const_cast<char*>(memory.data()), &id_),
+            "cannot open as NetCDF");
+      size_ = memory.size();
+    }
     // netCDF-C reads missing bytes of a truncated classic file as zeros: refuse such a file.
     int format = 0;
-    std::error_code ec;
-    const uint64_t size = std::filesystem::file_size(path, ec);
-    if (nc_inq_format(id_, &format) == NC_NOERR && !ec) {
+    if (nc_inq_format(id_, &format) == NC_NOERR && size_ > 0) {
       const uint64_t needed = netcdf_classic_minimum_size(id_, format);
-      if (needed > size) {
+      if (needed > size_) {
         nc_close(id_);
         id_ = -1;
         throw std::runtime_error(name_ + ": truncated: its header describes at least " + std::to_string(needed) +
-                                 " bytes, the file has " + std::to_string(size));
+                                 " bytes, the file has " + std::to_string(size_));
       }
     }
   }
@@ -61,6 +92,7 @@ class NcFile {
   NcFile& operator=(const NcFile&) = delete;
   int id() const { return id_; }
   const std::string& name() const { return name_; }
+  uint64_t size() const { return size_; }  // bytes of the file (0: unknown)
   void check(int status, const std::string& what) const {
     if (status != NC_NOERR) throw std::runtime_error(name_ + ": " + what + " (" + nc_strerror(status) + ")");
   }
@@ -68,6 +100,7 @@ class NcFile {
  private:
   std::string name_;
   int id_ = -1;
+  uint64_t size_ = 0;
 };
 
 bool is_numeric(nc_type t) {
@@ -172,7 +205,15 @@ struct Layout {
   }
 };
 
-Layout layout_of(const NcFile& f, int varid) {
+// Dimensions that name ensemble members (lower case); never spatial.
+bool is_member_dimension(const std::string& name, const std::string& member_dim) {
+  if (!member_dim.empty()) return name == member_dim;
+  std::string l = name;
+  std::transform(l.begin(), l.end(), l.begin(), [](unsigned char c) { return std::tolower(c); });
+  return l == "member" || l == "members" || l == "ensemble" || l == "realization" || l == "number";
+}
+
+Layout layout_of(const NcFile& f, int varid, const std::string& member_dim = "") {
   Layout L;
   L.varid = varid;
   char name[NC_MAX_NAME + 1];
@@ -189,6 +230,7 @@ Layout layout_of(const NcFile& f, int varid) {
     L.dim_names.push_back(dn);
     L.dim_sizes.push_back(len);
     if (L.time_axis < 0 && nd > 1 && is_time_dimension(f.id(), L.dimids[i], dn)) L.time_axis = i;
+    else if (nd > 1 && is_member_dimension(dn, member_dim)) L.extra_axes.push_back(i);
     else nontime.push_back(i);
   }
   L.is_coordinate = nd == 1 && L.dim_names[0] == L.name;
@@ -204,6 +246,7 @@ Layout layout_of(const NcFile& f, int varid) {
   }
   for (int i : nontime)
     if (i != L.spatial[0] && i != L.spatial[1] && i != L.spatial[2]) L.extra_axes.push_back(i);
+  std::sort(L.extra_axes.begin(), L.extra_axes.end());
   return L;
 }
 
@@ -363,10 +406,12 @@ void for_each_slab(const NcFile& f, const Layout& L, std::vector<size_t> start, 
     if (L.spatial[k] >= 0) count[L.spatial[k]] = L.dim_sizes[L.spatial[k]];
   size_t slab = 1;
   for (size_t c : count) slab *= c;
+  check_memory(uint64_t(slab) * (sizeof(double) + sizeof(float)), f.name() + ": reading variable " + L.name + " " + L.shape());
   std::vector<double> buf(slab);
   const Unpacker u = unpacker_of(f, L);
   std::vector<float> out(slab);
   while (true) {
+    checkpoint("load");
     f.check(nc_get_vara_double(f.id(), L.varid, start.data(), count.data(), buf.data()), "cannot read variable " + L.name);
     for (size_t i = 0; i < slab; ++i) out[i] = u(buf[i]);
     fn(out.data(), slab);
@@ -380,10 +425,13 @@ void for_each_slab(const NcFile& f, const Layout& L, std::vector<size_t> start, 
   }
 }
 
-}  // namespace
+// The variable `options` select, its layout and its member axis (-1: none).
+struct Selection {
+  Layout layout;
+  int member_axis = -1;
+};
 
-Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions& options) {
-  NcFile f(path);
+Selection select_variable(const NcFile& f, const VolumeOptions& options) {
   const std::string& file = f.name();
   std::string var = options.variable;
   if (var.empty()) {
@@ -397,18 +445,62 @@ Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions
   int varid;
   if (nc_inq_varid(f.id(), var.c_str(), &varid) != NC_NOERR)
     throw std::runtime_error(file + ": no variable '" + var + "' (volume variables: " + join(volume_variables(f)) + ")");
-  Layout L = layout_of(f, varid);
+  Selection sel{layout_of(f, varid, options.member_dim), -1};
+  const Layout& L = sel.layout;
   if (!is_numeric(L.type))
     throw std::runtime_error(file + ": variable " + var + " has type " + nc_type_name(L.type) + ", not a numeric type");
   if (L.spatial_count == 0) throw std::runtime_error(file + ": variable " + var + " is a scalar");
-  int member_axis = -1;
-  for (int a : L.extra_axes) {
-    if (L.dim_sizes[a] <= 1) continue;
-    if (member_axis >= 0)
-      throw std::runtime_error(file + ": variable " + var + " has two leading dimensions besides time (" +
-                               L.dim_names[member_axis] + ", " + L.dim_names[a] + "); only one can be chosen with --member");
-    member_axis = a;
+  if (!options.member_dim.empty()) {
+    auto it = std::find(L.dim_names.begin(), L.dim_names.end(), options.member_dim);
+    if (it == L.dim_names.end())
+      throw std::runtime_error(file + ": variable " + var + " has no dimension '" + options.member_dim + "' (--member-dim); its shape is " +
+                               L.shape());
+    sel.member_axis = int(it - L.dim_names.begin());
   }
+  for (int a : L.extra_axes) {
+    if (L.dim_sizes[a] <= 1 || a == sel.member_axis) continue;
+    if (sel.member_axis >= 0)
+      throw std::runtime_error(file + ": variable " + var + " has two leading dimensions besides time (" +
+                               L.dim_names[sel.member_axis] + ", " + L.dim_names[a] +
+                               "); only one can be chosen with --member (name it with --member-dim)");
+    sel.member_axis = a;
+  }
+  return sel;
+}
+
+// Name, units and values of the coordinate variable of a spatial axis (nothing when it has none).
+GridAxis grid_axis(const NcFile& f, const Layout& L, int axis) {
+  GridAxis g;
+  g.name = L.dim_names[axis];
+  const int cv = coordinate_var(f.id(), L.dimids[axis], L.dim_names[axis]);
+  nc_type t;
+  if (cv < 0 || nc_inq_vartype(f.id(), cv, &t) != NC_NOERR || !is_numeric(t)) return g;
+  g.units = att_text(f.id(), cv, "units").value_or("");
+  std::vector<double> c(L.dim_sizes[axis]);
+  if (nc_get_var_double(f.id(), cv, c.data()) != NC_NOERR) return g;
+  if (std::all_of(c.begin(), c.end(), [](double x) { return std::isfinite(x); })) g.coordinates = std::move(c);
+  return g;
+}
+
+// The spatial axes' names, units and coordinates, and which to reverse for world orientation.
+std::pair<std::array<GridAxis, 3>, WorldOrientation> oriented_axes(const NcFile& f, const Layout& L) {
+  std::array<GridAxis, 3> axes;
+  std::array<std::string, 3> positive;
+  for (int k = 0; k < 3; ++k) {
+    if (L.spatial[k] < 0) continue;
+    axes[k] = grid_axis(f, L, L.spatial[k]);
+    const int cv = coordinate_var(f.id(), L.dimids[L.spatial[k]], L.dim_names[L.spatial[k]]);
+    if (cv >= 0) positive[k] = att_text(f.id(), cv, "positive").value_or("");
+  }
+  return {axes, world_orientation(axes, L.grid(), positive)};
+}
+
+Volume read_netcdf(const NcFile& f, const VolumeOptions& options) {
+  const std::string& file = f.name();
+  const Selection sel = select_variable(f, options);
+  const Layout& L = sel.layout;
+  const std::string& var = L.name;
+  const int member_axis = sel.member_axis;
   std::vector<size_t> start(L.dim_sizes.size(), 0);
   const size_t t = pick_index(L, L.time_axis, options.time_index, "time", file);
   const size_t m = pick_index(L, member_axis, options.member_index, "member", file);
@@ -422,24 +514,25 @@ Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions
   f.check(nc_inq_format(f.id(), &format), "cannot read the format");
   // A classic file stores every value, so a slab cannot exceed the file (checked before
   // allocating); compressed netCDF-4 has no such bound, so cap it at 2^34 voxels (64 GiB).
-  std::error_code ec;
-  const uint64_t file_size = std::filesystem::file_size(path, ec);
   if ((format == NC_FORMAT_NETCDF4 || format == NC_FORMAT_NETCDF4_CLASSIC) ? voxels > (uint64_t(1) << 34)
-                                                                           : (!ec && voxels > file_size))
+                                                                           : (f.size() > 0 && voxels > f.size()))
     throw std::runtime_error(file + ": variable " + var + " is larger than the file can hold (" + L.shape() + ")");
   v.spacing = spacing_of(f, L);
+  const auto [axes, orientation] = oriented_axes(f, L);
+  v.axes = axes;
   v.name = file + ":" + var;
   if (L.time_axis >= 0 && L.dim_sizes[L.time_axis] > 1) v.name += ",time=" + std::to_string(t);
   if (member_axis >= 0) v.name += ",member=" + std::to_string(m);
+  check_memory(voxels * sizeof(float), file + ": variable " + var + " " + L.shape());
   v.values.reserve(voxels);
   std::vector<int> iterate;
   if (L.spatial[2] >= 0) iterate.push_back(L.spatial[2]);
   for_each_slab(f, L, start, iterate, [&](const float* s, size_t n) { v.values.insert(v.values.end(), s, s + n); });
+  apply_world_orientation(v, orientation);
   return v;
 }
 
-FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions&) {
-  NcFile f(path);
+FileInfo describe_netcdf(const NcFile& f, const VolumeOptions& options) {
   FileInfo info;
   info.path = f.name();
   int format = 0;
@@ -456,7 +549,7 @@ FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions&
   int nvars = 0;
   f.check(nc_inq_nvars(f.id(), &nvars), "cannot list variables");
   for (int v = 0; v < nvars; ++v) {
-    Layout L = layout_of(f, v);
+    Layout L = layout_of(f, v, options.member_dim);
     ArrayInfo a;
     a.name = L.name;
     a.kind = L.is_coordinate ? "coordinate" : "variable";
@@ -471,6 +564,9 @@ FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions&
     }
     a.grid = L.grid();
     a.spacing = spacing_of(f, L);
+    auto [axes, orientation] = oriented_axes(f, L);  // as loaded: reversed axes and their origin
+    orient_axes(axes, a.origin, orientation);
+    a.orientation = orientation_lines(axes, a.origin, a.spacing, orientation);
     if (L.time_axis >= 0)
       a.choices.push_back("time: " + L.dim_names[L.time_axis] + " = " + std::to_string(L.dim_sizes[L.time_axis]) + " (--time)");
     for (int e : L.extra_axes)
@@ -489,6 +585,32 @@ FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions&
     info.arrays.push_back(std::move(a));
   }
   return info;
+}
+
+}  // namespace
+
+uint64_t count_netcdf_members(const std::filesystem::path& path, const VolumeOptions& options) {
+  NcFile f(path);
+  const Selection sel = select_variable(f, options);
+  return sel.member_axis >= 0 ? sel.layout.dim_sizes[sel.member_axis] : 1;
+}
+
+Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  return read_netcdf(NcFile(path), options);
+}
+
+FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions& options) {
+  return describe_netcdf(NcFile(path), options);
+}
+
+Volume parse_netcdf(std::string_view bytes, const std::string& name, const VolumeOptions& options) {
+  if (bytes.empty()) throw std::runtime_error(name + ": empty file");
+  return read_netcdf(NcFile(name, bytes), options);
+}
+
+FileInfo describe_netcdf_bytes(std::string_view bytes, const std::string& name) {
+  if (bytes.empty()) throw std::runtime_error(name + ": empty file");
+  return describe_netcdf(NcFile(name, bytes), {});
 }
 
 }  // namespace tfm

@@ -5,11 +5,15 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstring>
+#include <functional>
 #include <sstream>
 #include <stdexcept>
 
 #include <zlib.h>
 
+#include "cancellation.h"
+#include "memory_budget.h"
 #include "volume_formats.h"
 #include "volume_info.h"
 #include "volume_io.h"
@@ -243,8 +247,16 @@ NrrdHeader parse_header(std::string_view bytes, const std::string& file) {
   return h;
 }
 
-// Decodes `count` elements from one data file's bytes (after line skip) into `out`.
-void decode_chunk(std::string_view data, const NrrdHeader& h, uint64_t count, float* out, const std::string& where) {
+// Where decoded values go, in order, a block at a time.
+using ValueSink = std::function<void(const float* values, uint64_t n)>;
+
+// Values decoded per block: 1 Mi floats keep the buffers at a few MiB for any file size.
+constexpr uint64_t kBlock = uint64_t(1) << 20;
+
+// Decodes `count` elements from one data file's bytes (after line skip) into `sink`, a block at
+// a time: compressed, hex and text data never exist in full beside the decoded values.
+void decode_chunk(std::string_view data, const NrrdHeader& h, uint64_t count, const ValueSink& sink,
+                  const std::string& where) {
   for (uint64_t i = 0; i < h.line_skip; ++i) {
     const size_t e = data.find('\n');
     if (e == std::string_view::npos) throw std::runtime_error(where + ": fewer lines than line skip " + std::to_string(h.line_skip));
@@ -253,111 +265,192 @@ void decode_chunk(std::string_view data, const NrrdHeader& h, uint64_t count, fl
   const uint64_t elem = element_bytes(*h.type);
   const uint64_t need = count * elem;  // count * elem <= kMaxVoxels * 8 by the caller's checks
   const bool big = h.big_endian.value_or(false);
+  std::vector<float> values(std::min(count, kBlock));
+  // Decodes whole elements of `bytes` (a multiple of elem) block by block.
+  auto emit = [&](const char* bytes, uint64_t n) {
+    for (uint64_t done = 0; done < n; done += kBlock) {
+      const uint64_t k = std::min(kBlock, n - done);
+      decode_elements(bytes + done * elem, k, *h.type, big, values.data());
+      sink(values.data(), k);
+      checkpoint("load");
+    }
+  };
   if (h.encoding == "raw") {
     uint64_t skip = h.byte_skip < 0 ? (data.size() >= need ? data.size() - need : 0) : uint64_t(h.byte_skip);
     if (skip > data.size() || data.size() - skip < need)
       throw std::runtime_error(where + ": has " + std::to_string(data.size()) + " bytes, " + std::to_string(skip + need) +
                                " needed (truncated, or wrong sizes/type in the header)");
-    decode_elements(data.data() + skip, count, *h.type, big, out);
+    emit(data.data() + skip, count);
   } else if (h.encoding == "gzip") {
-    const uint64_t skip = uint64_t(h.byte_skip);
+    uint64_t skip = uint64_t(h.byte_skip);
     if (need + skip > kMaxDeflateRatio * data.size() + 1024)
       throw std::runtime_error(where + ": " + std::to_string(data.size()) + " compressed bytes cannot hold " +
                                std::to_string(need) + " bytes");
-    std::string buf(skip + need, '\0');
+    if (data.size() > 0xffffffffu) throw std::runtime_error(where + ": gzip data over 4 GiB per file is not supported");
     z_stream z{};
     if (inflateInit2(&z, 15 + 32) != Z_OK) throw std::runtime_error(where + ": zlib initialization failed");
-    if (data.size() > 0xffffffffu) {
-      inflateEnd(&z);
-      throw std::runtime_error(where + ": gzip data over 4 GiB per file is not supported");
-    }
+    struct End {
+      z_stream* z;
+      ~End() { inflateEnd(z); }
+    } end{&z};
     z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
     z.avail_in = static_cast<uInt>(data.size());
-    uint64_t got = 0;
+    // Inflated bytes wait in `buf` until they make whole elements; the byte skip is inflated and
+    // dropped.
+    std::vector<char> buf(std::min(need, kBlock * elem) + elem);
+    uint64_t held = 0, decoded = 0;
     int rc = Z_OK;
-    while (got < buf.size()) {
-      const uint64_t chunk = std::min<uint64_t>(buf.size() - got, uint64_t(1) << 30);
-      z.next_out = reinterpret_cast<Bytef*>(buf.data() + got);
-      z.avail_out = static_cast<uInt>(chunk);
+    while (decoded < count) {
+      const uint64_t want = skip > 0 ? std::min<uint64_t>(skip, buf.size()) : std::min(buf.size() - held, (count - decoded) * elem - held);
+      z.next_out = reinterpret_cast<Bytef*>(buf.data() + (skip > 0 ? 0 : held));
+      z.avail_out = static_cast<uInt>(want);
       rc = inflate(&z, Z_NO_FLUSH);
-      got += chunk - z.avail_out;
+      const uint64_t got = want - z.avail_out;
+      if (skip > 0) {
+        skip -= got;
+      } else {
+        held += got;
+        const uint64_t whole = held / elem;
+        if (whole > 0) {
+          emit(buf.data(), whole);
+          decoded += whole;
+          std::memmove(buf.data(), buf.data() + whole * elem, held - whole * elem);
+          held -= whole * elem;
+        }
+      }
       if (rc == Z_STREAM_END) {
         if (z.avail_in == 0 || inflateReset(&z) != Z_OK) break;  // more input: concatenated gzip members
       } else if (rc != Z_OK) {
         break;  // Z_BUF_ERROR: input exhausted; anything else: corrupt
       }
     }
-    inflateEnd(&z);
-    if (got < buf.size())
+    if (decoded < count)
       throw std::runtime_error(where + ": gzip data " + (rc == Z_OK || rc == Z_STREAM_END || rc == Z_BUF_ERROR ? "ends" : "is corrupt") +
-                               " after " + std::to_string(got) + " bytes, " + std::to_string(buf.size()) + " needed");
-    decode_elements(buf.data() + skip, count, *h.type, big, out);
+                               " after " + std::to_string(decoded * elem + held) + " bytes, " + std::to_string(need) + " needed");
   } else if (h.encoding == "hex") {
     const uint64_t skip = std::min<uint64_t>(uint64_t(h.byte_skip), data.size());
     data.remove_prefix(skip);
     if (need > data.size() / 2) throw std::runtime_error(where + ": too little hex data for " + std::to_string(need) + " bytes");
-    std::string buf;
-    buf.reserve(need);
+    std::vector<char> buf;
+    buf.reserve(std::min(need, kBlock * elem));
+    uint64_t decoded = 0;
     int nibble = -1;
     for (char c : data) {
-      if (buf.size() == need) break;
+      if (decoded == count) break;
       if (std::isspace(static_cast<unsigned char>(c))) continue;
       int v = std::isdigit(static_cast<unsigned char>(c)) ? c - '0'
               : (c >= 'a' && c <= 'f') ? c - 'a' + 10 : (c >= 'A' && c <= 'F') ? c - 'A' + 10 : -1;
       if (v < 0) throw std::runtime_error(where + ": bad hex digit");
-      if (nibble < 0) nibble = v;
-      else buf.push_back(static_cast<char>(nibble * 16 + v)), nibble = -1;
+      if (nibble < 0) {
+        nibble = v;
+        continue;
+      }
+      buf.push_back(static_cast<char>(nibble * 16 + v));
+      nibble = -1;
+      if (buf.size() == buf.capacity() || decoded + buf.size() / elem == count) {
+        const uint64_t whole = buf.size() / elem;
+        emit(buf.data(), whole);
+        decoded += whole;
+        buf.erase(buf.begin(), buf.begin() + ptrdiff_t(whole * elem));
+      }
     }
-    if (buf.size() != need) throw std::runtime_error(where + ": hex data ends early");
-    decode_elements(buf.data(), count, *h.type, big, out);
+    if (decoded != count) throw std::runtime_error(where + ": hex data ends early");
   } else {  // ascii
     data.remove_prefix(std::min<uint64_t>(uint64_t(h.byte_skip), data.size()));
     if (count > (data.size() + 1) / 2) throw std::runtime_error(where + ": too little text for " + std::to_string(count) + " values");
     size_t p = 0;
     auto sep = [](char c) { return std::isspace(static_cast<unsigned char>(c)) || c == ','; };
+    uint64_t filled = 0;
     for (uint64_t i = 0; i < count; ++i) {
       while (p < data.size() && sep(data[p])) ++p;
       size_t b = p;
       while (p < data.size() && !sep(data[p])) ++p;
       auto n = parse_number(data.substr(b, p - b));
       if (!n) throw std::runtime_error(where + ": value " + std::to_string(i) + " is not a number");
-      out[i] = static_cast<float>(*n);
+      values[filled++] = static_cast<float>(*n);
+      if (filled == values.size() || i + 1 == count) {
+        sink(values.data(), filled);
+        filled = 0;
+        checkpoint("load");
+      }
     }
   }
 }
 
-}  // namespace
+// Reduces interleaved tuples of `components` values to one value each, as select_component()
+// does (component k, or the magnitude), across block boundaries.
+class TupleReducer {
+ public:
+  TupleReducer(uint64_t components, std::optional<uint64_t> component, ValueSink sink)
+      : components_(components), component_(component), sink_(std::move(sink)) {
+    tuple_.reserve(components);
+  }
+  void add(const float* v, uint64_t n) {
+    if (components_ == 1) return sink_(v, n);
+    for (uint64_t i = 0; i < n; ++i) {
+      tuple_.push_back(v[i]);
+      if (tuple_.size() < components_) continue;
+      out_.push_back(reduce_tuple(tuple_.data(), components_, component_));
+      tuple_.clear();
+      if (out_.size() == kBlock) flush();
+    }
+  }
+  void flush() {
+    if (!out_.empty()) sink_(out_.data(), out_.size());
+    out_.clear();
+  }
 
-Volume parse_nrrd(std::string_view bytes, const std::string& file, const VolumeOptions& options,
-                  const DataFileLoader& open_data_file) {
-  NrrdHeader h = parse_header(bytes, file);
-  if (!options.variable.empty() && parse_array_selector(options.variable, file).name != "")
-    throw std::runtime_error(file + ": NRRD holds one array; use NAME[k] only to pick a component");
-  std::vector<uint64_t> s = h.sizes;
+ private:
+  uint64_t components_;
+  std::optional<uint64_t> component_;
+  ValueSink sink_;
+  std::vector<float> tuple_, out_;
+};
+
+// A NRRD file resolved: its header, grid, and the bytes of each data file (checked against what
+// the header promises before anything proportional to the grid is allocated).
+struct NrrdData {
+  NrrdHeader h;
+  std::array<uint64_t, 3> dims{1, 1, 1};
+  std::array<double, 3> spacing{1, 1, 1};
   uint64_t components = 1;
+  uint64_t per_chunk = 0;
+  std::vector<std::string> chunks, where;
+
+  // Decodes every data file into `reducer`, in order.
+  void decode(TupleReducer& reducer) const {
+    for (size_t i = 0; i < chunks.size(); ++i)
+      decode_chunk(chunks[i], h, per_chunk, [&](const float* v, uint64_t n) { reducer.add(v, n); }, where[i]);
+    reducer.flush();
+  }
+};
+
+NrrdData resolve_nrrd(std::string_view bytes, const std::string& file, const DataFileLoader& open_data_file) {
+  NrrdData d;
+  d.h = parse_header(bytes, file);
+  const NrrdHeader& h = d.h;
+  std::vector<uint64_t> s = h.sizes;
   if (h.dimension == 4) {
-    components = s[0];
-    if (components == 0 || components > 1024)
-      throw std::runtime_error(file + ": 4D NRRD: the fastest axis (size " + std::to_string(components) +
+    d.components = s[0];
+    if (d.components == 0 || d.components > 1024)
+      throw std::runtime_error(file + ": 4D NRRD: the fastest axis (size " + std::to_string(d.components) +
                                ") must hold 1..1024 components");
     s.erase(s.begin());
   } else if (h.dimension > 4) {
     throw std::runtime_error(file + ": dimension " + std::to_string(h.dimension) + " is not supported (1 to 4)");
   }
-  std::array<uint64_t, 3> dims{1, 1, 1};
-  std::array<double, 3> spacing{1, 1, 1};
   const size_t axis0 = h.dimension == 4 ? 1 : 0;
   for (size_t i = 0; i < s.size(); ++i) {
-    dims[i] = s[i];
+    d.dims[i] = s[i];
     const size_t a = axis0 + i;
-    if (a < h.spacings.size() && std::isfinite(h.spacings[a]) && h.spacings[a] > 0) spacing[i] = h.spacings[a];
+    if (a < h.spacings.size() && std::isfinite(h.spacings[a]) && h.spacings[a] > 0) d.spacing[i] = h.spacings[a];
   }
-  const uint64_t voxels = checked_voxel_count(dims, file);
-  const uint64_t count = checked_mul(voxels, components, kMaxVoxels, file, "number of values");
+  const uint64_t voxels = checked_voxel_count(d.dims, file);
+  const uint64_t count = checked_mul(voxels, d.components, kMaxVoxels, file, "number of values");
   // Which files hold which part: each file holds the axes below `subdim`.
-  std::vector<std::string> chunks;
   if (h.data_files.empty()) {
-    chunks.emplace_back(bytes.substr(h.data_begin));
+    d.chunks.emplace_back(bytes.substr(h.data_begin));
+    d.where.push_back(file + ": attached data");
   } else {
     const uint64_t subdim = h.subdim ? h.subdim : (h.data_files.size() == 1 ? uint64_t(h.dimension) : uint64_t(h.dimension - 1));
     if (subdim < 1 || subdim > uint64_t(h.dimension)) throw std::runtime_error(file + ": data file subdim out of range");
@@ -366,52 +459,70 @@ Volume parse_nrrd(std::string_view bytes, const std::string& file, const VolumeO
     if (files_needed != h.data_files.size())
       throw std::runtime_error(file + ": " + std::to_string(h.data_files.size()) + " data files for sizes needing " +
                                std::to_string(files_needed));
-    for (const auto& f : h.data_files) chunks.push_back(open_data_file(f));
+    for (const auto& f : h.data_files) {
+      d.chunks.push_back(open_data_file(f));
+      d.where.push_back(file + ": data file " + f);
+    }
   }
-  const uint64_t per_chunk = count / chunks.size();
-  Volume v;
-  v.dims = dims;
-  v.spacing = spacing;
-  v.name = file;
+  d.per_chunk = count / d.chunks.size();
   // A header can promise any size: check what each data file can hold at most before
   // allocating the volume (raw/hex/ASCII are bounded by their bytes, gzip by zlib's ratio).
   const uint64_t elem = element_bytes(*h.type);
-  for (size_t i = 0; i < chunks.size(); ++i) {
-    const uint64_t n = chunks[i].size();
+  for (size_t i = 0; i < d.chunks.size(); ++i) {
+    const uint64_t n = d.chunks[i].size();
     const uint64_t bound = h.encoding == "raw"    ? n / elem
                            : h.encoding == "gzip" ? (kMaxDeflateRatio * n + 1024) / elem
                            : h.encoding == "hex"  ? n / 2 / elem
                                                   : (n + 1) / 2;
-    if (per_chunk > bound)
-      throw std::runtime_error((h.data_files.empty() ? file + ": attached data" : file + ": data file " + h.data_files[i]) +
-                               " has " + std::to_string(n) + " bytes, too few for " + std::to_string(per_chunk) + " " +
-                               h.type_text + " values (" + h.encoding + "; truncated, or wrong sizes in the header)");
+    if (d.per_chunk > bound)
+      throw std::runtime_error(d.where[i] + " has " + std::to_string(n) + " bytes, too few for " +
+                               std::to_string(d.per_chunk) + " " + h.type_text + " values (" + h.encoding +
+                               "; truncated, or wrong sizes in the header)");
   }
-  std::vector<float> values(count);
-  for (size_t i = 0; i < chunks.size(); ++i) {
-    const std::string where = h.data_files.empty() ? file + ": attached data" : file + ": data file " + h.data_files[i];
-    decode_chunk(chunks[i], h, per_chunk, values.data() + i * per_chunk, where);
-  }
+  return d;
+}
+
+// Detached data files, relative to the header's directory.
+DataFileLoader data_file_loader(const std::filesystem::path& header) {
+  return [header](const std::string& name) {
+    std::filesystem::path p = name;
+    if (p.is_relative()) p = header.parent_path() / p;
+    if (!std::filesystem::exists(p)) throw std::runtime_error(header.string() + ": data file " + p.string() + " does not exist");
+    return read_file_bytes(p);
+  };
+}
+
+}  // namespace
+
+Volume parse_nrrd(std::string_view bytes, const std::string& file, const VolumeOptions& options,
+                  const DataFileLoader& open_data_file) {
+  const NrrdData d = resolve_nrrd(bytes, file, open_data_file);
+  if (!options.variable.empty() && parse_array_selector(options.variable, file).name != "")
+    throw std::runtime_error(file + ": NRRD holds one array; use NAME[k] only to pick a component");
   const ArraySelector sel = parse_array_selector(options.variable, file);
-  v.values = select_component(std::move(values), components, sel.component, file);
+  select_component({}, d.components, sel.component, file);  // a component past the last is an error now
+  Volume v;
+  v.dims = d.dims;
+  v.spacing = d.spacing;
+  v.name = file;
+  const uint64_t voxels = v.voxel_count();
+  check_memory(voxels * sizeof(float), file + ": " + std::to_string(d.dims[0]) + "x" + std::to_string(d.dims[1]) + "x" +
+                                           std::to_string(d.dims[2]) + " volume (decoded as float32)");
+  v.values.reserve(voxels);
+  TupleReducer reducer(d.components, sel.component,
+                       [&](const float* values, uint64_t n) { v.values.insert(v.values.end(), values, values + n); });
+  d.decode(reducer);
   return v;
 }
 
 Volume read_nrrd_volume(const std::filesystem::path& path, const VolumeOptions& options) {
-  const std::string bytes = read_file_bytes(path);
-  const std::filesystem::path dir = path.parent_path();
-  return parse_nrrd(bytes, path.string(), options, [&](const std::string& name) {
-    std::filesystem::path p = name;
-    if (p.is_relative()) p = dir / p;
-    if (!std::filesystem::exists(p)) throw std::runtime_error(path.string() + ": data file " + p.string() + " does not exist");
-    return read_file_bytes(p);
-  });
+  return parse_nrrd(read_file_bytes(path), path.string(), options, data_file_loader(path));
 }
 
 FileInfo describe_nrrd(const std::filesystem::path& path, const VolumeOptions&) {
   const std::string file = path.string();
-  NrrdHeader h = parse_header(read_file_bytes(path), file);
-  Volume v = read_nrrd_volume(path, {});
+  const NrrdData d = resolve_nrrd(read_file_bytes(path), file, data_file_loader(path));
+  const NrrdHeader& h = d.h;
   FileInfo info{file, "NRRD", {}, {}};
   ArrayInfo a;
   a.name = "(the only array)";
@@ -424,13 +535,15 @@ FileInfo describe_nrrd(const std::filesystem::path& path, const VolumeOptions&) 
   if (!h.data_files.empty())
     a.notes.push_back(std::to_string(h.data_files.size()) + " data file(s): " + h.data_files.front() +
                       (h.data_files.size() > 1 ? " ... " + h.data_files.back() : ""));
-  a.grid = v.dims;
-  a.spacing = v.spacing;
+  a.grid = d.dims;
+  a.spacing = d.spacing;
   if (h.dimension == 4) {
     a.components = h.sizes[0];
     a.notes.push_back("loads as the magnitude; [k] picks component k");
   }
-  accumulate_stats(a, v.values.data(), v.values.size());
+  // Statistics as the values stream by: `info` never holds the decoded volume.
+  TupleReducer reducer(d.components, std::nullopt, [&](const float* v, uint64_t n) { accumulate_stats(a, v, n); });
+  d.decode(reducer);
   info.arrays.push_back(std::move(a));
   return info;
 }

@@ -13,6 +13,8 @@
 #include <stdexcept>
 
 #include "atomic_file.h"
+#include "cancellation.h"
+#include "memory_budget.h"
 #include "volume.h"
 #include "volume_formats.h"
 #include "volume_info.h"
@@ -44,17 +46,14 @@ void decode(const char* src, uint64_t count, ScalarType type, bool big_endian, f
   decode_elements(src, count, e, big_endian, dst);
 }
 
-// Reads `count` elements of `type` at `offset`, checking that the file holds exactly
-// offset + count * size bytes (or at least that many when `allow_trailing`).
-Volume read_elements(const std::filesystem::path& path, std::array<uint64_t, 3> dims, ScalarType type,
-                     bool big_endian, uint64_t offset, bool allow_trailing) {
+// Checks that the file holds exactly offset + count * size bytes (or at least that many when
+// `allow_trailing`) for `count` elements of `type` at `offset`, then decodes them block by block
+// into `sink`, with a cancellation checkpoint per block.
+template <class Sink>
+void stream_elements(const std::filesystem::path& path, std::array<uint64_t, 3> dims, ScalarType type, bool big_endian,
+                     uint64_t offset, bool allow_trailing, Sink sink) {
   const std::string name = path.string();
-  for (uint64_t d : dims)
-    if (d == 0) throw std::runtime_error(name + ": a grid dimension is 0");
-  const uint64_t max_voxels = uint64_t(1) << 40;
-  if (dims[0] > max_voxels / dims[1] || dims[0] * dims[1] > max_voxels / dims[2])
-    throw std::runtime_error(name + ": grid size overflows (dimensions too large)");
-  const uint64_t count = dims[0] * dims[1] * dims[2];
+  const uint64_t count = checked_voxel_count(dims, name);
   const uint64_t bytes = count * scalar_bytes(type);
   std::error_code ec;
   uint64_t file_size = std::filesystem::file_size(path, ec);
@@ -68,34 +67,48 @@ Volume read_elements(const std::filesystem::path& path, std::array<uint64_t, 3> 
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error(name + ": cannot open");
   in.seekg(static_cast<std::streamoff>(offset));
-  Volume v;
-  v.dims = dims;
-  v.name = name;
-  v.values.resize(count);
-  // Decode in blocks so the file is never held in memory twice.
+  // Decode in blocks so the file is never held in memory beside the values.
   const uint64_t block = uint64_t(1) << 22;
   std::vector<char> buffer(std::min(count, block) * scalar_bytes(type));
+  std::vector<float> values(std::min(count, block));
   for (uint64_t done = 0; done < count; done += block) {
+    checkpoint("load");
     uint64_t n = std::min(block, count - done);
     in.read(buffer.data(), static_cast<std::streamsize>(n * scalar_bytes(type)));
     if (!in) throw std::runtime_error(name + ": read failed");
-    decode(buffer.data(), n, type, big_endian, v.values.data() + done);
+    decode(buffer.data(), n, type, big_endian, values.data());
+    sink(values.data(), n);
   }
+}
+
+Volume read_elements(const std::filesystem::path& path, std::array<uint64_t, 3> dims, ScalarType type,
+                     bool big_endian, uint64_t offset, bool allow_trailing) {
+  Volume v;
+  v.dims = dims;
+  v.name = path.string();
+  const uint64_t count = checked_voxel_count(dims, v.name);
+  check_memory(count * sizeof(float), v.name + ": " + std::to_string(dims[0]) + "x" + std::to_string(dims[1]) + "x" +
+                                          std::to_string(dims[2]) + " volume (decoded as float32)");
+  v.values.reserve(count);
+  stream_elements(path, dims, type, big_endian, offset, allow_trailing,
+                  [&](const float* values, uint64_t n) { v.values.insert(v.values.end(), values, values + n); });
   return v;
 }
 
-// The one array of a raw or .dat file, for `tfmatch info`.
-FileInfo describe_one_array(const std::filesystem::path& path, const std::string& format, const Volume& v,
+// The one array of a raw or .dat file, for `tfmatch info`: statistics as the values stream by,
+// so `info` never holds the decoded volume.
+FileInfo describe_one_array(const std::filesystem::path& path, const std::string& format, const std::filesystem::path& data,
+                            std::array<uint64_t, 3> dims, ScalarType type, bool big_endian, std::array<double, 3> spacing,
                             const VolumeOptions& options) {
   FileInfo info{path.string(), format, {}, {}};
   ArrayInfo a;
   a.name = "(the only array)";
   a.kind = "volume";
   a.type = options.type != ScalarType::Unknown ? scalar_type_name(options.type) : "from the file name / descriptor";
-  a.grid = v.dims;
-  a.spacing = v.spacing;
-  a.shape = std::to_string(v.dims[0]) + "x" + std::to_string(v.dims[1]) + "x" + std::to_string(v.dims[2]);
-  accumulate_stats(a, v.values.data(), v.values.size());
+  a.grid = dims;
+  a.spacing = spacing;
+  a.shape = std::to_string(dims[0]) + "x" + std::to_string(dims[1]) + "x" + std::to_string(dims[2]);
+  stream_elements(data, dims, type, big_endian, 0, false, [&](const float* v, uint64_t n) { accumulate_stats(a, v, n); });
   info.arrays.push_back(std::move(a));
   return info;
 }
@@ -155,7 +168,8 @@ const char* scalar_type_name(ScalarType t) {
   }
 }
 
-Volume read_raw_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+// The grid and element type of a raw file: from the options, else from its name.
+static std::pair<std::array<uint64_t, 3>, ScalarType> raw_layout(const std::filesystem::path& path, const VolumeOptions& options) {
   std::optional<std::array<uint64_t, 3>> dims = options.dims;
   ScalarType type = options.type;
   // Open SciVis convention: <name>_<X>x<Y>x<Z>_<type>.raw
@@ -180,7 +194,12 @@ Volume read_raw_volume(const std::filesystem::path& path, const VolumeOptions& o
   if (type == ScalarType::Unknown)
     throw std::runtime_error(path.string() + ": raw file without element type: pass --type "
                              "(uint8, uint16, int16, float32, float64, ...)");
-  return read_elements(path, *dims, type, options.big_endian, 0, false);
+  return {*dims, type};
+}
+
+Volume read_raw_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  const auto [dims, type] = raw_layout(path, options);
+  return read_elements(path, dims, type, options.big_endian, 0, false);
 }
 
 // .dat descriptor: lines "Key: value" with ObjectFileName, Resolution (X Y Z), Format
@@ -234,7 +253,8 @@ DatDescriptor parse_dat_descriptor(std::string_view text, const std::string& nam
   return d;
 }
 
-Volume read_dat_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+// The descriptor of a .dat file (a few lines, read whole).
+static DatDescriptor read_dat_descriptor(const std::filesystem::path& path, const VolumeOptions& options) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error(path.string() + ": cannot open");
   // A descriptor is a few lines; refuse to read a large binary file given as .dat by mistake.
@@ -243,8 +263,12 @@ Volume read_dat_volume(const std::filesystem::path& path, const VolumeOptions& o
   text.resize(static_cast<size_t>(in.gcount()));
   if (in.gcount() == 64 * 1024 && in.peek() != EOF)
     throw std::runtime_error(path.string() + ": too large for a .dat descriptor (over 64 KiB)");
-  DatDescriptor d = parse_dat_descriptor(text, path.string(), options.big_endian);
-  std::filesystem::path data = path.parent_path() / d.object_file;
+  return parse_dat_descriptor(text, path.string(), options.big_endian);
+}
+
+Volume read_dat_volume(const std::filesystem::path& path, const VolumeOptions& options) {
+  const DatDescriptor d = read_dat_descriptor(path, options);
+  const std::filesystem::path data = path.parent_path() / d.object_file;
   Volume v = read_elements(data, d.dims, d.type, d.big_endian, 0, false);
   v.spacing = d.spacing;
   v.name = path.string();
@@ -252,9 +276,9 @@ Volume read_dat_volume(const std::filesystem::path& path, const VolumeOptions& o
 }
 
 FileInfo describe_raw(const std::filesystem::path& path, const VolumeOptions& options) {
-  Volume v;
+  std::pair<std::array<uint64_t, 3>, ScalarType> layout;
   try {
-    v = read_raw_volume(path, options);
+    layout = raw_layout(path, options);
   } catch (const std::runtime_error& e) {
     // A raw file that says nothing about itself is described rather than refused.
     const std::string m = e.what();
@@ -262,14 +286,17 @@ FileInfo describe_raw(const std::filesystem::path& path, const VolumeOptions& op
       return describe_headerless(path, "dimensions or element type unknown");
     throw;
   }
-  return describe_one_array(path, "raw", v, options);
+  return describe_one_array(path, "raw", path, layout.first, layout.second, options.big_endian, {1, 1, 1}, options);
 }
 
 FileInfo describe_dat(const std::filesystem::path& path, const VolumeOptions& options) {
-  return describe_one_array(path, ".dat descriptor + raw data", read_dat_volume(path, options), options);
+  const DatDescriptor d = read_dat_descriptor(path, options);
+  return describe_one_array(path, ".dat descriptor + raw data", path.parent_path() / d.object_file, d.dims, d.type,
+                            d.big_endian, d.spacing, options);
 }
 
 void write_raw_float32(const std::filesystem::path& path, const Volume& v) {
+  check_memory(v.values.size() * sizeof(float), path.string() + ": writing " + std::to_string(v.values.size()) + " values");
   std::string bytes(v.values.size() * sizeof(float), '\0');
   for (size_t i = 0; i < v.values.size(); ++i) {
     uint32_t bits = std::bit_cast<uint32_t>(v.values[i]);

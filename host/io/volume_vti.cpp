@@ -7,6 +7,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <sstream>
@@ -16,6 +17,8 @@
 
 #include "atomic_file.h"
 #include "base64.h"
+#include "cancellation.h"
+#include "memory_budget.h"
 #include "volume_formats.h"
 #include "volume_info.h"
 #include "xml_tree.h"
@@ -34,6 +37,7 @@ struct VtiArray {
   size_t content_begin = 0, content_end = 0;
   uint64_t offset = 0;
   int line = 0;
+  std::string axis_name, units;  // field data written by tfmatch: an axis's coordinates (see write_vti)
 };
 
 struct VtiDocument {
@@ -42,6 +46,7 @@ struct VtiDocument {
   bool compressed = false;
   std::array<uint64_t, 3> dims{0, 0, 0};
   std::array<double, 3> spacing{1, 1, 1};
+  std::array<double, 3> origin{0, 0, 0};
   std::vector<VtiArray> arrays;
   std::string active_scalars;
   bool has_appended = false;
@@ -148,6 +153,11 @@ VtiDocument parse_document(std::string_view bytes, const std::string& file) {
   }
   const uint64_t points = checked_voxel_count(doc.dims, file);
   doc.spacing = parse_numbers<3>(image->attribute("Spacing"), {1.0, 1.0, 1.0}, file + ": Spacing");
+  doc.origin = parse_numbers<3>(image->attribute("Origin"), {0.0, 0.0, 0.0}, file + ": Origin");
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(doc.origin[i])) throw std::runtime_error(file + ": Origin must be finite");
+    doc.origin[i] += extent[2 * i] * doc.spacing[i];  // the position of the first point of the extent
+  }
   for (double& s : doc.spacing) {
     if (!std::isfinite(s) || s == 0) throw std::runtime_error(file + ": Spacing must be finite and non-zero");
     s = std::abs(s);  // a negative spacing mirrors the axis; the voxel size is its magnitude
@@ -184,6 +194,8 @@ VtiDocument parse_document(std::string_view bytes, const std::string& file) {
         if (!doc.has_appended) throw std::runtime_error(where + " '" + a.name + "' is appended, but the file has no AppendedData");
         a.offset = parse_uint(da->attribute("offset"), 0, where + " offset");
       }
+      if (const std::string* n = da->attribute("axis_name")) a.axis_name = *n;
+      if (const std::string* u = da->attribute("units")) a.units = *u;
       a.content_begin = da->content_begin;
       a.content_end = da->content_end;
       doc.arrays.push_back(a);
@@ -234,16 +246,19 @@ uint64_t read_header_uint(ByteSource& src, const VtiDocument& doc) {
   return v;
 }
 
-// The array's decompressed bytes, exactly `expected` of them.
-std::string read_binary(ByteSource& src, const VtiDocument& doc, uint64_t expected, const std::string& where) {
-  std::string out;
+// The array's decompressed bytes, exactly `expected` of them, handed to `sink` a block at a time
+// (a zlib block, or a slice of uncompressed data): the whole array's bytes never exist at once.
+void read_binary(ByteSource& src, const VtiDocument& doc, uint64_t expected, const std::string& where,
+                 const std::function<void(std::string_view)>& sink) {
   if (!doc.compressed) {
     const uint64_t n = read_header_uint(src, doc);
     if (n != expected)
       throw std::runtime_error(where + ": its header says " + std::to_string(n) + " bytes, the array needs " +
                                std::to_string(expected));
-    out.assign(src.read(n));
-    return out;
+    if (n > src.upper_bound()) src.read(n);  // throws "data truncated", before anything is decoded
+    constexpr uint64_t kSlice = uint64_t(16) << 20;
+    for (uint64_t done = 0; done < n; done += kSlice) sink(src.read(std::min(kSlice, n - done)));
+    return;
   }
   const uint64_t hb = doc.header64 ? 8 : 4;
   const uint64_t blocks = read_header_uint(src, doc);
@@ -269,25 +284,29 @@ std::string read_binary(ByteSource& src, const VtiDocument& doc, uint64_t expect
   if (expected > kMaxDeflateRatio * compressed + 1024)
     throw std::runtime_error(where + ": " + std::to_string(compressed) + " compressed bytes cannot hold " +
                              std::to_string(expected) + " bytes");
-  out.resize(expected);
-  uint64_t done = 0;
+  // One block at a time; a block cannot expand past zlib's ratio either, which bounds the buffer.
+  std::string block;
   for (uint64_t b = 0; b < blocks; ++b) {
     const uint64_t want = (b + 1 == blocks && last_size) ? last_size : block_size;
     std::string_view in = src.read(sizes[b]);
+    if (want > kMaxDeflateRatio * in.size() + 1024)
+      throw std::runtime_error(where + ": zlib block " + std::to_string(b) + " of " + std::to_string(in.size()) +
+                               " bytes cannot hold " + std::to_string(want));
+    block.resize(want);
     uLongf got = static_cast<uLongf>(want);
-    const int rc = uncompress(reinterpret_cast<Bytef*>(out.data() + done), &got,
-                              reinterpret_cast<const Bytef*>(in.data()), static_cast<uLong>(in.size()));
+    const int rc = uncompress(reinterpret_cast<Bytef*>(block.data()), &got, reinterpret_cast<const Bytef*>(in.data()),
+                              static_cast<uLong>(in.size()));
     if (rc != Z_OK || got != want)
       throw std::runtime_error(where + ": zlib block " + std::to_string(b) + " is corrupt (" +
                                (rc == Z_OK ? "wrong size" : zError(rc)) + ")");
-    done += want;
+    sink(block);
   }
-  return out;
 }
 
 std::vector<float> decode_array(std::string_view bytes, const VtiDocument& doc, const VtiArray& a, const std::string& file) {
   const std::string where = file + ": array '" + a.name + "'";
   const uint64_t count = checked_mul(a.tuples, a.components, kMaxVoxels, file, "array '" + a.name + "'");
+  check_memory(count * sizeof(float), where + ": " + std::to_string(count) + " values");
   std::vector<float> v;
   if (a.format == "ascii") {
     std::string_view text = bytes.substr(a.content_begin, a.content_end - a.content_begin);
@@ -312,15 +331,31 @@ std::vector<float> decode_array(std::string_view bytes, const VtiDocument& doc, 
   std::string_view region = a.format == "binary" ? bytes.substr(a.content_begin, a.content_end - a.content_begin)
                                                  : bytes.substr(doc.appended_begin + a.offset);
   ByteSource src(region, a.format == "binary" || doc.appended_base64);
-  std::string raw;
+  // Bytes arrive in blocks that need not end on an element: a partial element waits in `carry`.
+  const uint64_t elem = element_bytes(a.type);
+  uint64_t filled = 0;
+  std::string carry;
+  auto decode = [&](std::string_view bytes) {
+    // Allocated with the first bytes, once read_binary has checked the sizes its header claims.
+    if (v.size() != count) v.resize(count);
+    if (!carry.empty()) {
+      const size_t take = std::min<size_t>(elem - carry.size(), bytes.size());
+      carry.append(bytes.substr(0, take));
+      bytes.remove_prefix(take);
+      if (carry.size() == elem) decode_elements(carry.data(), 1, a.type, doc.big_endian, v.data() + filled++), carry.clear();
+    }
+    const uint64_t whole = bytes.size() / elem;
+    decode_elements(bytes.data(), whole, a.type, doc.big_endian, v.data() + filled);
+    filled += whole;
+    carry.assign(bytes.substr(whole * elem));
+    checkpoint("load");
+  };
   try {
-    raw = read_binary(src, doc, count * element_bytes(a.type), where);
+    read_binary(src, doc, count * elem, where, decode);
   } catch (const std::runtime_error& e) {
     const std::string m = e.what();
     throw std::runtime_error(m.rfind(file, 0) == 0 ? m : where + ": " + m);
   }
-  v.resize(count);
-  decode_elements(raw.data(), count, a.type, doc.big_endian, v.data());
   return v;
 }
 
@@ -351,8 +386,22 @@ Volume parse_vti(std::string_view bytes, const std::string& file, const VolumeOp
   Volume v;
   v.dims = grid_of(doc, pick);
   v.spacing = doc.spacing;
+  v.origin = origin_of(doc.origin, doc.spacing, pick.section);
   v.name = file + ":" + pick.name + (sel.component ? "[" + std::to_string(*sel.component) + "]" : "");
   v.values = select_component(decode_array(bytes, doc, pick, file), pick.components, sel.component, v.name);
+  // Axis coordinates tfmatch wrote as field data (x_coordinates, ...), when they fit the grid.
+  static const char* kAxes[3] = {"x", "y", "z"};
+  for (const VtiArray& a : doc.arrays) {
+    for (int k = 0; k < 3; ++k) {
+      if (a.section != "field data" || a.name != std::string(kAxes[k]) + "_coordinates" || a.components != 1 ||
+          a.tuples != v.dims[size_t(k)])
+        continue;
+      const std::vector<float> c = decode_array(bytes, doc, a, file);
+      v.axes[size_t(k)].coordinates.assign(c.begin(), c.end());
+      v.axes[size_t(k)].name = a.axis_name;
+      v.axes[size_t(k)].units = a.units;
+    }
+  }
   return v;
 }
 
@@ -396,15 +445,37 @@ void write_vti(const std::filesystem::path& path, const std::vector<std::pair<st
       throw std::runtime_error(path.string() + ": arrays to write are on different grids (" + arrays.front().first + ", " + name + ")");
     if (v->values.size() != v->voxel_count()) throw std::invalid_argument("write_vti: volume size does not match its dims");
   }
-  std::ostringstream xml;
   const auto& d = first.dims;
+  // Axis coordinates (latitudes, pressure levels, ...) as field data, so that what the regular
+  // Origin/Spacing cannot say (Gaussian latitudes, uneven levels, units) travels with the grid:
+  // Float64 ascii arrays "x_coordinates" ... with the axis name and units as extra attributes
+  // (VTK readers keep the arrays and ignore the attributes; tfmatch restores both).
+  std::ostringstream fd;
+  bool any_coordinates = false;
+  for (int k = 0; k < 3; ++k) any_coordinates |= first.axes[size_t(k)].coordinates.size() == d[size_t(k)];
+  if (any_coordinates) {
+    fd << "    <FieldData>\n";
+    static const char* kAxes[3] = {"x", "y", "z"};
+    for (int k = 0; k < 3; ++k) {
+      const GridAxis& a = first.axes[size_t(k)];
+      if (a.coordinates.size() != d[size_t(k)]) continue;
+      fd << "      <DataArray type=\"Float64\" Name=\"" << kAxes[k] << "_coordinates\" NumberOfTuples=\""
+          << a.coordinates.size() << "\" format=\"ascii\" axis_name=\"" << xml_escape(a.name) << "\" units=\""
+          << xml_escape(a.units) << "\">";
+      for (size_t i = 0; i < a.coordinates.size(); ++i) fd << (i ? " " : "") << format_double(a.coordinates[i]);
+      fd << "</DataArray>\n";
+    }
+    fd << "    </FieldData>\n";
+  }
+  std::ostringstream xml;
   const std::string extent = "0 " + std::to_string(d[0] - 1) + " 0 " + std::to_string(d[1] - 1) + " 0 " + std::to_string(d[2] - 1);
   xml << "<?xml version=\"1.0\"?>\n<VTKFile type=\"ImageData\" version=\"1.0\" byte_order=\"LittleEndian\" "
          "header_type=\"UInt64\""
       << (options.compress ? " compressor=\"vtkZLibDataCompressor\"" : "") << ">\n"
-      << "  <ImageData WholeExtent=\"" << extent << "\" Origin=\"0 0 0\" Spacing=\"" << format_double(first.spacing[0]) << " "
+      << "  <ImageData WholeExtent=\"" << extent << "\" Origin=\"" << format_double(first.origin[0]) << " "
+      << format_double(first.origin[1]) << " " << format_double(first.origin[2]) << "\" Spacing=\"" << format_double(first.spacing[0]) << " "
       << format_double(first.spacing[1]) << " " << format_double(first.spacing[2]) << "\">\n"
-      << "    <Piece Extent=\"" << extent << "\">\n"
+      << fd.str() << "    <Piece Extent=\"" << extent << "\">\n"
       << "      <PointData Scalars=\"" << xml_escape(arrays.front().first) << "\">\n";
   std::string appended;
   for (const auto& [name, v] : arrays) {

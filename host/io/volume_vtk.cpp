@@ -8,6 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "memory_budget.h"
 #include "volume_formats.h"
 #include "volume_info.h"
 #include "volume_io.h"
@@ -97,6 +98,7 @@ struct VtkDocument {
   bool binary = false;
   std::array<uint64_t, 3> dims{0, 0, 0};
   std::array<double, 3> spacing{1, 1, 1};
+  std::array<double, 3> origin{0, 0, 0};
   std::vector<VtkArray> arrays;
 };
 
@@ -277,7 +279,7 @@ VtkDocument parse_document(std::string_view bytes, const std::string& file) {
       for (int i = 0; i < 3; ++i) {
         if (key == "dimensions") doc.dims[i] = parse_count(t[1 + i], c, "DIMENSIONS");
         else if (key != "origin") doc.spacing[i] = parse_real(t[1 + i], c, std::string(t[0]));
-        else parse_real(t[1 + i], c, "ORIGIN");
+        else doc.origin[i] = parse_real(t[1 + i], c, "ORIGIN");
       }
       if (key == "dimensions") {
         checked_voxel_count(doc.dims, file);
@@ -312,6 +314,7 @@ VtkDocument parse_document(std::string_view bytes, const std::string& file) {
 
 std::vector<float> decode_array(std::string_view bytes, const VtkDocument& doc, const VtkArray& a, const std::string& file) {
   const uint64_t count = a.tuples * a.components;  // checked in skip_data
+  check_memory(count * sizeof(float), file + ": array '" + a.name + "': " + std::to_string(count) + " values");
   std::vector<float> v(count);
   if (doc.binary) {
     decode_elements(bytes.data() + a.data_begin, count, a.type, true, v.data());
@@ -346,6 +349,7 @@ Volume parse_vtk_legacy(std::string_view bytes, const std::string& file, const V
   Volume v;
   v.dims = grid_of(doc, pick);
   v.spacing = doc.spacing;
+  v.origin = origin_of(doc.origin, doc.spacing, pick.section);
   v.name = file + ":" + pick.name + (sel.component ? "[" + std::to_string(*sel.component) + "]" : "");
   v.values = select_component(decode_array(bytes, doc, pick, file), pick.components, sel.component, v.name);
   return v;

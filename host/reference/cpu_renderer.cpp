@@ -65,7 +65,7 @@ CpuRender render_cpu(const Volume& vol, const TransferFunction& tf, const FieldR
                      const RenderSettings& s, const CpuRenderOptions& o) {
   if (tf.size() < 2) throw std::runtime_error("render: the transfer function needs at least 2 entries");
   if (!(range.hi > range.lo)) throw std::runtime_error("render: empty field range");
-  const VolumeGeometry geo = VolumeGeometry::from(vol.dims, vol.spacing);
+  const VolumeGeometry geo = VolumeGeometry::from(vol.dims, vol.spacing, s.z_scale);
   const MarchConstants march = march_constants(s, geo);
   const CameraFrame frame = orbit_frame(s.camera, geo, s.width, s.height);
   const bool has_nan = o.track_ambiguity && std::any_of(vol.values.begin(), vol.values.end(),

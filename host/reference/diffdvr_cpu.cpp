@@ -42,7 +42,7 @@ CpuLossGradient image_loss_gradient_cpu(const Volume& vol, const TransferFunctio
   if (tf.size() < 2) throw std::runtime_error("diffdvr: the transfer function needs at least 2 entries");
   if (!(range.hi > range.lo)) throw std::runtime_error("diffdvr: empty field range");
   if (target.size() != size_t(s.width) * s.height * 4) throw std::runtime_error("diffdvr: target image size differs");
-  const VolumeGeometry geo = VolumeGeometry::from(vol.dims, vol.spacing);
+  const VolumeGeometry geo = VolumeGeometry::from(vol.dims, vol.spacing, s.z_scale);
   const MarchConstants march = march_constants(s, geo);
   const CameraFrame frame = orbit_frame(s.camera, geo, s.width, s.height);
   const size_t n = tf.size();

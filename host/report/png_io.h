@@ -3,6 +3,7 @@
 
 #include <filesystem>
 #include <string>
+#include <string_view>
 
 #include "image.h"
 
@@ -14,7 +15,11 @@ std::string encode_png(const Image& image);
 void write_png(const std::filesystem::path& path, const Image& image);
 // Reads any PNG as 8-bit RGB: grey and palette images are expanded, 16-bit reduced, and an
 // alpha channel is composited over white. Throws std::runtime_error naming the path when the
-// file is missing or not a PNG.
+// file is missing or not a PNG, and before allocating the image when its header claims more
+// pixels than its bytes can hold (zlib expands at most 1032:1) or than the memory budget allows
+// (host/core/memory_budget.h).
 Image read_png(const std::filesystem::path& path);
+// The same for a PNG in memory; `name` starts every message.
+Image decode_png(std::string_view bytes, const std::string& name);
 
 }  // namespace tfm

@@ -51,6 +51,8 @@ table { border-collapse: collapse; background: #fff; font-size: 14px; }
 td, th { border: 1px solid #ddd; padding: 5px 12px; text-align: right; }
 td:first-child, th:first-child { text-align: left; }
 td.better { background: #e6f4e6; font-weight: bold; }
+pre.cmd { background: #fff; border: 1px solid #e2e2e2; padding: 6px; white-space: pre-wrap; word-break: break-all; }
+div.warn { background: #fff4d6; border: 1px solid #e0b84a; padding: 4px 12px; margin: 12px 0; }
 .note { font-size: 12px; color: #666; max-width: 60em; }
 )";
 
@@ -74,7 +76,20 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
     << in.ref.dims[1] << "&times;" << in.ref.dims[2] << " &middot; solver: " << escape(r.solver)
     << " &middot; device: " << escape(r.device) << "</div>\n";
 
-  h << "<h2>Renderings</h2>\n<div class=\"grid g3\">\n"
+  // Every warning of the run (ranges that miss a field, cond(M), clamping) where it is read first.
+  if (!r.warnings.empty()) {
+    h << "<div class=\"warn\"><b>Warnings</b><ul>\n";
+    for (const std::string& w : r.warnings) h << "<li>" << escape(w) << "</li>\n";
+    h << "</ul></div>\n";
+  }
+  h << "<h2>Renderings</h2>\n";
+  if (!in.markers.empty()) {
+    h << "<p class=\"note\">Red dots: reference point" << (in.markers.size() > 1 ? "s" : "");
+    for (size_t i = 0; i < in.markers.size(); ++i)
+      h << (i ? ", " : " ") << escape(describe_grid_point(in.ref, in.markers[i]));
+    h << " (drawn over the volume, visible from every side).</p>\n";
+  }
+  h << "<div class=\"grid g3\">\n"
     << figure("reference.png", "Reference field, reference TF")
     << figure("field_reference_tf.png", "Second field, reference TF (before)")
     << figure("field_optimized_tf.png", "Second field, optimized TF (after)")
@@ -92,6 +107,15 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
     << figure("residual_optimized_tf.png", "Residual with the optimized TF (after)")
     << figure("tf_residual.png", "Residual TF over the histogram of the residual after") << "</div>\n";
 
+  if (!s.slices.empty()) {
+    h << "<h2>Slices</h2>\n<p class=\"note\">Axis-aligned planes through voxel "
+      << escape(describe_grid_point(in.ref, s.slice_point))
+      << ": each voxel's TF colour over the background, its opacity scaled so the TF's most opaque entry "
+         "is opaque (a slice shows one sample, not a ray's integral); the residual on the scale above. "
+         "North and up are up; grey is no data.</p>\n";
+    for (const auto& sl : s.slices) h << figure(sl.file, sl.caption);
+  }
+
   h << "<h2>Metrics</h2>\n<table>\n<tr><th></th><th>reference TF</th><th>optimized TF</th><th></th></tr>\n"
     << metric_row("Image RMSE (0&ndash;255)", s.before.rmse, s.after.rmse, 5, false)
     << metric_row("Image PSNR (dB)", s.before.psnr, s.after.psnr, 5, true)
@@ -100,7 +124,8 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
     << metric_row("Voxel MAE (RGBA)", r.before.mae(), r.after.mae(), 5, false)
     << metric_row("Residual max", s.residual_max_before, s.residual_max_after, 4, false) << "</table>\n"
     << "<p class=\"note\">Image metrics compare each rendering of the second field with the reference "
-       "rendering, in RGB after compositing over the background. SSIM: Wang et al. 2004, 11&times;11 "
+       "rendering on the 8-bit sRGB pictures as written to the PNGs (composited over the background in "
+       "linear RGB), measured before the box outline and markers are drawn on them. SSIM: Wang et al. 2004, 11&times;11 "
        "Gaussian window (&sigma; = 1.5), K1 = 0.01, K2 = 0.03. LPIPS is not computed (it needs "
        "pretrained network weights). All numbers are in <a href=\"metrics.json\">metrics.json</a>.</p>\n";
 
@@ -115,11 +140,20 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
     << report_number(rs.step_voxels, 4) << " voxels, opacity scale " << report_number(rs.opacity_scale, 4)
     << " per box length, early termination at opacity " << report_number(rs.termination_opacity, 4)
     << "; camera azimuth " << report_number(rs.camera.azimuth_deg, 4) << "&deg;, elevation "
-    << report_number(rs.camera.elevation_deg, 4) << "&deg;, distance " << report_number(rs.camera.distance, 4)
-    << " radii, field of view " << report_number(rs.camera.fov_deg, 4) << "&deg;. Ranges: reference ["
+    << report_number(rs.camera.elevation_deg, 4) << "&deg;, "
+    << (rs.camera.distance == 0 ? std::string("framed to the box") : "distance " + report_number(rs.camera.distance, 4) + " radii")
+    << ", field of view " << report_number(rs.camera.fov_deg, 4) << "&deg;, vertical exaggeration "
+    << report_number(rs.z_scale, 4) << ". Ranges: reference ["
     << report_number(r.ref_range.lo, 6) << ", " << report_number(r.ref_range.hi, 6) << "], field ["
     << report_number(r.field_range.lo, 6) << ", " << report_number(r.field_range.hi, 6) << "]. "
-    << "A summary picture of this page: <a href=\"overview.png\">overview.png</a>.</p>\n";
+    << "A summary picture of this page: <a href=\"overview.png\">overview.png</a>. Pictures are 8-bit sRGB; "
+    << "histograms " << (in.histogram_log ? "log(1 + count)" : "linear counts") << ".</p>\n";
+  h << "<h2>Reproduce</h2>\n<pre class=\"cmd\">"
+    << escape(in.command_line.empty() ? std::string("(written by a library call)") : in.command_line) << "</pre>\n"
+    << "<p class=\"note\">" << escape(in.version.empty() ? std::string("tfmatch") : in.version)
+    << ". Saved here: <a href=\"command.txt\">command.txt</a>, the reference TF as used "
+       "(<a href=\"reference_tf.json\">reference_tf.json</a>) and the optimized TF "
+       "(<a href=\"optimized_tf.json\">optimized_tf.json</a>), linear RGB tables with their ranges.</p>\n";
   h << "</body></html>\n";
   return h.str();
 }

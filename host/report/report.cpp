@@ -4,16 +4,22 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 
 #include "atomic_file.h"
 #include "camera.h"
+#include "cancellation.h"
+#include "font.h"
 #include "gpu_voxel_ops.h"
+#include "memory_budget.h"
 #include "png_io.h"
 #include "progress.h"
 #include "render.h"
 #include "render_report_html.h"
+#include "slice.h"
 #include "result_json.h"
 #include "residual.h"
+#include "tf_json.h"
 #include "tf_plot.h"
 
 namespace tfm {
@@ -24,6 +30,13 @@ double max_value(const Volume& v) {
   for (float x : v.values)
     if (std::isfinite(x)) m = std::max(m, double(x));
   return m;
+}
+
+// The field's name for an axis: its file name with the variable and selectors, without directories.
+std::string field_label(const Volume& v) {
+  const std::string name = v.name;
+  const size_t slash = name.find_last_of('/');
+  return slash == std::string::npos ? name : name.substr(slash + 1);
 }
 
 // Rows of panels stacked top to bottom, each row centred.
@@ -39,33 +52,64 @@ Image stack_rows(const std::vector<Image>& rows, Rgb8 background) {
   return out;
 }
 
-// The numbers as a picture, for overview.png (the HTML page has them as a table).
+// The numbers as a picture, for overview.png (the HTML page has them as a table): three columns
+// at fixed positions (the font is proportional), then the warnings, wrapped to the panel.
 Image metrics_panel(const ReportSummary& s, const OptimizeResult& r, uint32_t width, uint32_t height) {
   Image img(width, height);
-  const Rgb8 ink{30, 30, 30}, muted{110, 110, 110};
-  auto cell = [](const std::string& text, size_t w) { return text + std::string(text.size() < w ? w - text.size() : 1, ' '); };
-  auto row = [&](const std::string& name, double before, double after, int digits) {
-    return cell(name, 13) + cell(report_number(before, digits), 9) + report_number(after, digits);
+  const Rgb8 ink{30, 30, 30}, muted{110, 110, 110}, warn{150, 80, 0};
+  struct Row {
+    std::string name, before, after;
   };
-  const std::vector<std::pair<std::string, Rgb8>> lines = {
-      {cell("", 13) + cell("ref TF", 9) + "opt TF", muted},
-      {row("image RMSE", s.before.rmse, s.after.rmse, 4), ink},
-      {row("PSNR dB", s.before.psnr, s.after.psnr, 4), ink},
-      {row("SSIM", s.before.ssim, s.after.ssim, 3), ink},
-      {"", ink},
-      {row("voxel RMSE", r.before.rmse(), r.after.rmse(), 3), ink},
-      {row("residual max", s.residual_max_before, s.residual_max_after, 3), ink},
-      {"", ink},
-      {"solver: " + r.solver, muted},
+  auto row = [](const std::string& name, double before, double after, int digits) {
+    return Row{name, report_number(before, digits), report_number(after, digits)};
   };
-  // Scale 2 when the widest line fits, else 1 (small test images).
-  size_t widest = 0;
-  for (const auto& l : lines) widest = std::max(widest, l.first.size());
-  const int scale = text_width(std::string(widest, 'x'), 2) + 24 <= int(width) ? 2 : 1;
-  int y = 16;
-  for (const auto& [text, colour] : lines) {
-    draw_text(img, 12, y, text, colour, scale);
-    y += text_height(scale) + 4 * scale + (text.empty() ? -4 * scale : 0);
+  const std::vector<Row> rows = {{"", "ref TF", "opt TF"},
+                                 row("image RMSE", s.before.rmse, s.after.rmse, 4),
+                                 row("PSNR dB", s.before.psnr, s.after.psnr, 4),
+                                 row("SSIM", s.before.ssim, s.after.ssim, 3),
+                                 row("voxel RMSE", r.before.rmse(), r.after.rmse(), 3),
+                                 row("residual max", s.residual_max_before, s.residual_max_after, 3)};
+  // Scale 2 when the table fits, else 1 (small images).
+  auto widths = [&](int scale) {
+    int a = 0, b = 0, c = 0;
+    for (const Row& x : rows)
+      a = std::max(a, text_width(x.name, scale)), b = std::max(b, text_width(x.before, scale)),
+      c = std::max(c, text_width(x.after, scale));
+    return std::array<int, 3>{a, b, c};
+  };
+  const int scale = [&] {
+    const auto w = widths(2);
+    return w[0] + w[1] + w[2] + 2 * 16 + 24 <= int(width) ? 2 : 1;
+  }();
+  const auto w = widths(scale);
+  const int gap = 8 * scale, line = text_height(scale) + 3 * scale;
+  int y = 12;
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const Rgb8 c = i == 0 ? muted : ink;
+    draw_text(img, 12, y, rows[i].name, c, scale);
+    draw_text(img, 12 + w[0] + gap, y, rows[i].before, c, scale);
+    draw_text(img, 12 + w[0] + w[1] + 2 * gap, y, rows[i].after, c, scale);
+    y += line;
+  }
+  draw_text(img, 12, y, "solver: " + r.solver, muted, scale);
+  y += line + 4;
+  // Warnings, word-wrapped at scale 1, as many as fit.
+  for (const std::string& text : r.warnings) {
+    std::string current = "warning:";
+    std::istringstream words(text);
+    for (std::string word; words >> word;) {
+      if (text_width(current + " " + word, 1) > int(width) - 24) {
+        if (y + text_height(1) > int(height)) return img;
+        draw_text(img, 12, y, current, warn, 1);
+        y += text_height(1) + 2;
+        current = "  " + word;
+      } else {
+        current += " " + word;
+      }
+    }
+    if (y + text_height(1) > int(height)) return img;
+    draw_text(img, 12, y, current, warn, 1);
+    y += text_height(1) + 6;
   }
   return img;
 }
@@ -77,6 +121,9 @@ nlohmann::json settings_json(const RenderSettings& s) {
           {"opacity_scale", s.opacity_scale},
           {"background", s.background},
           {"termination_opacity", s.termination_opacity},
+          {"background_encoding", "linear RGB (PNGs are sRGB)"},
+          {"z_scale", s.z_scale},
+          {"box_outline", s.box_outline},
           {"camera",
            {{"azimuth_deg", s.camera.azimuth_deg},
             {"elevation_deg", s.camera.elevation_deg},
@@ -84,18 +131,70 @@ nlohmann::json settings_json(const RenderSettings& s) {
             {"fov_deg", s.camera.fov_deg}}}};
 }
 
+// The slices through in.slice_point (default: the first marker, else the middle), one picture per axis with the four
+// quantities side by side: the plane normal to z first (a map view for geophysical grids).
+template <class Save>
+void write_slices(const ReportInputs& in, const Volume& residual, const TransferFunction& res_tf,
+                  const FieldRange& res_range, ReportSummary& out, Save& save) {
+  const auto& d = in.ref.dims;
+  out.slice_point = in.slice_point ? *in.slice_point
+                                   : (!in.markers.empty() ? in.markers.front() : GridIndex{d[0] / 2, d[1] / 2, d[2] / 2});
+  const OptimizeResult& r = in.result;
+  SliceStyle style;
+  style.background = in.settings.background;
+  style.z_scale = in.settings.z_scale;
+  style.max_size = std::clamp<uint32_t>(in.settings.width * 3 / 4, 160, 480);
+  style.opacity_scale = max_opacity(in.ref_tf);  // one scale for the three classified fields
+  SliceStyle res_style = style;
+  res_style.opacity_scale = max_opacity(res_tf);
+  static const char* names[3] = {"x", "y", "z"};
+  for (int axis : {2, 1, 0}) {
+    const SliceValues ref = extract_slice(in.ref, axis, out.slice_point[size_t(axis)]);
+    if (ref.width < 2 || ref.height < 2) continue;  // a line, not a plane
+    const SliceValues field = extract_slice(in.field, axis, out.slice_point[size_t(axis)]);
+    const SliceValues res = extract_slice(residual, axis, out.slice_point[size_t(axis)]);
+    const Image row = compose_panels({{slice_image(in.ref, ref, in.ref_tf, r.ref_range, style), "Reference"},
+                                      {slice_image(in.field, field, in.ref_tf, r.field_range, style), "Field, reference TF"},
+                                      {slice_image(in.field, field, r.tf, r.field_range, style), "Field, optimized TF"},
+                                      {slice_image(residual, res, res_tf, res_range, res_style), "Residual, optimized TF"}},
+                                     4);
+    const std::string file = std::string("slices_") + names[axis] + ".png";
+    save(file, row);
+    out.slices.push_back({file, describe_slice(in.ref, axis, out.slice_point[size_t(axis)])});
+  }
+}
+
 }  // namespace
 
-ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::filesystem::path& dir) {
+std::vector<std::string> report_file_names() {
+  return {"reference.png",       "field_reference_tf.png", "field_optimized_tf.png", "residual_reference_tf.png",
+          "residual_optimized_tf.png", "tf_reference.png",  "tf_field_reference.png", "tf_optimized.png",
+          "tf_residual.png",     "loss.png",               "overview.png",           "metrics.json",
+          "command.txt",         "reference_tf.json",      "optimized_tf.json",      "slices_x.png",
+          "slices_y.png",        "slices_z.png",           "index.html"};
+}
+
+ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::filesystem::path& final_dir) {
   require_same_grid(in.ref, in.field);
   const OptimizeResult& r = in.result;
   const RenderSettings& s = in.settings;
   validate(s);
-  std::filesystem::create_directories(dir);
+  if (in.slice_point)
+    for (int k = 0; k < 3; ++k)
+      if ((*in.slice_point)[size_t(k)] >= in.ref.dims[size_t(k)])
+        throw std::runtime_error("report: slice point " + describe_grid_point(in.ref, *in.slice_point) +
+                                 " is outside the grid");
+  check_render_size(ctx, s);
+  // Everything goes to temporary names (a staged directory when `final_dir` is new) that appear
+  // together when the report is complete, or, inside a command's batch, when the command is.
+  OutputBatch batch;
+  const std::filesystem::path dir = batch.directory(final_dir);
+  const std::string font = install_report_font();  // every label below in DejaVu Sans when installed
   ReportSummary out;
   Progress progress("report", 10);
   uint64_t step = 0;
   auto advance = [&](const char* what) {
+    checkpoint("report");
     progress.set_label(std::string("report: ") + what);
     progress.update(++step);
   };
@@ -104,8 +203,11 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
     out.files.push_back(name);
   };
 
-  // Both fields and the three TF tables on the device once; every picture below reuses them.
-  const VolumeGeometry geometry = VolumeGeometry::from(in.ref.dims, in.ref.spacing);
+  // Both fields and the three TF tables on the device once; every picture below reuses them, and
+  // the residual maps (host and device copies) come on top.
+  check_device_memory(ctx, 3 * in.ref.values.size() * sizeof(float), "report: uploading both fields");
+  check_memory(2 * in.ref.values.size() * sizeof(float), "report: residual maps");
+  const VolumeGeometry geometry = VolumeGeometry::from(in.ref.dims, in.ref.spacing, s.z_scale);
   DeviceField ref(ctx, in.ref.values, "report: reference field");
   DeviceField field(ctx, in.field.values, "report: second field", ref.chunk_voxels());
   Buffer ref_tf = upload_tf(ctx, in.ref_tf, "report: reference TF");
@@ -118,16 +220,21 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   GpuRenderer field_renderer(ctx, field, geometry);
 
   advance("rendering the reference");
-  const Image ref_img = composite_over(ref_renderer.render(ref_map, ref_tf, s), s.background);
+  Image ref_img = composite_over(ref_renderer.render(ref_map, ref_tf, s), s.background);
   advance("rendering the field with the reference TF");
-  const Image before_img = composite_over(field_renderer.render(field_ref_tf_map, ref_tf, s), s.background);
+  Image before_img = composite_over(field_renderer.render(field_ref_tf_map, ref_tf, s), s.background);
   advance("rendering the field with the optimized TF");
-  const Image after_img = composite_over(field_renderer.render(field_opt_tf_map, opt_tf, s), s.background);
+  Image after_img = composite_over(field_renderer.render(field_opt_tf_map, opt_tf, s), s.background);
+  out.before = compare_images(ref_img, before_img);
+  out.after = compare_images(ref_img, after_img);
+  // The pictures show the markers and the box outline; the metrics above were taken without them.
+  for (Image* img : {&ref_img, &before_img, &after_img}) {
+    draw_box_outline(*img, geometry, s);
+    draw_markers(*img, geometry, s, in.markers);
+  }
   save("reference.png", ref_img);
   save("field_reference_tf.png", before_img);
   save("field_optimized_tf.png", after_img);
-  out.before = compare_images(ref_img, before_img);
-  out.after = compare_images(ref_img, after_img);
 
   advance("residual maps");
   const Volume res_before = residual_map_gpu(ctx, in.ref, ref, field, ref_map, field_ref_tf_map, ref_tf, ref_tf);
@@ -144,20 +251,29 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   for (int k = 0; k < 2; ++k) {
     DeviceField res(ctx, (k == 0 ? res_before : res_after).values, "report: residual map");
     res_imgs[k] = composite_over(GpuRenderer(ctx, res, geometry).render(res_map, res_tf_buf, s), s.background);
+    draw_box_outline(res_imgs[k], geometry, s);
+    draw_markers(res_imgs[k], geometry, s, in.markers);
   }
   save("residual_reference_tf.png", res_imgs[0]);
   save("residual_optimized_tf.png", res_imgs[1]);
 
+  advance("slices");
+  write_slices(in, res_after, res_tf, res_range, out, save);
+
   advance("TF plots");
   TfPlotOptions plot;
-  plot.width = std::max<uint32_t>(s.width, 256);
+  plot.width = std::max<uint32_t>(s.width, 320);
+  plot.log_counts = in.histogram_log;
   plot.title = "Reference TF, reference field histogram";
+  plot.axis_label = field_label(in.ref);
   const Image plot_ref = plot_transfer_function(in.ref_tf, in.ref.values, r.ref_range, plot);
   plot.title = "Reference TF, field histogram";
+  plot.axis_label = field_label(in.field);
   const Image plot_before = plot_transfer_function(in.ref_tf, in.field.values, r.field_range, plot);
   plot.title = "Optimized TF, field histogram";
   const Image plot_opt = plot_transfer_function(r.tf, in.field.values, r.field_range, plot);
   plot.title = "Residual TF, histogram after";
+  plot.axis_label = "residual (RGBA distance)";
   const Image plot_res = plot_transfer_function(res_tf, res_after.values, res_range, plot);
   save("tf_reference.png", plot_ref);
   save("tf_field_reference.png", plot_before);
@@ -186,16 +302,31 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
                          {"max_optimized_tf", out.residual_max_after},
                          {"display_range", {res_range.lo, res_range.hi}}};
   metrics["render_settings"] = settings_json(s);
+  metrics["histogram"] = in.histogram_log ? "log" : "linear";
+  metrics["font"] = font.empty() ? "built-in 5x7 bitmap (DejaVu Sans not found)" : font;
+  if (!in.command_line.empty()) metrics["command_line"] = in.command_line;
+  if (!in.version.empty()) metrics["version"] = in.version;
   metrics["optimize"] = to_json(r);
   metrics["fields"] = {{"reference", in.ref.name}, {"field", in.field.name}, {"dims", in.ref.dims}};
+  if (!in.markers.empty()) metrics["markers"] = in.markers;
+  metrics["slices"] = {{"point", out.slice_point}, {"files", nlohmann::json::array()}};
+  for (const auto& sl : out.slices) metrics["slices"]["files"].push_back({{"file", sl.file}, {"plane", sl.caption}});
   if (!in.extra_metrics.is_null()) metrics["extra"] = in.extra_metrics;
   write_file_atomically(dir / "metrics.json", metrics.dump(2) + "\n");
   out.files.push_back("metrics.json");
 
+  // What reproduces the page: the command, the version, and both TFs as used (linear tables).
+  write_file_atomically(dir / "command.txt", (in.command_line.empty() ? std::string("(library call)") : in.command_line) +
+                                                 "\n" + (in.version.empty() ? "" : in.version + "\n"));
+  write_file_atomically(dir / "reference_tf.json", tf_to_json(in.ref_tf));
+  write_file_atomically(dir / "optimized_tf.json", tf_to_json(r.tf));
+  for (const char* f : {"command.txt", "reference_tf.json", "optimized_tf.json"}) out.files.push_back(f);
+
   advance("index.html");
   write_file_atomically(dir / "index.html", report_html(in, out, metrics));
   out.files.push_back("index.html");
-  out.index = dir / "index.html";
+  out.index = final_dir / "index.html";
+  batch.commit();
   progress.finish();
   return out;
 }

@@ -4,12 +4,14 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "context.h"
+#include "grid_point.h"
 #include "image.h"
 #include "metrics.h"
 #include "optimize.h"
@@ -35,8 +37,18 @@ struct ReportInputs {
   const OptimizeResult& result;    // optimized TF, both ranges, voxel losses, solver details
   RenderSettings settings;         // one camera and optical model for every rendering
   std::string title = "tfmatch report";
+  // Grid points drawn as red dots on every rendering (correlation reference points); the image
+  // metrics are computed on the renderings without them.
+  std::vector<GridIndex> markers;
+  // Axis-aligned slices (reference, field with each TF, residual after) go through this voxel;
+  // when not given, through the first marker, else the grid's middle.
+  std::optional<GridIndex> slice_point;
   std::vector<ReportFigure> extra_figures;
   nlohmann::json extra_metrics;    // merged into metrics.json under "extra" when not null
+  bool histogram_log = true;       // TF plots: log(1 + count) bars, else counts (each plot says which)
+  // Saved with the report (command.txt, the page) so that it can be reproduced.
+  std::string command_line;
+  std::string version;
 };
 
 struct ReportSummary {
@@ -44,12 +56,23 @@ struct ReportSummary {
   ImageMetrics after;   // reference image vs the field with the optimized TF
   double residual_max_before = 0.0, residual_max_after = 0.0;
   std::filesystem::path index;  // index.html
+  struct Slice {
+    std::string file;     // slices_z.png, ...
+    std::string caption;  // "z = 12 (level 500 hPa)"
+  };
+  std::vector<Slice> slices;    // one per axis whose plane is at least 2 x 2 voxels
+  GridIndex slice_point{};
   std::vector<std::string> files;  // every file written, relative to the report directory
 };
 
-// Renders, measures and writes the report into `dir` (created if missing; files inside are
-// replaced atomically). Shows progress on a terminal. Throws std::runtime_error for unusable
-// input (grids differ) or when a file cannot be written.
+// Renders, measures and writes the report into `dir` (created if missing; other files there are
+// kept). Its files appear together when it is complete (host/io/atomic_file.h: an OutputBatch of
+// its own, or the caller's), so a failed or interrupted report leaves nothing behind. Shows
+// progress on a terminal. Throws std::runtime_error for unusable input (grids differ, an image
+// too large for the device) or when a file cannot be written.
 ReportSummary write_report(Context& ctx, const ReportInputs& inputs, const std::filesystem::path& dir);
+
+// The names write_report() may write inside its directory (for FilePlan::output_directory).
+std::vector<std::string> report_file_names();
 
 }  // namespace tfm

@@ -29,18 +29,32 @@ std::vector<uint64_t> field_histogram(std::span<const float> values, const Field
   return counts;
 }
 
+std::vector<double> nice_ticks(double lo, double hi, int target) {
+  if (!(hi > lo) || !std::isfinite(lo) || !std::isfinite(hi) || target < 1) return {};
+  const double raw = (hi - lo) / target, mag = std::pow(10.0, std::floor(std::log10(raw)));
+  const double step = raw / mag < 1.5 ? mag : raw / mag < 3.5 ? 2 * mag : raw / mag < 7.5 ? 5 * mag : 10 * mag;
+  std::vector<double> ticks;
+  for (double k = std::ceil(lo / step - 1e-9); k * step <= hi + 1e-9 * step; k += 1)
+    ticks.push_back(std::abs(k) < 1e-12 ? 0.0 : k * step);  // no "-0"
+  return ticks;
+}
+
 Image plot_transfer_function(const TransferFunction& tf, std::span<const float> values, const FieldRange& range,
                              const TfPlotOptions& o) {
-  if (o.width < 64 || o.height < 80) throw std::invalid_argument("plot_transfer_function: plot too small");
+  if (o.width < 160 || o.height < 140) throw std::invalid_argument("plot_transfer_function: plot too small");
   if (tf.size() < 2) throw std::invalid_argument("plot_transfer_function: TF needs 2 entries");
-  const Rgb8 frame{170, 170, 170}, text{30, 30, 30}, hist_fill{242, 226, 150}, curve{25, 25, 25};
+  const Rgb8 frame{170, 170, 170}, text{30, 30, 30}, muted{100, 100, 100}, hist_fill{242, 226, 150}, curve{25, 25, 25};
   Image img(o.width, o.height);
-  const int left = 8, right = int(o.width) - 8;
-  const int top = o.title.empty() ? 8 : 8 + text_height(1) + 6;
-  const int bar_h = 14, label_h = text_height(1) + 4;
-  const int plot_bottom = int(o.height) - 6 - label_h - bar_h - 3;
+  const int th = text_height(1);
+  // Left: opacity tick labels; bottom: colour bar, value ticks, the axis label.
+  const int left = 8 + text_width("0.5") + 6, right = int(o.width) - 12;
+  const int top = o.title.empty() ? 8 : 8 + th + 6;
+  const int bar_h = 12, tick_h = 4;
+  const int bottom_block = 3 + bar_h + tick_h + 2 + th + (o.axis_label.empty() ? 0 : th + 2) + 6;
+  const int plot_bottom = int(o.height) - bottom_block;
   const int plot_w = right - left, plot_h = plot_bottom - top;
-  if (!o.title.empty()) draw_text(img, left, 6, o.title, text);
+  if (plot_h < 20) throw std::invalid_argument("plot_transfer_function: plot too small for its labels");
+  if (!o.title.empty()) draw_text(img, 8, 6, o.title, text);
 
   // Histogram: one bar per pixel column.
   const auto counts = field_histogram(values, range, uint32_t(plot_w));
@@ -51,8 +65,13 @@ Image plot_transfer_function(const TransferFunction& tf, std::span<const float> 
     const int bar = int(std::lround(f * plot_h));
     fill_rect(img, left + x, plot_bottom - bar, 1, bar, hist_fill);
   }
-  // Light grid at opacity 0.25, 0.5, 0.75.
+  // Light grid at opacity 0.25, 0.5, 0.75; opacity ticks 0, 0.5, 1 on the left.
   for (int k = 1; k < 4; ++k) fill_rect(img, left, plot_bottom - k * plot_h / 4, plot_w, 1, {226, 226, 226});
+  for (auto [a, label] : {std::pair{0.0, "0"}, std::pair{0.5, "0.5"}, std::pair{1.0, "1"}}) {
+    const int y = plot_bottom - int(std::lround(a * plot_h));
+    fill_rect(img, left - 4, y, 4, 1, frame);
+    draw_text(img, left - 6 - text_width(label), y - th / 2, label, muted);
+  }
 
   // Opacity curve through the TF entries at their node positions t_j = j / (N - 1).
   const size_t n = tf.size();
@@ -62,23 +81,34 @@ Image plot_transfer_function(const TransferFunction& tf, std::span<const float> 
     draw_line(img, px(double(j) / (n - 1)), py(tf.rgba[j][3]), px(double(j + 1) / (n - 1)), py(tf.rgba[j + 1][3]),
               curve, 2.0);
 
-  // Frame around the plot area, then the colour bar (RGB of T(t) at each column's centre).
+  // Frame around the plot area, then the colour bar (T(t) at each column's centre, in sRGB).
   fill_rect(img, left, top, plot_w, 1, frame);
   fill_rect(img, left, plot_bottom, plot_w, 1, frame);
   fill_rect(img, left, top, 1, plot_h, frame);
   fill_rect(img, right - 1, top, 1, plot_h, frame);
+  // Which histogram this is, in the plot's top-right corner.
+  const std::string scale = o.log_counts ? "histogram: log(1 + count)" : "histogram: count";
+  draw_text(img, right - 4 - text_width(scale), top + 3, scale, muted);
   const int bar_top = plot_bottom + 3;
   for (int x = 0; x < plot_w; ++x) {
     const Rgba c = tf.eval((x + 0.5) / plot_w);
-    const Rgb8 rgb{uint8_t(std::lround(std::clamp(c[0], 0.0, 1.0) * 255)),
-                   uint8_t(std::lround(std::clamp(c[1], 0.0, 1.0) * 255)),
-                   uint8_t(std::lround(std::clamp(c[2], 0.0, 1.0) * 255))};
-    fill_rect(img, left + x, bar_top, 1, bar_h, rgb);
+    fill_rect(img, left + x, bar_top, 1, bar_h, srgb8(c[0], c[1], c[2]));  // linear TF, shown as sRGB
   }
-  const int label_y = bar_top + bar_h + 4;
-  draw_text(img, left, label_y, short_number(range.lo), text);
-  const std::string hi = short_number(range.hi);
-  draw_text(img, right - text_width(hi), label_y, hi, text);
+  // Value ticks at round numbers, labels centred under them (kept inside the picture).
+  const int tick_y = bar_top + bar_h, label_y = tick_y + tick_h + 2;
+  int last_right = -1000;
+  for (double v : nice_ticks(range.lo, range.hi, std::max(2, plot_w / 90))) {
+    const int x = int(std::lround(px((v - range.lo) / (range.hi - range.lo))));
+    fill_rect(img, std::min(x, right - 1), tick_y, 1, tick_h, muted);
+    const std::string label = short_number(v);
+    const int w = text_width(label);
+    const int lx = std::clamp(x - w / 2, 2, int(o.width) - 2 - w);
+    if (lx < last_right + 6) continue;  // never overlap the previous label
+    draw_text(img, lx, label_y, label, text);
+    last_right = lx + w;
+  }
+  if (!o.axis_label.empty())
+    draw_text(img, left + (plot_w - text_width(o.axis_label)) / 2, label_y + th + 2, o.axis_label, muted);
   return img;
 }
 

@@ -1,5 +1,6 @@
 // Transfer-function plots like the paper's figures: the field's histogram (filled, light), the
-// opacity curve over it, a colour bar of the TF's RGB beneath, and the range at the ends.
+// opacity curve over it, a colour bar of the TF's RGB beneath, value ticks along the field axis,
+// opacity ticks on the left, the field's name under the axis and the histogram's scale named.
 #pragma once
 
 #include <cstdint>
@@ -19,12 +20,16 @@ std::vector<uint64_t> field_histogram(std::span<const float> values, const Field
 
 struct TfPlotOptions {
   uint32_t width = 512;
-  uint32_t height = 200;
+  uint32_t height = 240;
   std::string title;
+  std::string axis_label;  // under the value axis: the field's name (and units where known)
   bool log_counts = true;  // bar height log(1 + count): data often has one dominant value
 };
 
-// Throws std::invalid_argument when the plot is too small for its axes (< 64 x 80 pixels).
+// About `target` round values (1, 2 or 5 times a power of ten apart) within [lo, hi].
+std::vector<double> nice_ticks(double lo, double hi, int target = 5);
+
+// Throws std::invalid_argument when the plot is too small for its axes (< 160 x 140 pixels).
 Image plot_transfer_function(const TransferFunction& tf, std::span<const float> values, const FieldRange& range,
                              const TfPlotOptions& options = {});
 

@@ -69,6 +69,29 @@ std::vector<float> random_floats(size_t count, uint32_t seed, float lo, float hi
   return v;
 }
 
+CorrelationEnsemble correlation_test_ensemble(uint32_t members, uint64_t voxels, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> grid(0, 4096);
+  auto quantized = [](double v, double step) { return float(std::clamp(std::round(v / step) * step, 0.0, 4.0)); };
+  CorrelationEnsemble e{members, voxels, std::vector<float>(size_t(members) * voxels)};
+  std::vector<double> x(members);
+  for (double& v : x) v = grid(rng) / 1024.0;
+  for (uint64_t v = 0; v < voxels; ++v) {
+    const double strength = std::cos(0.7 * double(v));
+    const double step = v % 3 == 2 ? 0.25 : 1.0 / 1024;
+    for (uint32_t m = 0; m < members; ++m) {
+      const double noise = grid(rng) / 1024.0, xm = strength >= 0 ? x[m] : 4.0 - x[m];
+      double y = std::abs(strength) * xm + (1 - std::abs(strength)) * noise;
+      if (m < 2) y = (m == 0) == (strength >= 0) ? 0.0 : 4.0;  // the series spans [0, 4]
+      e.values[m * voxels + v] = v == 0 ? float(m < 2 ? 4.0 * m : x[m]) : quantized(y, step);
+    }
+    if (v == 5) e.values[(members / 2) * voxels + v] = NAN;
+    if (v == 7)
+      for (uint32_t m = 0; m < members; ++m) e.values[m * voxels + v] = 1.5f;
+  }
+  return e;
+}
+
 bool classify(const std::vector<float>& tf, const FieldMapping& map, float v, double out[4]) {
   uint32_t j;
   float w;

@@ -9,6 +9,7 @@
 
 #include "buffer.h"
 #include "context.h"
+#include "correlation.h"
 #include "field_mapping.h"
 #include "reduction.h"
 #include "transfer_function.h"
@@ -73,6 +74,7 @@ void add_voxel_cases(CaseList& cases);   // assemble_normal_equations, voxel_los
 void add_sparse_cases(CaseList& cases);  // sparse_prepare, sparse_gather, sparse_scatter, cgls_vectors
 void add_gd_cases(CaseList& cases);      // gd_gradient, gd_update
 void add_render_cases(CaseList& cases);  // render_image, diffdvr_forward, diffdvr_backward
+void add_correlation_cases(CaseList& cases);  // correlation_pearson, _spearman, _kendall, _mi_binned, _mi_kraskov
 
 // ---- test data (fixed seeds) ----------------------------------------------------------------
 
@@ -91,6 +93,22 @@ std::vector<float> random_floats(size_t count, uint32_t seed, float lo, float hi
 // The TF at voxel value v through `map` as the kernels compute it (float TF entries and the
 // bit-identical float coordinate, interpolated in double), clamped to [0, 1]; false for NaN.
 bool classify(const std::vector<float>& tf_floats, const FieldMapping& map, float v, double out[4]);
+
+// A member-major ensemble (kernels/correlation.h) for the correlation kernels' checks. Every value
+// is a multiple of 2^-10 in [0, 4], and members 0 and 1 of every series are 0 and 4 (or 4 and 0),
+// so each series spans exactly 4 and every float operation the kernels do on member values
+// (differences, bins, distances, comparisons) is exact, as in the double references. Voxel 0 is
+// the reference series itself; voxel v depends on it with a strength cos(0.7 v) (from -1 to 1)
+// plus uniform noise; every 3rd voxel is rounded to multiples of 1/4 (many ties, repeated
+// points); voxel 5 has a NaN member and voxel 7 is constant (where the grid has them).
+struct CorrelationEnsemble {
+  uint32_t members = 0;
+  uint64_t voxels = 0;
+  std::vector<float> values;  // values[m * voxels + v]
+  EnsembleView view() const { return {values.data(), members, voxels}; }
+  std::vector<float> reference() const { return ensemble_series(view(), 0); }
+};
+CorrelationEnsemble correlation_test_ensemble(uint32_t members, uint64_t voxels, uint32_t seed);
 
 // The words of a device buffer.
 std::vector<uint32_t> read_words(Context& ctx, const Buffer& buffer, size_t words);

@@ -1,11 +1,13 @@
 // Self-test cases of the voxel-pair kernels: assemble_normal_equations (every mode and atomic
-// width, chunked fields, TF sizes past shared memory, exact fixed-point totals), voxel_loss and
-// residual_map, each against its double-precision CPU reference.
+// width, chunked fields, TF sizes past shared memory, exact fixed-point totals), voxel_loss,
+// residual_map and field_histogram, each against its double-precision CPU reference.
 #include <cmath>
 #include <string>
 
 #include "commands.h"
 #include "gpu_voxel_ops.h"
+#include "histogram.h"
+#include "histogram_cpu.h"
 #include "normal_equations_cpu.h"
 #include "render_layout.h"
 #include "residual_map.h"
@@ -131,6 +133,23 @@ void residual(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels) 
   }
 }
 
+// Counts are integers: every counter equals the reference's exactly (values binned with the
+// shader's float32 arithmetic, histogram_counter()).
+void histogram(Context& ctx, Check& check, size_t voxels, uint32_t bins, bool global, uint64_t chunk_voxels) {
+  std::vector<float> values = random_floats(voxels, 91u + uint32_t(voxels) + bins, -0.5f, 10.5f);
+  for (size_t i = 3; i < voxels; i += 11) values[i] = NAN;
+  const FieldHistogramKernel kernel(ctx, bins, global);
+  if (!global && !kernel.uses_shared_memory()) return check.skip("needs " + std::to_string(4 * TFM_HIST_COUNTERS(bins)) +
+                                                                 " bytes of shared memory");
+  DeviceField field(ctx, values, "selftest field", chunk_voxels);
+  const FieldHistogram g = kernel.run(field, 0.0, 10.0);
+  const FieldHistogram c = field_histogram_cpu(values, 0.0, 10.0, bins);
+  check.equal("values below", 0, double(g.below), double(c.below));
+  check.equal("values above", 0, double(g.above), double(c.above));
+  check.equal("NaN values", 0, double(g.nan), double(c.nan));
+  for (uint32_t k = 0; k < bins; ++k) check.equal("bin", k, double(g.bins[k]), double(c.bins[k]));
+}
+
 }  // namespace
 
 void add_voxel_cases(CaseList& cases) {
@@ -177,6 +196,18 @@ void add_voxel_cases(CaseList& cases) {
   add_residual(5000, 1024, true);
   add_residual(100003, 0, false);
   add_residual(100003, 16384, false);
+
+  auto add_histogram = [&](size_t voxels, uint32_t bins, bool global, uint64_t chunk, bool quick) {
+    std::string name = voxels_name(voxels) + ", " + std::to_string(bins) + " bins, " + (global ? "global" : "shared") +
+                       (chunk ? ", chunks of " + std::to_string(chunk) : "");
+    cases.push_back({"field_histogram", "FieldHistogramKernel", name, quick, TFM_VOXEL_WORKGROUP,
+                     [=](Context& ctx, Check& check) { histogram(ctx, check, voxels, bins, global, chunk); }});
+  };
+  add_histogram(1, 16, false, 0, true);
+  add_histogram(13, 7, true, 0, true);
+  add_histogram(past_group, 4096, false, 0, true);
+  add_histogram(5000, 65536, true, 1024, true);
+  add_histogram(100003, 4096, false, 16384, false);
 }
 
 }  // namespace tfm::selftest

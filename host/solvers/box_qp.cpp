@@ -7,6 +7,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "cancellation.h"
+
 namespace tfm {
 namespace {
 
@@ -128,6 +130,8 @@ BoxQpStats solve_box_qp(const Tridiagonal& h, const Eigen::VectorXd& c, Eigen::V
   // minimum, a second refines it; after that the minimum is taken as reached.
   int full_steps = 0;
   while (stats.iterations < cap) {
+    // Up to 10 N steps of O(N) each: a large N must stay interruptible.
+    if ((stats.iterations & 63) == 0) checkpoint("solve");
     ++stats.iterations;
     gradient(h, c, x, g);
     rhs = -g;

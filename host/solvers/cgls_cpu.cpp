@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "cancellation.h"
+
 namespace tfm {
 
 CglsResult cgls_jacobi(const Eigen::SparseMatrix<double, Eigen::RowMajor>& a, const Eigen::VectorXd& b,
@@ -36,6 +38,7 @@ CglsResult cgls_jacobi(const Eigen::SparseMatrix<double, Eigen::RowMajor>& a, co
   Eigen::VectorXd q, rp;
   out.relative_residual = 1.0;
   while (out.iterations < options.max_iterations && out.relative_residual > options.tolerance) {
+    checkpoint("solve");
     q = a * p;
     double delta = q.squaredNorm();
     if (regularized) {

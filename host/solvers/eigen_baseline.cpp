@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "cancellation.h"
+
 namespace tfm {
 
 ExplicitSystem build_explicit_system(std::span<const float> ref, std::span<const float> opt,
@@ -26,6 +28,7 @@ ExplicitSystem build_explicit_system(std::span<const float> ref, std::span<const
   sys.b.resize(Eigen::Index(4 * rows_voxels));
   size_t row = 0;
   for (size_t i = 0; i < ref.size(); ++i) {
+    if ((i & 0xfffff) == 0) checkpoint("solve");
     if (!keep[i]) continue;
     uint32_t jr = 0, jo = 0;
     float wr = 0.0f, wo = 0.0f;

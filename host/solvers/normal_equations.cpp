@@ -1,4 +1,4 @@
-// CPU reference assembly and the host solver of the tridiagonal normal equations.
+// The host solver of the tridiagonal normal equations: regularization, cond(M), the O(N) solve.
 #include "normal_equations.h"
 
 #include <algorithm>
@@ -7,21 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include <Eigen/Eigenvalues>
-#include <Eigen/QR>
-#include <Eigen/SparseCholesky>
-#include <Eigen/SparseCore>
-
 namespace tfm {
-
-Eigen::VectorXd tridiagonal_eigenvalues(const std::vector<double>& diag, const std::vector<double>& off) {
-  Eigen::VectorXd d = Eigen::Map<const Eigen::VectorXd>(diag.data(), Eigen::Index(diag.size()));
-  Eigen::VectorXd e = Eigen::Map<const Eigen::VectorXd>(off.data(), Eigen::Index(off.size()));
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> solver;
-  solver.computeFromTridiagonal(d, e, Eigen::EigenvaluesOnly);
-  if (solver.info() != Eigen::Success) throw std::runtime_error("eigenvalues of M did not converge");
-  return solver.eigenvalues();
-}
 
 Regularization absolute_regularization(const NormalEquations& eq, const SolveOptions& options) {
   double mean_diag = 0.0;
@@ -50,54 +36,48 @@ SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions
 
   // Regularized tridiagonal matrix: M + ridge I + smooth D^T D (first differences), both scaled
   // by mean(diag M) so they keep their meaning across volume sizes.
-  Tridiagonal reg = regularized_matrix(eq, absolute_regularization(eq, options));
-  const std::vector<double>& d = reg.diag;
-  const std::vector<double>& e = reg.off;
+  const Tridiagonal reg = regularized_matrix(eq, absolute_regularization(eq, options));
 
-  Eigen::VectorXd lambda = tridiagonal_eigenvalues(d, e);
-  result.lambda_min = lambda(0);
-  result.lambda_max = lambda(n - 1);
+  const auto [lambda_min, lambda_max] = tridiagonal_extreme_eigenvalues(reg);
+  result.lambda_min = lambda_min;
+  result.lambda_max = lambda_max;
   // M is positive semi-definite; rounding can make a zero eigenvalue slightly negative.
   const double singular_tol = 1e-12 * std::abs(result.lambda_max);
-  const bool singular = result.lambda_min <= singular_tol;
+  bool singular = result.lambda_min <= singular_tol;
   result.cond = singular ? std::numeric_limits<double>::infinity() : result.lambda_max / result.lambda_min;
 
-  Factorization f = options.factorization;
-  if (f == Factorization::Auto) f = singular ? Factorization::QR : Factorization::LDLT;
-
-  if (f == Factorization::LDLT) {
-    Eigen::SparseMatrix<double> m(n, n);
-    std::vector<Eigen::Triplet<double>> t;
-    for (uint32_t j = 0; j < n; ++j) t.emplace_back(j, j, d[j]);
-    for (uint32_t j = 0; j + 1 < n; ++j) t.emplace_back(j + 1, j, e[j]), t.emplace_back(j, j + 1, e[j]);
-    m.setFromTriplets(t.begin(), t.end());
-    // Natural ordering keeps the tridiagonal band: no fill-in, O(N) factorization.
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt(m);
-    if (ldlt.info() != Eigen::Success) throw std::runtime_error("LDL^T factorization of M failed");
-    result.x = ldlt.solve(eq.rhs);
+  const Eigen::MatrixXd rhs = eq.rhs;
+  bool rank_revealing = options.factorization == Factorization::Auto;
+  if (!rank_revealing) {
+    result.x = solve_tridiagonal_ldlt(reg, rhs);
     result.factorization = "ldlt";
     if (!result.x.allFinite()) {
-      // A singular M the LDL^T could not pivot around: fall back to the rank-revealing QR.
-      f = Factorization::QR;
-      result.warnings.push_back("LDL^T produced non-finite values; used column-pivoted QR instead");
+      // A singular M the plain LDL^T cannot pivot around.
+      rank_revealing = true;
+      result.warnings.push_back("LDL^T produced non-finite values; used the rank-revealing minimum-norm solve instead");
     }
   }
-  if (f == Factorization::QR) {
-    Eigen::MatrixXd m = Eigen::MatrixXd::Zero(n, n);
-    for (uint32_t j = 0; j < n; ++j) m(j, j) = d[j];
-    for (uint32_t j = 0; j + 1 < n; ++j) m(j, j + 1) = m(j + 1, j) = e[j];
-    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(m);
-    // Directions below this relative size carry no information from the data: their
-    // components of x are set to 0 (the basic solution).
-    qr.setThreshold(1e-10);
-    result.x = qr.solve(eq.rhs);
-    result.factorization = "column-pivoted-qr";
+  if (rank_revealing) {
+    MinNormSolve solve = solve_psd_tridiagonal_min_norm(reg, rhs);
+    result.x = solve.x;
+    result.dependent_entries = solve.dependent;
+    const bool deficient = solve.unreferenced + solve.dependent > 0;
+    result.factorization = deficient ? "min-norm-ldlt" : "ldlt";
+    if (deficient && !singular) {
+      // Rank decided at the data's float32 precision (kDependentPivot), coarser than the
+      // eigenvalue test: the computed M is nearly, not exactly, singular.
+      singular = true;
+      result.cond = std::numeric_limits<double>::infinity();
+    }
   }
 
   if (singular && options.ridge == 0 && options.smooth == 0) {
     std::ostringstream os;
-    os << "M is singular: " << result.unreferenced_entries
-       << " TF entries are touched by no voxel and were set to 0; --smooth fills them from their neighbours";
+    os << "M is singular: " << result.unreferenced_entries << " TF entries are touched by no voxel and were set to 0";
+    if (result.dependent_entries > 0)
+      os << ", and " << result.dependent_entries << " runs of entries are fixed by the data only up to one "
+         << "combination each (their minimum-norm values were taken)";
+    os << "; --smooth fills them from their neighbours";
     result.warnings.push_back(os.str());
   } else if (result.cond > options.cond_warning) {
     std::ostringstream os;

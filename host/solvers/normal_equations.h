@@ -1,5 +1,6 @@
 // The host solver of the voxel least-squares system (kernels/normal_equations_system.h): tridiagonal
-// LDL^T or column-pivoted QR, ridge and smoothness regularization, cond(M).
+// LDL^T, or the minimum-norm solution when M is singular, ridge and smoothness regularization,
+// cond(M); all O(N) in time and memory (host/solvers/tridiagonal.h).
 #pragma once
 
 #include <array>
@@ -13,10 +14,14 @@
 #include "field_mapping.h"
 #include "normal_equations_system.h"
 #include "transfer_function.h"
+#include "tridiagonal.h"
 
 namespace tfm {
 
-enum class Factorization { Auto, LDLT, QR };
+// Auto: LDL^T that decides the rank entry by entry (solve_psd_tridiagonal_min_norm): plain LDL^T
+// when M has full rank, else the minimum-norm least-squares solution. LDLT: no rank decision (a
+// singular M then falls back to Auto, with a warning).
+enum class Factorization { Auto, LDLT };
 
 struct SolveOptions {
   // Both are relative to the mean diagonal of M (voxels per TF entry), so a value means the
@@ -37,30 +42,25 @@ struct Regularization {
 };
 Regularization absolute_regularization(const NormalEquations& eq, const SolveOptions& options);
 
-// A symmetric tridiagonal matrix: diag (n) and off-diagonal (n-1).
-struct Tridiagonal {
-  std::vector<double> diag;
-  std::vector<double> off;
-};
 // M + R.
 Tridiagonal regularized_matrix(const NormalEquations& eq, const Regularization& r);
 
 struct SolveResult {
   TransferFunction tf;                             // clamped to [0,1]
   Eigen::Matrix<double, Eigen::Dynamic, 4> x;      // unclamped least-squares solution
-  std::string factorization;                       // "ldlt" or "column-pivoted-qr"
+  std::string factorization;                       // "ldlt", or "min-norm-ldlt" when M is rank deficient
   double cond = 0.0;                               // of the regularized M (inf when singular)
   double lambda_min = 0.0, lambda_max = 0.0;
   uint32_t unreferenced_entries = 0;               // TF entries no voxel touches (zero row of M)
+  uint32_t dependent_entries = 0;                  // entries the data determine only together with
+                                                   // their neighbours (solve_psd_tridiagonal_min_norm)
   uint32_t clamped_values = 0;                     // components moved into [0,1]
   std::vector<std::string> warnings;
 };
 
-// Solves (M + regularization) x = S^T b for the four channels at once. Throws
-// std::runtime_error if no voxel has data.
+// Solves (M + regularization) x = S^T b for the four channels at once, in O(N) time and memory
+// for any N: entries no voxel touches get 0, and when M is singular x is its minimum-norm
+// least-squares solution. Throws std::runtime_error if no voxel has data.
 SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions& options = {});
-
-// Eigenvalues (ascending) of the symmetric tridiagonal matrix given by diag/off.
-Eigen::VectorXd tridiagonal_eigenvalues(const std::vector<double>& diag, const std::vector<double>& off);
 
 }  // namespace tfm

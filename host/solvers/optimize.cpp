@@ -6,6 +6,8 @@
 #include <iomanip>
 #include <stdexcept>
 
+#include "cancellation.h"
+#include "memory_budget.h"
 #include "solver_support.h"
 
 namespace tfm {
@@ -24,7 +26,20 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   const FieldRange* ref_user = req.ref_range ? &*req.ref_range : (req.ref_tf.range ? &*req.ref_tf.range : nullptr);
   out.ref_range = resolve_range(req.ref->values, ref_user, req.ref->name);
   out.field_range = resolve_range(req.field->values, req.field_range ? &*req.field_range : nullptr, req.field->name);
+  // A range from a TF file or the user can miss the field (a [0, 1] TF on temperatures in K):
+  // every voxel would clamp to one entry and the fit would look perfect. Say so, or stop.
+  if (ref_user) {
+    const std::string source = req.ref_range ? "the given reference range" : "the reference TF file's range";
+    std::string w = check_range_coverage(req.ref->values, out.ref_range, req.ref->name, source, req.allow_out_of_range);
+    if (!w.empty()) out.warnings.push_back(std::move(w));
+  }
+  if (req.field_range) {
+    std::string w = check_range_coverage(req.field->values, out.field_range, req.field->name, "the given field range",
+                                         req.allow_out_of_range);
+    if (!w.empty()) out.warnings.push_back(std::move(w));
+  }
 
+  check_device_memory(ctx, 2 * req.ref->values.size() * sizeof(float), "uploading both fields");
   auto t0 = std::chrono::steady_clock::now();
   DeviceField ref(ctx, req.ref->values, "reference field", req.max_chunk_voxels);
   DeviceField opt(ctx, req.field->values, "second field", req.max_chunk_voxels);
@@ -42,16 +57,16 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
                        ref_tf_buffer,
                        req.ref_tf.resampled(req.tf_size)};
 
+  checkpoint("solve");  // every solver passes here, however few steps of its own it checks
   SolverOutput solved = solver.solve(problem, args);
   for (auto& p : solved.phases) out.phases.push_back(p);
-  out.warnings = solved.warnings;
+  out.warnings.insert(out.warnings.end(), solved.warnings.begin(), solved.warnings.end());
   out.details = solved.details;
   out.tf = solved.tf;
   out.tf.range = out.field_range;
 
   // The voxel loss of any TF x follows from the system: ||S x - b||^2 = x^T M x - 2 x^T S^T b +
   // b^T b. The solvers that work on M assembled it already; the others need one pass here.
-  t0 = std::chrono::steady_clock::now();
   std::vector<PhaseTime> assembled;
   const NormalEquations& eq = assembled_system(problem, &assembled);
   if (!assembled.empty()) out.phases.push_back({"assemble for loss", assembled[0].wall_ms, assembled[0].gpu_ms});

@@ -29,6 +29,8 @@ struct OptimizeRequest {
   // Also measure the voxel mean absolute error before and after (VoxelLoss::absolute): one pass
   // over the voxels per TF. The RMSE needs none: it follows from the assembled system.
   bool voxel_mae = false;
+  // A range not from the field leaving > 95 % of its values outside is an error unless this.
+  bool allow_out_of_range = false;
 };
 
 struct OptimizeResult {
@@ -40,7 +42,7 @@ struct OptimizeResult {
   // (both from M, S^T b, b^T b; absolute differences only with OptimizeRequest::voxel_mae)
   uint64_t voxels_total = 0;
   std::vector<PhaseTime> phases;
-  std::vector<std::string> warnings;
+  std::vector<std::string> warnings;     // ranges not fitting the fields, then the solver's
   Details details;                        // the solver's (JSON: host/report/result_json.h)
   std::string device;
 

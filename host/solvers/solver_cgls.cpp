@@ -9,6 +9,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "cancellation.h"
 #include "cgls_vectors.h"
 #include "commands.h"
 #include "solver_support.h"
@@ -77,6 +78,7 @@ CglsGpuResult solve_cgls_gpu(VoxelProblem& p, const CglsGpuOptions& options) {
   uint32_t recorded = 0;
   auto running = [&st] { return st.running.x | st.running.y | st.running.z | st.running.w; };
   while (running() && recorded < max_iterations) {
+    checkpoint("solve");
     const uint32_t count = std::min(kIterationsPerBatch, max_iterations - recorded);
     CommandBatch batch(ctx);
     const uint32_t a = batch.timestamp();

@@ -9,6 +9,7 @@
 
 #include "adam.h"
 #include "cameras.h"
+#include "cancellation.h"
 #include "progress.h"
 #include "solver_diffdvr.h"
 #include "solver_normal_equations.h"
@@ -53,7 +54,7 @@ DiffDvrResult solve_diffdvr_gpu(VoxelProblem& p, const DiffDvrOptions& o) {
   }
   const size_t n = tf.size();
   auto t0 = std::chrono::steady_clock::now();
-  const VolumeGeometry geometry = VolumeGeometry::from(p.opt_volume.dims, p.opt_volume.spacing);
+  const VolumeGeometry geometry = VolumeGeometry::from(p.opt_volume.dims, p.opt_volume.spacing, o.render.z_scale);
   DiffDvrGradient gradient(p.ctx, p.ref, p.opt, geometry, p.ref_map, p.ref_tf_buffer, p.opt_map, o.render, o.loss);
   out.phases.push_back({"diffdvr setup", ms_since(t0), -1.0});
 
@@ -95,6 +96,7 @@ DiffDvrResult solve_diffdvr_gpu(VoxelProblem& p, const DiffDvrOptions& o) {
   Progress progress("diffdvr", o.iterations);
   t0 = std::chrono::steady_clock::now();
   for (uint32_t it = 0; it < o.iterations; ++it) {
+    checkpoint("solve");
     to_tf();
     ImageLossGradient r;
     if (pooled) {

@@ -9,6 +9,7 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "cancellation.h"
 #include "commands.h"
 #include "gradient_descent.h"
 #include "solver_support.h"
@@ -49,6 +50,7 @@ GradientDescentResult solve_gradient_descent_gpu(VoxelProblem& p, const Gradient
   t0 = std::chrono::steady_clock::now();
   double gpu_ms = 0.0;
   for (uint32_t done = 0; done < o.iterations;) {
+    checkpoint("solve");
     const uint32_t count = std::min(kIterationsPerBatch, o.iterations - done);
     CommandBatch batch(ctx);
     const uint32_t a = batch.timestamp();

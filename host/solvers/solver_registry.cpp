@@ -15,6 +15,7 @@ std::unique_ptr<Solver> make_diffdvr_solver();
 std::unique_ptr<Solver> make_eigen_cgls_solver();
 std::unique_ptr<Solver> make_eigen_normal_equations_solver();
 std::unique_ptr<Solver> make_gradient_descent_solver();
+std::unique_ptr<Solver> make_histogram_matching_solver();
 std::unique_ptr<Solver> make_normal_equations_solver();
 std::unique_ptr<Solver> make_qp_solver();
 #ifdef TFMATCH_HAVE_CUDA
@@ -31,6 +32,7 @@ std::vector<std::unique_ptr<Solver>> make_solvers() {
   list.push_back(make_eigen_cgls_solver());
   list.push_back(make_eigen_normal_equations_solver());
   list.push_back(make_gradient_descent_solver());
+  list.push_back(make_histogram_matching_solver());
   list.push_back(make_normal_equations_solver());
   list.push_back(make_qp_solver());
 #ifdef TFMATCH_HAVE_CUDA

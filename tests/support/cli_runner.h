@@ -1,20 +1,30 @@
-// Runs the `tfmatch` program as a user would and captures its exit code and output.
+// Runs the `tfmatch` program as a user would and captures its exit code and output; or in the
+// background, to read its output as it comes, send it signals and measure its peak memory.
 #pragma once
 
+#include <poll.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
 #include <vector>
-
-#include <sys/wait.h>
-#include <unistd.h>
 
 namespace tfm::test {
 
 struct CliResult {
   int exit_code = -1;
   std::string output;  // stdout and stderr together
+  uint64_t peak_rss_bytes = 0;  // CliProcess only
+  double seconds = 0;           // CliProcess only: from start to exit
 };
 
 inline CliResult run_cli(const std::string& args) {
@@ -28,6 +38,97 @@ inline CliResult run_cli(const std::string& args) {
   int status = pclose(pipe);
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   return r;
+}
+
+// `tfmatch ARGS` started in the background (through `sh -c "exec ..."`, so the process signalled
+// is tfmatch itself) with extra environment variables; stdout and stderr together in one pipe.
+class CliProcess {
+ public:
+  explicit CliProcess(const std::string& args, const std::vector<std::pair<std::string, std::string>>& env = {}) {
+    int fds[2];
+    if (pipe(fds) != 0) return;
+    start_ = std::chrono::steady_clock::now();
+    pid_ = fork();
+    if (pid_ == 0) {
+      dup2(fds[1], 1);
+      dup2(fds[1], 2);
+      close(fds[0]);
+      close(fds[1]);
+      for (const auto& [k, v] : env) setenv(k.c_str(), v.c_str(), 1);
+      const std::string cmd = "exec " + std::string(TFMATCH_CLI_PATH) + " " + args;
+      execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    close(fds[1]);
+    fd_ = fds[0];
+  }
+  ~CliProcess() {
+    if (pid_ > 0 && !reaped_) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+    if (fd_ >= 0) close(fd_);
+  }
+  CliProcess(const CliProcess&) = delete;
+  CliProcess& operator=(const CliProcess&) = delete;
+
+  // Reads output until it contains `needle` (true), or the output ends or `timeout` passes (false).
+  bool wait_for(const std::string& needle, std::chrono::milliseconds timeout) {
+    const auto end = std::chrono::steady_clock::now() + timeout;
+    while (output_.find(needle) == std::string::npos) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(end - std::chrono::steady_clock::now());
+      if (left.count() <= 0 || !read_some(int(left.count()))) return false;
+    }
+    return true;
+  }
+  void signal(int sig) { kill(pid_, sig); }
+  // Reads the rest of the output and reaps the process (killing it after `timeout`).
+  CliResult finish(std::chrono::milliseconds timeout = std::chrono::seconds(120)) {
+    const auto end = std::chrono::steady_clock::now() + timeout;
+    while (read_some(int(std::max<int64_t>(
+        1, std::chrono::duration_cast<std::chrono::milliseconds>(end - std::chrono::steady_clock::now()).count())))) {
+      if (std::chrono::steady_clock::now() > end) {
+        kill(pid_, SIGKILL);
+        break;
+      }
+    }
+    int status = 0;
+    rusage usage{};
+    wait4(pid_, &status, 0, &usage);
+    reaped_ = true;
+    CliResult r;
+    r.output = output_;
+    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    r.peak_rss_bytes = uint64_t(usage.ru_maxrss) * 1024;
+    r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    return r;
+  }
+  const std::string& output() const { return output_; }
+
+ private:
+  // One read of what arrives within `timeout_ms`; false once the output has ended.
+  bool read_some(int timeout_ms) {
+    pollfd p{fd_, POLLIN, 0};
+    if (poll(&p, 1, timeout_ms) <= 0) return true;  // nothing yet: the caller's deadline decides
+    char buf[4096];
+    const ssize_t n = read(fd_, buf, sizeof buf);
+    if (n <= 0) return false;
+    output_.append(buf, size_t(n));
+    return true;
+  }
+  pid_t pid_ = -1;
+  int fd_ = -1;
+  bool reaped_ = false;
+  std::string output_;
+  std::chrono::steady_clock::time_point start_;
+};
+
+// Every file under `dir`, relative, sorted (what a run left behind).
+inline std::vector<std::string> files_under(const std::filesystem::path& dir) {
+  std::vector<std::string> out;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(dir)) out.push_back(e.path().lexically_relative(dir).string());
+  std::sort(out.begin(), out.end());
+  return out;
 }
 
 // A fresh directory under the system temp dir, removed at scope exit.

@@ -21,7 +21,8 @@ class GpuTest : public ::testing::Test {
   void TearDown() override { expect_no_validation_messages(); }
 };
 
-// Directory of ../shared/data, or empty when this checkout has none (tests then GTEST_SKIP).
+// Directory of ../shared/data (or of $TFMATCH_SHARED_DATA), or empty when there is none: tests
+// then GTEST_SKIP, in the test body itself (a skip inside a helper only leaves the helper).
 std::string shared_data_dir();
 
 }  // namespace tfm::test

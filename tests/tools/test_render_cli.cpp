@@ -39,11 +39,39 @@ TEST_F(RenderCli, RenderWritesAPngOfTheRequestedSize) {
   const Image img = read_png(dir / "a.png");
   EXPECT_EQ(img.width, 31u);
   EXPECT_EQ(img.height, 17u);
-  // A transparent TF over a black background is black everywhere.
+  // A transparent TF over a black background is black everywhere without the box outline, and
+  // shows the grey outline with it (the default).
   r = run_cli("render --volume " + dir / "a_6x5x4_float32.raw" + " --tf " + dir / "clear.json" + " --out " +
-              dir / "c.png" + " --width 8 --height 8 --background black");
+              dir / "c.png" + " --width 8 --height 8 --background black --no-outline");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   for (uint8_t v : read_png(dir / "c.png").rgb) ASSERT_EQ(v, 0);
+  r = run_cli("render --volume " + dir / "a_6x5x4_float32.raw" + " --tf " + dir / "clear.json" + " --out " +
+              dir / "c.png" + " --width 32 --height 32 --background black");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  int lit = 0;
+  for (uint8_t v : read_png(dir / "c.png").rgb) lit += v > 40;
+  EXPECT_GT(lit, 3 * 40) << "box outline";
+}
+
+// A ParaView preset holds sRGB colours; rendered fully opaque over black, its colour must come
+// out as the same 8-bit sRGB value ParaView would show (the TF table itself is linear).
+TEST_F(RenderCli, PresetColoursRenderAsParaViewShowsThem) {
+  struct Case {
+    const char* srgb;
+    std::array<int, 3> expected;
+  };
+  // Grey 0.5, and viridis at its midpoint (matplotlib's table: 0.127568, 0.566949, 0.550556).
+  for (const Case& c : {Case{"0.5,0.5,0.5", {128, 128, 128}}, Case{"0.127568,0.566949,0.550556", {33, 145, 140}}}) {
+    std::ofstream(dir / "preset.json") << "[{\"Name\": \"flat\", \"ColorSpace\": \"RGB\", \"RGBPoints\": [0," << c.srgb
+                                       << ", 1," << c.srgb << "], \"Points\": [0, 1, 0.5, 0, 1, 1, 0.5, 0]}]";
+    // Opacity 1 at a huge extinction: the first sample is opaque, so no background shows.
+    auto r = run_cli("render --volume " + dir / "a_6x5x4_float32.raw" + " --tf " + dir / "preset.json" + " --out " +
+                     dir / "p.png" + " --width 16 --height 16 --elevation 90 --background black --opacity-scale 100000");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const Image img = read_png(dir / "p.png");
+    const uint8_t* centre = img.at(8, 8);
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(int(centre[k]), c.expected[k], 1) << c.srgb << " channel " << k;
+  }
 }
 
 TEST_F(RenderCli, MetricsOfIdenticalImages) {
@@ -103,6 +131,39 @@ TEST_F(RenderCli, OptimizeAndDemoWriteReports) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const auto m = nlohmann::json::parse(std::ifstream(dir / "demo/metrics.json"));
   EXPECT_TRUE(m["images"]["optimized_tf"].contains("ssim"));
+}
+
+// A TF file's range that misses the field: b spans [6, 10], the TF says [0, 1].
+TEST_F(RenderCli, TfRangesThatMissTheFieldWarnOrFail) {
+  std::ofstream(dir / "unit.json") << R"({"range": [0, 1], "rgba": [[0,0,1,0.1],[0,1,0,0.6],[1,0,0,0.9]]})";
+  const std::string b = dir / "b_6x5x4_float32.raw", a = dir / "a_6x5x4_float32.raw";
+  auto r = run_cli("render --volume " + b + " --tf " + dir / "unit.json" + " --out " + dir / "r.png" + " --width 8 --height 8");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("100.0 % of its finite values lie outside the TF file's range [0, 1] (0 below, 120 above"),
+            std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("--allow-out-of-range"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "r.png"));
+  r = run_cli("render --volume " + b + " --tf " + dir / "unit.json" + " --out " + dir / "r.png" +
+              " --width 8 --height 8 --allow-out-of-range");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("warning:"), std::string::npos) << r.output;
+  // a's values are (i % 13) / 12: 11/12 and 12/12 lie above 0.9, 18 of 120 (15 %): a warning only.
+  r = run_cli("render --volume " + a + " --tf " + dir / "tf.json" + " --range 0,0.9 --out " + dir / "r.png" +
+              " --width 8 --height 8");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("15.0 % of its finite values lie outside the --range range"), std::string::npos) << r.output;
+  // optimize: an error, then with the flag a warning in the summary and the JSON.
+  const std::string opt = "optimize --ref " + b + " --ref-tf " + dir / "unit.json" + " --field " + a + " --out " +
+                          dir / "o.json" + " --tf-size 8 --json " + dir / "s.json";
+  r = run_cli(opt);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("the reference TF file's range"), std::string::npos) << r.output;
+  r = run_cli(opt + " --allow-out-of-range");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("warning: " + b), std::string::npos) << r.output;
+  const auto j = nlohmann::json::parse(std::ifstream(dir / "s.json"));
+  ASSERT_FALSE(j["warnings"].empty());
+  EXPECT_NE(j["warnings"][0].get<std::string>().find("0 below, 120 above"), std::string::npos) << j.dump();
 }
 
 TEST_F(RenderCli, BenchRenderReportsBothRenderers) {

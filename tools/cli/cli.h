@@ -18,6 +18,7 @@ struct GlobalOptions {
   std::string device;        // index or name substring
   bool validation = false;
   bool quiet = false;
+  std::string command_line;  // as typed, shell-quoted where needed: what a report records
 };
 GlobalOptions& globals();
 
@@ -36,8 +37,14 @@ std::shared_ptr<Context> make_context(bool validation_when_installed = false);
 
 // `tfmatch --version`: version, git commit, build type, Vulkan headers, compiler (one per line).
 std::string version_text();
+// "tfmatch 0.3.0 (commit abc123)": one line for reports.
+std::string version_line();
 
-// Parses "lo,hi"; throws CLI::ValidationError with a clear message.
+// Parses "lo,hi"; throws CLI::ValidationError with a clear message (check_range's for a range
+// that is not finite, reversed, or beyond float32).
 FieldRange parse_range(const std::string& text, const std::string& flag);
+
+// Accepts a positive integer only: CLI11 alone reads "-64" into an unsigned as 2^64 - 64.
+const CLI::Validator& positive_integer();
 
 }  // namespace tfm::cli

@@ -16,6 +16,7 @@
 #include "atomic_file.h"
 #include "cli.h"
 #include "commands.h"
+#include "output_check.h"
 #include "eigen_baseline.h"
 #include "gpu_voxel_ops.h"
 #include "normal_equations_cpu.h"
@@ -86,6 +87,7 @@ std::string load_average() {
 }
 
 int run(const BenchArgs& a) {
+  FilePlan().output(a.json, "--json").check();
   auto ctx = make_context();
   if (!ctx->timestamps_supported()) throw std::runtime_error("this device has no timestamps; cannot benchmark");
   const unsigned threads = std::max(1u, std::thread::hardware_concurrency());

@@ -16,6 +16,7 @@
 #include "gpu_voxel_ops.h"
 #include "metrics.h"
 #include "optimize.h"
+#include "output_check.h"
 #include "progress.h"
 #include "render.h"
 #include "render_options.h"
@@ -143,7 +144,7 @@ nlohmann::json bench_iterations(Context& ctx, const BenchArgs& a) {
   const Volume ref = synthetic_reference(a.size, a.size, a.size), field = synthetic_remapped(ref);
   const TransferFunction tf = demo_transfer_function(64);
   const FieldRange field_range = resolve_range(field.values, nullptr, "field");
-  const VolumeGeometry geo = VolumeGeometry::from(ref.dims, ref.spacing);
+  const VolumeGeometry geo = VolumeGeometry::from(ref.dims, ref.spacing, a.settings.z_scale);
   DeviceField ref_dev(ctx, ref.values, "bench reference"), opt_dev(ctx, field.values, "bench field");
   Buffer tf_buf = upload_tf(ctx, tf, "bench TF");
   const FieldMapping ref_map = make_mapping({0, 1}, 64), opt_map = make_mapping(field_range, 64);
@@ -215,6 +216,7 @@ nlohmann::json bench_cube(Context& ctx, const BenchArgs& a) {
 
 int run(const BenchArgs& a) {
   set_progress_enabled(!globals().quiet);
+  FilePlan().output(a.json, "--json").check();
   validate(a.settings);
   auto ctx = make_context();
   nlohmann::json j{{"device", ctx->device_name()}};

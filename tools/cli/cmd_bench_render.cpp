@@ -10,6 +10,7 @@
 #include "cli.h"
 #include "cpu_renderer.h"
 #include "gpu_voxel_ops.h"
+#include "output_check.h"
 #include "progress.h"
 #include "render.h"
 #include "render_options.h"
@@ -33,13 +34,14 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
 
 int run(const BenchArgs& a) {
   set_progress_enabled(!globals().quiet);
+  FilePlan().output(a.json, "--json").check();
   auto ctx = make_context();
   const bool quiet = globals().quiet;
   if (!quiet) std::cerr << "generating the " << a.size << "^3 synthetic volume...\n";
   Volume volume = synthetic_reference(a.size, a.size, a.size);
   const TransferFunction tf = demo_transfer_function(64);
   const FieldRange range{0.0, 1.0};
-  const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing);
+  const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing, a.settings.z_scale);
   DeviceField field(*ctx, volume.values, "bench field");
   Buffer tf_buffer = upload_tf(*ctx, tf, "bench TF");
   const FieldMapping mapping = make_mapping(range, uint32_t(tf.size()));

@@ -3,6 +3,7 @@
 #include <iostream>
 
 #include "cli.h"
+#include "output_check.h"
 #include "tf_formats.h"
 
 namespace tfm::cli {
@@ -14,6 +15,7 @@ struct ConvertTfArgs {
 };
 
 int run(const ConvertTfArgs& a) {
+  FilePlan().input_spec(a.in, "input").output(a.out, "output").check();
   std::vector<std::string> notes;
   TransferFunction tf = read_transfer_function(a.in, TfReadOptions{a.size, ""}, &notes);
   for (const auto& n : notes) std::cerr << "tfmatch: note: " << n << "\n";

@@ -1,7 +1,9 @@
 // `tfmatch convert-volume IN... OUT.vti`: any field tfmatch reads, as VTK ImageData for ParaView.
 #include <iostream>
 
+#include "atomic_file.h"
 #include "cli.h"
+#include "output_check.h"
 #include "volume_format_table.h"
 #include "volume_formats.h"
 #include "volume_vti.h"
@@ -19,6 +21,10 @@ struct ConvertVolumeArgs {
 };
 
 int run(const ConvertVolumeArgs& a) {
+  FilePlan files;
+  for (size_t i = 0; i < a.inputs.size(); ++i) files.input_spec(a.inputs[i], "input " + std::to_string(i + 1));
+  files.output(a.out, "output").check();
+  OutputBatch outputs;
   VolumeOptions vo;
   vo.variable = a.var;
   vo.time_index = a.time;
@@ -38,6 +44,7 @@ int run(const ConvertVolumeArgs& a) {
     arrays.emplace_back(name.empty() ? "field" + std::to_string(i) : name, &volumes[i]);
   }
   write_vti(a.out, arrays, VtiWriteOptions{!a.no_compress});
+  outputs.commit();
   if (!globals().quiet) std::cout << "wrote " << a.out << " (" << arrays.size() << " array(s))\n";
   return 0;
 }

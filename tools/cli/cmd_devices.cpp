@@ -6,6 +6,7 @@
 
 #include "atomic_file.h"
 #include "cli.h"
+#include "output_check.h"
 
 namespace tfm::cli {
 namespace {
@@ -71,6 +72,7 @@ void print_devices(const std::vector<DeviceSummary>& devices) {
 
 // `json`: empty for text, "-" for JSON on stdout, else a file to write the JSON to.
 int run_devices(const std::string& json) {
+  FilePlan().output(json == "-" ? "" : json, "--json").check();
   auto devices = enumerate_devices();
   if (!json.empty()) {
     const std::string text = devices_json(devices).dump(2) + "\n";

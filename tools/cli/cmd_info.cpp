@@ -41,7 +41,8 @@ CommandRegistration reg(30, [](CLI::App& app) {
   auto* sub = app.add_subcommand("info", "List what data files hold: variables/arrays, grids, types, ranges, NaN counts");
   sub->add_option("files", args->files, volume_format_titles(nullptr, " or ") + " files")->required();
   sub->add_flag("--json", args->json, "Print JSON instead of text");
-  sub->add_option("--dims", args->dims, "Raw files: grid size X,Y,Z")->expected(3)->delimiter(',');
+  sub->add_option("--dims", args->dims, "Raw files: grid size X,Y,Z")->expected(3)->delimiter(',')
+      ->check(positive_integer());
   sub->add_option("--type", args->type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)");
   sub->add_flag("--big-endian", args->big_endian, "Raw files: big-endian data");
   sub->footer("Formats (by extension, else by the first bytes):\n" + volume_format_help());

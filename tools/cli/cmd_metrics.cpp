@@ -45,7 +45,8 @@ CommandRegistration reg(22, [](CLI::App& app) {
   sub->add_flag("--json", args->json, "Print JSON: {\"rmse\", \"psnr\" (\"inf\" when identical), \"ssim\"}");
   sub->footer("SSIM: Wang et al. 2004 (11x11 Gaussian window, sigma 1.5, K1 0.01, K2 0.03) on RGB, as "
               "scikit-image's structural_similarity(gaussian_weights=True, use_sample_covariance=False, "
-              "data_range=255). Alpha in a PNG is composited over white. LPIPS is not available.");
+              "data_range=255), on the 8-bit values as stored (tfmatch writes sRGB PNGs, so these are the pixels "
+              "people see). Alpha in a PNG is composited over white. LPIPS is not available.");
   sub->callback([args] { exit_code() = run(*args); });
 });
 

@@ -2,7 +2,10 @@
 #include <chrono>
 #include <iostream>
 
+#include "atomic_file.h"
 #include "cli.h"
+#include "input_options.h"
+#include "output_check.h"
 #include "png_io.h"
 #include "progress.h"
 #include "render.h"
@@ -16,21 +19,25 @@ namespace {
 
 struct RenderArgs {
   std::string volume, tf, out, range;
+  bool allow_out_of_range = false;
+  std::vector<std::string> markers;
   VolumeFlags volume_flags;
   RenderSettings settings;
 };
 
 int run(const RenderArgs& a) {
   set_progress_enabled(!globals().quiet);
+  FilePlan().input_spec(a.volume, "--volume").input_spec(a.tf, "--tf").output(a.out, "--out").check();
+  if (!a.range.empty()) parse_range(a.range, "--range");  // a bad range fails before anything loads
+  validate(a.settings);
+  auto ctx = make_context();
+  check_render_size(*ctx, a.settings);  // before loading: a too-large image fails in a second
+  OutputBatch outputs;
   Volume volume = load_volume(a.volume, a.volume_flags.options());
   TransferFunction tf = read_transfer_function(a.tf);
-  FieldRange user;
-  if (!a.range.empty()) user = parse_range(a.range, "--range");
-  const FieldRange* given = !a.range.empty() ? &user : (tf.range ? &*tf.range : nullptr);
-  const FieldRange range = resolve_range(volume.values, given, volume.name);
-  validate(a.settings);
+  const FieldRange range = field_range_for(volume, tf, a.range, "--range", a.allow_out_of_range);
+  const std::vector<GridIndex> markers = resolve_markers(volume, a.markers);
 
-  auto ctx = make_context();
   const auto t0 = std::chrono::steady_clock::now();
   RenderedImage image;
   {
@@ -38,7 +45,12 @@ int run(const RenderArgs& a) {
     image = render_volume(*ctx, volume, tf, range, a.settings, &progress);
   }
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  write_png(a.out, composite_over(image, a.settings.background));
+  Image picture = composite_over(image, a.settings.background);
+  const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing, a.settings.z_scale);
+  draw_box_outline(picture, geometry, a.settings);
+  draw_markers(picture, geometry, a.settings, markers);
+  write_png(a.out, picture);
+  outputs.commit();
   if (!globals().quiet)
     std::cout << "rendered " << volume.name << " (" << volume.dims[0] << "x" << volume.dims[1] << "x"
               << volume.dims[2] << ", range [" << range.lo << ", " << range.hi << "]) at " << a.settings.width
@@ -54,8 +66,10 @@ CommandRegistration reg(20, [](CLI::App& app) {
   sub->add_option("--tf", args->tf, "Transfer function (tfmatch JSON, framework XML or ParaView preset[:NAME])")->required();
   sub->add_option("--out", args->out, "Output image (PNG)")->required();
   sub->add_option("--range", args->range, "Field range lo,hi mapped to the TF (default: TF file's, else finite min/max)");
+  add_allow_out_of_range_flag(sub, args->allow_out_of_range);
   add_volume_flags(sub, args->volume_flags);
   add_render_options(sub, args->settings);
+  add_marker_option(sub, args->markers);
   sub->callback([args] { exit_code() = run(*args); });
 });
 

@@ -1,9 +1,14 @@
 // `tfmatch residual`: the residual map || premul(T_r(F_r)) - premul(T_o(F_o)) ||_2 per voxel,
 // saved as float32 raw, and optionally rendered with the residual TF into a PNG.
+#include <cmath>
 #include <iostream>
+#include <optional>
 #include <regex>
 
+#include "atomic_file.h"
 #include "cli.h"
+#include "input_options.h"
+#include "output_check.h"
 #include "png_io.h"
 #include "render.h"
 #include "render_options.h"
@@ -19,49 +24,61 @@ namespace {
 struct ResidualArgs {
   std::string ref, ref_tf, field, field_tf, out, image;
   std::string ref_range, field_range, display_range;
+  bool allow_out_of_range = false;
   VolumeFlags volume_flags;
   RenderSettings settings;
 };
 
-FieldRange range_of(const Volume& v, const TransferFunction& tf, const std::string& flag_value, const std::string& flag) {
-  FieldRange user;
-  if (!flag_value.empty()) user = parse_range(flag_value, flag);
-  const FieldRange* given = !flag_value.empty() ? &user : (tf.range ? &*tf.range : nullptr);
-  return resolve_range(v.values, given, v.name);
-}
-
 int run(const ResidualArgs& a) {
   set_progress_enabled(!globals().quiet);
+  FilePlan()
+      .input_spec(a.ref, "--ref")
+      .input_spec(a.ref_tf, "--ref-tf")
+      .input_spec(a.field, "--field")
+      .input_spec(a.field_tf, "--field-tf")
+      .output(a.out, "--out")
+      .output(a.image, "--image")
+      .check();
+  std::optional<FieldRange> display;
+  if (!a.display_range.empty()) display = parse_range(a.display_range, "--display-range");
+  if (!a.image.empty()) validate(a.settings);
+  auto ctx = make_context();
+  if (!a.image.empty()) check_render_size(*ctx, a.settings);
+  OutputBatch outputs;
   const VolumeOptions vo = a.volume_flags.options();
   Volume ref = load_volume(a.ref, vo);
   Volume field = load_volume(a.field, vo);
   require_same_grid(ref, field);
   TransferFunction ref_tf = read_transfer_function(a.ref_tf);
   TransferFunction field_tf = read_transfer_function(a.field_tf);
-  const FieldRange ref_range = range_of(ref, ref_tf, a.ref_range, "--ref-range");
-  const FieldRange field_range = range_of(field, field_tf, a.field_range, "--field-range");
-  if (!a.image.empty()) validate(a.settings);
+  const FieldRange ref_range = field_range_for(ref, ref_tf, a.ref_range, "--ref-range", a.allow_out_of_range);
+  const FieldRange field_range = field_range_for(field, field_tf, a.field_range, "--field-range", a.allow_out_of_range);
 
-  auto ctx = make_context();
   Volume residual = residual_map(*ctx, ref, ref_tf, ref_range, field, field_tf, field_range);
   // .vti opens in ParaView with its grid and spacing; anything else is float32 raw.
   const bool vti = std::filesystem::path(a.out).extension() == ".vti";
   if (vti) write_vti(a.out, residual, "residual");
   else write_raw_float32(a.out, residual);
-  const FieldRange shown = a.display_range.empty() ? residual_display_range({&residual})
-                                                   : parse_range(a.display_range, "--display-range");
+  const FieldRange shown = display ? *display : residual_display_range({&residual});
   if (!a.image.empty()) {
     Progress progress("rendering the residual", a.settings.height);
     RenderedImage img = render_volume(*ctx, residual, residual_transfer_function(), shown, a.settings, &progress);
     progress.finish();
-    write_png(a.image, composite_over(img, a.settings.background));
+    Image picture = composite_over(img, a.settings.background);
+    draw_box_outline(picture, VolumeGeometry::from(residual.dims, residual.spacing, a.settings.z_scale), a.settings);
+    write_png(a.image, picture);
   }
+  outputs.commit();
   if (!globals().quiet) {
+    const FiniteStats stats = finite_stats(residual.values);
     double sum = 0;
-    for (float v : residual.values) sum += v;
+    for (float v : residual.values)
+      if (std::isfinite(v)) sum += v;
     const auto& d = residual.dims;
-    std::cout << "residual map " << d[0] << "x" << d[1] << "x" << d[2] << ": mean " << sum / double(residual.voxel_count())
-              << ", max " << residual_display_range({&residual}).hi << " (0 where either field has no data)\n"
+    // The true maximum (0 when the fields match), not the display range, which never collapses.
+    std::cout << "residual map " << d[0] << "x" << d[1] << "x" << d[2] << ": mean "
+              << (stats.finite ? sum / double(stats.finite) : 0.0) << ", max " << (stats.finite ? stats.hi : 0.0)
+              << " (0 where either field has no data)\n"
               << "  wrote " << a.out << (vti ? " (VTK ImageData)" : " (float32 little-endian)");
     // The raw reader takes the grid from names like residual_64x64x32_float32.raw.
     static const std::regex sized(R"(\d+x\d+x\d+)");
@@ -86,6 +103,7 @@ CommandRegistration reg(21, [](CLI::App& app) {
   sub->add_option("--image", args->image, "Also render the residual map into this PNG");
   sub->add_option("--ref-range", args->ref_range, "Reference range lo,hi (default: TF file's, else finite min/max)");
   sub->add_option("--field-range", args->field_range, "Field range lo,hi (default: TF file's, else finite min/max)");
+  add_allow_out_of_range_flag(sub, args->allow_out_of_range);
   sub->add_option("--display-range", args->display_range, "Residual range lo,hi the image maps (default: 0,max)");
   add_volume_flags(sub, args->volume_flags);
   add_render_options(sub, args->settings);

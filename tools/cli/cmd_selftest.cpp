@@ -10,6 +10,7 @@
 
 #include "atomic_file.h"
 #include "cli.h"
+#include "output_check.h"
 #include "selftest.h"
 #include "tfmatch_version.h"
 
@@ -60,6 +61,7 @@ nlohmann::json report_json(const SelftestReport& r) {
 }
 
 int run_selftest_command(const SelftestArgs& a) {
+  FilePlan().output(a.json == "-" ? "" : a.json, "--json").check();
   // The driver's name, listed before the context exists: enumerating devices creates an instance
   // of its own, which must not happen while a context lives.
   const std::vector<DeviceSummary> devices = enumerate_devices();

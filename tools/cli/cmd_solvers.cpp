@@ -8,6 +8,7 @@
 #include "atomic_file.h"
 #include "cli.h"
 #include "input_options.h"
+#include "output_check.h"
 #include "result_json.h"
 #include "solver_comparison.h"
 #include "solver_options.h"
@@ -41,6 +42,12 @@ int run(const SolversArgs& a) {
   settings.solve.smooth = a.smooth;
   settings.extra = a.extra;
   plan_comparison(settings, a.solvers);  // unknown solvers and bad solver flags fail before loading
+  FilePlan()
+      .input_spec(a.input.ref, "--ref")
+      .input_spec(a.input.field, "--field")
+      .input_spec(a.input.ref_tf, "--ref-tf")
+      .output(a.json == "-" ? "" : a.json, "--json")
+      .check();
   LoadedInputs in;
   if (a.synthetic) {
     if (!a.input.ref.empty() || !a.input.field.empty() || !a.input.ref_tf.empty())

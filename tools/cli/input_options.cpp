@@ -24,8 +24,9 @@ void add_input_options(CLI::App* sub, InputArgs& a, bool required) {
       ->capture_default_str();
   sub->add_option("--ref-range", a.ref_range, "Reference field range lo,hi (default: TF file's, else finite min/max)");
   sub->add_option("--field-range", a.field_range, "Field range lo,hi (default: finite min/max)");
+  add_allow_out_of_range_flag(sub, a.allow_out_of_range);
   sub->add_option("--dims", a.dims, "Raw files: grid size X Y Z (when the file name does not say)")->expected(3)
-      ->delimiter(',');
+      ->delimiter(',')->check(positive_integer());
   sub->add_option("--type", a.type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)");
   sub->add_flag("--big-endian", a.big_endian, "Raw files: big-endian data");
   // Which formats have variables, times and members comes from the format table.
@@ -58,6 +59,13 @@ void load_inputs(const InputArgs& a, LoadedInputs& out) {
   if (!a.ref_range.empty()) req.ref_range = parse_range(a.ref_range, "--ref-range");
   if (!a.field_range.empty()) req.field_range = parse_range(a.field_range, "--field-range");
   req.tf_size = a.tf_size;
+  req.allow_out_of_range = a.allow_out_of_range;
+}
+
+void add_allow_out_of_range_flag(CLI::App* sub, bool& allow) {
+  sub->add_flag("--allow-out-of-range", allow,
+                "Go on when a TF file's or given range leaves over 95 % of a field's values outside it (over 5 % "
+                "warns)");
 }
 
 }  // namespace tfm::cli

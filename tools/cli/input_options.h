@@ -18,6 +18,7 @@ struct InputArgs {
   std::string ref, ref_tf, field;
   uint32_t tf_size = 64;
   std::string ref_range, field_range;
+  bool allow_out_of_range = false;
   std::vector<uint64_t> dims;
   std::string type;
   bool big_endian = false;
@@ -36,5 +37,8 @@ struct LoadedInputs {
 // Loads the volumes and the reference TF (printing TF reader notes to stderr) and fills the
 // request's inputs, ranges and TF size. Throws std::runtime_error naming a bad file or flag.
 void load_inputs(const InputArgs& args, LoadedInputs& out);
+
+// --allow-out-of-range, for the commands that take ranges (field_mapping.h check_range_coverage).
+void add_allow_out_of_range_flag(CLI::App* sub, bool& allow);
 
 }  // namespace tfm::cli

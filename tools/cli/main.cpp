@@ -1,11 +1,17 @@
 // The `tfmatch` program: parses the command line and runs the chosen subcommand.
 #include <algorithm>
+#include <cctype>
 #include <cstdlib>
 #include <exception>
 #include <iostream>
+#include <new>
 #include <sstream>
+#include <string_view>
 
+#include "cancellation.h"
 #include "cli.h"
+#include "interrupts.h"
+#include "memory_budget.h"
 #include "tfmatch_version.h"  // generated in the build directory (top-level CMakeLists.txt)
 #include "vk_check.h"
 
@@ -60,18 +66,35 @@ std::shared_ptr<Context> make_context(bool validation_when_installed) {
 
 FieldRange parse_range(const std::string& text, const std::string& flag) {
   auto comma = text.find(',');
+  FieldRange r;
   try {
     if (comma == std::string::npos) throw std::invalid_argument("no comma");
     size_t used = 0;
-    FieldRange r{std::stod(text.substr(0, comma), &used), 0.0};
+    r.lo = std::stod(text.substr(0, comma), &used);
     if (used != comma) throw std::invalid_argument("junk");
     std::string rest = text.substr(comma + 1);
     r.hi = std::stod(rest, &used);
     if (used != rest.size()) throw std::invalid_argument("junk");
-    return r;
   } catch (const std::exception&) {
     throw CLI::ValidationError(flag, "expected lo,hi (two numbers), got '" + text + "'");
   }
+  try {
+    check_range(r, flag);  // "inf", "nan", reversed, beyond float32
+  } catch (const std::runtime_error& e) {
+    throw CLI::ValidationError(e.what());
+  }
+  return r;
+}
+
+const CLI::Validator& positive_integer() {
+  static const CLI::Validator validator(
+      [](std::string& text) -> std::string {
+        const bool digits = !text.empty() && text.size() < 20 && std::all_of(text.begin(), text.end(), ::isdigit);
+        if (!digits || std::stoull(text) == 0) return "expected a positive integer, got '" + text + "'";
+        return {};
+      },
+      "POSITIVE INTEGER");
+  return validator;
 }
 
 std::string version_text() {
@@ -85,17 +108,48 @@ std::string version_text() {
   return os.str();
 }
 
+std::string version_line() { return std::string("tfmatch ") + TFMATCH_VERSION + " (commit " + TFMATCH_GIT_COMMIT + ")"; }
+
+// argv as a shell would need it typed: words with anything but [A-Za-z0-9_./:=,+-@%] single-quoted.
+static std::string quoted_command_line(int argc, char** argv) {
+  std::string out;
+  for (int i = 0; i < argc; ++i) {
+    const std::string w = argv[i];
+    const bool plain = !w.empty() && std::all_of(w.begin(), w.end(), [](char c) {
+      return std::isalnum(static_cast<unsigned char>(c)) || std::string_view("_./:=,+-@%").find(c) != std::string_view::npos;
+    });
+    std::string q = "'";
+    for (char c : w) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    out += (i ? " " : "") + (plain ? w : q + "'");
+  }
+  return out;
+}
+
 }  // namespace tfm::cli
 
 int main(int argc, char** argv) {
   using namespace tfm::cli;
+  install_interrupt_handlers();
+  globals().command_line = quoted_command_line(argc, argv);
   CLI::App app{"tfmatch: optimize a transfer function so a second field's volume renderings match a reference's"};
   app.require_subcommand(1);
+  // Global flags are accepted after the subcommand too (`tfmatch info big.nrrd --max-memory 1G`).
+  app.fallthrough();
   app.set_help_all_flag("--help-all", "Print help for every subcommand");
   app.set_version_flag("--version", version_text(), "Print the version, git commit, build type, Vulkan headers and compiler");
   app.add_option("--device", globals().device, "Vulkan device: index or name substring (env TFMATCH_DEVICE)");
   app.add_flag("--validation", globals().validation, "Enable the Khronos validation layer (env TFMATCH_VALIDATION=1)");
   app.add_flag("-q,--quiet", globals().quiet, "Print only errors");
+  app.add_option_function<std::string>(
+         "--max-memory",
+         [](const std::string& text) {
+           const auto bytes = tfm::parse_byte_size(text);
+           if (!bytes) throw CLI::ValidationError("--max-memory", "expected a size such as 512M, 2G or 1.5GiB, got '" + text + "'");
+           tfm::set_memory_budget(*bytes, "--max-memory " + text);
+         },
+         "Most memory tfmatch may hold, e.g. 2G or 512M (env TFMATCH_MAX_MEMORY; default: the memory available at "
+         "start). Inputs that would need more fail before loading, naming the file and the size")
+      ->envname("TFMATCH_MAX_MEMORY");
   auto& commands = registered_commands();
   std::sort(commands.begin(), commands.end(), [](auto& a, auto& b) { return a.first < b.first; });
   for (auto& [order, setup] : commands) setup(app);
@@ -103,9 +157,18 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  } catch (const tfm::Cancelled& c) {
+    // Unwinding has removed the temporary files and staged outputs: nothing was written.
+    std::cerr << "\ntfmatch: interrupted (" << signal_name(c.signal()) << "): stopped; no output written\n";
+    return 128 + c.signal();
   } catch (const tfm::VulkanError& e) {
     std::cerr << "tfmatch: Vulkan error: " << e.what() << "\n";
     return 2;
+  } catch (const std::bad_alloc&) {
+    // Allocations an input decides are checked against the budget first; this is what slipped by.
+    std::cerr << "tfmatch: error: out of memory (the memory budget is " << tfm::format_bytes(tfm::memory_budget().bytes)
+              << "; see --max-memory)\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << "tfmatch: error: " << e.what() << "\n";
     return 1;

@@ -1,13 +1,32 @@
 // The shared render flags.
 #include "render_options.h"
-#include "volume_io.h"
 
 #include <cctype>
 #include <cstdlib>
+#include <iostream>
 #include <memory>
 #include <stdexcept>
 
+#include "cli.h"
+#include "color_spaces.h"
+#include "field_mapping.h"
+#include "volume_io.h"
+
 namespace tfm::cli {
+
+FieldRange field_range_for(const Volume& v, const TransferFunction& tf, const std::string& flag_value,
+                           const std::string& flag, bool allow) {
+  FieldRange user;
+  if (!flag_value.empty()) user = parse_range(flag_value, flag);
+  const FieldRange* given = !flag_value.empty() ? &user : (tf.range ? &*tf.range : nullptr);
+  const FieldRange range = resolve_range(v.values, given, v.name);
+  if (given) {
+    const std::string source = flag_value.empty() ? "the TF file's range" : "the " + flag + " range";
+    const std::string w = check_range_coverage(v.values, range, v.name, source, allow);
+    if (!w.empty()) std::cerr << "tfmatch: warning: " << w << "\n";
+  }
+  return range;
+}
 
 std::array<double, 3> parse_color(const std::string& text, const std::string& flag) {
   auto fail = [&] {
@@ -53,9 +72,50 @@ VolumeOptions VolumeFlags::options() const {
 void add_volume_flags(CLI::App* sub, VolumeFlags& f) {
   const std::string g = "Raw volumes";
   sub->add_option("--dims", f.dims, "Raw files: grid size X,Y,Z (when the file name does not say)")->expected(3)
-      ->delimiter(',')->group(g);
+      ->delimiter(',')->check(positive_integer())->group(g);
   sub->add_option("--type", f.type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)")->group(g);
   sub->add_flag("--big-endian", f.big_endian, "Raw files: big-endian data")->group(g);
+}
+
+void add_marker_option(CLI::App* sub, std::vector<std::string>& markers) {
+  sub->add_option("--marker", markers,
+                  "Draw a red dot at this grid point: I,J,K (I along x) or lon=..,lat=..,level=..; repeatable")
+      ->expected(1)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)->group("Rendering");
+}
+
+void add_histogram_option(CLI::App* sub, std::string& histogram) {
+  sub->add_option("--histogram", histogram,
+                  "Report TF plots: 'log' bars log(1 + count) (a dominant value does not flatten the rest) or "
+                  "'linear' counts (shows how dominant it is); each plot says which")
+      ->check(CLI::IsMember({"log", "linear"}))->capture_default_str()->group("Rendering");
+}
+
+void add_slice_point_option(CLI::App* sub, std::string& point) {
+  sub->add_option("--slice-point", point,
+                  "The report's axis-aligned slices go through this voxel: I,J,K or lon=..,lat=..,level=.. "
+                  "(default: the first --marker, else the middle)")
+      ->group("Rendering");
+}
+
+std::optional<GridIndex> resolve_slice_point(const Volume& grid, const std::string& text) {
+  if (text.empty()) return std::nullopt;
+  try {
+    return resolve_grid_point(grid, text, "--slice-point");
+  } catch (const std::invalid_argument& e) {
+    throw CLI::ValidationError("--slice-point", e.what());
+  }
+}
+
+std::vector<GridIndex> resolve_markers(const Volume& grid, const std::vector<std::string>& texts) {
+  std::vector<GridIndex> out;
+  for (const auto& t : texts) {
+    try {
+      out.push_back(resolve_grid_point(grid, t, "--marker"));
+    } catch (const std::invalid_argument& e) {
+      throw CLI::ValidationError("--marker", e.what());
+    }
+  }
+  return out;
 }
 
 void add_render_options(CLI::App* sub, RenderSettings& s) {
@@ -64,8 +124,23 @@ void add_render_options(CLI::App* sub, RenderSettings& s) {
       ->capture_default_str()->group(g);
   sub->add_option("--elevation", s.camera.elevation_deg, "Camera elevation above the xy plane, degrees (-90..90)")
       ->check(CLI::Range(-90.0, 90.0))->capture_default_str()->group(g);
-  sub->add_option("--distance", s.camera.distance, "Camera distance from the box centre, in bounding-sphere radii")
-      ->check(CLI::Range(1.0001, 1e4))->capture_default_str()->group(g);
+  sub->add_option("--distance", s.camera.distance,
+                  "Camera distance from the box centre, in bounding-sphere radii; 0 frames the box (fits every "
+                  "corner in the image, whatever the box's shape)")
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            char* end = nullptr;
+            const double d = std::strtod(text.c_str(), &end);
+            if (text.empty() || *end != '\0' || !(d == 0 || (d > 1 && d <= 1e4)))
+              return "must be 0 (framed) or in (1, 10000] bounding-sphere radii, got '" + text + "'";
+            return "";
+          },
+          "0|(1,10000]"))
+      ->capture_default_str()->group(g);
+  sub->add_option("--z-scale", s.z_scale, "Vertical exaggeration: the box's z extent times this (thin geophysical grids)")
+      ->check(CLI::Range(0.001, 1e4))->capture_default_str()->group(g);
+  sub->add_flag_callback("--no-outline", [&s] { s.box_outline = false; }, "Do not draw the box's outline on pictures")
+      ->group(g);
   sub->add_option("--fov", s.camera.fov_deg, "Vertical field of view, degrees")
       ->check(CLI::Range(0.1, 179.0))->capture_default_str()->group(g);
   sub->add_option("--width", s.width, "Image width in pixels")->check(CLI::Range(1u, 16384u))
@@ -80,8 +155,13 @@ void add_render_options(CLI::App* sub, RenderSettings& s) {
   sub->add_option("--termination", s.termination_opacity, "Stop a ray once its opacity reaches this (< 1)")
       ->check(CLI::Range(0.01, 0.9999))->capture_default_str()->group(g);
   sub->add_option_function<std::string>(
-         "--background", [&s](const std::string& v) { s.background = parse_color(v, "--background"); },
-         "Background: white, black, gray, #rrggbb or r,g,b (default white)")
+         "--background",
+         [&s](const std::string& v) {
+           // Given as shown on screen (sRGB), composited in linear RGB like the TF colours.
+           const std::array<double, 3> c = parse_color(v, "--background");
+           for (int k = 0; k < 3; ++k) s.background[k] = srgb_to_linear(c[k]);
+         },
+         "Background as shown (sRGB): white, black, gray, #rrggbb or r,g,b (default white)")
       ->group(g);
 }
 

@@ -1,14 +1,18 @@
 // The render flags every rendering subcommand shares (--azimuth, --elevation, --distance,
-// --fov, --width, --height, --step, --opacity-scale, --background, --termination), defined once.
+// --z-scale, --fov, --width, --height, --step, --opacity-scale, --background, --termination,
+// --no-outline), defined once.
 #pragma once
 
 #include <array>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <CLI/CLI.hpp>
 
+#include "grid_point.h"
 #include "render_settings.h"
+#include "transfer_function.h"
 #include "volume.h"
 #include "volume_io.h"
 
@@ -28,7 +32,28 @@ struct VolumeFlags {
 };
 void add_volume_flags(CLI::App* sub, VolumeFlags& flags);
 
-// "white", "black", "gray", "#rrggbb" or "r,g,b" with components in [0,1]. Throws
+// --marker (repeatable): grid points drawn as red dots on the renderings (reference points of a
+// correlation field), as I,J,K indices or lon=..,lat=..,level=.. coordinates.
+void add_marker_option(CLI::App* sub, std::vector<std::string>& markers);
+// --histogram log|linear: how the report's TF plots scale the histogram bars.
+void add_histogram_option(CLI::App* sub, std::string& histogram);
+
+// --slice-point: the voxel the report's slices go through (default: the grid's middle).
+void add_slice_point_option(CLI::App* sub, std::string& point);
+
+// Resolves the --marker texts on `grid`; throws CLI::ValidationError saying what is wrong.
+std::vector<GridIndex> resolve_markers(const Volume& grid, const std::vector<std::string>& texts);
+// Resolves --slice-point (empty: none); throws CLI::ValidationError saying what is wrong.
+std::optional<GridIndex> resolve_slice_point(const Volume& grid, const std::string& text);
+
+// The range `v` is mapped to `tf` with: the flag's value (lo,hi) if given, else the TF file's,
+// else the field's finite min/max. A range not from the field is checked against it
+// (check_range_coverage): a warning goes to stderr, over 95 % outside is an error unless `allow`.
+FieldRange field_range_for(const Volume& v, const TransferFunction& tf, const std::string& flag_value,
+                           const std::string& flag, bool allow);
+
+// "white", "black", "gray", "#rrggbb" or "r,g,b" with components in [0,1], as written (the
+// caller decides the colour space; --background reads it as sRGB). Throws
 // CLI::ValidationError naming the flag.
 std::array<double, 3> parse_color(const std::string& text, const std::string& flag);
 

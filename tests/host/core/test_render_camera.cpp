@@ -125,6 +125,86 @@ TEST(RenderCamera, InvalidSettingsAreRejectedWithTheirName) {
   s = {};
   s.background = {1.5, 0, 0};
   expect_rejected(s, "background");
+  s = {};
+  s.z_scale = 0.0;
+  expect_rejected(s, "z scale");
+}
+
+TEST(RenderCamera, ZScaleStretchesTheVerticalOnly) {
+  const VolumeGeometry g = VolumeGeometry::from({10, 20, 4}, {2.5, 2.5, 1.0}, 10.0);
+  // z becomes 10 per level, the finest axis is now x/y at 2.5: world units of 2.5.
+  EXPECT_DOUBLE_EQ(g.axis_scale.x, 1.0);
+  EXPECT_DOUBLE_EQ(g.axis_scale.z, 4.0);
+  EXPECT_DOUBLE_EQ(g.half_extent().z, 8.0);
+  EXPECT_THROW(VolumeGeometry::from({2, 2, 2}, {1, 1, 1}, -1.0), std::runtime_error);
+}
+
+// The projected box corners of a frame, as the fraction of the image's half-width/half-height
+// the farthest one reaches (x and y separately).
+std::pair<double, double> corner_reach(const CameraFrame& f, const VolumeGeometry& g, uint32_t w, uint32_t h) {
+  double rx = 0, ry = 0;
+  for (int c = 0; c < 8; ++c) {
+    const glm::dvec3 p(c & 1 ? g.dims[0] - 0.5 : -0.5, c & 2 ? g.dims[1] - 0.5 : -0.5, c & 4 ? g.dims[2] - 0.5 : -0.5);
+    const auto q = project_to_pixel(f, g, p, w, h);
+    EXPECT_TRUE(q.has_value());
+    if (!q) continue;
+    rx = std::max(rx, std::abs((q->x + 0.5) / (0.5 * w) - 1.0));
+    ry = std::max(ry, std::abs((q->y + 0.5) / (0.5 * h) - 1.0));
+  }
+  return {rx, ry};
+}
+
+TEST(RenderCamera, DefaultCameraFramesBoxesOfEveryShape) {
+  // A cube, a thin geophysical slab (GFS: 144 x 73 x 26 at 2.5 degrees, levels 1 apart), a tall
+  // column, on square and wide images, from several poses: every corner inside the image, and
+  // the box touching the 94 % margin on one side (so it is as large as it can be).
+  struct Box {
+    std::array<uint64_t, 3> dims;
+    std::array<double, 3> spacing;
+  };
+  for (const Box& b : {Box{{16, 16, 16}, {1, 1, 1}}, Box{{144, 73, 26}, {2.5, 2.5, 1}}, Box{{5, 7, 90}, {1, 1, 1}}})
+    for (auto [w, h] : {std::pair{64u, 64u}, std::pair{160u, 48u}})
+      for (auto [az, el] : {std::pair{30.0, 20.0}, std::pair{-100.0, 60.0}, std::pair{0.0, 90.0}}) {
+        SCOPED_TRACE(std::to_string(b.dims[0]) + "x" + std::to_string(b.dims[2]) + " image " + std::to_string(w) + "x" +
+                     std::to_string(h) + " az " + std::to_string(az) + " el " + std::to_string(el));
+        const VolumeGeometry g = VolumeGeometry::from(b.dims, b.spacing);
+        OrbitCamera cam;
+        cam.azimuth_deg = az;
+        cam.elevation_deg = el;
+        ASSERT_EQ(cam.distance, 0.0) << "framing is the default";
+        const auto [rx, ry] = corner_reach(orbit_frame(cam, g, w, h), g, w, h);
+        EXPECT_LE(rx, 0.94 + 1e-9);
+        EXPECT_LE(ry, 0.94 + 1e-9);
+        EXPECT_NEAR(std::max(rx, ry), 0.94, 0.01);
+      }
+  // The thin slab, seen from the default pose on a square image, spans the image's width.
+  const VolumeGeometry slab = VolumeGeometry::from({144, 73, 26}, {2.5, 2.5, 1});
+  EXPECT_NEAR(corner_reach(orbit_frame(OrbitCamera{}, slab, 64, 64), slab, 64, 64).first, 0.94, 0.01);
+}
+
+TEST(RenderCamera, BoxOutlineIsDrawnUnlessTurnedOff) {
+  const VolumeGeometry g = VolumeGeometry::from({12, 8, 4}, {1, 1, 1});
+  RenderSettings s;
+  s.width = 80;
+  s.height = 60;
+  Image img(80, 60);
+  draw_box_outline(img, g, s);
+  // Every projected corner pixel is on the outline.
+  const CameraFrame f = orbit_frame(s.camera, g, 80, 60);
+  for (int c = 0; c < 8; ++c) {
+    const glm::dvec3 p(c & 1 ? 11.5 : -0.5, c & 2 ? 7.5 : -0.5, c & 4 ? 3.5 : -0.5);
+    const auto q = project_to_pixel(f, g, p, 80, 60);
+    ASSERT_TRUE(q);
+    const uint8_t* px = img.at(uint32_t(std::lround(q->x)), uint32_t(std::lround(q->y)));
+    EXPECT_LT(px[0], 230) << "corner " << c;
+  }
+  size_t grey = 0;
+  for (uint8_t v : img.rgb) grey += v < 255;
+  EXPECT_GT(grey, 100u);
+  Image off(80, 60);
+  s.box_outline = false;
+  draw_box_outline(off, g, s);
+  for (uint8_t v : off.rgb) ASSERT_EQ(v, 255);
 }
 
 }  // namespace

@@ -138,5 +138,35 @@ TEST(FieldMapping, CoordinatesAtTheEdgesAndOutside) {
   EXPECT_THROW(make_mapping({0, 1}, 1), std::invalid_argument);
 }
 
+TEST(FieldMapping, RangeCoverageWarnsAbove5AndFailsAbove95Percent) {
+  // 0..99 and two NaNs (not counted): a value is outside when below lo or above hi.
+  std::vector<float> v(100);
+  for (int i = 0; i < 100; ++i) v[i] = float(i);
+  v.push_back(NAN);
+  v.push_back(INFINITY);
+  const RangeCoverage c = range_coverage(v, {10, 89.5});
+  EXPECT_EQ(c.finite, 100u);
+  EXPECT_EQ(c.below, 10u);
+  EXPECT_EQ(c.above, 10u);
+  EXPECT_DOUBLE_EQ(c.outside_fraction(), 0.2);
+  // Exactly 5 % outside: quiet; 6 %: a warning with the counts.
+  EXPECT_EQ(check_range_coverage(v, {0, 94}, "f", "the TF file's range", false), "");
+  const std::string w = check_range_coverage(v, {0, 93.5}, "f", "the TF file's range", false);
+  EXPECT_NE(w.find("6.0 % of its finite values lie outside the TF file's range [0, 93.5] (0 below, 6 above, of 100"),
+            std::string::npos) << w;
+  EXPECT_NE(w.find("spans [0, 99]"), std::string::npos) << w;
+  // 95 % outside: still a warning; 96 %: an error naming the way out, unless allowed.
+  EXPECT_NE(check_range_coverage(v, {-10, 4.5}, "f", "r", false), "");
+  try {
+    check_range_coverage(v, {-10, 3.5}, "f", "the TF file's range", false);
+    ADD_FAILURE() << "no error at 96 %";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("96.0 %"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--allow-out-of-range"), std::string::npos) << e.what();
+  }
+  const std::string allowed = check_range_coverage(v, {-10, 3.5}, "f", "r", true);
+  EXPECT_NE(allowed.find("(--allow-out-of-range)"), std::string::npos) << allowed;
+}
+
 }  // namespace
 }  // namespace tfm

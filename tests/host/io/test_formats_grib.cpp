@@ -85,24 +85,30 @@ TEST(GribGenerated, StacksLevelsSortedAndSelectsTimeMember) {
   ms.push_back({.short_name = "t", .surface = true});
   const std::string f = write_grib(dir, "gen.grib2", ms).string();
 
-  // t: isobaricInhPa (3 levels) wins over surface (1); levels sorted 300, 500, 850 into z.
+  // t: isobaricInhPa (3 levels) wins over surface (1). World orientation: the surface down (850,
+  // 500, 300 hPa up z) and north up (the sample's rows run 60 N -> 0 N: row j is y = kNj - 1 - j).
   Volume t = load_volume(f + ":t,time=1,member=1");
   EXPECT_EQ(t.dims, (std::array<uint64_t, 3>{kNi, kNj, 3}));
   EXPECT_NE(t.name.find("t@isobaricInhPa"), std::string::npos);
+  EXPECT_EQ(t.axes[2].coordinates, (std::vector<double>{850, 500, 300}));
+  EXPECT_EQ(t.axes[1].coordinates.front(), 0.0);
+  EXPECT_EQ(t.axes[1].coordinates.back(), 60.0);
+  EXPECT_EQ(t.origin[1], 0.0);
+  EXPECT_EQ(t.origin[2], 850.0);
   for (int z = 0; z < 3; ++z) {
-    const long level = z == 0 ? 300 : z == 1 ? 500 : 850;
+    const long level = z == 0 ? 850 : z == 1 ? 500 : 300;
     for (int j : {0, 7, kNj - 1})
       for (int i : {0, 5, kNi - 1}) {
-        if (z == 0 && i == 0 && j == 0) continue;
-        EXPECT_NEAR(t.at(i, j, z), expected(i, j, level, 1, 1), 1e-3) << i << "," << j << "," << z;
+        if (z == 2 && i == 0 && j == 0) continue;
+        EXPECT_NEAR(t.at(i, kNj - 1 - j, z), expected(i, j, level, 1, 1), 1e-3) << i << "," << j << "," << z;
       }
   }
-  EXPECT_TRUE(std::isnan(t.at(0, 0, 0)));  // bitmap: missing
+  EXPECT_TRUE(std::isnan(t.at(0, kNj - 1, 2)));  // bitmap: missing (file row 0 at 300 hPa)
   // Defaults: the first time and member; members are sorted numbers, times sorted dates.
-  EXPECT_NEAR(load_volume(f + ":t").at(3, 4, 1), expected(3, 4, 500, 0, 0), 1e-3);
+  EXPECT_NEAR(load_volume(f + ":t").at(3, 4, 1), expected(3, kNj - 1 - 4, 500, 0, 0), 1e-3);
   VolumeOptions o;
   o.member_index = 2;
-  EXPECT_NEAR(load_volume(f + ":t", o).at(3, 4, 2), expected(3, 4, 850, 2, 0), 1e-3);
+  EXPECT_NEAR(load_volume(f + ":t", o).at(3, 4, 0), expected(3, kNj - 1 - 4, 850, 2, 0), 1e-3);
   // An explicit level type.
   Volume sfc = load_volume(f + ":t@surface");
   EXPECT_EQ(sfc.dims[2], 1u);
@@ -120,6 +126,12 @@ TEST(GribGenerated, StacksLevelsSortedAndSelectsTimeMember) {
   EXPECT_EQ(info.arrays[0].name, "t@isobaricInhPa");
   EXPECT_EQ(info.arrays[0].grid, (std::array<uint64_t, 3>{kNi, kNj, 3}));
   EXPECT_EQ(info.arrays[0].nan_count, 2u);  // one missing corner per time
+  // info: the axes as loaded, with their direction and what was reversed.
+  ASSERT_EQ(info.arrays[0].orientation.size(), 3u);
+  EXPECT_EQ(info.arrays[0].orientation[1], "y (latitude): 0 .. 60 degrees_north, north, reversed from the file's order");
+  EXPECT_EQ(info.arrays[0].orientation[2],
+            "z (isobaricInhPa): 850 .. 300 hPa, up (pressure decreasing, surface at z = 0), reversed from the file's order");
+  EXPECT_EQ(info.arrays[0].origin[2], 850.0);
 }
 
 TEST(GribGenerated, DifferentGridsAndDuplicateLevelsAreErrors) {
@@ -156,14 +168,39 @@ TEST(GribRealFiles, GfsWindsStackedOver26Levels) {
   EXPECT_EQ(u.dims, (std::array<uint64_t, 3>{144, 73, 26}));
   EXPECT_NO_THROW(require_same_grid(u, v));
   EXPECT_EQ(u.spacing, (std::array<double, 3>{2.5, 2.5, 1.0}));
-  // z: 10 hPa first (index 0), 500 hPa index 13, 1000 hPa index 25.
-  EXPECT_FLOAT_EQ(u.at(0, 0, 0), -18.5f);
-  EXPECT_FLOAT_EQ(u.at(72, 36, 0), -18.3f);
-  EXPECT_FLOAT_EQ(u.at(143, 72, 0), 2.4f);
-  EXPECT_FLOAT_EQ(u.at(0, 0, 13), -25.31f);
-  EXPECT_FLOAT_EQ(u.at(72, 36, 13), -3.31f);
-  EXPECT_FLOAT_EQ(u.at(72, 36, 25), -10.26f);
-  EXPECT_FLOAT_EQ(v.at(72, 36, 13), 0.33f);
+  // World orientation: the file stores latitudes 90 -> -90 and levels sort 10 -> 1000 hPa; loaded,
+  // y runs south to north and z from the surface up (1000 hPa at z = 0, 10 hPa at z = 25).
+  ASSERT_EQ(u.axes[1].coordinates.size(), 73u);
+  EXPECT_EQ(u.axes[1].coordinates.front(), -90.0);
+  EXPECT_EQ(u.axes[1].coordinates.back(), 90.0);
+  ASSERT_EQ(u.axes[2].coordinates.size(), 26u);
+  EXPECT_EQ(u.axes[2].coordinates.front(), 1000.0);
+  EXPECT_EQ(u.axes[2].coordinates.back(), 10.0);
+  EXPECT_EQ(u.origin, (std::array<double, 3>{0.0, -90.0, 1000.0}));
+  // The file's (lon, lat, level) points: level 10 first point (0, 90) -18.5, (180, 0) -18.3,
+  // last point (357.5, -90) 2.4; level 500 (0, 90) -25.31, (180, 0) -3.31; level 1000 (180, 0) -10.26.
+  EXPECT_FLOAT_EQ(u.at(0, 72, 25), -18.5f);
+  EXPECT_FLOAT_EQ(u.at(72, 36, 25), -18.3f);
+  EXPECT_FLOAT_EQ(u.at(143, 0, 25), 2.4f);
+  EXPECT_FLOAT_EQ(u.at(0, 72, 12), -25.31f);
+  EXPECT_FLOAT_EQ(u.at(72, 36, 12), -3.31f);
+  EXPECT_FLOAT_EQ(u.at(72, 36, 0), -10.26f);
+  EXPECT_FLOAT_EQ(v.at(72, 36, 12), 0.33f);
+  EXPECT_EQ(axis_coordinate(u, 2, 12), 500.0);
+  // `tfmatch info` says the same.
+  const FileInfo info = describe_file(data("gfs_grib2/gfs.t12z.pgrbf120.2p5deg.grib2"));
+  bool found = false;
+  for (const ArrayInfo& a : info.arrays) {
+    if (a.name != "u@isobaricInhPa") continue;
+    found = true;
+    ASSERT_EQ(a.orientation.size(), 3u);
+    EXPECT_EQ(a.orientation[0], "x (longitude): 0 .. 357.5 degrees_east, east");
+    EXPECT_EQ(a.orientation[1], "y (latitude): -90 .. 90 degrees_north, north, reversed from the file's order");
+    EXPECT_EQ(a.orientation[2],
+              "z (isobaricInhPa): 1000 .. 10 hPa, up (pressure decreasing, surface at z = 0), reversed from the file's order");
+    EXPECT_EQ(a.origin, u.origin);
+  }
+  EXPECT_TRUE(found);
   // Bitmap: `grib_get -p numberOfMissing -w shortName=u,typeOfLevel=heightAboveSea` = 1161+794+452.
   Volume h = load_volume(data("gfs_grib2/gfs.t12z.pgrbf120.2p5deg.grib2:u@heightAboveSea"));
   size_t nan = 0;
@@ -175,16 +212,20 @@ TEST(GribRealFiles, Era5MembersAndTimesAndMultiParamSteps) {
   if (data("").empty()) GTEST_SKIP() << "../shared/data not present";
   // `grib_get_data -w shortName=t,number=3,dataDate=20170102,dataTime=0,level=850`: first point
   // 250.8110352, (lat 0, lon 180) 291.5043945. That date/time is the 3rd of 4 (time=2), 850 hPa
-  // the 2nd level (z=1).
+  // the lower of 500 and 850 hPa: z = 0 (surface down). Latitude 90 -> -90 in the file: the first
+  // point (90 N) is y = 60, -90 at y = 0.
   Volume t = load_volume(data("era5_ensemble_grib1/era5-levels-members.grib:t,member=3,time=2"));
   EXPECT_EQ(t.dims, (std::array<uint64_t, 3>{120, 61, 2}));
-  EXPECT_NEAR(t.at(0, 0, 1), 250.8110352, 1e-4);
-  EXPECT_NEAR(t.at(60, 30, 1), 291.5043945, 1e-4);
-  // `grib_get_data -w shortName=t,step=24,level=500`: point 10*72+5 = 256.3386688; step 24 is
-  // the 3rd of steps 0, 12, 24, 36; 500 hPa the 2nd of 300, 500, 850, 1000.
+  EXPECT_EQ(t.axes[1].coordinates.front(), -90.0);
+  EXPECT_EQ(t.axes[2].coordinates, (std::vector<double>{850, 500}));
+  EXPECT_NEAR(t.at(0, 60, 0), 250.8110352, 1e-4);
+  EXPECT_NEAR(t.at(60, 30, 0), 291.5043945, 1e-4);
+  // `grib_get_data -w shortName=t,step=24,level=500`: point 10*72+5 = 256.3386688 (row 10 from
+  // the north of 37: y = 26); step 24 is the 3rd of steps 0, 12, 24, 36; 500 hPa the 3rd from the
+  // surface of 1000, 850, 500, 300 (z = 2).
   Volume m = load_volume(data("ecmwf_multiparam_grib1/multi_param_on_multi_dims.grib:t,time=2"));
   EXPECT_EQ(m.dims, (std::array<uint64_t, 3>{72, 37, 4}));
-  EXPECT_NEAR(m.at(5, 10, 1), 256.3386688, 1e-4);
+  EXPECT_NEAR(m.at(5, 26, 2), 256.3386688, 1e-4);
 }
 
 }  // namespace

@@ -5,12 +5,17 @@
 #include <netcdf.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
 
 #include "formats_test_util.h"
 #include "vk_test_env.h"
 #include "volume.h"
 #include "volume_info.h"
 #include "volume_io.h"
+#include "volume_vti.h"
 
 namespace tfm {
 namespace {
@@ -165,6 +170,123 @@ TEST_P(NetcdfGenerated, MapsDimensionsTimeFillPackingAndSpacing) {
   EXPECT_EQ(c.spacing, (std::array<double, 3>{2, 3, 5}));
 }
 
+// A grid stored the way many files store it: latitudes north to south, pressure levels from the
+// top, and a depth axis from the surface down. Value 100 z + 10 y + x in the file's order.
+std::filesystem::path make_upside_down_file(const TempDir& dir) {
+  const auto path = dir / "flipped.nc";
+  int nc;
+  EXPECT_EQ(nc_create(path.c_str(), NC_CLOBBER, &nc), NC_NOERR);
+  int plev, lat, lon, depth, height;
+  ok(nc_def_dim(nc, "plev", 3, &plev));
+  ok(nc_def_dim(nc, "lat", 3, &lat));
+  ok(nc_def_dim(nc, "lon", 4, &lon));
+  ok(nc_def_dim(nc, "depth", 2, &depth));
+  ok(nc_def_dim(nc, "height", 2, &height));
+  const int vp = def_var(nc, "plev", NC_DOUBLE, {plev}), vlat = def_var(nc, "lat", NC_DOUBLE, {lat});
+  const int vlon = def_var(nc, "lon", NC_DOUBLE, {lon}), vd = def_var(nc, "depth", NC_DOUBLE, {depth});
+  const int vh = def_var(nc, "height", NC_DOUBLE, {height});
+  text_att(nc, vp, "units", "Pa");
+  text_att(nc, vlat, "units", "degrees_north");
+  text_att(nc, vlon, "units", "degrees_east");
+  text_att(nc, vd, "units", "m");
+  text_att(nc, vd, "positive", "down");
+  text_att(nc, vh, "units", "m");
+  text_att(nc, vh, "positive", "up");
+  const int T = def_var(nc, "T", NC_FLOAT, {plev, lat, lon});
+  const int S = def_var(nc, "S", NC_FLOAT, {depth, lat, lon});
+  const int H = def_var(nc, "H", NC_FLOAT, {height, lat, lon});
+  ok(nc_enddef(nc));
+  const double ps[3] = {1000, 50000, 100000}, lats[3] = {60, 0, -60}, lons[4] = {0, 90, 180, 270};
+  const double ds[2] = {0, 100}, hs[2] = {0, 1000};
+  ok(nc_put_var_double(nc, vp, ps));
+  ok(nc_put_var_double(nc, vlat, lats));
+  ok(nc_put_var_double(nc, vlon, lons));
+  ok(nc_put_var_double(nc, vd, ds));
+  ok(nc_put_var_double(nc, vh, hs));
+  std::vector<float> t(36);
+  for (int z = 0; z < 3; ++z)
+    for (int y = 0; y < 3; ++y)
+      for (int x = 0; x < 4; ++x) t[(z * 3 + y) * 4 + x] = float(100 * z + 10 * y + x);
+  ok(nc_put_var_float(nc, T, t.data()));
+  ok(nc_put_var_float(nc, S, t.data()));  // its first 24 values
+  ok(nc_put_var_float(nc, H, t.data()));
+  ok(nc_close(nc));
+  return path;
+}
+
+TEST(NetcdfOrientation, LoadsNorthUpAndSurfaceDown) {
+  TempDir dir;
+  const std::string f = make_upside_down_file(dir).string();
+  // Latitude reversed (-60 at y = 0), pressure reversed (100000 Pa, the surface, at z = 0).
+  Volume t = load_volume(f + ":T");
+  ASSERT_EQ(t.dims, (std::array<uint64_t, 3>{4, 3, 3}));
+  for (int z = 0; z < 3; ++z)
+    for (int y = 0; y < 3; ++y)
+      for (int x = 0; x < 4; ++x) ASSERT_EQ(t.at(x, y, z), float(100 * (2 - z) + 10 * (2 - y) + x)) << x << y << z;
+  EXPECT_EQ(t.axes[1].coordinates, (std::vector<double>{-60, 0, 60}));
+  EXPECT_EQ(t.axes[2].coordinates, (std::vector<double>{100000, 50000, 1000}));
+  EXPECT_EQ(t.axes[0].coordinates, (std::vector<double>{0, 90, 180, 270}));
+  EXPECT_EQ(t.origin, (std::array<double, 3>{0, -60, 100000}));
+  EXPECT_EQ(t.spacing, (std::array<double, 3>{90, 60, 1}));  // positive; pressure levels: 1
+  // Depth (positive = "down") reversed: the deepest level at z = 0. Height stays as stored.
+  Volume s = load_volume(f + ":S");
+  EXPECT_EQ(s.axes[2].coordinates, (std::vector<double>{100, 0}));
+  EXPECT_EQ(s.at(1, 0, 0), float(100 + 20 + 1));
+  Volume h = load_volume(f + ":H");
+  EXPECT_EQ(h.axes[2].coordinates, (std::vector<double>{0, 1000}));
+  EXPECT_EQ(h.at(1, 0, 0), float(20 + 1));
+  // `info` says so, with the origin and the coordinate ranges as loaded.
+  const FileInfo info = describe_file(f);
+  const ArrayInfo* a = nullptr;
+  for (const auto& x : info.arrays)
+    if (x.name == "T") a = &x;
+  ASSERT_NE(a, nullptr);
+  EXPECT_EQ(a->origin, t.origin);
+  ASSERT_EQ(a->orientation.size(), 3u);
+  EXPECT_EQ(a->orientation[0], "x (lon): 0 .. 270 degrees_east, east");
+  EXPECT_EQ(a->orientation[1], "y (lat): -60 .. 60 degrees_north, north, reversed from the file's order");
+  EXPECT_EQ(a->orientation[2],
+            "z (plev): 100000 .. 1000 Pa, up (pressure decreasing, surface at z = 0), reversed from the file's order");
+  const std::string text = format_file_info(info);
+  EXPECT_NE(text.find("origin 0 -60 100000"), std::string::npos) << text;
+}
+
+// The oriented grid written as .vti keeps origin, spacing and coordinates: read back by tfmatch
+// and by VTK's own reader (python3-vtk9; the test skips visibly without it).
+TEST(NetcdfOrientation, VtiOutputCarriesOriginSpacingAndCoordinates) {
+  TempDir dir;
+  const Volume t = load_volume(make_upside_down_file(dir).string() + ":T");
+  const std::filesystem::path vti = dir.path() / "t.vti";
+  write_vti(vti, t, "T");
+  const Volume back = load_volume(vti.string());
+  EXPECT_EQ(back.origin, t.origin);
+  EXPECT_EQ(back.spacing, t.spacing);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(back.axes[size_t(k)].coordinates, t.axes[size_t(k)].coordinates) << k;
+    EXPECT_EQ(back.axes[size_t(k)].name, t.axes[size_t(k)].name) << k;
+    EXPECT_EQ(back.axes[size_t(k)].units, t.axes[size_t(k)].units) << k;
+  }
+  EXPECT_EQ(back.values, t.values);
+
+  const std::string python = std::filesystem::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+  if (std::system((python + " -c 'import vtk' >/dev/null 2>&1").c_str()) != 0)
+    GTEST_SKIP() << "VTK's Python package is not installed (Debian python3-vtk9): no independent read-back";
+  const std::string script = std::string(TFMATCH_SOURCE_DIR) + "/tests/host/io/vti_with_vtk.py";
+  const std::filesystem::path out = dir.path() / "vtk.json";
+  ASSERT_EQ(std::system((python + " " + script + " " + vti.string() + " T 1,0,0 3,2,2 > " + out.string()).c_str()), 0);
+  std::ifstream in(out);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j["dims"], nlohmann::json({4, 3, 3}));
+  EXPECT_EQ(j["origin"], nlohmann::json({0.0, -60.0, 100000.0}));
+  EXPECT_EQ(j["spacing"], nlohmann::json({90.0, 60.0, 1.0}));
+  // North up and surface down as VTK sees it: (1, 0, 0) is the file's last latitude and level.
+  EXPECT_EQ(j["points"]["1,0,0"].get<double>(), 100 * 2 + 10 * 2 + 1);
+  EXPECT_EQ(j["points"]["3,2,2"].get<double>(), 3);
+  EXPECT_EQ(j["field_data"]["y_coordinates"], nlohmann::json({-60.0, 0.0, 60.0}));
+  EXPECT_EQ(j["field_data"]["z_coordinates"], nlohmann::json({100000.0, 50000.0, 1000.0}));
+  EXPECT_EQ(j["field_data"]["x_coordinates"], nlohmann::json({0.0, 90.0, 180.0, 270.0}));
+}
+
 TEST_P(NetcdfGenerated, ErrorsNameFileAndProblem) {
   TempDir dir;
   const auto path = make_file(dir, "gen.nc", GetParam());
@@ -249,9 +371,12 @@ TEST(NetcdfRealFiles, EraInterimPackedShortsWithNanFillValue) {
   const double scale = -0.00157270493804553, offset = 26.96875;
   Volume u0 = load_volume(data("eraint_uvz/eraint_uvz.nc:u"));
   EXPECT_EQ(u0.dims, (std::array<uint64_t, 3>{480, 241, 3}));
-  EXPECT_FLOAT_EQ(u0.at(0, 0, 0), float(16333 * scale + offset));
+  // Stored latitude 90 -> -90 and levels 200, 500, 850 hPa: loaded north up and surface down, so
+  // [level 0][lat 0] is y = 240, z = 2 and [level 2][lat 120] is y = 120, z = 0.
+  EXPECT_FLOAT_EQ(u0.at(0, 240, 2), float(16333 * scale + offset));
+  EXPECT_EQ(u0.axes[2].coordinates, (std::vector<double>{850, 500, 200}));
   Volume u1 = load_volume(data("eraint_uvz/eraint_uvz.nc:u,member=1"));  // month 7
-  EXPECT_FLOAT_EQ(u1.at(240, 120, 2), float(17386 * scale + offset));
+  EXPECT_FLOAT_EQ(u1.at(240, 120, 0), float(17386 * scale + offset));
   // The NaN _FillValue (a double on an int16 variable) matches nothing: no value is lost.
   for (float x : u1.values) ASSERT_FALSE(std::isnan(x));
   EXPECT_DOUBLE_EQ(u0.spacing[0], 0.75);

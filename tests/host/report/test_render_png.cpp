@@ -6,11 +6,20 @@
 #include <random>
 
 #include "cli_runner.h"
+#include "font.h"
 #include "png_io.h"
 #include "tf_plot.h"
 
 namespace tfm {
 namespace {
+
+// The report's FreeType face (nullptr where the font is not installed); installing it is
+// process-wide, so each test sets the face it wants.
+const TextFace* report_face() {
+  static std::unique_ptr<FreeTypeFace> face =
+      report_font_file().empty() ? nullptr : std::make_unique<FreeTypeFace>(report_font_file());
+  return face.get();
+}
 
 TEST(RenderPng, RoundTripKeepsEveryByte) {
   test::TempDir dir;
@@ -45,13 +54,33 @@ TEST(RenderPng, CompositesPremultipliedColourOverTheBackground) {
   r.rgba = {0.2f, 0.1f, 0.0f, 0.5f, 0.0f, 0.0f, 0.0f, 0.0f};
   r.stop = {3, 0};
   const Image img = composite_over(r, {1.0, 0.0, 0.5});
-  // C + (1 - A) * background, rounded: (0.7, 0.1, 0.25) and the background itself.
-  EXPECT_EQ(img.at(0, 0)[0], 179);
-  EXPECT_EQ(img.at(0, 0)[1], 26);
-  EXPECT_EQ(img.at(0, 0)[2], 64);
+  // C + (1 - A) * background in linear RGB: (0.7, 0.1, 0.25) and the background itself, each
+  // encoded to sRGB (1.055 c^(1/2.4) - 0.055) and rounded once.
+  EXPECT_EQ(img.at(0, 0)[0], 218);
+  EXPECT_EQ(img.at(0, 0)[1], 89);
+  EXPECT_EQ(img.at(0, 0)[2], 137);
   EXPECT_EQ(img.at(1, 0)[0], 255);
-  EXPECT_EQ(img.at(1, 0)[2], 128);
+  EXPECT_EQ(img.at(1, 0)[1], 0);
+  EXPECT_EQ(img.at(1, 0)[2], 188);
   EXPECT_EQ(r.samples(), 3u);
+}
+
+TEST(RenderPng, SrgbEncodingFollowsThePiecewiseCurve) {
+  // Endpoints, the linear toe (12.92 c below 0.0031308) and the power segment.
+  EXPECT_EQ(srgb_byte(0.0), 0);
+  EXPECT_EQ(srgb_byte(1.0), 255);
+  EXPECT_EQ(srgb_byte(-0.5), 0);
+  EXPECT_EQ(srgb_byte(2.0), 255);
+  EXPECT_EQ(srgb_byte(NAN), 0);
+  EXPECT_EQ(srgb_byte(0.002), 7);     // 12.92 * 0.002 * 255 = 6.59
+  EXPECT_EQ(srgb_byte(0.5), 188);     // 0.7354 * 255 = 187.5 -> 188
+  EXPECT_EQ(srgb_byte(0.2158605), 128);  // the linear value of sRGB 128/255
+  // Every 8-bit sRGB code decodes and re-encodes to itself.
+  for (int v = 0; v < 256; ++v) {
+    const double c = v / 255.0;
+    const double lin = c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
+    ASSERT_EQ(srgb_byte(lin), v);
+  }
 }
 
 TEST(RenderPng, TfPlotShowsHistogramCurveAndColourBar) {
@@ -60,31 +89,88 @@ TEST(RenderPng, TfPlotShowsHistogramCurveAndColourBar) {
   std::vector<float> values(1000, 0.25f);
   values.push_back(NAN);
   TfPlotOptions o;
-  o.width = 200;
-  o.height = 120;
-  const Image img = plot_transfer_function(tf, values, {0, 1}, o);
-  ASSERT_EQ(img.width, 200u);
-  ASSERT_EQ(img.height, 120u);
-  // Find the colour bar: the row whose left end is the TF's first colour (blue).
-  int bar_y = -1;
-  for (uint32_t y = 0; y < img.height && bar_y < 0; ++y)
-    if (img.at(9, y)[2] > 200 && img.at(9, y)[0] < 40) bar_y = int(y);
-  ASSERT_GE(bar_y, 0) << "no colour bar";
-  EXPECT_GT(img.at(190, bar_y)[0], 200) << "right end of the bar is red";
-  // The histogram has one full bar at t = 0.25 (column 8 + 0.25 * 184) and nothing at t = 0.75.
-  const int x_full = 8 + 46, x_empty = 8 + 138, y_low = bar_y - 8;
-  const uint8_t* full = img.at(x_full, y_low);
-  const uint8_t* empty = img.at(x_empty, y_low);
-  EXPECT_TRUE(full[0] > 200 && full[2] < 200) << "light yellow histogram bar expected";
-  EXPECT_TRUE(empty[0] == 255 && empty[2] == 255) << "no histogram where there is no data";
-  // The opacity curve: dark near the top at t = 0.9 (opacity 1), near the bottom at t = 0.2.
-  bool dark_top = false;
-  for (int y = 0; y < bar_y; ++y) dark_top |= img.at(8 + 166, y)[0] < 80 && y < bar_y / 2;
-  EXPECT_TRUE(dark_top) << "opacity curve missing at opacity 1";
+  o.width = 220;
+  o.height = 170;
+  o.axis_label = "T [K]";
+  for (const TextFace* face : {static_cast<const TextFace*>(nullptr), report_face()}) {
+    set_text_face(face);
+    SCOPED_TRACE(face ? "FreeType" : "bitmap font");
+    const Image img = plot_transfer_function(tf, values, {0, 1}, o);
+    ASSERT_EQ(img.width, 220u);
+    ASSERT_EQ(img.height, 170u);
+    // The colour bar: the row with the most pure TF colours (blue at the left end, red at the right).
+    int bar_y = -1, best = 0;
+    for (uint32_t y = 0; y < img.height; ++y) {
+      int n = 0;
+      for (uint32_t x = 0; x < img.width; ++x) n += img.at(x, y)[1] == 0 && (img.at(x, y)[0] > 0 || img.at(x, y)[2] > 0);
+      if (n > best) best = n, bar_y = int(y);
+    }
+    ASSERT_GT(best, 150) << "no colour bar";
+    int left = 0, right = int(img.width) - 1;
+    while (img.at(left, bar_y)[1] != 0) ++left;
+    while (img.at(right, bar_y)[1] != 0) --right;
+    const int plot_w = right - left + 1;
+    EXPECT_GT(img.at(left, bar_y)[2], 240) << "left end of the bar is blue";
+    EXPECT_GT(img.at(right, bar_y)[0], 240) << "right end of the bar is red";
+    // The histogram has one full bar at t = 0.25 and nothing at t = 0.75 (just above the axis).
+    const int y_low = bar_y - 8;
+    const uint8_t* full = img.at(left + plot_w / 4, y_low);
+    const uint8_t* empty = img.at(left + 3 * plot_w / 4, y_low);
+    EXPECT_TRUE(full[0] > 200 && full[2] < 200) << "light yellow histogram bar expected";
+    EXPECT_TRUE(empty[0] == 255 && empty[2] == 255) << "no histogram where there is no data";
+    // The opacity curve: dark in the upper half at t = 0.9 (opacity 1).
+    bool dark_top = false;
+    for (int y = 0; y < bar_y / 2; ++y) dark_top |= img.at(left + int(0.9 * plot_w), y)[0] < 80;
+    EXPECT_TRUE(dark_top) << "opacity curve missing at opacity 1";
+    // Tick labels under the bar: dark text pixels below it.
+    int ink_below = 0;
+    for (uint32_t y = uint32_t(bar_y) + 14; y < img.height; ++y)
+      for (uint32_t x = 0; x < img.width; ++x) ink_below += img.at(x, y)[0] < 128;
+    EXPECT_GT(ink_below, 40) << "value ticks and axis label";
+  }
+  set_text_face(nullptr);
   EXPECT_EQ(field_histogram(values, {0, 1}, 4)[1], 1000u);
+  // The histogram's scale is named on the plot: the log and linear plots differ only there
+  // and in the bar heights, and both draw.
+  o.log_counts = false;
+  EXPECT_NO_THROW(plot_transfer_function(tf, values, {0, 1}, o));
+}
+
+TEST(RenderPng, NiceTicksAreRoundAndInside) {
+  const std::vector<double> unit = nice_ticks(0, 1, 5);
+  ASSERT_EQ(unit.size(), 6u);
+  for (size_t k = 0; k < unit.size(); ++k) EXPECT_NEAR(unit[k], 0.2 * double(k), 1e-12);
+  EXPECT_EQ(nice_ticks(224.3, 305.1, 4), (std::vector<double>{240, 260, 280, 300}));
+  EXPECT_EQ(nice_ticks(-1, 1, 4), (std::vector<double>{-1, -0.5, 0, 0.5, 1}));
+  EXPECT_TRUE(nice_ticks(1, 1).empty());
+  for (double v : nice_ticks(-3.7e-5, 9.1e-5, 6)) {
+    EXPECT_GE(v, -3.7e-5);
+    EXPECT_LE(v, 9.1e-5);
+  }
+}
+
+// The report font: DejaVu Sans through FreeType, anti-aliased, legible (13 px body text).
+TEST(RenderPng, FreeTypeFaceDrawsAntiAliasedText) {
+  const TextFace* face = report_face();
+  if (!face) GTEST_SKIP() << "DejaVu Sans (fonts-dejavu-core) not installed: reports use the bitmap font";
+  Image img(120, 30);
+  const int w = face->draw(img, 2, 2, "Temperature", {0, 0, 0}, 1);
+  EXPECT_EQ(w, face->width("Temperature", 1));
+  EXPECT_GT(w, 60);
+  EXPECT_LT(w, 100);
+  EXPECT_GE(face->height(1), 13);
+  EXPECT_LE(face->height(1), 18);
+  EXPECT_GT(face->height(2), face->height(1));
+  int black = 0, grey = 0;
+  for (size_t i = 0; i < img.rgb.size(); i += 3) black += img.rgb[i] < 40, grey += img.rgb[i] >= 40 && img.rgb[i] < 215;
+  EXPECT_GT(black, 40);
+  EXPECT_GT(grey, 20) << "anti-aliased edges";
+  // Non-ASCII text (degree sign, UTF-8) draws a glyph, not nothing.
+  EXPECT_GT(face->width("\xC2\xB0", 1), 2);
 }
 
 TEST(RenderPng, TextAndPanels) {
+  set_text_face(nullptr);  // the bitmap font's exact sizes
   Image img(40, 12);
   const int w = draw_text(img, 1, 1, "Ab1", {0, 0, 0});
   EXPECT_EQ(w, 18);

@@ -1,6 +1,8 @@
 // The optimization report: every picture and file written, metrics.json consistent with the
 // PNGs on disk, the optimized TF moving the images closer on the demo pair, and a page that
 // references every picture.
+#include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -11,6 +13,7 @@
 #include "png_io.h"
 #include "report.h"
 #include "synthetic.h"
+#include "tf_formats.h"
 #include "vk_test_env.h"
 
 namespace tfm {
@@ -35,14 +38,25 @@ TEST_F(Report, WritesPicturesMetricsAndPage) {
   req.field = &field;
   req.ref_tf = ref_tf;
   req.tf_size = 32;
-  const OptimizeResult result = run_optimize(ctx(), req);
+  OptimizeResult result = run_optimize(ctx(), req);
+  result.warnings.push_back("cond(M) <test warning>");
 
   ReportInputs in{ref, field, ref_tf, result, RenderSettings{}};
   in.settings.width = 48;
   in.settings.height = 40;
+  in.settings.box_outline = false;  // so that the PNGs on disk are the pictures measured
   in.title = "test <report>";
+  in.command_line = "tfmatch optimize --ref 'a b.nc:T' --out x.json";
+  in.version = "tfmatch 9.9.9 (commit test)";
+  in.histogram_log = false;
   in.extra_figures.push_back({"Loss", "loss.png", Image(20, 10, {0, 0, 255}), "a curve"});
   const ReportSummary s = write_report(ctx(), in, dir.path);
+  // Every file written is one report_file_names() lists (the output plan of the commands relies
+  // on it), and the directory holds those files only: no temporary file is left.
+  const std::vector<std::string> names = report_file_names();
+  for (const std::string& f : s.files) EXPECT_NE(std::find(names.begin(), names.end(), f), names.end()) << f;
+  EXPECT_EQ(size_t(std::distance(std::filesystem::directory_iterator(dir.path), std::filesystem::directory_iterator{})),
+            s.files.size());
 
   for (const char* name : {"reference.png", "field_reference_tf.png", "field_optimized_tf.png",
                            "residual_reference_tf.png", "residual_optimized_tf.png"}) {
@@ -73,6 +87,83 @@ TEST_F(Report, WritesPicturesMetricsAndPage) {
     if (f.ends_with(".png") && f != "overview.png") EXPECT_NE(html.find("src=\"" + f + "\""), std::string::npos) << f;
   EXPECT_NE(html.find("test &lt;report&gt;"), std::string::npos) << "title is escaped";
   EXPECT_NE(html.find("LPIPS"), std::string::npos);
+  // Warnings on the page; what reproduces it saved beside it; the histogram scale named.
+  EXPECT_NE(html.find("cond(M) &lt;test warning&gt;"), std::string::npos);
+  EXPECT_NE(html.find("tfmatch optimize --ref 'a b.nc:T' --out x.json"), std::string::npos) << html;
+  EXPECT_NE(html.find("tfmatch 9.9.9 (commit test)"), std::string::npos);
+  EXPECT_NE(html.find("histograms linear counts"), std::string::npos);
+  EXPECT_EQ(read_text(dir / "command.txt"), in.command_line + "\n" + in.version + "\n");
+  EXPECT_EQ(read_transfer_function(dir / "reference_tf.json").rgba, ref_tf.rgba);
+  const TransferFunction saved = read_transfer_function(dir / "optimized_tf.json");
+  EXPECT_EQ(saved.rgba, result.tf.rgba);
+  ASSERT_TRUE(saved.range);
+  EXPECT_EQ(saved.range->lo, result.field_range.lo);
+  EXPECT_EQ(m["histogram"], "linear");
+  EXPECT_EQ(m["command_line"], in.command_line);
+
+  // Slices through the middle, one picture per axis, four panels each, on the page.
+  ASSERT_EQ(s.slices.size(), 3u);
+  EXPECT_EQ(s.slice_point, (GridIndex{10, 9, 8}));
+  EXPECT_EQ(s.slices[0].file, "slices_z.png");
+  EXPECT_EQ(s.slices[0].caption, "z = 8");
+  for (const auto& sl : s.slices) {
+    const Image img = read_png(dir / sl.file);
+    EXPECT_GT(img.width, 3 * img.height) << sl.file;  // four panels side by side
+    EXPECT_NE(html.find(sl.caption), std::string::npos) << sl.caption;
+  }
+  EXPECT_EQ(m["slices"]["point"], nlohmann::json({10, 9, 8}));
+}
+
+TEST_F(Report, SlicesGoThroughTheChosenPointAndSkipLines) {
+  test::TempDir dir;
+  const Volume ref3 = synthetic_reference(12, 10, 1);  // one level: only the z plane is a plane
+  const Volume field3 = synthetic_remapped(ref3);
+  const TransferFunction ref_tf = demo_transfer_function(16);
+  OptimizeRequest req;
+  req.ref = &ref3;
+  req.field = &field3;
+  req.ref_tf = ref_tf;
+  req.tf_size = 16;
+  const OptimizeResult result = run_optimize(ctx(), req);
+  ReportInputs in{ref3, field3, ref_tf, result, RenderSettings{}};
+  in.settings.width = 32;
+  in.settings.height = 32;
+  in.slice_point = GridIndex{3, 7, 0};
+  const ReportSummary s = write_report(ctx(), in, dir.path);
+  ASSERT_EQ(s.slices.size(), 1u);
+  EXPECT_EQ(s.slices[0].file, "slices_z.png");
+  EXPECT_FALSE(std::filesystem::exists(dir / "slices_x.png"));
+  in.slice_point = GridIndex{3, 10, 0};  // y outside the grid: refused before anything is written
+  test::TempDir other;
+  EXPECT_THROW(write_report(ctx(), in, other.path / "r"), std::runtime_error);
+  EXPECT_FALSE(std::filesystem::exists(other.path / "r"));
+}
+
+TEST_F(Report, PicturesCarryTheBoxOutline) {
+  test::TempDir dir;
+  const Volume ref = synthetic_reference(10, 9, 8);
+  const Volume field = synthetic_remapped(ref);
+  OptimizeRequest req;
+  req.ref = &ref;
+  req.field = &field;
+  req.ref_tf = demo_transfer_function(16);
+  req.tf_size = 16;
+  const OptimizeResult result = run_optimize(ctx(), req);
+  ReportInputs in{ref, field, req.ref_tf, result, RenderSettings{}};
+  in.settings.width = in.settings.height = 40;
+  const ReportSummary s = write_report(ctx(), in, dir.path);
+  // The outline is on by default: grey box edges on the picture written.
+  const auto m = nlohmann::json::parse(read_text(dir / "metrics.json"));
+  EXPECT_EQ(m["render_settings"]["box_outline"], true);
+  const Image img = read_png(dir / "reference.png");
+  size_t grey = 0;
+  for (uint32_t y = 0; y < img.height; ++y)
+    for (uint32_t x = 0; x < img.width; ++x) {
+      const uint8_t* p = img.at(x, y);
+      grey += p[0] == p[1] && p[1] == p[2] && p[0] > 100 && p[0] < 200;
+    }
+  EXPECT_GT(grey, 20u) << "outline pixels";
+  EXPECT_FALSE(s.files.empty());
 }
 
 TEST_F(Report, RejectsFieldsOnDifferentGrids) {

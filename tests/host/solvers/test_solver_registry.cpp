@@ -31,7 +31,7 @@ std::string error_of(const std::function<void()>& f) {
 
 TEST(SolverRegistry, ListsEverySolverOnceInNameOrder) {
   std::vector<std::string> expected = {"cgls", "diffdvr", "eigen-cgls", "eigen-normal-equations", "gradient-descent",
-                                       "normal-equations", "qp"};
+                                       "histogram-matching", "normal-equations", "qp"};
 #ifdef TFMATCH_HAVE_CUDA
   expected.insert(expected.begin() + 1, {"cuda-cgls", "cuda-normal-equations"});
 #endif

@@ -1,0 +1,148 @@
+// The memory budget: resident memory from /proc, available memory from /proc/meminfo and the
+// cgroup limit, and the check made before large allocations.
+#include "memory_budget.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <mutex>
+#include <sstream>
+
+#include <unistd.h>
+
+#include "context.h"
+
+namespace tfm {
+namespace {
+
+std::mutex g_mutex;
+std::optional<MemoryBudget> g_budget;  // guarded by g_mutex; empty until set or first asked
+
+std::optional<uint64_t> read_number(const char* path) {
+  std::ifstream in(path);
+  std::string word;
+  if (!(in >> word) || word.empty() || !std::all_of(word.begin(), word.end(), ::isdigit)) return std::nullopt;
+  try {
+    return std::stoull(word);
+  } catch (const std::exception&) {
+    return std::nullopt;  // "max" or out of range: no limit
+  }
+}
+
+// Room left under the cgroup's limit, when the process runs in a limited cgroup (containers):
+// /proc/meminfo shows the whole machine there.
+std::optional<uint64_t> cgroup_room() {
+  const std::pair<const char*, const char*> files[] = {
+      {"/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"},                                  // v2
+      {"/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes"}};  // v1
+  for (auto [limit_file, usage_file] : files) {
+    const auto limit = read_number(limit_file), usage = read_number(usage_file);
+    // v1 reports "no limit" as a huge number.
+    if (limit && usage && *limit < (uint64_t(1) << 60)) return *limit > *usage ? *limit - *usage : 0;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+uint64_t resident_memory() {
+  std::FILE* f = std::fopen("/proc/self/statm", "r");
+  if (!f) return 0;
+  unsigned long long size = 0, resident = 0;
+  const int got = std::fscanf(f, "%llu %llu", &size, &resident);
+  std::fclose(f);
+  return got == 2 ? resident * uint64_t(::sysconf(_SC_PAGESIZE)) : 0;
+}
+
+uint64_t available_memory() {
+  std::ifstream in("/proc/meminfo");
+  std::string key, unit;
+  uint64_t value = 0, available = 0;
+  while (in >> key >> value) {
+    std::getline(in, unit);
+    if (key == "MemAvailable:") {
+      available = value * 1024;  // kB
+      break;
+    }
+  }
+  if (const auto room = cgroup_room()) available = available ? std::min(available, *room) : *room;
+  return available;
+}
+
+void set_memory_budget(uint64_t bytes, std::string source) {
+  std::lock_guard lock(g_mutex);
+  if (bytes == 0) g_budget.reset();
+  else g_budget = MemoryBudget{bytes, std::move(source)};
+}
+
+MemoryBudget memory_budget() {
+  std::lock_guard lock(g_mutex);
+  if (!g_budget) {
+    const uint64_t available = available_memory();
+    // Unknown (no /proc): no limit rather than a wrong one.
+    g_budget = available ? MemoryBudget{available + resident_memory(), "the memory available when tfmatch started"}
+                         : MemoryBudget{UINT64_MAX, "no limit: available memory unknown"};
+  }
+  return *g_budget;
+}
+
+void check_memory(uint64_t bytes, const std::string& what) {
+  const MemoryBudget budget = memory_budget();
+  const uint64_t in_use = resident_memory();
+  if (bytes <= budget.bytes && in_use <= budget.bytes - bytes) return;
+  throw MemoryBudgetExceeded(what + ": needs " + format_bytes(bytes) + ", but the memory budget is " +
+                             format_bytes(budget.bytes) + " (" + budget.source + ") and " + format_bytes(in_use) +
+                             " are in use; raise it with --max-memory if the machine has the memory");
+}
+
+void check_device_memory(const Context& ctx, uint64_t bytes, const std::string& what) {
+  uint64_t largest_heap = 0;
+  const VkPhysicalDeviceMemoryProperties& mem = ctx.memory_properties();
+  for (uint32_t i = 0; i < mem.memoryHeapCount; ++i) largest_heap = std::max<uint64_t>(largest_heap, mem.memoryHeaps[i].size);
+  if (bytes > largest_heap)
+    throw std::runtime_error(what + ": needs " + format_bytes(bytes) + " of device memory, more than the largest memory heap of " +
+                             ctx.device_name() + " (" + format_bytes(largest_heap) + ")");
+  const VkPhysicalDeviceType type = ctx.properties().deviceType;
+  if (type == VK_PHYSICAL_DEVICE_TYPE_CPU || type == VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU) check_memory(bytes, what);
+}
+
+std::string format_bytes(uint64_t bytes) {
+  if (bytes < 1024) return std::to_string(bytes) + " bytes";
+  static const char* units[] = {"KiB", "MiB", "GiB", "TiB", "PiB", "EiB"};
+  double v = double(bytes);
+  int u = -1;
+  while (v >= 1024 && u < 5) v /= 1024, ++u;
+  char buf[32];
+  std::snprintf(buf, sizeof buf, v < 10 ? "%.2f %s" : v < 100 ? "%.1f %s" : "%.0f %s", v, units[u]);
+  return buf;
+}
+
+std::optional<uint64_t> parse_byte_size(std::string_view text) {
+  std::string s(text);
+  size_t used = 0;
+  double number = 0;
+  try {
+    if (s.empty() || !(std::isdigit(static_cast<unsigned char>(s[0])) || s[0] == '.')) return std::nullopt;
+    number = std::stod(s, &used);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+  std::string unit = s.substr(used);
+  std::transform(unit.begin(), unit.end(), unit.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (unit.size() > 1 && unit.back() == 'b') unit.pop_back();     // "GB", "GiB"
+  if (unit.size() > 1 && unit.back() == 'i') unit.pop_back();     // "Gi"
+  static const std::pair<const char*, double> scales[] = {{"", 1},           {"b", 1},
+                                                          {"k", 0x1p10},     {"m", 0x1p20},
+                                                          {"g", 0x1p30},     {"t", 0x1p40}};
+  for (auto [name, scale] : scales)
+    if (unit == name) {
+      const double bytes = std::floor(number * scale);
+      if (!(bytes >= 1) || bytes >= 0x1p63) return std::nullopt;
+      return uint64_t(bytes);
+    }
+  return std::nullopt;
+}
+
+}  // namespace tfm

@@ -1,0 +1,53 @@
+// Axis-aligned slices of a volume as pictures: the plane through one index of an axis, classified
+// by a TF and shown the way a map is read: x east to the right, y north up, z up (DESIGN.md's
+// world orientation), each voxel a rectangle of its physical aspect (spacing, vertical
+// exaggeration), nearest-neighbour so every voxel stays visible as one value.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "field_mapping.h"
+#include "image.h"
+#include "transfer_function.h"
+#include "volume.h"
+
+namespace tfm {
+
+// The plane `index` of `axis` (0 x, 1 y, 2 z): its horizontal axis is the lower of the other two
+// (x for y and z slices, y for x slices), its vertical axis the higher. Values row-major from the
+// top row (highest index of the vertical axis) down.
+struct SliceValues {
+  int axis = 2;
+  uint64_t index = 0;
+  int across = 0, up = 1;      // the picture's horizontal and vertical volume axes
+  uint64_t width = 0, height = 0;
+  std::vector<float> values;
+};
+// Throws std::invalid_argument for an axis outside 0..2 or an index outside the grid.
+SliceValues extract_slice(const Volume& v, int axis, uint64_t index);
+
+struct SliceStyle {
+  std::array<double, 3> background{1.0, 1.0, 1.0};  // linear RGB (as RenderSettings::background)
+  std::array<double, 3> no_data{0.55, 0.55, 0.55};  // NaN voxels, linear RGB
+  // A slice shows one sample per pixel rather than an integral along a ray, so the TF's opacity
+  // is rescaled: alpha / opacity_scale (clamped to 1) over the background. Pass the largest
+  // opacity of the TF the picture is compared with, so fully opaque means "as opaque as it gets".
+  double opacity_scale = 1.0;
+  double z_scale = 1.0;       // vertical exaggeration of z (RenderSettings::z_scale)
+  uint32_t max_size = 384;    // longer side of the picture, pixels (at least one per voxel)
+};
+
+// T(v) of every voxel of the slice over the background (linear RGB), sRGB-encoded.
+Image slice_image(const Volume& v, const SliceValues& slice, const TransferFunction& tf, const FieldRange& range,
+                  const SliceStyle& style);
+
+// The largest opacity of a TF (at least 1e-6), for SliceStyle::opacity_scale.
+double max_opacity(const TransferFunction& tf);
+
+// "z = 12 (level 500 hPa)"-style description of a slice for captions.
+std::string describe_slice(const Volume& v, int axis, uint64_t index);
+
+}  // namespace tfm

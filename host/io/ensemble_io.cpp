@@ -1,0 +1,95 @@
+// Ensembles read member by member through the format table (volume_format_table.h): each format
+// knows how to select one member, so an ensemble needs no reader of its own.
+#include "ensemble_io.h"
+
+#include <glob.h>
+
+#include <algorithm>
+#include <limits>
+#include <memory>
+#include <stdexcept>
+
+#include "memory_budget.h"
+#include "volume_format_table.h"
+#include "volume_formats.h"
+
+namespace tfm {
+namespace {
+
+std::string grid_text(const Volume& v) {
+  return std::to_string(v.dims[0]) + "x" + std::to_string(v.dims[1]) + "x" + std::to_string(v.dims[2]);
+}
+
+// Appends member `v` to `e` (the first member sets the grid).
+void add_member(Ensemble& e, Volume&& v, uint64_t expected_members) {
+  if (e.member_count == 0) {
+    e.grid = empty_like(v);
+    const uint64_t voxels = v.voxel_count();
+    if (voxels != 0 && expected_members > std::numeric_limits<uint64_t>::max() / voxels / sizeof(float))
+      throw std::runtime_error(v.name + ": an ensemble of " + std::to_string(expected_members) + " members of " +
+                               std::to_string(voxels) + " voxels is too large");
+    check_memory(expected_members * voxels * sizeof(float),
+                 v.name + ": an ensemble of " + std::to_string(expected_members) + " members of " + grid_text(v));
+    e.values.reserve(expected_members * voxels);
+  } else if (v.dims != e.grid.dims) {
+    throw std::runtime_error("ensemble members are on different grids: " + e.member_names.front() + " is " +
+                             grid_text(e.grid) + ", " + v.name + " is " + grid_text(v));
+  }
+  e.values.insert(e.values.end(), v.values.begin(), v.values.end());
+  e.member_names.push_back(v.name);
+  ++e.member_count;
+}
+
+}  // namespace
+
+Ensemble load_ensemble(const std::string& spec, const VolumeOptions& defaults) {
+  const VolumeSpec s = parse_volume_spec(spec, defaults);
+  const std::string file = s.path.string();
+  if (!std::filesystem::exists(s.path)) throw std::runtime_error(file + ": no such file");
+  const VolumeFormat* format = find_volume_format(s.path);
+  if (!format) throw std::runtime_error(unknown_volume_format_message(s.path));
+  if (!format->has_members || !format->count_members)
+    throw std::runtime_error(file + ": a " + format->title + " file has no member axis (ensembles come from " +
+                             volume_format_titles(&VolumeFormat::has_members) + " files, or one file per member with --members)");
+  if (s.options.member_index)
+    throw std::runtime_error(file + ": ',member=N' / --member picks one member; an ensemble uses them all");
+  const uint64_t count = format->count_members(s.path, s.options);
+  if (count > std::numeric_limits<uint32_t>::max())
+    throw std::runtime_error(file + ": " + std::to_string(count) + " members are more than tfmatch handles");
+  Ensemble e;
+  for (uint64_t m = 0; m < count; ++m) {
+    VolumeOptions o = s.options;
+    o.member_index = m;
+    add_member(e, load_volume(file, o), count);
+  }
+  e.grid.name = file + (s.options.variable.empty() ? "" : ":" + s.options.variable);
+  return e;
+}
+
+Ensemble load_ensemble_members(const std::vector<std::string>& specs, const VolumeOptions& options) {
+  if (specs.size() > std::numeric_limits<uint32_t>::max()) throw std::runtime_error("too many member files");
+  Ensemble e;
+  for (const auto& spec : specs) add_member(e, load_volume(spec, options), specs.size());
+  if (!specs.empty()) e.grid.name = specs.front() + " .. " + specs.back();
+  return e;
+}
+
+std::vector<std::string> expand_member_patterns(const std::vector<std::string>& args) {
+  std::vector<std::string> out;
+  for (const auto& a : args) {
+    if (a.find_first_of("*?[") == std::string::npos) {
+      out.push_back(a);
+      continue;
+    }
+    // glob(3) from the C library: the shell's own pattern rules, sorted results.
+    glob_t g{};
+    const int rc = ::glob(a.c_str(), GLOB_ERR, nullptr, &g);
+    std::unique_ptr<glob_t, void (*)(glob_t*)> guard(&g, ::globfree);
+    if (rc == GLOB_NOMATCH) throw std::runtime_error(a + ": the pattern matches no file");
+    if (rc != 0) throw std::runtime_error(a + ": cannot expand the pattern (a directory is unreadable)");
+    for (size_t i = 0; i < g.gl_pathc; ++i) out.emplace_back(g.gl_pathv[i]);
+  }
+  return out;
+}
+
+}  // namespace tfm

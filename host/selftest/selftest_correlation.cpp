@@ -1,0 +1,85 @@
+// Self-test cases of the correlation kernels (correlation_pearson, _spearman, _kendall,
+// _mi_binned, _mi_kraskov): every measure on both strategies (one invocation per voxel at
+// M <= 32, one workgroup per voxel above), with ties, a NaN member, a constant voxel, the
+// reference voxel itself and fields split into chunks, against the double-precision references.
+#include <cmath>
+#include <string>
+
+#include "correlation.h"
+#include "correlation_cpu.h"
+#include "correlation_layout.h"
+#include "selftest_support.h"
+
+namespace tfm::selftest {
+namespace {
+
+struct CorrelationCase {
+  CorrelationParams params;
+  uint32_t members;
+  uint64_t voxels;
+  uint64_t max_device_bytes = 0;  // small: several chunks
+};
+
+// Bound: CorrelationKernel::error_bound (the test data make every comparison exact in float).
+// NaN results must be NaN on both sides.
+void correlation(Context& ctx, Check& check, const CorrelationCase& c) {
+  if (const uint64_t bytes = CorrelationKernel::shared_memory_bytes(c.params, c.members); !fits_shared_memory(ctx, bytes))
+    return check.skip(needs_shared_memory(ctx, bytes));
+  const CorrelationEnsemble e = correlation_test_ensemble(c.members, c.voxels, 7u * c.members + uint32_t(c.voxels));
+  const std::vector<float> reference = e.reference();
+  CorrelationKernel kernel(ctx);
+  uint32_t chunks = 0;
+  const std::vector<float> g =
+      kernel.compute(e.view(), reference, c.params, [&](uint64_t, uint64_t) { ++chunks; }, c.max_device_bytes);
+  if (c.max_device_bytes) check.require(chunks > 1, "the ensemble was not split into chunks");
+  const std::vector<double> r = correlation_field_reference(e.view(), reference, c.params);
+  const double bound = CorrelationKernel::error_bound(c.params, c.members);
+  for (uint64_t v = 0; v < c.voxels; ++v) {
+    if (std::isnan(r[v]))
+      check.equal("NaN voxel (1: NaN)", v, std::isnan(g[v]) ? 1.0 : 0.0, 1.0);
+    else
+      check.near("voxel", v, g[v], r[v], bound);
+  }
+}
+
+std::string correlation_name(const CorrelationCase& c) {
+  std::string s = "M=" + std::to_string(c.members) + ", " + voxels_name(c.voxels);
+  if (c.params.measure == CorrelationMeasure::MiBinned) s += ", " + std::to_string(c.params.bins) + " bins";
+  if (c.params.measure == CorrelationMeasure::MiKraskov) s += ", k=" + std::to_string(c.params.k);
+  if (c.params.measure == CorrelationMeasure::MiCoefficient) s += ", coefficient, k=" + std::to_string(c.params.k);
+  if (c.max_device_bytes) s += ", chunks";
+  return s;
+}
+
+}  // namespace
+
+void add_correlation_cases(CaseList& cases) {
+  using M = CorrelationMeasure;
+  const struct {
+    const char* shader;
+    CorrelationParams params;
+  } measures[] = {
+      {"correlation_pearson", {M::Pearson}},
+      {"correlation_spearman", {M::Spearman}},
+      {"correlation_kendall", {M::Kendall}},
+      {"correlation_mi_binned", {M::MiBinned, 8}},
+      {"correlation_mi_kraskov", {M::MiKraskov, 16, 3}},
+      {"correlation_mi_kraskov", {M::MiCoefficient, 16, 4}},
+  };
+  for (const auto& m : measures) {
+    auto add = [&](uint32_t members, uint64_t voxels, uint64_t max_bytes, bool quick) {
+      const CorrelationCase c{m.params, members, voxels, max_bytes};
+      cases.push_back({m.shader, "CorrelationKernel", correlation_name(c), quick,
+                       CorrelationKernel::workgroup_size(m.params, members),
+                       [c](Context& ctx, Check& check) { correlation(ctx, check, c); }});
+    };
+    // One invocation per voxel: one past a workgroup of voxels, in chunks (4 KiB hold ~60 voxels).
+    add(7, TFM_CORR_INVOCATION_WORKGROUP + 1, 4096, true);
+    // One workgroup per voxel; the paper's 1000 members on a few voxels.
+    add(100, 9, 0, true);
+    add(33, 13, 0, false);
+    add(1000, 9, 0, false);
+  }
+}
+
+}  // namespace tfm::selftest

@@ -1,0 +1,306 @@
+// Correlation fields on the device: measure names and parameter checks, the strategy per member
+// count, and CorrelationKernel, which streams the ensemble through the kernels in chunks of voxels.
+#include "correlation.h"
+
+#include "shader_registry.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <map>
+#include <stdexcept>
+#include <tuple>
+
+#include "buffer.h"
+#include "commands.h"
+#include "context.h"
+#include "correlation_layout.h"
+#include "correlation_reference.h"
+#include "pipeline.h"
+
+namespace tfm {
+
+static_assert(sizeof(gpu::CorrelationPush) == 36, "CorrelationPush must match the GLSL std430 block");
+static_assert(kMaxCorrelationBins == TFM_CORR_MAX_BINS && kMaxCorrelationK == TFM_CORR_MAX_K);
+
+namespace {
+
+struct MeasureInfo {
+  CorrelationMeasure measure;
+  const char* name;
+  const char* shader;
+  uint32_t regions;  // shared-memory regions per voxel (correlation_common.glsl)
+};
+constexpr MeasureInfo kMeasures[] = {
+    {CorrelationMeasure::Pearson, "pearson", "correlation_pearson", 0},
+    {CorrelationMeasure::Spearman, "spearman", "correlation_spearman", 2},
+    {CorrelationMeasure::Kendall, "kendall", "correlation_kendall", 2},
+    {CorrelationMeasure::MiBinned, "mi-binned", "correlation_mi_binned", 1},
+    {CorrelationMeasure::MiKraskov, "mi-kraskov", "correlation_mi_kraskov", 3},
+    {CorrelationMeasure::MiCoefficient, "mi-coefficient", "correlation_mi_kraskov", 3},
+};
+
+const MeasureInfo& info(CorrelationMeasure m) {
+  for (const MeasureInfo& i : kMeasures)
+    if (i.measure == m) return i;
+  throw std::invalid_argument("unknown correlation measure");
+}
+
+// How one measure runs for one member count (why: shaders/correlation_common.glsl).
+struct Plan {
+  const char* shader = nullptr;
+  bool group_per_voxel = false;
+  bool coefficient = false;
+  uint32_t workgroup = TFM_CORR_INVOCATION_WORKGROUP;
+  uint32_t region_floats = 1;
+  uint32_t shared_floats = 1;
+  uint64_t shared_bytes = 0;  // everything the kernel declares in workgroup-shared memory
+};
+
+Plan make_plan(CorrelationMeasure measure, uint32_t members) {
+  const MeasureInfo& mi = info(measure);
+  Plan p;
+  p.shader = mi.shader;
+  p.coefficient = measure == CorrelationMeasure::MiCoefficient;
+  // Pearson streams over the members whatever their number.
+  p.group_per_voxel = measure != CorrelationMeasure::Pearson && members > TFM_CORR_INVOCATION_MAX_MEMBERS;
+  uint32_t regions = mi.regions;
+  if (p.group_per_voxel) {
+    const uint32_t capacity = (members + TFM_CORR_CAPACITY_STEP - 1) / TFM_CORR_CAPACITY_STEP * TFM_CORR_CAPACITY_STEP;
+    p.workgroup = TFM_CORR_GROUP_WORKGROUP;
+    // A Kraskov neighbour search may walk past every member (a reference with few distinct
+    // values): enough invocations that ceil(M / T) of them stay within the loop budget.
+    if (measure == CorrelationMeasure::MiKraskov || measure == CorrelationMeasure::MiCoefficient) {
+      const uint64_t walks = (uint64_t(members) * members + TFM_CORR_LOOP_BUDGET - 1) / TFM_CORR_LOOP_BUDGET;
+      p.workgroup = uint32_t(std::max<uint64_t>(p.workgroup, std::bit_ceil(walks)));
+    }
+    p.region_floats = capacity;
+    if (measure == CorrelationMeasure::MiBinned) regions = 0;  // the histogram needs no series storage
+  } else {
+    p.region_floats = TFM_CORR_INVOCATION_WORKGROUP * TFM_CORR_SLICE_STRIDE;
+  }
+  p.shared_floats = std::max(1u, regions * p.region_floats);
+  p.shared_bytes = uint64_t(p.shared_floats) * 4 + uint64_t(p.workgroup) * 16 + 16;  // s_work, s_reduce, s_counts
+  if (measure == CorrelationMeasure::MiBinned) p.shared_bytes += (TFM_CORR_MAX_BINS + 2) * TFM_CORR_MAX_BINS * 4;
+  if (measure == CorrelationMeasure::Spearman) p.shared_bytes += 2 * gpu::kFixedSlotBytes;
+  return p;
+}
+
+}  // namespace
+
+const char* correlation_measure_name(CorrelationMeasure m) { return info(m).name; }
+
+std::vector<std::string> correlation_measure_names() {
+  std::vector<std::string> names;
+  for (const MeasureInfo& i : kMeasures) names.emplace_back(i.name);
+  return names;
+}
+
+CorrelationMeasure parse_correlation_measure(const std::string& name) {
+  for (const MeasureInfo& i : kMeasures)
+    if (name == i.name) return i.measure;
+  std::string list;
+  for (const MeasureInfo& i : kMeasures) list += (list.empty() ? "" : ", ") + std::string(i.name);
+  throw std::invalid_argument("unknown correlation measure '" + name + "' (measures: " + list + ")");
+}
+
+void validate_correlation_params(const CorrelationParams& params, uint32_t member_count) {
+  const char* name = correlation_measure_name(params.measure);
+  if (member_count < 3 || member_count > kMaxCorrelationMembers)
+    throw std::invalid_argument(std::string(name) + ": an ensemble needs 3.." + std::to_string(kMaxCorrelationMembers) +
+                                " members (got " + std::to_string(member_count) + ")");
+  if (params.measure == CorrelationMeasure::MiBinned && (params.bins < 2 || params.bins > kMaxCorrelationBins))
+    throw std::invalid_argument("mi-binned: bins must be 2.." + std::to_string(kMaxCorrelationBins) + " (got " +
+                                std::to_string(params.bins) + ")");
+  if (params.measure == CorrelationMeasure::MiKraskov || params.measure == CorrelationMeasure::MiCoefficient) {
+    const uint32_t max_k = std::min(member_count - 1, kMaxCorrelationK);
+    if (params.k < 1 || params.k > max_k)
+      throw std::invalid_argument(std::string(name) + ": k must be 1.." + std::to_string(max_k) + " for " +
+                                  std::to_string(member_count) + " members (got " + std::to_string(params.k) + ")");
+  }
+}
+
+std::vector<float> ensemble_series(const EnsembleView& ens, uint64_t voxel) {
+  if (voxel >= ens.voxel_count)
+    throw std::out_of_range("ensemble_series: voxel " + std::to_string(voxel) + " of " +
+                            std::to_string(ens.voxel_count));
+  std::vector<float> s(ens.member_count);
+  for (uint32_t m = 0; m < ens.member_count; ++m) s[m] = ens.at(m, voxel);
+  return s;
+}
+
+std::string CorrelationKernel::strategy(const CorrelationParams& params, uint32_t member_count) {
+  const Plan p = make_plan(params.measure, member_count);
+  if (params.measure == CorrelationMeasure::Pearson) return "one invocation per voxel, two passes over the members";
+  if (params.measure == CorrelationMeasure::MiBinned)
+    return p.group_per_voxel ? "one workgroup per voxel, shared-memory joint histogram"
+                             : "one invocation per voxel, pairwise bin counts";
+  return p.group_per_voxel ? "one workgroup per voxel, shared-memory merge sort"
+                           : "one invocation per voxel, merge sort in a shared-memory slice";
+}
+
+uint32_t CorrelationKernel::workgroup_size(const CorrelationParams& params, uint32_t member_count) {
+  return make_plan(params.measure, member_count).workgroup;
+}
+
+uint64_t CorrelationKernel::shared_memory_bytes(const CorrelationParams& params, uint32_t member_count) {
+  return make_plan(params.measure, member_count).shared_bytes;
+}
+
+double CorrelationKernel::error_bound(const CorrelationParams& params, uint32_t member_count) {
+  constexpr double eps = 0x1p-24;
+  // Conversions to float, a division (2.5 ulp in Vulkan), square roots and exp, with margin.
+  constexpr double final_ops = 64 * eps;
+  const CorrelationMeasure m = params.measure;
+  if (m == CorrelationMeasure::Pearson || m == CorrelationMeasure::Spearman || m == CorrelationMeasure::Kendall)
+    return final_ops;
+  // A float sum of n terms of magnitude <= t errs by <= n eps (n t) at worst; per member (the
+  // mean) n eps t. n is the longest chain of additions: one invocation's members, then the
+  // workgroup's partials in order.
+  const Plan p = make_plan(m, member_count);
+  const double additions =
+      p.group_per_voxel ? std::ceil(double(member_count) / p.workgroup) + p.workgroup : double(member_count);
+  const double ln_m = std::log(double(member_count));
+  // |ln c_xy - ln c_x - ln c_y| <= 3 ln M; |digamma(n_x + 1) + digamma(n_y + 1)| <= 2 (ln M + 1).
+  const double term = m == CorrelationMeasure::MiBinned ? 3 * ln_m : 2 * (ln_m + 1);
+  // Plus the tabulated values (relative eps each) and the offset (<= 2 ln M + 1) in float.
+  const double mi = (additions + 1) * eps * term + 2 * eps * (2 * ln_m + 1) + final_ops;
+  return m == CorrelationMeasure::MiCoefficient ? std::sqrt(2 * mi) + final_ops : mi;
+}
+
+struct CorrelationKernel::Impl {
+  explicit Impl(Context& c) : ctx(c) {}
+  Context& ctx;
+  // Pipelines by (shader, strategy, region size, coefficient), built on first use and kept.
+  std::map<std::tuple<std::string, bool, uint32_t, bool>, std::unique_ptr<ComputePipeline>> pipelines;
+
+  const ComputePipeline& pipeline(const Plan& p) {
+    auto& slot = pipelines[{p.shader, p.group_per_voxel, p.region_floats, p.coefficient}];
+    if (!slot) {
+      PipelineDesc desc;
+      desc.shader = p.shader;
+      desc.binding_counts = gpu::to_vector(kBindingCounts);
+      desc.push_constant_bytes = sizeof(gpu::CorrelationPush);
+      desc.workgroup_size = p.workgroup;
+      desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, p.workgroup},
+                                        {TFM_CORR_SPEC_GROUP_PER_VOXEL, p.group_per_voxel ? 1u : 0u},
+                                        {TFM_CORR_SPEC_REGION_FLOATS, p.region_floats},
+                                        {TFM_CORR_SPEC_SHARED_FLOATS, p.shared_floats},
+                                        {TFM_CORR_SPEC_COEFFICIENT, p.coefficient ? 1u : 0u}});
+      desc.spirv = shader_spirv(desc.shader);
+      slot = std::make_unique<ComputePipeline>(ctx, desc);
+    }
+    return *slot;
+  }
+
+  static constexpr auto kBindingCounts =
+      gpu::binding_counts({TFM_CORR_BINDING_ENSEMBLE, TFM_CORR_BINDING_OUT, TFM_CORR_BINDING_REF_VALUES,
+                           TFM_CORR_BINDING_REF_ORDER, TFM_CORR_BINDING_REF_GROUP, TFM_CORR_BINDING_TABLE});
+};
+
+namespace {
+
+constexpr uint64_t kDefaultDeviceBytes = 256ull << 20;
+
+gpu::CorrelationPush make_push(const CorrelationReference& ref) {
+  gpu::CorrelationPush push{};
+  push.member_count = ref.members;
+  push.param = ref.params.measure == CorrelationMeasure::MiBinned ? ref.params.bins : ref.params.k;
+  push.flags = (ref.constant ? TFM_CORR_FLAG_REF_CONSTANT : 0u) | (ref.tied_pairs > 0 ? TFM_CORR_FLAG_REF_TIES : 0u);
+  push.ref_lo = ref.lo;
+  push.ref_hi = ref.hi;
+  push.ref_norm = float(ref.norm);
+  push.ref_tied_pairs = uint32_t(ref.tied_pairs);
+  push.mi_offset = float(ref.mi_offset);
+  return push;
+}
+
+}  // namespace
+
+CorrelationKernel::CorrelationKernel(Context& ctx) : impl_(std::make_unique<Impl>(ctx)) {}
+CorrelationKernel::~CorrelationKernel() = default;
+
+std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span<const float> reference,
+                                              const CorrelationParams& params, const CorrelationProgress& progress,
+                                              uint64_t max_device_bytes) {
+  const std::string name = correlation_measure_name(params.measure);
+  validate_correlation_inputs(ens, reference, params);
+  const uint32_t members = ens.member_count;
+  const uint64_t voxels = ens.voxel_count;
+  const CorrelationReference ref = prepare_correlation_reference(reference, params);
+  std::vector<float> out(voxels, std::numeric_limits<float>::quiet_NaN());
+  if (ref.has_nan) {  // NaN at every voxel (kernels/correlation.h)
+    if (progress) progress(voxels, voxels);
+    return out;
+  }
+
+  Context& ctx = impl_->ctx;
+  const Plan plan = make_plan(params.measure, members);
+  // The region and histogram sizes are fixed by the member count; a device with less shared
+  // memory than they need cannot run this measure at this size.
+  const VkPhysicalDeviceLimits& limits = ctx.limits();
+  const std::string what = name + " with " + std::to_string(members) + " members needs ";
+  if (plan.shared_bytes > limits.maxComputeSharedMemorySize)
+    throw std::runtime_error(what + std::to_string(plan.shared_bytes) + " bytes of workgroup shared memory; the device has " +
+                             std::to_string(limits.maxComputeSharedMemorySize) + " (maxComputeSharedMemorySize)");
+  const uint32_t max_workgroup = std::min(limits.maxComputeWorkGroupInvocations, limits.maxComputeWorkGroupSize[0]);
+  if (plan.workgroup > max_workgroup)
+    throw std::runtime_error(what + "workgroups of " + std::to_string(plan.workgroup) + " invocations; the device allows " +
+                             std::to_string(max_workgroup) + " (maxComputeWorkGroupInvocations, maxComputeWorkGroupSize[0])");
+  const ComputePipeline& pipeline = impl_->pipeline(plan);
+
+  // Device memory: the reference buffers, then per voxel its series twice (staging and device
+  // copy) and its result twice (device and readback).
+  const uint64_t fixed_bytes = uint64_t(members) * 16 + 16;
+  const uint64_t voxel_bytes = uint64_t(members) * 8 + 8;
+  const uint64_t budget = max_device_bytes ? max_device_bytes : kDefaultDeviceBytes;
+  if (budget < fixed_bytes + voxel_bytes)
+    throw std::invalid_argument(name + ": max_device_bytes = " + std::to_string(budget) + " is too small; one voxel of " +
+                                std::to_string(members) + " members needs " + std::to_string(fixed_bytes + voxel_bytes));
+  const uint64_t chunk = std::min({(budget - fixed_bytes) / voxel_bytes,
+                                   ctx.max_buffer_bytes() / (uint64_t(members) * sizeof(float)), voxels});
+
+  Buffer values = make_buffer<float>(ctx, ref.values, "correlation reference values");
+  Buffer order = make_buffer<uint32_t>(ctx, ref.order, "correlation reference order");
+  Buffer group = make_buffer<uint32_t>(ctx, ref.group, "correlation reference tie groups");
+  Buffer table = make_buffer<float>(ctx, ref.table, "correlation count table");
+  Buffer staging(ctx, chunk * members * sizeof(float), MemoryUsage::Upload, "correlation ensemble staging");
+  Buffer series(ctx, chunk * members * sizeof(float), MemoryUsage::Device, "correlation ensemble chunk");
+  Buffer result(ctx, chunk * sizeof(float), MemoryUsage::Device, "correlation result chunk");
+  Buffer readback(ctx, chunk * sizeof(float), MemoryUsage::Readback, "correlation result readback");
+  gpu::CorrelationPush push = make_push(ref);
+  const uint64_t max_x = ctx.limits().maxComputeWorkGroupCount[0];
+  for (uint64_t v0 = 0; v0 < voxels; v0 += chunk) {
+    const uint32_t n = uint32_t(std::min(chunk, voxels - v0));
+    // The chunk layout of the strategy (shaders/correlation_layout.h): member-major for one
+    // invocation per voxel, voxel-major for one workgroup per voxel.
+    float* dst = static_cast<float*>(staging.mapped());
+    if (plan.group_per_voxel)
+      gather_series(ens, v0, n, dst);
+    else
+      for (uint32_t m = 0; m < members; ++m)
+        std::memcpy(dst + uint64_t(m) * n, ens.values + m * voxels + v0, uint64_t(n) * sizeof(float));
+    push.voxel_count = n;
+    // One voxel per workgroup or invocation, never more (shaders/correlation_common.glsl): rows
+    // of at most maxComputeWorkGroupCount[0] groups (the limits guarantee 65535 rows).
+    const uint64_t groups = plan.group_per_voxel ? n : (n + plan.workgroup - 1) / plan.workgroup;
+    const uint64_t groups_x = std::min(groups, max_x);
+    CommandBatch batch(ctx);
+    batch.copy(staging, 0, series, 0, uint64_t(n) * members * sizeof(float));
+    // The chunk is on the device before the kernel reads it.
+    batch.barrier();
+    batch.dispatch(pipeline, {series, result, values, order, group, table}, push,
+                   {uint32_t(groups_x), uint32_t((groups + groups_x - 1) / groups_x)});
+    // The results are written before they are copied out.
+    batch.barrier();
+    batch.copy(result, 0, readback, 0, uint64_t(n) * sizeof(float));
+    batch.submit_and_wait();
+    std::memcpy(out.data() + v0, readback.mapped(), uint64_t(n) * sizeof(float));
+    if (progress) progress(v0 + n, voxels);
+  }
+  return out;
+}
+
+}  // namespace tfm

@@ -1,0 +1,57 @@
+// Histograms of device fields (shaders/field_histogram.comp): B equal bins over a value range,
+// with counts below, above and NaN, summed in 64 bits on the host. The histogram-matching solver
+// builds both fields' quantile functions from these; the exact counts make the result the same on
+// every device, run and chunking.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "buffer.h"
+#include "device_field.h"
+#include "histogram_layout.h"
+#include "pipeline.h"
+
+namespace tfm {
+
+class Context;
+
+struct FieldHistogram {
+  double lo = 0.0, hi = 1.0;    // the range the bins divide
+  std::vector<uint64_t> bins;   // B counts; bin k holds [lo + k w, lo + (k+1) w), the last also hi
+  uint64_t below = 0, above = 0, nan = 0;
+  uint64_t finite() const;      // below + above + all bins
+};
+
+// The float32 bin arithmetic of the shader (bit-identical on the host): the scale it uses for
+// [lo, hi] and the counter (histogram_layout.h) a value goes to.
+inline float histogram_scale(double lo, double hi, uint32_t bins) { return float(double(bins) / (hi - lo)); }
+inline uint32_t histogram_counter(float v, float lo, float scale, uint32_t bins) {
+  if (std::isnan(v)) return TFM_HIST_NAN(bins);
+  volatile float t = (v - lo) * scale;  // volatile: no contraction or excess precision, as `precise`
+  if (t < 0.0f) return TFM_HIST_BELOW;
+  if (t > float(bins)) return TFM_HIST_ABOVE(bins);
+  return 1u + std::min(uint32_t(std::floor(t)), bins - 1u);
+}
+
+class FieldHistogramKernel {
+ public:
+  // `bins` in [1, TFM_HIST_MAX_BINS] (std::invalid_argument otherwise). Counts in workgroup-shared
+  // memory when the counters fit, else in the buffer (`force_global` selects that path; tests).
+  FieldHistogramKernel(Context& ctx, uint32_t bins, bool force_global = false);
+  uint32_t bins() const { return bins_; }
+  bool uses_shared_memory() const { return use_shared_; }
+  // The histogram of `field` over [lo, hi] (finite, lo < hi; std::invalid_argument otherwise).
+  FieldHistogram run(const DeviceField& field, double lo, double hi) const;
+
+ private:
+  Context& ctx_;
+  uint32_t bins_;
+  bool use_shared_;
+  std::unique_ptr<ComputePipeline> pipeline_;
+};
+
+}  // namespace tfm

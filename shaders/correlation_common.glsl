@@ -1,0 +1,145 @@
+// What every correlation kernel shares: bindings, the two strategies, reading a voxel's series,
+// deterministic workgroup reductions. A kernel defines CORR_REGIONS (shared-memory regions per
+// voxel, 0 for none) before including this file.
+//
+// Why two strategies. Measures that only stream over the members (pearson; mi-binned once its
+// histogram is small) need no per-voxel storage. The others sort or search a voxel's series, so
+// it must sit in memory an invocation can index: private arrays of M floats would be registers
+// at M <= 32 but spill to slow per-thread memory long before M = 1000, and a workgroup has only
+// 32 KiB of shared memory (the portable minimum) for all its invocations. So:
+// - M <= TFM_CORR_INVOCATION_MAX_MEMBERS: one invocation per voxel, sequential algorithms on a
+//   private slice of shared memory (64 invocations x 33 floats per region: 8.4 KiB a region).
+//   Sorting 32 values takes one invocation a few hundred steps; no barriers are needed, and
+//   neighbouring invocations read neighbouring addresses of the member-major chunk.
+// - M > 32: one workgroup per voxel. The series is loaded once into shared memory (M floats per
+//   region: 32 KiB hold 3968 members in two regions, 2368 for mi-kraskov's three); the
+//   workgroup merge-sorts it cooperatively (merge path: each invocation merges its own tile of
+//   every level, O(M log M) work in all) and every invocation handles members q = lid, lid + T,
+//   ... of the per-member work. The chunk is voxel-major so a workgroup reads its series at
+//   consecutive addresses.
+//
+// Determinism: integer totals use 32-bit integer atomics (exact, so order does not matter);
+// float totals are summed by each invocation in a fixed member order and then over the
+// invocations in a fixed order, so every result has the same bits on every run and however the
+// voxels are chunked.
+#ifndef TFMATCH_CORRELATION_COMMON_GLSL
+#define TFMATCH_CORRELATION_COMMON_GLSL
+
+#define TFM_WANT_CORRELATION_PUSH
+#include "correlation_layout.h"
+
+layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
+layout(constant_id = TFM_CORR_SPEC_GROUP_PER_VOXEL) const bool GROUP_PER_VOXEL = false;
+layout(constant_id = TFM_CORR_SPEC_REGION_FLOATS) const uint REGION_FLOATS = 1u;
+layout(constant_id = TFM_CORR_SPEC_SHARED_FLOATS) const uint SHARED_FLOATS = 1u;
+
+layout(std430, binding = TFM_CORR_BINDING_ENSEMBLE) readonly buffer Ensemble { float ensemble[]; };
+layout(std430, binding = TFM_CORR_BINDING_OUT) writeonly buffer Out { float result[]; };
+layout(std430, binding = TFM_CORR_BINDING_REF_VALUES) readonly buffer RefValues { float ref_values[]; };
+layout(std430, binding = TFM_CORR_BINDING_REF_ORDER) readonly buffer RefOrder { uint ref_order[]; };
+layout(std430, binding = TFM_CORR_BINDING_REF_GROUP) readonly buffer RefGroup { uint ref_group[]; };
+layout(std430, binding = TFM_CORR_BINDING_TABLE) readonly buffer Table { float count_table[]; };
+
+#if CORR_REGIONS > 0
+// The series storage: region r of the current voxel starts at corr_region(r).
+shared float s_work[SHARED_FLOATS];
+
+uint corr_region(uint r) {
+  return r * REGION_FLOATS + (GROUP_PER_VOXEL ? 0u : gl_LocalInvocationIndex * TFM_CORR_SLICE_STRIDE);
+}
+#endif
+
+#define CORR_NAN uintBitsToFloat(0x7fc00000u)
+#define CORR_INF uintBitsToFloat(0x7f800000u)
+
+// Member m of voxel v in this chunk.
+float series_value(uint v, uint m) {
+  return GROUP_PER_VOXEL ? ensemble[v * pc.member_count + m] : ensemble[m * pc.voxel_count + v];
+}
+
+// The per-member work of a voxel: every member in one invocation, or members lid, lid + T, ...
+// of the workgroup in each of its invocations.
+#define CORR_FIRST (GROUP_PER_VOXEL ? gl_LocalInvocationIndex : 0u)
+#define CORR_STEP (GROUP_PER_VOXEL ? gl_WorkGroupSize.x : 1u)
+#define CORR_FOR_EACH(q, count) for (uint q = CORR_FIRST; q < (count); q += CORR_STEP)
+
+// The voxel of this invocation (one invocation per voxel) or of this workgroup (one workgroup per
+// voxel); past the chunk's end when >= pc.voxel_count. Dispatches are 2-D when a chunk needs more
+// than maxComputeWorkGroupCount[0] groups. No kernel loops over voxels: llvmpipe (lavapipe) ends
+// an invocation's loops once all of them together have run 65535 iterations, so one invocation
+// must never take on several voxels' work (kernels/correlation.cpp caps M for the same reason).
+uint corr_voxel() {
+  const uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+  return GROUP_PER_VOXEL ? group : group * gl_WorkGroupSize.x + gl_LocalInvocationIndex;
+}
+
+shared vec4 s_reduce[gl_WorkGroupSize.x];
+shared uint s_counts[4];
+
+// (sum, min, max, max) of vec4 terms.
+vec4 corr_combine(vec4 a, vec4 b) { return vec4(a.x + b.x, min(a.y, b.y), max(a.z, b.z), max(a.w, b.w)); }
+
+// The voxel's total of per-invocation partial results: the value itself for one invocation per
+// voxel; otherwise every invocation combines the workgroup's partials in invocation order (a
+// fixed order, and two barriers where a tree takes log2(T) + 1: barriers are what a workgroup
+// per voxel pays for on lavapipe, whose invocations switch contexts at each).
+vec4 corr_total(vec4 v) {
+  if (!GROUP_PER_VOXEL) return v;
+  // Every invocation has read the previous total before s_reduce is overwritten.
+  barrier();
+  s_reduce[gl_LocalInvocationIndex] = v;
+  // Every partial is written before any is read.
+  memoryBarrierShared();
+  barrier();
+  vec4 total = s_reduce[0];
+  for (uint i = 1u; i < gl_WorkGroupSize.x; ++i) total = corr_combine(total, s_reduce[i]);
+  return total;
+}
+
+// Clears the integer totals of corr_count_total; call before the first barrier of the voxel
+// (which then orders the clearing before every add).
+void corr_clear_counts() {
+  if (GROUP_PER_VOXEL && gl_LocalInvocationIndex == 0u)
+    for (uint c = 0u; c < 4u; ++c) s_counts[c] = 0u;
+}
+
+// Integer totals over the workgroup (exact 32-bit atomics; counts here stay far below 2^32);
+// once per voxel, after corr_clear_counts.
+uvec4 corr_count_total(uvec4 v) {
+  if (!GROUP_PER_VOXEL) return v;
+  for (uint c = 0u; c < 4u; ++c)
+    if (v[c] != 0u) atomicAdd(s_counts[c], v[c]);
+  // Every add is done before the totals are read.
+  memoryBarrierShared();
+  barrier();
+  return uvec4(s_counts[0], s_counts[1], s_counts[2], s_counts[3]);
+}
+
+// Partial (unused, min, max, has NaN) of one value; NaN takes no part in min and max.
+vec4 corr_stats_term(float y) {
+  return isnan(y) ? vec4(0.0, CORR_INF, -CORR_INF, 1.0) : vec4(0.0, y, y, 0.0);
+}
+#define CORR_STATS_EMPTY vec4(0.0, CORR_INF, -CORR_INF, 0.0)
+
+// Writes the voxel's result once (by the first invocation of its workgroup).
+void corr_write(uint v, float value) {
+  if (!GROUP_PER_VOXEL || gl_LocalInvocationIndex == 0u) result[v] = value;
+}
+
+// The result of a voxel whose series (stats from corr_total: y min, z max, w NaN flag) or the
+// reference rules the measure out, following kernels/correlation.h: NaN for NaN members; for a
+// constant series `constant_value` (NaN for the correlation coefficients, 0 for mutual
+// information). Returns false when the measure must be computed.
+bool corr_special_case(uint v, vec4 stats, float constant_value) {
+  if (stats.w > 0.0) {
+    corr_write(v, CORR_NAN);
+    return true;
+  }
+  if (stats.y == stats.z || (pc.flags & TFM_CORR_FLAG_REF_CONSTANT) != 0u) {
+    corr_write(v, constant_value);
+    return true;
+  }
+  return false;
+}
+
+#endif

@@ -1,0 +1,37 @@
+// What the fuzz targets of the library-backed readers share: a memory budget below libFuzzer's
+// malloc limit (so that a header claiming gigabytes is refused by tfmatch's own check, which is
+// what is under test), and loading every array a describer listed.
+#pragma once
+
+#include <stdexcept>
+
+#include "memory_budget.h"
+#include "volume_info.h"
+#include "volume_io.h"
+
+namespace tfm::fuzz {
+
+// tools/fuzz.sh runs with -malloc_limit_mb=1024 -rss_limit_mb=2048.
+inline void limit_memory() { set_memory_budget(uint64_t(768) << 20, "fuzz target limit"); }
+
+// Calls load(options) for the first arrays `info` lists as loadable, at time and member 0 and 1;
+// errors the readers report are expected, crashes and sanitizer reports are findings.
+template <class Load>
+void load_each_array(const FileInfo& info, Load load) {
+  size_t tried = 0;
+  for (const ArrayInfo& a : info.arrays) {
+    if (a.grid[0] == 0 || ++tried > 4) continue;
+    for (uint64_t index : {0, 1}) {
+      VolumeOptions options;
+      options.variable = a.name;
+      options.time_index = index;
+      options.member_index = index;
+      try {
+        load(options);
+      } catch (const std::runtime_error&) {
+      }
+    }
+  }
+}
+
+}  // namespace tfm::fuzz

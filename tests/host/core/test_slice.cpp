@@ -1,0 +1,97 @@
+// Axis-aligned slices: which voxels each picture row and column shows (north and up at the top),
+// picture sizes from spacing and vertical exaggeration, colours over the background, no-data grey,
+// and errors for planes outside the grid.
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "slice.h"
+
+namespace tfm {
+namespace {
+
+Volume numbered(uint64_t nx, uint64_t ny, uint64_t nz) {
+  Volume v;
+  v.dims = {nx, ny, nz};
+  for (uint64_t z = 0; z < nz; ++z)
+    for (uint64_t y = 0; y < ny; ++y)
+      for (uint64_t x = 0; x < nx; ++x) v.values.push_back(float(100 * z + 10 * y + x));
+  return v;
+}
+
+TEST(Slice, RowsRunFromTheTopDownAndColumnsAlongTheLowerAxis) {
+  const Volume v = numbered(4, 3, 2);
+  const SliceValues z = extract_slice(v, 2, 1);  // x across, y up
+  EXPECT_EQ(z.width, 4u);
+  EXPECT_EQ(z.height, 3u);
+  EXPECT_EQ(z.values.front(), 100 + 20 + 0);  // top-left: highest y (north), x = 0
+  EXPECT_EQ(z.values.back(), 100 + 0 + 3);    // bottom-right: y = 0, x = 3
+  const SliceValues y = extract_slice(v, 1, 2);  // x across, z up
+  EXPECT_EQ(y.width, 4u);
+  EXPECT_EQ(y.height, 2u);
+  EXPECT_EQ(y.values[0], 100 + 20 + 0);
+  EXPECT_EQ(y.values[4 + 3], 0 + 20 + 3);
+  const SliceValues x = extract_slice(v, 0, 3);  // y across, z up
+  EXPECT_EQ(x.across, 1);
+  EXPECT_EQ(x.up, 2);
+  EXPECT_EQ(x.width, 3u);
+  EXPECT_EQ(x.height, 2u);
+  EXPECT_EQ(x.values[0], 100 + 0 + 3);
+  EXPECT_EQ(x.values[3 + 2], 0 + 20 + 3);
+  EXPECT_THROW(extract_slice(v, 3, 0), std::invalid_argument);
+  EXPECT_THROW(extract_slice(v, 2, 2), std::invalid_argument);
+}
+
+TEST(Slice, PictureKeepsThePhysicalAspectWithVerticalExaggeration) {
+  Volume v = numbered(40, 20, 5);
+  v.spacing = {1.0, 1.0, 2.0};
+  TransferFunction tf;
+  tf.rgba = {{0, 0, 0, 1}, {1, 1, 1, 1}};
+  SliceStyle style;
+  style.max_size = 200;
+  const SliceValues y = extract_slice(v, 1, 0);  // 40 x 5 voxels, 40 x 10 units
+  Image img = slice_image(v, y, tf, {0.0, 500.0}, style);
+  EXPECT_EQ(img.width, 200u);
+  EXPECT_EQ(img.height, 50u);
+  style.z_scale = 4.0;  // 40 x 40 units
+  img = slice_image(v, y, tf, {0.0, 500.0}, style);
+  EXPECT_EQ(img.width, 200u);
+  EXPECT_EQ(img.height, 200u);
+  // Never less than a pixel per voxel.
+  style.max_size = 10;
+  style.z_scale = 1.0;
+  img = slice_image(v, extract_slice(v, 2, 0), tf, {0.0, 500.0}, style);
+  EXPECT_EQ(img.width, 40u);
+  EXPECT_EQ(img.height, 20u);
+}
+
+TEST(Slice, ColoursAreTheTfOverTheBackgroundInSrgb) {
+  Volume v;
+  v.dims = {2, 2, 1};
+  v.values = {0.0f, 1.0f, NAN, 0.5f};  // rows from the top: (y=1) NaN, 0.5 ; (y=0) 0, 1
+  TransferFunction tf;
+  tf.rgba = {{0.0, 0.0, 0.0, 0.25}, {1.0, 0.0, 0.0, 0.5}};
+  SliceStyle style;
+  style.background = {1.0, 1.0, 1.0};
+  style.opacity_scale = max_opacity(tf);  // 0.5: the most opaque entry shows opaque
+  style.max_size = 2;
+  const Image img = slice_image(v, extract_slice(v, 2, 0), tf, {0.0, 1.0}, style);
+  ASSERT_EQ(img.width, 2u);
+  auto px = [&](uint32_t x, uint32_t y) { return Rgb8{img.at(x, y)[0], img.at(x, y)[1], img.at(x, y)[2]}; };
+  EXPECT_EQ(px(0, 0), srgb8(0.55, 0.55, 0.55));  // NaN: no-data grey
+  EXPECT_EQ(px(1, 1), srgb8(1.0, 0.0, 0.0));     // value 1: red at full (scaled) opacity
+  EXPECT_EQ(px(0, 1), srgb8(0.5, 0.5, 0.5));     // value 0: black at half opacity over white
+  EXPECT_EQ(px(1, 0), srgb8(0.5 * 0.75 + 0.25, 0.25, 0.25));  // 0.5: (0.5,0,0) at 0.75 over white
+}
+
+TEST(Slice, DescribesThePlaneWithItsCoordinate) {
+  Volume v = numbered(2, 2, 3);
+  EXPECT_EQ(describe_slice(v, 2, 1), "z = 1");
+  v.axes[2].name = "level";
+  v.axes[2].units = "hPa";
+  v.axes[2].coordinates = {1000, 850, 500};
+  EXPECT_EQ(describe_slice(v, 2, 2), "z = 2 (level 500 hPa)");
+}
+
+}  // namespace
+}  // namespace tfm

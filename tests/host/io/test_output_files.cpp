@@ -1,0 +1,195 @@
+// Outputs (host/io/output_check.h, host/io/atomic_file.h): the up-front check of a command's
+// files (same file by path, symbolic link and hard link; read-only targets; missing, unwritable or
+// file-shaped directories; report directories), atomic writes, output batches that commit
+// together or leave nothing, staged directories, and cancellation in the middle of a write.
+#include <gtest/gtest.h>
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <fstream>
+#include <string>
+
+#include "atomic_file.h"
+#include "cancellation.h"
+#include "cli_runner.h"
+#include "output_check.h"
+
+namespace tfm {
+namespace {
+
+namespace fs = std::filesystem;
+using test::files_under;
+using test::TempDir;
+
+void write_text(const fs::path& path, const std::string& text) { std::ofstream(path) << text; }
+std::string read_text(const fs::path& path) {
+  std::ifstream in(path);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// Runs plan.check() and expects a std::runtime_error whose message holds every needle.
+void expect_refused(const FilePlan& plan, std::initializer_list<std::string> needles) {
+  try {
+    plan.check();
+    ADD_FAILURE() << "check() accepted the plan";
+  } catch (const std::runtime_error& e) {
+    for (const std::string& n : needles) EXPECT_NE(std::string(e.what()).find(n), std::string::npos) << e.what();
+  }
+}
+
+TEST(FilePlan, AcceptsDistinctWritableOutputs) {
+  TempDir dir;
+  write_text(dir / "in.raw", "x");
+  write_text(dir / "old.json", "{}");  // an existing, writable output is replaced: fine
+  EXPECT_NO_THROW(FilePlan()
+                      .input(dir / "in.raw", "--ref")
+                      .input_spec(dir / "in.raw:VAR", "--field")
+                      .output(dir / "old.json", "--out")
+                      .output(dir / "new.json", "--json")
+                      .output("", "--unused")
+                      .output_directory(dir / "report/deep", "--report", {"index.html"})
+                      .check());
+}
+
+TEST(FilePlan, RefusesOneFileForTwoOutputs) {
+  TempDir dir;
+  expect_refused(FilePlan().output(dir / "x.json", "--out").output(dir / "x.json", "--json"),
+                 {"--json", "x.json", "same file as --out"});
+  // Spelled differently: "./" and "..".
+  expect_refused(FilePlan().output(dir / "x.json", "--out").output(dir / "sub/../x.json", "--json"), {"same file"});
+  // Inside a report directory, under a name the report writes.
+  expect_refused(FilePlan().output(dir / "r/metrics.json", "--json").output_directory(dir / "r", "--report", {"metrics.json"}),
+                 {"--json", "same file as --report", "metrics.json"});
+}
+
+TEST(FilePlan, RefusesAnOutputThatIsAnInput) {
+  TempDir dir;
+  write_text(dir / "ref.raw", "data");
+  expect_refused(FilePlan().input(dir / "ref.raw", "--ref").output(dir / "ref.raw", "--out"),
+                 {"--out", "same file as --ref", "destroy"});
+  // FILE:VAR names FILE.
+  expect_refused(FilePlan().input_spec(dir / "ref.raw" + ":U", "--ref").output(dir / "ref.raw", "--out"),
+                 {"same file as --ref"});
+  // A symbolic link to the input, and a hard link to it.
+  fs::create_symlink(dir / "ref.raw", dir / "link.raw");
+  expect_refused(FilePlan().input(dir / "ref.raw", "--ref").output(dir / "link.raw", "--out"), {"an input"});
+  fs::create_hard_link(dir / "ref.raw", dir / "hard.raw");
+  expect_refused(FilePlan().input(dir / "ref.raw", "--ref").output(dir / "hard.raw", "--out"), {"an input"});
+}
+
+TEST(FilePlan, RefusesUnwritableTargets) {
+  TempDir dir;
+  write_text(dir / "ro.json", "keep");
+  fs::permissions(dir / "ro.json", fs::perms::owner_read | fs::perms::group_read);
+  expect_refused(FilePlan().output(dir / "ro.json", "--out"), {"--out", "ro.json", "read-only"});
+  expect_refused(FilePlan().output(dir / "missing/x.json", "--out"), {"missing", "does not exist"});
+  fs::create_directory(dir / "adir");
+  expect_refused(FilePlan().output(dir / "adir", "--out"), {"is a directory"});
+  write_text(dir / "afile", "");
+  expect_refused(FilePlan().output(dir / "afile/x.json", "--out"), {"not a directory"});
+  // A report directory that is a file, or below one.
+  expect_refused(FilePlan().output_directory(dir / "afile", "--report", {}), {"--report", "not a directory"});
+  expect_refused(FilePlan().output_directory(dir / "afile/sub", "--report", {}), {"cannot be created", "is a file"});
+  EXPECT_EQ(read_text(dir / "ro.json"), "keep");
+}
+
+TEST(AtomicFile, WritesWholeAndRefusesReadOnlyTargets) {
+  TempDir dir;
+  write_file_atomically(dir / "a.txt", "hello");
+  EXPECT_EQ(read_text(dir / "a.txt"), "hello");
+  write_file_atomically(dir / "a.txt", "");  // empty replaces
+  EXPECT_EQ(read_text(dir / "a.txt"), "");
+  write_text(dir / "ro.txt", "keep");
+  fs::permissions(dir / "ro.txt", fs::perms::owner_read);
+  EXPECT_THROW(write_file_atomically(dir / "ro.txt", "new"), std::runtime_error);
+  EXPECT_EQ(read_text(dir / "ro.txt"), "keep");
+  EXPECT_THROW(write_file_atomically(dir / "nodir/x.txt", "x"), std::runtime_error);
+  EXPECT_EQ(files_under(dir.path), (std::vector<std::string>{"a.txt", "ro.txt"}));
+  EXPECT_TRUE(pending_temporary_paths().empty());
+}
+
+TEST(AtomicFile, BatchCommitsTogetherOrLeavesNothing) {
+  TempDir dir;
+  write_text(dir / "old.txt", "old");
+  {
+    OutputBatch batch;
+    write_file_atomically(dir / "old.txt", "new");
+    const fs::path staged = batch.directory(dir / "made/deeper");
+    write_file_atomically(staged / "inside.txt", "x");
+    // Nothing visible yet: old content, no new directory (only hidden temporaries).
+    EXPECT_EQ(read_text(dir / "old.txt"), "old");
+    EXPECT_FALSE(fs::exists(dir / "made"));
+    EXPECT_EQ(pending_temporary_paths().size(), 3u);  // two files and the staged directory
+    // A batch opened inside joins the open one: it stages the same directory and commits nothing.
+    {
+      OutputBatch inner;
+      EXPECT_EQ(inner.directory(dir / "made/deeper"), staged);
+      write_file_atomically(inner.directory(dir / "made") / "sibling.txt", "y");
+      inner.commit();
+    }
+    EXPECT_FALSE(fs::exists(dir / "made"));
+    // Without commit(): everything goes.
+  }
+  EXPECT_EQ(files_under(dir.path), (std::vector<std::string>{"old.txt"}));
+  EXPECT_EQ(read_text(dir / "old.txt"), "old");
+  EXPECT_TRUE(pending_temporary_paths().empty());
+  {
+    OutputBatch batch;
+    write_file_atomically(dir / "old.txt", "new");
+    write_file_atomically(batch.directory(dir / "made/deeper") / "inside.txt", "x");
+    batch.commit();
+  }
+  EXPECT_EQ(read_text(dir / "old.txt"), "new");
+  EXPECT_EQ(read_text(dir / "made/deeper/inside.txt"), "x");
+  EXPECT_EQ(files_under(dir.path), (std::vector<std::string>{"made", "made/deeper", "made/deeper/inside.txt", "old.txt"}));
+  EXPECT_TRUE(pending_temporary_paths().empty());
+}
+
+// A cancellation during a write (here: already requested) removes the temporary file and throws
+// Cancelled, which no std::exception handler catches.
+TEST(AtomicFile, CancellationRemovesTheTemporaryFile) {
+  TempDir dir;
+  request_cancel(2);
+  bool cancelled = false;
+  try {
+    write_file_atomically(dir / "big.bin", std::string(size_t(9) << 20, 'x'));  // three blocks
+  } catch (const std::exception&) {
+    ADD_FAILURE() << "a std::exception handler caught the cancellation";
+  } catch (const Cancelled& c) {
+    cancelled = c.signal() == 2;
+  }
+  reset_cancel();
+  EXPECT_TRUE(cancelled);
+  EXPECT_TRUE(files_under(dir.path).empty());
+  EXPECT_TRUE(pending_temporary_paths().empty());
+}
+
+// What the interrupt watchdog does when the working thread does not stop: every pending
+// temporary path goes, and no new one can be made.
+TEST(AtomicFile, AbandonRemovesPendingPathsAndRefusesNewOnes) {
+  // In a child process: abandoning is final for the process.
+  TempDir dir;
+  const pid_t pid = fork();
+  if (pid == 0) {
+    OutputBatch batch;
+    write_file_atomically(dir / "a.txt", "a");
+    write_file_atomically(batch.directory(dir / "d") / "b.txt", "b");
+    abandon_temporary_paths(15);
+    bool refused = false;
+    try {
+      write_file_atomically(dir / "c.txt", "c");
+    } catch (const Cancelled&) {
+      refused = true;
+    }
+    _exit(refused && pending_temporary_paths().empty() ? 0 : 1);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  EXPECT_TRUE(files_under(dir.path).empty());
+}
+
+}  // namespace
+}  // namespace tfm

@@ -1,0 +1,277 @@
+// The correlation kernels (kernels/correlation.h) against the double-precision references of
+// host/reference/correlation_cpu.h on awkward sizes (M = 3, 4, 31, 32, 33, 1000; grids of 1 voxel
+// and one past a workgroup; ties, a NaN member, a constant voxel, the reference voxel itself),
+// against values computed by scipy and scikit-learn, bit-identical results across runs and
+// chunkings, the device-memory budget, progress and input errors.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "correlation.h"
+#include "correlation_cpu.h"
+#include "correlation_expected.h"
+#include "correlation_layout.h"
+#include "selftest_support.h"
+#include "vk_test_env.h"
+
+namespace tfm {
+namespace {
+
+using selftest::correlation_test_ensemble;
+using selftest::CorrelationEnsemble;
+
+const CorrelationParams kMeasures[] = {
+    {CorrelationMeasure::Pearson},           {CorrelationMeasure::Spearman},
+    {CorrelationMeasure::Kendall},           {CorrelationMeasure::MiBinned, 8},
+    {CorrelationMeasure::MiKraskov, 16, 3},  {CorrelationMeasure::MiCoefficient, 16, 2},
+};
+
+// Mutual information is 0 for a constant series, the coefficients NaN (kernels/correlation.h).
+bool is_mutual_information(const CorrelationParams& p) {
+  return p.measure == CorrelationMeasure::MiBinned || p.measure == CorrelationMeasure::MiKraskov ||
+         p.measure == CorrelationMeasure::MiCoefficient;
+}
+
+std::string measure_label(const CorrelationParams& p) {
+  std::string s = correlation_measure_name(p.measure);
+  for (char& c : s)
+    if (c == '-') c = '_';
+  return s;
+}
+
+class CorrelationGpu : public test::GpuTest, public ::testing::WithParamInterface<CorrelationParams> {};
+
+// Every voxel of `device` within `bound` of `expected`; NaN exactly where `expected` is NaN.
+template <class T>
+void expect_field_near(const std::vector<float>& device, const std::vector<T>& expected, double bound) {
+  ASSERT_EQ(device.size(), expected.size());
+  for (size_t v = 0; v < device.size(); ++v) {
+    if (std::isnan(double(expected[v])))
+      ASSERT_TRUE(std::isnan(device[v])) << "voxel " << v << ": device " << device[v] << ", expected NaN";
+    else
+      ASSERT_NEAR(device[v], expected[v], bound) << "voxel " << v;
+  }
+}
+
+// Every voxel within CorrelationKernel::error_bound of the reference (the test ensemble makes each
+// comparison of member values exact in float); NaN exactly where the reference is NaN.
+// `reference_voxel` 0 is the ensemble's reference series; 2 is a series rounded to multiples of
+// 1/4, so the reference has many ties (kendall's x tie groups, repeated Kraskov points).
+void expect_matches_reference(Context& ctx, CorrelationParams params, uint32_t members, uint64_t voxels,
+                              uint64_t reference_voxel = 0) {
+  params.k = std::min(params.k, members - 1);  // k < M
+  SCOPED_TRACE("M = " + std::to_string(members) + ", " + std::to_string(voxels) + " voxels, k = " +
+               std::to_string(params.k) + ", reference voxel " + std::to_string(reference_voxel) + ", " +
+               CorrelationKernel::strategy(params, members));
+  const CorrelationEnsemble e = correlation_test_ensemble(members, voxels, 11u * members + uint32_t(voxels));
+  const std::vector<float> reference = ensemble_series(e.view(), reference_voxel);
+  CorrelationKernel kernel(ctx);
+  const std::vector<float> g = kernel.compute(e.view(), reference, params);
+  const std::vector<double> r = correlation_field_reference(e.view(), reference, params);
+  const double bound = CorrelationKernel::error_bound(params, members);
+  expect_field_near(g, r, bound);
+  // The test data reach the conventions: the reference voxel, a NaN member, a constant series.
+  if (voxels > 7) {
+    EXPECT_TRUE(std::isnan(g[5]));
+    if (is_mutual_information(params)) EXPECT_EQ(g[7], 0.0f); else EXPECT_TRUE(std::isnan(g[7]));
+  }
+  if (params.measure == CorrelationMeasure::Pearson || params.measure == CorrelationMeasure::Spearman ||
+      params.measure == CorrelationMeasure::Kendall)
+    EXPECT_NEAR(g[reference_voxel], 1.0, bound);
+}
+
+TEST_P(CorrelationGpu, MatchesReferenceOnAwkwardSizes) {
+  const CorrelationParams params = GetParam();
+  const uint64_t past_workgroup = TFM_CORR_INVOCATION_WORKGROUP + 1;
+  for (uint32_t members : {3u, 4u, 31u, 32u, 33u}) {
+    expect_matches_reference(ctx(), params, members, 1);
+    expect_matches_reference(ctx(), params, members, past_workgroup);
+    expect_matches_reference(ctx(), params, members, past_workgroup, 2);
+  }
+  expect_matches_reference(ctx(), params, 1000, 9);
+  expect_matches_reference(ctx(), params, 1000, 9, 2);
+}
+
+// A reference with two values, 500 members each: two huge x tie groups for kendall, and for
+// mi-kraskov the longest neighbour walks (every point of its tie group lies at |dx| = 0), which
+// must stay within what one invocation may loop on lavapipe.
+TEST_P(CorrelationGpu, ReferenceWithTwoValues) {
+  CorrelationParams params = GetParam();
+  const uint32_t members = 1000;
+  const CorrelationEnsemble e = correlation_test_ensemble(members, 9, 77);
+  std::vector<float> reference(members);
+  for (uint32_t m = 0; m < members; ++m) reference[m] = m % 2 ? 4.0f : 0.0f;
+  CorrelationKernel kernel(ctx());
+  const std::vector<float> g = kernel.compute(e.view(), reference, params);
+  const std::vector<double> r = correlation_field_reference(e.view(), reference, params);
+  expect_field_near(g, r, CorrelationKernel::error_bound(params, members));
+}
+
+TEST_P(CorrelationGpu, SameBitsOnEveryRunAndChunking) {
+  const CorrelationParams params = GetParam();
+  for (uint32_t members : {7u, 33u}) {
+    const CorrelationEnsemble e = correlation_test_ensemble(members, 300, 5);
+    const std::vector<float> reference = ensemble_series(e.view(), 17);
+    CorrelationKernel kernel(ctx());
+    const std::vector<float> a = kernel.compute(e.view(), reference, params);
+    const std::vector<float> b = kernel.compute(e.view(), reference, params);
+    uint32_t chunks = 0;
+    const std::vector<float> c = kernel.compute(e.view(), reference, params, [&](uint64_t, uint64_t) { ++chunks; },
+                                                uint64_t(members) * 16 + 16 + 41 * (uint64_t(members) * 8 + 8));
+    EXPECT_EQ(chunks, 8u) << "41 voxels per chunk";
+    EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)), 0) << "M = " << members;
+    EXPECT_EQ(std::memcmp(a.data(), c.data(), a.size() * sizeof(float)), 0) << "M = " << members;
+  }
+}
+
+// Independent values (tests/host/reference/correlation_expected.py): the reference series x at
+// voxel 0's place and y as the field's only voxel.
+TEST_P(CorrelationGpu, MatchesScipyAndScikitLearn) {
+  CorrelationParams params = GetParam();
+  for (const test::ExpectedCorrelations& ex : test::expected_correlations()) {
+    const EnsembleView view{ex.y.data(), uint32_t(ex.y.size()), 1};
+    CorrelationKernel kernel(ctx());
+    auto run = [&] { return double(kernel.compute(view, ex.x, params)[0]); };
+    const double bound = CorrelationKernel::error_bound(params, view.member_count);
+    switch (params.measure) {
+      case CorrelationMeasure::Pearson: EXPECT_NEAR(run(), ex.pearson, bound) << ex.name; break;
+      case CorrelationMeasure::Spearman: EXPECT_NEAR(run(), ex.spearman, bound) << ex.name; break;
+      case CorrelationMeasure::Kendall: EXPECT_NEAR(run(), ex.kendall, bound) << ex.name; break;
+      case CorrelationMeasure::MiBinned:
+        params.bins = 4;
+        EXPECT_NEAR(run(), ex.binned_4, bound) << ex.name;
+        params.bins = 8;
+        EXPECT_NEAR(run(), ex.binned_8, bound) << ex.name;
+        break;
+      case CorrelationMeasure::MiKraskov:
+        params.k = 1;
+        EXPECT_NEAR(run(), ex.ksg_k1, bound) << ex.name;
+        params.k = 3;
+        EXPECT_NEAR(run(), ex.ksg_k3, bound) << ex.name;
+        break;
+      case CorrelationMeasure::MiCoefficient:
+        params.k = 3;
+        EXPECT_NEAR(run(), std::sqrt(1 - std::exp(-2 * ex.ksg_k3)), bound) << ex.name;
+        break;
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Measures, CorrelationGpu, ::testing::ValuesIn(kMeasures),
+                         [](const auto& info) { return measure_label(info.param); });
+
+using CorrelationKernelGpu = test::GpuTest;
+
+// Chunks keep the kernel's buffers within the budget; progress reports each chunk in order.
+TEST_F(CorrelationKernelGpu, StaysWithinTheDeviceBudgetAndReportsProgress) {
+  const uint32_t members = 100;
+  const CorrelationEnsemble e = correlation_test_ensemble(members, 1000, 3);
+  const std::vector<float> reference = e.reference();
+  const uint64_t budget = 64 << 10;
+  CorrelationKernel kernel(ctx());
+  std::vector<uint64_t> done;
+  const uint64_t before = ctx().buffer_bytes();
+  ctx().reset_peak_buffer_bytes();
+  kernel.compute(e.view(), reference, {CorrelationMeasure::Kendall},
+                 [&](uint64_t d, uint64_t total) {
+                   EXPECT_EQ(total, 1000u);
+                   done.push_back(d);
+                 },
+                 budget);
+  EXPECT_LE(ctx().peak_buffer_bytes() - before, budget);
+  ASSERT_GT(done.size(), 10u);
+  for (size_t i = 1; i < done.size(); ++i) EXPECT_GT(done[i], done[i - 1]);
+  EXPECT_EQ(done.back(), 1000u);
+}
+
+// A NaN in the reference series: NaN everywhere, without touching the device.
+TEST_F(CorrelationKernelGpu, NanReferenceGivesNanEverywhere) {
+  const CorrelationEnsemble e = correlation_test_ensemble(40, 20, 9);
+  std::vector<float> reference = e.reference();
+  reference[3] = NAN;
+  CorrelationKernel kernel(ctx());
+  for (const CorrelationParams& p : kMeasures)
+    for (float v : kernel.compute(e.view(), reference, p)) EXPECT_TRUE(std::isnan(v)) << correlation_measure_name(p.measure);
+}
+
+// A constant reference: NaN for the coefficients, 0 for mutual information; NaN members stay NaN.
+TEST_F(CorrelationKernelGpu, ConstantReferenceFollowsTheConventions) {
+  for (uint32_t members : {9u, 40u}) {
+    const CorrelationEnsemble e = correlation_test_ensemble(members, 10, 4);
+    const std::vector<float> reference(members, 2.5f);
+    CorrelationKernel kernel(ctx());
+    for (const CorrelationParams& p : kMeasures) {
+      const std::vector<float> g = kernel.compute(e.view(), reference, p);
+      for (uint64_t v = 0; v < g.size(); ++v) {
+        if (v == 5 || !is_mutual_information(p)) EXPECT_TRUE(std::isnan(g[v])) << correlation_measure_name(p.measure) << " voxel " << v;
+        else EXPECT_EQ(g[v], 0.0f) << correlation_measure_name(p.measure) << " voxel " << v;
+      }
+    }
+  }
+}
+
+TEST_F(CorrelationKernelGpu, RejectsBadInputWithClearMessages) {
+  CorrelationKernel kernel(ctx());
+  const CorrelationEnsemble e = correlation_test_ensemble(10, 4, 1);
+  const std::vector<float> reference = e.reference();
+  auto message = [&](const EnsembleView& view, std::span<const float> ref, const CorrelationParams& p,
+                     uint64_t budget = 0) -> std::string {
+    try {
+      kernel.compute(view, ref, p, {}, budget);
+    } catch (const std::invalid_argument& ex) {
+      return ex.what();
+    }
+    return "no exception";
+  };
+  const EnsembleView two{e.values.data(), 2, 4};
+  EXPECT_NE(message(two, std::span(reference).first(2), {}).find("needs 3..16384 members (got 2)"), std::string::npos);
+  EXPECT_NE(message(e.view(), std::span(reference).first(9), {}).find("9 values for 10 members"), std::string::npos);
+  EXPECT_NE(message(e.view(), reference, {CorrelationMeasure::MiBinned, 1}).find("bins must be 2..64"), std::string::npos);
+  EXPECT_NE(message(e.view(), reference, {CorrelationMeasure::MiBinned, 65}).find("bins"), std::string::npos);
+  EXPECT_NE(message(e.view(), reference, {CorrelationMeasure::MiKraskov, 16, 0}).find("k must be 1..9"), std::string::npos);
+  EXPECT_NE(message(e.view(), reference, {CorrelationMeasure::MiKraskov, 16, 10}).find("k must be"), std::string::npos);
+  EXPECT_NE(message(e.view(), reference, {}, 100).find("max_device_bytes"), std::string::npos);
+  EXPECT_NE(message({nullptr, 10, 4}, reference, {}).find("no voxels"), std::string::npos);
+  const std::vector<float> too_many(kMaxCorrelationMembers + 1);
+  EXPECT_NE(message({too_many.data(), kMaxCorrelationMembers + 1, 1}, too_many, {}).find("(got 16385)"), std::string::npos);
+  // More members than the device's workgroups hold: a runtime error naming the limit (shared
+  // memory on lavapipe's 32 KiB; the workgroup size for mi-kraskov, 8192 invocations here).
+  const std::vector<float> many(kMaxCorrelationMembers, 1.0f);
+  for (const CorrelationParams& p : {CorrelationParams{CorrelationMeasure::Kendall}, {CorrelationMeasure::MiKraskov}}) {
+    const bool fits = CorrelationKernel::shared_memory_bytes(p, kMaxCorrelationMembers) <=
+                          ctx().limits().maxComputeSharedMemorySize &&
+                      CorrelationKernel::workgroup_size(p, kMaxCorrelationMembers) <=
+                          ctx().limits().maxComputeWorkGroupInvocations;
+    if (fits) continue;
+    try {
+      kernel.compute({many.data(), kMaxCorrelationMembers, 1}, many, p);
+      ADD_FAILURE() << "no exception for " << kMaxCorrelationMembers << " members";
+    } catch (const std::runtime_error& ex) {
+      EXPECT_NE(std::string(ex.what()).find(std::string(correlation_measure_name(p.measure)) + " with 16384 members needs"),
+                std::string::npos) << ex.what();
+      EXPECT_NE(std::string(ex.what()).find("maxCompute"), std::string::npos) << ex.what();
+    }
+  }
+}
+
+// More workgroups than one dispatch row holds (maxComputeWorkGroupCount[0], 65535 on lavapipe):
+// the rows of a 2-D dispatch cover every voxel once.
+TEST_F(CorrelationKernelGpu, ChunksOfMoreGroupsThanOneRowHolds) {
+  const CorrelationParams params{CorrelationMeasure::MiBinned, 6};
+  const uint64_t voxels = std::min<uint64_t>(ctx().limits().maxComputeWorkGroupCount[0], 1u << 20) + 300;
+  const CorrelationEnsemble e = correlation_test_ensemble(33, voxels, 8);
+  const std::vector<float> reference = e.reference();
+  CorrelationKernel kernel(ctx());
+  uint32_t chunks = 0;
+  const std::vector<float> g = kernel.compute(e.view(), reference, params, [&](uint64_t, uint64_t) { ++chunks; });
+  ASSERT_EQ(chunks, 1u);
+  const std::vector<float> c = correlation_field_cpu(e.view(), reference, params);
+  expect_field_near(g, c, CorrelationKernel::error_bound(params, 33));
+}
+
+}  // namespace
+}  // namespace tfm

@@ -1,0 +1,186 @@
+// The command line's outputs, checked before any work (issue 15, item 2 and the report case of
+// item 5): one file for two outputs, an output that is an input (by name, symbolic or hard link),
+// a read-only target, a --report that is a file; reports into new nested directories; and the
+// messages of item 5 (render size, ranges beyond float32 or infinite, negative --dims, the
+// residual of a field with itself). Each runs the real program.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "cli_runner.h"
+
+namespace tfm {
+namespace {
+
+namespace fs = std::filesystem;
+using test::files_under;
+using test::run_cli;
+using test::TempDir;
+using test::write_floats;
+
+std::string read_bytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+class CliOutputs : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::vector<float> ref(512), field(512);
+    for (size_t i = 0; i < ref.size(); ++i) {
+      ref[i] = float(i % 23) / 22.0f;
+      field[i] = 5.0f + 3.0f * ref[i] * ref[i];
+    }
+    write_floats(dir / "ref_8x8x8_float32.raw", ref);
+    write_floats(dir / "field_8x8x8_float32.raw", field);
+    std::ofstream(dir / "tf.json") << R"({"rgba": [[0,0,0,0],[1,0.5,0.2,0.8],[0.2,0.4,1,1]]})";
+  }
+  std::string inputs() const {
+    return "--ref " + dir / "ref_8x8x8_float32.raw" + " --field " + dir / "field_8x8x8_float32.raw" + " --ref-tf " +
+           dir / "tf.json" + " --tf-size 16";
+  }
+  // Runs `args`, expects a failure whose output holds every needle, that the solve never started
+  // (TFMATCH_TRACE_PHASES shows the phases reached) and that the directory holds `left` only.
+  void expect_refused(const std::string& args, std::initializer_list<std::string> needles) {
+    const std::vector<std::string> before = files_under(dir.path);
+    test::CliProcess p(args, {{"TFMATCH_TRACE_PHASES", "1"}});
+    const test::CliResult r = p.finish();
+    EXPECT_NE(r.exit_code, 0) << r.output;
+    for (const std::string& n : needles) EXPECT_NE(r.output.find(n), std::string::npos) << "no '" << n << "' in\n" << r.output;
+    EXPECT_EQ(r.output.find("phase load"), std::string::npos) << "work started before the check:\n" << r.output;
+    EXPECT_EQ(files_under(dir.path), before) << r.output;
+  }
+  TempDir dir;
+};
+
+TEST_F(CliOutputs, OneFileForTwoOutputsIsRefused) {
+  expect_refused("optimize " + inputs() + " --out " + dir / "x.json" + " --json " + dir / "x.json",
+                 {"--json", "same file as --out", "x.json"});
+  expect_refused("optimize " + inputs() + " --out " + dir / "t.json" + " --json " + dir / "r/metrics.json" + " --report " +
+                     dir / "r",
+                 {"--json", "metrics.json", "same file as --report"});
+  expect_refused("residual --ref " + dir / "ref_8x8x8_float32.raw" + " --field " + dir / "field_8x8x8_float32.raw" +
+                     " --ref-tf " + dir / "tf.json" + " --field-tf " + dir / "tf.json" + " --out " + dir / "m.png" +
+                     " --image " + dir / "m.png",
+                 {"--image", "same file as --out"});
+}
+
+TEST_F(CliOutputs, AnOutputThatIsAnInputIsRefused) {
+  const std::string ref = dir / "ref_8x8x8_float32.raw", tf = dir / "tf.json";
+  const std::string ref_bytes = read_bytes(ref), tf_bytes = read_bytes(tf);
+  expect_refused("residual --ref " + ref + " --field " + dir / "field_8x8x8_float32.raw" + " --ref-tf " + tf +
+                     " --field-tf " + tf + " --out " + ref,
+                 {"--out", "same file as --ref", "destroy"});
+  expect_refused("optimize " + inputs() + " --out " + tf, {"--out", "same file as --ref-tf"});
+  // The same file through a symbolic link and a hard link.
+  fs::create_symlink(tf, dir / "link.json");
+  expect_refused("optimize " + inputs() + " --out " + dir / "link.json", {"same file as --ref-tf"});
+  fs::create_hard_link(tf, dir / "hard.json");
+  expect_refused("optimize " + inputs() + " --out " + dir / "hard.json", {"same file as --ref-tf"});
+  // convert-volume A.vti A.vti.
+  test::CliResult r = run_cli("convert-volume " + ref + " " + dir / "a.vti");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string vti_bytes = read_bytes(dir / "a.vti");
+  expect_refused("convert-volume " + dir / "a.vti" + " " + dir / "a.vti", {"output", "same file as input 1"});
+  EXPECT_EQ(read_bytes(ref), ref_bytes);
+  EXPECT_EQ(read_bytes(tf), tf_bytes);
+  EXPECT_EQ(read_bytes(dir / "a.vti"), vti_bytes);
+}
+
+TEST_F(CliOutputs, ReadOnlyTargetsAndBadDirectoriesAreRefused) {
+  std::ofstream(dir / "ro.json") << "keep";
+  fs::permissions(dir / "ro.json", fs::perms::owner_read);
+  expect_refused("optimize " + inputs() + " --out " + dir / "ro.json", {"--out", "ro.json", "read-only"});
+  EXPECT_EQ(read_bytes(dir / "ro.json"), "keep");
+  expect_refused("optimize " + inputs() + " --out " + dir / "nodir/x.json", {"--out", "nodir", "does not exist"});
+  // --report naming a file used to fail after the solve, with --out already written.
+  std::ofstream(dir / "report.txt") << "a file";
+  expect_refused("optimize " + inputs() + " --out " + dir / "x.json" + " --report " + dir / "report.txt",
+                 {"--report", "report.txt", "not a directory"});
+  expect_refused("render --volume " + dir / "ref_8x8x8_float32.raw" + " --tf " + dir / "tf.json" + " --out " +
+                     dir / "ref_8x8x8_float32.raw",
+                 {"--out", "same file as --volume"});
+}
+
+TEST_F(CliOutputs, ReportGoesIntoANewNestedDirectoryWhole) {
+  const std::string report = dir / "new/a/b";
+  test::CliResult r = run_cli("optimize " + inputs() + " --out " + dir / "t.json" + " --report " + report +
+                              " --width 24 --height 24");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(fs::path(report) / "index.html"));
+  EXPECT_TRUE(fs::exists(dir / "t.json"));
+  // Nothing hidden (temporary files, staged directories) is left anywhere.
+  for (const std::string& f : files_under(dir.path)) EXPECT_EQ(f.find("/."), std::string::npos) << f;
+  for (const std::string& f : files_under(dir.path)) EXPECT_NE(f[0], '.') << f;
+}
+
+// Item 5's messages, each saying the true problem.
+
+// A size inside the accepted range that the device cannot hold: said before loading, with the
+// largest size that fits, not a raw VK_ERROR_OUT_OF_DEVICE_MEMORY from a buffer.
+TEST_F(CliOutputs, RenderSizeTheDeviceCannotHoldIsNamed) {
+  test::CliResult r = run_cli("render --volume " + dir / "ref_8x8x8_float32.raw" + " --tf " + dir / "tf.json" +
+                              " --out " + dir / "big.png" + " --width 16384 --height 16384");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("16384x16384 image needs a 4.00 GiB image buffer"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("at most about"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("VK_ERROR"), std::string::npos) << r.output;
+}
+
+// A TF file's range beyond float32: named as such, with the file, not "too narrow".
+TEST_F(CliOutputs, RangeBeyondFloat32IsNamed) {
+  std::ofstream(dir / "wide.json") << R"({"rgba": [[0,0,0,0],[1,1,1,1]], "range": [-1e308, 1e308]})";
+  test::CliResult r = run_cli("render --volume " + dir / "ref_8x8x8_float32.raw" + " --tf " + dir / "wide.json" +
+                              " --out " + dir / "w.png");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("wide.json: range -1e+308,1e+308 lies beyond float32"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("too narrow"), std::string::npos) << r.output;
+}
+
+// Infinite ends are not "empty or reversed".
+TEST_F(CliOutputs, InfiniteRangeIsNamed) {
+  test::CliResult r = run_cli("render --volume " + dir / "ref_8x8x8_float32.raw" + " --tf " + dir / "tf.json" +
+                              " --out " + dir / "i.png" + " --range -inf,inf");
+  EXPECT_NE(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("--range: range -inf,inf: both ends must be finite numbers"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("reversed"), std::string::npos) << r.output;
+}
+
+// A negative grid size is not an overflow.
+TEST_F(CliOutputs, NegativeDimsAreNamed) {
+  test::CliResult r = run_cli("info " + dir / "ref_8x8x8_float32.raw" + " --dims -64,64,64 --type float32");
+  EXPECT_NE(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("expected a positive integer, got '-64'"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("overflow"), std::string::npos) << r.output;
+}
+
+// The residual of a field with itself is 0 everywhere, and the summary says so (not "max 1",
+// the display range's fallback).
+TEST_F(CliOutputs, ResidualOfAFieldWithItselfSaysZero) {
+  const std::string ref = dir / "ref_8x8x8_float32.raw";
+  test::CliResult r = run_cli("residual --ref " + ref + " --field " + ref + " --ref-tf " + dir / "tf.json" +
+                              " --field-tf " + dir / "tf.json" + " --out " + dir / "res_8x8x8_float32.raw");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("mean 0, max 0 "), std::string::npos) << r.output;
+}
+
+// Item 6: tests that need ../shared/data skip visibly without it. The test binary runs itself
+// with TFMATCH_SHARED_DATA pointing nowhere.
+TEST(SharedData, TestsSkipVisiblyWithoutIt) {
+  test::CliResult r;
+  const std::string cmd = "TFMATCH_SHARED_DATA=/nonexistent /proc/" + std::to_string(getpid()) +
+                          "/exe --gtest_filter='*Real*' 2>&1";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) r.output.append(buf, n);
+  const int status = pclose(pipe);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << r.output;
+  EXPECT_NE(r.output.find("[  SKIPPED ] FormatsIoRealFiles.InfoDescribesVtkVtiNrrdAndRawFiles"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("FAILED"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace tfm

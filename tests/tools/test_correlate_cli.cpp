@@ -1,0 +1,175 @@
+// `tfmatch correlate`, markers and `demo --ensemble` as a user runs them: outputs equal the CPU
+// references, grids keep their place, bad ensembles fail clearly and leave nothing behind, and
+// the ERA5 recipe of the README works on the shared data.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "cli_runner.h"
+#include "correlation_cpu.h"
+#include "ensemble.h"
+#include "png_io.h"
+#include "synthetic_ensemble.h"
+#include "vk_test_env.h"
+#include "volume_io.h"
+#include "volume_vti.h"
+
+namespace tfm {
+namespace {
+
+using test::run_cli;
+using test::TempDir;
+
+class CorrelateCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ens = synthetic_ensemble(11, 8, 5, 12, 7);
+    ens.grid.origin = {100, 80, 1};
+    ens.grid.spacing = {2, 2, 3};
+    for (uint32_t m = 0; m < ens.member_count; ++m) {
+      Volume v = ens.member(m);
+      v.origin = ens.grid.origin;
+      v.spacing = ens.grid.spacing;
+      write_vti(dir / ("member_" + std::to_string(100 + m) + ".vti"), v, "t");
+    }
+    members = "'" + dir / "member_*.vti" + "'";
+  }
+  // The CPU reference field of `params` for the voxel (x, y, z) of `ens`.
+  std::vector<double> reference(const GridIndex& p, const CorrelationParams& params) const {
+    const uint64_t v = (p[2] * ens.grid.dims[1] + p[1]) * ens.grid.dims[0] + p[0];
+    return correlation_field_reference(ens.view(), ensemble_series(ens.view(), v), params);
+  }
+  TempDir dir;
+  Ensemble ens;
+  std::string members;
+};
+
+TEST_F(CorrelateCli, FieldsEqualTheCpuReferenceAndKeepTheGrid) {
+  for (const std::string measure : {"pearson", "kendall", "mi-kraskov"}) {
+    const std::string out = dir / (measure + ".vti");
+    auto r = run_cli("correlate --members " + members + " --point 3,4,2 --measure " + measure + " --out " + out +
+                     " --json " + dir / "c.json");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("12 members on 11x8x5"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("(3, 4, 2)"), std::string::npos) << r.output;
+    const Volume c = load_volume(out);
+    EXPECT_EQ(c.dims, ens.grid.dims);
+    EXPECT_EQ(c.origin, ens.grid.origin);
+    EXPECT_EQ(c.spacing, ens.grid.spacing);
+    CorrelationParams params;
+    params.measure = parse_correlation_measure(measure);
+    const std::vector<double> want = reference({3, 4, 2}, params);
+    for (size_t i = 0; i < want.size(); ++i) ASSERT_NEAR(c.values[i], want[i], 2e-5) << measure << " voxel " << i;
+    const auto j = nlohmann::json::parse(std::ifstream(dir / "c.json"));
+    EXPECT_EQ(j["members"], 12);
+    EXPECT_EQ(j["measure"], measure);
+    EXPECT_EQ(j["point"], (std::vector<int>{3, 4, 2}));
+  }
+  // The reference voxel correlates perfectly with itself.
+  const Volume p = load_volume(dir / "pearson.vti");
+  EXPECT_NEAR(p.values[(2 * 8 + 4) * 11 + 3], 1.0, 1e-6);
+}
+
+TEST_F(CorrelateCli, DifferenceOfTwoPointsAndMagnitudeAsRaw) {
+  auto r = run_cli("correlate --members " + members + " --point 3,4,2 --point2 x=118,y=90,z=7 --abs --measure spearman --out " +
+                   dir / "d.raw");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  // x=118 is index 9, y=90 index 5, z=7 index 2 (origin 100, 80, 1; spacing 2, 2, 3).
+  EXPECT_NE(r.output.find("minus point     (9, 5, 2)"), std::string::npos) << r.output;
+  VolumeOptions o;
+  o.dims = ens.grid.dims;
+  o.type = ScalarType::Float32;
+  const Volume d = load_volume(dir / "d.raw", o);
+  CorrelationParams params;
+  params.measure = CorrelationMeasure::Spearman;
+  const auto a = reference({3, 4, 2}, params), b = reference({9, 5, 2}, params);
+  for (size_t i = 0; i < a.size(); ++i) ASSERT_NEAR(d.values[i], std::abs(a[i] - b[i]), 4e-5) << i;
+}
+
+TEST_F(CorrelateCli, BadEnsemblesFailClearlyAndWriteNothing) {
+  const std::string out = dir / "bad.vti";
+  auto fails = [&](const std::string& args, std::initializer_list<std::string> parts) {
+    auto r = run_cli("correlate " + args + " --out " + out);
+    EXPECT_NE(r.exit_code, 0) << args << "\n" << r.output;
+    for (const auto& p : parts) EXPECT_NE(r.output.find(p), std::string::npos) << args << "\n" << r.output << "\nmissing: " << p;
+    EXPECT_FALSE(std::filesystem::exists(out)) << args;
+  };
+  fails("--members " + dir / "member_100.vti" + " " + dir / "member_101.vti" + " --point 0,0,0", {"2 member(s)", "at least 3"});
+  Volume odd = ens.member(0);
+  odd.dims = {11, 8, 4};
+  odd.values.resize(11 * 8 * 4);
+  write_vti(dir / "odd.vti", odd, "t");
+  fails("--members " + members + " " + dir / "odd.vti" + " --point 0,0,0", {"different grids", "odd.vti", "11x8x4"});
+  // A reference point without data in one member.
+  Volume holed = ens.member(5);
+  holed.values[0] = NAN;
+  write_vti(dir / "member_105.vti", holed, "t");
+  fails("--members " + members + " --point 0,0,0", {"no data in member 5"});
+  fails("--members " + members + " --point 11,0,0", {"--point", "outside the grid 11x8x5"});
+  fails("--members " + members + " --point 1,1,1 --measure mi-kraskov --k 12", {"k"});
+  fails("--members " + members + " --point 1,1,1 --measure cosine", {"--measure", "pearson"});
+  fails("--members '" + dir / "none_*.vti" + "' --point 1,1,1", {"matches no file"});
+  fails("--ensemble " + dir / "member_100.vti" + " --point 1,1,1", {"no member axis"});
+  fails("--point 1,1,1", {"--ensemble", "--members"});
+}
+
+TEST_F(CorrelateCli, MarkersAreRedDotsOnRenderings) {
+  std::ofstream(dir / "tf.json") << R"({"rgba": [[0,0,1,0.0],[0,1,0,0.0]]})";
+  auto r = run_cli("render --volume " + dir / "member_100.vti" + " --tf " + dir / "tf.json" + " --out " + dir / "m.png" +
+                   " --width 64 --height 64 --elevation 90 --azimuth 0 --marker 5,4,2");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const Image img = read_png(dir / "m.png");
+  // Seen from above the box centre, the centre voxel projects near the image centre: red there.
+  size_t red = 0;
+  for (uint32_t y = 24; y < 40; ++y)
+    for (uint32_t x = 24; x < 40; ++x) red += img.at(x, y)[0] > 200 && img.at(x, y)[1] < 80;
+  EXPECT_GT(red, 4u);
+  r = run_cli("render --volume " + dir / "member_100.vti" + " --tf " + dir / "tf.json" + " --out " + dir / "m2.png" +
+              " --marker 5,4");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("--marker"), std::string::npos) << r.output;
+  r = run_cli("optimize --ref " + dir / "member_100.vti" + " --ref-tf " + dir / "tf.json" + " --field " +
+              dir / "member_101.vti" + " --out " + dir / "o.json --marker 1,1,1");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("--report"), std::string::npos) << r.output;
+}
+
+TEST(EnsembleDemo, WritesCorrelationFieldsAndAReportWithTheMarker) {
+  TempDir dir;
+  auto r = run_cli("demo --ensemble --size 20 --members 16 --width 96 --height 96 --out " + dir / "demo");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (const char* f : {"mi-coefficient.vti", "pearson.vti", "index.html", "reference.png", "residual_optimized_tf.png"})
+    EXPECT_TRUE(std::filesystem::exists(dir / ("demo/" + std::string(f)))) << f;
+  const auto j = nlohmann::json::parse(std::ifstream(dir / "demo/metrics.json"));
+  ASSERT_EQ(j["markers"].size(), 1u);
+  std::ifstream html(dir / "demo/index.html");
+  const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
+  EXPECT_NE(page.find("Red dots: reference point"), std::string::npos);
+}
+
+// The README's ERA5 recipe (temperature, 10 members): MI and Pearson fields of one point, the
+// Pearson TF optimized against MI, a report with the marker.
+TEST(EnsembleRecipe, Era5MutualInformationVersusPearson) {
+  const std::string d = test::shared_data_dir();
+  if (d.empty()) GTEST_SKIP() << "../shared/data not present";
+  TempDir dir;
+  const std::string ens = d + "/era5_ensemble_grib1/era5-levels-members.grib:t";
+  auto r = run_cli("correlate --ensemble " + ens + " --point lon=9,lat=45,level=850 --measure mi-kraskov --k 3 --out " +
+                   dir / "mi.vti");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("10 members on 120x61x2"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("(3, 45, 0) at longitude=9, latitude=45, isobaricInhPa=850"), std::string::npos) << r.output;
+  r = run_cli("correlate --ensemble " + ens + " --point lon=9,lat=45,level=850 --measure pearson --out " + dir / "p.vti");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ofstream(dir / "tf.json") << R"({"rgba": [[0.2,0,0.4,0],[0.9,0.3,0.3,0.3],[1,0.9,0.5,0.9]]})";
+  r = run_cli("optimize --ref " + dir / "mi.vti" + " --ref-tf " + dir / "tf.json" + " --field " + dir / "p.vti" +
+              " --out " + dir / "p_tf.json --report " + dir / "report --marker 3,45,0 --width 96 --height 96");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(dir / "report/index.html"));
+}
+
+}  // namespace
+}  // namespace tfm

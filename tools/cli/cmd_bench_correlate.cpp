@@ -1,0 +1,160 @@
+// `tfmatch bench-correlate`: correlation-field throughput (voxels per second) of the GPU kernels
+// per measure and member count, beside the multi-threaded CPU implementation of the same methods
+// (correlation_field_cpu, all cores) measured in the same run, as ratios.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "atomic_file.h"
+#include "cancellation.h"
+#include "cli.h"
+#include "correlation.h"
+#include "correlation_cpu.h"
+#include "grid_point.h"
+#include "output_check.h"
+#include "progress.h"
+#include "synthetic_ensemble.h"
+
+namespace tfm::cli {
+namespace {
+
+// The grid of the paper's 1000-member ensemble.
+constexpr uint64_t kGrid[3] = {250, 352, 20};
+
+struct BenchArgs {
+  uint64_t voxels = kGrid[0] * kGrid[1] * kGrid[2];  // 1.76 M
+  std::vector<uint32_t> members{10, 100, 1000};
+  std::vector<std::string> measures = correlation_measure_names();
+  // Members x voxels per member count: the whole grid at M = 10; 200 000 voxels at M = 100 and
+  // 20 000 at M = 1000, so that the run takes minutes on lavapipe (--max-values 2000000000 for all of it).
+  uint64_t max_values = 20'000'000;
+  unsigned cpu_threads = 0;
+  uint32_t bins = 16, k = 3;
+  bool quick = false;
+  std::string json;
+};
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// The first `voxels` voxels (x fastest) of the synthetic ensemble (host/core/synthetic_ensemble.h)
+// on the paper's grid, generated on just the z levels they need, and the series at its reference
+// point (the centre of its strongly dependent blob).
+struct BenchEnsemble {
+  std::vector<float> values;  // member-major, `voxels` per member
+  std::vector<float> reference;
+};
+BenchEnsemble bench_ensemble(uint32_t members, uint64_t voxels) {
+  const uint64_t slice = kGrid[0] * kGrid[1];
+  Ensemble full = synthetic_ensemble(kGrid[0], kGrid[1], (voxels + slice - 1) / slice, members);
+  BenchEnsemble b;
+  GridIndex point = synthetic_ensemble_reference(full);
+  // (On a grid one level deep it names level 1: the centre 0.5 rounds up.)
+  for (int axis = 0; axis < 3; ++axis) point[axis] = std::min(point[axis], full.grid.dims[axis] - 1);
+  b.reference = ensemble_series(full.view(), linear_index(full.grid, point));
+  if (voxels == full.voxel_count()) {
+    b.values = std::move(full.values);
+    return b;
+  }
+  b.values.resize(uint64_t(members) * voxels);
+  for (uint32_t m = 0; m < members; ++m)
+    std::copy_n(full.values.begin() + int64_t(m * full.voxel_count()), voxels, b.values.begin() + int64_t(m * voxels));
+  return b;
+}
+
+int run(BenchArgs a) {
+  set_progress_enabled(!globals().quiet);
+  FilePlan().output(a.json == "-" ? "" : a.json, "--json").check();
+  if (a.quick) {
+    a.voxels = std::min<uint64_t>(a.voxels, 2000);
+    a.members = {10, 40};
+  }
+  std::vector<CorrelationParams> params;
+  for (const std::string& name : a.measures) params.push_back({parse_correlation_measure(name), a.bins, a.k});
+  auto ctx = make_context();
+  CorrelationKernel kernel(*ctx);
+  const unsigned cpu_threads = a.cpu_threads ? a.cpu_threads : std::max(1u, std::thread::hardware_concurrency());
+  std::printf("bench-correlate on %s: the first voxels (up to %llu, and at most %llu values = members x voxels)\n"
+              "  of the synthetic ensemble on the paper's 250x352x20 grid, its reference point; bins %u, k %u.\n"
+              "  GPU: wall time of CorrelationKernel::compute (gathering the chunks, transfers and kernels);\n"
+              "  CPU: correlation_field_cpu, %u threads, same voxels.\n\n",
+              ctx->device_name().c_str(), static_cast<unsigned long long>(a.voxels),
+              static_cast<unsigned long long>(a.max_values), a.bins, a.k, cpu_threads);
+  std::printf("%-14s %5s %9s  %-61s %13s %13s %7s %10s\n", "measure", "M", "voxels", "GPU strategy", "GPU voxels/s",
+              "CPU voxels/s", "ratio", "max |G-C|");
+  nlohmann::json results = nlohmann::json::array();
+  for (uint32_t members : a.members) {
+    const uint64_t voxels = std::max<uint64_t>(1, std::min(a.voxels, a.max_values / members));
+    if (!globals().quiet) std::cerr << "generating " << members << " members x " << voxels << " voxels...\n";
+    const BenchEnsemble b = bench_ensemble(members, voxels);
+    const EnsembleView ens{b.values.data(), members, voxels};
+    const std::vector<float>& reference = b.reference;
+    for (const CorrelationParams& p : params) {
+      const std::string name = correlation_measure_name(p.measure);
+      const EnsembleView warm{b.values.data(), members, std::min<uint64_t>(voxels, 64)};
+      kernel.compute(warm, ensemble_series(warm, 0), p);  // pipeline creation is not measured
+      Progress progress(name + " M=" + std::to_string(members) + " GPU", voxels);
+      auto t0 = std::chrono::steady_clock::now();
+      const std::vector<float> gpu = kernel.compute(ens, reference, p, [&](uint64_t done, uint64_t) {
+        checkpoint("correlate");
+        progress.update(done);
+      });
+      const double gpu_s = seconds_since(t0);
+      progress.set_label(name + " M=" + std::to_string(members) + " CPU");
+      t0 = std::chrono::steady_clock::now();
+      const std::vector<float> cpu = correlation_field_cpu(ens, reference, p, cpu_threads);
+      const double cpu_s = seconds_since(t0);
+      progress.finish();
+      double diff = 0;
+      for (uint64_t v = 0; v < voxels; ++v)
+        if (!std::isnan(gpu[v]) || !std::isnan(cpu[v])) diff = std::max(diff, double(std::abs(gpu[v] - cpu[v])));
+      const double gpu_rate = double(voxels) / gpu_s, cpu_rate = double(voxels) / cpu_s;
+      const std::string strategy = CorrelationKernel::strategy(p, members);
+      std::printf("%-14s %5u %9llu  %-61s %13.4g %13.4g %7.2f %10.2g\n", name.c_str(), members,
+                  static_cast<unsigned long long>(voxels), strategy.c_str(), gpu_rate, cpu_rate, gpu_rate / cpu_rate, diff);
+      std::fflush(stdout);
+      results.push_back({{"measure", name}, {"members", members}, {"voxels", voxels}, {"strategy", strategy},
+                         {"gpu_s", gpu_s}, {"gpu_voxels_per_s", gpu_rate}, {"cpu_threads", cpu_threads}, {"cpu_s", cpu_s},
+                         {"cpu_voxels_per_s", cpu_rate}, {"ratio", gpu_rate / cpu_rate}, {"max_abs_difference", diff}});
+    }
+  }
+  if (!a.json.empty()) {
+    const nlohmann::json j{{"device", ctx->device_name()}, {"bins", a.bins}, {"k", a.k}, {"results", results}};
+    if (a.json == "-")
+      std::cout << j.dump(2) << "\n";
+    else
+      write_file_atomically(a.json, j.dump(2) + "\n");
+  }
+  return 0;
+}
+
+CommandRegistration reg(93, [](CLI::App& app) {
+  auto args = std::make_shared<BenchArgs>();
+  auto* sub = app.add_subcommand("bench-correlate",
+                                 "Benchmark the correlation-field kernels against the multi-threaded CPU implementation");
+  sub->add_option("--voxels", args->voxels, "The first voxels of the paper's 250x352x20 grid (default: all)")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))->capture_default_str();
+  sub->add_option("--members", args->members, "Member counts, comma separated")->delimiter(',')
+      ->check(CLI::Range(3u, 100000u))->capture_default_str();
+  sub->add_option("--measures", args->measures, "Measures, comma separated")->delimiter(',')
+      ->check(CLI::IsMember(correlation_measure_names()))->capture_default_str();
+  sub->add_option("--max-values", args->max_values,
+                  "At most this many values (members x voxels) per member count: fewer voxels for large M")
+      ->check(CLI::Range(uint64_t(1000), uint64_t(1) << 36))->capture_default_str();
+  sub->add_option("--cpu-threads", args->cpu_threads, "CPU threads (0: all cores)")->capture_default_str();
+  sub->add_option("--bins", args->bins, "mi-binned bins")->check(CLI::Range(2u, kMaxCorrelationBins))->capture_default_str();
+  sub->add_option("--k", args->k, "mi-kraskov / mi-coefficient neighbours")->check(CLI::Range(1u, kMaxCorrelationK))
+      ->capture_default_str();
+  sub->add_flag("--quick", args->quick, "A sanity run: at most 2000 voxels, 10 and 40 members");
+  sub->add_option("--json", args->json, "Also write the results as JSON (- for stdout)");
+  sub->callback([args] { exit_code() = run(*args); });
+});
+
+}  // namespace
+}  // namespace tfm::cli

@@ -1,0 +1,186 @@
+// `tfmatch correlate`: the correlation field of an ensemble for a reference point (or the
+// difference of two points' fields), written as a field that `optimize`, `render` and `residual`
+// read like any other.
+#include <chrono>
+#include <iostream>
+
+#include <nlohmann/json.hpp>
+
+#include "atomic_file.h"
+#include "cli.h"
+#include "correlation_field.h"
+#include "ensemble_io.h"
+#include "grid_point.h"
+#include "output_check.h"
+#include "progress.h"
+#include "render_options.h"
+#include "volume_vti.h"
+
+namespace tfm::cli {
+namespace {
+
+struct CorrelateArgs {
+  std::string ensemble;
+  std::vector<std::string> members;
+  std::string point, point2, measure = "pearson", out, json;
+  uint32_t bins = 16, k = 3;
+  bool absolute = false;
+  std::string var, member_dim;
+  std::optional<uint64_t> time;
+  VolumeFlags volume_flags;
+};
+
+std::string field_name(const CorrelateArgs& a) {
+  std::string n = a.measure + (a.point2.empty() ? "" : "_difference");
+  return a.absolute ? "abs_" + n : n;
+}
+
+int run(const CorrelateArgs& a) {
+  set_progress_enabled(!globals().quiet && a.json != "-");
+  if (a.ensemble.empty() == a.members.empty())
+    throw CLI::ValidationError("correlate", "give the ensemble either as --ensemble FILE[:VAR] or as --members FILE...");
+  CorrelationParams params;
+  try {
+    params.measure = parse_correlation_measure(a.measure);
+  } catch (const std::invalid_argument& e) {
+    throw CLI::ValidationError("--measure", e.what());
+  }
+  params.bins = a.bins;
+  params.k = a.k;
+  const std::string ext = std::filesystem::path(a.out).extension().string();
+  if (ext == ".png" || ext == ".json")
+    throw CLI::ValidationError("--out", "'" + a.out + "' would hold a field: name it .vti (ParaView) or .raw (float32)");
+
+  const std::vector<std::string> member_files = a.members.empty() ? std::vector<std::string>{}
+                                                                     : expand_member_patterns(a.members);
+  FilePlan files;
+  files.input_spec(a.ensemble, "--ensemble");
+  for (const std::string& m : member_files) files.input_spec(m, "--members");
+  files.output(a.out, "--out").output(a.json == "-" ? "" : a.json, "--json").check();
+  OutputBatch outputs;
+
+  VolumeOptions vo = a.volume_flags.options();
+  vo.variable = a.var;
+  vo.time_index = a.time;
+  vo.member_dim = a.member_dim;
+  const auto t0 = std::chrono::steady_clock::now();
+  const Ensemble ens = a.ensemble.empty() ? load_ensemble_members(member_files, vo) : load_ensemble(a.ensemble, vo);
+  const std::string source = ens.grid.name;
+  if (ens.member_count < 3)
+    throw std::runtime_error(source + ": " + std::to_string(ens.member_count) +
+                             " member(s); a correlation over members needs at least 3");
+  try {
+    validate_correlation_params(params, ens.member_count);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(source + ": " + e.what());
+  }
+  CorrelationRequest request;
+  request.params = params;
+  request.absolute = a.absolute;
+  const GridIndex p1 = resolve_grid_point(ens.grid, a.point, "--point");
+  request.point = linear_index(ens.grid, p1);
+  std::optional<GridIndex> p2;
+  if (!a.point2.empty()) {
+    p2 = resolve_grid_point(ens.grid, a.point2, "--point2");
+    request.point2 = linear_index(ens.grid, *p2);
+  }
+  try {
+    check_reference_point(ens.view(), request.point, params.measure);
+    if (request.point2) check_reference_point(ens.view(), *request.point2, params.measure);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(source + ": " + e.what());
+  }
+  const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  auto ctx = make_context();
+  const auto t1 = std::chrono::steady_clock::now();
+  Volume field = empty_like(ens.grid);
+  field.name = field_name(a);
+  {
+    Progress progress(std::string(correlation_measure_name(params.measure)) + " over " +
+                          std::to_string(ens.member_count) + " members",
+                      ens.voxel_count() * (p2 ? 2 : 1));
+    field.values = correlation_field(*ctx, ens.view(), request,
+                                     [&](uint64_t done, uint64_t) { progress.update(done); });
+  }
+  const double compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+
+  const bool vti = ext == ".vti";
+  if (vti) write_vti(a.out, field, field.name);
+  else write_raw_float32(a.out, field);
+
+  uint64_t nan = 0;
+  double lo = INFINITY, hi = -INFINITY;
+  for (float v : field.values) {
+    if (std::isnan(v)) ++nan;
+    else lo = std::min(lo, double(v)), hi = std::max(hi, double(v));
+  }
+  nlohmann::json j = {{"ensemble", source},
+                      {"members", ens.member_count},
+                      {"grid", ens.grid.dims},
+                      {"measure", correlation_measure_name(params.measure)},
+                      {"strategy", CorrelationKernel::strategy(params, ens.member_count)},
+                      {"point", p1},
+                      {"point_description", describe_grid_point(ens.grid, p1)},
+                      {"absolute", a.absolute},
+                      {"nan_voxels", nan},
+                      {"min", nan == field.voxel_count() ? nlohmann::json() : nlohmann::json(lo)},
+                      {"max", nan == field.voxel_count() ? nlohmann::json() : nlohmann::json(hi)},
+                      {"out", a.out},
+                      {"device", ctx->device_name()},
+                      {"seconds", {{"load", load_s}, {"compute", compute_s}}}};
+  if (params.measure == CorrelationMeasure::MiBinned) j["bins"] = params.bins;
+  if (params.measure == CorrelationMeasure::MiKraskov || params.measure == CorrelationMeasure::MiCoefficient) j["k"] = params.k;
+  if (p2) j["point2"] = *p2, j["point2_description"] = describe_grid_point(ens.grid, *p2);
+  if (!a.json.empty() && a.json != "-") write_file_atomically(a.json, j.dump(2) + "\n");
+  outputs.commit();
+  if (a.json == "-") std::cout << j.dump(2) << "\n";
+  if (!globals().quiet && a.json != "-") {
+    const auto& d = ens.grid.dims;
+    std::cout << "ensemble " << source << ": " << ens.member_count << " members on " << d[0] << "x" << d[1] << "x" << d[2]
+              << "\n  reference point " << describe_grid_point(ens.grid, p1) << "\n";
+    if (p2) std::cout << "  minus point     " << describe_grid_point(ens.grid, *p2) << "\n";
+    std::cout << "  " << correlation_measure_name(params.measure) << " (" << CorrelationKernel::strategy(params, ens.member_count)
+              << ") on " << ctx->device_name() << " in " << compute_s << " s";
+    if (nan < field.voxel_count()) std::cout << ": range [" << lo << ", " << hi << "]";
+    if (nan > 0) std::cout << ", " << nan << " voxels NaN (no data in some member)";
+    std::cout << "\n  wrote " << a.out << (vti ? " (VTK ImageData, the source's origin and spacing)" : " (float32 little-endian, x fastest)")
+              << "\n";
+  }
+  return 0;
+}
+
+CommandRegistration reg(23, [](CLI::App& app) {
+  auto args = std::make_shared<CorrelateArgs>();
+  auto* sub = app.add_subcommand(
+      "correlate",
+      "Correlation field of an ensemble: per voxel, a measure between the member series at a reference point and "
+      "at that voxel. A voxel where any member has no data (NaN, fill value) is NaN; a constant series gives NaN "
+      "for pearson, spearman and kendall and 0 for the mutual-information measures");
+  sub->add_option("--ensemble", args->ensemble,
+                  "Ensemble: a NetCDF variable with a member dimension (member, members, ensemble, realization, number, "
+                  "or --member-dim) or GRIB messages differing in `number`, as FILE[:VAR]");
+  sub->add_option("--members", args->members, "Ensemble as one file per member (FILE[:VAR] ...; quoted patterns such as "
+                                              "'run*/t.vti' are expanded, sorted)");
+  sub->add_option("--point", args->point,
+                  "Reference point: I,J,K grid indices (I along x, the fastest axis) or lon=..,lat=..,level=.. "
+                  "(nearest grid point, printed)")->required();
+  sub->add_option("--point2", args->point2, "Second reference point: the output is corr(point) - corr(point2)");
+  sub->add_option("--measure", args->measure, "pearson, spearman, kendall (tau-b), mi-binned, mi-kraskov or mi-coefficient")
+      ->capture_default_str();
+  sub->add_option("--bins", args->bins, "mi-binned: equal-width bins over each series' min..max")
+      ->check(CLI::Range(2u, kMaxCorrelationBins))->capture_default_str();
+  sub->add_option("--k", args->k, "mi-kraskov, mi-coefficient: neighbours of the KSG estimator (1 .. members-1)")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  sub->add_flag("--abs", args->absolute, "Write the magnitude |result| (after the difference with --point2)");
+  sub->add_option("--out", args->out, "Output field: .vti (origin and spacing kept) or float32 raw, same grid")->required();
+  sub->add_option("--json", args->json, "Also write what was computed as JSON to this file ('-': stdout only)");
+  sub->add_option("--var", args->var, "Variable (NetCDF) or shortName[@typeOfLevel] (GRIB) when not given as FILE:VAR");
+  sub->add_option("--time", args->time, "Time index (NetCDF, GRIB), default 0");
+  sub->add_option("--member-dim", args->member_dim, "NetCDF: the name of the member dimension");
+  add_volume_flags(sub, args->volume_flags);
+  sub->callback([args] { exit_code() = run(*args); });
+});
+
+}  // namespace
+}  // namespace tfm::cli

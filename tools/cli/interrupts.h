@@ -1,0 +1,21 @@
+// SIGINT and SIGTERM for the command line. The first signal requests cancellation
+// (host/core/cancellation.h) and wakes a watchdog thread: the work stops at its next checkpoint
+// and unwinds, which removes its temporary files and staged outputs (host/io/atomic_file.h), and
+// main() exits with 128 + the signal (130, 143). If the work has not stopped within kGrace (a
+// long GPU submission or library call has no checkpoint), or a second signal comes, the watchdog
+// removes every pending temporary path itself and exits at once with the same code.
+#pragma once
+
+#include <chrono>
+
+namespace tfm::cli {
+
+constexpr std::chrono::milliseconds kGrace{800};
+
+// Installs the handlers and starts the watchdog; call once, before any work.
+void install_interrupt_handlers();
+
+// "SIGINT", "SIGTERM" or "signal N".
+const char* signal_name(int signal);
+
+}  // namespace tfm::cli
