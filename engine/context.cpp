@@ -113,11 +113,11 @@ bool supports_int64_atomics(const Dispatch& vk, VkPhysicalDevice pd) {
   VkPhysicalDeviceProperties props{};
   vk.vkGetPhysicalDeviceProperties(pd, &props);
   if (props.apiVersion < VK_API_VERSION_1_2 || !vk.vkGetPhysicalDeviceFeatures2) return false;
-  VkPhysicalDeviceVulkan12Features v12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  VkPhysicalDeviceShaderAtomicInt64Features atomics{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_ATOMIC_INT64_FEATURES};
   VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
-  features.pNext = &v12;
+  features.pNext = &atomics;
   vk.vkGetPhysicalDeviceFeatures2(pd, &features);
-  return features.features.shaderInt64 && v12.shaderBufferInt64Atomics && v12.shaderSharedInt64Atomics;
+  return features.features.shaderInt64 && atomics.shaderBufferInt64Atomics && atomics.shaderSharedInt64Atomics;
 }
 
 uint32_t compute_subgroup_operations(const VkPhysicalDeviceSubgroupProperties& p) {
@@ -267,15 +267,18 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
   // Arrays of field chunks are indexed per sample by the renderer.
   enabled.shaderStorageBufferArrayDynamicIndexing = supported.shaderStorageBufferArrayDynamicIndexing;
   // 64-bit atomics halve the atomics of the accumulating kernels (one per fixed-point slot).
-  VkPhysicalDeviceVulkan12Features v12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  // Enabled through the atomic-int64 struct rather than VkPhysicalDeviceVulkan12Features: with
+  // the latter, a host's own validated instance in the same process crashed when it destroyed
+  // its debug messenger (test EmbeddingVolk).
+  VkPhysicalDeviceShaderAtomicInt64Features atomic_features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_ATOMIC_INT64_FEATURES};
   const bool int64_atomics = supports_int64_atomics(vk, ctx->physical_device_);
   if (int64_atomics) {
     enabled.shaderInt64 = VK_TRUE;
-    v12.shaderBufferInt64Atomics = VK_TRUE;
-    v12.shaderSharedInt64Atomics = VK_TRUE;
+    atomic_features.shaderBufferInt64Atomics = VK_TRUE;
+    atomic_features.shaderSharedInt64Atomics = VK_TRUE;
   }
   VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
-  if (int64_atomics) device_info.pNext = &v12;
+  if (int64_atomics) device_info.pNext = &atomic_features;
   device_info.queueCreateInfoCount = 1;
   device_info.pQueueCreateInfos = &queue_info;
   device_info.pEnabledFeatures = &enabled;
