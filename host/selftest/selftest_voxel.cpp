@@ -170,6 +170,8 @@ void add_voxel_cases(CaseList& cases) {
   // 6N+4 slots of 8 bytes: 192 KiB for N = 4096, beyond every device's shared memory, so the
   // automatic choice is the private or the global path.
   add_assemble({20000, 4096}, true);
+  // 72 KiB of shared slots for N = 1500: run where a device has them, else skipped saying so.
+  add_assemble({20000, 1500, M::RunsShared}, true);
   add_assemble({100003, 256}, false);
   add_assemble({100003, 64, M::Auto, AtomicWidth::Auto, 16384}, false);
 
