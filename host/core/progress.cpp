@@ -1,23 +1,56 @@
-// Terminal progress lines.
+// Progress lines: updating on a terminal, periodic plain lines elsewhere.
 #include "progress.h"
 
 #include <atomic>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 
 #include <unistd.h>
 
 namespace tfm {
 namespace {
 std::atomic<bool> g_enabled{true};
+std::atomic<double> g_interval_s{0.0};  // 0: not set, read the environment
+
+double interval_from_environment() {
+  const char* text = std::getenv("TFMATCH_PROGRESS_INTERVAL");
+  if (!text || !*text) return 10.0;
+  char* end = nullptr;
+  const double s = std::strtod(text, &end);
+  // A bad value is not worth failing a run over: the default then.
+  return (*end == '\0' && s > 0 && std::isfinite(s)) ? s : 10.0;
 }
+}  // namespace
 
 void set_progress_enabled(bool enabled) { g_enabled = enabled; }
-bool progress_enabled() { return g_enabled && ::isatty(STDERR_FILENO); }
+bool progress_enabled() { return g_enabled; }
+
+void set_progress_interval(double seconds) { g_interval_s = seconds; }
+double progress_interval_s() {
+  const double set = g_interval_s;
+  return set > 0 ? set : interval_from_environment();
+}
+
+std::string format_duration(double s) {
+  char buf[32];
+  if (!(s >= 0) || !std::isfinite(s)) return "?";
+  if (s < 60) {
+    std::snprintf(buf, sizeof buf, "%.1fs", s);
+  } else if (s < 3600) {
+    const auto whole = static_cast<long long>(std::lround(s));
+    std::snprintf(buf, sizeof buf, "%lldm%02llds", whole / 60, whole % 60);
+  } else {
+    const auto minutes = static_cast<long long>(std::lround(s / 60));
+    std::snprintf(buf, sizeof buf, "%lldh%02lldm", minutes / 60, minutes % 60);
+  }
+  return buf;
+}
 
 Progress::Progress(std::string label, uint64_t total)
-    : label_(std::move(label)), total_(total), active_(progress_enabled()),
+    : label_(std::move(label)), total_(total), active_(progress_enabled()), terminal_(::isatty(STDERR_FILENO) == 1),
       start_(std::chrono::steady_clock::now()), last_(start_) {
-  if (active_) draw(false);
+  if (active_ && terminal_) draw(false);
 }
 
 Progress::~Progress() { finish(); }
@@ -25,20 +58,25 @@ Progress::~Progress() { finish(); }
 void Progress::update(uint64_t done) {
   done_ = done;
   if (!active_) return;
-  auto now = std::chrono::steady_clock::now();
-  if (now - last_ < std::chrono::milliseconds(100)) return;
-  last_ = now;
-  draw(false);
+  const auto now = std::chrono::steady_clock::now();
+  if (terminal_) {
+    if (now - last_ < std::chrono::milliseconds(100)) return;
+    last_ = now;
+    draw(false);
+  } else if (std::chrono::duration<double>(now - last_).count() >= progress_interval_s()) {
+    last_ = now;
+    print_plain_line();
+  }
 }
 
 void Progress::set_label(std::string label) {
   label_ = std::move(label);
-  if (active_) draw(false);
+  if (active_ && terminal_) draw(false);
 }
 
 void Progress::finish() {
   if (!active_) return;
-  draw(true);
+  if (terminal_) draw(true);
   active_ = false;
 }
 
@@ -49,6 +87,22 @@ void Progress::draw(bool final_line) {
   else
     std::fprintf(stderr, "\r\033[K%s %llu (%.1f s)", label_.c_str(), static_cast<unsigned long long>(done_), s);
   if (final_line) std::fputs("\r\033[K", stderr);  // leave the terminal clean for the summary
+  std::fflush(stderr);
+}
+
+// "diffdvr: 40% (20/50), 1m10s elapsed, ~1m45s left": one line a log keeps as it is.
+void Progress::print_plain_line() {
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  const auto done = static_cast<unsigned long long>(done_);
+  if (total_ > 0) {
+    const double fraction = double(done_) / double(total_);
+    // The time left assumes the rate so far holds; unknown before any work is done.
+    const std::string left = done_ > 0 ? "~" + format_duration(s * (1.0 - fraction) / fraction) : "?";
+    std::fprintf(stderr, "%s: %.0f%% (%llu/%llu), %s elapsed, %s left\n", label_.c_str(), 100.0 * fraction, done,
+                 static_cast<unsigned long long>(total_), format_duration(s).c_str(), left.c_str());
+  } else {
+    std::fprintf(stderr, "%s: %llu done, %s elapsed\n", label_.c_str(), done, format_duration(s).c_str());
+  }
   std::fflush(stderr);
 }
 

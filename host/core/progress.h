@@ -1,5 +1,7 @@
-// Progress on the terminal for long runs: a single updating line on stderr, only when stderr
-// is a terminal (never in logs, pipes or tests) and not switched off.
+// Progress of long runs on stderr. On a terminal: one updating line. Elsewhere (logs, pipes,
+// batch jobs): a plain line every interval (10 s unless TFMATCH_PROGRESS_INTERVAL says otherwise)
+// with percent, elapsed time and an estimate of the time left, so a run that lasts under one
+// interval prints nothing and a long one is never silent.
 #pragma once
 
 #include <chrono>
@@ -10,7 +12,16 @@ namespace tfm {
 
 // Process-wide switch (the CLI turns it off for --quiet); on by default.
 void set_progress_enabled(bool enabled);
-bool progress_enabled();  // the switch and isatty(stderr)
+bool progress_enabled();  // the switch
+
+// Seconds between plain lines when stderr is not a terminal: set_progress_interval's value if
+// called, else the environment variable TFMATCH_PROGRESS_INTERVAL (seconds, > 0; tests set it
+// small), else 10.
+void set_progress_interval(double seconds);
+double progress_interval_s();
+
+// "1m10s", "3.2s", "2h05m": a duration for people.
+std::string format_duration(double seconds);
 
 class Progress {
  public:
@@ -20,15 +31,17 @@ class Progress {
   Progress(const Progress&) = delete;
   Progress& operator=(const Progress&) = delete;
 
-  void update(uint64_t done);  // redraws at most every 100 ms
+  void update(uint64_t done);  // terminal: redraws at most every 100 ms; else a line per interval
   void set_label(std::string label);
   void finish();
 
  private:
   void draw(bool final_line);
+  void print_plain_line();
   std::string label_;
   uint64_t total_ = 0, done_ = 0;
   bool active_ = false;
+  bool terminal_ = false;
   std::chrono::steady_clock::time_point start_, last_;
 };
 

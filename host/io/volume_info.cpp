@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "volume_format_table.h"
+#include "volume_formats.h"
 
 namespace tfm {
 
@@ -29,6 +30,40 @@ FileInfo describe_file(const std::filesystem::path& path, const VolumeOptions& o
   const VolumeFormat* format = find_volume_format(path);
   if (!format) throw std::runtime_error(unknown_volume_format_message(path));
   return format->describe(path, options);
+}
+
+FileInfo describe_selection(const std::string& spec, const VolumeOptions& options) {
+  const VolumeSpec parsed = parse_volume_spec(spec, options);
+  const VolumeFormat* format = find_volume_format(parsed.path);
+  const Volume v = load_volume(spec, options);
+  FileInfo info;
+  info.path = parsed.path.string();
+  info.format = format ? format->title : "";
+  ArrayInfo a;
+  a.name = v.name;
+  a.kind = "selection";
+  a.type = "float32 as loaded";
+  a.shape = "(x=" + std::to_string(v.dims[0]) + ", y=" + std::to_string(v.dims[1]) + ", z=" + std::to_string(v.dims[2]) + ")";
+  a.grid = v.dims;
+  a.spacing = v.spacing;
+  a.origin = v.origin;
+  const VolumeOptions& o = parsed.options;
+  if (!o.variable.empty()) a.choices.push_back("variable " + o.variable);
+  if (o.time_index) a.choices.push_back("time index " + std::to_string(*o.time_index));
+  if (o.member_index) a.choices.push_back("member index " + std::to_string(*o.member_index));
+  static const char* const axis_names[3] = {"x", "y", "z"};
+  for (int i = 0; i < 3; ++i) {
+    const GridAxis& ax = v.axes[size_t(i)];
+    if (ax.name.empty() && ax.coordinates.empty()) continue;
+    std::ostringstream line;
+    line.precision(7);
+    line << axis_names[i] << ": " << (ax.name.empty() ? "coordinates" : ax.name) << " " << axis_coordinate(v, i, 0)
+         << " .. " << axis_coordinate(v, i, v.dims[size_t(i)] - 1) << (ax.units.empty() ? "" : " " + ax.units);
+    a.orientation.push_back(line.str());
+  }
+  accumulate_stats(a, v.values.data(), v.values.size());
+  info.arrays.push_back(std::move(a));
+  return info;
 }
 
 std::string format_file_info(const FileInfo& info) {

@@ -45,6 +45,10 @@ struct FileInfo {
 // `options` matter for raw files only (dimensions, type, byte order); a raw file without known
 // dimensions is described by its size and the cubes that would fit.
 FileInfo describe_file(const std::filesystem::path& path, const VolumeOptions& options = {});
+// Describes one selection ("FILE:VAR[,time=N][,member=N]" with `options` as defaults, as
+// load_volume reads it): the field as loaded, its grid, axes, range and NaN count at that time and
+// member. Throws like load_volume.
+FileInfo describe_selection(const std::string& spec, const VolumeOptions& options);
 std::string format_file_info(const FileInfo& info);
 nlohmann::json file_info_json(const FileInfo& info);
 

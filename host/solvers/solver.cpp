@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <sstream>
 #include <stdexcept>
 
@@ -254,17 +255,40 @@ std::vector<const Solver*> solvers_with_option(std::string_view option) {
   return out;
 }
 
+namespace {
+
+// Throws when none of `chosen` is among `owners`, the solvers flag --`name` applies to.
+void require_owner(const std::string& name, const std::vector<std::string>& owners, const std::vector<std::string>& chosen) {
+  if (owners.empty()) throw std::runtime_error("unknown solver option --" + name);
+  const bool applies = std::any_of(chosen.begin(), chosen.end(), [&](const std::string& c) {
+    return std::find(owners.begin(), owners.end(), c) != owners.end();
+  });
+  if (!applies)
+    throw std::runtime_error("--" + name + " applies to solver" + (owners.size() > 1 ? "s " : " ") +
+                             join(owners, ", ", ", ") + ", not to " + join(chosen, ", ", ", "));
+}
+
+}  // namespace
+
 void check_options_apply(const SolverSettings& settings, const std::vector<std::string>& chosen) {
   for (const auto& [name, value] : settings.extra) {
     std::vector<std::string> owners;
     for (const Solver* s : solvers_with_option(name)) owners.emplace_back(s->name());
-    if (owners.empty()) throw std::runtime_error("unknown solver option --" + name);
-    const bool applies = std::any_of(chosen.begin(), chosen.end(), [&](const std::string& c) {
-      return std::find(owners.begin(), owners.end(), c) != owners.end();
-    });
-    if (!applies)
-      throw std::runtime_error("--" + name + " applies to solver" + (owners.size() > 1 ? "s " : " ") +
-                               join(owners, ", ", ", ") + ", not to " + join(chosen, ", ", ", "));
+    require_owner(name, owners, chosen);
+  }
+  // The options every solver's SolveOptions carries: given when not at their defaults.
+  const SolveOptions defaults;
+  const std::pair<const char*, bool SolverConstraints::*> shared[] = {
+      {"ridge", &SolverConstraints::ridge}, {"smooth", &SolverConstraints::smooth},
+      {"factorization", &SolverConstraints::factorization}};
+  const bool given[] = {settings.solve.ridge != defaults.ridge, settings.solve.smooth != defaults.smooth,
+                        settings.solve.factorization != defaults.factorization};
+  for (size_t i = 0; i < std::size(shared); ++i) {
+    if (!given[i]) continue;
+    std::vector<std::string> owners;
+    for (const auto& s : solvers())
+      if (s->constraints().*shared[i].second) owners.emplace_back(s->name());
+    require_owner(shared[i].first, owners, chosen);
   }
 }
 

@@ -168,6 +168,7 @@ struct SolverConstraints {
   BoxHandling box = BoxHandling::Clamped;
   bool ridge = true;    // honours SolveOptions::ridge (--ridge)
   bool smooth = true;   // honours SolveOptions::smooth (--smooth)
+  bool factorization = false;  // honours SolveOptions::factorization (--factorization): solves M directly
 };
 
 class Solver {
@@ -194,8 +195,10 @@ std::vector<std::string> solver_names();
 // The solvers that declare an option named `option`, in registry order.
 std::vector<const Solver*> solvers_with_option(std::string_view option);
 
-// Throws std::runtime_error (worded as below) for a flag in settings.extra that none of the
-// `chosen` solvers declares.
+// Throws std::runtime_error "--lr applies to solvers diffdvr, gradient-descent, not to
+// normal-equations" for a flag in settings.extra that none of the `chosen` solvers declares, and
+// for a SolveOptions value given (not its default: --ridge, --smooth, --factorization) that none
+// of them honours (SolverConstraints); "unknown solver option --X" for a flag no solver declares.
 void check_options_apply(const SolverSettings& settings, const std::vector<std::string>& chosen);
 
 // Parses settings.extra for `solver`: every option it declares gets its given value (checked) or

@@ -60,6 +60,12 @@ ComparisonPlan plan_comparison(const SolverSettings& settings, std::vector<std::
     std::erase_if(own.extra, [&](const auto& option) {
       return std::none_of(declared.begin(), declared.end(), [&](const SolverOption& o) { return o.name == option.first; });
     });
+    // Shared options a solver does not honour (--ridge for diffdvr) stay at their defaults for it.
+    const SolverConstraints honours = solver.constraints();
+    const SolveOptions defaults;
+    if (!honours.ridge) own.solve.ridge = defaults.ridge;
+    if (!honours.smooth) own.solve.smooth = defaults.smooth;
+    if (!honours.factorization) own.solve.factorization = defaults.factorization;
     parse_solver_args(solver, own);  // bad values fail before anything runs
     plan.solvers.push_back(name);
     plan.settings.push_back(std::move(own));

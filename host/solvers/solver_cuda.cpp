@@ -167,7 +167,7 @@ class CudaNormalEquationsSolver final : public Solver {
   std::string_view summary() const override {
     return "CUDA: A^T A and A^T b from the explicit CSR A by cuSPARSE (as the paper), host tridiagonal solve";
   }
-  SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true}; }
+  SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true, true}; }
   SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
     return solve_with_cuda_normal_equations(p, args);
   }

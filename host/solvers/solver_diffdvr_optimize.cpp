@@ -145,7 +145,7 @@ class DiffDvrSolver final : public Solver {
            "(minutes on large fields)";
   }
   // --smooth is its own prior here (see below); --ridge does not apply.
-  SolverConstraints constraints() const override { return {BoxHandling::Projected, false, true}; }
+  SolverConstraints constraints() const override { return {BoxHandling::Projected, false, true, true}; }
   bool image_based() const override { return true; }
   std::vector<SolverOption> options() const override {
     return {SolverOption::choice("loss", "l2", {"l2", "l1"}, "image loss over RGBA"),

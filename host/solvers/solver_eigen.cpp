@@ -108,7 +108,7 @@ class EigenNormalEquationsSolver final : public Solver {
   std::string_view summary() const override {
     return "CPU baseline: explicit sparse A, A^T A and A^T b by Eigen sparse products, then the tridiagonal solve";
   }
-  SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true}; }
+  SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true, true}; }
   SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
     return solve_with_eigen_normal_equations(p, args);
   }

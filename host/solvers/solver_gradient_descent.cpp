@@ -12,6 +12,7 @@
 #include "cancellation.h"
 #include "commands.h"
 #include "gradient_descent.h"
+#include "progress.h"
 #include "solver_support.h"
 #include "sparse_ops.h"
 #include "voxel_pair.h"
@@ -49,6 +50,7 @@ GradientDescentResult solve_gradient_descent_gpu(VoxelProblem& p, const Gradient
 
   t0 = std::chrono::steady_clock::now();
   double gpu_ms = 0.0;
+  Progress progress("gradient-descent", o.iterations);  // thousands of iterations on large fields take minutes
   for (uint32_t done = 0; done < o.iterations;) {
     checkpoint("solve");
     const uint32_t count = std::min(kIterationsPerBatch, o.iterations - done);
@@ -68,7 +70,9 @@ GradientDescentResult solve_gradient_descent_gpu(VoxelProblem& p, const Gradient
     batch.submit_and_wait();
     gpu_ms = batch.elapsed_ms(a, b) >= 0 ? gpu_ms + batch.elapsed_ms(a, b) : -1.0;
     done += count;
+    progress.update(done);
   }
+  progress.finish();
   out.phases.push_back({"iterate", ms_since(t0), ctx.timestamps_supported() ? gpu_ms : -1.0});
 
   std::vector<float> xs(size_t(n) * 4);

@@ -25,7 +25,7 @@ class NormalEquationsSolver final : public Solver {
   std::string_view summary() const override {
     return "M and S^T b assembled on the GPU, tridiagonal LDL^T or QR on the host (fast, exact up to clamping)";
   }
-  SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true}; }
+  SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true, true}; }
 
   SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
     NormalEquationsGpuResult r = solve_normal_equations_gpu(p, args.solve);

@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <utility>
 #include <vector>
@@ -38,6 +39,25 @@ inline CliResult run_cli(const std::string& args) {
   int status = pclose(pipe);
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   return r;
+}
+
+// `tfmatch ARGS` with stdout and stderr kept apart: `output` is stdout alone (what `--json -`
+// promises to keep to JSON), `errors` is stderr.
+struct CliSplitResult {
+  int exit_code = -1;
+  std::string output, errors;
+};
+inline CliSplitResult run_cli_split(const std::string& args) {
+  char name[] = "/tmp/tfmatch_stderr_XXXXXX";
+  const int fd = mkstemp(name);
+  if (fd < 0) return {};
+  close(fd);
+  const CliResult r = run_cli(args + " 2>" + name + " #");  // the '#' comments out run_cli's own 2>&1
+  CliSplitResult out{r.exit_code, r.output, {}};
+  std::ifstream in(name, std::ios::binary);
+  out.errors.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  std::remove(name);
+  return out;
 }
 
 // `tfmatch ARGS` started in the background (through `sh -c "exec ..."`, so the process signalled

@@ -77,7 +77,7 @@ TEST_F(RenderCli, PresetColoursRenderAsParaViewShowsThem) {
 TEST_F(RenderCli, MetricsOfIdenticalImages) {
   ASSERT_EQ(run_cli("render --volume " + dir / "a_6x5x4_float32.raw" + " --tf " + dir / "tf.json" + " --out " +
                     dir / "a.png" + " --width 24 --height 24").exit_code, 0);
-  auto r = run_cli("metrics " + dir / "a.png" + " " + dir / "a.png" + " --json");
+  auto r = run_cli("metrics " + dir / "a.png" + " " + dir / "a.png" + " --json -");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const auto j = nlohmann::json::parse(r.output);
   EXPECT_EQ(j["rmse"], 0.0);

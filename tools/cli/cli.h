@@ -30,6 +30,21 @@ struct CommandRegistration {
 std::vector<std::pair<int, CommandSetup>>& registered_commands();
 int& exit_code();
 
+// The exit codes of `tfmatch`, listed in `tfmatch --help` by exit_code_help().
+enum ExitCode : int {
+  kExitOk = 0,
+  kExitError = 1,       // the run failed: a message names the file or option and what is wrong
+  kExitUsage = 2,       // the command line is wrong: unknown, missing or misapplied option or value
+  kExitValidation = 3,  // the Khronos validation layer reported a message
+  kExitVulkan = 4,      // no usable Vulkan device, or the driver failed
+  // 128 + signal (130 SIGINT, 143 SIGTERM): interrupted; nothing written
+};
+std::string exit_code_help();
+
+// Runs `check` (a check of flag values made outside CLI11, such as the solver-flag checks of
+// host/solvers) and turns what it throws into a usage error (exit code 2).
+void check_usage(const std::function<void()>& check);
+
 // Creates the Vulkan context from the global options. When validation is on, the messages it
 // collected are printed to stderr as the context is released, and the exit code becomes 3.
 // `validation_when_installed` turns the layer on without --validation where it is installed.

@@ -17,6 +17,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "output_check.h"
+#include "output_options.h"
 #include "eigen_baseline.h"
 #include "gpu_voxel_ops.h"
 #include "normal_equations_cpu.h"
@@ -87,7 +88,8 @@ std::string load_average() {
 }
 
 int run(const BenchArgs& a) {
-  FilePlan().output(a.json, "--json").check();
+  const JsonOutput json(a.json);  // first: with '-', stdout holds only the JSON
+  FilePlan().output(json.file(), "--json").check();
   auto ctx = make_context();
   if (!ctx->timestamps_supported()) throw std::runtime_error("this device has no timestamps; cannot benchmark");
   const unsigned threads = std::max(1u, std::thread::hardware_concurrency());
@@ -179,7 +181,7 @@ int run(const BenchArgs& a) {
   out["load_average_after"] = load_average();
   std::cout << "\n  GPU/CPU > 1: the assembly is faster than the CPU loop; GPU/bound: fraction of the copy speed.\n"
             << "  load average after: " << load_average() << "\n";
-  if (!a.json.empty()) write_file_atomically(a.json, out.dump(2) + "\n");
+  json.write(out);
   return 0;
 }
 
@@ -197,7 +199,7 @@ CommandRegistration reg(80, [](CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--eigen-max-voxels", args->eigen_max_voxels, "Skip the Eigen baseline above this size")
       ->capture_default_str();
-  sub->add_option("--json", args->json, "Also write the numbers as JSON");
+  add_json_option(sub, args->json, "the numbers");
   sub->callback([args] { exit_code() = run(*args); });
 });
 

@@ -17,6 +17,7 @@
 #include "correlation_cpu.h"
 #include "grid_point.h"
 #include "output_check.h"
+#include "output_options.h"
 #include "progress.h"
 #include "synthetic_ensemble.h"
 
@@ -69,8 +70,9 @@ BenchEnsemble bench_ensemble(uint32_t members, uint64_t voxels) {
 }
 
 int run(BenchArgs a) {
+  const JsonOutput json(a.json);  // first: with '-', stdout holds only the JSON
   set_progress_enabled(!globals().quiet);
-  FilePlan().output(a.json == "-" ? "" : a.json, "--json").check();
+  FilePlan().output(json.file(), "--json").check();
   if (a.quick) {
     a.voxels = std::min<uint64_t>(a.voxels, 2000);
     a.members = {10, 40};
@@ -124,13 +126,7 @@ int run(BenchArgs a) {
                          {"cpu_voxels_per_s", cpu_rate}, {"ratio", gpu_rate / cpu_rate}, {"max_abs_difference", diff}});
     }
   }
-  if (!a.json.empty()) {
-    const nlohmann::json j{{"device", ctx->device_name()}, {"bins", a.bins}, {"k", a.k}, {"results", results}};
-    if (a.json == "-")
-      std::cout << j.dump(2) << "\n";
-    else
-      write_file_atomically(a.json, j.dump(2) + "\n");
-  }
+  json.write({{"device", ctx->device_name()}, {"bins", a.bins}, {"k", a.k}, {"results", results}});
   return 0;
 }
 
@@ -152,7 +148,7 @@ CommandRegistration reg(93, [](CLI::App& app) {
   sub->add_option("--k", args->k, "mi-kraskov / mi-coefficient neighbours")->check(CLI::Range(1u, kMaxCorrelationK))
       ->capture_default_str();
   sub->add_flag("--quick", args->quick, "A sanity run: at most 2000 voxels, 10 and 40 members");
-  sub->add_option("--json", args->json, "Also write the results as JSON (- for stdout)");
+  add_json_option(sub, args->json, "the results");
   sub->callback([args] { exit_code() = run(*args); });
 });
 

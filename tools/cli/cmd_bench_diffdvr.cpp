@@ -17,6 +17,7 @@
 #include "metrics.h"
 #include "optimize.h"
 #include "output_check.h"
+#include "output_options.h"
 #include "progress.h"
 #include "render.h"
 #include "render_options.h"
@@ -215,14 +216,15 @@ nlohmann::json bench_cube(Context& ctx, const BenchArgs& a) {
 }
 
 int run(const BenchArgs& a) {
+  const JsonOutput json(a.json);  // first: with '-', stdout holds only the JSON
   set_progress_enabled(!globals().quiet);
-  FilePlan().output(a.json, "--json").check();
+  FilePlan().output(json.file(), "--json").check();
   validate(a.settings);
   auto ctx = make_context();
   nlohmann::json j{{"device", ctx->device_name()}};
   if (!a.cube_only) j["iterations"] = bench_iterations(*ctx, a);
   if (a.cube || a.cube_only) j["cube"] = bench_cube(*ctx, a);
-  if (!a.json.empty()) write_file_atomically(a.json, j.dump(2) + "\n");
+  json.write(j);
   return 0;
 }
 
@@ -248,7 +250,7 @@ CommandRegistration reg(92, [](CLI::App& app) {
       ->check(CLI::Range(8u, 4096u))->capture_default_str();
   sub->add_option("--iterations", args->iterations, "Cube case: DiffDVR iterations")->check(CLI::Range(1u, 100000u))
       ->capture_default_str();
-  sub->add_option("--json", args->json, "Also write the results as JSON");
+  add_json_option(sub, args->json, "the results");
   add_render_options(sub, args->settings);
   sub->callback([args] { exit_code() = run(*args); });
 });

@@ -11,6 +11,7 @@
 #include "cpu_renderer.h"
 #include "gpu_voxel_ops.h"
 #include "output_check.h"
+#include "output_options.h"
 #include "progress.h"
 #include "render.h"
 #include "render_options.h"
@@ -33,8 +34,9 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
 }
 
 int run(const BenchArgs& a) {
+  const JsonOutput json(a.json);  // first: with '-', stdout holds only the JSON
   set_progress_enabled(!globals().quiet);
-  FilePlan().output(a.json, "--json").check();
+  FilePlan().output(json.file(), "--json").check();
   auto ctx = make_context();
   const bool quiet = globals().quiet;
   if (!quiet) std::cerr << "generating the " << a.size << "^3 synthetic volume...\n";
@@ -95,10 +97,7 @@ int run(const BenchArgs& a) {
                        {"cpu_samples_per_s", cpu_rate},
                        {"ratio", gpu_rate / cpu_rate}});
   }
-  if (!a.json.empty()) {
-    nlohmann::json j{{"device", ctx->device_name()}, {"volume", a.size}, {"results", results}};
-    write_file_atomically(a.json, j.dump(2) + "\n");
-  }
+  json.write({{"device", ctx->device_name()}, {"volume", a.size}, {"results", results}});
   return 0;
 }
 
@@ -112,7 +111,7 @@ CommandRegistration reg(91, [](CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--cpu-rows", args->cpu_rows, "Rows the CPU reference renders per size")
       ->check(CLI::Range(1u, 8192u))->capture_default_str();
-  sub->add_option("--json", args->json, "Also write the results as JSON");
+  add_json_option(sub, args->json, "the results");
   add_render_options(sub, args->settings);
   sub->callback([args] { exit_code() = run(*args); });
 });

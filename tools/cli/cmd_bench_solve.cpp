@@ -18,6 +18,7 @@
 #include "memory_budget.h"
 #include "normal_equations.h"
 #include "output_check.h"
+#include "output_options.h"
 #include "synthetic.h"
 
 namespace tfm::cli {
@@ -40,11 +41,12 @@ uint64_t peak_resident_bytes() {
 }
 
 int run(const BenchSolveArgs& a) {
+  const JsonOutput json(a.json);  // first: with '-', stdout holds only the JSON
   FilePlan()
       .input_spec(a.input.ref, "--ref")
       .input_spec(a.input.field, "--field")
       .input_spec(a.input.ref_tf, "--ref-tf")
-      .output(a.json, "--json")
+      .output(json.file(), "--json")
       .check();
   LoadedInputs in;
   if (a.input.ref.empty()) {
@@ -104,11 +106,9 @@ int run(const BenchSolveArgs& a) {
                     {"voxel_rmse", rmse},
                     {"peak_resident_bytes", peak}});
   }
-  if (!a.json.empty()) {
-    OutputBatch outputs;
-    write_file_atomically(a.json, nlohmann::json{{"device", ctx->device_name()}, {"runs", rows}}.dump(2) + "\n");
-    outputs.commit();
-  }
+  OutputBatch outputs;
+  json.write({{"device", ctx->device_name()}, {"runs", rows}});
+  outputs.commit();
   return 0;
 }
 
@@ -119,7 +119,7 @@ CommandRegistration reg(83, [](CLI::App& app) {
   add_input_options(sub, args->input, false);
   sub->add_option("--tf-sizes", args->sizes, "TF sizes N to run, comma-separated (2..65536)")->delimiter(',')
       ->capture_default_str();
-  sub->add_option("--json", args->json, "Also write the numbers as JSON");
+  add_json_option(sub, args->json, "the numbers");
   sub->footer("Without --ref/--field/--ref-tf: tfmatch demo's pair at 128^3. Peak RSS is the process's, cumulative.");
   sub->callback([args] { exit_code() = run(*args); });
 });

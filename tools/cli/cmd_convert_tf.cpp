@@ -4,6 +4,7 @@
 
 #include "cli.h"
 #include "output_check.h"
+#include "output_options.h"
 #include "tf_formats.h"
 
 namespace tfm::cli {
@@ -28,7 +29,8 @@ CommandRegistration reg(40, [](CLI::App& app) {
   auto args = std::make_shared<ConvertTfArgs>();
   auto* sub = app.add_subcommand("convert-tf", "Convert a transfer function: .json (tfmatch), .xml (framework), .paraview.json");
   sub->add_option("in", args->in, "Input TF (tfmatch JSON, XML, ParaView preset; FILE:PRESET picks a preset)")->required();
-  sub->add_option("out", args->out, "Output TF; format from the extension")->required();
+  sub->add_option("out", args->out, "Output TF; format from the extension")->required()
+      ->check(output_format(transfer_function_format()));
   sub->add_option("--size", args->size, "Table entries when the input has control points (default: 256, or exact)")
       ->check(CLI::Range(size_t(2), size_t(1) << 16));
   sub->callback([args] { exit_code() = run(*args); });

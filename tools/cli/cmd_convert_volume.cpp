@@ -3,7 +3,9 @@
 
 #include "atomic_file.h"
 #include "cli.h"
+#include "input_options.h"
 #include "output_check.h"
+#include "output_options.h"
 #include "volume_format_table.h"
 #include "volume_formats.h"
 #include "volume_vti.h"
@@ -15,20 +17,17 @@ namespace {
 struct ConvertVolumeArgs {
   std::vector<std::string> inputs;
   std::string out;
-  std::string var;
-  std::optional<uint64_t> time, member;
+  VolumeFlags volume_flags;  // raw layout, --var, --time, --member
   bool no_compress = false;
 };
 
 int run(const ConvertVolumeArgs& a) {
+  check_output_format(a.out, vti_format(), "output");
   FilePlan files;
   for (size_t i = 0; i < a.inputs.size(); ++i) files.input_spec(a.inputs[i], "input " + std::to_string(i + 1));
   files.output(a.out, "output").check();
   OutputBatch outputs;
-  VolumeOptions vo;
-  vo.variable = a.var;
-  vo.time_index = a.time;
-  vo.member_index = a.member;
+  const VolumeOptions vo = a.volume_flags.options();
   std::vector<Volume> volumes;
   std::vector<std::pair<std::string, const Volume*>> arrays;
   volumes.reserve(a.inputs.size());
@@ -53,9 +52,7 @@ CommandRegistration reg(41, [](CLI::App& app) {
   auto args = std::make_shared<ConvertVolumeArgs>();
   auto* sub = app.add_subcommand("convert-volume", "Write fields (same grid) as one .vti for ParaView");
   sub->add_option("inputs", args->inputs, "Fields (file or file:VARIABLE), then the output .vti")->required()->expected(2, -1);
-  sub->add_option("--var", args->var, volume_format_selectors() + " (default for every input)");
-  sub->add_option("--time", args->time, "Time index, " + volume_format_titles(&VolumeFormat::has_times) + " files");
-  sub->add_option("--member", args->member, "Member index, " + volume_format_titles(&VolumeFormat::has_members) + " files");
+  add_volume_flags(sub, args->volume_flags);
   sub->add_flag("--no-compress", args->no_compress, "Write raw instead of zlib-compressed data");
   sub->callback([args] {
     args->out = args->inputs.back();

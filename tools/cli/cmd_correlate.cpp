@@ -11,7 +11,9 @@
 #include "correlation_field.h"
 #include "ensemble_io.h"
 #include "grid_point.h"
+#include "input_options.h"
 #include "output_check.h"
+#include "output_options.h"
 #include "progress.h"
 #include "render_options.h"
 #include "volume_vti.h"
@@ -25,9 +27,8 @@ struct CorrelateArgs {
   std::string point, point2, measure = "pearson", out, json;
   uint32_t bins = 16, k = 3;
   bool absolute = false;
-  std::string var, member_dim;
-  std::optional<uint64_t> time;
-  VolumeFlags volume_flags;
+  std::string member_dim;
+  VolumeFlags volume_flags;  // raw layout, --var, --time
 };
 
 std::string field_name(const CorrelateArgs& a) {
@@ -36,7 +37,8 @@ std::string field_name(const CorrelateArgs& a) {
 }
 
 int run(const CorrelateArgs& a) {
-  set_progress_enabled(!globals().quiet && a.json != "-");
+  const JsonOutput json(a.json);  // first: with '-', stdout holds only the JSON
+  set_progress_enabled(!globals().quiet);
   if (a.ensemble.empty() == a.members.empty())
     throw CLI::ValidationError("correlate", "give the ensemble either as --ensemble FILE[:VAR] or as --members FILE...");
   CorrelationParams params;
@@ -47,21 +49,16 @@ int run(const CorrelateArgs& a) {
   }
   params.bins = a.bins;
   params.k = a.k;
-  const std::string ext = std::filesystem::path(a.out).extension().string();
-  if (ext == ".png" || ext == ".json")
-    throw CLI::ValidationError("--out", "'" + a.out + "' would hold a field: name it .vti (ParaView) or .raw (float32)");
 
   const std::vector<std::string> member_files = a.members.empty() ? std::vector<std::string>{}
                                                                      : expand_member_patterns(a.members);
   FilePlan files;
   files.input_spec(a.ensemble, "--ensemble");
   for (const std::string& m : member_files) files.input_spec(m, "--members");
-  files.output(a.out, "--out").output(a.json == "-" ? "" : a.json, "--json").check();
+  files.output(a.out, "--out").output(json.file(), "--json").check();
   OutputBatch outputs;
 
   VolumeOptions vo = a.volume_flags.options();
-  vo.variable = a.var;
-  vo.time_index = a.time;
   vo.member_dim = a.member_dim;
   const auto t0 = std::chrono::steady_clock::now();
   const Ensemble ens = a.ensemble.empty() ? load_ensemble_members(member_files, vo) : load_ensemble(a.ensemble, vo);
@@ -105,7 +102,7 @@ int run(const CorrelateArgs& a) {
   }
   const double compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
 
-  const bool vti = ext == ".vti";
+  const bool vti = has_extension(a.out, ".vti");
   if (vti) write_vti(a.out, field, field.name);
   else write_raw_float32(a.out, field);
 
@@ -132,10 +129,9 @@ int run(const CorrelateArgs& a) {
   if (params.measure == CorrelationMeasure::MiBinned) j["bins"] = params.bins;
   if (params.measure == CorrelationMeasure::MiKraskov || params.measure == CorrelationMeasure::MiCoefficient) j["k"] = params.k;
   if (p2) j["point2"] = *p2, j["point2_description"] = describe_grid_point(ens.grid, *p2);
-  if (!a.json.empty() && a.json != "-") write_file_atomically(a.json, j.dump(2) + "\n");
+  json.write(j);
   outputs.commit();
-  if (a.json == "-") std::cout << j.dump(2) << "\n";
-  if (!globals().quiet && a.json != "-") {
+  if (!globals().quiet) {
     const auto& d = ens.grid.dims;
     std::cout << "ensemble " << source << ": " << ens.member_count << " members on " << d[0] << "x" << d[1] << "x" << d[2]
               << "\n  reference point " << describe_grid_point(ens.grid, p1) << "\n";
@@ -173,12 +169,11 @@ CommandRegistration reg(23, [](CLI::App& app) {
   sub->add_option("--k", args->k, "mi-kraskov, mi-coefficient: neighbours of the KSG estimator (1 .. members-1)")
       ->check(CLI::PositiveNumber)->capture_default_str();
   sub->add_flag("--abs", args->absolute, "Write the magnitude |result| (after the difference with --point2)");
-  sub->add_option("--out", args->out, "Output field: .vti (origin and spacing kept) or float32 raw, same grid")->required();
-  sub->add_option("--json", args->json, "Also write what was computed as JSON to this file ('-': stdout only)");
-  sub->add_option("--var", args->var, "Variable (NetCDF) or shortName[@typeOfLevel] (GRIB) when not given as FILE:VAR");
-  sub->add_option("--time", args->time, "Time index (NetCDF, GRIB), default 0");
+  sub->add_option("--out", args->out, "Output field: .vti (origin and spacing kept) or .raw (float32), same grid")
+      ->required()->check(output_format(field_format()));
+  add_json_option(sub, args->json, "what was computed");
   sub->add_option("--member-dim", args->member_dim, "NetCDF: the name of the member dimension");
-  add_volume_flags(sub, args->volume_flags);
+  add_volume_flags(sub, args->volume_flags, FieldSelectors::VarTime);
   sub->callback([args] { exit_code() = run(*args); });
 });
 

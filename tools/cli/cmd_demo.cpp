@@ -127,7 +127,7 @@ int run(const DemoArgs& a) {
   SolverSettings settings;
   settings.render = a.render;  // image-based solvers render as the report does
   settings.extra = a.extra;
-  parse_solver_args(require_solver(a.solver), settings);  // bad solver flags fail before any work
+  check_usage([&] { parse_solver_args(require_solver(a.solver), settings); });  // before any work
   const std::filesystem::path report_dir = a.report.empty() ? std::filesystem::path(a.out) : std::filesystem::path(a.report);
   FilePlan()
       .output_directory(a.out, "--out", demo_file_names(a))

@@ -7,6 +7,7 @@
 #include "atomic_file.h"
 #include "cli.h"
 #include "output_check.h"
+#include "output_options.h"
 
 namespace tfm::cli {
 namespace {
@@ -70,15 +71,13 @@ void print_devices(const std::vector<DeviceSummary>& devices) {
   }
 }
 
-// `json`: empty for text, "-" for JSON on stdout, else a file to write the JSON to.
-int run_devices(const std::string& json) {
-  FilePlan().output(json == "-" ? "" : json, "--json").check();
+// `json_target`: --json's value (empty: text only).
+int run_devices(const std::string& json_target) {
+  const JsonOutput json(json_target);  // first: with '-', stdout holds only the JSON
+  FilePlan().output(json.file(), "--json").check();
   auto devices = enumerate_devices();
-  if (!json.empty()) {
-    const std::string text = devices_json(devices).dump(2) + "\n";
-    if (json == "-") std::cout << text;
-    else write_file_atomically(json, text);
-  } else if (devices.empty()) {
+  json.write(devices_json(devices));
+  if (devices.empty()) {
     std::cout << "no Vulkan devices (install mesa-vulkan-drivers for the lavapipe CPU device)\n";
   } else {
     print_devices(devices);
@@ -89,12 +88,8 @@ int run_devices(const std::string& json) {
 CommandRegistration reg(90, [](CLI::App& app) {
   auto json = std::make_shared<std::string>();
   auto* sub = app.add_subcommand("devices", "List Vulkan devices with the features tfmatch uses");
-  sub->add_option("--json", *json, "Print JSON instead of text ('-' or no value: stdout; else a file to write)")
-      ->expected(0, 1);
-  sub->callback([json, sub] {
-    const bool as_json = sub->count("--json") > 0;
-    exit_code() = run_devices(as_json && json->empty() ? std::string("-") : *json);
-  });
+  add_json_option(sub, *json, "the device list");
+  sub->callback([json] { exit_code() = run_devices(*json); });
 });
 
 }  // namespace

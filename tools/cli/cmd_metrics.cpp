@@ -5,6 +5,8 @@
 
 #include "cli.h"
 #include "metrics.h"
+#include "output_check.h"
+#include "output_options.h"
 #include "png_io.h"
 
 namespace tfm::cli {
@@ -18,22 +20,21 @@ std::string num(double v) {
 
 struct MetricsArgs {
   std::string a, b;
-  bool json = false;
+  std::string json;
 };
 
 int run(const MetricsArgs& args) {
+  const JsonOutput json(args.json);  // first: with '-', stdout holds only the JSON
+  FilePlan().input(args.a, "A").input(args.b, "B").output(json.file(), "--json").check();
   const Image a = read_png(args.a), b = read_png(args.b);
   if (a.width != b.width || a.height != b.height)
     throw std::runtime_error(args.b + ": size " + std::to_string(b.width) + "x" + std::to_string(b.height) +
                              " differs from " + args.a + " (" + std::to_string(a.width) + "x" +
                              std::to_string(a.height) + ")");
   const ImageMetrics m = compare_images(a, b);
-  if (args.json) {
-    std::cout << m.to_json().dump(2) << "\n";
-  } else {
-    std::cout << "RMSE " << num(m.rmse) << " (0-255)\nPSNR " << (std::isinf(m.psnr) ? "inf" : num(m.psnr))
-              << " dB\nSSIM " << (std::isnan(m.ssim) ? "n/a (images under 11x11 pixels)" : num(m.ssim)) << "\n";
-  }
+  std::cout << "RMSE " << num(m.rmse) << " (0-255)\nPSNR " << (std::isinf(m.psnr) ? "inf" : num(m.psnr))
+            << " dB\nSSIM " << (std::isnan(m.ssim) ? "n/a (images under 11x11 pixels)" : num(m.ssim)) << "\n";
+  json.write(m.to_json());
   return 0;
 }
 
@@ -42,7 +43,7 @@ CommandRegistration reg(22, [](CLI::App& app) {
   auto* sub = app.add_subcommand("metrics", "Image similarity of two PNGs: RMSE, PSNR (0-255 scale) and SSIM");
   sub->add_option("A", args->a, "First image (PNG)")->required()->check(CLI::ExistingFile);
   sub->add_option("B", args->b, "Second image (PNG)")->required()->check(CLI::ExistingFile);
-  sub->add_flag("--json", args->json, "Print JSON: {\"rmse\", \"psnr\" (\"inf\" when identical), \"ssim\"}");
+add_json_option(sub, args->json, "{\"rmse\", \"psnr\" (\"inf\" when identical), \"ssim\"}");
   sub->footer("SSIM: Wang et al. 2004 (11x11 Gaussian window, sigma 1.5, K1 0.01, K2 0.03) on RGB, as "
               "scikit-image's structural_similarity(gaussian_weights=True, use_sample_covariance=False, "
               "data_range=255), on the 8-bit values as stored (tfmatch writes sRGB PNGs, so these are the pixels "

@@ -8,6 +8,7 @@
 #include "input_options.h"
 #include "optimize.h"
 #include "output_check.h"
+#include "output_options.h"
 #include "progress.h"
 #include "render.h"
 #include "render_options.h"
@@ -36,20 +37,22 @@ struct OptimizeArgs {
 };
 
 int run(const OptimizeArgs& a) {
+  const JsonOutput json(a.json);  // first: with '-', stdout holds only the JSON
   SolverSettings settings;
   settings.render = a.render;  // image-based solvers render as the report does
   settings.solve.ridge = a.ridge;
   settings.solve.smooth = a.smooth;
   settings.extra = a.extra;
   settings.solve.factorization = a.factorization == "ldlt" ? Factorization::LDLT : Factorization::Auto;
-  parse_solver_args(require_solver(a.solver), settings);  // bad solver flags fail before loading
+  // Bad or misapplied solver flags fail before loading, as usage errors.
+  check_usage([&] { parse_solver_args(require_solver(a.solver), settings); });
   // Every file checked before any work: no output replaces an input or another output.
   FilePlan()
       .input_spec(a.in.ref, "--ref")
       .input_spec(a.in.field, "--field")
       .input_spec(a.in.ref_tf, "--ref-tf")
       .output(a.out, "--out")
-      .output(a.json, "--json")
+      .output(json.file(), "--json")
       .output_directory(a.report, "--report", report_file_names())
       .check();
   if (!a.report.empty()) validate(a.render);  // fail before the solve, not after
@@ -73,7 +76,7 @@ int run(const OptimizeArgs& a) {
   OptimizeResult result = run_optimize(*ctx, req);
   if (!globals().quiet) result.print_summary(std::cout);
   write_transfer_function(a.out, result.tf);
-  if (!a.json.empty()) write_file_atomically(a.json, to_json(result).dump(2) + "\n");
+  json.write(to_json(result));
   std::optional<ReportSummary> summary;
   if (!a.report.empty()) {
     set_progress_enabled(!globals().quiet);
@@ -89,7 +92,7 @@ int run(const OptimizeArgs& a) {
   }
   outputs.commit();
   if (!globals().quiet) {
-    std::cout << "  wrote " << a.out << (a.json.empty() ? "" : " and " + a.json) << "\n";
+    std::cout << "  wrote " << a.out << (json.file().empty() ? "" : " and " + a.json) << "\n";
     if (summary)
       std::cout << "  images vs reference: reference TF " << summary->before.to_string() << "\n"
                 << "                       optimized TF " << summary->after.to_string() << "\n"
@@ -102,7 +105,8 @@ CommandRegistration reg(10, [](CLI::App& app) {
   auto args = std::make_shared<OptimizeArgs>();
   auto* sub = app.add_subcommand("optimize", "Optimize a transfer function for FIELD to match REF rendered with REF-TF");
   add_input_options(sub, args->in, /*required=*/true);
-  sub->add_option("--out", args->out, "Optimized transfer function (.json, .xml or .paraview.json)")->required();
+  sub->add_option("--out", args->out, "Optimized transfer function (.json, .xml or .paraview.json)")->required()
+      ->check(output_format(transfer_function_format()));
   sub->add_option("--solver", args->solver, "Solver: " + solver_name_list() + " (described below)")
       ->capture_default_str();
   sub->add_option("--ridge", args->ridge, "Tikhonov weight, relative to the mean diagonal of M")
@@ -113,7 +117,7 @@ CommandRegistration reg(10, [](CLI::App& app) {
   sub->add_option("--factorization", args->factorization, "normal-equations: auto (LDL^T deciding the rank entry by "
                   "entry: the minimum-norm solution when M is singular) or ldlt (no rank decision)")
       ->check(CLI::IsMember({"auto", "ldlt"}))->capture_default_str();
-  sub->add_option("--json", args->json, "Also write the summary as JSON");
+  add_json_option(sub, args->json, "the summary");
   add_solver_options(sub, args->extra);
   sub->add_option("--report", args->report, "Write a report into this directory: renderings before/after, residual "
                   "maps, TF plots, metrics.json, index.html");

@@ -6,6 +6,7 @@
 #include "cli.h"
 #include "input_options.h"
 #include "output_check.h"
+#include "output_options.h"
 #include "png_io.h"
 #include "progress.h"
 #include "render.h"
@@ -62,9 +63,9 @@ int run(const RenderArgs& a) {
 CommandRegistration reg(20, [](CLI::App& app) {
   auto args = std::make_shared<RenderArgs>();
   auto* sub = app.add_subcommand("render", "Render a volume with a transfer function into a PNG image");
-  sub->add_option("--volume", args->volume, "Volume file (or file:VARIABLE)")->required();
+  sub->add_option("--volume", args->volume, "Volume file, or FILE:VAR[,time=N][,member=N]")->required();
   sub->add_option("--tf", args->tf, "Transfer function (tfmatch JSON, framework XML or ParaView preset[:NAME])")->required();
-  sub->add_option("--out", args->out, "Output image (PNG)")->required();
+  sub->add_option("--out", args->out, "Output image (PNG)")->required()->check(output_format(png_format()));
   sub->add_option("--range", args->range, "Field range lo,hi mapped to the TF (default: TF file's, else finite min/max)");
   add_allow_out_of_range_flag(sub, args->allow_out_of_range);
   add_volume_flags(sub, args->volume_flags);

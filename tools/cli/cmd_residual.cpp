@@ -9,6 +9,7 @@
 #include "cli.h"
 #include "input_options.h"
 #include "output_check.h"
+#include "output_options.h"
 #include "png_io.h"
 #include "render.h"
 #include "render_options.h"
@@ -56,7 +57,7 @@ int run(const ResidualArgs& a) {
 
   Volume residual = residual_map(*ctx, ref, ref_tf, ref_range, field, field_tf, field_range);
   // .vti opens in ParaView with its grid and spacing; anything else is float32 raw.
-  const bool vti = std::filesystem::path(a.out).extension() == ".vti";
+  const bool vti = has_extension(a.out, ".vti");
   if (vti) write_vti(a.out, residual, "residual");
   else write_raw_float32(a.out, residual);
   const FieldRange shown = display ? *display : residual_display_range({&residual});
@@ -94,13 +95,14 @@ int run(const ResidualArgs& a) {
 CommandRegistration reg(21, [](CLI::App& app) {
   auto args = std::make_shared<ResidualArgs>();
   auto* sub = app.add_subcommand("residual", "Residual map between REF with REF-TF and FIELD with FIELD-TF");
-  sub->add_option("--ref", args->ref, "Reference field (volume file, or file:VARIABLE)")->required();
+  sub->add_option("--ref", args->ref, "Reference field: FILE or FILE:VAR[,time=N][,member=N]")->required();
   sub->add_option("--ref-tf", args->ref_tf, "Reference transfer function (tfmatch JSON, XML or ParaView preset)")->required();
   sub->add_option("--field", args->field, "Second field")->required();
   sub->add_option("--field-tf", args->field_tf, "Transfer function of the second field (e.g. the optimized one; any TF format)")
       ->required();
-  sub->add_option("--out", args->out, "Residual map: .vti (ParaView) or float32 raw")->required();
-  sub->add_option("--image", args->image, "Also render the residual map into this PNG");
+  sub->add_option("--out", args->out, "Residual map: .vti (ParaView) or .raw (float32)")->required()
+      ->check(output_format(field_format()));
+  sub->add_option("--image", args->image, "Also render the residual map into this PNG")->check(output_format(png_format()));
   sub->add_option("--ref-range", args->ref_range, "Reference range lo,hi (default: TF file's, else finite min/max)");
   sub->add_option("--field-range", args->field_range, "Field range lo,hi (default: TF file's, else finite min/max)");
   add_allow_out_of_range_flag(sub, args->allow_out_of_range);

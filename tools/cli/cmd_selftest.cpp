@@ -3,14 +3,15 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
-
-#include <unistd.h>
+#include <memory>
 
 #include <nlohmann/json.hpp>
 
 #include "atomic_file.h"
 #include "cli.h"
 #include "output_check.h"
+#include "output_options.h"
+#include "progress.h"
 #include "selftest.h"
 #include "tfmatch_version.h"
 
@@ -61,7 +62,8 @@ nlohmann::json report_json(const SelftestReport& r) {
 }
 
 int run_selftest_command(const SelftestArgs& a) {
-  FilePlan().output(a.json == "-" ? "" : a.json, "--json").check();
+  const JsonOutput json(a.json);  // first: with '-', stdout holds only the JSON
+  FilePlan().output(json.file(), "--json").check();
   // The driver's name, listed before the context exists: enumerating devices creates an instance
   // of its own, which must not happen while a context lives.
   const std::vector<DeviceSummary> devices = enumerate_devices();
@@ -69,18 +71,19 @@ int run_selftest_command(const SelftestArgs& a) {
   SelftestOptions options;
   options.quick = a.quick;
   options.kernels = a.kernels;
-  // On a terminal, the case being run (a full run takes tens of seconds on a CPU device).
-  const bool progress = !globals().quiet && isatty(STDERR_FILENO);
-  SelftestReport report =
-      run_selftest(*ctx, options, [progress](size_t i, size_t total, const SelftestCase& c) {
-        if (progress) std::cerr << "\r\033[K[" << i + 1 << "/" << total << "] " << c.kernel << ": " << c.name << std::flush;
-      });
-  if (progress) std::cerr << "\r\033[K" << std::flush;
+  // The case being run (a full run takes tens of seconds on a CPU device): an updating line on a
+  // terminal, periodic lines in a log.
+  std::unique_ptr<Progress> progress;
+  SelftestReport report = run_selftest(*ctx, options, [&progress](size_t i, size_t total, const SelftestCase& c) {
+    if (!progress) progress = std::make_unique<Progress>("selftest", total);
+    progress->set_label("selftest " + c.kernel + ": " + c.name);
+    progress->update(i);
+  });
+  progress.reset();
   for (const DeviceSummary& d : devices)
     if (d.name == ctx->device_name() && d.api_version == ctx->properties().apiVersion) report.driver = d.driver;
-  const std::string json = report_json(report).dump(2) + "\n";
-  if (a.json == "-") {
-    std::cout << json;
+  json.write(report_json(report));
+  if (json.to_stdout()) {
     if (!globals().quiet || !report.passed()) {
       // The table's last line, and every failure, on stderr: stdout is the JSON alone.
       for (const SelftestCase& c : report.cases)
@@ -91,7 +94,6 @@ int run_selftest_command(const SelftestArgs& a) {
                 << " skipped on " << report.device << "\n";
     }
   } else {
-    if (!a.json.empty()) write_file_atomically(a.json, json);
     if (!globals().quiet || !report.passed()) print_selftest_table(std::cout, report);
     if (!globals().quiet && !a.json.empty()) std::cout << "wrote " << a.json << "\n";
   }
@@ -104,7 +106,7 @@ CommandRegistration reg(95, [](CLI::App& app) {
       "selftest", "Run every kernel against its double-precision CPU reference on awkward sizes on the chosen device "
                   "(the Khronos validation layer on where installed; any message fails the case); exit 1 on a failure");
   sub->add_flag("--quick", args->quick, "Small sizes only (seconds on lavapipe)");
-  sub->add_option("--json", args->json, "Write the report as JSON to this file ('-': stdout, no table)");
+  add_json_option(sub, args->json, "the report");
   sub->add_option("--kernel", args->kernels, "Run only these kernels (shader names; repeat or comma-separate)")
       ->delimiter(',');
   sub->add_flag("--no-validation", args->no_validation,

@@ -9,6 +9,7 @@
 #include "cli.h"
 #include "input_options.h"
 #include "output_check.h"
+#include "output_options.h"
 #include "result_json.h"
 #include "solver_comparison.h"
 #include "solver_options.h"
@@ -37,16 +38,18 @@ std::array<uint64_t, 3> parse_size(const std::string& s) {
 }
 
 int run(const SolversArgs& a) {
+  const JsonOutput json(a.json);  // first: with '-', stdout holds only the JSON
   SolverSettings settings;
   settings.solve.ridge = a.ridge;
   settings.solve.smooth = a.smooth;
   settings.extra = a.extra;
-  plan_comparison(settings, a.solvers);  // unknown solvers and bad solver flags fail before loading
+  // Unknown solvers and bad or misapplied solver flags fail before loading, as usage errors.
+  check_usage([&] { plan_comparison(settings, a.solvers); });
   FilePlan()
       .input_spec(a.input.ref, "--ref")
       .input_spec(a.input.field, "--field")
       .input_spec(a.input.ref_tf, "--ref-tf")
-      .output(a.json == "-" ? "" : a.json, "--json")
+      .output(json.file(), "--json")
       .check();
   LoadedInputs in;
   if (a.synthetic) {
@@ -67,23 +70,18 @@ int run(const SolversArgs& a) {
   in.request.settings = settings;
   auto ctx = make_context();
   // One line per finished solver on stderr: a full comparison on large data takes minutes.
-  const bool progress = !globals().quiet && a.json != "-";
+  const bool progress = !globals().quiet;
   const ComparisonResult result =
       compare_solvers(*ctx, in.request, a.solvers, [progress](const ComparisonRow& row, size_t i, size_t count) {
         if (!progress) return;
         std::cerr << "  [" << i << "/" << count << "] " << row.solver
                   << (row.error.empty() ? ": " + std::to_string(int(row.total_ms)) + " ms" : ": failed") << "\n";
       });
-  const std::string json = to_json(result).dump(2) + "\n";
-  if (a.json == "-") {
-    std::cout << json;
-  } else {
-    if (!a.json.empty()) write_file_atomically(a.json, json);
-    if (!globals().quiet) {
-      if (a.synthetic) std::cout << "synthetic pair " << a.size << " (tfmatch demo's fields)\n";
-      result.print_table(std::cout);
-      if (!a.json.empty()) std::cout << "wrote " << a.json << "\n";
-    }
+  json.write(to_json(result));
+  if (!globals().quiet) {
+    if (a.synthetic) std::cout << "synthetic pair " << a.size << " (tfmatch demo's fields)\n";
+    result.print_table(std::cout);
+    if (!json.file().empty()) std::cout << "wrote " << a.json << "\n";
   }
   return 0;
 }
@@ -102,7 +100,7 @@ CommandRegistration reg(15, [](CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--smooth", args->smooth, "First-difference smoothness weight, relative to the mean diagonal of M")
       ->check(CLI::NonNegativeNumber);
-  sub->add_option("--json", args->json, "Write the comparison as JSON to this file ('-': stdout, no table)");
+  add_json_option(sub, args->json, "the comparison");
   add_solver_options(sub, args->extra);
   sub->footer(solver_descriptions());
   sub->callback([args] { exit_code() = run(*args); });

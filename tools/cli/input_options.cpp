@@ -25,29 +25,43 @@ void add_input_options(CLI::App* sub, InputArgs& a, bool required) {
   sub->add_option("--ref-range", a.ref_range, "Reference field range lo,hi (default: TF file's, else finite min/max)");
   sub->add_option("--field-range", a.field_range, "Field range lo,hi (default: finite min/max)");
   add_allow_out_of_range_flag(sub, a.allow_out_of_range);
-  sub->add_option("--dims", a.dims, "Raw files: grid size X Y Z (when the file name does not say)")->expected(3)
-      ->delimiter(',')->check(positive_integer());
-  sub->add_option("--type", a.type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)");
-  sub->add_flag("--big-endian", a.big_endian, "Raw files: big-endian data");
+  add_volume_flags(sub, a.volume);
+}
+
+VolumeOptions VolumeFlags::options() const {
+  VolumeOptions vo;
+  if (dims.size() == 3) vo.dims = std::array<uint64_t, 3>{dims[0], dims[1], dims[2]};
+  if (!type.empty()) {
+    vo.type = parse_scalar_type(type);
+    if (vo.type == ScalarType::Unknown) throw std::runtime_error("--type: unknown element type '" + type + "'");
+  }
+  vo.big_endian = big_endian;
+  vo.variable = var;
+  vo.time_index = time;
+  vo.member_index = member;
+  return vo;
+}
+
+void add_volume_flags(CLI::App* sub, VolumeFlags& f, FieldSelectors selectors) {
+  const std::string raw = "Raw volumes";
+  sub->add_option("--dims", f.dims, "Raw files: grid size X,Y,Z (when the file name does not say)")->expected(3)
+      ->delimiter(',')->check(positive_integer())->group(raw);
+  sub->add_option("--type", f.type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)")->group(raw);
+  sub->add_flag("--big-endian", f.big_endian, "Raw files: big-endian data")->group(raw);
   // Which formats have variables, times and members comes from the format table.
-  sub->add_option("--var", a.var, volume_format_selectors() + ", for both fields unless FILE:VAR says otherwise");
-  sub->add_option("--time", a.time, "Time index, " + volume_format_titles(&VolumeFormat::has_times) +
-                  " files (default 0; FILE:VAR,time=N per field)");
-  sub->add_option("--member", a.member, "Ensemble member / extra dimension index, " +
-                  volume_format_titles(&VolumeFormat::has_members) + " files (default 0)");
+  const std::string selection = "Field selection";
+  sub->add_option("--var", f.var, volume_format_selectors() + ", for every field unless FILE:VAR says otherwise")
+      ->group(selection);
+  sub->add_option("--time", f.time, "Time index, " + volume_format_titles(&VolumeFormat::has_times) +
+                  " files (default 0; FILE:VAR,time=N per field)")->group(selection);
+  if (selectors == FieldSelectors::VarTimeMember)
+    sub->add_option("--member", f.member, "Ensemble member / extra dimension index, " +
+                    volume_format_titles(&VolumeFormat::has_members) + " files (default 0; FILE:VAR,member=N per field)")
+        ->group(selection);
 }
 
 void load_inputs(const InputArgs& a, LoadedInputs& out) {
-  VolumeOptions vo;
-  if (!a.dims.empty()) vo.dims = std::array<uint64_t, 3>{a.dims[0], a.dims[1], a.dims[2]};
-  if (!a.type.empty()) {
-    vo.type = parse_scalar_type(a.type);
-    if (vo.type == ScalarType::Unknown) throw std::runtime_error("--type: unknown element type '" + a.type + "'");
-  }
-  vo.big_endian = a.big_endian;
-  vo.variable = a.var;
-  vo.time_index = a.time;
-  vo.member_index = a.member;
+  const VolumeOptions vo = a.volume.options();
   out.ref = load_volume(a.ref, vo);
   out.field = load_volume(a.field, vo);
   OptimizeRequest& req = out.request;

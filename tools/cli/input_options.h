@@ -1,5 +1,7 @@
-// The input flags shared by subcommands that fit a TF (--ref, --ref-tf, --field, ranges, raw-file
-// and NetCDF/GRIB selectors, --tf-size) and loading them into an OptimizeRequest.
+// The input flags of every subcommand that reads fields: how to read them (raw-file layout;
+// --var, --time, --member selecting a NetCDF/GRIB field, overridden per file by FILE:VAR,...), and
+// the flags of the subcommands that fit a TF (--ref, --ref-tf, --field, ranges, --tf-size) with
+// their loading into an OptimizeRequest.
 #pragma once
 
 #include <cstdint>
@@ -11,19 +13,32 @@
 
 #include "optimize.h"
 #include "volume.h"
+#include "volume_io.h"
 
 namespace tfm::cli {
+
+// How every field of a command is read: raw-file layout and the field selectors.
+struct VolumeFlags {
+  std::vector<uint64_t> dims;
+  std::string type;
+  bool big_endian = false;
+  std::string var;
+  std::optional<uint64_t> time, member;
+  // Throws std::runtime_error for an unknown --type.
+  VolumeOptions options() const;
+  bool selects() const { return !var.empty() || time || member; }  // --var, --time or --member given
+};
+// Which selectors a command takes: `correlate` reads the member axis whole, so it has no --member.
+enum class FieldSelectors { VarTimeMember, VarTime };
+// Adds --dims, --type, --big-endian (group "Raw volumes") and the selectors (group "Field selection").
+void add_volume_flags(CLI::App* sub, VolumeFlags& flags, FieldSelectors selectors = FieldSelectors::VarTimeMember);
 
 struct InputArgs {
   std::string ref, ref_tf, field;
   uint32_t tf_size = 64;
   std::string ref_range, field_range;
   bool allow_out_of_range = false;
-  std::vector<uint64_t> dims;
-  std::string type;
-  bool big_endian = false;
-  std::string var;
-  std::optional<uint64_t> time, member;
+  VolumeFlags volume;
 };
 
 // Adds the flags to `sub`; `required` makes --ref, --ref-tf and --field required.

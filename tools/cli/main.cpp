@@ -12,6 +12,7 @@
 #include "cli.h"
 #include "interrupts.h"
 #include "memory_budget.h"
+#include "progress.h"
 #include "tfmatch_version.h"  // generated in the build directory (top-level CMakeLists.txt)
 #include "vk_check.h"
 
@@ -41,6 +42,25 @@ int& exit_code() {
 static bool& validation_failed() {
   static bool failed = false;
   return failed;
+}
+
+std::string exit_code_help() {
+  return "Exit codes:\n"
+         "  0    done\n"
+         "  1    error: the message names the file or option and what is wrong; nothing written\n"
+         "  2    usage: unknown, missing or misapplied option or value (e.g. a solver flag of another solver,\n"
+         "       an output name whose extension is not the format written)\n"
+         "  3    the Vulkan validation layer reported a message (--validation, selftest)\n"
+         "  4    Vulkan error: no usable device, or the driver failed\n"
+         "  130  interrupted by SIGINT (Ctrl-C), 143 by SIGTERM: stopped within a second, nothing written\n";
+}
+
+void check_usage(const std::function<void()>& check) {
+  try {
+    check();
+  } catch (const std::runtime_error& e) {
+    throw CLI::ValidationError(e.what());
+  }
 }
 
 std::shared_ptr<Context> make_context(bool validation_when_installed) {
@@ -139,7 +159,14 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", version_text(), "Print the version, git commit, build type, Vulkan headers and compiler");
   app.add_option("--device", globals().device, "Vulkan device: index or name substring (env TFMATCH_DEVICE)");
   app.add_flag("--validation", globals().validation, "Enable the Khronos validation layer (env TFMATCH_VALIDATION=1)");
-  app.add_flag("-q,--quiet", globals().quiet, "Print only errors");
+  app.add_flag_callback(
+      "-q,--quiet",
+      [] {
+        globals().quiet = true;
+        tfm::set_progress_enabled(false);  // before any command runs, whichever shows progress
+      },
+      "Print only errors (no summaries, no progress)");
+  app.footer(exit_code_help());
   app.add_option_function<std::string>(
          "--max-memory",
          [](const std::string& text) {
@@ -156,23 +183,24 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version are "errors" of CLI11 that exit 0; every other one is a usage error.
+    return app.exit(e) == 0 ? kExitOk : kExitUsage;
   } catch (const tfm::Cancelled& c) {
     // Unwinding has removed the temporary files and staged outputs: nothing was written.
     std::cerr << "\ntfmatch: interrupted (" << signal_name(c.signal()) << "): stopped; no output written\n";
     return 128 + c.signal();
   } catch (const tfm::VulkanError& e) {
     std::cerr << "tfmatch: Vulkan error: " << e.what() << "\n";
-    return 2;
+    return kExitVulkan;
   } catch (const std::bad_alloc&) {
     // Allocations an input decides are checked against the budget first; this is what slipped by.
     std::cerr << "tfmatch: error: out of memory (the memory budget is " << tfm::format_bytes(tfm::memory_budget().bytes)
               << "; see --max-memory)\n";
-    return 1;
+    return kExitError;
   } catch (const std::exception& e) {
     std::cerr << "tfmatch: error: " << e.what() << "\n";
-    return 1;
+    return kExitError;
   }
-  if (validation_failed()) return 3;
+  if (validation_failed()) return kExitValidation;
   return exit_code();
 }

@@ -58,25 +58,6 @@ std::array<double, 3> parse_color(const std::string& text, const std::string& fl
   return c;
 }
 
-VolumeOptions VolumeFlags::options() const {
-  VolumeOptions vo;
-  if (dims.size() == 3) vo.dims = std::array<uint64_t, 3>{dims[0], dims[1], dims[2]};
-  if (!type.empty()) {
-    vo.type = parse_scalar_type(type);
-    if (vo.type == ScalarType::Unknown) throw std::runtime_error("--type: unknown element type '" + type + "'");
-  }
-  vo.big_endian = big_endian;
-  return vo;
-}
-
-void add_volume_flags(CLI::App* sub, VolumeFlags& f) {
-  const std::string g = "Raw volumes";
-  sub->add_option("--dims", f.dims, "Raw files: grid size X,Y,Z (when the file name does not say)")->expected(3)
-      ->delimiter(',')->check(positive_integer())->group(g);
-  sub->add_option("--type", f.type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)")->group(g);
-  sub->add_flag("--big-endian", f.big_endian, "Raw files: big-endian data")->group(g);
-}
-
 void add_marker_option(CLI::App* sub, std::vector<std::string>& markers) {
   sub->add_option("--marker", markers,
                   "Draw a red dot at this grid point: I,J,K (I along x) or lon=..,lat=..,level=..; repeatable")

@@ -22,16 +22,6 @@ namespace tfm::cli {
 // values are the defaults shown in --help). Flags go into the group "Rendering".
 void add_render_options(CLI::App* sub, RenderSettings& settings);
 
-// Raw-file flags of the rendering commands (--dims, --type, --big-endian), as `optimize` has them.
-struct VolumeFlags {
-  std::vector<uint64_t> dims;
-  std::string type;
-  bool big_endian = false;
-  // Throws std::runtime_error for an unknown --type.
-  VolumeOptions options() const;
-};
-void add_volume_flags(CLI::App* sub, VolumeFlags& flags);
-
 // --marker (repeatable): grid points drawn as red dots on the renderings (reference points of a
 // correlation field), as I,J,K indices or lon=..,lat=..,level=.. coordinates.
 void add_marker_option(CLI::App* sub, std::vector<std::string>& markers);

@@ -158,7 +158,7 @@ TEST(FormatsIoCli, InfoAndConvertCommands) {
   EXPECT_NE(r.output.find("density"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("range [1, 2]"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("1 of 3"), std::string::npos) << r.output;
-  r = test::run_cli("info --json " + f);
+  r = test::run_cli("info " + f + " --json -");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(nlohmann::json::parse(r.output)["arrays"][0]["nan_count"], 1);
   // Errors: non-zero exit and the file named.

@@ -173,6 +173,47 @@ TEST(SolverRegistry, FlagsOfOtherSolversAreRejectedNamingTheirSolvers) {
   EXPECT_NO_THROW(check_options_apply(s, {"qp", "gradient-descent"}));
 }
 
+TEST(SolverRegistry, SharedSolveOptionsAreCheckedAgainstEachSolversConstraints) {
+  // --ridge, --smooth and --factorization given (not at their defaults): allowed exactly for the
+  // solvers whose constraints() say they honour them, and the error lists those.
+  struct Shared {
+    const char* flag;
+    bool SolverConstraints::*honours;
+    void (*give)(SolveOptions&);
+  };
+  const Shared shared[] = {{"ridge", &SolverConstraints::ridge, [](SolveOptions& o) { o.ridge = 0.1; }},
+                           {"smooth", &SolverConstraints::smooth, [](SolveOptions& o) { o.smooth = 0.1; }},
+                           {"factorization", &SolverConstraints::factorization,
+                            [](SolveOptions& o) { o.factorization = Factorization::LDLT; }}};
+  for (const Shared& option : shared) {
+    SolverSettings s;
+    option.give(s.solve);
+    std::string owners;
+    for (const auto& solver : solvers())
+      if (solver->constraints().*option.honours) owners += (owners.empty() ? "" : ", ") + std::string(solver->name());
+    for (const auto& solver : solvers()) {
+      SCOPED_TRACE(std::string(option.flag) + " with " + std::string(solver->name()));
+      if (solver->constraints().*option.honours) {
+        EXPECT_NO_THROW(parse_solver_args(*solver, s));
+      } else {
+        const std::string e = error_of([&] { parse_solver_args(*solver, s); });
+        EXPECT_NE(e.find("--" + std::string(option.flag) + " applies to solver"), std::string::npos) << e;
+        EXPECT_NE(e.find(owners + ", not to " + std::string(solver->name())), std::string::npos) << e;
+      }
+    }
+  }
+  // Nothing given: every solver runs.
+  for (const auto& solver : solvers()) EXPECT_NO_THROW(parse_solver_args(*solver, SolverSettings{}));
+  // The ones that do not apply, as users meet them.
+  SolverSettings ridge;
+  ridge.solve.ridge = 0.5;
+  EXPECT_NE(error_of([&] { parse_solver_args(require_solver("diffdvr"), ridge); }).find("not to diffdvr"), std::string::npos);
+  SolverSettings ldlt;
+  ldlt.solve.factorization = Factorization::LDLT;
+  EXPECT_NE(error_of([&] { parse_solver_args(require_solver("cgls"), ldlt); }).find("--factorization applies to solver"),
+            std::string::npos);
+}
+
 TEST(SolverOptionsCli, InapplicableFlagsAreErrorsAndHelpListsTheSolvers) {
   test::TempDir dir;
   auto r = test::run_cli("optimize --ref " + dir / "ref.raw" + " --ref-tf " + dir / "tf.json" + " --field " +
