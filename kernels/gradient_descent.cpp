@@ -37,11 +37,8 @@ const ComputePipeline& GdGradientKernel::pipeline(uint32_t ref_tf_size) const {
   const uint32_t cached = reduction_.mode == ReductionMode::Private && ref_tf_size <= kPrivateMaxBins ? ref_tf_size : 0u;
   auto& slot = pipelines_[cached];
   if (!slot) {
-    PipelineDesc desc;
-    desc.shader = reduction_.int64 ? "gd_gradient_int64" : "gd_gradient";
-    desc.binding_counts = gpu::to_vector(kGradientBindingCounts);
-    desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
-    desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+    PipelineDesc desc =
+        reduction_.pipeline_desc("gd_gradient", gpu::to_vector(kGradientBindingCounts), sizeof(gpu::VoxelPairPush));
     const bool shared = reduction_.mode == ReductionMode::RunsShared;
     desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
                                       {TFM_GD_SPEC_MODE, reduction_.shader_mode()},
@@ -49,7 +46,6 @@ const ComputePipeline& GdGradientKernel::pipeline(uint32_t ref_tf_size) const {
                                       {TFM_GD_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size_ : 0u},
                                       {TFM_GD_SPEC_LOSS_L1, l1_ ? 1u : 0u},
                                       {TFM_GD_SPEC_TF_CACHE, cached}});
-    desc.spirv = shader_spirv(desc.shader);
     slot = std::make_unique<ComputePipeline>(ctx_, desc);
   }
   return *slot;

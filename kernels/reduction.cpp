@@ -4,8 +4,10 @@
 #include <algorithm>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "context.h"
+#include "shader_registry.h"
 #include "shared_layout.h"
 #include "voxel_pair.h"
 
@@ -73,6 +75,17 @@ uint32_t Reduction::shader_mode() const {
   return mode == ReductionMode::Private      ? TFM_REDUCE_PRIVATE
          : mode == ReductionMode::RunsShared ? TFM_REDUCE_RUNS_SHARED
                                              : TFM_REDUCE_RUNS_GLOBAL;
+}
+
+PipelineDesc Reduction::pipeline_desc(const char* shader, std::vector<uint32_t> binding_counts,
+                                      uint32_t push_bytes) const {
+  PipelineDesc desc;
+  desc.shader = int64 ? std::string(shader) + "_int64" : std::string(shader);
+  desc.binding_counts = std::move(binding_counts);
+  desc.push_constant_bytes = push_bytes;
+  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+  desc.spirv = shader_spirv(desc.shader);
+  return desc;
 }
 
 }  // namespace tfm

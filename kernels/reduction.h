@@ -5,6 +5,9 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
+
+#include "pipeline.h"
 
 namespace tfm {
 
@@ -54,6 +57,9 @@ struct Reduction {
   uint32_t groups(const Context& ctx, uint64_t voxels) const;
   // The TFM_*_RUNS_SHARED / _RUNS_GLOBAL / _PRIVATE value of the shaders' MODE constant.
   uint32_t shader_mode() const;
+  // A pipeline of `shader` (its _int64 build when this reduction uses 64-bit atomics) over
+  // TFM_VOXEL_WORKGROUP invocations; the caller adds the specialization constants.
+  PipelineDesc pipeline_desc(const char* shader, std::vector<uint32_t> binding_counts, uint32_t push_bytes) const;
 };
 
 bool is_cpu_device(const Context& ctx);

@@ -167,18 +167,14 @@ SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool up
       reduction_(Reduction::choose(ctx, "sparse_scatter", tf_size, signed_accumulator_bytes(tf_size), options)),
       dummy_p_(ctx, uint64_t(tf_size) * kRgbaBytes, MemoryUsage::Device, "scatter unused p"),
       dummy_state_(ctx, sizeof(gpu::CglsState), MemoryUsage::Device, "scatter unused state") {
-  PipelineDesc desc;
-  desc.shader = reduction_.int64 ? "sparse_scatter_int64" : "sparse_scatter";
-  desc.binding_counts = gpu::to_vector(kScatterBindingCounts);
-  desc.push_constant_bytes = sizeof(gpu::SparsePush);
-  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+  PipelineDesc desc =
+      reduction_.pipeline_desc("sparse_scatter", gpu::to_vector(kScatterBindingCounts), sizeof(gpu::SparsePush));
   const bool shared = reduction_.mode == ReductionMode::RunsShared;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
                                     {TFM_SCATTER_SPEC_MODE, reduction_.shader_mode()},
                                     {TFM_SCATTER_SPEC_SHARED_SLOTS, shared ? TFM_TF_GRADIENT_SLOTS(tf_size) : 1u},
                                     {TFM_SCATTER_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size : 0u},
                                     {TFM_SCATTER_SPEC_UPDATE_RESIDUAL, update_residual ? 1u : 0u}});
-  desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 

@@ -74,18 +74,14 @@ const ComputePipeline& AssembleNormalEquationsKernel::pipeline(uint32_t ref_tf_s
   const uint32_t cached = cache_ref_tf_ && ref_tf_size <= kRefTfCacheMax ? ref_tf_size : 0u;
   auto& slot = pipelines_[cached];
   if (!slot) {
-    PipelineDesc desc;
-    desc.shader = reduction_.int64 ? "assemble_normal_equations_int64" : "assemble_normal_equations";
-    desc.binding_counts = gpu::to_vector(kAssembleBindingCounts);
-    desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
-    desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+    PipelineDesc desc = reduction_.pipeline_desc("assemble_normal_equations", gpu::to_vector(kAssembleBindingCounts),
+                                                 sizeof(gpu::VoxelPairPush));
     desc.specialization = gpu::by_id(
         {{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
          {TFM_ASSEMBLE_SPEC_MODE, reduction_.shader_mode()},
          {TFM_ASSEMBLE_SPEC_SHARED_SLOTS, reduction_.mode == ReductionMode::RunsShared ? slots() : 1u},
          {TFM_ASSEMBLE_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size_ : 0u},
          {TFM_ASSEMBLE_SPEC_TF_CACHE, cached}});
-    desc.spirv = shader_spirv(desc.shader);
     slot = std::make_unique<ComputePipeline>(ctx_, desc);
   }
   return *slot;
