@@ -9,7 +9,9 @@
 #   tools/fuzz.sh [SECONDS_PER_TARGET=30] [TARGET...]     e.g. tools/fuzz.sh 60 vti nrrd
 #
 # Needs clang and libFuzzer: Debian clang-14 and libclang-rt-14-dev (libclang_rt.fuzzer).
-# Environment: TFMATCH_FUZZ_BUILD (build directory, default build-fuzz), FUZZ_JOBS (build jobs).
+# Environment: TFMATCH_FUZZ_BUILD (build directory, default build-fuzz), FUZZ_JOBS (build jobs),
+# FUZZ_KEEP_GOING=1 (fork mode: a crash, timeout or out-of-memory is recorded in fuzz-artifacts and
+# fuzzing goes on, for long runs over libraries that can abort or hang on malformed input).
 set -euo pipefail
 
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -44,6 +46,7 @@ for t in "${targets[@]}"; do
   mkdir -p "$corpus" "$artifacts"
   args=(-max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024 -max_len=65536
         -artifact_prefix="$artifacts/$t-" -print_final_stats=1)
+  [ "${FUZZ_KEEP_GOING:-0}" = 1 ] && args+=(-fork=1 -ignore_crashes=1 -ignore_timeouts=1 -ignore_ooms=1)
   dict=$(dict_for "$t")
   [ -n "$dict" ] && args+=(-dict="$root/tests/fuzz/$dict")
   echo "== fuzz_$t for ${seconds}s"

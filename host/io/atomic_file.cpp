@@ -171,24 +171,20 @@ fs::path OutputBatch::directory(const fs::path& dir) {
 
 void OutputBatch::commit() {
   if (!outermost_ || state_->committed) return;
-  auto& files = state_->files;
-  while (!files.empty()) {
-    const auto [tmp, final] = files.front();
-    std::error_code ec;
-    fs::rename(tmp, final, ec);
-    if (ec) throw std::runtime_error(final.string() + ": cannot rename into place (" + ec.message() + ")");
-    unregister(tmp);
-    files.erase(files.begin());
-  }
-  auto& dirs = state_->directories;
-  while (!dirs.empty()) {
-    const auto [staged, final] = dirs.front();
-    std::error_code ec;
-    fs::rename(staged, final, ec);
-    if (ec) throw std::runtime_error(final.string() + ": cannot rename the directory into place (" + ec.message() + ")");
-    unregister(staged);
-    dirs.erase(dirs.begin());
-  }
+  // Files first (some live inside staged directories), then the directories. Each renamed entry
+  // leaves the list at once, so that a failure leaves the destructor only what is still pending.
+  auto rename_all = [](std::vector<std::pair<fs::path, fs::path>>& list, const char* what) {
+    while (!list.empty()) {
+      const auto [temporary, final] = list.front();
+      std::error_code ec;
+      fs::rename(temporary, final, ec);
+      if (ec) throw std::runtime_error(final.string() + ": cannot rename " + what + " into place (" + ec.message() + ")");
+      unregister(temporary);
+      list.erase(list.begin());
+    }
+  };
+  rename_all(state_->files, "the file");
+  rename_all(state_->directories, "the directory");
   state_->committed = true;
 }
 

@@ -4,6 +4,7 @@
 
 #include <netcdf.h>
 
+#include <algorithm>
 #include <stdexcept>
 #include <vector>
 
@@ -70,7 +71,21 @@ class HeaderCursor {
     pos_ += pad4(n * each);
     if (pos_ > size_) fail(what + " run past the end");
   }
-  void name(const char* of) { skip(count(), 1, std::string("the name of ") + of); }
+  // netCDF-C copies names into buffers of NC_MAX_NAME + 1 bytes (its own and tfmatch's) without
+  // checking what the file says: a longer name overflows them.
+  void name(const char* of) {
+    const uint64_t n = count();
+    if (n > NC_MAX_NAME)
+      fail(std::string("the name of ") + of + " has " + std::to_string(n) + " bytes, more than netCDF's " +
+           std::to_string(NC_MAX_NAME));
+    skip(n, 1, std::string("the name of ") + of);
+  }
+  // A classic external type: 1..6, and 7..11 in CDF-5 (netCDF-C divides by a type's size).
+  uint64_t type(const char* of) {
+    const uint64_t t = number(4, of);
+    if (t < 1 || t > (s_.non_neg == 8 ? 11u : 6u)) fail(std::string(of) + " " + std::to_string(t) + " is not a classic type");
+    return t;
+  }
   // A list (dim, att or var) that is ABSENT or `tag` + nelems; returns nelems, checked against the
   // least bytes one element takes.
   uint64_t list(uint32_t tag, uint64_t least_each, const char* what) {
@@ -84,10 +99,8 @@ class HeaderCursor {
     const uint64_t n = list(0x0C, 4 + s_.non_neg + 4 + s_.non_neg, "an attribute list");
     for (uint64_t a = 0; a < n; ++a) {
       name("an attribute");
-      const uint64_t type = number(4, "an attribute type");
       static const uint64_t sizes[] = {0, 1, 1, 2, 4, 4, 8, 1, 2, 4, 8, 8};  // NC_BYTE .. NC_UINT64
-      if (type == 0 || type > 11) fail("attribute type " + std::to_string(type) + " is not a classic type");
-      skip(count(), sizes[type], "attribute values");
+      skip(count(), sizes[type("an attribute type")], "attribute values");
     }
   }
 
@@ -110,17 +123,28 @@ void check_netcdf_classic_header(const ByteReader& read, uint64_t size, const st
   c.number(4, "the magic number");
   c.count();  // numrecs
   const uint64_t dims = c.list(0x0A, s.non_neg + s.non_neg, "the dimension list");
+  std::vector<bool> record(dims);  // length 0: the unlimited (record) dimension, at most one
   for (uint64_t d = 0; d < dims; ++d) {
     c.name("a dimension");
-    c.count();  // its length
+    record[d] = c.count() == 0;
+    if (record[d] && std::count(record.begin(), record.begin() + ptrdiff_t(d), true) > 0)
+      c.fail("a second dimension of length 0 (only one unlimited dimension is allowed)");
   }
   c.attributes();  // global attributes
   const uint64_t vars = c.list(0x0B, 4 * s.non_neg + 8 + s.offset, "the variable list");
   for (uint64_t v = 0; v < vars; ++v) {
     c.name("a variable");
-    c.skip(c.count(), s.non_neg, "a variable's dimension ids");
+    // Its dimensions exist, and the unlimited one comes first (netCDF-C sizes a variable by
+    // dividing by the product of its other dimensions, which must not be 0).
+    const uint64_t ndims = c.count();
+    if (ndims > NC_MAX_VAR_DIMS) c.fail("a variable with " + std::to_string(ndims) + " dimensions");
+    for (uint64_t k = 0; k < ndims; ++k) {
+      const uint64_t id = c.number(s.non_neg, "a dimension id");
+      if (id >= dims) c.fail("a variable names dimension " + std::to_string(id) + " of " + std::to_string(dims));
+      if (k > 0 && record[id]) c.fail("a variable has the unlimited dimension in position " + std::to_string(k));
+    }
     c.attributes();
-    c.number(4, "a variable type");
+    c.type("a variable type");
     c.number(s.non_neg, "a variable size");
     c.number(s.offset, "a variable offset");
   }

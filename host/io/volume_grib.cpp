@@ -99,13 +99,48 @@ std::string time_text(const std::tuple<long, long, long, long>& t) {
   return os.str();
 }
 
+// GRIB 1 sections (3-byte lengths) in order: product definition, then the grid and bitmap
+// sections where the product's flag octet says so, then the binary data; each at least its fixed
+// header and inside the message before "7777". ecCodes aborts the process (an assertion in its
+// bitmap accessor) on a bitmap section shorter than its 6-byte header.
+template <class Number, class Fail>
+void check_grib1_sections(int index, uint64_t start, uint64_t length, Number number, Fail fail) {
+  const uint64_t end = start + length - 4;
+  uint64_t at = start + 8;
+  auto section = [&](const char* name, uint64_t minimum) {
+    const uint64_t bytes = at + 3 <= end ? number(at, 3) : 0;
+    if (bytes < minimum || bytes > end - at)
+      fail(index, start, std::string(name) + " section at byte " + std::to_string(at - start) + " claims " +
+                             std::to_string(bytes) + " bytes (at least " + std::to_string(minimum) +
+                             ", within the message's " + std::to_string(length) + ")");
+    at += bytes;
+  };
+  const uint64_t flags = at + 8 <= end ? number(at + 7, 1) : 0;
+  section("product definition", 28);
+  if (flags & 0x80) section("grid description", 6);
+  if (flags & 0x40) section("bitmap", 6);
+  section("binary data", 11);
+}
+
+// GRIB 2's section order: 1, optionally 2, then 3, 4, 5, 6, 7, where the runs 2-7, 3-7 or 4-7
+// may repeat (several fields in one message). A message out of this order made ecCodes 2.28
+// build accessors without end (gigabytes within seconds, found by fuzz_grib).
+bool grib2_section_may_follow(uint64_t previous, uint64_t id) {
+  switch (previous) {
+    case 0: return id == 1;
+    case 1: return id == 2 || id == 3;
+    case 7: return id == 2 || id == 3 || id == 4;
+    default: return id == previous + 1;
+  }
+}
+
 // The framing of every message, checked before ecCodes sees the file: ecCodes trusts section
 // lengths, and a hostile message whose section claims to run past the message's end makes it
 // return fields without end (gigabytes from a 2 KB file, then a double free). A message starts
 // at "GRIB" (junk between messages is skipped, as ecCodes does); GRIB 2: its 8-byte length must
-// fit the file, end in "7777", and its sections (4-byte length >= 5, number 1 to 7) must tile it
-// exactly; GRIB 1: its 3-byte length must fit the file and end in "7777" (ECMWF's large-message
-// encoding, top bit set, is left to ecCodes).
+// fit the file, end in "7777", and its sections (4-byte length >= 5, number 1 to 7, in order) must
+// tile it exactly; GRIB 1: its 3-byte length must fit the file and end in "7777", and its sections must
+// fit it (ECMWF's large-message encoding, top bit set, is left to ecCodes).
 void check_grib_framing(const ByteReader& read, uint64_t size, const std::string& file) {
   auto fail = [&](int index, uint64_t at, const std::string& what) {
     throw std::runtime_error(file + ": GRIB message " + std::to_string(index) + " (at byte " + std::to_string(at) +
@@ -139,19 +174,27 @@ void check_grib_framing(const ByteReader& read, uint64_t size, const std::string
       length = number(start + 8, 8);
       if (length < 16 + 4 || length > size - start) fail(index, start, "claims " + std::to_string(length) + " bytes, the file has " + std::to_string(size - start) + " from there");
       if (!ends_in_7777(start + length)) fail(index, start, "does not end in 7777 where its length says");
-      uint64_t at = start + 16;
+      uint64_t at = start + 16, previous = 0;
       while (at < start + length - 4) {
         const uint64_t section = number(at, 4), id = number(at + 4, 1);
         if (section < 5 || section > start + length - 4 - at || id < 1 || id > 7)
           fail(index, start, "section " + std::to_string(id) + " at byte " + std::to_string(at - start) + " claims " +
                                  std::to_string(section) + " bytes, past the message's end");
+        if (!grib2_section_may_follow(previous, id))
+          fail(index, start, "section " + std::to_string(id) + " at byte " + std::to_string(at - start) +
+                                 (previous ? " follows section " + std::to_string(previous) : " comes first") +
+                                 ", out of GRIB 2's order");
+        previous = id;
         at += section;
       }
+      if (previous != 7) fail(index, start, "ends after section " + std::to_string(previous) + ", not after section 7");
     } else if (edition == 1) {
       length = number(start + 4, 3);
       if (length & 0x800000) length = 0;  // ECMWF large message: ecCodes decides
       else if (length < 8 + 4 || length > size - start || !ends_in_7777(start + length))
         fail(index, start, "claims " + std::to_string(length) + " bytes, which do not fit the file or end in 7777");
+      else
+        check_grib1_sections(index, start, length, number, fail);
     }
     pos = start + std::max<uint64_t>(length, 4);
   }
@@ -270,6 +313,12 @@ std::vector<double> message_values(const Message& m, const std::string& file) {
     throw std::runtime_error(where + ": " + m.grid_type + " grid with " + std::to_string(n) +
                              " values is not a rectangular Ni x Nj grid (reduced grids are not supported)");
   check_memory(uint64_t(n) * sizeof(double), where + ": " + std::to_string(n) + " values");
+  // ecCodes allocates the coded values by the count the data representation section states
+  // (numberOfValues), not by the grid's: a hostile count made it ask for 2 GiB for a 12-point
+  // grid (found by fuzz_grib). With a bitmap fewer values are coded than the grid has, never more.
+  if (const std::optional<long> coded = get_long(h, "numberOfValues"); coded && (*coded < 0 || uint64_t(*coded) > n))
+    throw std::runtime_error(where + ": states " + std::to_string(*coded) + " coded values for a grid of " +
+                             std::to_string(n) + " points");
   std::vector<double> v(n);
   int err = codes_get_double_array(h, "values", v.data(), &n);
   if (err != CODES_SUCCESS) throw std::runtime_error(where + ": cannot decode values (" + codes_get_error_message(err) + ")");

@@ -3,7 +3,9 @@
 // what is under test), and loading every array a describer listed.
 #pragma once
 
+#include <cstdint>
 #include <stdexcept>
+#include <string>
 
 #include "memory_budget.h"
 #include "volume_info.h"
@@ -16,6 +18,24 @@ inline void limit_memory() { set_memory_budget(uint64_t(768) << 20, "fuzz target
 
 // Calls load(options) for the first arrays `info` lists as loadable, at time and member 0 and 1;
 // errors the readers report are expected, crashes and sanitizer reports are findings.
+template <class Load>
+void load_each_array(const FileInfo& info, Load load);
+
+// One input through a library-backed reader as `tfmatch info` and then loading do: describe(bytes)
+// lists the arrays, load(bytes, options) reads each. The bytes are copied: netCDF-C and fmemopen
+// want a writable pointer.
+template <class Describe, class Load>
+void describe_then_load(const uint8_t* data, size_t size, Describe describe, Load load) {
+  const std::string bytes(reinterpret_cast<const char*>(data), size);
+  FileInfo info;
+  try {
+    info = describe(bytes);
+  } catch (const std::runtime_error&) {
+    return;
+  }
+  load_each_array(info, [&](const VolumeOptions& options) { load(bytes, options); });
+}
+
 template <class Load>
 void load_each_array(const FileInfo& info, Load load) {
   size_t tried = 0;

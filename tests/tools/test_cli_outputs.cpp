@@ -1,8 +1,8 @@
 // The command line's outputs, checked before any work (issue 15, item 2 and the report case of
 // item 5): one file for two outputs, an output that is an input (by name, symbolic or hard link),
-// a read-only target, a --report that is a file; reports into new nested directories; and the
-// messages of item 5 (render size, ranges beyond float32 or infinite, negative --dims, the
-// residual of a field with itself). Each runs the real program.
+// a read-only target, a --report that is a file, for every command that writes; reports into new
+// nested directories; and the messages of item 5 (render size, ranges beyond float32 or infinite,
+// negative --dims, the residual of a field with itself). Each runs the real program.
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -114,6 +114,40 @@ TEST_F(CliOutputs, ReportGoesIntoANewNestedDirectoryWhole) {
   for (const std::string& f : files_under(dir.path)) EXPECT_NE(f[0], '.') << f;
 }
 
+// Every other command that writes files declares them in the same check (FilePlan) before any
+// work: correlate and the benchmarks, selftest, solvers, devices, convert-tf and demo; one bad
+// output each, of the kinds above.
+TEST_F(CliOutputs, EveryCommandThatWritesChecksItsFilesFirst) {
+  for (int m = 1; m <= 3; ++m) write_floats(dir / ("m" + std::to_string(m) + "_8x8x8_float32.raw"), std::vector<float>(512, float(m)));
+  const std::string members = "--members '" + dir / "m*_8x8x8_float32.raw" + "' --point 1,1,1";
+  std::ofstream(dir / "ro.json") << "keep";
+  fs::permissions(dir / "ro.json", fs::perms::owner_read);
+  std::ofstream(dir / "afile") << "a file";
+  // Names must fit their formats (.vti, .json), so one file under both takes a hard link.
+  std::ofstream(dir / "x.vti") << "old";
+  fs::create_hard_link(dir / "x.vti", dir / "x.json");
+  expect_refused("correlate " + members + " --out " + dir / "x.vti" + " --json " + dir / "x.json",
+                 {"--json", "same file as --out"});
+  expect_refused("correlate " + members + " --out " + dir / "m2_8x8x8_float32.raw", {"--out", "same file as --members"});
+  expect_refused("bench-correlate --quick --json " + dir / "ro.json", {"--json", "read-only"});
+  expect_refused("bench --json " + dir / "nodir/b.json", {"--json", "does not exist"});
+  expect_refused("bench-render --json " + dir / "ro.json", {"--json", "read-only"});
+  expect_refused("bench-diffdvr --json " + dir / "nodir/b.json", {"--json", "does not exist"});
+  expect_refused("bench-solve " + inputs() + " --json " + dir / "tf.json", {"--json", "same file as --ref-tf"});
+  expect_refused("selftest --json " + dir / "nodir/s.json", {"--json", "does not exist"});
+  expect_refused("solvers --json " + dir / "ro.json", {"--json", "read-only"});
+  expect_refused("devices --json " + dir / "afile/d.json", {"--json", "afile"});
+  expect_refused("convert-tf " + dir / "tf.json" + " " + dir / "tf.json", {"output", "same file as input"});
+  expect_refused("demo --out " + dir / "afile", {"--out", "not a directory"});
+  // A correlate that fails after its check (a point outside the grid) writes neither output.
+  const test::CliResult r = run_cli("correlate --members '" + dir / "m*_8x8x8_float32.raw" + "' --point 9,1,1 --out " +
+                                    dir / "c.vti" + " --json " + dir / "c.json");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "c.vti"));
+  EXPECT_FALSE(fs::exists(dir / "c.json"));
+  for (const std::string& f : files_under(dir.path)) EXPECT_EQ(f.find("/."), std::string::npos) << f;
+}
+
 // Item 5's messages, each saying the true problem.
 
 // A size inside the accepted range that the device cannot hold: said before loading, with the
@@ -165,11 +199,12 @@ TEST_F(CliOutputs, ResidualOfAFieldWithItselfSaysZero) {
 }
 
 // Item 6: tests that need ../shared/data skip visibly without it. The test binary runs itself
-// with TFMATCH_SHARED_DATA pointing nowhere.
+// with TFMATCH_SHARED_DATA pointing nowhere, filtered to the tests that read the data (named
+// *Real* or *.Era5*).
 TEST(SharedData, TestsSkipVisiblyWithoutIt) {
   test::CliResult r;
   const std::string cmd = "TFMATCH_SHARED_DATA=/nonexistent /proc/" + std::to_string(getpid()) +
-                          "/exe --gtest_filter='*Real*' 2>&1";
+                          "/exe --gtest_filter='*Real*:*.Era5*' 2>&1";
   FILE* pipe = popen(cmd.c_str(), "r");
   ASSERT_NE(pipe, nullptr);
   char buf[4096];
@@ -177,9 +212,14 @@ TEST(SharedData, TestsSkipVisiblyWithoutIt) {
   while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) r.output.append(buf, n);
   const int status = pclose(pipe);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << r.output;
-  EXPECT_NE(r.output.find("[  SKIPPED ] FormatsIoRealFiles.InfoDescribesVtkVtiNrrdAndRawFiles"), std::string::npos)
-      << r.output;
+  for (const char* name :
+       {"FormatsIoRealFiles.InfoDescribesVtkVtiNrrdAndRawFiles", "FormatsIoRealFiles.InfoDescribesNetcdfAndGribFiles",
+        "GribRealFiles.Era5MembersAndTimesAndMultiParamSteps", "EnsembleIo.Era5GribMembersWithCoordinates",
+        "EnsembleRecipe.Era5MutualInformationVersusPearson"})
+    EXPECT_NE(r.output.find(std::string("[  SKIPPED ] ") + name), std::string::npos) << name << "\n" << r.output;
   EXPECT_EQ(r.output.find("FAILED"), std::string::npos) << r.output;
+  // Every test the filter selects reads the data: none may pass without it.
+  EXPECT_EQ(r.output.find("[       OK ]"), std::string::npos) << r.output;
 }
 
 }  // namespace

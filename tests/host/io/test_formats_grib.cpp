@@ -154,6 +154,27 @@ TEST(GribGenerated, GarbageAndTruncatedFilesFailCleanly) {
   expect_error([&] { load_volume((dir / "cut.grib2").string() + ":t"); }, {"cut.grib2"});
 }
 
+// Section 5 stating more coded values than the grid has points, in a message with a bitmap (so
+// the values still number the grid's points): ecCodes allocated by the stated count (2 GiB for
+// 268435467, what fuzz_grib found); tfmatch refuses the message first.
+TEST(GribGenerated, MoreCodedValuesThanGridPointsAreRefused) {
+  TempDir dir;
+  std::string bytes = encode({.short_name = "t", .level = 500, .missing_corner = true});
+  size_t at = 16;  // GRIB 2 sections: 4-byte length, 1-byte number
+  auto be32 = [&](size_t i) {
+    return uint32_t(uint8_t(bytes[i])) << 24 | uint32_t(uint8_t(bytes[i + 1])) << 16 | uint32_t(uint8_t(bytes[i + 2])) << 8 |
+           uint32_t(uint8_t(bytes[i + 3]));
+  };
+  while (at + 5 < bytes.size() && bytes[at + 4] != 5) at += be32(at);
+  ASSERT_EQ(bytes[at + 4], 5);
+  ASSERT_EQ(be32(at + 5), uint32_t(kNi * kNj - 1));  // numberOfValues, octets 6-9: all but the corner
+  const uint32_t hostile = 268435467;
+  for (int k = 0; k < 4; ++k) bytes[at + 5 + size_t(k)] = char((hostile >> (24 - 8 * k)) & 0xff);
+  formats_test::write_bytes(dir / "coded.grib2", bytes);
+  const std::string g = (dir / "coded.grib2").string();
+  expect_error([&] { load_volume(g + ":t"); }, {g, "states 268435467 coded values for a grid of 496 points"});
+}
+
 std::string data(const std::string& rel) {
   const std::string d = test::shared_data_dir();
   return d.empty() ? "" : d + "/" + rel;
