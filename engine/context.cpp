@@ -108,6 +108,22 @@ std::vector<VkPhysicalDevice> physical_devices(const Dispatch& vk, VkInstance in
   return devices;
 }
 
+// Whether `pd` supports 64-bit integer atomics on buffers and shared memory (Vulkan 1.2 features).
+bool supports_int64_atomics(const Dispatch& vk, VkPhysicalDevice pd) {
+  VkPhysicalDeviceProperties props{};
+  vk.vkGetPhysicalDeviceProperties(pd, &props);
+  if (props.apiVersion < VK_API_VERSION_1_2 || !vk.vkGetPhysicalDeviceFeatures2) return false;
+  VkPhysicalDeviceShaderAtomicInt64Features atomics{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_ATOMIC_INT64_FEATURES};
+  VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  features.pNext = &atomics;
+  vk.vkGetPhysicalDeviceFeatures2(pd, &features);
+  return features.features.shaderInt64 && atomics.shaderBufferInt64Atomics && atomics.shaderSharedInt64Atomics;
+}
+
+uint32_t compute_subgroup_operations(const VkPhysicalDeviceSubgroupProperties& p) {
+  return (p.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT) ? p.supportedOperations : 0u;
+}
+
 DeviceSummary summarize(const Dispatch& vk, VkPhysicalDevice pd, uint32_t index) {
   VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
   VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
@@ -131,6 +147,8 @@ DeviceSummary summarize(const Dispatch& vk, VkPhysicalDevice pd, uint32_t index)
   s.max_workgroup_invocations = props.properties.limits.maxComputeWorkGroupInvocations;
   s.subgroup_size = subgroup.subgroupSize;
   s.shader_float64 = features.shaderFloat64;
+  s.int64_atomics = supports_int64_atomics(vk, pd);
+  s.subgroup_operations = compute_subgroup_operations(subgroup);
   uint32_t ts_bits = 0;
   s.compute_queue = compute_queue_family(vk, pd, &ts_bits).has_value();
   s.timestamps = ts_bits > 0 && props.properties.limits.timestampPeriod > 0;
@@ -248,13 +266,26 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
   VkPhysicalDeviceFeatures enabled{};
   // Arrays of field chunks are indexed per sample by the renderer.
   enabled.shaderStorageBufferArrayDynamicIndexing = supported.shaderStorageBufferArrayDynamicIndexing;
+  // 64-bit atomics halve the atomics of the accumulating kernels (one per fixed-point slot).
+  // Enabled through the atomic-int64 struct rather than VkPhysicalDeviceVulkan12Features: with
+  // the latter, a host's own validated instance in the same process crashed when it destroyed
+  // its debug messenger (test EmbeddingVolk).
+  VkPhysicalDeviceShaderAtomicInt64Features atomic_features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_ATOMIC_INT64_FEATURES};
+  const bool int64_atomics = supports_int64_atomics(vk, ctx->physical_device_);
+  if (int64_atomics) {
+    enabled.shaderInt64 = VK_TRUE;
+    atomic_features.shaderBufferInt64Atomics = VK_TRUE;
+    atomic_features.shaderSharedInt64Atomics = VK_TRUE;
+  }
   VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+  if (int64_atomics) device_info.pNext = &atomic_features;
   device_info.queueCreateInfoCount = 1;
   device_info.pQueueCreateInfos = &queue_info;
   device_info.pEnabledFeatures = &enabled;
   VK_CHECK(vk.vkCreateDevice(ctx->physical_device_, &device_info, nullptr, &ctx->device_));
   load_device_functions(vk, ctx->device_);
   vk.vkGetDeviceQueue(ctx->device_, ctx->queue_family_, 0, &ctx->queue_);
+  ctx->int64_atomics_ = int64_atomics;
   ctx->load_device_info();
   return ctx;
 }
@@ -276,6 +307,7 @@ std::unique_ptr<Context> Context::adopt(const ExternalDevice& external) {
   load_device_functions(vk, external.device);
   // Debug names work only if the host enabled VK_EXT_debug_utils; the entry point says so.
   ctx->debug_utils_ = vk.vkSetDebugUtilsObjectNameEXT != nullptr;
+  ctx->int64_atomics_ = external.int64_atomics_enabled && supports_int64_atomics(vk, external.physical_device);
   ctx->load_device_info();
   return ctx;
 }
@@ -300,6 +332,7 @@ void Context::load_device_info() {
   props2.pNext = &subgroup;
   vk.vkGetPhysicalDeviceProperties2(physical_device_, &props2);
   subgroup_size_ = subgroup.subgroupSize;
+  subgroup_operations_ = compute_subgroup_operations(subgroup);
   max_allocation_bytes_ = maint3.maxMemoryAllocationSize;
 }
 

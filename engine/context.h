@@ -39,6 +39,9 @@ struct ExternalDevice {
   // The host's vkGetInstanceProcAddr, through which tfmatch then resolves every command it calls
   // on these handles; null means the system Vulkan loader's.
   PFN_vkGetInstanceProcAddr get_instance_proc_addr = nullptr;
+  // Set when the host created `device` with shaderInt64, shaderBufferInt64Atomics and
+  // shaderSharedInt64Atomics enabled: the accumulating kernels then use 64-bit atomics.
+  bool int64_atomics_enabled = false;
 };
 
 struct DeviceSummary {
@@ -53,6 +56,8 @@ struct DeviceSummary {
   uint32_t subgroup_size = 0;
   bool timestamps = false;
   bool shader_float64 = false;
+  bool int64_atomics = false;        // shaderInt64 with 64-bit buffer and shared atomics
+  uint32_t subgroup_operations = 0;  // VkSubgroupFeatureFlags of compute shaders
   bool compute_queue = false;
   uint64_t device_local_bytes = 0;
 };
@@ -90,6 +95,11 @@ class Context {
   std::string device_name() const { return properties_.deviceName; }
   bool timestamps_supported() const { return timestamp_valid_bits_ > 0; }
   uint32_t subgroup_size() const { return subgroup_size_; }
+  // VkSubgroupFeatureFlags supported in compute shaders (0 when compute has no subgroup ops).
+  uint32_t subgroup_operations() const { return subgroup_operations_; }
+  // Whether shaders may use 64-bit integers with atomics on buffer and shared memory: enabled by
+  // Context::create where the device supports them, declared by the host for an adopted device.
+  bool int64_atomics() const { return int64_atomics_; }
   // Largest buffer a single storage-buffer descriptor may address (and one allocation may hold).
   uint64_t max_buffer_bytes() const;
 
@@ -137,6 +147,8 @@ class Context {
   VkPhysicalDeviceMemoryProperties memory_{};
   uint32_t timestamp_valid_bits_ = 0;
   uint32_t subgroup_size_ = 0;
+  uint32_t subgroup_operations_ = 0;
+  bool int64_atomics_ = false;
   uint64_t max_allocation_bytes_ = 0;
   std::mutex messages_mutex_;
   std::vector<std::string> messages_;

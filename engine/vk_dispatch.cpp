@@ -32,6 +32,7 @@ void load_instance_functions(Dispatch& d, PFN_vkGetInstanceProcAddr get, VkInsta
   load(d.vkGetPhysicalDeviceProperties, get, instance, "vkGetPhysicalDeviceProperties");
   load(d.vkGetPhysicalDeviceProperties2, get, instance, "vkGetPhysicalDeviceProperties2");
   load(d.vkGetPhysicalDeviceFeatures, get, instance, "vkGetPhysicalDeviceFeatures");
+  load(d.vkGetPhysicalDeviceFeatures2, get, instance, "vkGetPhysicalDeviceFeatures2");
   load(d.vkGetPhysicalDeviceMemoryProperties, get, instance, "vkGetPhysicalDeviceMemoryProperties");
   load(d.vkGetPhysicalDeviceQueueFamilyProperties, get, instance, "vkGetPhysicalDeviceQueueFamilyProperties");
   load(d.vkCreateDevice, get, instance, "vkCreateDevice");

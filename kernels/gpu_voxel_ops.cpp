@@ -2,6 +2,7 @@
 #include "gpu_voxel_ops.h"
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <vector>
 
@@ -9,9 +10,9 @@
 
 namespace tfm {
 
-GpuNormalEquations::GpuNormalEquations(Context& ctx, uint32_t tf_size, bool force_global_atomics, uint32_t run)
+GpuNormalEquations::GpuNormalEquations(Context& ctx, uint32_t tf_size, ReductionOptions options)
     : ctx_(ctx),
-      kernel_(ctx, tf_size, force_global_atomics, run),
+      kernel_(ctx, tf_size, options),
       accum_(ctx, uint64_t(kernel_.slots()) * 2 * sizeof(uint32_t), MemoryUsage::Device, "normal-equation accumulators") {
   reset();
 }
@@ -26,6 +27,15 @@ double GpuNormalEquations::add(const DeviceField& ref, const DeviceField& opt, c
   uint32_t t1 = batch.timestamp();
   batch.submit_and_wait();
   return batch.elapsed_ms(t0, t1);
+}
+
+std::vector<uint64_t> GpuNormalEquations::fixed_point_slots() const {
+  std::vector<uint64_t> slots(kernel_.slots());
+  // Low word first: the little-endian layout of a 64-bit integer.
+  std::vector<uint32_t> words(slots.size() * 2);
+  readback(ctx_, accum_, words.data(), words.size() * sizeof(uint32_t));
+  for (size_t k = 0; k < slots.size(); ++k) slots[k] = uint64_t(words[2 * k]) | uint64_t(words[2 * k + 1]) << 32;
+  return slots;
 }
 
 NormalEquations GpuNormalEquations::result() const {
@@ -63,6 +73,20 @@ VoxelLoss voxel_loss_gpu(Context& ctx, const DeviceField& ref, const DeviceField
   VoxelLoss loss;
   for (int c = 0; c < 4; ++c) loss.squared[c] = s[c], loss.absolute[c] = s[4 + c];
   loss.voxels = static_cast<uint64_t>(std::llround(s[8]));
+  return loss;
+}
+
+VoxelLoss voxel_loss_from_system(const NormalEquations& eq, std::span<const float> rgba) {
+  if (rgba.size() != size_t(eq.n) * 4)
+    throw std::invalid_argument("voxel_loss_from_system: the TF has " + std::to_string(rgba.size() / 4) +
+                                " entries, the system " + std::to_string(eq.n));
+  Eigen::Matrix<double, Eigen::Dynamic, 4> x(eq.n, 4);
+  for (uint32_t j = 0; j < eq.n; ++j)
+    for (int c = 0; c < 4; ++c) x(j, c) = rgba[4 * j + c];
+  VoxelLoss loss;
+  loss.squared = eq.residual_squared_per_channel(x);
+  loss.absolute.fill(std::numeric_limits<double>::quiet_NaN());
+  loss.voxels = eq.voxels;
   return loss;
 }
 

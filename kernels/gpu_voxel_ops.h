@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "context.h"
 #include "device_field.h"
@@ -14,15 +15,19 @@
 namespace tfm {
 
 // Accumulates the normal equations over any number of field pairs (streamed chunks of one large
-// volume, say) and returns them in double precision. Deterministic: same bits on every run.
+// volume, say) and returns them in double precision. Deterministic: the same bits on every run,
+// for every ReductionOptions (tests force each mode and atomic width).
 class GpuNormalEquations {
  public:
-  GpuNormalEquations(Context& ctx, uint32_t tf_size, bool force_global_atomics = false, uint32_t run = 0);
+  GpuNormalEquations(Context& ctx, uint32_t tf_size, ReductionOptions options = {});
   void reset();
   // Adds the voxels of (ref, opt); returns the GPU time in ms (-1 without timestamps).
   double add(const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
              const FieldMapping& opt_map, const Buffer& ref_tf);
   NormalEquations result() const;
+  // The exact totals: TFM_ASSEMBLE_SLOTS(N) unsigned 32.32 fixed-point numbers (integer value
+  // = total * 2^32, modulo 2^64).
+  std::vector<uint64_t> fixed_point_slots() const;
   const AssembleNormalEquationsKernel& kernel() const { return kernel_; }
 
  private:
@@ -33,7 +38,7 @@ class GpuNormalEquations {
 
 struct VoxelLoss {
   std::array<double, 4> squared{};   // per channel sum of squared differences
-  std::array<double, 4> absolute{};  // per channel sum of absolute differences
+  std::array<double, 4> absolute{};  // per channel sum of absolute differences (NaN: not measured)
   uint64_t voxels = 0;
   // Root mean square over all RGBA components.
   double rmse() const;
@@ -45,6 +50,12 @@ struct VoxelLoss {
 VoxelLoss voxel_loss_gpu(Context& ctx, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
                          const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf,
                          double* gpu_ms = nullptr);
+
+// The voxel loss of the TF `rgba` (N entries as 4N floats, the values the kernels read) from the
+// assembled system alone: per channel ||S x - b||^2 = x^T M x - 2 x^T S^T b + b^T b, no pass over
+// the voxels. Absolute differences do not follow from M: they are NaN. Throws
+// std::invalid_argument when the TF size differs from the system's.
+VoxelLoss voxel_loss_from_system(const NormalEquations& eq, std::span<const float> rgba);
 
 // Uploads a TF table: N RGBA entries as 4N floats (the vec4 array every kernel reads).
 // Throws std::invalid_argument unless the size is a multiple of 4 and at least 2 entries.

@@ -25,21 +25,30 @@ constexpr auto kUpdateBindingCounts =
 
 uint64_t gd_accumulator_bytes(uint32_t tf_size) { return uint64_t(TFM_GD_ACCUM_WORDS(tf_size)) * sizeof(uint32_t); }
 
-GdGradientKernel::GdGradientKernel(Context& ctx, uint32_t tf_size, bool l1, bool force_global)
-    : ctx_(ctx), tf_size_(tf_size), use_shared_(!force_global && signed_slots_fit_shared(ctx, tf_size)) {
-  if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
-  PipelineDesc desc;
-  desc.shader = "gd_gradient";
-  desc.binding_counts = gpu::to_vector(kGradientBindingCounts);
-  desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
-  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  const uint32_t shared_slots = use_shared_ ? TFM_TF_GRADIENT_SLOTS(tf_size) : 1u;
-  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
-                                    {TFM_GD_SPEC_SHARED_WORDS, shared_slots * TFM_FIXED_SLOT_WORDS},
-                                    {TFM_GD_SPEC_USE_SHARED, use_shared_ ? 1u : 0u},
-                                    {TFM_GD_SPEC_LOSS_L1, l1 ? 1u : 0u}});
-  desc.spirv = shader_spirv(desc.shader);
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+GdGradientKernel::GdGradientKernel(Context& ctx, uint32_t tf_size, bool l1, ReductionOptions options)
+    : ctx_(ctx),
+      tf_size_(tf_size),
+      l1_(l1),
+      reduction_(Reduction::choose(ctx, "gd_gradient", tf_size, signed_accumulator_bytes(tf_size), options)) {}
+
+GdGradientKernel::~GdGradientKernel() = default;
+
+const ComputePipeline& GdGradientKernel::pipeline(uint32_t ref_tf_size) const {
+  const uint32_t cached = reduction_.mode == ReductionMode::Private && ref_tf_size <= kPrivateMaxBins ? ref_tf_size : 0u;
+  auto& slot = pipelines_[cached];
+  if (!slot) {
+    PipelineDesc desc =
+        reduction_.pipeline_desc("gd_gradient", gpu::to_vector(kGradientBindingCounts), sizeof(gpu::VoxelPairPush));
+    const bool shared = reduction_.mode == ReductionMode::RunsShared;
+    desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
+                                      {TFM_GD_SPEC_MODE, reduction_.shader_mode()},
+                                      {TFM_GD_SPEC_SHARED_SLOTS, shared ? TFM_TF_GRADIENT_SLOTS(tf_size_) : 1u},
+                                      {TFM_GD_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size_ : 0u},
+                                      {TFM_GD_SPEC_LOSS_L1, l1_ ? 1u : 0u},
+                                      {TFM_GD_SPEC_TF_CACHE, cached}});
+    slot = std::make_unique<ComputePipeline>(ctx_, desc);
+  }
+  return *slot;
 }
 
 void GdGradientKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
@@ -48,13 +57,14 @@ void GdGradientKernel::record(CommandBatch& batch, const DeviceField& ref, const
   if (ref.voxel_count() != opt.voxel_count() || ref.chunk_voxels() != opt.chunk_voxels())
     throw std::invalid_argument("gd_gradient: fields differ in size or chunking");
   if (opt_map.tf_size != tf_size_) throw std::invalid_argument("gd_gradient: mapping TF size differs from kernel's");
-  if (accum.size() < gd_accumulator_bytes(tf_size_) || x.size() < uint64_t(tf_size_) * 16)
+  if (accum.size() < gd_accumulator_bytes(tf_size_) || x.size() < uint64_t(tf_size_) * 16 ||
+      ref_tf.size() < uint64_t(ref_map.tf_size) * 16)
     throw std::invalid_argument("gd_gradient: accumulator or TF buffer too small");
+  const ComputePipeline& pipe = pipeline(ref_map.tf_size);
   gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
   for (size_t c = 0; c < ref.chunk_count(); ++c) {
     push.voxel_count = static_cast<uint32_t>(ref.chunk_size(c));
-    batch.dispatch(*pipeline_, {ref.chunk(c), opt.chunk(c), ref_tf, x, accum}, push,
-                   {voxel_groups(ctx_, ref.chunk_size(c))});
+    batch.dispatch(pipe, {ref.chunk(c), opt.chunk(c), ref_tf, x, accum}, push, {reduction_.groups(ctx_, ref.chunk_size(c))});
     // Successive chunks add into the same accumulators.
     batch.barrier();
   }

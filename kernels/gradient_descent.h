@@ -3,12 +3,14 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <memory>
 
 #include "buffer.h"
 #include "commands.h"
 #include "device_field.h"
 #include "pipeline.h"
+#include "reduction.h"
 #include "solver_layout.h"
 
 namespace tfm {
@@ -17,18 +19,25 @@ class Context;
 
 // Adds the loss per channel and the signed gradient sums of (ref, opt) at the TF x to an
 // accumulator of TFM_GD_ACCUM_WORDS(N) words: gradient slots as in sparse_scatter, then the loss.
+// The same bits for every ReductionOptions; throws as Reduction::choose when a forced one does
+// not fit the device.
 class GdGradientKernel {
  public:
-  GdGradientKernel(Context& ctx, uint32_t tf_size, bool l1, bool force_global = false);
-  bool uses_shared_memory() const { return use_shared_; }
+  GdGradientKernel(Context& ctx, uint32_t tf_size, bool l1, ReductionOptions options = {});
+  ~GdGradientKernel();
+  ReductionMode mode() const { return reduction_.mode; }
+  bool int64_atomics() const { return reduction_.int64; }
   void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
               const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& x, Buffer& accum) const;
 
  private:
+  // The pipeline for a reference TF of `ref_tf_size` entries (CPU devices copy it per lane).
+  const ComputePipeline& pipeline(uint32_t ref_tf_size) const;
   Context& ctx_;
   uint32_t tf_size_;
-  bool use_shared_;
-  std::unique_ptr<ComputePipeline> pipeline_;
+  bool l1_;
+  Reduction reduction_;
+  mutable std::map<uint32_t, std::unique_ptr<ComputePipeline>> pipelines_;
 };
 
 struct GdUpdateBuffers {

@@ -1,6 +1,7 @@
 // The decoded normal equations: from fixed-point slots, dense M, and the residual from the system alone.
 #include "normal_equations_system.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 namespace tfm {
@@ -28,18 +29,24 @@ Eigen::MatrixXd NormalEquations::dense_m() const {
   return m;
 }
 
-double NormalEquations::residual_squared(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x) const {
+std::array<double, 4> NormalEquations::residual_squared_per_channel(
+    const Eigen::Matrix<double, Eigen::Dynamic, 4>& x) const {
   // ||Sx - b||^2 = x^T M x - 2 x^T S^T b + b^T b per channel.
-  double total = 0.0;
+  std::array<double, 4> out{};
   for (int c = 0; c < 4; ++c) {
     double xmx = 0.0;
     for (uint32_t j = 0; j < n; ++j) {
       xmx += diag[j] * x(j, c) * x(j, c);
       if (j + 1 < n) xmx += 2.0 * off[j] * x(j, c) * x(j + 1, c);
     }
-    total += xmx - 2.0 * x.col(c).dot(rhs.col(c)) + btb[c];
+    out[size_t(c)] = std::max(xmx - 2.0 * x.col(c).dot(rhs.col(c)) + btb[c], 0.0);
   }
-  return std::max(total, 0.0);
+  return out;
+}
+
+double NormalEquations::residual_squared(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x) const {
+  const std::array<double, 4> per_channel = residual_squared_per_channel(x);
+  return std::max(per_channel[0] + per_channel[1] + per_channel[2] + per_channel[3], 0.0);
 }
 
 }  // namespace tfm

@@ -24,6 +24,8 @@ struct NormalEquations {
   static NormalEquations from_slots(uint32_t n, std::span<const double> slots);
   // ||S x - b||^2 summed over channels, from the system alone (x: n x 4).
   double residual_squared(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x) const;
+  // The same per channel (each clamped at 0 against rounding).
+  std::array<double, 4> residual_squared_per_channel(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x) const;
   Eigen::MatrixXd dense_m() const;
 };
 

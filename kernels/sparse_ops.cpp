@@ -160,25 +160,21 @@ std::vector<double> decode_signed_fixed_point(const std::vector<uint32_t>& words
   return totals.values();
 }
 
-SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool update_residual, bool force_global)
+SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool update_residual, ReductionOptions options)
     : ctx_(ctx),
       tf_size_(tf_size),
       update_(update_residual),
-      use_shared_(!force_global && signed_slots_fit_shared(ctx, tf_size)),
+      reduction_(Reduction::choose(ctx, "sparse_scatter", tf_size, signed_accumulator_bytes(tf_size), options)),
       dummy_p_(ctx, uint64_t(tf_size) * kRgbaBytes, MemoryUsage::Device, "scatter unused p"),
       dummy_state_(ctx, sizeof(gpu::CglsState), MemoryUsage::Device, "scatter unused state") {
-  if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
-  PipelineDesc desc;
-  desc.shader = "sparse_scatter";
-  desc.binding_counts = gpu::to_vector(kScatterBindingCounts);
-  desc.push_constant_bytes = sizeof(gpu::SparsePush);
-  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  const uint32_t shared_slots = use_shared_ ? TFM_TF_GRADIENT_SLOTS(tf_size) : 1u;
+  PipelineDesc desc =
+      reduction_.pipeline_desc("sparse_scatter", gpu::to_vector(kScatterBindingCounts), sizeof(gpu::SparsePush));
+  const bool shared = reduction_.mode == ReductionMode::RunsShared;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
-                                    {TFM_SCATTER_SPEC_SHARED_WORDS, shared_slots * TFM_FIXED_SLOT_WORDS},
-                                    {TFM_SCATTER_SPEC_USE_SHARED, use_shared_ ? 1u : 0u},
+                                    {TFM_SCATTER_SPEC_MODE, reduction_.shader_mode()},
+                                    {TFM_SCATTER_SPEC_SHARED_SLOTS, shared ? TFM_TF_GRADIENT_SLOTS(tf_size) : 1u},
+                                    {TFM_SCATTER_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size : 0u},
                                     {TFM_SCATTER_SPEC_UPDATE_RESIDUAL, update_residual ? 1u : 0u}});
-  desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 
@@ -202,7 +198,8 @@ void SparseScatterKernel::record_chunks(CommandBatch& batch, VoxelVectors& v, co
   gpu::SparsePush push{0, tf_size_};
   for (size_t c = 0; c < v.chunk_count(); ++c) {
     push.voxel_count = static_cast<uint32_t>(v.chunk_size(c));
-    batch.dispatch(*pipeline_, {v.coord(c), v.rgba(c), p, state, accum}, push, {voxel_groups(ctx_, v.chunk_size(c))});
+    batch.dispatch(*pipeline_, {v.coord(c), v.rgba(c), p, state, accum}, push,
+                   {reduction_.groups(ctx_, v.chunk_size(c))});
     // Successive chunks add into the same accumulators.
     batch.barrier();
   }

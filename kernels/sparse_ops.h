@@ -11,6 +11,7 @@
 #include "commands.h"
 #include "device_field.h"
 #include "pipeline.h"
+#include "reduction.h"
 #include "solver_layout.h"
 
 namespace tfm {
@@ -83,11 +84,13 @@ class SparseGatherKernel {
 
 // s += S^T r, r = the vectors' RGBA chunks, into 4N signed slots (TFM_FIXED_SLOT_WORDS words each:
 // signed_accumulator_bytes(N)). With `update_residual` first r -= alpha (S p), alpha from the
-// CGLS state. Accumulates in shared memory when it fits (`force_global`: never).
+// CGLS state. The same bits for every ReductionOptions; throws as Reduction::choose when a
+// forced one does not fit the device.
 class SparseScatterKernel {
  public:
-  SparseScatterKernel(Context& ctx, uint32_t tf_size, bool update_residual, bool force_global = false);
-  bool uses_shared_memory() const { return use_shared_; }
+  SparseScatterKernel(Context& ctx, uint32_t tf_size, bool update_residual, ReductionOptions options = {});
+  ReductionMode mode() const { return reduction_.mode; }
+  bool int64_atomics() const { return reduction_.int64; }
   // Plain S^T r.
   void record(CommandBatch& batch, VoxelVectors& vectors, Buffer& accum) const;
   // The CGLS residual update and S^T r of the updated residual.
@@ -100,7 +103,7 @@ class SparseScatterKernel {
   Context& ctx_;
   uint32_t tf_size_;
   bool update_;
-  bool use_shared_;
+  Reduction reduction_;
   std::unique_ptr<ComputePipeline> pipeline_;
   Buffer dummy_p_, dummy_state_;
 };

@@ -4,7 +4,6 @@
 #include "shader_registry.h"
 
 #include <algorithm>
-#include <cstdlib>
 #include <stdexcept>
 
 #include "context.h"
@@ -54,31 +53,39 @@ static void check_pair(const DeviceField& ref, const DeviceField& opt) {
     throw std::invalid_argument("voxel-pair kernel: fields differ in size or chunking");
 }
 
-AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint32_t tf_size, bool force_global,
-                                                             uint32_t run)
-    : ctx_(ctx), tf_size_(tf_size) {
-  if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
-  const uint64_t shared_bytes = TFM_ASSEMBLE_SLOTS(tf_size) * gpu::kFixedSlotBytes;
-  use_shared_ = !force_global && shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
-  PipelineDesc desc;
-  desc.shader = "assemble_normal_equations";
-  desc.binding_counts = gpu::to_vector(kAssembleBindingCounts);
-  desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
-  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  if (run == 0) {
-    run = TFM_ASSEMBLE_RUN;
-    if (const char* env = std::getenv("TFMATCH_ASSEMBLE_RUN")) run = uint32_t(std::clamp(std::atoi(env), 1, 1024));
-  }
-  const uint32_t shared_slots = use_shared_ ? TFM_ASSEMBLE_SLOTS(tf_size) : 1u;
-  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
-                                    {TFM_ASSEMBLE_SPEC_SHARED_WORDS, shared_slots * TFM_FIXED_SLOT_WORDS},
-                                    {TFM_ASSEMBLE_SPEC_USE_SHARED, use_shared_ ? 1u : 0u},
-                                    {TFM_ASSEMBLE_SPEC_RUN, run}});
-  desc.spirv = shader_spirv(desc.shader);
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
-}
+namespace {
+// Reference TF entries a CPU device copies into each lane's private memory (a larger TF is read
+// from its buffer): private arrays are cache-resident gathers on a CPU, buffer reads are not.
+constexpr uint32_t kRefTfCacheMax = 1024;
+}  // namespace
+
+AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint32_t tf_size, ReductionOptions options)
+    : ctx_(ctx),
+      tf_size_(tf_size),
+      reduction_(Reduction::choose(ctx, "assemble", tf_size, uint64_t(TFM_ASSEMBLE_SLOTS(tf_size)) * gpu::kFixedSlotBytes,
+                                   options)),
+      cache_ref_tf_(is_cpu_device(ctx)) {}
+
+AssembleNormalEquationsKernel::~AssembleNormalEquationsKernel() = default;
 
 uint32_t AssembleNormalEquationsKernel::slots() const { return TFM_ASSEMBLE_SLOTS(tf_size_); }
+
+const ComputePipeline& AssembleNormalEquationsKernel::pipeline(uint32_t ref_tf_size) const {
+  const uint32_t cached = cache_ref_tf_ && ref_tf_size <= kRefTfCacheMax ? ref_tf_size : 0u;
+  auto& slot = pipelines_[cached];
+  if (!slot) {
+    PipelineDesc desc = reduction_.pipeline_desc("assemble_normal_equations", gpu::to_vector(kAssembleBindingCounts),
+                                                 sizeof(gpu::VoxelPairPush));
+    desc.specialization = gpu::by_id(
+        {{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
+         {TFM_ASSEMBLE_SPEC_MODE, reduction_.shader_mode()},
+         {TFM_ASSEMBLE_SPEC_SHARED_SLOTS, reduction_.mode == ReductionMode::RunsShared ? slots() : 1u},
+         {TFM_ASSEMBLE_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size_ : 0u},
+         {TFM_ASSEMBLE_SPEC_TF_CACHE, cached}});
+    slot = std::make_unique<ComputePipeline>(ctx_, desc);
+  }
+  return *slot;
+}
 
 void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
                                            const FieldMapping& ref_map, const FieldMapping& opt_map,
@@ -87,11 +94,13 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
   if (opt_map.tf_size != tf_size_) throw std::invalid_argument("assemble: mapping TF size differs from kernel's");
   if (accum.size() < slots() * gpu::kFixedSlotBytes)
     throw std::invalid_argument("assemble: accumulator buffer too small");
+  if (ref_tf.size() < uint64_t(ref_map.tf_size) * 16)
+    throw std::invalid_argument("assemble: reference TF buffer holds fewer entries than its mapping");
+  const ComputePipeline& pipe = pipeline(ref_map.tf_size);
   gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
   for (size_t c = 0; c < ref.chunk_count(); ++c) {
     push.voxel_count = static_cast<uint32_t>(ref.chunk_size(c));
-    batch.dispatch(*pipeline_, {ref.chunk(c), opt.chunk(c), ref_tf, accum}, push,
-                   {voxel_groups(ctx_, ref.chunk_size(c))});
+    batch.dispatch(pipe, {ref.chunk(c), opt.chunk(c), ref_tf, accum}, push, {reduction_.groups(ctx_, ref.chunk_size(c))});
     // Successive chunks add into the same accumulators.
     batch.barrier();
   }

@@ -4,12 +4,14 @@
 
 #include <array>
 #include <cstdint>
+#include <map>
 #include <memory>
 
 #include "buffer.h"
 #include "commands.h"
 #include "device_field.h"
 #include "pipeline.h"
+#include "reduction.h"
 #include "shared_layout.h"
 
 namespace tfm {
@@ -19,26 +21,31 @@ class Context;
 gpu::VoxelPairPush make_voxel_pair_push(const FieldMapping& ref, const FieldMapping& opt);
 
 // Adds M, S^T b, b^T b and the voxel count of (ref, opt) to a 32.32 fixed-point accumulator
-// buffer of TFM_ASSEMBLE_SLOTS(N) slots. Accumulates in workgroup-shared memory when the device
-// has room for the slots, else straight to the buffer (`force_global` selects that path).
-// Each invocation sums `run` contiguous voxels in registers between flushes (0: the default
-// TFM_ASSEMBLE_RUN, or the environment variable TFMATCH_ASSEMBLE_RUN for tuning on a device).
-// The result is bit-identical for every path and run length.
+// buffer of TFM_ASSEMBLE_SLOTS(N) slots (8 bytes each, low word first). The result is
+// bit-identical for every mode, atomic width, chunking and workgroup count. Throws
+// std::invalid_argument for fewer than 2 entries, std::runtime_error when a forced mode or
+// width is not available on the device (shared memory too small, no 64-bit atomics).
 class AssembleNormalEquationsKernel {
  public:
-  AssembleNormalEquationsKernel(Context& ctx, uint32_t tf_size, bool force_global = false, uint32_t run = 0);
+  AssembleNormalEquationsKernel(Context& ctx, uint32_t tf_size, ReductionOptions options = {});
+  ~AssembleNormalEquationsKernel();
   uint32_t tf_size() const { return tf_size_; }
   uint32_t slots() const;
-  bool uses_shared_memory() const { return use_shared_; }
+  ReductionMode mode() const { return reduction_.mode; }
+  bool int64_atomics() const { return reduction_.int64; }
   // Records one dispatch per chunk (barriers between them) into `batch`.
   void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
               const FieldMapping& opt_map, const Buffer& ref_tf, Buffer& accum) const;
 
  private:
+  // The pipeline for a reference TF of `ref_tf_size` entries (CPU devices copy it per lane).
+  const ComputePipeline& pipeline(uint32_t ref_tf_size) const;
+
   Context& ctx_;
   uint32_t tf_size_;
-  bool use_shared_;
-  std::unique_ptr<ComputePipeline> pipeline_;
+  Reduction reduction_;
+  bool cache_ref_tf_;
+  mutable std::map<uint32_t, std::unique_ptr<ComputePipeline>> pipelines_;
 };
 
 // Adds per-channel sums of squared and absolute colour differences and the voxel count to a

@@ -25,7 +25,8 @@
 // registers while consecutive samples stay in it (smooth fields mostly do), converts the sums
 // to signed 32.32 fixed point (fixed_point.glsl) when the interval changes, and adds them with
 // integer atomics into the workgroup's shared accumulators, flushed once per workgroup into the
-// global ones. Integer sums are exact, so the result does not depend on scheduling.
+// global ones. Integer sums are exact, so the result does not depend on scheduling. The march
+// is two nested loops, one run per outer iteration (see backpropagate_pixel).
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #define TFM_WANT_RENDER_PUSH
@@ -75,34 +76,53 @@ void backpropagate_pixel(uvec2 pixel, uint view) {
   float g_trans = -g.a;  // A = 1 - T
   vec3 color = s.rgb;
   float transmittance = s.a;
+  // Runs: consecutive samples in one TF interval sum their gradients in float registers (g0, g1
+  // for entries cur, cur + 1); a run is flushed to the accumulators when the interval changes.
+  // The inner loop marches one run and stops at the first sample of the next, whose terms start
+  // the next run (n0, n1); the flush sits outside it, so it runs once per run rather than as
+  // code every sample passes (CPU devices execute a branch's body whether or not a lane takes
+  // it). The runs, and so the bits, are those of a flush inside the loop.
+  uint k = stop_index[index];
   uint cur = 0xFFFFFFFFu;
   vec4 g0 = vec4(0.0), g1 = vec4(0.0);
-  for (uint k = stop_index[index]; k > 0u; --k) {
-    float value;
-    if (!sample_field(sample_position(ray, k - 1u, mp.dt), mp, value)) continue;
-    uint j;
-    float w;
-    // shade_sample() of raymarch.glsl, with the interval (j, w) and the clamp kept.
-    const vec4 c = clamp(classify(value, mp, j, w), 0.0, 1.0);
-    const float tau = sample_transmittance(c.a, mp);
-    uncomposite(color, transmittance, c.rgb, tau);  // transmittance is now T before sample k-1
-    const float gc_dot_c = dot(g_color, c.rgb);
-    const vec3 d_rgb = g_color * (transmittance * (1.0 - tau));
-    const float d_tau = transmittance * (g_trans - gc_dot_c);
-    const bool clamped = c.a * mp.depth_per_alpha >= TFM_MAX_SAMPLE_OPTICAL_DEPTH;
-    const float d_alpha = clamped ? 0.0 : -d_tau * mp.depth_per_alpha * tau;
-    g_trans = (1.0 - tau) * gc_dot_c + tau * g_trans;
-    const vec4 d = vec4(d_rgb, d_alpha);
-    if (j != cur) {
-      if (cur != 0xFFFFFFFFu) flush(cur, g0, g1);
+  bool more = true;
+  while (more) {
+    uint next = 0xFFFFFFFFu;
+    vec4 n0 = vec4(0.0), n1 = vec4(0.0);
+    more = false;
+    while (k > 0u) {
+      --k;
+      float value;
+      if (!sample_field(sample_position(ray, k, mp.dt), mp, value)) continue;
+      uint j;
+      float w;
+      // shade_sample() of raymarch.glsl, with the interval (j, w) and the clamp kept.
+      const vec4 c = clamp(classify(value, mp, j, w), 0.0, 1.0);
+      const float tau = sample_transmittance(c.a, mp);
+      uncomposite(color, transmittance, c.rgb, tau);  // transmittance is now T before sample k
+      const float gc_dot_c = dot(g_color, c.rgb);
+      const vec3 d_rgb = g_color * (transmittance * (1.0 - tau));
+      const float d_tau = transmittance * (g_trans - gc_dot_c);
+      const bool clamped = c.a * mp.depth_per_alpha >= TFM_MAX_SAMPLE_OPTICAL_DEPTH;
+      const float d_alpha = clamped ? 0.0 : -d_tau * mp.depth_per_alpha * tau;
+      g_trans = (1.0 - tau) * gc_dot_c + tau * g_trans;
+      const vec4 d = vec4(d_rgb, d_alpha);
+      if (cur != 0xFFFFFFFFu && j != cur) {
+        next = j;
+        n0 = (1.0 - w) * d;
+        n1 = w * d;
+        more = true;
+        break;
+      }
       cur = j;
-      g0 = vec4(0.0);
-      g1 = vec4(0.0);
+      g0 += (1.0 - w) * d;
+      g1 += w * d;
     }
-    g0 += (1.0 - w) * d;
-    g1 += w * d;
+    if (cur != 0xFFFFFFFFu) flush(cur, g0, g1);
+    cur = next;
+    g0 = n0;
+    g1 = n1;
   }
-  if (cur != 0xFFFFFFFFu) flush(cur, g0, g1);
 }
 
 void main() {

@@ -1,75 +1,90 @@
 // Loss and gradient of the voxel objective for gradient descent, over one chunk of voxels: per
 // voxel e = T_o(F_o) - b with T_o = x (unclamped, the iterate is kept in [0,1]), b = T_r(F_r)
 // clamped to [0,1]; l2 adds e^2 to the loss and (1-w) e, w e to entries j, j+1 of the gradient
-// sum; l1 adds |e| and (1-w) sign(e), w sign(e). Deterministic signed 32.32 fixed-point sums.
+// sum; l1 adds |e| and (1-w) sign(e), w sign(e). The gradient is reduced as
+// tf_pair_reduce.glsl describes, the loss per lane in registers; every term is converted to
+// 32.32 fixed point on its own and summed as an integer (the same bits for every mode, atomic
+// width, chunking and workgroup count). Lanes take consecutive quads of voxels in their
+// subgroup's segment, as in assemble_normal_equations.comp, which also explains the modes.
 #version 450
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_basic : require
+#ifdef TFM_INT64
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#extension GL_EXT_shader_atomic_int64 : require
+#endif
 #define TFM_WANT_VOXEL_PAIR_PUSH
 #include "solver_layout.h"
 #include "tf_common.glsl"
-#include "fixed_point.glsl"
+#include "fixed_point_accumulators.glsl"
 
 layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
-// Words of workgroup-shared gradient accumulators (2 per slot); 2 when adding straight to memory.
-layout(constant_id = TFM_GD_SPEC_SHARED_WORDS) const uint SHARED_WORDS = 2u;
-layout(constant_id = TFM_GD_SPEC_USE_SHARED) const bool USE_SHARED = true;
+layout(constant_id = TFM_GD_SPEC_MODE) const uint MODE = TFM_REDUCE_RUNS_SHARED;
+// Slots of the workgroup-shared gradient accumulators (1 unless MODE is RUNS_SHARED).
+layout(constant_id = TFM_GD_SPEC_SHARED_SLOTS) const uint SHARED_SLOTS = 1u;
+// TF entries of each lane's private histogram, and of its copy of x (0 unless MODE is PRIVATE).
+layout(constant_id = TFM_GD_SPEC_PRIVATE_BINS) const uint PRIVATE_BINS = 0u;
 layout(constant_id = TFM_GD_SPEC_LOSS_L1) const bool LOSS_L1 = false;
+// Reference TF entries copied into private memory (0: read the buffer).
+layout(constant_id = TFM_GD_SPEC_TF_CACHE) const uint TF_CACHE_ENTRIES = 0u;
 
 layout(std430, binding = TFM_GD_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
+layout(std430, binding = TFM_GD_BINDING_REF_FIELD) readonly buffer RefQuads { vec4 ref_quads[]; };
 layout(std430, binding = TFM_GD_BINDING_OPT_FIELD) readonly buffer OptField { float opt_field[]; };
+layout(std430, binding = TFM_GD_BINDING_OPT_FIELD) readonly buffer OptQuads { vec4 opt_quads[]; };
 layout(std430, binding = TFM_GD_BINDING_REF_TF) readonly buffer RefTf { vec4 ref_tf[]; };
 layout(std430, binding = TFM_GD_BINDING_X) readonly buffer X { vec4 x[]; };
-layout(std430, binding = TFM_GD_BINDING_ACCUM) buffer Accum { uint accum[]; };
+TFM_DECLARE_ACCUMULATORS(TFM_GD_BINDING_ACCUM)
 
-shared uint s_acc[SHARED_WORDS];
+#include "tf_pair_reduce.glsl"
 
-// Float sums of the current bin over the voxels of one run (at most TFM_SOLVER_RUN terms):
-// entry j (lo) and j+1 (hi). Which voxels form a run is fixed by their indices, so the sums (and
-// the fixed-point totals) are the same on every run; converting once per bin and run instead of
-// once per term is what makes the kernel fast.
-vec4 lo_sum, hi_sum;
+// Private copies of the two TFs (CPU devices: gathers from private memory are cheap there).
+vec4 ref_cache[TF_CACHE_ENTRIES + 1u];
+vec4 x_cache[PRIVATE_BINS + 1u];
+vec4 ref_entry(uint j) { return TF_CACHE_ENTRIES > 0u ? ref_cache[j] : ref_tf[j]; }
+vec4 x_entry(uint j) { return PRIVATE_BINS > 0u ? x_cache[j] : x[j]; }
 
-void flush_bin(uint j) {
-  FX_ADD_TF_PAIR(USE_SHARED, s_acc, accum, j, lo_sum, hi_sum)
-  lo_sum = hi_sum = vec4(0.0);
+Fx loss[4];
+
+void take(float ref_value, float opt_value) {
+  uint jr, jo;
+  float wr, wo;
+  const bool ref_ok = tf_coordinate(ref_value, pc.ref_lo, pc.ref_scale, pc.ref_tf_size, jr, wr);
+  const bool ok = tf_coordinate(opt_value, pc.opt_lo, pc.opt_scale, pc.opt_tf_size, jo, wo) && ref_ok;
+  const vec4 b = clamp((1.0 - wr) * ref_entry(jr) + wr * ref_entry(jr + 1u), 0.0, 1.0);
+  const vec4 e = ok ? (1.0 - wo) * x_entry(jo) + wo * x_entry(jo + 1u) - b : vec4(0.0);
+  const vec4 d = LOSS_L1 ? sign(e) : e;
+  for (uint c = 0u; c < 4u; ++c) fx_sum(loss[c], fx_term(LOSS_L1 ? abs(e[c]) : e[c] * e[c]));
+  const float w = ok ? wo : 0.0;
+  pair_add(ok, jo, (1.0 - w) * d, w * d);
 }
 
 void main() {
   const uint n = pc.opt_tf_size;
-  const uint lid = gl_LocalInvocationID.x;
-  if (USE_SHARED) FX_SHARED_ZERO(s_acc, TFM_TF_GRADIENT_SLOTS(n))
+  if (MODE == TFM_REDUCE_RUNS_SHARED) TFM_SHARED_ACCUMULATORS_ZERO(TFM_TF_GRADIENT_SLOTS(n))
+  for (uint j = 0u; j < TF_CACHE_ENTRIES; ++j) ref_cache[j] = ref_tf[j];
+  for (uint j = 0u; j < PRIVATE_BINS; ++j) x_cache[j] = x[j];
+  for (uint c = 0u; c < 4u; ++c) loss[c] = FX_ZERO;
+  pair_begin();
 
-  uvec2 loss[4] = uvec2[4](uvec2(0u), uvec2(0u), uvec2(0u), uvec2(0u));
-  lo_sum = hi_sum = vec4(0.0);
-  uint cur = 0xFFFFFFFFu;
-  // Each invocation walks a contiguous run (see TFM_SOLVER_RUN); runs of one workgroup are
-  // adjacent, workgroups stride over blocks.
-  const uint block = gl_WorkGroupSize.x * TFM_SOLVER_RUN;
-  for (uint base = gl_WorkGroupID.x * block; base < pc.voxel_count; base += gl_NumWorkGroups.x * block) {
-    const uint first = base + lid * TFM_SOLVER_RUN;
-    const uint last = min(first + TFM_SOLVER_RUN, pc.voxel_count);
-    for (uint i = first; i < last; ++i) {
-      uint jr, jo;
-      float wr, wo;
-      if (!tf_coordinate(ref_field[i], pc.ref_lo, pc.ref_scale, pc.ref_tf_size, jr, wr)) continue;
-      if (!tf_coordinate(opt_field[i], pc.opt_lo, pc.opt_scale, n, jo, wo)) continue;
-      const vec4 b = clamp((1.0 - wr) * ref_tf[jr] + wr * ref_tf[jr + 1u], 0.0, 1.0);
-      const vec4 e = (1.0 - wo) * x[jo] + wo * x[jo + 1u] - b;
-      const vec4 d = LOSS_L1 ? sign(e) : e;
-      if (jo != cur) {
-        if (cur != 0xFFFFFFFFu) flush_bin(cur);
-        cur = jo;
-      }
-      for (uint c = 0u; c < 4u; ++c) fx_add(loss[c], fx_from_float(LOSS_L1 ? abs(e[c]) : e[c] * e[c]));
-      lo_sum += (1.0 - wo) * d;
-      hi_sum += wo * d;
+  const uint quads = pc.voxel_count / 4u;
+  const uint segment = gl_SubgroupSize * TFM_REDUCE_SEGMENT_STEPS;
+  const uint subgroups = gl_NumWorkGroups.x * gl_NumSubgroups;
+  for (uint s = gl_WorkGroupID.x * gl_NumSubgroups + gl_SubgroupID; s * segment < quads; s += subgroups) {
+    const uint end = min(s * segment + segment, quads);
+    for (uint q = s * segment + gl_SubgroupInvocationID; q < end; q += gl_SubgroupSize) {
+      const vec4 rv = ref_quads[q];
+      const vec4 ov = opt_quads[q];
+      take(rv.x, ov.x);
+      take(rv.y, ov.y);
+      take(rv.z, ov.z);
+      take(rv.w, ov.w);
     }
-    // Sums never span runs: a run is the aligned index range [16k, 16k+16), so they do not
-    // depend on the number of workgroups either.
-    if (cur != 0xFFFFFFFFu) flush_bin(cur);
-    cur = 0xFFFFFFFFu;
   }
-  for (uint c = 0u; c < 4u; ++c) FX_ATOMIC_ADD(accum, TFM_GD_LOSS_SLOT(n) + c, loss[c]);
+  if (gl_GlobalInvocationID.x == 0u)
+    for (uint i = 4u * quads; i < pc.voxel_count; ++i) take(ref_field[i], opt_field[i]);
+  pair_end(n);
+  for (uint c = 0u; c < 4u; ++c) TFM_ADD_GLOBAL(TFM_GD_LOSS_SLOT(n) + c, loss[c])
 
-  if (USE_SHARED) FX_SHARED_FLUSH(s_acc, TFM_TF_GRADIENT_SLOTS(n), accum)
+  if (MODE == TFM_REDUCE_RUNS_SHARED) TFM_SHARED_ACCUMULATORS_FLUSH(TFM_TF_GRADIENT_SLOTS(n))
 }

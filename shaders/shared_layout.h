@@ -29,6 +29,14 @@ using uint = std::uint32_t;
 // Workgroup size of the 1-D voxel kernels.
 #define TFM_VOXEL_WORKGROUP 256
 
+// Where the voxel-reducing kernels (assemble_normal_equations, sparse_scatter, gd_gradient) sum
+// their terms: the value of their MODE specialization constant (kernels/reduction.h).
+#define TFM_REDUCE_RUNS_SHARED 0u  // register runs, flushed to workgroup-shared accumulators
+#define TFM_REDUCE_RUNS_GLOBAL 1u  // register runs, flushed to the global accumulators
+#define TFM_REDUCE_PRIVATE 2u      // a private histogram per lane, added to memory at the end
+// Quads of voxels each lane takes from one contiguous segment of its subgroup per step.
+#define TFM_REDUCE_SEGMENT_STEPS 64u
+
 // Fixed-point accumulators (shaders/fixed_point.glsl): each slot is one 64-bit 32.32 number kept
 // as two 32-bit words (low word first), unsigned or two's complement. Only core 32-bit atomics
 // are needed, and integer addition is associative, so sums are bit-identical whatever the
@@ -81,7 +89,7 @@ inline std::vector<uint> by_id(std::initializer_list<std::pair<uint, uint>> valu
 }
 #endif
 
-// ---- assemble_normal_equations.comp -------------------------------------------------------
+// ---- assemble_normal_equations.comp (and its TFM_INT64 variant) ----------------------------
 // Accumulator slots (unsigned): M diagonal [0, N), M super-diagonal [N, 2N-1),
 // S^T b as [2N-1 + 4j + c], b^T b per channel [6N-1 + c], voxel count [6N+3].
 #define TFM_ASSEMBLE_BINDING_REF_FIELD 0
@@ -90,11 +98,10 @@ inline std::vector<uint> by_id(std::initializer_list<std::pair<uint, uint>> valu
 #define TFM_ASSEMBLE_BINDING_ACCUM 3
 #define TFM_ASSEMBLE_SLOTS(n) (6u * (n) + 4u)
 // Specialization: workgroup size (TFM_SPEC_WORKGROUP_X), then these.
-#define TFM_ASSEMBLE_SPEC_SHARED_WORDS 1  // words of workgroup-shared accumulators (2 per slot)
-#define TFM_ASSEMBLE_SPEC_USE_SHARED 2    // 0: add straight to the global accumulators
-#define TFM_ASSEMBLE_SPEC_RUN 3           // voxels per register run (default TFM_ASSEMBLE_RUN)
-// Contiguous voxels one invocation accumulates in registers before touching shared memory.
-#define TFM_ASSEMBLE_RUN 16u
+#define TFM_ASSEMBLE_SPEC_MODE 1          // TFM_REDUCE_RUNS_SHARED, _RUNS_GLOBAL or _PRIVATE
+#define TFM_ASSEMBLE_SPEC_SHARED_SLOTS 2  // slots of workgroup-shared accumulators (RUNS_SHARED)
+#define TFM_ASSEMBLE_SPEC_PRIVATE_BINS 3  // TF entries of each lane's private histogram (PRIVATE)
+#define TFM_ASSEMBLE_SPEC_TF_CACHE 4      // reference TF entries copied per lane (0: read the buffer)
 
 // Push constants of the kernels that map a pair of fields (reference, optimized) through TFs:
 // assemble_normal_equations and voxel_loss. A shader opts in with TFM_WANT_VOXEL_PAIR_PUSH

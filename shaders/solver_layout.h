@@ -16,11 +16,6 @@ struct uvec4 { uint x, y, z, w; };
 // they loop over N and reduce in shared memory in a fixed order (deterministic).
 #define TFM_VECTOR_WORKGROUP 256
 
-// Voxels one invocation of the scatter-type kernels (sparse_scatter, gd_gradient) walks in a
-// contiguous run, summing the terms of the current TF bin in float registers: neighbouring voxels
-// of smooth fields mostly share a bin, so most fixed-point conversions and atomics disappear.
-#define TFM_SOLVER_RUN 16u
-
 // Signed sums over a TF (S^T r, gradients): 4N signed 32.32 fixed-point slots (fixed_point.glsl,
 // two's complement, TFM_FIXED_SLOT_WORDS words each), the slot of TF entry j, channel c is 4j + c.
 #define TFM_TF_GRADIENT_SLOTS(n) (4u * (n))
@@ -68,9 +63,10 @@ TFM_PUSH_CONSTANTS(PreparePush) {
 // ---- sparse_scatter.comp: s += S^T r (signed slots), optionally after r -= alpha (S p) ----------
 // Accumulators: TFM_TF_GRADIENT_SLOTS(N) signed slots. Specialization: workgroup size
 // (TFM_SPEC_WORKGROUP_X), then these.
-#define TFM_SCATTER_SPEC_SHARED_WORDS 1     // words of workgroup-shared accumulators (2 per slot)
-#define TFM_SCATTER_SPEC_USE_SHARED 2       // 0: add straight to the global accumulators
-#define TFM_SCATTER_SPEC_UPDATE_RESIDUAL 3  // r -= alpha (S p) first, alpha from the CGLS state
+#define TFM_SCATTER_SPEC_MODE 1             // TFM_REDUCE_* (shared_layout.h)
+#define TFM_SCATTER_SPEC_SHARED_SLOTS 2     // slots of workgroup-shared accumulators (RUNS_SHARED)
+#define TFM_SCATTER_SPEC_PRIVATE_BINS 3     // TF entries of each lane's private histogram (PRIVATE)
+#define TFM_SCATTER_SPEC_UPDATE_RESIDUAL 4  // r -= alpha (S p) first, alpha from the CGLS state
 #define TFM_SCATTER_BINDING_COORD 0
 #define TFM_SCATTER_BINDING_RESIDUAL 1
 #define TFM_SCATTER_BINDING_P 2
@@ -124,9 +120,11 @@ TFM_PUSH_CONSTANTS(CglsPush) {
 // Uses VoxelPairPush (shared_layout.h). Specialization: workgroup size (TFM_SPEC_WORKGROUP_X),
 // then these. Slots: the gradient, TFM_TF_GRADIENT_SLOTS(N) signed slots, then the loss per
 // channel as 4 unsigned slots from TFM_GD_LOSS_SLOT(N) (word 2 TFM_GD_LOSS_SLOT(N)).
-#define TFM_GD_SPEC_SHARED_WORDS 1  // words of workgroup-shared gradient accumulators (2 per slot)
-#define TFM_GD_SPEC_USE_SHARED 2    // 0: add straight to the global accumulators
-#define TFM_GD_SPEC_LOSS_L1 3       // 1: l1 loss, 0: l2
+#define TFM_GD_SPEC_MODE 1          // TFM_REDUCE_* (shared_layout.h)
+#define TFM_GD_SPEC_SHARED_SLOTS 2  // slots of workgroup-shared gradient accumulators (RUNS_SHARED)
+#define TFM_GD_SPEC_PRIVATE_BINS 3  // TF entries of each lane's private histogram (PRIVATE)
+#define TFM_GD_SPEC_LOSS_L1 4       // 1: l1 loss, 0: l2
+#define TFM_GD_SPEC_TF_CACHE 5      // reference TF entries copied per lane (0: read the buffer)
 #define TFM_GD_BINDING_REF_FIELD 0
 #define TFM_GD_BINDING_OPT_FIELD 1
 #define TFM_GD_BINDING_REF_TF 2

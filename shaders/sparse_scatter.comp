@@ -1,76 +1,78 @@
 // s += S^T r over one chunk of voxels: each voxel adds (1-w) r to entry j and w r to entry j+1,
-// per channel, into signed 32.32 fixed-point slots (deterministic whatever the scheduling).
-// With UPDATE_RESIDUAL it first applies the CGLS residual update r -= alpha (S p) and stores r.
+// per channel, into signed 32.32 fixed-point slots, reduced as tf_pair_reduce.glsl describes
+// (every term converted on its own and summed as an integer: the same bits for every mode,
+// atomic width, chunking and workgroup count). With UPDATE_RESIDUAL it first applies the CGLS
+// residual update r -= alpha (S p) and stores r. Lanes take consecutive quads of voxels in their
+// subgroup's segment, as in assemble_normal_equations.comp.
 #version 450
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_basic : require
+#ifdef TFM_INT64
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#extension GL_EXT_shader_atomic_int64 : require
+#endif
 #define TFM_WANT_SPARSE_PUSH
 #include "solver_layout.h"
 #include "tf_common.glsl"
-#include "fixed_point.glsl"
+#include "fixed_point_accumulators.glsl"
 
 layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
-// Words of workgroup-shared accumulators (2 per slot); 2 when adding straight to memory.
-layout(constant_id = TFM_SCATTER_SPEC_SHARED_WORDS) const uint SHARED_WORDS = 2u;
-layout(constant_id = TFM_SCATTER_SPEC_USE_SHARED) const bool USE_SHARED = true;
+layout(constant_id = TFM_SCATTER_SPEC_MODE) const uint MODE = TFM_REDUCE_RUNS_SHARED;
+// Slots of the workgroup-shared accumulators (1 unless MODE is RUNS_SHARED).
+layout(constant_id = TFM_SCATTER_SPEC_SHARED_SLOTS) const uint SHARED_SLOTS = 1u;
+// TF entries of each lane's private histogram (0 unless MODE is PRIVATE).
+layout(constant_id = TFM_SCATTER_SPEC_PRIVATE_BINS) const uint PRIVATE_BINS = 0u;
 layout(constant_id = TFM_SCATTER_SPEC_UPDATE_RESIDUAL) const bool UPDATE_RESIDUAL = false;
 
 layout(std430, binding = TFM_SCATTER_BINDING_COORD) readonly buffer Coord { float coord[]; };
+layout(std430, binding = TFM_SCATTER_BINDING_COORD) readonly buffer CoordQuads { vec4 coord_quads[]; };
 layout(std430, binding = TFM_SCATTER_BINDING_RESIDUAL) buffer Residual { vec4 r[]; };
 layout(std430, binding = TFM_SCATTER_BINDING_P) readonly buffer P { vec4 p[]; };
 layout(std430, binding = TFM_SCATTER_BINDING_STATE) readonly buffer State { CglsState state; };
-layout(std430, binding = TFM_SCATTER_BINDING_ACCUM) buffer Accum { uint accum[]; };
+TFM_DECLARE_ACCUMULATORS(TFM_SCATTER_BINDING_ACCUM)
 
-shared uint s_acc[SHARED_WORDS];
+#include "tf_pair_reduce.glsl"
 
-// Float sums of the current bin over the voxels of one run (at most TFM_SOLVER_RUN terms):
-// entry j (lo) and j+1 (hi). Which voxels form a run is fixed by their indices, so the sums (and
-// the fixed-point totals) are the same on every run; converting once per bin and run instead of
-// once per term is what makes the kernel fast.
-vec4 lo_sum, hi_sum;
+vec4 alpha;
 
-void flush_bin(uint j) {
-  FX_ADD_TF_PAIR(USE_SHARED, s_acc, accum, j, lo_sum, hi_sum)
-  lo_sum = hi_sum = vec4(0.0);
+void take(uint i, float x) {
+  uint j;
+  float w;
+  const bool ok = split_coordinate(x, pc.tf_size, j, w);
+  vec4 ri = r[i];
+  if (UPDATE_RESIDUAL && ok) {
+    ri -= alpha * ((1.0 - w) * p[j] + w * p[j + 1u]);
+    r[i] = ri;
+  }
+  // Without data w = 0 and j = 0 (split_coordinate), and the terms must be 0.
+  const vec4 rs = ok ? ri : vec4(0.0);
+  pair_add(ok, j, (1.0 - w) * rs, w * rs);
 }
 
 void main() {
   // Iterations recorded after every channel stopped change nothing: skip them (uniform branch).
   if (UPDATE_RESIDUAL && all(equal(state.running, uvec4(0u)))) return;
   const uint n = pc.tf_size;
-  const uint lid = gl_LocalInvocationID.x;
-  if (USE_SHARED) FX_SHARED_ZERO(s_acc, TFM_TF_GRADIENT_SLOTS(n))
+  if (MODE == TFM_REDUCE_RUNS_SHARED) TFM_SHARED_ACCUMULATORS_ZERO(TFM_TF_GRADIENT_SLOTS(n))
+  alpha = UPDATE_RESIDUAL ? state.alpha : vec4(0.0);
+  pair_begin();
 
-  vec4 alpha = vec4(0.0);
-  if (UPDATE_RESIDUAL) alpha = state.alpha;
-  lo_sum = hi_sum = vec4(0.0);
-  uint cur = 0xFFFFFFFFu;
-  // Each invocation walks a contiguous run; runs of one workgroup are adjacent, workgroups
-  // stride over blocks.
-  const uint block = gl_WorkGroupSize.x * TFM_SOLVER_RUN;
-  for (uint base = gl_WorkGroupID.x * block; base < pc.voxel_count; base += gl_NumWorkGroups.x * block) {
-    const uint first = base + lid * TFM_SOLVER_RUN;
-    const uint last = min(first + TFM_SOLVER_RUN, pc.voxel_count);
-    for (uint i = first; i < last; ++i) {
-      uint j;
-      float w;
-      if (!split_coordinate(coord[i], n, j, w)) continue;
-      vec4 ri = r[i];
-      if (UPDATE_RESIDUAL) {
-        ri -= alpha * ((1.0 - w) * p[j] + w * p[j + 1u]);
-        r[i] = ri;
-      }
-      if (j != cur) {
-        if (cur != 0xFFFFFFFFu) flush_bin(cur);
-        cur = j;
-      }
-      lo_sum += (1.0 - w) * ri;
-      hi_sum += w * ri;
+  const uint quads = pc.voxel_count / 4u;
+  const uint segment = gl_SubgroupSize * TFM_REDUCE_SEGMENT_STEPS;
+  const uint subgroups = gl_NumWorkGroups.x * gl_NumSubgroups;
+  for (uint s = gl_WorkGroupID.x * gl_NumSubgroups + gl_SubgroupID; s * segment < quads; s += subgroups) {
+    const uint end = min(s * segment + segment, quads);
+    for (uint q = s * segment + gl_SubgroupInvocationID; q < end; q += gl_SubgroupSize) {
+      const vec4 x = coord_quads[q];
+      take(4u * q, x.x);
+      take(4u * q + 1u, x.y);
+      take(4u * q + 2u, x.z);
+      take(4u * q + 3u, x.w);
     }
-    // Sums never span runs: a run is the aligned index range [16k, 16k+16), so they do not
-    // depend on the number of workgroups either.
-    if (cur != 0xFFFFFFFFu) flush_bin(cur);
-    cur = 0xFFFFFFFFu;
   }
+  if (gl_GlobalInvocationID.x == 0u)
+    for (uint i = 4u * quads; i < pc.voxel_count; ++i) take(i, coord[i]);
+  pair_end(n);
 
-  if (USE_SHARED) FX_SHARED_FLUSH(s_acc, TFM_TF_GRADIENT_SLOTS(n), accum)
+  if (MODE == TFM_REDUCE_RUNS_SHARED) TFM_SHARED_ACCUMULATORS_FLUSH(TFM_TF_GRADIENT_SLOTS(n))
 }

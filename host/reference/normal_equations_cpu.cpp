@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 namespace tfm {
@@ -34,6 +35,61 @@ void accumulate_normal_equations_cpu(NormalEquations& eq, std::span<const float>
     ++eq.voxels;
   }
   (void)n;
+}
+
+NormalEquations assemble_normal_equations_cpu_threaded(std::span<const float> ref, std::span<const float> opt,
+                                                       const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                                       const TransferFunction& ref_tf, unsigned threads) {
+  if (ref.size() != opt.size()) throw std::invalid_argument("assemble_normal_equations_cpu_threaded: size mismatch");
+  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  std::vector<NormalEquations> parts(threads, NormalEquations(opt_map.tf_size));
+  std::vector<std::thread> workers;
+  for (unsigned t = 0; t < threads; ++t)
+    workers.emplace_back([&, t] {
+      const size_t begin = ref.size() * t / threads, end = ref.size() * (t + 1) / threads;
+      accumulate_normal_equations_cpu(parts[t], ref.subspan(begin, end - begin), opt.subspan(begin, end - begin),
+                                      ref_map, opt_map, ref_tf);
+    });
+  for (std::thread& w : workers) w.join();
+  NormalEquations total = std::move(parts[0]);
+  for (unsigned t = 1; t < threads; ++t) {
+    for (uint32_t j = 0; j < total.n; ++j) total.diag[j] += parts[t].diag[j];
+    for (uint32_t j = 0; j + 1 < total.n; ++j) total.off[j] += parts[t].off[j];
+    total.rhs += parts[t].rhs;
+    for (int c = 0; c < 4; ++c) total.btb[c] += parts[t].btb[c];
+    total.voxels += parts[t].voxels;
+  }
+  return total;
+}
+
+std::vector<uint64_t> assemble_normal_equations_fixed_point(std::span<const float> ref, std::span<const float> opt,
+                                                            const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                                            const TransferFunction& ref_tf) {
+  if (ref.size() != opt.size()) throw std::invalid_argument("assemble_normal_equations_fixed_point: size mismatch");
+  if (ref_tf.size() != ref_map.tf_size)
+    throw std::invalid_argument("assemble_normal_equations_fixed_point: TF size does not match the mapping");
+  const uint32_t n = opt_map.tf_size, stb = 2 * n - 1;
+  const std::vector<float> tf = ref_tf.as_floats();
+  // floor(c 2^32) of a float c in [0, 1]: c 2^32 is exact in float, the conversion truncates.
+  auto fx = [](float c) { return static_cast<uint64_t>(c * 4294967296.0f); };
+  std::vector<uint64_t> slots(6 * n + 4, 0);
+  for (size_t i = 0; i < ref.size(); ++i) {
+    uint32_t jr, jo;
+    float wr, wo;
+    if (!tf_coordinate(ref[i], ref_map, jr, wr) || !tf_coordinate(opt[i], opt_map, jo, wo)) continue;
+    const float u = 1.0f - wo;
+    slots[jo] += fx(u * u);
+    slots[jo + 1] += fx(wo * wo);
+    slots[n + jo] += fx(u * wo);
+    for (int c = 0; c < 4; ++c) {
+      const float b = std::clamp((1.0f - wr) * tf[4 * jr + c] + wr * tf[4 * (jr + 1) + c], 0.0f, 1.0f);
+      slots[stb + 4 * jo + c] += fx(u * b);
+      slots[stb + 4 * (jo + 1) + c] += fx(wo * b);
+      slots[6 * n - 1 + c] += fx(b * b);
+    }
+    slots[6 * n + 3] += uint64_t(1) << 32;
+  }
+  return slots;
 }
 
 NormalEquations assemble_normal_equations_cpu(std::span<const float> ref, std::span<const float> opt,

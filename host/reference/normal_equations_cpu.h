@@ -1,7 +1,9 @@
 // Double-precision CPU reference of the GPU normal-equation assembly (assemble_normal_equations.comp).
 #pragma once
 
+#include <cstdint>
 #include <span>
+#include <vector>
 
 #include "field_mapping.h"
 #include "normal_equations_system.h"
@@ -14,6 +16,20 @@ namespace tfm {
 NormalEquations assemble_normal_equations_cpu(std::span<const float> ref, std::span<const float> opt,
                                               const FieldMapping& ref_map, const FieldMapping& opt_map,
                                               const TransferFunction& ref_tf);
+// The exact totals of the GPU assembly: per voxel the same float32 terms (including b clamped
+// to [0, 1]), each converted to floor(term 2^32) and summed modulo 2^64, in the slot layout of
+// TFM_ASSEMBLE_SLOTS(N). Every mode, atomic width and chunking of the kernel must give these
+// bits exactly. Throws std::invalid_argument when the sizes or TF sizes do not match.
+std::vector<uint64_t> assemble_normal_equations_fixed_point(std::span<const float> ref, std::span<const float> opt,
+                                                            const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                                            const TransferFunction& ref_tf);
+// The same double-precision sums with `threads` threads (0: all cores), each over a contiguous
+// part of the voxels into its own system, added at the end: the plain multi-threaded CPU loop
+// `tfmatch bench` measures the GPU assembly against. Agrees with the one-thread reference to
+// double rounding.
+NormalEquations assemble_normal_equations_cpu_threaded(std::span<const float> ref, std::span<const float> opt,
+                                                       const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                                       const TransferFunction& ref_tf, unsigned threads = 0);
 // Adds more voxels to `eq` (for streaming references over large synthetic volumes).
 void accumulate_normal_equations_cpu(NormalEquations& eq, std::span<const float> ref, std::span<const float> opt,
                                      const FieldMapping& ref_map, const FieldMapping& opt_map,

@@ -1,5 +1,5 @@
 // Self-test cases of the gradient-descent kernels: gd_gradient (l2 and l1 loss and gradient sums,
-// shared-memory and global paths) against a double CPU sum, and gd_update (one Adam and one
+// every reduction mode and atomic width) against a double CPU sum, and gd_update (one Adam and one
 // Jacobi-scaled SGD step) against a hand computation.
 #include <algorithm>
 #include <cmath>
@@ -20,19 +20,19 @@ const FieldRange kOptRange{0.0, 1.0};
 struct GradientCase {
   size_t voxels;
   bool l1;
-  bool force_global;
+  ReductionOptions path;
   uint64_t chunk_voxels = 0;
 };
 
 // Bounds (tests/test_solver_gradient_descent.cpp): the kernel forms e in float, within 1e-6 of
-// the double value for values in [0,1]. l2: terms (1-w) e, w e summed in float over runs of <= 16
-// voxels, 2^-19 relative to each term's magnitude, plus 1e-6 per term for e and 2^-32 per run for
+// the double value for values in [0,1]. l2: terms (1-w) e, w e, each a float product (2^-22
+// relative with the roundings of w and 1 - w), plus 1e-6 per term for e and 2^-32 per term for
 // the fixed-point truncation. l1: a sign can flip only where |e| < 1e-6, moving the sum by at
 // most that term's full weight (2). Loss: e^2 (or |e|) within 3e-6 per component plus 2^-32.
 void gradient(Context& ctx, Check& check, const GradientCase& c) {
   const uint32_t n = 9;
-  if (!c.force_global && !signed_slots_fit_shared(ctx, n))
-    return check.skip(needs_shared_memory(ctx, signed_accumulator_bytes(n)));
+  const std::string missing = reduction_unavailable(ctx, c.path, n, signed_accumulator_bytes(n));
+  if (!missing.empty()) return check.skip(missing);
   const FieldPair p = random_pair(c.voxels, 61u + uint32_t(c.voxels), kOptRange, n);
   const TransferFunction ref_tf = random_tf(11, 62, -0.1, 1.1);
   const std::vector<float> ref_tf_floats = ref_tf.as_floats();
@@ -42,8 +42,8 @@ void gradient(Context& ctx, Check& check, const GradientCase& c) {
   const std::vector<float> x = random_floats(4 * n, 3, 0.0f, 1.0f);
   Buffer xb = make_buffer<float>(ctx, x, "selftest x");
   Buffer accum(ctx, gd_accumulator_bytes(n), MemoryUsage::Device, "selftest GD accumulators");
-  const GdGradientKernel kernel(ctx, n, c.l1, c.force_global);
-  if (!c.force_global) check.require(kernel.uses_shared_memory(), "the kernel did not take the shared-memory path");
+  const GdGradientKernel kernel(ctx, n, c.l1, c.path);
+  check.require(kernel.mode() == c.path.mode, "the kernel did not take the requested path");
   CommandBatch batch(ctx);
   batch.fill(accum, 0u);
   // The zeroed accumulators before the kernel adds to them.
@@ -68,8 +68,8 @@ void gradient(Context& ctx, Check& check, const GradientCase& c) {
       const double flip = c.l1 ? (std::abs(e) < 1e-6 ? 2.0 : 0.0) : 1e-6;
       expected[4 * j + ch] += (1.0 - w) * d;
       expected[4 * (j + 1) + ch] += double(w) * d;
-      bound[4 * j + ch] += (1.0 - w) * (std::abs(d) * std::ldexp(1.0, -19) + flip) + std::ldexp(1.0, -32);
-      bound[4 * (j + 1) + ch] += double(w) * (std::abs(d) * std::ldexp(1.0, -19) + flip) + std::ldexp(1.0, -32);
+      bound[4 * j + ch] += (1.0 - w) * (std::abs(d) * std::ldexp(1.0, -22) + flip) + std::ldexp(1.0, -32);
+      bound[4 * (j + 1) + ch] += double(w) * (std::abs(d) * std::ldexp(1.0, -22) + flip) + std::ldexp(1.0, -32);
       expected_loss[ch] += c.l1 ? std::abs(e) : e * e;
       loss_bound += 3e-6;
     }
@@ -159,22 +159,21 @@ void update(Context& ctx, Check& check, uint32_t n, bool adam) {
 void add_gd_cases(CaseList& cases) {
   const size_t past_group = TFM_VOXEL_WORKGROUP + 1;
   for (bool l1 : {false, true})
-    for (bool global : {false, true}) {
-      const std::string suffix = std::string(l1 ? ", l1" : ", l2") + (global ? ", global atomics" : ", shared memory");
+    for (const ReductionOptions& path : reduction_paths()) {
+      const std::string suffix = std::string(l1 ? ", l1" : ", l2") + reduction_name(path);
       auto add = [&](GradientCase c, bool quick) {
         c.l1 = l1;
-        c.force_global = global;
+        c.path = path;
         std::string name = voxels_name(c.voxels) + suffix;
         if (c.chunk_voxels) name += ", chunks of " + std::to_string(c.chunk_voxels);
         cases.push_back({"gd_gradient", "GdGradientKernel", name, quick, TFM_VOXEL_WORKGROUP,
                          [c](Context& ctx, Check& check) { gradient(ctx, check, c); }});
       };
-      add({1, l1, global}, true);
-      add({13, l1, global}, true);
-      add({past_group, l1, global}, true);
-      add({5000, l1, global, 1024}, true);
-      add({100003, l1, global}, false);
-      add({100003, l1, global, 16384}, false);
+      add({13, l1, path}, false);
+      add({past_group, l1, path}, false);
+      add({5000, l1, path, 1024}, true);
+      add({100003, l1, path}, false);
+      add({100003, l1, path, 16384}, false);
     }
   for (bool adam : {true, false}) {
     auto add = [&](uint32_t n, bool quick) {

@@ -129,15 +129,13 @@ void gather(Context& ctx, Check& check, const SparseCase& c, float scale) {
                double(c.voxels) * (4e-6 + std::ldexp(1.0, -32)) + 1e-12);
 }
 
-// s = S^T r into signed fixed-point slots. Each term is one float product (2^-24 relative),
-// summed in float over at most TFM_SOLVER_RUN = 16 voxels of a run (16 more roundings of partial
-// sums bounded by the magnitude), truncated to 2^-32 once per run; the fixed-point total is
-// exact. So |error| <= magnitude * 17 * 2^-24 + terms * 2^-32, and 2^-19 > 17 * 2^-24
-// (tests/test_solver_kernels.cpp).
-void scatter(Context& ctx, Check& check, const SparseCase& c, bool force_global) {
+// s = S^T r into signed fixed-point slots. Each term is one float product (2^-24 relative; 2^-22
+// with the roundings of w and 1 - w), truncated to 2^-32 on its own; the fixed-point total is
+// exact. So |error| <= magnitude * 2^-22 + terms * 2^-32 (tests/test_solver_kernels.cpp).
+void scatter(Context& ctx, Check& check, const SparseCase& c, const ReductionOptions& path) {
   const uint32_t n = 9;
-  if (!force_global && !signed_slots_fit_shared(ctx, n))
-    return check.skip(needs_shared_memory(ctx, signed_accumulator_bytes(n)));
+  const std::string missing = reduction_unavailable(ctx, path, n, signed_accumulator_bytes(n));
+  if (!missing.empty()) return check.skip(missing);
   Problem p(ctx, c.voxels, n, 31, c.field_chunk, c.vector_chunk);
   p.prepare(ctx);
   // Signed residuals: both halves of every slot are exercised.
@@ -145,8 +143,8 @@ void scatter(Context& ctx, Check& check, const SparseCase& c, bool force_global)
   VoxelVectors& v = *p.vectors;
   for (size_t k = 0; k < v.chunk_count(); ++k)
     upload(ctx, v.rgba(k), r.data() + 4 * v.chunk_begin(k), v.chunk_size(k) * 16);
-  const SparseScatterKernel kernel(ctx, n, false, force_global);
-  if (!force_global) check.require(kernel.uses_shared_memory(), "the kernel did not take the shared-memory path");
+  const SparseScatterKernel kernel(ctx, n, false, path);
+  check.require(path.mode == ReductionMode::Auto || kernel.mode() == path.mode, "the kernel did not take the requested path");
   Buffer accum(ctx, signed_accumulator_bytes(n), MemoryUsage::Device, "selftest S^T r");
   CommandBatch batch(ctx);
   batch.fill(accum, 0u);
@@ -173,7 +171,7 @@ void scatter(Context& ctx, Check& check, const SparseCase& c, bool force_global)
   }
   for (size_t k = 0; k < expected.size(); ++k)
     check.near("S^T r slot (4j+c)", k, s[k], expected[k],
-               magnitude[k] * std::ldexp(1.0, -19) + terms[k] * std::ldexp(1.0, -32) + 1e-12);
+               magnitude[k] * std::ldexp(1.0, -22) + terms[k] * std::ldexp(1.0, -32) + 1e-12);
 }
 
 // The CGLS residual update r -= alpha (S p) before s = S^T r: r is a float update of values
@@ -310,8 +308,8 @@ void cgls(Context& ctx, Check& check, const CglsCase& c) {
 
 void add_sparse_cases(CaseList& cases) {
   const size_t past_group = TFM_VOXEL_WORKGROUP + 1;
-  // One past the span of one workgroup's runs (TFM_SOLVER_RUN voxels per invocation).
-  const size_t past_span = size_t(TFM_VOXEL_WORKGROUP) * TFM_SOLVER_RUN + 1;
+  // One past the span of one subgroup's segment on a 32-wide subgroup (4 voxels a quad).
+  const size_t past_span = size_t(32) * TFM_REDUCE_SEGMENT_STEPS * 4 + 1;
   const SparseCase quick_sizes[] = {{1}, {13}, {past_group}, {past_span}, {1000, 300, 100}};
   const SparseCase full_sizes[] = {{100003}, {100003, 32768, 8192}};
   auto add_all = [&](const char* kernel, const char* wrapper, const std::string& suffix, auto body) {
@@ -328,10 +326,13 @@ void add_sparse_cases(CaseList& cases) {
   cases.push_back({"sparse_gather", "SparseGatherKernel", sparse_name({past_group}) + ", norm scaled by 1/4", true,
                    TFM_VOXEL_WORKGROUP,
                    [past_group](Context& ctx, Check& check) { gather(ctx, check, {past_group}, 4.0f); }});
-  add_all("sparse_scatter", "SparseScatterKernel", ", shared memory",
-          [](Context& ctx, Check& check, const SparseCase& c) { scatter(ctx, check, c, false); });
-  add_all("sparse_scatter", "SparseScatterKernel", ", global atomics",
-          [](Context& ctx, Check& check, const SparseCase& c) { scatter(ctx, check, c, true); });
+  add_all("sparse_scatter", "SparseScatterKernel", "",
+          [](Context& ctx, Check& check, const SparseCase& c) { scatter(ctx, check, c, {}); });
+  for (const ReductionOptions& path : reduction_paths())
+    for (const SparseCase& c : {SparseCase{1000, 300, 100}, SparseCase{100003}})
+      cases.push_back({"sparse_scatter", "SparseScatterKernel", sparse_name(c) + reduction_name(path),
+                       c.voxels < 10000, TFM_VOXEL_WORKGROUP,
+                       [c, path](Context& ctx, Check& check) { scatter(ctx, check, c, path); }});
   for (const SparseCase& c : {SparseCase{past_group, 0, 64}, SparseCase{1000, 300, 100}})
     cases.push_back({"sparse_scatter", "SparseScatterKernel", sparse_name(c) + ", CGLS residual update", true,
                      TFM_VOXEL_WORKGROUP, [c](Context& ctx, Check& check) { scatter_update(ctx, check, c); }});

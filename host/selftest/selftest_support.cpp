@@ -111,6 +111,32 @@ bool fits_shared_memory(const Context& ctx, uint64_t bytes) {
   return bytes <= ctx.limits().maxComputeSharedMemorySize;
 }
 
+std::vector<ReductionOptions> reduction_paths() {
+  std::vector<ReductionOptions> paths;
+  for (ReductionMode mode : {ReductionMode::RunsShared, ReductionMode::RunsGlobal, ReductionMode::Private})
+    for (AtomicWidth width : {AtomicWidth::Bits32, AtomicWidth::Bits64})
+      if (mode != ReductionMode::Private || width == AtomicWidth::Bits64) paths.push_back({mode, width});
+  return paths;
+}
+
+std::string reduction_name(const ReductionOptions& o) {
+  std::string s;
+  if (o.mode != ReductionMode::Auto) s += std::string(", ") + reduction_mode_name(o.mode);
+  if (o.atomics != AtomicWidth::Auto) s += o.atomics == AtomicWidth::Bits64 ? ", 64-bit atomics" : ", 32-bit atomics";
+  return s;
+}
+
+std::string reduction_unavailable(const Context& ctx, const ReductionOptions& o, uint32_t tf_size,
+                                  uint64_t shared_bytes) {
+  if ((o.atomics == AtomicWidth::Bits64 || o.mode == ReductionMode::Private) && !ctx.int64_atomics())
+    return "needs shaderInt64 with 64-bit buffer and shared atomics";
+  if (o.mode == ReductionMode::RunsShared && !fits_shared_memory(ctx, shared_bytes))
+    return needs_shared_memory(ctx, shared_bytes);
+  if (o.mode == ReductionMode::Private && tf_size > kPrivateMaxBins)
+    return "private histograms hold at most " + std::to_string(kPrivateMaxBins) + " TF entries";
+  return "";
+}
+
 std::string needs_shared_memory(const Context& ctx, uint64_t bytes) {
   std::ostringstream os;
   os.precision(3);

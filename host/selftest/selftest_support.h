@@ -11,6 +11,7 @@
 #include "context.h"
 #include "correlation.h"
 #include "field_mapping.h"
+#include "reduction.h"
 #include "transfer_function.h"
 
 namespace tfm::selftest {
@@ -115,6 +116,16 @@ std::vector<uint32_t> read_words(Context& ctx, const Buffer& buffer, size_t word
 // "needs N KiB of workgroup shared memory (device: M KiB)".
 std::string needs_shared_memory(const Context& ctx, uint64_t bytes);
 bool fits_shared_memory(const Context& ctx, uint64_t bytes);
+
+// Every forced path of the voxel-reducing kernels: 3 modes x 2 atomic widths, less private
+// histograms with 32-bit atomics (not a path).
+std::vector<ReductionOptions> reduction_paths();
+// ", runs, shared memory, 64-bit atomics" (empty for the automatic choice).
+std::string reduction_name(const ReductionOptions& options);
+// Why the device cannot run `options` for a kernel of `tf_size` entries whose shared
+// accumulators take `shared_bytes`, or "" when it can.
+std::string reduction_unavailable(const Context& ctx, const ReductionOptions& options, uint32_t tf_size,
+                                  uint64_t shared_bytes);
 
 // Case names: "1 voxel", "257 voxels", ...
 std::string voxels_name(size_t voxels);

@@ -1,6 +1,6 @@
-// Self-test cases of the voxel-pair kernels: assemble_normal_equations (shared-memory and
-// global-atomics paths, run lengths, chunked fields, TF sizes past shared memory), voxel_loss and
-// residual_map and field_histogram, each against its CPU reference.
+// Self-test cases of the voxel-pair kernels: assemble_normal_equations (every mode and atomic
+// width, chunked fields, TF sizes past shared memory, exact fixed-point totals), voxel_loss,
+// residual_map and field_histogram, each against its double-precision CPU reference.
 #include <cmath>
 #include <string>
 
@@ -18,32 +18,30 @@ namespace {
 
 const FieldRange kOptRange{3.0, 8.0};
 
-enum class Path { Auto, Shared, Global };
-
 struct AssembleCase {
   size_t voxels;
   uint32_t tf_size;
-  Path path;
-  uint32_t run = 0;             // voxels per invocation between flushes (0: the default)
+  ReductionMode mode = ReductionMode::Auto;
+  AtomicWidth atomics = AtomicWidth::Auto;
   uint64_t chunk_voxels = 0;    // field chunks (0: one)
 };
 
 // Bounds (tests/test_assembly.cpp): every term the kernel adds is non-negative, so per entry
 // |device - reference| <= (float rounding of at most 4 operations per term, 4 * 2^-24 relative)
 // * entry + (fixed-point truncation, < 2^-32 per term) * terms; 1e-6 relative covers the first
-// with margin, the second is the absolute part. The voxel count is exact.
+// with margin, the second is the absolute part. The voxel count is exact, and so is every
+// fixed-point slot: the device must form the same integer totals as the CPU's exact emulation.
 void assemble(Context& ctx, Check& check, const AssembleCase& c) {
-  const uint64_t shared_bytes = uint64_t(TFM_ASSEMBLE_SLOTS(c.tf_size)) * 8;
-  if (c.path == Path::Shared && !fits_shared_memory(ctx, shared_bytes))
-    return check.skip(needs_shared_memory(ctx, shared_bytes));
+  const std::string missing =
+      reduction_unavailable(ctx, {c.mode, c.atomics}, c.tf_size, uint64_t(TFM_ASSEMBLE_SLOTS(c.tf_size)) * 8);
+  if (!missing.empty()) return check.skip(missing);
   const FieldPair p = random_pair(c.voxels, 1234u + uint32_t(c.voxels), kOptRange, c.tf_size);
   const TransferFunction ref_tf = random_tf(17, 99);
   const FieldMapping ref_map = make_mapping({0.0, 1.0}, 17), opt_map = make_mapping(kOptRange, c.tf_size);
   DeviceField ref(ctx, p.ref, "selftest reference", c.chunk_voxels), opt(ctx, p.opt, "selftest field", c.chunk_voxels);
   if (c.chunk_voxels) check.require(ref.chunk_count() > 1, "the field is not split into chunks");
   Buffer tf = upload_tf(ctx, ref_tf, "selftest reference TF");
-  GpuNormalEquations gpu(ctx, c.tf_size, c.path == Path::Global, c.run);
-  if (c.path == Path::Shared) check.require(gpu.kernel().uses_shared_memory(), "the kernel did not take the shared-memory path");
+  GpuNormalEquations gpu(ctx, c.tf_size, {c.mode, c.atomics});
   gpu.add(ref, opt, ref_map, opt_map, tf);
   const NormalEquations g = gpu.result();
   const NormalEquations r = assemble_normal_equations_cpu(p.ref, p.opt, ref_map, opt_map, ref_tf);
@@ -57,12 +55,14 @@ void assemble(Context& ctx, Check& check, const AssembleCase& c) {
   for (Eigen::Index j = 0; j < r.rhs.rows(); ++j)
     for (int ch = 0; ch < 4; ++ch) near("S^T b (4j+c)", size_t(4 * j + ch), g.rhs(j, ch), r.rhs(j, ch));
   for (int ch = 0; ch < 4; ++ch) near("b^T b channel", size_t(ch), g.btb[ch], r.btb[ch]);
+  const std::vector<uint64_t> exact = assemble_normal_equations_fixed_point(p.ref, p.opt, ref_map, opt_map, ref_tf);
+  const std::vector<uint64_t> device = gpu.fixed_point_slots();
+  for (size_t k = 0; k < exact.size(); ++k)
+    check.equal("fixed-point slot (units of 2^-32)", k, double(int64_t(device[k] - exact[k])), 0.0);
 }
 
 std::string assemble_name(const AssembleCase& c) {
-  std::string s = voxels_name(c.voxels) + ", N=" + std::to_string(c.tf_size);
-  s += c.path == Path::Shared ? ", shared memory" : c.path == Path::Global ? ", global atomics" : "";
-  if (c.run) s += ", run " + std::to_string(c.run);
+  std::string s = voxels_name(c.voxels) + ", N=" + std::to_string(c.tf_size) + reduction_name({c.mode, c.atomics});
   if (c.chunk_voxels) s += ", chunks of " + std::to_string(c.chunk_voxels);
   return s;
 }
@@ -158,21 +158,22 @@ void add_voxel_cases(CaseList& cases) {
                      TFM_VOXEL_WORKGROUP, [c](Context& ctx, Check& check) { assemble(ctx, check, c); }});
   };
   const size_t past_group = TFM_VOXEL_WORKGROUP + 1;
-  add_assemble({1, 64, Path::Shared}, true);
-  add_assemble({13, 64, Path::Shared}, true);
-  add_assemble({past_group, 64, Path::Shared}, true);
-  add_assemble({past_group, 64, Path::Global}, true);
-  add_assemble({past_group, 2, Path::Auto}, true);
-  add_assemble({5000, 64, Path::Shared, 1}, true);
-  add_assemble({5000, 64, Path::Global, 64}, true);
-  add_assemble({5000, 64, Path::Auto, 0, 1024}, true);
-  // 6N+4 slots of 8 bytes: 72 KiB for N = 1500, beyond many devices' shared memory (skipped
-  // there on the shared path); where it does not fit, the kernel adds straight to memory.
-  add_assemble({20000, 1500, Path::Shared}, true);
-  add_assemble({20000, 1500, Path::Auto}, false);
-  add_assemble({100003, 256, Path::Shared}, false);
-  add_assemble({100003, 64, Path::Global}, false);
-  add_assemble({100003, 64, Path::Auto, 0, 16384}, false);
+  using M = ReductionMode;
+  for (const ReductionOptions& path : reduction_paths()) {
+    add_assemble({5003, 64, path.mode, path.atomics, 1024}, true);
+    add_assemble({past_group, 3, path.mode, path.atomics}, false);
+    add_assemble({100003, 701, path.mode, path.atomics}, false);
+  }
+  add_assemble({1, 64}, true);
+  add_assemble({13, 64}, true);
+  add_assemble({past_group, 2}, true);
+  // 6N+4 slots of 8 bytes: 192 KiB for N = 4096, beyond every device's shared memory, so the
+  // automatic choice is the private or the global path.
+  add_assemble({20000, 4096}, true);
+  // 72 KiB of shared slots for N = 1500: run where a device has them, else skipped saying so.
+  add_assemble({20000, 1500, M::RunsShared}, true);
+  add_assemble({100003, 256}, false);
+  add_assemble({100003, 64, M::Auto, AtomicWidth::Auto, 16384}, false);
 
   auto add_loss = [&](size_t voxels, uint64_t chunk, bool quick) {
     std::string name = voxels_name(voxels) + (chunk ? ", chunks of " + std::to_string(chunk) : "");

@@ -57,15 +57,6 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
                        ref_tf_buffer,
                        req.ref_tf.resampled(req.tf_size)};
 
-  // Before: the second field shown with the reference TF, as a user would without tfmatch.
-  t0 = std::chrono::steady_clock::now();
-  FieldMapping opt_with_ref_tf = make_mapping(out.field_range, static_cast<uint32_t>(req.ref_tf.size()));
-  double gpu_ms = -1;
-  out.before = voxel_loss_gpu(ctx, ref, opt, problem.ref_map, opt_with_ref_tf, ref_tf_buffer, ref_tf_buffer, &gpu_ms);
-  out.phases.push_back({"loss before", ms_since(t0), gpu_ms});
-  if (out.before.voxels == 0)
-    throw std::runtime_error("no voxel has data in both " + req.ref->name + " and " + req.field->name);
-
   checkpoint("solve");  // every solver passes here, however few steps of its own it checks
   SolverOutput solved = solver.solve(problem, args);
   for (auto& p : solved.phases) out.phases.push_back(p);
@@ -74,10 +65,44 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   out.tf = solved.tf;
   out.tf.range = out.field_range;
 
+  // The voxel loss of any TF x follows from the system: ||S x - b||^2 = x^T M x - 2 x^T S^T b +
+  // b^T b. The solvers that work on M assembled it already; the others need one pass here.
+  std::vector<PhaseTime> assembled;
+  const NormalEquations& eq = assembled_system(problem, &assembled);
+  if (!assembled.empty()) out.phases.push_back({"assemble for loss", assembled[0].wall_ms, assembled[0].gpu_ms});
+  if (eq.voxels == 0)
+    throw std::runtime_error("no voxel has data in both " + req.ref->name + " and " + req.field->name);
+  // Before: the second field shown with the reference TF, as a user would without tfmatch. With
+  // as many entries as the optimized TF it is the same system; else the field maps to the
+  // reference TF's entries and needs its own assembly.
   t0 = std::chrono::steady_clock::now();
-  Buffer opt_tf_buffer = upload_tf(ctx, out.tf, "optimized TF");
-  out.after = voxel_loss_gpu(ctx, ref, opt, problem.ref_map, problem.opt_map, ref_tf_buffer, opt_tf_buffer, &gpu_ms);
-  out.phases.push_back({"loss after", ms_since(t0), gpu_ms});
+  const std::vector<float> ref_entries = req.ref_tf.as_floats();
+  const FieldMapping opt_with_ref_tf = make_mapping(out.field_range, static_cast<uint32_t>(req.ref_tf.size()));
+  double gpu_ms = -1.0;
+  if (opt_with_ref_tf.tf_size == problem.opt_map.tf_size) {
+    out.before = voxel_loss_from_system(eq, ref_entries);
+  } else {
+    GpuNormalEquations gpu(ctx, opt_with_ref_tf.tf_size);
+    gpu_ms = gpu.add(ref, opt, problem.ref_map, opt_with_ref_tf, ref_tf_buffer);
+    out.before = voxel_loss_from_system(gpu.result(), ref_entries);
+  }
+  out.phases.push_back({"loss before", ms_since(t0), gpu_ms});
+  t0 = std::chrono::steady_clock::now();
+  out.after = voxel_loss_from_system(eq, out.tf.as_floats());
+  out.phases.push_back({"loss after", ms_since(t0), -1.0});
+
+  if (req.voxel_mae) {
+    t0 = std::chrono::steady_clock::now();
+    Buffer opt_tf_buffer = upload_tf(ctx, out.tf, "optimized TF");
+    double before_ms = -1.0, after_ms = -1.0;
+    const VoxelLoss before =
+        voxel_loss_gpu(ctx, ref, opt, problem.ref_map, opt_with_ref_tf, ref_tf_buffer, ref_tf_buffer, &before_ms);
+    const VoxelLoss after =
+        voxel_loss_gpu(ctx, ref, opt, problem.ref_map, problem.opt_map, ref_tf_buffer, opt_tf_buffer, &after_ms);
+    out.before.absolute = before.absolute;
+    out.after.absolute = after.absolute;
+    out.phases.push_back({"voxel MAE", ms_since(t0), before_ms >= 0 && after_ms >= 0 ? before_ms + after_ms : -1.0});
+  }
   return out;
 }
 

@@ -1,5 +1,6 @@
 // The optimization pipeline behind `tfmatch optimize` and `tfmatch demo`: resolve ranges, put
-// both fields on the device, run the chosen solver (solver.h), measure voxel loss before and after.
+// both fields on the device, run the chosen solver (solver.h), measure voxel loss before and after
+// from the assembled system (the solver's, when it assembled one).
 #pragma once
 
 #include <optional>
@@ -25,6 +26,9 @@ struct OptimizeRequest {
   std::string solver = "normal-equations";
   SolverSettings settings;                // options of `solver` (checked before anything is loaded)
   uint64_t max_chunk_voxels = 0;          // 0: device limit
+  // Also measure the voxel mean absolute error before and after (VoxelLoss::absolute): one pass
+  // over the voxels per TF. The RMSE needs none: it follows from the assembled system.
+  bool voxel_mae = false;
   // A range not from the field leaving > 95 % of its values outside is an error unless this.
   bool allow_out_of_range = false;
 };
@@ -35,6 +39,7 @@ struct OptimizeResult {
   FieldRange ref_range, field_range;
   VoxelLoss before;                       // field with the reference TF
   VoxelLoss after;                        // field with the optimized TF
+  // (both from M, S^T b, b^T b; absolute differences only with OptimizeRequest::voxel_mae)
   uint64_t voxels_total = 0;
   std::vector<PhaseTime> phases;
   std::vector<std::string> warnings;     // ranges not fitting the fields, then the solver's

@@ -12,6 +12,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <variant>
@@ -48,6 +49,9 @@ struct VoxelProblem {
   const TransferFunction& ref_tf;
   const Buffer& ref_tf_buffer;
   TransferFunction initial;      // the reference TF resampled to N (starting point)
+  // M, S^T b and b^T b of (ref, opt) for opt_map, once a solver or run_optimize has assembled
+  // them (assembled_system() in solver_support.h): the voxel loss of any TF follows from them.
+  std::optional<NormalEquations> system = std::nullopt;
 };
 
 struct SolverOutput {

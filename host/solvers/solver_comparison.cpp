@@ -15,7 +15,8 @@ namespace {
 
 // run_optimize's own phases around the solver's.
 bool is_pipeline_phase(const std::string& name) {
-  return name == "upload" || name == "loss before" || name == "loss after";
+  return name == "upload" || name == "assemble for loss" || name == "loss before" || name == "loss after" ||
+         name == "voxel MAE";
 }
 
 Eigen::MatrixX4d as_matrix(const TransferFunction& tf) {
@@ -92,6 +93,7 @@ ComparisonResult compare_solvers(Context& ctx, const OptimizeRequest& request, s
     OptimizeRequest req = request;
     req.solver = name;
     req.settings = plan.settings[i];
+    req.voxel_mae = true;  // the table's MAE column
     OptimizeResult r;
     try {
       r = run_optimize(ctx, req);

@@ -67,6 +67,54 @@ DiffDvrGradient::DiffDvrGradient(Context& ctx, const DeviceField& ref, const Dev
 DiffDvrGradient::~DiffDvrGradient() = default;
 
 ImageLossGradient DiffDvrGradient::evaluate(const TransferFunction& tf, std::span<const OrbitCamera> cameras) {
+  return evaluate_views(tf, cameras, {});
+}
+
+void DiffDvrGradient::set_view_pool(std::span<const OrbitCamera> cameras) {
+  pool_cameras_.clear();
+  pool_images_.clear();
+  const uint32_t width = settings_.width, height = settings_.height;
+  const uint64_t image_bytes = uint64_t(width) * height * 16, view_bytes = sizeof(gpu::RenderView);
+  // The reference pass of evaluate(), a few cameras per submission, each image then copied into
+  // a buffer of its own.
+  const uint32_t batch_views = std::min<uint32_t>(group_, 8);
+  Buffer views(ctx_, batch_views * view_bytes, MemoryUsage::Device, "diffdvr: pool cameras");
+  Buffer state(ctx_, batch_views * image_bytes, MemoryUsage::Device, "diffdvr: pool rendering");
+  Buffer stop(ctx_, batch_views * image_bytes / 4, MemoryUsage::Device, "diffdvr: pool k_stop");
+  for (size_t first = 0; first < cameras.size(); first += batch_views) {
+    const uint32_t count = uint32_t(std::min<size_t>(batch_views, cameras.size() - first));
+    std::vector<gpu::RenderView> records;
+    for (uint32_t v = 0; v < count; ++v)
+      records.push_back(make_render_view(orbit_frame(cameras[first + v], geometry_, width, height)));
+    upload(ctx_, views, records.data(), records.size() * view_bytes);
+    CommandBatch batch(ctx_);
+    forward_ref_.record(batch, ref_, ref_tf_, views,
+                        make_render_push(geometry_, march_, ref_map_, ref_, width, height, count), state, stop, 0, height);
+    // The renderings are complete before they are copied out.
+    batch.barrier();
+    for (uint32_t v = 0; v < count; ++v) {
+      pool_images_.emplace_back(ctx_, image_bytes, MemoryUsage::Device, "diffdvr: pooled reference image");
+      batch.copy(state, v * image_bytes, pool_images_.back(), 0, image_bytes);
+    }
+    batch.submit_and_wait();
+  }
+  pool_cameras_.assign(cameras.begin(), cameras.end());
+}
+
+ImageLossGradient DiffDvrGradient::evaluate_pooled(const TransferFunction& tf, std::span<const uint32_t> indices) {
+  if (indices.empty()) throw std::invalid_argument("diffdvr: no pooled cameras chosen");
+  std::vector<OrbitCamera> cameras;
+  for (uint32_t i : indices) {
+    if (i >= pool_cameras_.size())
+      throw std::invalid_argument("diffdvr: pool index " + std::to_string(i) + " past the pool of " +
+                                  std::to_string(pool_cameras_.size()));
+    cameras.push_back(pool_cameras_[i]);
+  }
+  return evaluate_views(tf, cameras, indices);
+}
+
+ImageLossGradient DiffDvrGradient::evaluate_views(const TransferFunction& tf, std::span<const OrbitCamera> cameras,
+                                                  std::span<const uint32_t> pooled) {
   if (tf.size() != opt_map_.tf_size) throw std::invalid_argument("diffdvr: TF size differs from the mapping's");
   if (cameras.empty()) throw std::invalid_argument("diffdvr: no cameras");
   Buffers& b = *buffers_;
@@ -90,7 +138,8 @@ ImageLossGradient DiffDvrGradient::evaluate(const TransferFunction& tf, std::spa
       std::min<uint32_t>(TFM_DIFFDVR_BACKWARD_TILE, height), height);
   const uint32_t bands_per_group = (height + band_rows - 1) / band_rows;
   const uint32_t slots = backward_.slots();
-  const bool reuse_reference = groups == 1 && same_cameras(cameras, cached_cameras_);
+  const bool reuse_reference = pooled.empty() && groups == 1 && same_cameras(cameras, cached_cameras_);
+  const uint64_t image_bytes = uint64_t(width) * height * 16;
 
   // Uploads through one host-visible buffer: TF entries, then the camera records.
   const uint64_t tf_bytes = uint64_t(tf.size()) * 16, view_bytes = sizeof(gpu::RenderView);
@@ -124,8 +173,13 @@ ImageLossGradient DiffDvrGradient::evaluate(const TransferFunction& tf, std::spa
     const gpu::RenderPush ref_push = make_render_push(geometry_, march_, ref_map_, ref_, width, height, count);
     const gpu::RenderPush opt_push = make_render_push(geometry_, march_, opt_map_, opt_, width, height, count);
     stamps.push_back(batch.timestamp());
-    if (!reuse_reference)
+    if (!pooled.empty()) {
+      // The kept reference images of this group's cameras become its targets.
+      for (uint32_t v = 0; v < count; ++v)
+        batch.copy(pool_images_[pooled[g * group + v]], 0, b.ref_state, uint64_t(v) * image_bytes, image_bytes);
+    } else if (!reuse_reference) {
       forward_ref_.record(batch, ref_, ref_tf_, b.views[g], ref_push, b.ref_state, b.ref_stop, 0, height);
+    }
     forward_opt_.record(batch, opt_, b.tf, b.views[g], opt_push, b.opt_state, b.opt_stop, 0, height);
     // Both images are complete before the backward pass reads them.
     batch.barrier();
@@ -147,7 +201,7 @@ ImageLossGradient DiffDvrGradient::evaluate(const TransferFunction& tf, std::spa
   batch.submit_and_wait();
   passes_ = band_index;
   cached_cameras_.assign(cameras.begin(), cameras.end());
-  if (groups != 1) cached_cameras_.clear();
+  if (groups != 1 || !pooled.empty()) cached_cameras_.clear();
 
   // Exact integer totals over the bands: the result does not depend on the grouping either.
   FixedPointTotals totals(slots);

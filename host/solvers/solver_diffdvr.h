@@ -54,6 +54,13 @@ class DiffDvrGradient {
   // settings). Reference images are rendered again unless the cameras equal the last call's
   // and fit one group.
   ImageLossGradient evaluate(const TransferFunction& tf, std::span<const OrbitCamera> cameras);
+  // Renders the reference images of `cameras` once and keeps them: evaluate_pooled() then renders
+  // only the second field. Replaces an earlier pool; 16 bytes per pixel and camera.
+  void set_view_pool(std::span<const OrbitCamera> cameras);
+  uint32_t pool_size() const { return uint32_t(pool_cameras_.size()); }
+  // evaluate() for the pool's cameras indices[0], indices[1], ... against their kept reference
+  // images. Throws std::invalid_argument for an index past the pool or an empty list.
+  ImageLossGradient evaluate_pooled(const TransferFunction& tf, std::span<const uint32_t> indices);
   // Views per group (per dispatch) for this image size.
   uint32_t views_per_group() const { return group_; }
   // Backward passes (view groups x row bands) the last evaluation summed.
@@ -75,6 +82,13 @@ class DiffDvrGradient {
   uint32_t passes_ = 0;
   std::unique_ptr<Buffers> buffers_;
   std::vector<OrbitCamera> cached_cameras_;  // whose reference images the target buffer holds
+  std::vector<OrbitCamera> pool_cameras_;
+  std::vector<Buffer> pool_images_;          // reference image (C, T) of each pool camera
+
+  // evaluate() and evaluate_pooled(): `pooled` gives the pool index of each camera, or is empty
+  // when the reference images are rendered here.
+  ImageLossGradient evaluate_views(const TransferFunction& tf, std::span<const OrbitCamera> cameras,
+                                   std::span<const uint32_t> pooled);
 };
 
 enum class DiffDvrStart { Reference, NormalEquations };
@@ -84,6 +98,10 @@ struct DiffDvrOptions {
   ImageLoss loss = ImageLoss::L2;
   uint32_t iterations = 200;               // >= 1
   uint32_t views_per_iteration = 8;        // >= 1
+  // Random cameras come from a pool of this many, drawn once from `seed`, whose reference images
+  // are rendered once; each iteration takes views_per_iteration of them (seeded). 0: new random
+  // cameras and reference renderings every iteration. At least views_per_iteration when not 0.
+  uint32_t view_pool = 32;
   uint64_t seed = 1;                       // of the random cameras
   bool fibonacci = false;                  // fixed Fibonacci-sphere cameras instead of random ones
   DiffDvrStart start = DiffDvrStart::Reference;  // the reference TF resampled, or the normal-equations TF

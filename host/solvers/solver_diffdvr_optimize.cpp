@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <random>
 #include <stdexcept>
 
 #include "adam.h"
@@ -65,6 +66,18 @@ DiffDvrResult solve_diffdvr_gpu(VoxelProblem& p, const DiffDvrOptions& o) {
   Adam adam(x.size(), adam_options);
   RandomCameras random(o.seed, o.render.camera);
   const std::vector<OrbitCamera> fixed = fibonacci_cameras(o.views_per_iteration, o.render.camera);
+  // The pool: random cameras drawn once, their reference images rendered once; each iteration
+  // takes a seeded choice of them, so only the second field is rendered per iteration.
+  const bool pooled = o.view_pool > 0 && !o.fibonacci;
+  std::mt19937_64 choose(o.seed ^ 0x9E3779B97F4A7C15ull);
+  std::vector<uint32_t> pool_order;
+  if (pooled) {
+    t0 = std::chrono::steady_clock::now();
+    gradient.set_view_pool(random.next(std::max(o.view_pool, o.views_per_iteration)));
+    pool_order.resize(gradient.pool_size());
+    for (uint32_t i = 0; i < pool_order.size(); ++i) pool_order[i] = i;
+    out.phases.push_back({"diffdvr reference pool", ms_since(t0), -1.0});
+  }
   auto to_tf = [&] {
     for (size_t j = 0; j < n; ++j)
       for (size_t c = 0; c < 4; ++c) tf.rgba[j][c] = x[4 * j + c];
@@ -84,9 +97,16 @@ DiffDvrResult solve_diffdvr_gpu(VoxelProblem& p, const DiffDvrOptions& o) {
   t0 = std::chrono::steady_clock::now();
   for (uint32_t it = 0; it < o.iterations; ++it) {
     checkpoint("solve");
-    const std::vector<OrbitCamera> cameras = o.fibonacci ? fixed : random.next(o.views_per_iteration);
     to_tf();
-    const ImageLossGradient r = gradient.evaluate(tf, cameras);
+    ImageLossGradient r;
+    if (pooled) {
+      // views_per_iteration distinct pool cameras: the first entries of a partial shuffle.
+      for (uint32_t i = 0; i < o.views_per_iteration; ++i)
+        std::swap(pool_order[i], pool_order[i + choose() % (pool_order.size() - i)]);
+      r = gradient.evaluate_pooled(tf, std::span<const uint32_t>(pool_order.data(), o.views_per_iteration));
+    } else {
+      r = gradient.evaluate(tf, o.fibonacci ? fixed : random.next(o.views_per_iteration));
+    }
     timed = timed && r.forward_gpu_ms >= 0;
     forward_ms += r.forward_gpu_ms;
     backward_ms += r.backward_gpu_ms;
@@ -133,6 +153,9 @@ class DiffDvrSolver final : public Solver {
             SolverOption::number("lr", 0.02, {.min = 0.0, .max = 1.0, .min_open = true}, "Adam learning rate"),
             SolverOption::integer("iterations", 200, 1, 1000000, "iterations"),
             SolverOption::integer("views-per-iteration", 8, 1, 4096, "cameras per iteration"),
+            SolverOption::integer("view-pool", 32, 0, 65536,
+                                  "random cameras drawn once, reference images rendered once; each iteration "
+                                  "takes views-per-iteration of them (0: new cameras every iteration)"),
             SolverOption::integer("image-size", 512, 1, 16384, "image width and height in pixels"),
             SolverOption::integer("seed", 1, 0, std::numeric_limits<uint64_t>::max(), "seed of the random cameras"),
             SolverOption::choice("cameras", "random", {"random", "fibonacci"},
@@ -145,6 +168,7 @@ class DiffDvrSolver final : public Solver {
     o.loss = args.text("loss") == "l1" ? ImageLoss::L1 : ImageLoss::L2;
     o.iterations = uint32_t(args.integer("iterations"));
     o.views_per_iteration = uint32_t(args.integer("views-per-iteration"));
+    o.view_pool = uint32_t(args.integer("view-pool"));
     o.seed = args.integer("seed");
     o.fibonacci = args.text("cameras") == "fibonacci";
     o.start = args.text("init") == "normal-equations" ? DiffDvrStart::NormalEquations : DiffDvrStart::Reference;
@@ -172,6 +196,7 @@ class DiffDvrSolver final : public Solver {
     d["loss"] = image_loss_name(o.loss);
     d["iterations"] = o.iterations;
     d["views_per_iteration"] = o.views_per_iteration;
+    d["view_pool"] = o.fibonacci ? 0u : o.view_pool;
     d["image_size"] = o.render.width;
     d["cameras"] = args.text("cameras");
     d["seed"] = o.seed;

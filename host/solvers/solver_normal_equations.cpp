@@ -10,12 +10,8 @@ namespace tfm {
 
 NormalEquationsGpuResult solve_normal_equations_gpu(VoxelProblem& p, const SolveOptions& options) {
   NormalEquationsGpuResult out;
-  auto t0 = std::chrono::steady_clock::now();
-  GpuNormalEquations gpu(p.ctx, p.opt_map.tf_size);
-  const double gpu_ms = gpu.add(p.ref, p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer);
-  const NormalEquations eq = gpu.result();
-  out.phases.push_back({"assemble", ms_since(t0), gpu_ms});
-  t0 = std::chrono::steady_clock::now();
+  const NormalEquations& eq = assembled_system(p, &out.phases);
+  const auto t0 = std::chrono::steady_clock::now();
   out.solve = solve_normal_equations(eq, options);
   out.phases.push_back({"solve", ms_since(t0), -1.0});
   return out;

@@ -19,13 +19,9 @@ class QpSolver final : public Solver {
 
   SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
     SolverOutput out;
-    auto t0 = std::chrono::steady_clock::now();
-    GpuNormalEquations gpu(p.ctx, p.opt_map.tf_size);
-    const double gpu_ms = gpu.add(p.ref, p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer);
-    const NormalEquations eq = gpu.result();
-    out.phases.push_back({"assemble", ms_since(t0), gpu_ms});
+    const NormalEquations& eq = assembled_system(p, &out.phases);
 
-    t0 = std::chrono::steady_clock::now();
+    const auto t0 = std::chrono::steady_clock::now();
     BoxQpResult r = solve_box_constrained(eq, args.solve);
     out.phases.push_back({"solve", ms_since(t0), -1.0});
     out.tf = r.tf;

@@ -13,11 +13,22 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
+const NormalEquations& assembled_system(VoxelProblem& p, std::vector<PhaseTime>* phases) {
+  if (!p.system) {
+    const auto t0 = std::chrono::steady_clock::now();
+    GpuNormalEquations gpu(p.ctx, p.opt_map.tf_size);
+    const double gpu_ms = gpu.add(p.ref, p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer);
+    p.system = gpu.result();
+    if (phases) phases->push_back({"assemble", ms_since(t0), gpu_ms});
+  }
+  return *p.system;
+}
+
 JacobiSetup jacobi_setup(VoxelProblem& p, const SolveOptions& options) {
   JacobiSetup js;
-  GpuNormalEquations gpu(p.ctx, p.opt_map.tf_size);
-  js.gpu_ms = gpu.add(p.ref, p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer);
-  js.eq = gpu.result();
+  std::vector<PhaseTime> assembled;
+  js.eq = assembled_system(p, &assembled);
+  js.gpu_ms = assembled.empty() ? 0.0 : assembled[0].gpu_ms;
   if (js.eq.voxels == 0) throw std::runtime_error("no voxel has data in both fields (all NaN?): nothing to fit");
   if (options.ridge < 0 || options.smooth < 0) throw std::invalid_argument("regularization weights must be >= 0");
   js.reg = absolute_regularization(js.eq, options);

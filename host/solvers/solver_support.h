@@ -17,6 +17,11 @@ namespace tfm {
 
 double ms_since(std::chrono::steady_clock::time_point t0);
 
+// The problem's assembled system (GPU, deterministic): assembled on the first call and kept in
+// p.system, so a solver and the loss measurement of run_optimize share one pass over the voxels.
+// Appends an "assemble" phase to `phases` (when given) if this call assembled.
+const NormalEquations& assembled_system(VoxelProblem& p, std::vector<PhaseTime>* phases = nullptr);
+
 // The assembled system of a problem (GPU, deterministic) with the absolute regularization weights
 // of `options`, and 1 / diag(M + R) per entry (0 where that diagonal is 0: an unreferenced
 // entry no iterative solver can move). Throws std::runtime_error when no voxel has data and

@@ -1,7 +1,9 @@
-// Normal-equation assembly kernel against the double-precision CPU reference: awkward sizes,
-// NaNs, both accumulation paths, split fields, determinism, and a 10^8-voxel accuracy case.
+// Normal-equation assembly kernel against the double-precision CPU reference and the exact CPU
+// emulation of its fixed-point sums: awkward sizes, NaNs, every mode and atomic width, split
+// fields, determinism across paths and workgroup counts, and a 10^8-voxel accuracy case.
 #include <cmath>
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <cstring>
 #include <random>
@@ -57,14 +59,30 @@ void expect_close(const NormalEquations& gpu, const NormalEquations& cpu, uint64
 struct Case {
   size_t voxels;
   uint32_t tf_size;
-  bool force_global;
-  uint64_t chunk_voxels;  // 0: no forced split
+  ReductionMode mode = ReductionMode::Auto;
+  AtomicWidth atomics = AtomicWidth::Auto;
+  uint64_t chunk_voxels = 0;  // 0: no forced split
 };
+
+bool available(Context& ctx, const Case& c) {
+  if (c.atomics == AtomicWidth::Bits64 && !ctx.int64_atomics()) return false;
+  if (c.mode == ReductionMode::Private && !ctx.int64_atomics()) return false;
+  const uint64_t shared_bytes = uint64_t(TFM_ASSEMBLE_SLOTS(c.tf_size)) * 8;
+  return c.mode != ReductionMode::RunsShared || shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
+}
+
+// Every slot equals the CPU's exact emulation of the kernel's integer sums (bit for bit).
+void expect_exact(const std::vector<uint64_t>& gpu, const std::vector<uint64_t>& exact) {
+  ASSERT_EQ(gpu.size(), exact.size());
+  for (size_t k = 0; k < exact.size(); ++k)
+    ASSERT_EQ(gpu[k], exact[k]) << "fixed-point slot " << k << " (units of 2^-32)";
+}
 
 class AssemblyVsCpu : public test::GpuTest, public ::testing::WithParamInterface<Case> {};
 
-TEST_P(AssemblyVsCpu, MatchesDoubleReference) {
+TEST_P(AssemblyVsCpu, MatchesDoubleReferenceAndExactSums) {
   const Case c = GetParam();
+  if (!available(ctx(), c)) GTEST_SKIP() << "the device lacks 64-bit atomics or the shared memory for this path";
   Pair p = random_pair(c.voxels, 1234u + uint32_t(c.voxels), c.tf_size);
   TransferFunction ref_tf = random_tf(17, 99);
   FieldMapping ref_map = make_mapping({0.0, 1.0}, 17);
@@ -72,26 +90,43 @@ TEST_P(AssemblyVsCpu, MatchesDoubleReference) {
   DeviceField ref(ctx(), p.ref, "ref", c.chunk_voxels), opt(ctx(), p.opt, "opt", c.chunk_voxels);
   if (c.chunk_voxels) ASSERT_GT(ref.chunk_count(), 1u);
   Buffer tf = upload_tf(ctx(), ref_tf, "ref tf");
-  GpuNormalEquations gpu(ctx(), c.tf_size, c.force_global);
-  if (!c.force_global && c.tf_size <= 64) EXPECT_TRUE(gpu.kernel().uses_shared_memory());
-  if (c.force_global || c.tf_size > 1000) EXPECT_FALSE(gpu.kernel().uses_shared_memory());
+  GpuNormalEquations gpu(ctx(), c.tf_size, {c.mode, c.atomics});
+  if (c.mode != ReductionMode::Auto) EXPECT_EQ(gpu.kernel().mode(), c.mode);
+  if (c.atomics != AtomicWidth::Auto) EXPECT_EQ(gpu.kernel().int64_atomics(), c.atomics == AtomicWidth::Bits64);
   gpu.add(ref, opt, ref_map, opt_map, tf);
   NormalEquations cpu = assemble_normal_equations_cpu(p.ref, p.opt, ref_map, opt_map, ref_tf);
   expect_close(gpu.result(), cpu, c.voxels);
+  expect_exact(gpu.fixed_point_slots(), assemble_normal_equations_fixed_point(p.ref, p.opt, ref_map, opt_map, ref_tf));
 }
 
-INSTANTIATE_TEST_SUITE_P(Sizes, AssemblyVsCpu,
-                         ::testing::Values(Case{1, 64, false, 0}, Case{13, 64, false, 0}, Case{127, 64, false, 0},
-                                           Case{256, 64, false, 0}, Case{257, 64, false, 0},
-                                           Case{8193, 2, false, 0}, Case{8193, 64, true, 0},
-                                           Case{20000, 1500, false, 0}, Case{5000, 64, false, 1024},
-                                           Case{100003, 256, false, 0}),
-                         [](const ::testing::TestParamInfo<Case>& info) {
-                           const Case& c = info.param;
-                           return "v" + std::to_string(c.voxels) + "_n" + std::to_string(c.tf_size) +
-                                  (c.force_global ? "_global" : "") +
-                                  (c.chunk_voxels ? "_chunks" + std::to_string(c.chunk_voxels) : "");
-                         });
+std::vector<Case> assembly_cases() {
+  using M = ReductionMode;
+  using W = AtomicWidth;
+  // The automatic choice on awkward sizes and TF sizes on both sides of the shared-memory and
+  // private-histogram limits (682 and 1024 entries on lavapipe), then every forced path.
+  std::vector<Case> cases = {{1, 64},           {13, 64},          {257, 2},           {8193, 3},
+                             {20000, 700},      {20000, 701},      {20000, 4096},      {100003, 64, M::Auto, W::Auto, 16384}};
+  for (M mode : {M::RunsShared, M::RunsGlobal, M::Private})
+    for (W width : {W::Bits32, W::Bits64}) {
+      if (mode == M::Private && width == W::Bits32) continue;  // a 64-bit path only
+      cases.push_back({5003, 64, mode, width, 1024});
+      cases.push_back({8193, 3, mode, width});
+      if (mode != M::RunsShared) cases.push_back({20000, 701, mode, width});
+    }
+  for (W width : {W::Bits32, W::Bits64}) cases.push_back({20000, 4096, M::RunsGlobal, width});
+  return cases;
+}
+
+std::string case_name(const ::testing::TestParamInfo<Case>& info) {
+  const Case& c = info.param;
+  const char* modes[] = {"auto", "runs_shared", "runs_global", "private"};
+  std::string name = "v" + std::to_string(c.voxels) + "_n" + std::to_string(c.tf_size) + "_" + modes[int(c.mode)];
+  if (c.atomics != AtomicWidth::Auto) name += c.atomics == AtomicWidth::Bits64 ? "_int64" : "_int32";
+  if (c.chunk_voxels) name += "_chunks" + std::to_string(c.chunk_voxels);
+  return name;
+}
+
+INSTANTIATE_TEST_SUITE_P(Sizes, AssemblyVsCpu, ::testing::ValuesIn(assembly_cases()), case_name);
 
 using AssemblyTest = test::GpuTest;
 
@@ -108,35 +143,94 @@ TEST_F(AssemblyTest, AllNanFieldContributesNothing) {
   EXPECT_THROW(solve_normal_equations(eq), std::runtime_error);
 }
 
-// Bit-identical results: across runs, between the shared-memory and global-atomic paths, and for
-// any run length
-// (integer sums do not depend on the order of additions).
-TEST_F(AssemblyTest, DeterministicAcrossRunsAndPaths) {
-  Pair p = random_pair(300000, 7, 64);
+// Bit-identical totals across runs, modes, atomic widths and workgroup counts (integer sums do
+// not depend on the order of additions), and equal to the exact CPU emulation.
+TEST_F(AssemblyTest, DeterministicAcrossRunsPathsAndWorkgroups) {
+  Pair p = random_pair(300001, 7, 64);
   TransferFunction ref_tf = random_tf(64, 3);
   FieldMapping rm = make_mapping({0.0, 1.0}, 64), om = make_mapping({3.0, 8.0}, 64);
   DeviceField ref(ctx(), p.ref, "ref"), opt(ctx(), p.opt, "opt");
   Buffer tf = upload_tf(ctx(), ref_tf, "tf");
-  auto run = [&](bool force_global, uint32_t run_length = 0) {
-    GpuNormalEquations gpu(ctx(), 64, force_global, run_length);
+  const std::vector<uint64_t> exact = assemble_normal_equations_fixed_point(p.ref, p.opt, rm, om, ref_tf);
+  auto run = [&](ReductionOptions options) {
+    GpuNormalEquations gpu(ctx(), 64, options);
     gpu.add(ref, opt, rm, om, tf);
-    NormalEquations eq = gpu.result();
-    std::vector<double> all = eq.diag;
-    all.insert(all.end(), eq.off.begin(), eq.off.end());
-    all.insert(all.end(), eq.rhs.data(), eq.rhs.data() + eq.rhs.size());
-    return all;
+    return gpu.fixed_point_slots();
   };
-  std::vector<double> first = run(false);
-  for (int i = 0; i < 3; ++i) {
-    std::vector<double> again = run(false);
-    ASSERT_EQ(std::memcmp(first.data(), again.data(), first.size() * sizeof(double)), 0) << "run " << i;
+  for (int i = 0; i < 2; ++i) expect_exact(run({}), exact);
+  for (ReductionMode mode : {ReductionMode::RunsShared, ReductionMode::RunsGlobal, ReductionMode::Private})
+    for (AtomicWidth width : {AtomicWidth::Bits32, AtomicWidth::Bits64}) {
+      if (width == AtomicWidth::Bits64 && !ctx().int64_atomics()) continue;
+      if (mode == ReductionMode::Private && width == AtomicWidth::Bits32) continue;
+      for (uint32_t groups : {1u, 3u, 64u}) {
+        SCOPED_TRACE(std::string(reduction_mode_name(mode)) + (width == AtomicWidth::Bits64 ? ", 64-bit" : ", 32-bit") +
+                     ", " + std::to_string(groups) + " workgroups");
+        expect_exact(run({mode, width, groups}), exact);
+      }
+    }
+}
+
+// A path the device cannot run is an error naming what is missing, never a silent fallback.
+TEST_F(AssemblyTest, UnavailablePathsThrow) {
+  const uint32_t too_big = ctx().limits().maxComputeSharedMemorySize / 8;  // > (6N+4) * 8 bytes
+  EXPECT_THROW(GpuNormalEquations(ctx(), too_big, {ReductionMode::RunsShared}), std::runtime_error);
+  EXPECT_THROW(GpuNormalEquations(ctx(), kPrivateMaxBins + 1, {ReductionMode::Private}), std::runtime_error);
+  EXPECT_THROW(GpuNormalEquations(ctx(), 64, {ReductionMode::Private, AtomicWidth::Bits32}), std::runtime_error);
+  if (!ctx().int64_atomics()) EXPECT_THROW(GpuNormalEquations(ctx(), 64, {ReductionMode::Auto, AtomicWidth::Bits64}), std::runtime_error);
+  EXPECT_THROW(GpuNormalEquations(ctx(), 1), std::invalid_argument);
+}
+
+// The voxel loss of any TF follows from the system, x^T M x - 2 x^T S^T b + b^T b per channel:
+// it equals the direct double-precision sum over the voxels of (T_o(F_o) - b)^2. Bound per
+// channel: M, S^T b and b^T b carry float rounding of their terms (at most 4 operations of 2^-24
+// relative) and 2^-32 truncation per term, so the three parts move by 1e-6 of their magnitudes
+// plus 2^-31 per voxel; the direct sum rounds the same float colours in double.
+TEST_F(AssemblyTest, LossFromSystemEqualsDirectVoxelLoss) {
+  const uint32_t n = 23;
+  Pair p = random_pair(40001, 11, n);
+  const TransferFunction ref_tf = random_tf(17, 4), opt_tf = random_tf(n, 5);
+  const FieldMapping rm = make_mapping({0.0, 1.0}, 17), om = make_mapping({3.0, 8.0}, n);
+  DeviceField ref(ctx(), p.ref, "ref"), opt(ctx(), p.opt, "opt");
+  Buffer rtf = upload_tf(ctx(), ref_tf, "ref tf");
+  GpuNormalEquations gpu(ctx(), n);
+  gpu.add(ref, opt, rm, om, rtf);
+  const NormalEquations eq = gpu.result();
+  const std::vector<float> x = opt_tf.as_floats(), r = ref_tf.as_floats();
+  const VoxelLoss from_system = voxel_loss_from_system(eq, x);
+
+  std::array<double, 4> direct{};
+  uint64_t counted = 0;
+  for (size_t i = 0; i < p.ref.size(); ++i) {
+    uint32_t jr, jo;
+    float wr, wo;
+    if (!tf_coordinate(p.ref[i], rm, jr, wr) || !tf_coordinate(p.opt[i], om, jo, wo)) continue;
+    ++counted;
+    for (int c = 0; c < 4; ++c) {
+      const double b = std::clamp((1.0 - wr) * r[4 * jr + c] + double(wr) * r[4 * (jr + 1) + c], 0.0, 1.0);
+      const double v = (1.0 - wo) * x[4 * jo + c] + double(wo) * x[4 * (jo + 1) + c];
+      direct[c] += (v - b) * (v - b);
+    }
   }
-  std::vector<double> global = run(true);
-  ASSERT_EQ(std::memcmp(first.data(), global.data(), first.size() * sizeof(double)), 0);
-  for (uint32_t run_length : {1u, 3u, 64u}) {
-    std::vector<double> other = run(false, run_length);
-    ASSERT_EQ(std::memcmp(first.data(), other.data(), first.size() * sizeof(double)), 0) << "run " << run_length;
+  ASSERT_EQ(from_system.voxels, counted);
+  Eigen::Matrix<double, Eigen::Dynamic, 4> xm(n, 4);
+  for (uint32_t j = 0; j < n; ++j)
+    for (int c = 0; c < 4; ++c) xm(j, c) = x[4 * j + c];
+  for (int c = 0; c < 4; ++c) {
+    double xmx = 0.0;
+    for (uint32_t j = 0; j < n; ++j) {
+      xmx += eq.diag[j] * xm(j, c) * xm(j, c);
+      if (j + 1 < n) xmx += 2.0 * std::abs(eq.off[j] * xm(j, c) * xm(j + 1, c));
+    }
+    const double magnitude = xmx + 2.0 * std::abs(xm.col(c).dot(eq.rhs.col(c))) + eq.btb[c];
+    const double bound = 1e-6 * magnitude + double(counted) * std::ldexp(1.0, -31);
+    EXPECT_NEAR(from_system.squared[c], direct[c], bound) << "channel " << c;
+    EXPECT_TRUE(std::isnan(from_system.absolute[c]));
   }
+  // The same against the kernel that measures it directly on the voxels.
+  Buffer otf = upload_tf(ctx(), opt_tf, "opt tf");
+  const VoxelLoss measured = voxel_loss_gpu(ctx(), ref, opt, rm, om, rtf, otf);
+  EXPECT_NEAR(from_system.rmse(), measured.rmse(), 1e-6 * measured.rmse());
+  EXPECT_THROW(voxel_loss_from_system(eq, std::vector<float>(4 * (n + 1), 0.5f)), std::invalid_argument);
 }
 
 // splitmix64: a cheap, reproducible stream for generating a large field chunk by chunk.

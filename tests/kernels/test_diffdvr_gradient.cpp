@@ -251,5 +251,27 @@ TEST_F(DiffDvrGradientTest, L1MatchesFiniteDifferences) {
   EXPECT_GT(exited, 10u);
 }
 
+// Reference images rendered once into the pool and reused give the same loss and gradient bits
+// as rendering them with each evaluation, whatever the order in which pool cameras are chosen.
+TEST_F(DiffDvrGradientTest, PooledReferenceViewsGiveTheSameBits) {
+  const Case c = make_case(ImageLoss::L2, 20.0, random_tf(9, 3, 0.1, 0.9, 0.1, 0.9), random_tf(7, 4, 0.1, 0.9, 0.1, 0.9));
+  const VolumeGeometry geo = VolumeGeometry::from(c.opt.dims, c.opt.spacing);
+  DeviceField ref(ctx(), c.ref.values, "test reference"), opt(ctx(), c.opt.values, "test field");
+  Buffer ref_tf = upload_tf(ctx(), c.ref_tf, "test reference TF");
+  DiffDvrGradient g(ctx(), ref, opt, geo, make_mapping(c.range, uint32_t(c.ref_tf.size())), ref_tf,
+                    make_mapping(c.range, uint32_t(c.tf.size())), c.settings, c.loss, false, 3);
+  g.set_view_pool(c.cameras);
+  ASSERT_EQ(g.pool_size(), c.cameras.size());
+  const std::vector<uint32_t> order = {2, 0, 3, 1};
+  std::vector<OrbitCamera> cameras;
+  for (uint32_t i : order) cameras.push_back(c.cameras[i]);
+  const ImageLossGradient rendered = g.evaluate(c.tf, cameras);
+  const ImageLossGradient pooled = g.evaluate_pooled(c.tf, order);
+  EXPECT_EQ(pooled.loss, rendered.loss);
+  ASSERT_EQ(pooled.gradient.size(), rendered.gradient.size());
+  EXPECT_EQ(std::memcmp(pooled.gradient.data(), rendered.gradient.data(), pooled.gradient.size() * sizeof(double)), 0);
+  EXPECT_THROW(g.evaluate_pooled(c.tf, std::vector<uint32_t>{4}), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace tfm

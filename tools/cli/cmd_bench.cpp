@@ -1,16 +1,18 @@
-// `tfmatch bench`: normal-equation assembly throughput on the paper's data sizes, beside what
-// bounds it — this device's buffer-copy speed for the bytes the kernel reads — and the paper's
-// CPU baseline (explicit sparse A with Eigen, A^T A and A^T b), as ratios measured in one run.
+// `tfmatch bench`: normal-equation assembly on the paper's data sizes at several TF sizes, beside
+// what it is measured against, all in one run: a plain multi-threaded CPU loop of the same math
+// (every core, double accumulators), this device's buffer-copy speed for the bytes the kernel
+// reads, and the paper's CPU baseline (explicit sparse A with Eigen, A^T A and A^T b).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
+#include <thread>
 
 #include <nlohmann/json.hpp>
 
-#include "normal_equations_cpu.h"
 #include "atomic_file.h"
 #include "cli.h"
 #include "commands.h"
@@ -18,6 +20,7 @@
 #include "output_options.h"
 #include "eigen_baseline.h"
 #include "gpu_voxel_ops.h"
+#include "normal_equations_cpu.h"
 #include "synthetic.h"
 
 namespace tfm::cli {
@@ -25,8 +28,9 @@ namespace {
 
 struct BenchArgs {
   std::vector<std::string> sizes{"250x352x20", "480x720x120"};  // 1.76 M and 41.5 M voxels
-  int repeats = 5;
-  uint64_t cpu_max_voxels = 50'000'000;
+  std::vector<uint32_t> tf_sizes{16, 64, 256, 1024, 4096};
+  int repeats = 3;
+  uint64_t eigen_max_voxels = 5'000'000;
   std::string json;
 };
 
@@ -61,25 +65,49 @@ double copy_ms(Context& ctx, const DeviceField& field, int repeats) {
   return best;
 }
 
+// Largest relative difference of any entry of M, S^T b and b^T b between two systems.
+double max_relative_difference(const NormalEquations& a, const NormalEquations& b) {
+  double worst = 0.0;
+  auto rel = [&](double x, double y) {
+    if (y != 0.0) worst = std::max(worst, std::abs(x / y - 1.0));
+  };
+  for (uint32_t j = 0; j < b.n; ++j) rel(a.diag[j], b.diag[j]);
+  for (uint32_t j = 0; j + 1 < b.n; ++j) rel(a.off[j], b.off[j]);
+  for (Eigen::Index j = 0; j < b.rhs.rows(); ++j)
+    for (int c = 0; c < 4; ++c) rel(a.rhs(j, c), b.rhs(j, c));
+  for (int c = 0; c < 4; ++c) rel(a.btb[c], b.btb[c]);
+  return worst;
+}
+
+std::string load_average() {
+  double load[3] = {0, 0, 0};
+  if (getloadavg(load, 3) != 3) return "unknown";
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(2) << load[0] << " " << load[1] << " " << load[2];
+  return os.str();
+}
+
 int run(const BenchArgs& a) {
   const JsonOutput json(a.json);  // first: with '-', stdout holds only the JSON
   FilePlan().output(json.file(), "--json").check();
   auto ctx = make_context();
   if (!ctx->timestamps_supported()) throw std::runtime_error("this device has no timestamps; cannot benchmark");
+  const unsigned threads = std::max(1u, std::thread::hardware_concurrency());
   nlohmann::json out;
   out["device"] = ctx->device_name();
+  out["cpu_threads"] = threads;
+  out["load_average_before"] = load_average();
   out["runs"] = nlohmann::json::array();
   std::cout << "tfmatch bench: normal-equation assembly on " << ctx->device_name() << " (best of " << a.repeats
-            << "; TF 64 entries)\n";
+            << "; CPU loop on " << threads << " threads; load average " << load_average() << ")\n";
   for (const std::string& size : a.sizes) {
     const auto d = parse_dims(size);
     Volume ref = synthetic_reference(d[0], d[1], d[2]);
     Volume field = synthetic_remapped(ref);
     const uint64_t voxels = ref.voxel_count();
-    TransferFunction tf = demo_transfer_function(64);
-    FieldMapping rm = make_mapping(resolve_range(ref.values, nullptr, "ref"), 64);
-    FieldMapping om = make_mapping(resolve_range(field.values, nullptr, "field"), 64);
-
+    const TransferFunction tf = demo_transfer_function(64);
+    const FieldMapping rm = make_mapping(resolve_range(ref.values, nullptr, "ref"), 64);
+    const FieldRange field_range = resolve_range(field.values, nullptr, "field");
     DeviceField dref(*ctx, ref.values, "ref"), dopt(*ctx, field.values, "field");
     Buffer tfb = upload_tf(*ctx, tf, "tf");
     // The kernel reads two float32 values per voxel; a copy of one field moves 4 bytes per voxel
@@ -87,78 +115,89 @@ int run(const BenchArgs& a) {
     const double copy_best = copy_ms(*ctx, dref, a.repeats);
     const double copy_bytes_per_s = double(voxels) * 4.0 / (copy_best * 1e-3);
     const double bound_voxels_per_s = copy_bytes_per_s / 8.0;
-
-    GpuNormalEquations gpu(*ctx, 64);
-    double assemble_best = 1e300;
-    for (int r = 0; r < a.repeats; ++r) {
-      gpu.reset();
-      assemble_best = std::min(assemble_best, gpu.add(dref, dopt, rm, om, tfb));
+    std::cout << "\n  " << size << " (" << std::setprecision(3) << double(voxels) / 1e6 << " M voxels); copy bound "
+              << std::fixed << std::setprecision(0) << bound_voxels_per_s / 1e6 << " M voxels/s ("
+              << std::setprecision(2) << copy_bytes_per_s / 1e9 << " GB/s copy)\n"
+              << "    N      GPU ms   M vox/s   CPU loop ms   M vox/s   GPU/CPU   GPU/bound   max rel. diff   path\n";
+    nlohmann::json entry{{"dims", size}, {"voxels", voxels}, {"copy_ms", copy_best},
+                         {"copy_bytes_per_s", copy_bytes_per_s}, {"copy_bound_voxels_per_s", bound_voxels_per_s},
+                         {"tf_sizes", nlohmann::json::array()}};
+    for (uint32_t n : a.tf_sizes) {
+      const FieldMapping om = make_mapping(field_range, n);
+      GpuNormalEquations gpu(*ctx, n);
+      double gpu_best = 1e300;
+      for (int r = 0; r < a.repeats; ++r) {
+        gpu.reset();
+        gpu_best = std::min(gpu_best, gpu.add(dref, dopt, rm, om, tfb));
+      }
+      double cpu_best = 1e300;
+      NormalEquations cpu(n);
+      for (int r = 0; r < a.repeats; ++r) {
+        const auto t0 = std::chrono::steady_clock::now();
+        cpu = assemble_normal_equations_cpu_threaded(ref.values, field.values, rm, om, tf, threads);
+        cpu_best = std::min(cpu_best, seconds_since(t0) * 1e3);
+      }
+      const double diff = max_relative_difference(gpu.result(), cpu);
+      const double gpu_rate = double(voxels) / (gpu_best * 1e-3), cpu_rate = double(voxels) / (cpu_best * 1e-3);
+      const std::string path = std::string(reduction_mode_name(gpu.kernel().mode())) +
+                               (gpu.kernel().int64_atomics() ? ", 64-bit atomics" : ", 32-bit atomics");
+      std::cout << "    " << std::left << std::setw(5) << n << std::right << std::fixed << std::setprecision(1)
+                << std::setw(9) << gpu_best << std::setw(10) << gpu_rate / 1e6 << std::setw(14) << cpu_best
+                << std::setw(10) << cpu_rate / 1e6 << std::setprecision(2) << std::setw(10) << cpu_best / gpu_best
+                << std::setprecision(3) << std::setw(12) << gpu_rate / bound_voxels_per_s << std::scientific
+                << std::setprecision(1) << std::setw(16) << diff << std::defaultfloat << "   " << path << "\n";
+      entry["tf_sizes"].push_back({{"n", n},
+                                   {"gpu_assemble_ms", gpu_best},
+                                   {"gpu_voxels_per_s", gpu_rate},
+                                   {"cpu_loop_ms", cpu_best},
+                                   {"cpu_loop_voxels_per_s", cpu_rate},
+                                   {"gpu_over_cpu_loop", cpu_best / gpu_best},
+                                   {"gpu_over_copy_bound", gpu_rate / bound_voxels_per_s},
+                                   {"max_relative_difference", diff},
+                                   {"path", path}});
     }
-    NormalEquations g = gpu.result();
-    const double gpu_voxels_per_s = double(voxels) / (assemble_best * 1e-3);
-
-    nlohmann::json entry{{"dims", size}, {"voxels", voxels}, {"gpu_assemble_ms", assemble_best},
-                       {"gpu_voxels_per_s", gpu_voxels_per_s}, {"copy_ms", copy_best},
-                       {"copy_bytes_per_s", copy_bytes_per_s}, {"copy_bound_voxels_per_s", bound_voxels_per_s}};
-    std::cout << "\n  " << size << " (" << std::setprecision(3) << double(voxels) / 1e6 << " M voxels)\n"
-              << std::fixed << std::setprecision(2)
-              << "    GPU assembly          " << std::setw(9) << assemble_best << " ms  " << std::setw(9)
-              << gpu_voxels_per_s / 1e6 << " M voxels/s\n"
-              << "    copy-speed bound      " << std::setw(9) << copy_best << " ms  " << std::setw(9)
-              << bound_voxels_per_s / 1e6 << " M voxels/s  (" << copy_bytes_per_s / 1e9 << " GB/s copy)\n"
-              << "    assembly / bound      " << std::setw(9) << std::defaultfloat << std::setprecision(3)
-              << gpu_voxels_per_s / bound_voxels_per_s << std::fixed << std::setprecision(2) << "\n";
-
-    // The straightforward CPU method, single thread, in double: our reference.
-    auto t0 = std::chrono::steady_clock::now();
-    NormalEquations cpu_direct = assemble_normal_equations_cpu(ref.values, field.values, rm, om, tf);
-    const double direct_s = seconds_since(t0);
-    entry["cpu_direct_s"] = direct_s;
-    std::cout << "    CPU direct (1 thread) " << std::setw(9) << direct_s * 1e3 << " ms  " << std::setw(9)
-              << double(voxels) / direct_s / 1e6 << " M voxels/s   GPU/CPU " << direct_s * 1e3 / assemble_best
-              << "\n";
-    double max_rel = 0;
-    for (uint32_t j = 0; j < 64; ++j)
-      if (cpu_direct.diag[j] > 0) max_rel = std::max(max_rel, std::abs(g.diag[j] / cpu_direct.diag[j] - 1));
-    entry["max_relative_difference_diag"] = max_rel;
-
-    if (voxels <= a.cpu_max_voxels) {
-      // The paper's CPU baseline: explicit sparse A (CSR), then A^T A and A^T b with Eigen.
-      t0 = std::chrono::steady_clock::now();
+    if (voxels <= a.eigen_max_voxels) {
+      // The paper's CPU baseline: explicit sparse A (CSR), then A^T A and A^T b with Eigen (N = 64).
+      const FieldMapping om = make_mapping(field_range, 64);
+      auto t0 = std::chrono::steady_clock::now();
       ExplicitSystem sys = build_explicit_system(ref.values, field.values, rm, om, tf);
       const double build_s = seconds_since(t0);
       t0 = std::chrono::steady_clock::now();
       ExplicitNormalEquations ne = explicit_normal_equations(sys);
-      const double product_s = seconds_since(t0);
-      const double eigen_s = build_s + product_s;
-      entry["cpu_eigen_build_s"] = build_s;
-      entry["cpu_eigen_products_s"] = product_s;
-      entry["gpu_speedup_over_eigen"] = eigen_s * 1e3 / assemble_best;
-      NormalEquations e = to_tridiagonal(ne, 64);
-      for (uint32_t j = 0; j < 64; ++j)
-        if (e.diag[j] > 0) max_rel = std::max(max_rel, std::abs(g.diag[j] / e.diag[j] - 1));
-      std::cout << "    CPU Eigen (paper)     " << std::setw(9) << eigen_s * 1e3 << " ms  " << std::setw(9)
-                << double(voxels) / eigen_s / 1e6 << " M voxels/s   GPU/Eigen " << eigen_s * 1e3 / assemble_best
-                << "  (build A " << build_s * 1e3 << " ms, A^T A + A^T b " << product_s * 1e3 << " ms)\n";
+      const double eigen_s = build_s + seconds_since(t0);
+      GpuNormalEquations gpu(*ctx, 64);
+      const double gpu_ms = gpu.add(dref, dopt, rm, om, tfb);
+      entry["cpu_eigen_s"] = eigen_s;
+      entry["gpu_over_eigen_n64"] = eigen_s * 1e3 / gpu_ms;
+      std::cout << "    Eigen (paper, N = 64): " << std::fixed << std::setprecision(1) << eigen_s * 1e3 << " ms, "
+                << double(voxels) / eigen_s / 1e6 << " M voxels/s; GPU/Eigen " << eigen_s * 1e3 / gpu_ms
+                << "; max rel. diff " << std::scientific << std::setprecision(1)
+                << max_relative_difference(gpu.result(), to_tridiagonal(ne, 64)) << std::defaultfloat << "\n";
     } else {
-      std::cout << "    CPU Eigen (paper)     skipped (more than --cpu-max-voxels)\n";
+      std::cout << "    Eigen (paper): skipped (more than --eigen-max-voxels)\n";
     }
-    std::cout << "    max relative difference of diag(M), GPU vs CPU: " << std::scientific << std::setprecision(2)
-              << max_rel << std::defaultfloat << "\n";
     out["runs"].push_back(entry);
   }
+  out["load_average_after"] = load_average();
+  std::cout << "\n  GPU/CPU > 1: the assembly is faster than the CPU loop; GPU/bound: fraction of the copy speed.\n"
+            << "  load average after: " << load_average() << "\n";
   json.write(out);
   return 0;
 }
 
 CommandRegistration reg(80, [](CLI::App& app) {
   auto args = std::make_shared<BenchArgs>();
-  auto* sub = app.add_subcommand("bench", "Benchmark normal-equation assembly against copy speed and the Eigen CPU path");
+  auto* sub = app.add_subcommand(
+      "bench", "Benchmark normal-equation assembly against a multi-threaded CPU loop, copy speed and Eigen");
   sub->add_option("--sizes", args->sizes, "Grids XxYxZ (default: the paper's 1.76 M and 41.5 M voxels)")
+      ->capture_default_str();
+  sub->add_option("--tf-sizes", args->tf_sizes, "TF entries to assemble for, comma separated")
+      ->delimiter(',')
+      ->check(CLI::Range(2u, 1u << 20))
       ->capture_default_str();
   sub->add_option("--repeats", args->repeats, "Repetitions (best is reported)")->check(CLI::Range(1, 100))
       ->capture_default_str();
-  sub->add_option("--cpu-max-voxels", args->cpu_max_voxels, "Skip the Eigen baseline above this size")
+  sub->add_option("--eigen-max-voxels", args->eigen_max_voxels, "Skip the Eigen baseline above this size")
       ->capture_default_str();
   add_json_option(sub, args->json, "the numbers");
   sub->callback([args] { exit_code() = run(*args); });

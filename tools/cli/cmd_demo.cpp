@@ -150,6 +150,7 @@ int run(const DemoArgs& a) {
   req.tf_size = 64;
   req.solver = a.solver;
   req.settings = settings;
+  req.voxel_mae = true;  // the report shows the mean absolute error
   OptimizeResult result = run_optimize(*ctx, req);
   if (!report_in_out_dir(a)) write_tf_json(dir / "optimized_tf.json", result.tf);
   write_file_atomically(dir / "summary.json", to_json(result).dump(2) + "\n");

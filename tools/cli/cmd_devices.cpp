@@ -12,6 +12,19 @@
 namespace tfm::cli {
 namespace {
 
+// Names of the subgroup operation classes in `flags` (VkSubgroupFeatureFlags), space-separated.
+std::vector<std::string> subgroup_operation_names(uint32_t flags) {
+  const std::pair<uint32_t, const char*> names[] = {
+      {VK_SUBGROUP_FEATURE_BASIC_BIT, "basic"},         {VK_SUBGROUP_FEATURE_VOTE_BIT, "vote"},
+      {VK_SUBGROUP_FEATURE_ARITHMETIC_BIT, "arithmetic"}, {VK_SUBGROUP_FEATURE_BALLOT_BIT, "ballot"},
+      {VK_SUBGROUP_FEATURE_SHUFFLE_BIT, "shuffle"},     {VK_SUBGROUP_FEATURE_SHUFFLE_RELATIVE_BIT, "shuffle_relative"},
+      {VK_SUBGROUP_FEATURE_CLUSTERED_BIT, "clustered"}, {VK_SUBGROUP_FEATURE_QUAD_BIT, "quad"}};
+  std::vector<std::string> out;
+  for (const auto& [bit, name] : names)
+    if (flags & bit) out.emplace_back(name);
+  return out;
+}
+
 std::string version_string(uint32_t v) {
   return std::to_string(VK_API_VERSION_MAJOR(v)) + "." + std::to_string(VK_API_VERSION_MINOR(v)) + "." +
          std::to_string(VK_API_VERSION_PATCH(v));
@@ -29,6 +42,8 @@ nlohmann::json devices_json(const std::vector<DeviceSummary>& devices) {
                     {"compute_queue", d.compute_queue},
                     {"timestamps", d.timestamps},
                     {"shader_float64", d.shader_float64},
+                    {"int64_atomics", d.int64_atomics},
+                    {"subgroup_operations", subgroup_operation_names(d.subgroup_operations)},
                     {"max_storage_buffer_range_bytes", d.max_storage_buffer_range},
                     {"max_shared_memory_bytes", d.max_shared_memory_bytes},
                     {"max_workgroup_invocations", d.max_workgroup_invocations},
@@ -43,10 +58,14 @@ void print_devices(const std::vector<DeviceSummary>& devices) {
               << "    driver: " << d.driver << ", Vulkan " << version_string(d.api_version) << "\n"
               << "    compute queue: " << (d.compute_queue ? "yes" : "no")
               << ", timestamps: " << (d.timestamps ? "yes" : "no") << ", shaderFloat64: "
-              << (d.shader_float64 ? "yes" : "no") << "\n"
+              << (d.shader_float64 ? "yes" : "no") << ", 64-bit atomics: " << (d.int64_atomics ? "yes" : "no")
+              << "\n"
               << "    maxStorageBufferRange: " << d.max_storage_buffer_range / (1 << 20) << " MiB"
               << ", shared memory: " << d.max_shared_memory_bytes / 1024 << " KiB"
               << ", workgroup: " << d.max_workgroup_invocations << ", subgroup: " << d.subgroup_size << "\n"
+              << "    subgroup operations:";
+    for (const std::string& op : subgroup_operation_names(d.subgroup_operations)) std::cout << " " << op;
+    std::cout << "\n"
               << "    device-local memory: " << std::fixed << std::setprecision(1)
               << double(d.device_local_bytes) / double(1ull << 30) << " GiB\n";
   }

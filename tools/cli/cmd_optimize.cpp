@@ -72,6 +72,7 @@ int run(const OptimizeArgs& a) {
   OptimizeRequest& req = loaded.request;
   req.solver = a.solver;
   req.settings = settings;
+  req.voxel_mae = !a.json.empty() || !a.report.empty();  // both show the mean absolute error
   OptimizeResult result = run_optimize(*ctx, req);
   if (!globals().quiet) result.print_summary(std::cout);
   write_transfer_function(a.out, result.tf);

@@ -1,6 +1,7 @@
 // The host solver of the tridiagonal normal equations against independent dense least-squares
 // solves of the explicit A, with and without regularization; singular and recovery cases.
 #include <cmath>
+#include <string>
 #include <random>
 #include <vector>
 
@@ -10,6 +11,7 @@
 #include "eigen_baseline.h"
 #include "gpu_voxel_ops.h"
 #include "normal_equations.h"
+#include "optimize.h"
 #include "synthetic.h"
 #include "vk_test_env.h"
 
@@ -203,6 +205,45 @@ TEST_F(SolverGpuTest, RecoversMonotoneRemap) {
   EXPECT_LE(after.rmse(), bound.rmse() * (1 + 1e-6) + 1e-6);
   EXPECT_LT(bound.rmse(), 0.02);
   EXPECT_GT(before.rmse(), 10 * bound.rmse());
+}
+
+// run_optimize's voxel RMSE before and after comes from the assembled system, with a second
+// assembly only when the reference TF has another size; it equals the direct pass over the
+// voxels (voxel_loss_gpu) to float rounding, and the mean absolute error is measured only on
+// request.
+TEST_F(SolverGpuTest, OptimizeLossComesFromTheSystem) {
+  Volume ref = synthetic_reference(37, 29, 23);
+  Volume opt = synthetic_remapped(ref);
+  for (uint32_t ref_entries : {64u, 256u}) {
+    for (const char* solver : {"normal-equations", "eigen-normal-equations"}) {
+      SCOPED_TRACE(std::string(solver) + ", reference TF of " + std::to_string(ref_entries) + " entries");
+      OptimizeRequest req;
+      req.ref = &ref;
+      req.field = &opt;
+      req.ref_tf = demo_transfer_function(ref_entries);
+      req.tf_size = 64;
+      req.solver = solver;
+      const OptimizeResult r = run_optimize(ctx(), req);
+      bool voxel_pass = false;
+      for (const PhaseTime& p : r.phases) voxel_pass = voxel_pass || p.name == "voxel MAE";
+      EXPECT_FALSE(voxel_pass);
+      EXPECT_TRUE(std::isnan(r.after.mae()));
+
+      DeviceField dr(ctx(), ref.values, "ref"), dopt(ctx(), opt.values, "opt");
+      Buffer rtf = upload_tf(ctx(), req.ref_tf, "ref tf"), otf = upload_tf(ctx(), r.tf, "opt tf");
+      const FieldMapping rm = make_mapping(r.ref_range, ref_entries);
+      const VoxelLoss before = voxel_loss_gpu(ctx(), dr, dopt, rm, make_mapping(r.field_range, ref_entries), rtf, rtf);
+      const VoxelLoss after = voxel_loss_gpu(ctx(), dr, dopt, rm, make_mapping(r.field_range, 64), rtf, otf);
+      EXPECT_NEAR(r.before.rmse(), before.rmse(), 1e-6 * before.rmse());
+      EXPECT_NEAR(r.after.rmse(), after.rmse(), 1e-6 * after.rmse());
+      EXPECT_EQ(r.after.voxels, after.voxels);
+
+      req.voxel_mae = true;
+      const OptimizeResult with_mae = run_optimize(ctx(), req);
+      EXPECT_NEAR(with_mae.after.mae(), after.mae(), 1e-9);
+      EXPECT_NEAR(with_mae.before.mae(), before.mae(), 1e-9);
+    }
+  }
 }
 
 }  // namespace

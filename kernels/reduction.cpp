@@ -1,0 +1,91 @@
+// Choosing how the voxel-reducing kernels sum their terms.
+#include "reduction.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include "context.h"
+#include "shader_registry.h"
+#include "shared_layout.h"
+#include "voxel_pair.h"
+
+namespace tfm {
+
+const char* reduction_mode_name(ReductionMode mode) {
+  switch (mode) {
+    case ReductionMode::Auto: return "auto";
+    case ReductionMode::RunsShared: return "runs, shared memory";
+    case ReductionMode::RunsGlobal: return "runs, global atomics";
+    case ReductionMode::Private: return "private histograms";
+  }
+  return "?";
+}
+
+bool is_cpu_device(const Context& ctx) { return ctx.properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU; }
+
+Reduction Reduction::choose(const Context& ctx, const char* kernel, uint32_t tf_size, uint64_t shared_bytes,
+                            const ReductionOptions& options) {
+  if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
+  const bool shared_fits = shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
+  Reduction r;
+  r.tf_size = tf_size;
+  r.workgroups = options.workgroups;
+  const std::string who = std::string(kernel) + ": ";
+  r.int64 = options.atomics == AtomicWidth::Bits64 || (options.atomics == AtomicWidth::Auto && ctx.int64_atomics());
+  if (r.int64 && !ctx.int64_atomics())
+    throw std::runtime_error(who + "64-bit atomics requested but the device (or the host that created it) does not "
+                                   "enable shaderInt64 with 64-bit buffer and shared atomics");
+  r.mode = options.mode;
+  if (r.mode == ReductionMode::Auto) {
+    if (is_cpu_device(ctx) && tf_size <= kPrivateMaxBins && r.int64) r.mode = ReductionMode::Private;
+    else r.mode = shared_fits ? ReductionMode::RunsShared : ReductionMode::RunsGlobal;
+  }
+  if (r.mode == ReductionMode::Private && tf_size > kPrivateMaxBins)
+    throw std::runtime_error(who + "private histograms hold at most " + std::to_string(kPrivateMaxBins) +
+                             " TF entries, not " + std::to_string(tf_size));
+  // Sums of two 32-bit words in private arrays take twice the gathers and scatters, and compile
+  // slowly on lavapipe: private histograms are a 64-bit path only.
+  if (r.mode == ReductionMode::Private && !r.int64)
+    throw std::runtime_error(who + "private histograms need 64-bit integers and atomics");
+  if (r.mode == ReductionMode::RunsShared && !shared_fits)
+    throw std::runtime_error(who + std::to_string(tf_size) + " TF entries need " + std::to_string(shared_bytes) +
+                             " bytes of shared memory; the device has " +
+                             std::to_string(ctx.limits().maxComputeSharedMemorySize));
+  return r;
+}
+
+uint32_t Reduction::groups(const Context& ctx, uint64_t voxels) const {
+  const uint32_t max_groups = ctx.limits().maxComputeWorkGroupCount[0];
+  if (workgroups) return std::min(workgroups, max_groups);
+  if (mode != ReductionMode::Private) return voxel_groups(ctx, voxels);
+  const uint64_t quads = voxels / 4;
+  const uint64_t per_lane = std::clamp<uint64_t>(16ull * tf_size, 2048, 32768);
+  uint64_t groups = (quads / per_lane + TFM_VOXEL_WORKGROUP) / TFM_VOXEL_WORKGROUP;
+  // Smaller volumes: more, shorter lanes (down to 4 N quads each, at least 256), so that up to 16
+  // workgroups keep every core of a CPU device busy.
+  const uint64_t min_per_lane = std::max<uint64_t>(256, 4ull * tf_size);
+  groups = std::max(groups, std::min<uint64_t>(16, quads / (min_per_lane * TFM_VOXEL_WORKGROUP)));
+  return static_cast<uint32_t>(std::clamp<uint64_t>(groups, 1, max_groups));
+}
+
+uint32_t Reduction::shader_mode() const {
+  // The three kernels share these values (shared_layout.h).
+  return mode == ReductionMode::Private      ? TFM_REDUCE_PRIVATE
+         : mode == ReductionMode::RunsShared ? TFM_REDUCE_RUNS_SHARED
+                                             : TFM_REDUCE_RUNS_GLOBAL;
+}
+
+PipelineDesc Reduction::pipeline_desc(const char* shader, std::vector<uint32_t> binding_counts,
+                                      uint32_t push_bytes) const {
+  PipelineDesc desc;
+  desc.shader = int64 ? std::string(shader) + "_int64" : std::string(shader);
+  desc.binding_counts = std::move(binding_counts);
+  desc.push_constant_bytes = push_bytes;
+  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+  desc.spirv = shader_spirv(desc.shader);
+  return desc;
+}
+
+}  // namespace tfm

@@ -1,0 +1,67 @@
+// How the voxel-reducing kernels (normal-equation assembly, S^T r of CGLS, the gradient of
+// gradient descent) sum their terms: the mode, the atomic width and the workgroups a dispatch
+// uses, chosen from the device or forced by a caller (the tests force every combination; all
+// give the same bits). The shaders' header comments explain each mode.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "pipeline.h"
+
+namespace tfm {
+
+class Context;
+
+enum class ReductionMode {
+  Auto,        // Private on CPU devices with 64-bit atomics up to kPrivateMaxBins TF entries, else
+               // RunsShared if it fits, else RunsGlobal
+  RunsShared,  // register runs per lane, flushed to workgroup-shared accumulators
+  RunsGlobal,  // register runs per lane, flushed to the global accumulators
+  Private,     // a private histogram per lane, added to the global accumulators at the end (needs
+               // 64-bit atomics)
+};
+enum class AtomicWidth {
+  Auto,    // 64-bit where the context has them (Context::int64_atomics)
+  Bits32,  // two 32-bit words with carry: any Vulkan device
+  Bits64,  // one 64-bit word per slot
+};
+struct ReductionOptions {
+  ReductionMode mode = ReductionMode::Auto;
+  AtomicWidth atomics = AtomicWidth::Auto;
+  uint32_t workgroups = 0;  // per dispatch; 0: from the chunk size (tests force counts)
+};
+const char* reduction_mode_name(ReductionMode mode);
+
+// TF entries up to which CPU devices take the private-histogram path (each lane holds its
+// kernel's terms per entry, 88 bytes for the assembly: 88 KiB at 1024, in a CPU core's L2).
+inline constexpr uint32_t kPrivateMaxBins = 1024;
+
+// A resolved choice for one kernel.
+struct Reduction {
+  ReductionMode mode = ReductionMode::RunsShared;
+  bool int64 = false;
+  uint32_t workgroups = 0;  // forced count, or 0
+  uint32_t tf_size = 0;
+
+  // Resolves `options` for a kernel whose shared accumulators take `shared_bytes` for `tf_size`
+  // entries. Throws std::runtime_error naming what is missing when a forced mode or width does
+  // not fit the device (shared memory, 64-bit atomics, kPrivateMaxBins, Private with 32-bit).
+  static Reduction choose(const Context& ctx, const char* kernel, uint32_t tf_size, uint64_t shared_bytes,
+                          const ReductionOptions& options);
+  // Workgroups of TFM_VOXEL_WORKGROUP for one dispatch over `voxels`: the forced count, else
+  // voxel_groups() for the run modes and, for Private, enough lanes that each covers about
+  // 16 N quads (its histogram is added to memory once, so lanes must cover many voxels) but at
+  // most 32768 (lavapipe stops a shader after 65535 loop iterations), and up to 16 workgroups
+  // of shorter lanes when the volume is small (every core of a CPU device gets work).
+  uint32_t groups(const Context& ctx, uint64_t voxels) const;
+  // The TFM_*_RUNS_SHARED / _RUNS_GLOBAL / _PRIVATE value of the shaders' MODE constant.
+  uint32_t shader_mode() const;
+  // A pipeline of `shader` (its _int64 build when this reduction uses 64-bit atomics) over
+  // TFM_VOXEL_WORKGROUP invocations; the caller adds the specialization constants.
+  PipelineDesc pipeline_desc(const char* shader, std::vector<uint32_t> binding_counts, uint32_t push_bytes) const;
+};
+
+bool is_cpu_device(const Context& ctx);
+
+}  // namespace tfm
