@@ -13,6 +13,8 @@ namespace {
 std::atomic<bool> g_enabled{true};
 std::atomic<double> g_interval_s{0.0};  // 0: not set, read the environment
 
+thread_local ProgressObserver t_observer;
+
 double interval_from_environment() {
   const char* text = std::getenv("TFMATCH_PROGRESS_INTERVAL");
   if (!text || !*text) return 10.0;
@@ -47,9 +49,19 @@ std::string format_duration(double s) {
   return buf;
 }
 
+ScopedProgressObserver::ScopedProgressObserver(ProgressObserver observer) : previous_(std::move(t_observer)) {
+  t_observer = std::move(observer);
+}
+ScopedProgressObserver::~ScopedProgressObserver() { t_observer = std::move(previous_); }
+
+void Progress::notify() const {
+  if (t_observer) t_observer(label_, done_, total_);
+}
+
 Progress::Progress(std::string label, uint64_t total)
     : label_(std::move(label)), total_(total), active_(progress_enabled()), terminal_(::isatty(STDERR_FILENO) == 1),
       start_(std::chrono::steady_clock::now()), last_(start_) {
+  notify();
   if (active_ && terminal_) draw(false);
 }
 
@@ -57,6 +69,7 @@ Progress::~Progress() { finish(); }
 
 void Progress::update(uint64_t done) {
   done_ = done;
+  notify();
   if (!active_) return;
   const auto now = std::chrono::steady_clock::now();
   if (terminal_) {
@@ -71,6 +84,7 @@ void Progress::update(uint64_t done) {
 
 void Progress::set_label(std::string label) {
   label_ = std::move(label);
+  notify();
   if (active_ && terminal_) draw(false);
 }
 

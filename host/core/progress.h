@@ -5,6 +5,7 @@
 #pragma once
 
 #include <chrono>
+#include <functional>
 #include <cstdint>
 #include <string>
 
@@ -23,6 +24,23 @@ double progress_interval_s();
 // "1m10s", "3.2s", "2h05m": a duration for people.
 std::string format_duration(double seconds);
 
+// Something other than stderr that follows progress on this thread: a server that streams a job's
+// progress to a web page (host/viewer). Called on every update() and set_label() of a Progress
+// made on the thread that installed it, whether or not progress lines are enabled, with the
+// label, the units done and the total (0: unknown).
+using ProgressObserver = std::function<void(const std::string& label, uint64_t done, uint64_t total)>;
+// Installs `observer` for the current thread while it lives; the previous one comes back after.
+class ScopedProgressObserver {
+ public:
+  explicit ScopedProgressObserver(ProgressObserver observer);
+  ~ScopedProgressObserver();
+  ScopedProgressObserver(const ScopedProgressObserver&) = delete;
+  ScopedProgressObserver& operator=(const ScopedProgressObserver&) = delete;
+
+ private:
+  ProgressObserver previous_;
+};
+
 class Progress {
  public:
   // `total` units of work; 0 means unknown (only the count is shown).
@@ -38,6 +56,7 @@ class Progress {
  private:
   void draw(bool final_line);
   void print_plain_line();
+  void notify() const;
   std::string label_;
   uint64_t total_ = 0, done_ = 0;
   bool active_ = false;
