@@ -436,8 +436,9 @@ FileInfo describe_vti(const std::filesystem::path& path, const VolumeOptions&) {
   return info;
 }
 
-void write_vti(const std::filesystem::path& path, const std::vector<std::pair<std::string, const Volume*>>& arrays,
-               const VtiWriteOptions& options) {
+std::string vti_bytes(const std::vector<std::pair<std::string, const Volume*>>& arrays, const std::string& name,
+                      const VtiWriteOptions& options) {
+  const std::filesystem::path path = name;  // for messages
   if (arrays.empty()) throw std::invalid_argument("write_vti: no arrays");
   const Volume& first = *arrays.front().second;
   for (const auto& [name, v] : arrays) {
@@ -524,7 +525,12 @@ void write_vti(const std::filesystem::path& path, const std::vector<std::pair<st
   std::string bytes = xml.str();
   bytes += appended;
   bytes += "\n  </AppendedData>\n</VTKFile>\n";
-  write_file_atomically(path, bytes);
+  return bytes;
+}
+
+void write_vti(const std::filesystem::path& path, const std::vector<std::pair<std::string, const Volume*>>& arrays,
+               const VtiWriteOptions& options) {
+  write_file_atomically(path, vti_bytes(arrays, path.string(), options));
 }
 
 void write_vti(const std::filesystem::path& path, const Volume& volume, const std::string& array_name,

@@ -22,6 +22,9 @@ struct VtiWriteOptions {
 // colour"). Throws std::runtime_error naming `path` on a write failure or differing grids.
 void write_vti(const std::filesystem::path& path, const std::vector<std::pair<std::string, const Volume*>>& arrays,
                const VtiWriteOptions& options = {});
+// The bytes write_vti writes, for a file sent elsewhere (a download); `name` starts messages.
+std::string vti_bytes(const std::vector<std::pair<std::string, const Volume*>>& arrays, const std::string& name,
+                      const VtiWriteOptions& options = {});
 void write_vti(const std::filesystem::path& path, const Volume& volume, const std::string& array_name,
                const VtiWriteOptions& options = {});
 
