@@ -37,6 +37,7 @@
 #include "memory_budget.h"
 #include "grid_orientation.h"
 #include "netcdf_classic.h"
+#include "netcdf4_probe.h"
 #include "volume_formats.h"
 #include "volume_info.h"
 #include "volume_io.h"
@@ -59,6 +60,11 @@ class NcFile {
             return bool(in.read(out, std::streamsize(n)));
           },
           size_, name_);
+      std::string head(std::min<uint64_t>(size_, 4096), '\0');
+      in.clear();
+      in.seekg(0);
+      in.read(head.data(), std::streamsize(head.size()));
+      if (has_hdf5_signature(head)) probe_netcdf4_metadata(name_);
       check(nc_open(name_.c_str(), NC_NOWRITE, &id_), "cannot open as NetCDF");
     } else {
       check_netcdf_classic_header(
@@ -68,6 +74,7 @@ class NcFile {
             return true;
           },
           memory.size(), name_);
+      if (has_hdf5_signature(memory.substr(0, 4096))) probe_netcdf4_metadata(name_, memory);
       // netCDF-C does not write to memory opened without NC_WRITE.
       check(nc_open_mem(name_.c_str(), NC_NOWRITE, memory.size(), const_cast<char*>(memory.data()), &id_),
             "cannot open as NetCDF");
