@@ -1,7 +1,7 @@
 # Links follow the layer rule of DESIGN.md as includes do (tools/cmake/check_layers.cmake): a
 # library of one layer links libraries of earlier layers only. Checked at configure time.
 set(tfm_layer_targets tfmatch_engine tfmatch_shaders tfmatch_kernels tfmatch_core tfmatch_solvers tfmatch_io
-    tfmatch_report)
+    tfmatch_report tfmatch_viewer)
 set(tfm_index 0)
 foreach(target ${tfm_layer_targets})
   set(tfm_rank_${target} ${tfm_index})

@@ -1,12 +1,13 @@
 # The layer rule of DESIGN.md, checked on every configure (and by the ctest test `Layers`):
 # engine -> shaders -> kernels -> host/core -> host/reference -> host/solvers -> host/io ->
-# host/report -> tools. A file may include headers of its own layer and of layers before it,
+# host/report -> host/viewer -> tools. A file may include headers of its own layer and of layers before it,
 # never one after it. Run as a script: cmake -DTFMATCH_SOURCE_DIR=<repo> -P check_layers.cmake
 # (exit code 1 and one line per offending include). cuda/ sits beside kernels: it may use
 # engine, shaders, kernels and host/core (field_mapping.h), and only host/solvers uses it.
 
 cmake_policy(SET CMP0057 NEW)
-set(layers engine shaders kernels cuda host/core host/reference host/selftest host/solvers host/io host/report tools)
+set(layers engine shaders kernels cuda host/core host/reference host/selftest host/solvers host/io host/report host/viewer
+    tools)
 # cuda may include host/core's field_mapping.h (an inline mirror of the shader arithmetic).
 set(allowed_exceptions "cuda:host/core/field_mapping.h")
 

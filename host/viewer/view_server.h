@@ -1,0 +1,49 @@
+// The HTTP server of `tfmatch view` (cpp-httplib): the page and the endpoints of
+// host/viewer/http_api.md over one ViewSession, guarded by a random token, with bounded sizes
+// and request rates.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "view_session.h"
+
+namespace tfm {
+
+struct ViewServerOptions {
+  std::string bind = "127.0.0.1";  // address to listen on; another than loopback reaches others
+  int port = 0;                    // 0: any free port
+  std::string token;               // empty: 128 random bits as hex
+  // Serve index.html, viewer.css and viewer.js from this directory instead of the copies built
+  // into the binary (editing the page without rebuilding); empty: built in.
+  std::string assets_dir;
+  uint32_t device_requests_per_second = 40;  // renders, slices, plots, metrics: more get 429
+};
+
+class ViewServer {
+ public:
+  // Binds the port (not yet serving). Throws std::runtime_error when the address or port cannot
+  // be bound, naming them.
+  ViewServer(ViewSession& session, ViewServerOptions options);
+  ~ViewServer();  // stops serving and waits for the listening thread
+  ViewServer(const ViewServer&) = delete;
+  ViewServer& operator=(const ViewServer&) = delete;
+
+  void start();  // serves on a thread of its own until stop()
+  void stop();
+
+  int port() const;
+  const std::string& token() const;
+  // http://ADDRESS:PORT/?token=TOKEN (loopback for a wildcard address).
+  std::string url() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// 128 bits from std::random_device as 32 lowercase hex digits.
+std::string random_token();
+
+}  // namespace tfm

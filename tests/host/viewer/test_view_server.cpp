@@ -1,0 +1,444 @@
+// `tfmatch view`'s server in-process (a server on port 0 and an HTTP client): the token, images
+// equal to the renderer's, slices, plots, jobs, bad requests answered with 4xx while the server
+// keeps serving, the device held by a job answering 503.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <thread>
+
+#include "camera.h"
+#include "cancellation.h"
+#include "png_io.h"
+#include "render.h"
+#include "synthetic.h"
+#include "synthetic_ensemble.h"
+#include "tf_points.h"
+#include "view_page.h"
+#include "view_server.h"
+#include "view_session.h"
+#include "vk_test_env.h"
+// After Eigen (through the project headers): OpenSSL's headers, which httplib.h includes, define
+// macros that break Eigen's product kernels when they come first.
+#include <httplib.h>
+
+namespace tfm {
+namespace {
+
+using test::GpuTest;
+
+ViewConfig small_config() {
+  ViewConfig c;
+  c.ref_tf = demo_transfer_function(16);
+  c.tf_size = 16;
+  c.render.width = 40;
+  c.render.height = 32;
+  return c;
+}
+
+class ViewServerTest : public GpuTest {
+ protected:
+  void SetUp() override {
+    // The pause point is read at the process's first checkpoint, which the session's first
+    // optimization passes: set it before (DeviceRequestsDuringAJobGet503).
+    if (std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) == "DeviceRequestsDuringAJobGet503")
+      setenv("TFMATCH_PAUSE_AT", "solve#2", 1);
+    ref_ = synthetic_reference(13, 11, 9);  // awkward sizes: no axis a multiple of a workgroup
+    field_ = synthetic_remapped(ref_);
+    session_ = std::make_unique<ViewSession>(ctx(), ref_, field_, small_config());
+    server_ = std::make_unique<ViewServer>(*session_, ViewServerOptions{});
+    server_->start();
+    client_ = std::make_unique<httplib::Client>("127.0.0.1", server_->port());
+    client_->set_read_timeout(120);
+  }
+  void TearDown() override {
+    server_.reset();
+    session_.reset();
+    GpuTest::TearDown();
+  }
+  std::string with_token(const std::string& path) const {
+    return path + (path.find('?') == std::string::npos ? "?" : "&") + "token=" + server_->token();
+  }
+  httplib::Result get(const std::string& path) { return client_->Get(with_token(path)); }
+  httplib::Result post(const std::string& path, const nlohmann::json& body) {
+    return client_->Post(with_token(path), body.dump(), "application/json");
+  }
+  nlohmann::json get_json(const std::string& path) {
+    auto r = get(path);
+    EXPECT_TRUE(r);
+    if (!r) return {};
+    EXPECT_EQ(r->status, 200) << path << ": " << r->body;
+    return nlohmann::json::parse(r->body);
+  }
+  void wait_for_job() {
+    for (int i = 0; i < 6000 && session_->job_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    session_->wait_for_job();
+  }
+
+  Volume ref_, field_;
+  std::unique_ptr<ViewSession> session_;
+  std::unique_ptr<ViewServer> server_;
+  std::unique_ptr<httplib::Client> client_;
+};
+
+TEST_F(ViewServerTest, EveryRequestNeedsTheToken) {
+  for (const char* path : {"/", "/api/state", "/api/render?view=reference", "/api/download?what=optimized-tf.json"}) {
+    auto none = client_->Get(path);
+    ASSERT_TRUE(none);
+    EXPECT_EQ(none->status, 403) << path;
+    auto wrong = client_->Get(std::string(path) + (std::string(path).find('?') == std::string::npos ? "?" : "&") +
+                              "token=" + std::string(server_->token().size(), '0'));
+    ASSERT_TRUE(wrong);
+    EXPECT_EQ(wrong->status, 403) << path;
+  }
+  auto header = client_->Get("/api/state", {{"X-Tfmatch-Token", server_->token()}});
+  ASSERT_TRUE(header);
+  EXPECT_EQ(header->status, 200);
+  EXPECT_EQ(server_->token().size(), 32u);
+  EXPECT_NE(random_token(), random_token());
+  EXPECT_NE(server_->url().find("http://127.0.0.1:" + std::to_string(server_->port()) + "/?token="), std::string::npos);
+}
+
+TEST_F(ViewServerTest, ServesThePageWithItsScriptAndStyleInlined) {
+  auto r = get("/");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 200);
+  EXPECT_NE(r->get_header_value("Content-Type").find("text/html"), std::string::npos);
+  EXPECT_NE(r->body.find("<script>"), std::string::npos);
+  EXPECT_NE(r->body.find("<style>"), std::string::npos);
+  EXPECT_EQ(r->body.find("<!-- viewer.js -->"), std::string::npos);
+  // Nothing from the network: no external script, style or font.
+  EXPECT_EQ(r->body.find("src=\"http"), std::string::npos);
+  EXPECT_EQ(r->body.find("href=\"http"), std::string::npos);
+  EXPECT_EQ(r->body, view_page_html());
+}
+
+TEST_F(ViewServerTest, StateDescribesFieldsTfsSolversAndMetrics) {
+  const nlohmann::json s = get_json("/api/state");
+  EXPECT_EQ(s["mode"], "pair");
+  EXPECT_EQ(s["grid"]["dims"], nlohmann::json({13, 11, 9}));
+  EXPECT_EQ(s["ref_tf"]["size"], 16);
+  EXPECT_GE(s["ref_tf"]["points"]["opacity"].size(), 2u);
+  EXPECT_EQ(s["optimized_tf"]["solver"], "normal-equations");
+  EXPECT_LT(s["metrics"]["voxel_rmse_optimized_tf"].get<double>(), s["metrics"]["voxel_rmse_reference_tf"].get<double>());
+  bool has_cgls = false;
+  for (const auto& solver : s["solvers"]) has_cgls |= solver["name"] == "cgls" && !solver["options"].empty();
+  EXPECT_TRUE(has_cgls);
+  EXPECT_EQ(s["job"]["state"], "idle");
+  EXPECT_NE(s["render_command"].get<std::string>().find("tfmatch render --volume reference.vti"), std::string::npos);
+}
+
+// The page's pictures are the renderer's: the same pixels as render_volume with the outline,
+// for every view and an arbitrary camera.
+TEST_F(ViewServerTest, RenderEqualsTheRendererForTheSameCamera) {
+  auto r = get("/api/render?view=reference&az=47.5&el=-12&dist=3.5&fov=35&w=37&h=29");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200) << r->body;
+  EXPECT_EQ(r->get_header_value("Content-Type"), "image/png");
+  const Image served = decode_png(r->body, "served");
+  RenderSettings s = small_config().render;
+  s.camera = {47.5, -12.0, 3.5, 35.0};
+  s.width = 37;
+  s.height = 29;
+  const nlohmann::json state = get_json("/api/state");
+  const FieldRange range{state["fields"]["reference"]["range"][0].get<double>(),
+                         state["fields"]["reference"]["range"][1].get<double>()};
+  Image expected = composite_over(render_volume(ctx(), ref_, demo_transfer_function(16), range, s), s.background);
+  draw_box_outline(expected, VolumeGeometry::from(ref_.dims, ref_.spacing, s.z_scale), s);
+  ASSERT_EQ(served.width, expected.width);
+  ASSERT_EQ(served.height, expected.height);
+  EXPECT_EQ(served.rgb, expected.rgb);
+  EXPECT_DOUBLE_EQ(std::stod(r->get_header_value("X-Tfmatch-Distance")), 3.5);
+
+  // A framed camera reports the distance it used; every view renders.
+  for (const char* view : {"field-ref-tf", "field-opt-tf", "residual", "residual-before"}) {
+    auto v = get(std::string("/api/render?view=") + view + "&dist=0&w=24&h=20");
+    ASSERT_TRUE(v);
+    EXPECT_EQ(v->status, 200) << view << ": " << v->body;
+    EXPECT_GT(std::stod(v->get_header_value("X-Tfmatch-Distance")), 1.0);
+  }
+  auto download = get("/api/render?view=residual&w=24&h=20&download=1");
+  ASSERT_TRUE(download);
+  EXPECT_NE(download->get_header_value("Content-Disposition").find("residual.png"), std::string::npos);
+}
+
+TEST_F(ViewServerTest, BadRequestsGet4xxAndTheServerKeepsServing) {
+  const std::pair<const char*, int> cases[] = {
+      {"/api/render?view=reference&w=100000&h=64", 413},
+      {"/api/render?view=reference&w=4096&h=64", 413},
+      {"/api/render?view=reference&w=8&h=64", 400},
+      {"/api/render?view=reference&az=abc", 400},
+      {"/api/render?view=reference&az=nan", 400},
+      {"/api/render?view=reference&el=100", 400},
+      {"/api/render?view=reference&dist=0.5", 400},
+      {"/api/render?view=nothing", 400},
+      {"/api/render?view=reference&w=-5", 400},
+      {"/api/slice?view=reference&axis=q", 400},
+      {"/api/slice?view=reference&axis=z&index=9", 400},
+      {"/api/slice?view=reference&axis=z&size=5000", 413},
+      {"/api/tf-plot?which=reference&w=10", 400},
+      {"/api/tf-plot?which=reference&histogram=cubic", 400},
+      {"/api/download?what=../../etc/passwd", 400},
+      {"/api/no-such-thing", 404},
+  };
+  for (const auto& [path, status] : cases) {
+    auto r = get(path);
+    ASSERT_TRUE(r) << path;
+    EXPECT_EQ(r->status, status) << path << ": " << r->body;
+    EXPECT_TRUE(nlohmann::json::parse(r->body, nullptr, false).contains("error")) << path << ": " << r->body;
+  }
+  const std::pair<nlohmann::json, const char*> posts[] = {
+      {{{"solver", "no-such-solver"}}, "no-such-solver"},
+      {{{"solver", "normal-equations"}, {"options", {{"lr", "0.1"}}}}, "gradient-descent"},
+      {{{"solver", "gradient-descent"}, {"options", {{"iterations", "100000"}}}}, "limit"},
+      {{{"solver", "cgls"}, {"options", {{"tolerance", "2"}}}}, "tolerance"},
+      {{{"solver", "cgls"}, {"ridge", -1}}, "ridge"},
+      {{{"options", {}}}, "solver"},
+  };
+  for (const auto& [body, says] : posts) {
+    auto r = post("/api/optimize", body);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 400) << body.dump() << ": " << r->body;
+    EXPECT_NE(r->body.find(says), std::string::npos) << r->body;
+  }
+  auto not_json = client_->Post(with_token("/api/optimize"), "{solver", "application/json");
+  ASSERT_TRUE(not_json);
+  EXPECT_EQ(not_json->status, 400);
+  auto point = post("/api/point", {{"point", {1, 2, 3}}});
+  ASSERT_TRUE(point);
+  EXPECT_EQ(point->status, 409) << point->body;  // pair mode
+  auto bad_tf = post("/api/ref-tf", {{"opacity", {{{"x", 0}, {"a", 0.5}}}}, {"color", nlohmann::json::array()}});
+  ASSERT_TRUE(bad_tf);
+  EXPECT_EQ(bad_tf->status, 400);
+  // Still serving, and nothing changed.
+  const nlohmann::json s = get_json("/api/state");
+  EXPECT_EQ(s["version"], 1);
+  EXPECT_EQ(s["job"]["state"], "idle");
+  auto fine = get("/api/render?view=reference&w=32&h=32");
+  ASSERT_TRUE(fine);
+  EXPECT_EQ(fine->status, 200);
+}
+
+TEST_F(ViewServerTest, TooManyPicturesASecondGet429) {
+  ViewServerOptions slow;
+  slow.device_requests_per_second = 4;
+  ViewServer server(*session_, slow);
+  server.start();
+  httplib::Client client("127.0.0.1", server.port());
+  const std::string path = "/api/tf-plot?which=reference&w=160&h=140&token=" + server.token();
+  int too_many = 0, served = 0;
+  for (int i = 0; i < 12 && too_many == 0; ++i) {
+    auto r = client.Get(path);
+    ASSERT_TRUE(r);
+    if (r->status == 429) {
+      ++too_many;
+    } else {
+      EXPECT_EQ(r->status, 200);
+      ++served;
+    }
+  }
+  EXPECT_EQ(too_many, 1);
+  EXPECT_GE(served, 4);
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));  // the bucket refills
+  auto r = client.Get(path);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 200);
+  EXPECT_EQ(get("/api/state")->status, 200);  // state is not a picture: never limited
+}
+
+TEST_F(ViewServerTest, SlicesPlotsMetricsAndDownloads) {
+  auto slice = get("/api/slice?view=field-opt-tf&axis=y&index=3&size=64");
+  ASSERT_TRUE(slice);
+  ASSERT_EQ(slice->status, 200) << slice->body;
+  const Image img = decode_png(slice->body, "slice");
+  EXPECT_EQ(std::max(img.width, img.height), 64u);
+  auto other = get("/api/slice?view=field-opt-tf&axis=y&index=8&size=64");
+  ASSERT_TRUE(other);
+  EXPECT_NE(other->body, slice->body);  // another plane
+  auto plot = get("/api/tf-plot?which=field-opt-tf&w=320&h=160&histogram=linear");
+  ASSERT_TRUE(plot);
+  ASSERT_EQ(plot->status, 200);
+  EXPECT_EQ(decode_png(plot->body, "plot").width, 320u);
+  const nlohmann::json m = get_json("/api/metrics?w=48&h=40");
+  EXPECT_GT(m["optimized_tf"]["psnr"].get<double>(), m["reference_tf"]["psnr"].get<double>());
+  auto tf = get("/api/download?what=optimized-tf.json");
+  ASSERT_TRUE(tf);
+  EXPECT_EQ(tf->status, 200);
+  EXPECT_NE(tf->body.find("\"rgba\""), std::string::npos);
+  EXPECT_NE(tf->get_header_value("Content-Disposition").find("optimized-tf.json"), std::string::npos);
+  auto preset = get("/api/download?what=optimized-tf.paraview.json");
+  ASSERT_TRUE(preset);
+  EXPECT_NE(preset->body.find("RGBPoints"), std::string::npos);
+  auto vti = get("/api/download?what=residual.vti");
+  ASSERT_TRUE(vti);
+  EXPECT_EQ(vti->body.rfind("<?xml", 0), 0u);
+  EXPECT_NE(vti->body.find("WholeExtent=\"0 12 0 10 0 8\""), std::string::npos);
+}
+
+TEST_F(ViewServerTest, OptimizeJobReplacesTheTfAndReportsProgressAsEvents) {
+  const std::string before = get("/api/render?view=field-opt-tf&w=32&h=32")->body;
+  auto r = post("/api/optimize", {{"solver", "gradient-descent"}, {"options", {{"iterations", 40}, {"lr", "0.05"}}}});
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  // The event stream delivers the job until it ends, then closes.
+  std::string events;
+  auto stream = client_->Get(with_token("/api/progress"), [&](const char* data, size_t n) {
+    events.append(data, n);
+    return true;
+  });
+  ASSERT_TRUE(stream);
+  EXPECT_EQ(stream->status, 200);
+  EXPECT_EQ(stream->get_header_value("Content-Type"), "text/event-stream");
+  EXPECT_EQ(events.rfind("data: {", 0), 0u) << events;
+  const std::string last = events.substr(events.rfind("data: ") + 6);
+  const nlohmann::json final_job = nlohmann::json::parse(last);
+  EXPECT_EQ(final_job["state"], "done") << last;
+  EXPECT_EQ(final_job["result"]["solver"], "gradient-descent");
+  wait_for_job();
+  const nlohmann::json s = get_json("/api/state");
+  EXPECT_EQ(s["optimized_tf"]["solver"], "gradient-descent");
+  EXPECT_EQ(s["solver"]["name"], "gradient-descent");
+  EXPECT_EQ(s["solver"]["options"]["iterations"], "40");
+  EXPECT_EQ(s["version"], 2);
+  EXPECT_NE(get("/api/render?view=field-opt-tf&w=32&h=32")->body, before);
+}
+
+TEST_F(ViewServerTest, ReferenceTfEditsChangeTheReferenceViewsAndCanReoptimize) {
+  const nlohmann::json s0 = get_json("/api/state");
+  const std::string before = get("/api/render?view=reference&w=32&h=32")->body;
+  // Unchanged points give the same table; a raised opacity point gives another picture.
+  nlohmann::json points = s0["ref_tf"]["points"];
+  auto same = post("/api/ref-tf", points);
+  ASSERT_TRUE(same);
+  ASSERT_EQ(same->status, 200) << same->body;
+  EXPECT_EQ(get("/api/render?view=reference&w=32&h=32")->body, before);
+  for (auto& p : points["opacity"]) p["a"] = std::min(1.0, p["a"].get<double>() * 0.3);
+  auto lower = post("/api/ref-tf", points);
+  ASSERT_TRUE(lower);
+  ASSERT_EQ(lower->status, 200);
+  EXPECT_NE(get("/api/render?view=reference&w=32&h=32")->body, before);
+  const nlohmann::json s1 = get_json("/api/state");
+  EXPECT_EQ(s1["optimized_tf"]["solver"], "normal-equations");
+  EXPECT_NE(s1["metrics"]["voxel_rmse_reference_tf"], s0["metrics"]["voxel_rmse_reference_tf"]);
+  points["reoptimize"] = true;
+  points["color"][0]["rgb"] = "#ff0000";
+  auto job = post("/api/ref-tf", points);
+  ASSERT_TRUE(job);
+  ASSERT_EQ(job->status, 202) << job->body;
+  wait_for_job();
+  const nlohmann::json s2 = get_json("/api/state");
+  EXPECT_EQ(s2["job"]["state"], "done");
+  EXPECT_EQ(s2["ref_tf"]["points"]["color"][0]["rgb"], "#ff0000");
+}
+
+// A job holds the device: pictures get 503 with Retry-After, state and job keep answering, and
+// a second job is refused; when it ends, pictures come again.
+TEST_F(ViewServerTest, DeviceRequestsDuringAJobGet503) {
+  // SetUp set TFMATCH_PAUSE_AT=solve#2 (cancellation.h): the job's solve waits at its first
+  // checkpoint (the process's second "solve" one) until cancellation is requested.
+  auto r = post("/api/optimize", {{"solver", "cgls"}});
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  if (!session_->job_running()) {
+    wait_for_job();
+    GTEST_SKIP() << "run alone (ctest runs one process per test): the pause point is read at a process's first "
+                    "checkpoint, and an earlier test in this process passed it";
+  }
+  auto busy = get("/api/render?view=reference&w=32&h=32");
+  ASSERT_TRUE(busy);
+  EXPECT_EQ(busy->status, 503);
+  EXPECT_EQ(busy->get_header_value("Retry-After"), "1");
+  EXPECT_EQ(get("/api/slice?view=reference")->status, 503);
+  EXPECT_EQ(get("/api/state")->status, 200);
+  EXPECT_EQ(get_json("/api/job")["state"], "running");
+  auto second = post("/api/optimize", {{"solver", "normal-equations"}});
+  ASSERT_TRUE(second);
+  EXPECT_EQ(second->status, 409);
+  request_cancel();  // lets the paused solve go on to its cancellation check
+  wait_for_job();
+  reset_cancel();
+  const nlohmann::json job = get_json("/api/job");
+  EXPECT_EQ(job["state"], "failed");
+  EXPECT_NE(job["error"].get<std::string>().find("cancelled"), std::string::npos);
+  EXPECT_EQ(get_json("/api/state")["version"], 1);  // a failed job changes nothing
+  EXPECT_EQ(get("/api/render?view=reference&w=32&h=32")->status, 200);
+  unsetenv("TFMATCH_PAUSE_AT");
+}
+
+TEST(ViewTfPoints, SimplifiedPointsReproduceTheTableWithinTolerance) {
+  const TransferFunction tf = demo_transfer_function(64);
+  const ControlPointTf cp = editor_points(tf);
+  EXPECT_LT(cp.opacity.size(), 64u);
+  EXPECT_LT(cp.color.size(), 64u);
+  EXPECT_EQ(cp.opacity.front().position, 0.0);
+  EXPECT_EQ(cp.opacity.back().position, 1.0);
+  const TransferFunction back = table_from_control_points(parse_editor_points(editor_points_json(cp)), 64);
+  for (size_t j = 0; j < 64; ++j)
+    for (int c = 0; c < 4; ++c) EXPECT_NEAR(back.rgba[j][size_t(c)], tf.rgba[j][size_t(c)], 1.0 / 255.0 + 1e-12) << j;
+  // A small table keeps every entry, exactly.
+  const TransferFunction small = demo_transfer_function(9);
+  const TransferFunction same = table_from_control_points(parse_editor_points(editor_points_json(editor_points(small))), 9);
+  for (size_t j = 0; j < 9; ++j)
+    for (int c = 0; c < 4; ++c) EXPECT_NEAR(same.rgba[j][size_t(c)], small.rgba[j][size_t(c)], 1e-12);
+}
+
+TEST(ViewTfPoints, BadPointsAreRefusedSayingWhy) {
+  auto refuse = [](const nlohmann::json& j, const std::string& says) {
+    try {
+      parse_editor_points(j);
+      ADD_FAILURE() << "accepted " << j.dump();
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(says), std::string::npos) << e.what();
+    }
+  };
+  const nlohmann::json colour = {{{"x", 0}, {"rgb", "#000000"}}, {{"x", 1}, {"rgb", "#ffffff"}}};
+  const nlohmann::json opacity = {{{"x", 0}, {"a", 0}}, {{"x", 1}, {"a", 1}}};
+  refuse({{"opacity", opacity}}, "expected");
+  refuse({{"opacity", {{{"x", 0}, {"a", 0}}}}, {"color", colour}}, "2 to 256");
+  refuse({{"opacity", {{{"x", 0.5}, {"a", 0}}, {{"x", 0.2}, {"a", 1}}}}, {"color", colour}}, "ascending");
+  refuse({{"opacity", {{{"x", 0}, {"a", 0}}, {{"x", 1}, {"a", 1.5}}}}, {"color", colour}}, "[0, 1]");
+  refuse({{"opacity", opacity}, {"color", {{{"x", 0}, {"rgb", "red"}}, {{"x", 1}, {"rgb", "#fff"}}}}}, "#rrggbb");
+  refuse({{"opacity", {{{"x", "0"}, {"a", 0}}, {{"x", 1}, {"a", 1}}}}, {"color", colour}}, "number");
+  const ControlPointTf ok = parse_editor_points({{"opacity", opacity}, {"color", colour}});
+  EXPECT_EQ(ok.color[1].srgb[0], 1.0);
+}
+
+// Ensemble mode: a new reference point recomputes both correlation fields and optimizes again.
+TEST_F(GpuTest, ViewEnsembleNewReferencePointRecomputesTheFields) {
+  ViewEnsemble e;
+  e.ensemble = synthetic_ensemble(12, 10, 6, 16);
+  e.params.measure = CorrelationMeasure::MiCoefficient;
+  e.versus = CorrelationMeasure::Pearson;
+  e.point = synthetic_ensemble_reference(e.ensemble);
+  ViewConfig config = small_config();
+  config.ref_tf = correlation_transfer_function(16);
+  ViewSession session(ctx(), std::move(e), config);
+  ViewServer server(session, ViewServerOptions{});
+  server.start();
+  httplib::Client client("127.0.0.1", server.port());
+  client.set_read_timeout(120);
+  const std::string t = "token=" + server.token();
+  const nlohmann::json s0 = nlohmann::json::parse(client.Get("/api/state?" + t)->body);
+  EXPECT_EQ(s0["mode"], "ensemble");
+  EXPECT_EQ(s0["ensemble"]["measure"], "mi-coefficient");
+  EXPECT_EQ(s0["ensemble"]["members"], 16);
+  EXPECT_EQ(s0["fields"]["reference"]["range"], nlohmann::json({0.0, 1.0}));  // the measure's own scale
+  const std::string before = client.Get("/api/render?view=field-ref-tf&w=32&h=32&" + t)->body;
+  auto outside = client.Post("/api/point?" + t, R"({"point": [12, 0, 0]})", "application/json");
+  ASSERT_TRUE(outside);
+  EXPECT_EQ(outside->status, 400) << outside->body;
+  auto r = client.Post("/api/point?" + t, R"({"point": [2, 3, 1]})", "application/json");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  for (int i = 0; i < 6000 && session.job_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  session.wait_for_job();
+  const nlohmann::json s1 = nlohmann::json::parse(client.Get("/api/state?" + t)->body);
+  EXPECT_EQ(s1["job"]["state"], "done") << s1["job"].dump();
+  EXPECT_EQ(s1["ensemble"]["point"], nlohmann::json({2, 3, 1}));
+  EXPECT_EQ(s1["markers"], nlohmann::json::array({{2, 3, 1}}));
+  EXPECT_NE(client.Get("/api/render?view=field-ref-tf&w=32&h=32&" + t)->body, before);
+}
+
+}  // namespace
+}  // namespace tfm
