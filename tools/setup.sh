@@ -19,6 +19,12 @@ if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
 packages=$(grep -v '^#' tools/debian-packages.txt | tr '\n' ' ')
 $sudo apt-get update
 $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends $packages
+# The browser test's driver (tests/browser: puppeteer-core, no browser download) needs Node.js and
+# npm; Debian's are used where the machine has none of its own.
+if ! command -v npm >/dev/null; then
+  $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends nodejs npm
+fi
+npm ci --prefix tests/browser --no-audit --no-fund --loglevel=error
 [ "$deps_only" -eq 1 ] && exit 0
 
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo

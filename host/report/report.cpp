@@ -171,7 +171,7 @@ std::vector<std::string> report_file_names() {
           "residual_optimized_tf.png", "tf_reference.png",  "tf_field_reference.png", "tf_optimized.png",
           "tf_residual.png",     "loss.png",               "overview.png",           "metrics.json",
           "command.txt",         "reference_tf.json",      "optimized_tf.json",      "slices_x.png",
-          "slices_y.png",        "slices_z.png",           "index.html"};
+          "slices_y.png",        "slices_z.png",           "inputs.json",            "index.html"};
 }
 
 ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::filesystem::path& final_dir) {
@@ -321,6 +321,10 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   write_file_atomically(dir / "reference_tf.json", tf_to_json(in.ref_tf));
   write_file_atomically(dir / "optimized_tf.json", tf_to_json(r.tf));
   for (const char* f : {"command.txt", "reference_tf.json", "optimized_tf.json"}) out.files.push_back(f);
+  if (!in.inputs.is_null()) {
+    write_file_atomically(dir / "inputs.json", in.inputs.dump(2) + "\n");
+    out.files.push_back("inputs.json");
+  }
 
   advance("index.html");
   write_file_atomically(dir / "index.html", report_html(in, out, metrics));

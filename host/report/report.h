@@ -49,6 +49,9 @@ struct ReportInputs {
   // Saved with the report (command.txt, the page) so that it can be reproduced.
   std::string command_line;
   std::string version;
+  // What reopens the report's inputs (`tfmatch view --report DIR`): written as inputs.json when
+  // not null (file specs with absolute paths, ranges, TF size, solver and its options).
+  nlohmann::json inputs;
 };
 
 struct ReportSummary {

@@ -167,6 +167,14 @@ int run(const DemoArgs& a) {
     inputs.histogram_log = a.histogram == "log";
     inputs.command_line = globals().command_line;
     inputs.version = version_line();
+    // `tfmatch view --report` reopens the demo's fields and reference TF where the demo leaves them.
+    const std::filesystem::path final_out = std::filesystem::absolute(a.out);
+    inputs.inputs = {{"ref", (final_out / in.written.at(0)).string()},
+                     {"field", (final_out / in.written.at(1)).string()},
+                     {"ref_tf", (final_out / "reference_tf.json").string()},
+                     {"tf_size", 64},
+                     {"solver", a.solver},
+                     {"solver_options", a.extra}};
     summary = write_report(*ctx, inputs, report_dir);
   }
   outputs.commit();

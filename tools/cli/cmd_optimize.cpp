@@ -88,6 +88,11 @@ int run(const OptimizeArgs& a) {
     inputs.histogram_log = a.histogram == "log";
     inputs.command_line = globals().command_line;
     inputs.version = version_line();
+    inputs.inputs = input_args_json(a.in);
+    inputs.inputs["solver"] = a.solver;
+    inputs.inputs["solver_options"] = a.extra;
+    inputs.inputs["ridge"] = a.ridge;
+    inputs.inputs["smooth"] = a.smooth;
     summary = write_report(*ctx, inputs, a.report);
   }
   outputs.commit();

@@ -76,6 +76,52 @@ void load_inputs(const InputArgs& a, LoadedInputs& out) {
   req.allow_out_of_range = a.allow_out_of_range;
 }
 
+namespace {
+// A FILE or FILE:VAR... spec with an absolute FILE (a relative one is resolved against `base`).
+std::string absolute_spec(const std::string& spec, const std::filesystem::path& base) {
+  if (spec.empty()) return spec;
+  const std::filesystem::path p(spec);
+  return p.is_absolute() ? spec : (std::filesystem::absolute(base) / p).lexically_normal().string();
+}
+}  // namespace
+
+nlohmann::json input_args_json(const InputArgs& a) {
+  const std::filesystem::path cwd = std::filesystem::current_path();
+  nlohmann::json j = {{"ref", absolute_spec(a.ref, cwd)},
+                      {"field", absolute_spec(a.field, cwd)},
+                      {"ref_tf", absolute_spec(a.ref_tf, cwd)},
+                      {"tf_size", a.tf_size},
+                      {"ref_range", a.ref_range},
+                      {"field_range", a.field_range},
+                      {"allow_out_of_range", a.allow_out_of_range},
+                      {"dims", a.volume.dims},
+                      {"type", a.volume.type},
+                      {"big_endian", a.volume.big_endian},
+                      {"var", a.volume.var}};
+  if (a.volume.time) j["time"] = *a.volume.time;
+  if (a.volume.member) j["member"] = *a.volume.member;
+  return j;
+}
+
+InputArgs input_args_from_json(const nlohmann::json& j, const std::filesystem::path& base) {
+  InputArgs a;
+  auto text = [&](const char* key) { return j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : std::string(); };
+  a.ref = absolute_spec(text("ref"), base);
+  a.field = absolute_spec(text("field"), base);
+  a.ref_tf = absolute_spec(text("ref_tf"), base);
+  a.tf_size = j.value("tf_size", 64u);
+  a.ref_range = text("ref_range");
+  a.field_range = text("field_range");
+  a.allow_out_of_range = j.value("allow_out_of_range", false);
+  if (j.contains("dims") && j["dims"].is_array()) a.volume.dims = j["dims"].get<std::vector<uint64_t>>();
+  a.volume.type = text("type");
+  a.volume.big_endian = j.value("big_endian", false);
+  a.volume.var = text("var");
+  if (j.contains("time") && j["time"].is_number_unsigned()) a.volume.time = j["time"].get<uint64_t>();
+  if (j.contains("member") && j["member"].is_number_unsigned()) a.volume.member = j["member"].get<uint64_t>();
+  return a;
+}
+
 void add_allow_out_of_range_flag(CLI::App* sub, bool& allow) {
   sub->add_flag("--allow-out-of-range", allow,
                 "Go on when a TF file's or given range leaves over 95 % of a field's values outside it (over 5 % "

@@ -5,11 +5,13 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include "optimize.h"
 #include "volume.h"
@@ -52,6 +54,11 @@ struct LoadedInputs {
 // Loads the volumes and the reference TF (printing TF reader notes to stderr) and fills the
 // request's inputs, ranges and TF size. Throws std::runtime_error naming a bad file or flag.
 void load_inputs(const InputArgs& args, LoadedInputs& out);
+
+// The flags as JSON with absolute paths (a report's inputs.json, which `tfmatch view --report`
+// reopens), and back; relative paths in the JSON are taken relative to `base`.
+nlohmann::json input_args_json(const InputArgs& args);
+InputArgs input_args_from_json(const nlohmann::json& j, const std::filesystem::path& base);
 
 // --allow-out-of-range, for the commands that take ranges (field_mapping.h check_range_coverage).
 void add_allow_out_of_range_flag(CLI::App* sub, bool& allow);

@@ -1,6 +1,8 @@
 // Signal handlers and the interrupt watchdog of the command line.
 #include "interrupts.h"
 
+#include <atomic>
+
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
@@ -16,7 +18,8 @@
 namespace tfm::cli {
 namespace {
 
-int g_wake[2] = {-1, -1};  // the handler writes the signal number; the watchdog reads it
+int g_wake[2] = {-1, -1};
+std::atomic<int64_t> g_grace_ms{kGrace.count()};  // the handler writes the signal number; the watchdog reads it
 
 // Async-signal-safe: an atomic store and a write(2).
 void on_signal(int signal) {
@@ -35,7 +38,7 @@ void watchdog() {
   // Give the work kGrace to reach a checkpoint and unwind (main() then exits and this thread
   // with it); a second signal cuts the wait short.
   pollfd wake{g_wake[0], POLLIN, 0};
-  while (::poll(&wake, 1, int(kGrace.count())) < 0 && errno == EINTR) {
+  while (::poll(&wake, 1, int(g_grace_ms.load())) < 0 && errno == EINTR) {
   }
   abandon_temporary_paths(signal);
   std::fprintf(stderr, "\ntfmatch: interrupted (%s): stopped without waiting for the current step; "
@@ -53,6 +56,8 @@ const char* signal_name(int signal) {
     default: return "a signal";
   }
 }
+
+void set_interrupt_grace(std::chrono::milliseconds grace) { g_grace_ms = grace.count(); }
 
 void install_interrupt_handlers() {
   if (::pipe2(g_wake, O_CLOEXEC) != 0) return;  // no watchdog: checkpoints still stop the work

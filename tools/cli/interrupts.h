@@ -15,6 +15,11 @@ constexpr std::chrono::milliseconds kGrace{800};
 // Installs the handlers and starts the watchdog; call once, before any work.
 void install_interrupt_handlers();
 
+// For a command whose normal end is a signal (`tfmatch view`): the watchdog waits `grace`
+// instead of kGrace for it to stop by itself (closing its server, letting a running job reach
+// its next checkpoint) before it exits on its own. A second signal still ends it at once.
+void set_interrupt_grace(std::chrono::milliseconds grace);
+
 // "SIGINT", "SIGTERM" or "signal N".
 const char* signal_name(int signal);
 

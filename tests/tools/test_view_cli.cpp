@@ -1,0 +1,180 @@
+// `tfmatch view` as a user runs it: the URL printed, the page served, Ctrl-C ending it with exit
+// 0 and no file written; its pictures equal `tfmatch render`'s from the page's own command line
+// and downloads; --report reopening a report; the ERA5 ensemble; usage errors.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <regex>
+
+#include <nlohmann/json.hpp>
+
+#include "cli_runner.h"
+#include "vk_test_env.h"
+// After Eigen (through the project headers): OpenSSL's headers, which httplib.h includes, define
+// macros that break Eigen's product kernels when they come first.
+#include <httplib.h>
+
+namespace tfm {
+namespace {
+
+namespace fs = std::filesystem;
+using test::CliProcess;
+using test::run_cli;
+
+// A temporary directory that the spawned process runs in (its cwd), removed at the end.
+struct TempDir {
+  fs::path path;
+  fs::path previous = fs::current_path();
+  TempDir() {
+    char name[] = "/tmp/tfmatch_view_XXXXXX";
+    path = mkdtemp(name);
+  }
+  ~TempDir() {
+    fs::current_path(previous);
+    fs::remove_all(path);
+  }
+  std::vector<std::string> entries() const {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(path)) names.push_back(e.path().filename().string());
+    return names;
+  }
+};
+
+// A running `tfmatch view`: its port and token from the printed URL.
+struct RunningView {
+  std::unique_ptr<CliProcess> process;
+  int port = 0;
+  std::string token;
+
+  explicit RunningView(const std::string& args) : process(std::make_unique<CliProcess>("view --port 0 " + args)) {
+    if (!process->wait_for("?token=", std::chrono::seconds(180))) return;
+    process->wait_for("\n", std::chrono::seconds(5));
+    std::smatch m;
+    const std::string out = process->output();
+    if (std::regex_search(out, m, std::regex(R"(http://127\.0\.0\.1:(\d+)/\?token=([0-9a-f]{32}))"))) {
+      port = std::stoi(m[1]);
+      token = m[2];
+    }
+  }
+  std::string get(const std::string& path, int* status = nullptr) const {
+    httplib::Client client("127.0.0.1", port);
+    client.set_read_timeout(120);
+    auto r = client.Get(path + (path.find('?') == std::string::npos ? "?" : "&") + "token=" + token);
+    if (status) *status = r ? r->status : -1;
+    return r ? r->body : std::string();
+  }
+  nlohmann::json state() const { return nlohmann::json::parse(get("/api/state")); }
+};
+
+TEST(ViewCli, ServesTheDemoAndCtrlCEndsItWithExitZeroWritingNothing) {
+  TempDir dir;
+  fs::current_path(dir.path);
+  RunningView view("--demo --size 20");
+  ASSERT_GT(view.port, 0) << view.process->output();
+  int status = 0;
+  const std::string page = view.get("/", &status);
+  EXPECT_EQ(status, 200);
+  EXPECT_NE(page.find("<script>"), std::string::npos);
+  const nlohmann::json s = view.state();
+  EXPECT_EQ(s["mode"], "pair");
+  EXPECT_EQ(s["grid"]["dims"], nlohmann::json({20, 20, 20}));
+  // Without the token: 403.
+  httplib::Client anonymous("127.0.0.1", view.port);
+  auto r = anonymous.Get("/api/state");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 403);
+  view.process->signal(SIGINT);
+  const test::CliResult done = view.process->finish(std::chrono::seconds(30));
+  EXPECT_EQ(done.exit_code, 0) << done.output;
+  EXPECT_NE(done.output.find("tfmatch view: stopped"), std::string::npos) << done.output;
+  EXPECT_TRUE(dir.entries().empty());
+}
+
+// The page's render command line, with the page's downloads, reproduces its pictures exactly.
+TEST(ViewCli, RenderCommandOfThePageReproducesItsImages) {
+  TempDir dir;
+  RunningView view("--demo --size 20 --opacity-scale 30 --step 0.7");
+  ASSERT_GT(view.port, 0) << view.process->output();
+  const nlohmann::json s = view.state();
+  for (const char* file : {"reference.vti", "field.vti", "reference-tf.json", "optimized-tf.json"}) {
+    int status = 0;
+    const std::string bytes = view.get(std::string("/api/download?what=") + file, &status);
+    ASSERT_EQ(status, 200) << file;
+    std::ofstream(dir.path / file, std::ios::binary) << bytes;
+  }
+  const std::string camera = "--azimuth 63 --elevation 28 --distance 2.5 --fov 31 --width 48 --height 40";
+  for (const char* v : {"reference", "field-opt-tf"}) {
+    const std::string served = view.get(std::string("/api/render?view=") + v + "&az=63&el=28&dist=2.5&fov=31&w=48&h=40");
+    std::string command = s["render_commands"][v].get<std::string>();
+    ASSERT_EQ(command.rfind("tfmatch render ", 0), 0u) << command;
+    command = command.substr(std::string("tfmatch ").size());
+    for (const char* file : {"reference.vti", "field.vti", "reference-tf.json", "optimized-tf.json"}) {
+      const size_t at = command.find(file);
+      if (at != std::string::npos) command.replace(at, std::strlen(file), (dir.path / file).string());
+    }
+    const fs::path out = dir.path / (std::string(v) + ".png");
+    const test::CliResult rendered = run_cli(command + " " + camera + " --out " + out.string());
+    ASSERT_EQ(rendered.exit_code, 0) << command << "\n" << rendered.output;
+    std::ifstream in(out, std::ios::binary);
+    const std::string cli_png((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(cli_png, served) << v << ": " << command;
+  }
+  view.process->signal(SIGINT);
+  EXPECT_EQ(view.process->finish(std::chrono::seconds(30)).exit_code, 0);
+}
+
+TEST(ViewCli, ReopensAReportsInputs) {
+  TempDir dir;
+  const fs::path demo = dir.path / "demo";
+  const test::CliResult made = run_cli("demo --size 16 --width 64 --height 64 -q --out " + demo.string());
+  ASSERT_EQ(made.exit_code, 0) << made.output;
+  ASSERT_TRUE(fs::exists(demo / "inputs.json"));
+  RunningView view("--report " + demo.string());
+  ASSERT_GT(view.port, 0) << view.process->output();
+  const nlohmann::json s = view.state();
+  EXPECT_NE(s["fields"]["reference"]["name"].get<std::string>().find("reference_16x16x16_float32.raw"),
+            std::string::npos);
+  EXPECT_EQ(s["grid"]["dims"], nlohmann::json({16, 16, 16}));
+  view.process->signal(SIGINT);
+  EXPECT_EQ(view.process->finish(std::chrono::seconds(30)).exit_code, 0);
+  // A directory without inputs.json says so.
+  const test::CliResult missing = run_cli("view --port 0 --report " + dir.path.string());
+  EXPECT_EQ(missing.exit_code, 1) << missing.output;
+  EXPECT_NE(missing.output.find("inputs.json"), std::string::npos) << missing.output;
+}
+
+TEST(ViewCli, Era5EnsembleFromTheSharedData) {
+  const std::string d = test::shared_data_dir();
+  if (d.empty()) GTEST_SKIP() << "needs ../shared/data (ERA5 ensemble)";
+  RunningView view("--ensemble " + d + "/era5_ensemble_grib1/era5-levels-members.grib:t --point lon=9,lat=45,level=850");
+  ASSERT_GT(view.port, 0) << view.process->output();
+  const nlohmann::json s = view.state();
+  EXPECT_EQ(s["mode"], "ensemble");
+  EXPECT_EQ(s["ensemble"]["members"], 10);
+  EXPECT_EQ(s["ensemble"]["point"], nlohmann::json({3, 45, 0}));
+  EXPECT_EQ(s["grid"]["dims"], nlohmann::json({120, 61, 2}));
+  int status = 0;
+  view.get("/api/render?view=residual&w=64&h=48", &status);
+  EXPECT_EQ(status, 200);
+  view.process->signal(SIGINT);
+  EXPECT_EQ(view.process->finish(std::chrono::seconds(30)).exit_code, 0);
+}
+
+TEST(ViewCli, UsageErrors) {
+  for (const char* args : {"view", "view --demo --ref a.raw", "view --ref a.raw --field b.raw --port 0",
+                           "view --demo --port 70000", "view --demo --solver nothing", "view --demo --lr 0.1"}) {
+    const test::CliResult r = run_cli(args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+  }
+  // An address that is not this machine's cannot be bound: a clear error, exit 1.
+  const test::CliResult r = run_cli("view --demo --size 8 --port 0 --bind 192.0.2.1");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("cannot listen on 192.0.2.1"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("warning: listening on 192.0.2.1"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace tfm

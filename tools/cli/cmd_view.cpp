@@ -1,0 +1,233 @@
+// `tfmatch view`: interactive inspection in the browser, served by tfmatch itself
+// (host/viewer): the fields stay on the device, the page asks for pictures and optimizations.
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <thread>
+
+#include "cancellation.h"
+#include "cli.h"
+#include "correlation.h"
+#include "ensemble_io.h"
+#include "input_options.h"
+#include "interrupts.h"
+#include "output_check.h"
+#include "render_options.h"
+#include "solver_options.h"
+#include "synthetic.h"
+#include "synthetic_ensemble.h"
+#include "tf_formats.h"
+#include "view_server.h"
+#include "view_session.h"
+#include "volume_io.h"
+
+namespace tfm::cli {
+namespace {
+
+struct ViewArgs {
+  InputArgs in;                 // --ref, --ref-tf, --field, ranges, --tf-size, raw layout, selectors
+  std::string report;           // reopen a report's inputs
+  bool demo = false;            // the built-in pair (or, with --ensemble, the built-in ensemble)
+  uint64_t size = 0;            // demo grid size (0: 96 for the pair, 64 for the ensemble)
+  std::string ensemble;         // FILE[:VAR]; empty with --ensemble alone (the demo's)
+  bool ensemble_given = false;
+  std::vector<std::string> members;
+  std::string member_dim, measure = "mi-coefficient", versus = "pearson", point;
+  uint32_t bins = 16, k = 3;
+  std::string solver = "normal-equations";
+  double ridge = 0.0, smooth = 0.0;
+  std::map<std::string, std::string> extra;
+  std::vector<std::string> markers;
+  RenderSettings render;
+  std::string bind = "127.0.0.1";
+  int port = 8765;
+};
+
+bool is_loopback(const std::string& address) {
+  return address == "127.0.0.1" || address == "localhost" || address == "::1" || address.rfind("127.", 0) == 0;
+}
+
+CorrelationMeasure measure_flag(const std::string& text, const std::string& flag) {
+  try {
+    return parse_correlation_measure(text);
+  } catch (const std::invalid_argument& e) {
+    throw CLI::ValidationError(flag, e.what());
+  }
+}
+
+// The inputs a report recorded (report.h: inputs.json), as if given on the command line.
+void inputs_from_report(const std::string& dir, InputArgs& in, ViewArgs& a) {
+  const std::filesystem::path path = std::filesystem::path(dir) / "inputs.json";
+  std::ifstream file(path);
+  if (!file)
+    throw std::runtime_error(path.string() + ": cannot read it (reports written by tfmatch 0.3 optimize --report or "
+                             "demo record their inputs there)");
+  const nlohmann::json j = nlohmann::json::parse(file, nullptr, false);
+  if (j.is_discarded() || !j.is_object() || !j.contains("ref") || !j.contains("field") || !j.contains("ref_tf"))
+    throw std::runtime_error(path.string() + ": not a tfmatch report's inputs (expected ref, field and ref_tf)");
+  in = input_args_from_json(j, std::filesystem::path(dir));
+  if (j.contains("solver") && j["solver"].is_string()) a.solver = j["solver"].get<std::string>();
+  if (j.contains("solver_options") && j["solver_options"].is_object())
+    for (const auto& [k, v] : j["solver_options"].items())
+      if (v.is_string()) a.extra[k] = v.get<std::string>();
+  a.ridge = j.value("ridge", 0.0);
+  a.smooth = j.value("smooth", 0.0);
+}
+
+int run(ViewArgs a) {
+  set_progress_enabled(!globals().quiet);
+  const int modes = int(a.demo) + int(!a.report.empty()) + int(!a.in.ref.empty() || !a.in.field.empty()) +
+                    int(!a.ensemble.empty() || !a.members.empty());
+  if (modes != 1)
+    throw CLI::ValidationError("view", "give one of: --ref/--ref-tf/--field (a pair of fields), --report DIR, "
+                                       "--ensemble FILE[:VAR] (or --members), or --demo [--ensemble]");
+  if (a.ensemble_given && a.ensemble.empty() && !a.demo && a.members.empty())
+    throw CLI::ValidationError("--ensemble", "needs FILE[:VAR], or --demo for the built-in ensemble");
+  const bool ensemble_mode = a.ensemble_given || !a.members.empty();
+  if (!a.report.empty()) inputs_from_report(a.report, a.in, a);
+  if (!ensemble_mode && !a.demo && (a.in.ref.empty() || a.in.field.empty() || a.in.ref_tf.empty()))
+    throw CLI::ValidationError("view", "a pair of fields needs --ref, --ref-tf and --field");
+
+  SolverSettings settings;
+  settings.solve.ridge = a.ridge;
+  settings.solve.smooth = a.smooth;
+  settings.extra = a.extra;
+  settings.render = a.render;
+  check_usage([&] { parse_solver_args(require_solver(a.solver), settings); });
+  validate(a.render);
+  FilePlan plan;
+  plan.input_spec(a.in.ref, "--ref").input_spec(a.in.field, "--field").input_spec(a.in.ref_tf, "--ref-tf");
+  plan.input_spec(a.ensemble, "--ensemble");
+  plan.check();
+  if (!is_loopback(a.bind))
+    std::cerr << "tfmatch view: warning: listening on " << a.bind
+              << ", not only this machine: anyone who can reach it and learns the URL's token can use it\n";
+
+  auto ctx = make_context();
+  check_render_size(*ctx, a.render);
+  ViewConfig config;
+  config.render = a.render;
+  config.solver = a.solver;
+  config.solver_settings = settings;
+  config.tf_size = a.in.tf_size;
+  config.allow_out_of_range = a.in.allow_out_of_range;
+  if (!a.in.ref_range.empty()) config.ref_range = parse_range(a.in.ref_range, "--ref-range");
+  if (!a.in.field_range.empty()) config.field_range = parse_range(a.in.field_range, "--field-range");
+  if (!a.in.ref_tf.empty()) {
+    std::vector<std::string> notes;
+    config.ref_tf = read_transfer_function(a.in.ref_tf, {}, &notes);
+    for (const auto& n : notes) std::cerr << "tfmatch: note: " << n << "\n";
+  }
+
+  std::unique_ptr<ViewSession> session;
+  if (ensemble_mode) {
+    ViewEnsemble e;
+    e.params.measure = measure_flag(a.measure, "--measure");
+    e.versus = measure_flag(a.versus, "--versus");
+    e.params.bins = a.bins;
+    e.params.k = a.k;
+    VolumeOptions vo = a.in.volume.options();
+    vo.member_dim = a.member_dim;
+    if (a.demo) {
+      const uint64_t n = a.size ? a.size : 64;
+      e.ensemble = synthetic_ensemble(n, n, std::max<uint64_t>(n / 2, 2), 64);
+    } else {
+      e.ensemble = a.members.empty() ? load_ensemble(a.ensemble, vo) : load_ensemble_members(expand_member_patterns(a.members), vo);
+    }
+    if (e.ensemble.member_count < 3)
+      throw std::runtime_error(e.ensemble.grid.name + ": " + std::to_string(e.ensemble.member_count) +
+                               " member(s); a correlation over members needs at least 3");
+    const Volume& grid = e.ensemble.grid;
+    e.point = !a.point.empty()  ? resolve_grid_point(grid, a.point, "--point")
+              : a.demo          ? synthetic_ensemble_reference(e.ensemble)
+                                : GridIndex{grid.dims[0] / 2, grid.dims[1] / 2, grid.dims[2] / 2};
+    if (config.ref_tf.size() < 2) config.ref_tf = correlation_transfer_function(64);  // its range: the measure's scale
+    config.title = std::string(correlation_measure_name(e.params.measure)) + " vs " + correlation_measure_name(e.versus) +
+                   " of " + (a.demo ? std::string("the built-in ensemble") : grid.name);
+    session = std::make_unique<ViewSession>(*ctx, std::move(e), config);
+  } else {
+    Volume ref, field;
+    if (a.demo) {
+      const uint64_t n = a.size ? a.size : 96;
+      ref = synthetic_reference(n, n, n);
+      field = synthetic_remapped(ref);
+      config.ref_tf = demo_transfer_function(64);
+      config.title = "demo: synthetic reference vs remapped field";
+    } else {
+      const VolumeOptions vo = a.in.volume.options();
+      ref = load_volume(a.in.ref, vo);
+      field = load_volume(a.in.field, vo);
+      config.title = field.name + " matched to " + ref.name;
+    }
+    config.markers = resolve_markers(ref, a.markers);
+    session = std::make_unique<ViewSession>(*ctx, std::move(ref), std::move(field), config);
+  }
+
+  ViewServerOptions options;
+  options.bind = a.bind;
+  options.port = a.port;
+  if (const char* dir = std::getenv("TFMATCH_VIEW_ASSETS"); dir && *dir) options.assets_dir = dir;
+  ViewServer server(*session, options);
+  // Ctrl-C is how a view ends: time to close the server, let a running job reach its next
+  // checkpoint and release the device (seconds on a CPU device), then exit 0.
+  set_interrupt_grace(std::chrono::seconds(20));
+  server.start();
+  std::cout << "tfmatch view: " << server.url() << "\n"
+            << "  " << session->state()["title"].get<std::string>() << " on " << ctx->device_name()
+            << "; open the URL in a browser (from another machine: ssh -L " << server.port() << ":localhost:"
+            << server.port() << " HOST), Ctrl-C stops\n"
+            << std::flush;
+  while (!cancel_requested()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  server.stop();
+  session->wait_for_job();
+  session.reset();
+  reset_cancel();  // stopping is how a view ends: exit 0
+  if (!globals().quiet) std::cout << "tfmatch view: stopped\n";
+  return 0;
+}
+
+CommandRegistration reg(15, [](CLI::App& app) {
+  auto args = std::make_shared<ViewArgs>();
+  auto* sub = app.add_subcommand(
+      "view",
+      "Serve an interactive page (reference, field with each TF, residual; slices; TF plots; solvers; TF editor; "
+      "ensemble reference points) rendered by tfmatch on the device. Prints the URL; Ctrl-C stops. Only this machine "
+      "can connect by default, and every request needs the URL's random token");
+  add_input_options(sub, args->in, /*required=*/false);
+  sub->add_option("--report", args->report, "Reopen the inputs of a report directory (optimize --report, demo)");
+  sub->add_flag("--demo", args->demo, "The built-in pair of fields of `tfmatch demo` (with --ensemble: the built-in ensemble)");
+  sub->add_option("--size", args->size, "--demo: grid size (default 96 for the pair, 64 for the ensemble)")
+      ->check(CLI::Range(uint64_t(8), uint64_t(512)));
+  auto* ens = sub->add_option("--ensemble", args->ensemble,
+                              "Ensemble mode: FILE[:VAR] with a member axis (as correlate), or alone with --demo");
+  ens->expected(0, 1);
+  sub->add_option("--members", args->members, "Ensemble as one file per member (as correlate)");
+  sub->add_option("--member-dim", args->member_dim, "NetCDF: the name of the member dimension");
+  sub->add_option("--measure", args->measure, "Ensemble: the reference field's measure (as correlate --measure)")
+      ->capture_default_str();
+  sub->add_option("--versus", args->versus, "Ensemble: the measure of the field whose TF is optimized")
+      ->capture_default_str();
+  sub->add_option("--point", args->point, "Ensemble: first reference point, I,J,K or lon=..,lat=..,level=.. "
+                                          "(default: the grid's middle; the demo's own point)");
+  sub->add_option("--bins", args->bins, "mi-binned: bins")->check(CLI::Range(2u, kMaxCorrelationBins))->capture_default_str();
+  sub->add_option("--k", args->k, "mi-kraskov, mi-coefficient: neighbours")->check(CLI::PositiveNumber)->capture_default_str();
+  sub->add_option("--solver", args->solver, "First solver: " + solver_name_list() + " (the page can choose another)")
+      ->capture_default_str();
+  sub->add_option("--ridge", args->ridge, "Tikhonov weight, relative to the mean diagonal of M")->check(CLI::NonNegativeNumber);
+  sub->add_option("--smooth", args->smooth, "Smoothness weight, relative to the mean diagonal of M")->check(CLI::NonNegativeNumber);
+  add_solver_options(sub, args->extra);
+  add_render_options(sub, args->render);
+  add_marker_option(sub, args->markers);
+  sub->add_option("--port", args->port, "TCP port (0: any free port)")->check(CLI::Range(0, 65535))->capture_default_str();
+  sub->add_option("--bind", args->bind, "Address to listen on (default: this machine only; another prints a warning)")
+      ->capture_default_str();
+  sub->callback([args, ens] {
+    args->ensemble_given = ens->count() > 0;
+    exit_code() = run(*args);
+  });
+});
+
+}  // namespace
+}  // namespace tfm::cli
