@@ -113,6 +113,12 @@ void run_isolated(const std::string& path, const std::function<void()>& work, st
   if (WIFSIGNALED(status))
     throw std::runtime_error(path + ": malformed netCDF-4/HDF5 file: the HDF5 library crashed reading its metadata (" +
                              strsignal(WTERMSIG(status)) + "); not read");
+  // The child ends with _exit(0) whatever netCDF-C says; another status is an abort or a
+  // sanitizer's report of a crash (which exits rather than dying of the signal).
+  if (WIFEXITED(status) && WEXITSTATUS(status) != 0)
+    throw std::runtime_error(path + ": malformed netCDF-4/HDF5 file: the HDF5 library failed reading its metadata "
+                             "(the reading process exited with status " + std::to_string(WEXITSTATUS(status)) +
+                             "); not read");
 }
 
 }  // namespace tfm

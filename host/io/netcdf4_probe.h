@@ -20,7 +20,8 @@ bool has_hdf5_signature(std::string_view head);
 // Opens `path` (or, when `memory` is not empty, those bytes, named `path` in messages) with
 // netCDF-C in a child process and walks all its metadata there. Throws std::runtime_error
 // "<path>: malformed netCDF-4/HDF5 file: ..." when the child is killed by a signal (a crash
-// inside HDF5) or runs longer than `timeout` (then it is killed), and checks the cancellation
+// inside HDF5), exits with a non-zero status (an abort, a sanitizer's crash report) or runs
+// longer than `timeout` (then it is killed), and checks the cancellation
 // flag (host/core/cancellation.h) while it waits. An error netCDF-C reports in the child is left
 // for the caller's own open to report. Returns quietly on success.
 void probe_netcdf4_metadata(const std::string& path, std::string_view memory = {},

@@ -251,10 +251,8 @@ struct ViewServer::Impl {
         const ViewKind view = view_param(req);
         const RenderSettings s = camera_params(req, session.default_render());
         take_device_slot();
-        const auto t0 = std::chrono::steady_clock::now();
-        double distance = 0.0;
-        const Image img = session.render(view, s, &distance);
-        const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        double distance = 0.0, ms = 0.0;
+        const Image img = session.render(view, s, &distance, &ms);
         send_png(res, img, req, view_kind_name(view));
         res.set_header("X-Tfmatch-Distance", std::to_string(distance));
         res.set_header("X-Tfmatch-Render-Ms", std::to_string(ms));

@@ -10,6 +10,7 @@
 #include "cancellation.h"
 #include "color_spaces.h"
 #include "correlation_field.h"
+#include "font.h"
 #include "gpu_voxel_ops.h"
 #include "metrics.h"
 #include "progress.h"
@@ -126,6 +127,7 @@ ViewSession::~ViewSession() {
 }
 
 void ViewSession::initialize() {
+  install_report_font();  // plot labels in DejaVu Sans where installed, as in reports
   validate(config_.render);
   ref_tf_ = config_.ref_tf;
   solver_ = config_.solver;
@@ -262,20 +264,31 @@ uint64_t ViewSession::optimize(const std::string& solver, const SolverSettings& 
   SolverSettings settings = settings_in;
   settings.render = config_.render;
   parse_solver_args(require_solver(solver), settings);  // bad options fail the request, not the job
-  return start_job("optimize", [this, solver, settings] {
-    const auto t0 = std::chrono::steady_clock::now();
-    std::lock_guard device(device_mutex_);
-    OptimizeResult r = run_optimization(ref_, field_, ref_tf_, solver, settings);
-    auto derived = derive(ref_, field_, ref_tf_, r);
-    nlohmann::json summary = {{"solver", r.solver},
-                              {"voxel_rmse_reference_tf", r.before.rmse()},
-                              {"voxel_rmse_optimized_tf", r.after.rmse()},
-                              {"warnings", r.warnings}};
-    install(std::nullopt, ref_tf_, std::move(r), std::move(derived), solver, settings);
-    summary["ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    std::lock_guard status(job_mutex_);
-    job_.result = summary;
-  });
+  return start_job("optimize", [this, solver, settings] { optimize_job(ref_tf_, solver, settings); });
+}
+
+void ViewSession::optimize_job(const TransferFunction& ref_tf_in, const std::string& solver, const SolverSettings& settings) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::lock_guard device(device_mutex_);
+  const TransferFunction ref_tf = ref_tf_in;  // a copy: install() replaces the member it may refer to
+  OptimizeResult r = run_optimization(ref_, field_, ref_tf, solver, settings);
+  auto derived = derive(ref_, field_, ref_tf, r);
+  nlohmann::json summary = job_summary(r);
+  install(std::nullopt, ref_tf, std::move(r), std::move(derived), solver, settings);
+  finish_job(summary, t0);
+}
+
+nlohmann::json ViewSession::job_summary(const OptimizeResult& r) {
+  return {{"solver", r.solver},
+          {"voxel_rmse_reference_tf", r.before.rmse()},
+          {"voxel_rmse_optimized_tf", r.after.rmse()},
+          {"warnings", r.warnings}};
+}
+
+void ViewSession::finish_job(nlohmann::json summary, std::chrono::steady_clock::time_point start) {
+  summary["ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  std::lock_guard status(job_mutex_);
+  job_.result = std::move(summary);
 }
 
 uint64_t ViewSession::set_reference_tf(const ControlPointTf& points, bool reoptimize) {
@@ -293,23 +306,11 @@ uint64_t ViewSession::set_reference_tf(const ControlPointTf& points, bool reopti
       solver = solver_;
       settings = solver_settings_;
     }
-    return start_job("optimize", [this, table, solver, settings] {
-      const auto t0 = std::chrono::steady_clock::now();
-      std::lock_guard device(device_mutex_);
-      OptimizeResult r = run_optimization(ref_, field_, table, solver, settings);
-      auto derived = derive(ref_, field_, table, r);
-      nlohmann::json summary = {{"solver", r.solver},
-                                {"voxel_rmse_reference_tf", r.before.rmse()},
-                                {"voxel_rmse_optimized_tf", r.after.rmse()},
-                                {"warnings", r.warnings}};
-      install(std::nullopt, table, std::move(r), std::move(derived), solver, settings);
-      summary["ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-      std::lock_guard status(job_mutex_);
-      job_.result = summary;
-    });
+    return start_job("optimize", [this, table, solver, settings] { optimize_job(table, solver, settings); });
   }
   // The optimized TF stays; what depends on the reference TF follows: both voxel losses (one pass
   // each) and the residual maps.
+  if (job_running_) throw ConflictError("a job is running: apply the reference TF when it ends");
   std::unique_lock device = lock_device_for_request();
   OptimizeResult r = result_;
   auto derived = derive(ref_, field_, table, r);
@@ -344,24 +345,21 @@ uint64_t ViewSession::set_point(const GridIndex& point) {
     }
     OptimizeResult r = run_optimization(fields.first, fields.second, ref_tf_, solver, settings);
     auto derived = derive(fields.first, fields.second, ref_tf_, r);
-    nlohmann::json summary = {{"solver", r.solver},
-                              {"voxel_rmse_reference_tf", r.before.rmse()},
-                              {"voxel_rmse_optimized_tf", r.after.rmse()},
-                              {"warnings", r.warnings},
-                              {"point", point}};
+    nlohmann::json summary = job_summary(r);
+    summary["point"] = point;
     {
       std::lock_guard data(data_mutex_);
       ensemble_->point = point;
     }
     install(std::move(fields), ref_tf_, std::move(r), std::move(derived), solver, settings);
-    summary["ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    std::lock_guard status(job_mutex_);
-    job_.result = summary;
+    finish_job(summary, t0);
   });
 }
 
 void ViewSession::wait_for_job() {
-  std::lock_guard lock(job_mutex_);  // no new job starts meanwhile
+  // Not under job_mutex_ while the job runs: its progress and its end take that lock.
+  while (job_running_) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  std::lock_guard lock(job_mutex_);  // the thread has ended its work; no new job starts meanwhile
   if (job_thread_.joinable()) job_thread_.join();
 }
 
@@ -421,9 +419,12 @@ Image ViewSession::render_picture(ViewKind view, const RenderSettings& s_in, boo
   return picture;
 }
 
-Image ViewSession::render(ViewKind view, const RenderSettings& settings, double* distance_used) {
+Image ViewSession::render(ViewKind view, const RenderSettings& settings, double* distance_used, double* render_ms) {
   std::unique_lock device = lock_device_for_request();
-  return render_picture(view, settings, true, distance_used);
+  const auto t0 = std::chrono::steady_clock::now();
+  Image picture = render_picture(view, settings, true, distance_used);
+  if (render_ms) *render_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return picture;
 }
 
 nlohmann::json ViewSession::image_metrics(const RenderSettings& settings) {

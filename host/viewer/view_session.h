@@ -96,8 +96,10 @@ class ViewSession {
   // settings the device cannot render (render.h check_render_size) ----
   // The picture `tfmatch render` makes of the view's field and TF with `settings` (sRGB, box
   // outline, markers). `distance_used` receives the camera distance in bounding-sphere radii
-  // (the framed one when settings.camera.distance is 0).
-  Image render(ViewKind view, const RenderSettings& settings, double* distance_used = nullptr);
+  // (the framed one when settings.camera.distance is 0); `render_ms` the time it took once the
+  // device was this request's (without waiting for other requests).
+  Image render(ViewKind view, const RenderSettings& settings, double* distance_used = nullptr,
+               double* render_ms = nullptr);
   // Image RMSE / PSNR / SSIM of the field with each TF against the reference at `settings`.
   nlohmann::json image_metrics(const RenderSettings& settings);
   // Plane `index` of `axis` (0..2) classified by the view's TF (slice.h). Throws
@@ -146,6 +148,10 @@ class ViewSession {
   void install(std::optional<std::pair<Volume, Volume>> fields, TransferFunction ref_tf, OptimizeResult result,
                std::unique_ptr<Derived> derived, const std::string& solver, const SolverSettings& settings);
   std::pair<Volume, Volume> correlation_fields(const GridIndex& point);
+  // The body of an optimization job: optimize with `ref_tf`, derive, install, record the result.
+  void optimize_job(const TransferFunction& ref_tf, const std::string& solver, const SolverSettings& settings);
+  static nlohmann::json job_summary(const OptimizeResult& result);
+  void finish_job(nlohmann::json summary, std::chrono::steady_clock::time_point start);
   uint64_t start_job(const std::string& kind, std::function<void()> work);
   std::unique_lock<std::mutex> lock_device_for_request();
   Image render_picture(ViewKind view, const RenderSettings& settings, bool decorate, double* distance_used);

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <netcdf.h>
 #include <signal.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <filesystem>
@@ -28,6 +29,12 @@ TEST(Netcdf4Probe, ACrashInTheChildIsAnErrorNamingTheFile) {
   const std::string e = error_of([] { run_isolated("bad.nc", [] { raise(SIGSEGV); }, std::chrono::seconds(10)); });
   EXPECT_NE(e.find("bad.nc: malformed netCDF-4/HDF5 file: the HDF5 library crashed"), std::string::npos) << e;
   EXPECT_NE(e.find("Segmentation fault"), std::string::npos) << e;
+}
+
+TEST(Netcdf4Probe, AChildThatExitsWithAnErrorStatusIsAnError) {
+  const std::string e = error_of([] { run_isolated("abort.nc", [] { _exit(1); }, std::chrono::seconds(10)); });
+  EXPECT_NE(e.find("abort.nc: malformed netCDF-4/HDF5 file: the HDF5 library failed"), std::string::npos) << e;
+  EXPECT_NE(e.find("status 1"), std::string::npos) << e;
 }
 
 TEST(Netcdf4Probe, AChildThatNeverEndsIsKilledAfterTheTimeout) {
