@@ -52,7 +52,8 @@ std::string exit_code_help() {
          "       an output name whose extension is not the format written)\n"
          "  3    the Vulkan validation layer reported a message (--validation, selftest)\n"
          "  4    Vulkan error: no usable device, or the driver failed\n"
-         "  130  interrupted by SIGINT (Ctrl-C), 143 by SIGTERM: stopped within a second, nothing written\n";
+         "  130  interrupted by SIGINT (Ctrl-C), 143 by SIGTERM: stopped within a second, nothing written\n"
+         "       (tfmatch view ends this way normally: exit 0)\n";
 }
 
 void check_usage(const std::function<void()>& check) {
