@@ -58,7 +58,9 @@ for t in "${targets[@]}"; do
     failed+=("$t")
     tail -40 "$build/fuzz-$t.log"
   else
-    grep -E "stat::number_of_executed_units|stat::peak_rss_mb" "$build/fuzz-$t.log" | tr '\n' ' '
+    # Fork mode (FUZZ_KEEP_GOING) prints no final stats: its last status line says as much.
+    grep -E "stat::number_of_executed_units|stat::peak_rss_mb" "$build/fuzz-$t.log" | tr '\n' ' ' ||
+      grep -E "^#[0-9]+:" "$build/fuzz-$t.log" | tail -1
     echo
   fi
 done
