@@ -42,6 +42,7 @@ std::vector<VolumeFormat> make_table() {
       .count_members = count_netcdf_members,
       .read = read_netcdf_volume,
       .describe = describe_netcdf,
+      .open_slabs = open_netcdf_slabs,
   });
   t.push_back({
       .name = "grib",
@@ -80,6 +81,7 @@ std::vector<VolumeFormat> make_table() {
       .has_components = true,
       .read = read_vti_volume,
       .describe = describe_vti,
+      .open_slabs = open_vti_slabs,  // appended raw, uncompressed
       .writable = true,  // write_vti (volume_vti.h)
   });
   t.push_back({
@@ -99,6 +101,7 @@ std::vector<VolumeFormat> make_table() {
       .extensions = {".raw"},
       .read = read_raw_volume,
       .describe = describe_raw,
+      .open_slabs = open_raw_slabs,
       .writable = true,  // float32, write_raw_float32 (volume_io.h)
   });
   t.push_back({
@@ -108,6 +111,7 @@ std::vector<VolumeFormat> make_table() {
       .extensions = {".dat"},
       .read = read_dat_volume,
       .describe = describe_dat,
+      .open_slabs = open_dat_slabs,
   });
   return t;
 }

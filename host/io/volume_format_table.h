@@ -12,6 +12,7 @@
 #include "volume.h"
 #include "volume_info.h"
 #include "volume_io.h"
+#include "volume_slabs.h"
 
 namespace tfm {
 
@@ -36,6 +37,10 @@ struct VolumeFormat {
   Volume (*read)(const std::filesystem::path& path, const VolumeOptions& options) = nullptr;
   // What `tfmatch info` prints for the file; options matter where the file does not describe itself.
   FileInfo (*describe)(const std::filesystem::path& path, const VolumeOptions& options) = nullptr;
+  // Opens the file to be read a slab of z-slices at a time (`optimize` on volumes larger than
+  // memory), checking its header and size first; returns nullptr when this file's encoding does
+  // not allow it (compressed, text): it is loaded whole. nullptr here: the format never streams.
+  std::unique_ptr<VolumeSlabReader> (*open_slabs)(const std::filesystem::path& path, const VolumeOptions& options) = nullptr;
   bool writable = false;  // tfmatch writes this format too (convert-volume, residual maps)
 
   bool has_variables() const { return !selects.empty(); }

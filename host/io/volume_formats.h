@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -15,6 +16,7 @@
 
 #include "volume_info.h"
 #include "volume_io.h"
+#include "volume_slabs.h"
 
 namespace tfm {
 
@@ -124,6 +126,12 @@ FileInfo describe_vti(const std::filesystem::path& path, const VolumeOptions& op
 FileInfo describe_nrrd(const std::filesystem::path& path, const VolumeOptions& options);
 FileInfo describe_raw(const std::filesystem::path& path, const VolumeOptions& options);
 FileInfo describe_dat(const std::filesystem::path& path, const VolumeOptions& options);
+
+// The row's open_slabs (host/core/volume_slabs.h): nullptr when the file cannot stream.
+std::unique_ptr<VolumeSlabReader> open_raw_slabs(const std::filesystem::path& path, const VolumeOptions& options);
+std::unique_ptr<VolumeSlabReader> open_dat_slabs(const std::filesystem::path& path, const VolumeOptions& options);
+std::unique_ptr<VolumeSlabReader> open_netcdf_slabs(const std::filesystem::path& path, const VolumeOptions& options);
+std::unique_ptr<VolumeSlabReader> open_vti_slabs(const std::filesystem::path& path, const VolumeOptions& options);
 
 // In-memory parsers (what the fuzz targets drive). `name` prefixes every error message.
 Volume parse_vtk_legacy(std::string_view bytes, const std::string& name, const VolumeOptions& options);

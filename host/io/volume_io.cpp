@@ -48,10 +48,11 @@ VolumeSpec parse_volume_spec(const std::string& spec, const VolumeOptions& defau
   return out;
 }
 
-Volume load_volume(const std::string& spec, const VolumeOptions& defaults) {
-  VolumeSpec s = parse_volume_spec(spec, defaults);
-  const std::filesystem::path& path = s.path;
-  const VolumeOptions& options = s.options;
+namespace {
+
+// The format of the file `path`, after checking that it exists and that `options` select only
+// what the format has.
+const VolumeFormat& checked_format(const std::filesystem::path& path, const VolumeOptions& options) {
   if (!std::filesystem::exists(path)) throw std::runtime_error(path.string() + ": no such file");
   if (std::filesystem::is_directory(path)) throw std::runtime_error(path.string() + ": is a directory, not a volume file");
   const VolumeFormat* format = find_volume_format(path);
@@ -69,10 +70,33 @@ Volume load_volume(const std::string& spec, const VolumeOptions& defaults) {
   if (!format->has_variables() && !format->has_components && !options.variable.empty())
     throw std::runtime_error(path.string() + ": a " + format->name + " file holds one array; remove ':" +
                              options.variable + "' / --var");
-  Volume v = format->read(path, options);
+  return *format;
+}
+
+}  // namespace
+
+Volume load_volume(const std::string& spec, const VolumeOptions& defaults) {
+  VolumeSpec s = parse_volume_spec(spec, defaults);
+  const std::filesystem::path& path = s.path;
+  const VolumeOptions& options = s.options;
+  Volume v = checked_format(path, options).read(path, options);
   if (v.voxel_count() == 0 || v.values.size() != v.voxel_count())
     throw std::runtime_error(path.string() + ": the volume is empty");
   return v;
+}
+
+std::unique_ptr<VolumeSlabReader> open_volume_slabs(const std::string& spec, const VolumeOptions& defaults) {
+  VolumeSpec s = parse_volume_spec(spec, defaults);
+  const VolumeFormat& format = checked_format(s.path, s.options);
+  if (!format.open_slabs) return nullptr;
+  std::unique_ptr<VolumeSlabReader> r = format.open_slabs(s.path, s.options);
+  if (r && r->grid().voxel_count() == 0) throw std::runtime_error(s.path.string() + ": the volume is empty");
+  return r;
+}
+
+std::unique_ptr<VolumeSlabReader> open_volume_slabs_or_load(const std::string& spec, const VolumeOptions& options) {
+  if (std::unique_ptr<VolumeSlabReader> r = open_volume_slabs(spec, options)) return r;
+  return slabs_in_memory(load_volume(spec, options));
 }
 
 }  // namespace tfm

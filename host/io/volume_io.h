@@ -4,10 +4,12 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 
 #include "volume.h"
+#include "volume_slabs.h"
 
 namespace tfm {
 
@@ -36,6 +38,14 @@ struct VolumeOptions {
 // array the format does not have is an error. Throws std::runtime_error whose message starts with
 // the file name and says what is wrong (missing file, unknown format, wrong size, ...).
 Volume load_volume(const std::string& spec, const VolumeOptions& options = {});
+
+// `spec` (as load_volume() takes it) opened to be read a slab of z-slices at a time, without
+// loading it (host/core/volume_slabs.h): raw and .dat files, NetCDF variables (netCDF-C reads any
+// hyperslab) and VTI arrays in uncompressed raw appended data. nullptr for any other format or
+// encoding. Checks the header and the file's size first; throws as load_volume() does.
+std::unique_ptr<VolumeSlabReader> open_volume_slabs(const std::string& spec, const VolumeOptions& options = {});
+// open_volume_slabs(), else the volume loaded whole (load_volume()) behind the same interface.
+std::unique_ptr<VolumeSlabReader> open_volume_slabs_or_load(const std::string& spec, const VolumeOptions& options = {});
 
 // Readers (host/io/volume_raw.cpp).
 Volume read_raw_volume(const std::filesystem::path& path, const VolumeOptions& options);

@@ -539,6 +539,68 @@ Volume read_netcdf(const NcFile& f, const VolumeOptions& options) {
   return v;
 }
 
+// A NetCDF variable read slab by slab: one nc_get_vara per z-slice (the file's slice under world
+// orientation), unpacked and flipped as read_netcdf() does for the whole volume.
+class NetcdfSlabs final : public VolumeSlabReader {
+ public:
+  NetcdfSlabs(const std::filesystem::path& path, const VolumeOptions& options) : file_(path) {
+    const std::string& file = file_.name();
+    const Selection sel = select_variable(file_, options);
+    layout_ = sel.layout;
+    start_.assign(layout_.dim_sizes.size(), 0);
+    const size_t t = pick_index(layout_, layout_.time_axis, options.time_index, "time", file);
+    const size_t m = pick_index(layout_, sel.member_axis, options.member_index, "member", file);
+    if (layout_.time_axis >= 0) start_[layout_.time_axis] = t;
+    if (sel.member_axis >= 0) start_[sel.member_axis] = m;
+    grid_.dims = layout_.grid();
+    const uint64_t voxels = checked_voxel_count(grid_.dims, file);
+    int format = 0;
+    file_.check(nc_inq_format(file_.id(), &format), "cannot read the format");
+    if (format != NC_FORMAT_NETCDF4 && format != NC_FORMAT_NETCDF4_CLASSIC && file_.size() > 0 && voxels > file_.size())
+      throw std::runtime_error(file + ": variable " + layout_.name + " is larger than the file can hold (" +
+                               layout_.shape() + ")");
+    grid_.spacing = spacing_of(file_, layout_);
+    const auto [axes, orientation] = oriented_axes(file_, layout_);
+    grid_.axes = axes;
+    orientation_ = orientation;
+    orient_axes(grid_.axes, grid_.origin, orientation_);
+    grid_.name = file + ":" + layout_.name;
+    if (layout_.time_axis >= 0 && layout_.dim_sizes[layout_.time_axis] > 1) grid_.name += ",time=" + std::to_string(t);
+    if (sel.member_axis >= 0) grid_.name += ",member=" + std::to_string(m);
+    unpack_ = unpacker_of(file_, layout_);
+  }
+
+  void read_slices(uint64_t z0, uint64_t nz, float* out) override {
+    check_slices(z0, nz);
+    const uint64_t nx = grid_.dims[0], ny = grid_.dims[1], s = slice_voxels();
+    std::vector<size_t> start = start_, count(start_.size(), 1);
+    for (int k = 0; k < 2; ++k)
+      if (layout_.spatial[k] >= 0) count[layout_.spatial[k]] = layout_.dim_sizes[layout_.spatial[k]];
+    check_memory(s * sizeof(double), file_.name() + ": reading a slice of " + layout_.name + " " + layout_.shape());
+    buffer_.resize(s);
+    for (uint64_t z = z0; z < z0 + nz; ++z) {
+      checkpoint("load");
+      if (layout_.spatial[2] >= 0) start[layout_.spatial[2]] = orientation_.flip[2] ? grid_.dims[2] - 1 - z : z;
+      file_.check(nc_get_vara_double(file_.id(), layout_.varid, start.data(), count.data(), buffer_.data()),
+                  "cannot read variable " + layout_.name);
+      float* slice = out + (z - z0) * s;
+      for (uint64_t y = 0; y < ny; ++y)
+        for (uint64_t x = 0; x < nx; ++x) {
+          const uint64_t sx = orientation_.flip[0] ? nx - 1 - x : x, sy = orientation_.flip[1] ? ny - 1 - y : y;
+          slice[y * nx + x] = unpack_(buffer_[sy * nx + sx]);
+        }
+    }
+  }
+
+ private:
+  NcFile file_;
+  Layout layout_;
+  std::vector<size_t> start_;
+  WorldOrientation orientation_;
+  Unpacker unpack_;
+  std::vector<double> buffer_;
+};
+
 FileInfo describe_netcdf(const NcFile& f, const VolumeOptions& options) {
   FileInfo info;
   info.path = f.name();
@@ -608,6 +670,11 @@ Volume read_netcdf_volume(const std::filesystem::path& path, const VolumeOptions
 
 FileInfo describe_netcdf(const std::filesystem::path& path, const VolumeOptions& options) {
   return describe_netcdf(NcFile(path), options);
+}
+
+std::unique_ptr<VolumeSlabReader> open_netcdf_slabs(const std::filesystem::path& path, const VolumeOptions& options) {
+  // netCDF-C reads any hyperslab, of compressed netCDF-4 too (a chunk at a time, cached).
+  return std::make_unique<NetcdfSlabs>(path, options);
 }
 
 Volume parse_netcdf(std::string_view bytes, const std::string& name, const VolumeOptions& options) {

@@ -46,15 +46,12 @@ void decode(const char* src, uint64_t count, ScalarType type, bool big_endian, f
   decode_elements(src, count, e, big_endian, dst);
 }
 
-// Checks that the file holds exactly offset + count * size bytes (or at least that many when
-// `allow_trailing`) for `count` elements of `type` at `offset`, then decodes them block by block
-// into `sink`, with a cancellation checkpoint per block.
-template <class Sink>
-void stream_elements(const std::filesystem::path& path, std::array<uint64_t, 3> dims, ScalarType type, bool big_endian,
-                     uint64_t offset, bool allow_trailing, Sink sink) {
+// Throws "<file>: file has B bytes, but a XxYxZ type volume needs ..." unless the file holds
+// exactly offset + voxels * size bytes (at least that many when `allow_trailing`).
+void check_file_size(const std::filesystem::path& path, std::array<uint64_t, 3> dims, ScalarType type, uint64_t offset,
+                     bool allow_trailing) {
   const std::string name = path.string();
-  const uint64_t count = checked_voxel_count(dims, name);
-  const uint64_t bytes = count * scalar_bytes(type);
+  const uint64_t bytes = checked_voxel_count(dims, name) * scalar_bytes(type);
   std::error_code ec;
   uint64_t file_size = std::filesystem::file_size(path, ec);
   if (ec) throw std::runtime_error(name + ": cannot open (" + ec.message() + ")");
@@ -64,6 +61,17 @@ void stream_elements(const std::filesystem::path& path, std::array<uint64_t, 3> 
        << dims[2] << " " << scalar_type_name(type) << " volume needs " << offset + bytes;
     throw std::runtime_error(os.str());
   }
+}
+
+// Checks that the file holds exactly offset + count * size bytes (or at least that many when
+// `allow_trailing`) for `count` elements of `type` at `offset`, then decodes them block by block
+// into `sink`, with a cancellation checkpoint per block.
+template <class Sink>
+void stream_elements(const std::filesystem::path& path, std::array<uint64_t, 3> dims, ScalarType type, bool big_endian,
+                     uint64_t offset, bool allow_trailing, Sink sink) {
+  const std::string name = path.string();
+  const uint64_t count = checked_voxel_count(dims, name);
+  check_file_size(path, dims, type, offset, allow_trailing);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error(name + ": cannot open");
   in.seekg(static_cast<std::streamoff>(offset));
@@ -94,6 +102,49 @@ Volume read_elements(const std::filesystem::path& path, std::array<uint64_t, 3> 
                   [&](const float* values, uint64_t n) { v.values.insert(v.values.end(), values, values + n); });
   return v;
 }
+
+// A raw file (or a .dat file's data) read slab by slab: a seek and one read per block of a slab.
+class RawSlabs final : public VolumeSlabReader {
+ public:
+  RawSlabs(const std::filesystem::path& data, std::array<uint64_t, 3> dims, ScalarType type, bool big_endian)
+      : data_(data), type_(type), big_endian_(big_endian) {
+    check_file_size(data, dims, type, 0, false);
+    in_.open(data, std::ios::binary);
+    if (!in_) throw std::runtime_error(data.string() + ": cannot open");
+    grid_.dims = dims;
+    grid_.name = data.string();
+  }
+  // A .dat descriptor's spacing and name.
+  void set_grid(std::array<double, 3> spacing, std::string name) {
+    grid_.spacing = spacing;
+    grid_.name = std::move(name);
+  }
+  void read_slices(uint64_t z0, uint64_t nz, float* out) override {
+    check_slices(z0, nz);
+    const uint64_t size = scalar_bytes(type_), count = nz * slice_voxels();
+    in_.clear();
+    in_.seekg(static_cast<std::streamoff>(z0 * slice_voxels() * size));
+    const uint64_t block = uint64_t(1) << 22;
+    buffer_.resize(std::min(count, block) * size);
+    for (uint64_t done = 0; done < count; done += block) {
+      checkpoint("load");
+      const uint64_t n = std::min(block, count - done);
+      in_.read(buffer_.data(), static_cast<std::streamsize>(n * size));
+      if (!in_)
+        throw std::runtime_error(data_.string() + ": read failed at byte " +
+                                 std::to_string((z0 * slice_voxels() + done) * size) +
+                                 " (the file is shorter than when it was opened?)");
+      decode(buffer_.data(), n, type_, big_endian_, out + done);
+    }
+  }
+
+ private:
+  std::filesystem::path data_;
+  ScalarType type_;
+  bool big_endian_;
+  std::ifstream in_;
+  std::vector<char> buffer_;
+};
 
 // The one array of a raw or .dat file, for `tfmatch info`: statistics as the values stream by,
 // so `info` never holds the decoded volume.
@@ -273,6 +324,18 @@ Volume read_dat_volume(const std::filesystem::path& path, const VolumeOptions& o
   v.spacing = d.spacing;
   v.name = path.string();
   return v;
+}
+
+std::unique_ptr<VolumeSlabReader> open_raw_slabs(const std::filesystem::path& path, const VolumeOptions& options) {
+  const auto [dims, type] = raw_layout(path, options);
+  return std::make_unique<RawSlabs>(path, dims, type, options.big_endian);
+}
+
+std::unique_ptr<VolumeSlabReader> open_dat_slabs(const std::filesystem::path& path, const VolumeOptions& options) {
+  const DatDescriptor d = read_dat_descriptor(path, options);
+  auto r = std::make_unique<RawSlabs>(path.parent_path() / d.object_file, d.dims, d.type, d.big_endian);
+  r->set_grid(d.spacing, path.string());
+  return r;
 }
 
 FileInfo describe_raw(const std::filesystem::path& path, const VolumeOptions& options) {

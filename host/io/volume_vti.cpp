@@ -7,6 +7,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <functional>
 #include <limits>
 #include <optional>
@@ -403,6 +404,118 @@ Volume parse_vti(std::string_view bytes, const std::string& file, const VolumeOp
     }
   }
   return v;
+}
+
+namespace {
+
+// An uncompressed array in raw appended data, read slab by slab straight from the file.
+class VtiSlabs final : public VolumeSlabReader {
+ public:
+  VtiSlabs(const std::filesystem::path& path, Volume grid, uint64_t data_begin, ElementType type, bool big_endian,
+           uint64_t components, std::optional<uint64_t> component)
+      : in_(path, std::ios::binary), name_(path.string()), data_begin_(data_begin), type_(type),
+        big_endian_(big_endian), components_(components), component_(component) {
+    if (!in_) throw std::runtime_error(name_ + ": cannot open");
+    grid_ = std::move(grid);
+  }
+  void read_slices(uint64_t z0, uint64_t nz, float* out) override {
+    check_slices(z0, nz);
+    const uint64_t elem = element_bytes(type_), tuple_bytes = elem * components_;
+    const uint64_t tuples = nz * slice_voxels();
+    in_.clear();
+    in_.seekg(static_cast<std::streamoff>(data_begin_ + z0 * slice_voxels() * tuple_bytes));
+    const uint64_t block = std::max<uint64_t>(1, (uint64_t(4) << 20) / components_);  // tuples per read
+    bytes_.resize(std::min(tuples, block) * tuple_bytes);
+    values_.resize(std::min(tuples, block) * components_);
+    for (uint64_t done = 0; done < tuples; done += block) {
+      checkpoint("load");
+      const uint64_t n = std::min(block, tuples - done);
+      in_.read(bytes_.data(), static_cast<std::streamsize>(n * tuple_bytes));
+      if (!in_) throw std::runtime_error(name_ + ": read failed (the file is shorter than when it was opened?)");
+      if (components_ == 1) {
+        decode_elements(bytes_.data(), n, type_, big_endian_, out + done);
+        continue;
+      }
+      decode_elements(bytes_.data(), n * components_, type_, big_endian_, values_.data());
+      for (uint64_t i = 0; i < n; ++i) out[done + i] = reduce_tuple(values_.data() + i * components_, components_, component_);
+    }
+  }
+
+ private:
+  std::ifstream in_;
+  std::string name_;
+  uint64_t data_begin_;
+  ElementType type_;
+  bool big_endian_;
+  uint64_t components_;
+  std::optional<uint64_t> component_;
+  std::vector<char> bytes_;
+  std::vector<float> values_;
+};
+
+}  // namespace
+
+std::unique_ptr<VolumeSlabReader> open_vti_slabs(const std::filesystem::path& path, const VolumeOptions& options) {
+  const std::string file = path.string();
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(file + ": cannot open");
+  // The XML before the appended data ('_'), read in pieces: only it is parsed.
+  std::string head;
+  constexpr size_t kPiece = size_t(1) << 20, kMaxHead = size_t(64) << 20;
+  size_t underscore = std::string::npos;
+  while (head.size() < kMaxHead) {
+    const size_t old = head.size();
+    head.resize(old + kPiece);
+    in.read(head.data() + old, std::streamsize(kPiece));
+    head.resize(old + size_t(in.gcount()));
+    const size_t app = head.find("<AppendedData");
+    const size_t gt = app == std::string::npos ? app : head.find('>', app);
+    if (gt != std::string::npos) {
+      size_t p = gt + 1;
+      while (p < head.size() && std::isspace(static_cast<unsigned char>(head[p]))) ++p;
+      if (p < head.size()) {
+        underscore = p;
+        break;
+      }
+    }
+    if (head.size() == old) break;  // end of file
+  }
+  if (underscore == std::string::npos) return nullptr;  // inline or ASCII arrays: loaded whole
+  head.resize(underscore + 1);
+  const VtiDocument doc = parse_document(head, file);
+  if (doc.compressed || doc.appended_base64) return nullptr;
+  const ArraySelector sel = parse_array_selector(options.variable, file);
+  auto rank = [&](const VtiArray& a) { return a.section == "point data" ? (a.name == doc.active_scalars ? 0 : 1) : 2; };
+  const VtiArray& pick = pick_grid_array(doc.arrays, sel, rank, file);
+  if (pick.format != "appended") return nullptr;
+  const std::string where = file + ": array '" + pick.name + "'";
+  const std::string name = file + ":" + pick.name + (sel.component ? "[" + std::to_string(*sel.component) + "]" : "");
+  if (sel.component && *sel.component >= pick.components)
+    throw std::runtime_error(name + ": component " + std::to_string(*sel.component) + " requested, the array has " +
+                             std::to_string(pick.components));
+  const uint64_t count = checked_mul(pick.tuples, pick.components, kMaxVoxels, file, "array '" + pick.name + "'");
+  const uint64_t bytes = count * element_bytes(pick.type), header = doc.header64 ? 8 : 4;
+  const uint64_t size = std::filesystem::file_size(path);
+  const uint64_t header_at = doc.appended_begin + pick.offset;
+  if (header_at > size || size - header_at < header + bytes)
+    throw std::runtime_error(where + ": data truncated: " + std::to_string(header + bytes) + " bytes needed at offset " +
+                             std::to_string(pick.offset) + ", the file ends before");
+  std::string h(header, '\0');
+  in.clear();
+  in.seekg(std::streamoff(header_at));
+  in.read(h.data(), std::streamsize(header));
+  ByteSource src(h, false);
+  const uint64_t n = read_header_uint(src, doc);
+  if (n != bytes)
+    throw std::runtime_error(where + ": its header says " + std::to_string(n) + " bytes, the array needs " +
+                             std::to_string(bytes));
+  Volume grid;
+  grid.dims = grid_of(doc, pick);
+  grid.spacing = doc.spacing;
+  grid.origin = origin_of(doc.origin, doc.spacing, pick.section);
+  grid.name = name;
+  return std::make_unique<VtiSlabs>(path, std::move(grid), header_at + header, pick.type, doc.big_endian,
+                                    pick.components, sel.component);
 }
 
 Volume read_vti_volume(const std::filesystem::path& path, const VolumeOptions& options) {
