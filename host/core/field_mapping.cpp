@@ -40,12 +40,25 @@ void check_range(const FieldRange& r, const std::string& what) {
   throw std::runtime_error(os.str());
 }
 
+FiniteStats merge(const FiniteStats& a, const FiniteStats& b) {
+  if (a.finite == 0) return {b.lo, b.hi, b.finite, a.nan + b.nan};
+  if (b.finite == 0) return {a.lo, a.hi, a.finite, a.nan + b.nan};
+  return {std::min(a.lo, b.lo), std::max(a.hi, b.hi), a.finite + b.finite, a.nan + b.nan};
+}
+
 FieldRange resolve_range(std::span<const float> values, const FieldRange* user, const std::string& what) {
   if (user) {
     check_range(*user, what);
     return *user;
   }
-  FiniteStats s = finite_stats(values);
+  return resolve_range(finite_stats(values), nullptr, what);
+}
+
+FieldRange resolve_range(const FiniteStats& s, const FieldRange* user, const std::string& what) {
+  if (user) {
+    check_range(*user, what);
+    return *user;
+  }
   if (s.finite == 0) throw std::runtime_error(what + ": the field has no finite value");
   if (s.hi == s.lo) {
     std::ostringstream os;
@@ -70,9 +83,14 @@ RangeCoverage range_coverage(std::span<const float> values, const FieldRange& ra
 std::string check_range_coverage(std::span<const float> values, const FieldRange& range, const std::string& what,
                                  const std::string& source, bool allow) {
   const RangeCoverage c = range_coverage(values, range);
+  if (!(c.outside_fraction() > kRangeWarnFraction)) return "";
+  return check_range_coverage(c, finite_stats(values), range, what, source, allow);
+}
+
+std::string check_range_coverage(const RangeCoverage& c, const FiniteStats& s, const FieldRange& range,
+                                 const std::string& what, const std::string& source, bool allow) {
   const double f = c.outside_fraction();
   if (!(f > kRangeWarnFraction)) return "";
-  const FiniteStats s = finite_stats(values);
   std::ostringstream os;
   os.precision(6);
   os << what << ": " << std::fixed << std::setprecision(1) << 100.0 * f << std::defaultfloat << std::setprecision(6)

@@ -25,9 +25,14 @@ struct FiniteStats {
 // Finite min/max and NaN count of a field.
 FiniteStats finite_stats(std::span<const float> values);
 
+// finite_stats() of the concatenation of two parts (a field read slab by slab).
+FiniteStats merge(const FiniteStats& a, const FiniteStats& b);
+
 // Range of a field: `user` if given (checked by check_range), else the finite min/max. Throws
 // std::runtime_error naming `what` when the field has no finite value or is constant (hi == lo).
 FieldRange resolve_range(std::span<const float> values, const FieldRange* user, const std::string& what);
+// The same from the field's finite_stats() (a field streamed from disk).
+FieldRange resolve_range(const FiniteStats& stats, const FieldRange* user, const std::string& what);
 
 // Throws std::runtime_error "<what>: range lo,hi ..." saying what is wrong with a given range:
 // an end that is not a finite number, lo >= hi, an end beyond float32 (the kernels map values in
@@ -38,6 +43,10 @@ void check_range(const FieldRange& range, const std::string& what);
 // they clamp to the TF's end entries. Counts of finite values below and above it.
 struct RangeCoverage {
   uint64_t finite = 0, below = 0, above = 0;
+  RangeCoverage& operator+=(const RangeCoverage& o) {
+    finite += o.finite, below += o.below, above += o.above;
+    return *this;
+  }
   double outside_fraction() const { return finite ? double(below + above) / double(finite) : 0.0; }
 };
 RangeCoverage range_coverage(std::span<const float> values, const FieldRange& range);
@@ -52,6 +61,9 @@ inline constexpr double kRangeErrorFraction = 0.95;
 // warning says the check was overridden). Empty when the range fits.
 std::string check_range_coverage(std::span<const float> values, const FieldRange& range, const std::string& what,
                                  const std::string& source, bool allow);
+// The same from the counts and the field's finite_stats() (a field streamed from disk).
+std::string check_range_coverage(const RangeCoverage& coverage, const FiniteStats& stats, const FieldRange& range,
+                                 const std::string& what, const std::string& source, bool allow);
 
 FieldMapping make_mapping(const FieldRange& range, uint32_t tf_size);
 

@@ -1,0 +1,282 @@
+// run_optimize_streamed(): run_optimize() for fields read from disk slab by slab.
+#include "streamed_optimize.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <span>
+#include <stdexcept>
+
+#include "cancellation.h"
+#include "memory_budget.h"
+#include "solver_support.h"
+
+namespace tfm {
+namespace {
+
+// Calls fn(z0, nz, ref values, field values) for each slab of `slab_slices` z-slices of both fields,
+// in z order, reusing one host buffer per field.
+template <class Fn>
+void for_each_slab_pair(VolumeSlabReader& ref, VolumeSlabReader& field, uint64_t slab_slices, Fn fn) {
+  const uint64_t s = ref.slice_voxels(), nz = ref.grid().dims[2];
+  const uint64_t capacity = std::min(slab_slices, nz) * s;
+  check_memory(2 * capacity * sizeof(float), "streaming " + ref.grid().name + " and " + field.grid().name + " (" +
+                                                 std::to_string(capacity) + " voxels per slab)");
+  std::vector<float> a(capacity), b(capacity);
+  for (uint64_t z0 = 0; z0 < nz; z0 += slab_slices) {
+    checkpoint("stream");
+    const uint64_t n = std::min(slab_slices, nz - z0);
+    ref.read_slices(z0, n, a.data());
+    field.read_slices(z0, n, b.data());
+    fn(z0, n, std::span<const float>(a.data(), n * s), std::span<const float>(b.data(), n * s));
+  }
+}
+
+// The device fields a slab is uploaded to: one pair of the full slab's size, one for a shorter
+// last slab (made when needed).
+class SlabUploader {
+ public:
+  SlabUploader(Context& ctx, uint64_t slab_voxels, uint64_t max_chunk_voxels)
+      : ctx_(ctx), max_chunk_(max_chunk_voxels) {
+    check_device_memory(ctx, 2 * slab_voxels * sizeof(float), "a slab of both fields");
+    full_ = make(slab_voxels);
+  }
+  // The pair holding (ref, field) after uploading them.
+  const std::pair<DeviceField, DeviceField>& upload(std::span<const float> ref, std::span<const float> field) {
+    std::unique_ptr<std::pair<DeviceField, DeviceField>>& target = ref.size() == full_->first.voxel_count() ? full_ : tail_;
+    if (!target || target->first.voxel_count() != ref.size()) target = make(ref.size());
+    target->first.upload(ref);
+    target->second.upload(field);
+    return *target;
+  }
+
+ private:
+  std::unique_ptr<std::pair<DeviceField, DeviceField>> make(uint64_t voxels) {
+    return std::make_unique<std::pair<DeviceField, DeviceField>>(
+        std::piecewise_construct, std::forward_as_tuple(ctx_, voxels, "reference slab", max_chunk_),
+        std::forward_as_tuple(ctx_, voxels, "second field slab", max_chunk_));
+  }
+  Context& ctx_;
+  uint64_t max_chunk_;
+  std::unique_ptr<std::pair<DeviceField, DeviceField>> full_, tail_;
+};
+
+// The smallest box edge k whose downsampled grid, ceil(n / k) per axis, has at most `budget` voxels.
+uint64_t box_factor(const std::array<uint64_t, 3>& dims, uint64_t budget) {
+  uint64_t k = 1;
+  auto voxels = [&](uint64_t f) {
+    uint64_t n = 1;
+    for (uint64_t d : dims) n *= (d + f - 1) / f;
+    return n;
+  };
+  while (voxels(k) > budget) ++k;
+  return k;
+}
+
+// A box-filtered copy built slab by slab: the mean of each k^3 box's finite values (NaN: none).
+class BoxFilter {
+ public:
+  BoxFilter(const Volume& grid, uint64_t k) : k_(k), dims_(grid.dims) {
+    out_ = empty_like(grid);
+    out_.axes = {};  // the file's coordinates are per original index
+    for (int a = 0; a < 3; ++a) {
+      out_.dims[a] = (dims_[a] + k - 1) / k;
+      out_.origin[a] = grid.origin[a] + 0.5 * double(k - 1) * grid.spacing[a];
+      out_.spacing[a] = grid.spacing[a] * double(k);
+    }
+    check_memory(out_.voxel_count() * (sizeof(double) + sizeof(uint32_t) + sizeof(float)),
+                 "the downsampled copy of " + grid.name);
+    sums_.assign(out_.voxel_count(), 0.0);
+    counts_.assign(out_.voxel_count(), 0);
+  }
+  void add(uint64_t z0, uint64_t nz, std::span<const float> values) {
+    const uint64_t nx = dims_[0], ny = dims_[1], ox = out_.dims[0], oy = out_.dims[1];
+    for (uint64_t z = 0; z < nz; ++z)
+      for (uint64_t y = 0; y < ny; ++y) {
+        const float* row = values.data() + (z * ny + y) * nx;
+        const uint64_t base = ((z0 + z) / k_ * oy + y / k_) * ox;
+        for (uint64_t x = 0; x < nx; ++x)
+          if (std::isfinite(row[x])) sums_[base + x / k_] += row[x], ++counts_[base + x / k_];
+      }
+  }
+  Volume finish() {
+    out_.values.resize(sums_.size());
+    for (size_t i = 0; i < sums_.size(); ++i) out_.values[i] = counts_[i] ? float(sums_[i] / counts_[i]) : NAN;
+    sums_ = {};
+    counts_ = {};
+    return std::move(out_);
+  }
+
+ private:
+  uint64_t k_;
+  std::array<uint64_t, 3> dims_;
+  Volume out_;
+  std::vector<double> sums_;
+  std::vector<uint32_t> counts_;
+};
+
+// Finite min/max of both fields and how much of them lies outside the ranges given up front.
+struct FieldMeasures {
+  FiniteStats ref, field;
+  RangeCoverage ref_coverage, field_coverage;
+  void add(std::span<const float> r, std::span<const float> f, const FieldRange* ref_user, const FieldRange* field_user) {
+    ref = merge(ref, finite_stats(r));
+    field = merge(field, finite_stats(f));
+    if (ref_user) ref_coverage += range_coverage(r, *ref_user);
+    if (field_user) field_coverage += range_coverage(f, *field_user);
+  }
+};
+
+}  // namespace
+
+const std::vector<std::string>& streaming_solvers() {
+  static const std::vector<std::string> names{"normal-equations", "qp"};
+  return names;
+}
+
+bool solver_streams(std::string_view solver) {
+  const auto& n = streaming_solvers();
+  return std::find(n.begin(), n.end(), solver) != n.end();
+}
+
+NormalEquations assemble_streamed(Context& ctx, VolumeSlabReader& ref, VolumeSlabReader& field,
+                                  const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
+                                  uint64_t slab_slices, uint64_t max_chunk_voxels) {
+  require_same_grid(ref.grid(), field.grid());
+  slab_slices = std::clamp<uint64_t>(slab_slices, 1, ref.grid().dims[2]);
+  SlabUploader device(ctx, slab_slices * ref.slice_voxels(), max_chunk_voxels);
+  GpuNormalEquations gpu(ctx, opt_map.tf_size);
+  for_each_slab_pair(ref, field, slab_slices, [&](uint64_t, uint64_t, std::span<const float> r, std::span<const float> f) {
+    const auto& d = device.upload(r, f);
+    gpu.add(d.first, d.second, ref_map, opt_map, ref_tf);
+  });
+  return gpu.result();
+}
+
+StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimizeRequest& req) {
+  if (!req.ref || !req.field) throw std::invalid_argument("run_optimize_streamed: both fields are required");
+  if (req.tf_size < 2) throw std::runtime_error("--tf-size must be at least 2");
+  if (!solver_streams(req.solver))
+    throw std::runtime_error("solver " + req.solver + " needs both fields in memory; the solvers that stream from "
+                             "disk are normal-equations and qp (they work from the assembled system alone)");
+  const Solver& solver = require_solver(req.solver);
+  const SolverArgs args = parse_solver_args(solver, req.settings);
+  VolumeSlabReader& ref = *req.ref;
+  VolumeSlabReader& field = *req.field;
+  require_same_grid(ref.grid(), field.grid());
+  const Volume& grid = ref.grid();
+
+  StreamedOptimizeResult s;
+  OptimizeResult& out = s.result;
+  out.solver = req.solver;
+  out.device = ctx.device_name();
+  out.voxels_total = grid.voxel_count();
+  s.streamed = ref.streams() && field.streams();
+  uint64_t slab_voxels = req.slab_voxels;
+  if (slab_voxels == 0) {
+    // Host buffers and device fields of both fields: 16 bytes per slab voxel; a quarter of what
+    // the budget leaves.
+    const uint64_t held = resident_memory(), budget = memory_budget().bytes;
+    const uint64_t left = budget > held ? budget - held : 0;
+    slab_voxels = std::clamp<uint64_t>(left / 4 / 16, uint64_t(1) << 16, kDefaultSlabVoxels);
+  }
+  s.slab_slices = std::clamp<uint64_t>(slab_voxels / ref.slice_voxels(), 1, grid.dims[2]);
+  s.slabs = (grid.dims[2] + s.slab_slices - 1) / s.slab_slices;
+
+  const FieldRange* ref_user = req.ref_range ? &*req.ref_range : (req.ref_tf.range ? &*req.ref_tf.range : nullptr);
+  const FieldRange* field_user = req.field_range ? &*req.field_range : nullptr;
+  const std::string ref_source = req.ref_range ? "the given reference range" : "the reference TF file's range";
+  FieldMeasures measures;
+  // Ranges from the data need a pass of their own before the assembly; given ones are checked
+  // against the data during the assembly pass.
+  const bool range_pass = !ref_user || !field_user;
+  s.passes = range_pass ? 2 : 1;
+  auto t0 = std::chrono::steady_clock::now();
+  if (range_pass) {
+    for_each_slab_pair(ref, field, s.slab_slices, [&](uint64_t, uint64_t, std::span<const float> r, std::span<const float> f) {
+      measures.add(r, f, ref_user, field_user);
+    });
+    out.phases.push_back({"range pass", ms_since(t0), -1.0});
+  }
+  out.ref_range = resolve_range(measures.ref, ref_user, ref.grid().name);
+  out.field_range = resolve_range(measures.field, field_user, field.grid().name);
+  auto check_coverage = [&] {
+    if (ref_user) {
+      std::string w = check_range_coverage(measures.ref_coverage, measures.ref, out.ref_range, ref.grid().name, ref_source,
+                                           req.allow_out_of_range);
+      if (!w.empty()) out.warnings.push_back(std::move(w));
+    }
+    if (field_user) {
+      std::string w = check_range_coverage(measures.field_coverage, measures.field, out.field_range, field.grid().name,
+                                           "the given field range", req.allow_out_of_range);
+      if (!w.empty()) out.warnings.push_back(std::move(w));
+    }
+  };
+  if (range_pass) check_coverage();
+
+  // The assembly pass: the system for the optimized TF's size, the one for the reference TF's
+  // size when it differs (the loss before), and the downsampled copies.
+  t0 = std::chrono::steady_clock::now();
+  Buffer ref_tf_buffer = upload_tf(ctx, req.ref_tf, "reference TF");
+  const FieldMapping ref_map = make_mapping(out.ref_range, static_cast<uint32_t>(req.ref_tf.size()));
+  const FieldMapping opt_map = make_mapping(out.field_range, req.tf_size);
+  const FieldMapping opt_with_ref_tf = make_mapping(out.field_range, static_cast<uint32_t>(req.ref_tf.size()));
+  const bool second_system = opt_with_ref_tf.tf_size != opt_map.tf_size;
+  GpuNormalEquations gpu(ctx, opt_map.tf_size);
+  std::optional<GpuNormalEquations> gpu_before;
+  if (second_system) gpu_before.emplace(ctx, opt_with_ref_tf.tf_size);
+  std::optional<BoxFilter> ref_box, field_box;
+  if (req.preview_voxels) {
+    s.preview_factor = box_factor(grid.dims, req.preview_voxels);
+    ref_box.emplace(ref.grid(), s.preview_factor);
+    field_box.emplace(field.grid(), s.preview_factor);
+  }
+  SlabUploader device(ctx, s.slab_slices * ref.slice_voxels(), req.max_chunk_voxels);
+  double gpu_ms = 0.0;
+  for_each_slab_pair(ref, field, s.slab_slices, [&](uint64_t z0, uint64_t nz, std::span<const float> r, std::span<const float> f) {
+    if (!range_pass) measures.add(r, f, ref_user, field_user);
+    const auto& d = device.upload(r, f);
+    const double ms = gpu.add(d.first, d.second, ref_map, opt_map, ref_tf_buffer);
+    gpu_ms = ms >= 0 && gpu_ms >= 0 ? gpu_ms + ms : -1.0;
+    if (gpu_before) gpu_before->add(d.first, d.second, ref_map, opt_with_ref_tf, ref_tf_buffer);
+    if (ref_box) ref_box->add(z0, nz, r), field_box->add(z0, nz, f);
+  });
+  out.phases.push_back({"stream+assemble", ms_since(t0), gpu_ms});
+  if (!range_pass) check_coverage();
+  if (ref_box) s.ref_preview = ref_box->finish(), s.field_preview = field_box->finish();
+  const NormalEquations eq = gpu.result();
+  if (eq.voxels == 0) throw std::runtime_error("no voxel has data in both " + ref.grid().name + " and " + field.grid().name);
+
+  // The solver sees the assembled system; the device fields it could read are placeholders
+  // (normal-equations and qp read only the system).
+  const Volume& ref_volume = ref_box ? s.ref_preview : ref.grid();
+  const Volume& opt_volume = field_box ? s.field_preview : field.grid();
+  const float nothing = 0.0f;
+  DeviceField ref_placeholder(ctx, std::span<const float>(&nothing, 1), "reference (streamed)");
+  DeviceField opt_placeholder(ctx, std::span<const float>(&nothing, 1), "second field (streamed)");
+  VoxelProblem problem{ctx,     ref_volume,          opt_volume,          ref_placeholder,
+                       opt_placeholder, ref_map,     opt_map,             req.ref_tf,
+                       ref_tf_buffer,   req.ref_tf.resampled(req.tf_size)};
+  problem.system = eq;
+  checkpoint("solve");
+  SolverOutput solved = solver.solve(problem, args);
+  for (auto& p : solved.phases) out.phases.push_back(p);
+  out.warnings.insert(out.warnings.end(), solved.warnings.begin(), solved.warnings.end());
+  out.details = solved.details;
+  out.details["streamed"] = s.streamed ? "yes" : "no (a field was loaded whole)";
+  out.details["passes"] = s.passes;
+  out.details["slab_slices"] = s.slab_slices;
+  out.tf = solved.tf;
+  out.tf.range = out.field_range;
+
+  t0 = std::chrono::steady_clock::now();
+  const std::vector<float> ref_entries = req.ref_tf.as_floats();
+  out.before = voxel_loss_from_system(gpu_before ? gpu_before->result() : eq, ref_entries);
+  out.phases.push_back({"loss before", ms_since(t0), -1.0});
+  t0 = std::chrono::steady_clock::now();
+  out.after = voxel_loss_from_system(eq, out.tf.as_floats());
+  out.phases.push_back({"loss after", ms_since(t0), -1.0});
+  return s;
+}
+
+}  // namespace tfm
