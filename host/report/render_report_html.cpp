@@ -75,6 +75,7 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
     << " &middot; field: " << escape(in.field.name) << " &middot; grid " << in.ref.dims[0] << "&times;"
     << in.ref.dims[1] << "&times;" << in.ref.dims[2] << " &middot; solver: " << escape(r.solver)
     << " &middot; device: " << escape(r.device) << "</div>\n";
+  for (const std::string& n : in.notes) h << "<p class=\"note\">" << escape(n) << "</p>\n";
 
   // Every warning of the run (ranges that miss a field, cond(M), clamping) where it is read first.
   if (!r.warnings.empty()) {

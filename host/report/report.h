@@ -45,6 +45,8 @@ struct ReportInputs {
   std::optional<GridIndex> slice_point;
   std::vector<ReportFigure> extra_figures;
   nlohmann::json extra_metrics;    // merged into metrics.json under "extra" when not null
+  // Shown under the title (a streamed run: the pictures are of a downsampled copy).
+  std::vector<std::string> notes;
   bool histogram_log = true;       // TF plots: log(1 + count) bars, else counts (each plot says which)
   // Saved with the report (command.txt, the page) so that it can be reproduced.
   std::string command_line;

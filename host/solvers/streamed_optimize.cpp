@@ -241,7 +241,7 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
     if (gpu_before) gpu_before->add(d.first, d.second, ref_map, opt_with_ref_tf, ref_tf_buffer);
     if (ref_box) ref_box->add(z0, nz, r), field_box->add(z0, nz, f);
   });
-  out.phases.push_back({"stream+assemble", ms_since(t0), gpu_ms});
+  out.phases.push_back({"read+assemble", ms_since(t0), gpu_ms});
   if (!range_pass) check_coverage();
   if (ref_box) s.ref_preview = ref_box->finish(), s.field_preview = field_box->finish();
   const NormalEquations eq = gpu.result();

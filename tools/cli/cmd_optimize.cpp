@@ -15,9 +15,12 @@
 #include "report.h"
 #include "loss_plot.h"
 #include "result_json.h"
+#include "memory_budget.h"
 #include "solver_options.h"
+#include "streamed_optimize.h"
 #include "tf_formats.h"
 #include "volume.h"
+#include "volume_io.h"
 
 namespace tfm::cli {
 namespace {
@@ -33,8 +36,123 @@ struct OptimizeArgs {
   std::vector<std::string> markers;           // drawn on the report's renderings
   std::string slice_point;                    // the report's slices go through it
   std::string histogram = "log";              // report TF plots: log or linear counts
+  std::string stream = "auto";                // auto, on, off: read both fields slab by slab
   RenderSettings render;
 };
+
+// Both fields opened for a streamed run, or nothing when the run loads them whole: with
+// --stream on; with auto when the solver streams, both files do and both fields as float32 take
+// over a quarter of the memory budget (loaded whole, they are held on the host and the device).
+struct Streams {
+  std::unique_ptr<VolumeSlabReader> ref, field;
+};
+std::optional<Streams> open_streams(const OptimizeArgs& a) {
+  if (a.stream == "off") return std::nullopt;
+  if (!solver_streams(a.solver)) {
+    if (a.stream == "on")
+      throw CLI::ValidationError("--stream", "solver " + a.solver + " needs both fields in memory; the solvers that "
+                                 "stream from disk are normal-equations and qp");
+    return std::nullopt;
+  }
+  const VolumeOptions vo = a.in.volume.options();
+  Streams s{open_volume_slabs(a.in.ref, vo), open_volume_slabs(a.in.field, vo)};
+  if (a.stream == "auto") {
+    if (!s.ref || !s.field) return std::nullopt;
+    const uint64_t bytes = 2 * s.ref->grid().voxel_count() * sizeof(float);
+    if (bytes <= memory_budget().bytes / 4) return std::nullopt;
+    if (!globals().quiet)
+      std::cerr << "tfmatch: streaming both fields from disk (" << format_bytes(bytes) << " as float32; memory budget "
+                << format_bytes(memory_budget().bytes) << ", " << memory_budget().source << ")\n";
+  }
+  for (auto [reader, spec] : {std::pair{&s.ref, &a.in.ref}, std::pair{&s.field, &a.in.field}}) {
+    if (*reader) continue;
+    std::cerr << "tfmatch: note: " << *spec << " cannot be read slab by slab (only raw, .dat, NetCDF and "
+              << "uncompressed raw-appended VTI can): loading it whole\n";
+    *reader = slabs_in_memory(load_volume(*spec, vo));
+  }
+  return s;
+}
+
+// `optimize` with both fields streamed from disk (streamed_optimize.h): the TF and voxel losses
+// from all voxels, the report's pictures from box-filtered copies made during the same read.
+int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const SolverSettings& settings,
+                 const JsonOutput& json, OutputBatch& outputs) {
+  OptimizeRequest loaded;
+  load_tf_and_ranges(a.in, loaded);
+  StreamedOptimizeRequest req;
+  req.ref = streams.ref.get();
+  req.field = streams.field.get();
+  req.ref_tf = loaded.ref_tf;
+  req.ref_range = loaded.ref_range;
+  req.field_range = loaded.field_range;
+  req.tf_size = loaded.tf_size;
+  req.allow_out_of_range = loaded.allow_out_of_range;
+  req.solver = a.solver;
+  req.settings = settings;
+  if (!a.report.empty()) req.preview_voxels = kDefaultPreviewVoxels;
+  // Markers and the slice point name voxels of the whole grid: resolved there, then scaled.
+  const std::vector<GridIndex> markers = resolve_markers(streams.ref->grid(), a.markers);
+  const std::optional<GridIndex> slice_point = resolve_slice_point(streams.ref->grid(), a.slice_point);
+  StreamedOptimizeResult s = run_optimize_streamed(ctx, req);
+  const OptimizeResult& result = s.result;
+  const auto& d = streams.ref->grid().dims;
+  const std::string how = std::string(s.streamed ? "streamed from disk" : "read slab by slab (a field loaded whole)") +
+                          " in " + std::to_string(s.slabs) + " slabs of " + std::to_string(s.slab_slices) +
+                          " z-slices, " + std::to_string(s.passes) + (s.passes == 1 ? " pass" : " passes") +
+                          " over the files";
+  if (!globals().quiet) {
+    result.print_summary(std::cout);
+    std::cout << "  " << how << "\n";
+  }
+  write_transfer_function(a.out, result.tf);
+  nlohmann::json stream_json = {{"streamed", s.streamed},
+                                {"passes", s.passes},
+                                {"slabs", s.slabs},
+                                {"slab_slices", s.slab_slices}};
+  nlohmann::json j = to_json(result);
+  j["stream"] = stream_json;
+  json.write(j);
+  std::optional<ReportSummary> summary;
+  if (!a.report.empty()) {
+    set_progress_enabled(!globals().quiet);
+    const Volume& ref = s.ref_preview;
+    ReportInputs inputs{ref, s.field_preview, req.ref_tf, result, a.render};
+    const uint64_t k = s.preview_factor;
+    for (GridIndex m : markers) inputs.markers.push_back({m[0] / k, m[1] / k, m[2] / k});
+    if (slice_point) inputs.slice_point = GridIndex{(*slice_point)[0] / k, (*slice_point)[1] / k, (*slice_point)[2] / k};
+    inputs.title = "tfmatch: " + streams.field->grid().name + " matched to " + streams.ref->grid().name;
+    inputs.notes.push_back(
+        "Streamed run (" + how + "): the TF and the voxel RMSE come from all " + std::to_string(d[0]) + "×" +
+        std::to_string(d[1]) + "×" + std::to_string(d[2]) + " voxels; the pictures, slices, histograms and image "
+        "metrics are of copies box-filtered during the same read (each voxel the mean of the finite values of " +
+        std::to_string(k) + "×" + std::to_string(k) + "×" + std::to_string(k) + " voxels: " +
+        std::to_string(ref.dims[0]) + "×" + std::to_string(ref.dims[1]) + "×" + std::to_string(ref.dims[2]) +
+        "). The voxel MAE is not measured in a streamed run.");
+    stream_json["preview_factor"] = k;
+    stream_json["preview_dims"] = ref.dims;
+    stream_json["grid_dims"] = d;
+    inputs.extra_metrics = {{"stream", stream_json}};
+    inputs.histogram_log = a.histogram == "log";
+    inputs.command_line = globals().command_line;
+    inputs.version = version_line();
+    inputs.inputs = input_args_json(a.in);
+    inputs.inputs["solver"] = a.solver;
+    inputs.inputs["solver_options"] = a.extra;
+    inputs.inputs["ridge"] = a.ridge;
+    inputs.inputs["smooth"] = a.smooth;
+    summary = write_report(ctx, inputs, a.report);
+  }
+  outputs.commit();
+  if (!globals().quiet) {
+    std::cout << "  wrote " << a.out << (json.file().empty() ? "" : " and " + a.json) << "\n";
+    if (summary)
+      std::cout << "  images vs reference (box-filtered by " << s.preview_factor << "): reference TF "
+                << summary->before.to_string() << "\n"
+                << "                       optimized TF " << summary->after.to_string() << "\n"
+                << "  report: " << summary->index.string() << "\n";
+  }
+  return 0;
+}
 
 int run(const OptimizeArgs& a) {
   const JsonOutput json(a.json);  // first: with '-', stdout holds only the JSON
@@ -63,8 +181,15 @@ int run(const OptimizeArgs& a) {
   auto ctx = make_context();
   if (!a.report.empty()) check_render_size(*ctx, a.render);
   OutputBatch outputs;  // nothing appears unless every output is complete
+  if (std::optional<Streams> streams = open_streams(a)) return run_streamed(a, *ctx, *streams, settings, json, outputs);
   LoadedInputs loaded;
-  load_inputs(a.in, loaded);
+  try {
+    load_inputs(a.in, loaded);
+  } catch (const MemoryBudgetExceeded& e) {
+    if (solver_streams(a.solver)) throw;
+    throw MemoryBudgetExceeded(std::string(e.what()) + " (normal-equations and qp read volumes larger than memory "
+                               "slab by slab from disk: --solver normal-equations --stream on)");
+  }
   const Volume& ref = loaded.ref;
   const std::vector<GridIndex> markers = resolve_markers(ref, a.markers);
   const std::optional<GridIndex> slice_point = resolve_slice_point(ref, a.slice_point);
@@ -130,6 +255,11 @@ CommandRegistration reg(10, [](CLI::App& app) {
   add_marker_option(sub, args->markers);
   add_slice_point_option(sub, args->slice_point);
   add_histogram_option(sub, args->histogram);
+  sub->add_option("--stream", args->stream, "Read both fields from disk slab by slab, so memory does not grow with "
+                  "the voxel count (normal-equations and qp; raw, .dat, NetCDF, uncompressed VTI): on, off, or auto "
+                  "(when both fields as float32 exceed a quarter of --max-memory / the available memory). The report "
+                  "then shows box-filtered copies")
+      ->check(CLI::IsMember({"auto", "on", "off"}))->capture_default_str();
   sub->footer(solver_descriptions());
   sub->callback([args] { exit_code() = run(*args); });
 });

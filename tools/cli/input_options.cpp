@@ -64,9 +64,12 @@ void load_inputs(const InputArgs& a, LoadedInputs& out) {
   const VolumeOptions vo = a.volume.options();
   out.ref = load_volume(a.ref, vo);
   out.field = load_volume(a.field, vo);
-  OptimizeRequest& req = out.request;
-  req.ref = &out.ref;
-  req.field = &out.field;
+  out.request.ref = &out.ref;
+  out.request.field = &out.field;
+  load_tf_and_ranges(a, out.request);
+}
+
+void load_tf_and_ranges(const InputArgs& a, OptimizeRequest& req) {
   std::vector<std::string> notes;
   req.ref_tf = read_transfer_function(a.ref_tf, {}, &notes);
   for (const auto& n : notes) std::cerr << "tfmatch: note: " << n << "\n";

@@ -54,6 +54,9 @@ struct LoadedInputs {
 // Loads the volumes and the reference TF (printing TF reader notes to stderr) and fills the
 // request's inputs, ranges and TF size. Throws std::runtime_error naming a bad file or flag.
 void load_inputs(const InputArgs& args, LoadedInputs& out);
+// load_inputs() without the volumes: the reference TF, the ranges, the TF size and
+// --allow-out-of-range into `out` (a streamed run reads the volumes slab by slab).
+void load_tf_and_ranges(const InputArgs& args, OptimizeRequest& out);
 
 // The flags as JSON with absolute paths (a report's inputs.json, which `tfmatch view --report`
 // reopens), and back; relative paths in the JSON are taken relative to `base`.
