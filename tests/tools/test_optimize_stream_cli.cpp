@@ -45,7 +45,7 @@ TEST_F(OptimizeStreamCli, SameTfAsTheWholeVolumes) {
       const std::string s = std::string(" --solver ") + solver + " --smooth 0.001";
       const auto streamed = run_cli(args(ref, field, "streamed.json") + s + " --stream on");
       ASSERT_EQ(streamed.exit_code, 0) << streamed.output;
-      EXPECT_NE(streamed.output.find("streamed from disk in 1 slabs"), std::string::npos) << streamed.output;
+      EXPECT_NE(streamed.output.find("streamed from disk in 1 slab of 23 z-slices, 2 passes"), std::string::npos) << streamed.output;
       const auto whole = run_cli(args(ref, field, "whole.json") + s + " --stream off");
       ASSERT_EQ(whole.exit_code, 0) << whole.output;
       EXPECT_EQ(read_text(dir / "streamed.json"), read_text(dir / "whole.json"));
@@ -72,6 +72,20 @@ TEST_F(OptimizeStreamCli, RefusesWhatCannotStream) {
   EXPECT_NE(r.output.find(raw_field), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("bytes"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir / "x.json"));
+}
+
+// The benchmark on tiny sizes: its table, its JSON, and nothing left in its directory.
+TEST_F(OptimizeStreamCli, BenchStreamMeasuresAndCleansUp) {
+  const fs::path bench = dir / "bench";
+  fs::create_directories(bench);
+  const auto r = run_cli("bench-stream --voxels 1000,3000 --dir " + bench.string() + " --json " + (dir / "b.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("peak RSS"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("11x11x8"), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::is_empty(bench));
+  const std::string j = read_text(dir / "b.json");
+  EXPECT_NE(j.find("\"peak_rss_bytes\""), std::string::npos) << j;
+  EXPECT_NE(j.find("\"read_once_s\""), std::string::npos) << j;
 }
 
 }  // namespace

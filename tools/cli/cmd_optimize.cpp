@@ -97,8 +97,8 @@ int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const So
   const OptimizeResult& result = s.result;
   const auto& d = streams.ref->grid().dims;
   const std::string how = std::string(s.streamed ? "streamed from disk" : "read slab by slab (a field loaded whole)") +
-                          " in " + std::to_string(s.slabs) + " slabs of " + std::to_string(s.slab_slices) +
-                          " z-slices, " + std::to_string(s.passes) + (s.passes == 1 ? " pass" : " passes") +
+                          " in " + std::to_string(s.slabs) + (s.slabs == 1 ? " slab of " : " slabs of ") +
+                          std::to_string(s.slab_slices) + " z-slices, " + std::to_string(s.passes) + (s.passes == 1 ? " pass" : " passes") +
                           " over the files";
   if (!globals().quiet) {
     result.print_summary(std::cout);
