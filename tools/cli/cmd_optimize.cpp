@@ -55,8 +55,16 @@ std::optional<Streams> open_streams(const OptimizeArgs& a) {
     return std::nullopt;
   }
   const VolumeOptions vo = a.in.volume.options();
-  Streams s{open_volume_slabs(a.in.ref, vo), open_volume_slabs(a.in.field, vo)};
-  if (a.stream == "auto") {
+  Streams s;
+  if (a.stream == "on") {
+    s = {open_volume_slabs(a.in.ref, vo), open_volume_slabs(a.in.field, vo)};
+  } else {
+    // auto: a file the slab readers refuse is left to the whole load, which says what is wrong.
+    try {
+      s = {open_volume_slabs(a.in.ref, vo), open_volume_slabs(a.in.field, vo)};
+    } catch (const std::runtime_error&) {
+      return std::nullopt;
+    }
     if (!s.ref || !s.field) return std::nullopt;
     const uint64_t bytes = 2 * s.ref->grid().voxel_count() * sizeof(float);
     if (bytes <= memory_budget().bytes / 4) return std::nullopt;
