@@ -37,6 +37,7 @@ struct BenchArgs {
   std::vector<uint64_t> voxels{100'000'000, 800'000'000};
   std::string dir;  // default: the temporary directory
   std::string solver = "normal-equations";
+  bool report = false;  // optimize --report too (box-filtered copies, renderings)
   std::string json;
 };
 
@@ -173,7 +174,7 @@ int run(const BenchArgs& a) {
       std::fclose(f);
     }
     std::cout << "tfmatch bench-stream: optimize --stream on (--solver " << a.solver << ", ranges from the data: 2 passes)"
-              << " in " << base.string() << "; " << format_bytes(free_bytes) << " free; load average " << load[0] << " "
+              << (a.report ? ", with --report (512x512)" : "") << " in " << base.string() << "; " << format_bytes(free_bytes) << " free; load average " << load[0] << " "
               << load[1] << " " << load[2] << "; page cache dropped before each run\n";
     std::cout << std::left << std::setw(14) << "voxels" << std::setw(18) << "grid" << std::setw(11) << "files"
               << std::setw(10) << "write s" << std::setw(18) << "read both once s" << std::setw(13) << "optimize s"
@@ -195,7 +196,8 @@ int run(const BenchArgs& a) {
       std::vector<std::string> args{"optimize", "--ref", ref.string(), "--field", field.string(), "--ref-tf",
                                     (work / "tf.json").string(), "--out", (work / "out.json").string(), "--json",
                                     (work / "summary.json").string(), "--stream", "on", "--solver", a.solver};
-      if (memory_budget().source.rfind("--max-memory", 0) == 0)
+      if (a.report) args.insert(args.end(), {"--report", (work / "report").string(), "--width", "512", "--height", "512"});
+    if (memory_budget().source.rfind("--max-memory", 0) == 0)
         args.insert(args.begin(), {"--max-memory", std::to_string(memory_budget().bytes)});
       const ChildRun r = run_self(args, work / "optimize.log");
       if (r.exit_code != 0) {
@@ -225,7 +227,8 @@ int run(const BenchArgs& a) {
     }
   }  // the scratch directory is gone
   OutputBatch outputs;
-  json.write({{"benchmark", "bench-stream"}, {"load_average", load}, {"dir", base.string()}, {"runs", rows}});
+  json.write({{"benchmark", "bench-stream"}, {"load_average", load}, {"dir", base.string()}, {"report", a.report},
+              {"runs", rows}});
   outputs.commit();
   return 0;
 }
@@ -239,6 +242,7 @@ CommandRegistration reg(94, [](CLI::App& app) {
   sub->add_option("--dir", args->dir, "Where the files are written (default: the temporary directory); removed after");
   sub->add_option("--solver", args->solver, "normal-equations or qp")->check(CLI::IsMember({"normal-equations", "qp"}))
       ->capture_default_str();
+  sub->add_flag("--report", args->report, "Also write optimize's report (512x512 renderings of box-filtered copies)");
   add_json_option(sub, args->json, "the measurements");
   sub->callback([args] { exit_code() = run(*args); });
 });
