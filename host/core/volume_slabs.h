@@ -15,8 +15,9 @@ namespace tfm {
 class VolumeSlabReader {
  public:
   virtual ~VolumeSlabReader() = default;
-  // The grid (dims, spacing, origin, name) as load_volume() gives it; no values, and no axis
-  // coordinates (a streamed run's pictures are of a downsampled copy).
+  // The grid (dims, spacing, origin, name, and NetCDF axis names and coordinates) as
+  // load_volume() gives it, without values. (A VTI reader leaves out the axis coordinates
+  // tfmatch writes as field data: nothing streamed needs them.)
   const Volume& grid() const { return grid_; }
   uint64_t slice_voxels() const { return grid_.dims[0] * grid_.dims[1]; }
   // Writes z-slices [z0, z0 + nz) into `out` (nz * slice_voxels() floats, x fastest): the values
