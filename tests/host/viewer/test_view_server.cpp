@@ -303,6 +303,25 @@ TEST_F(ViewServerTest, OptimizeJobReplacesTheTfAndReportsProgressAsEvents) {
   EXPECT_NE(get("/api/render?view=field-opt-tf&w=32&h=32")->body, before);
 }
 
+// A page that goes away while its job runs (the event stream closed after its first event)
+// cancels nothing: the job ends normally and its result is installed.
+TEST_F(ViewServerTest, AClientLeavingMidJobCancelsNothing) {
+  auto r = post("/api/optimize", {{"solver", "gradient-descent"}, {"options", {{"iterations", 3000}}}});
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  {
+    httplib::Client leaving("127.0.0.1", server_->port());
+    int events = 0;
+    leaving.Get(with_token("/api/progress"), [&](const char*, size_t) { return ++events < 1; });  // hangs up
+    EXPECT_EQ(events, 1);
+  }
+  wait_for_job();
+  const nlohmann::json job = get_json("/api/job");
+  EXPECT_EQ(job["state"], "done") << job.dump();
+  EXPECT_EQ(get_json("/api/state")["optimized_tf"]["solver"], "gradient-descent");
+  EXPECT_EQ(get("/api/render?view=field-opt-tf&w=32&h=32")->status, 200);
+}
+
 TEST_F(ViewServerTest, ReferenceTfEditsChangeTheReferenceViewsAndCanReoptimize) {
   const nlohmann::json s0 = get_json("/api/state");
   const std::string before = get("/api/render?view=reference&w=32&h=32")->body;
