@@ -81,6 +81,19 @@ std::optional<Streams> open_streams(const OptimizeArgs& a) {
   return s;
 }
 
+// What a report records to be read and reproduced: its histogram scale, the command line, the
+// version and the inputs (`tfmatch view --report` reopens them).
+void add_provenance(ReportInputs& inputs, const OptimizeArgs& a) {
+  inputs.histogram_log = a.histogram == "log";
+  inputs.command_line = globals().command_line;
+  inputs.version = version_line();
+  inputs.inputs = input_args_json(a.in);
+  inputs.inputs["solver"] = a.solver;
+  inputs.inputs["solver_options"] = a.extra;
+  inputs.inputs["ridge"] = a.ridge;
+  inputs.inputs["smooth"] = a.smooth;
+}
+
 // `optimize` with both fields streamed from disk (streamed_optimize.h): the TF and voxel losses
 // from all voxels, the report's pictures from box-filtered copies made during the same read.
 int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const SolverSettings& settings,
@@ -140,14 +153,7 @@ int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const So
     stream_json["preview_dims"] = ref.dims;
     stream_json["grid_dims"] = d;
     inputs.extra_metrics = {{"stream", stream_json}};
-    inputs.histogram_log = a.histogram == "log";
-    inputs.command_line = globals().command_line;
-    inputs.version = version_line();
-    inputs.inputs = input_args_json(a.in);
-    inputs.inputs["solver"] = a.solver;
-    inputs.inputs["solver_options"] = a.extra;
-    inputs.inputs["ridge"] = a.ridge;
-    inputs.inputs["smooth"] = a.smooth;
+    add_provenance(inputs, a);
     summary = write_report(ctx, inputs, a.report);
   }
   outputs.commit();
@@ -218,14 +224,7 @@ int run(const OptimizeArgs& a) {
     inputs.title = "tfmatch: " + field.name + " matched to " + ref.name;
     inputs.markers = markers;
     inputs.slice_point = slice_point;
-    inputs.histogram_log = a.histogram == "log";
-    inputs.command_line = globals().command_line;
-    inputs.version = version_line();
-    inputs.inputs = input_args_json(a.in);
-    inputs.inputs["solver"] = a.solver;
-    inputs.inputs["solver_options"] = a.extra;
-    inputs.inputs["ridge"] = a.ridge;
-    inputs.inputs["smooth"] = a.smooth;
+    add_provenance(inputs, a);
     summary = write_report(*ctx, inputs, a.report);
   }
   outputs.commit();
