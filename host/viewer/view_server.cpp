@@ -327,7 +327,7 @@ struct ViewServer::Impl {
         }
         const bool reoptimize = body.value("reoptimize", false);
         const uint64_t job = session.set_reference_tf(points, reoptimize);
-        const uint64_t version = session.state()["version"].get<uint64_t>();
+        const uint64_t version = session.version();
         if (job) send_json(res, {{"job", job}, {"version", version}}, 202);
         else send_json(res, {{"version", version}});
       });

@@ -96,10 +96,14 @@ const char* view_kind_name(ViewKind view) { return kViewNames[int(view)]; }
 // installed whole, so a picture never mixes one state's field with another's TF.
 struct ViewSession::Derived {
   VolumeGeometry geometry;
-  std::unique_ptr<DeviceField> ref, field, residual_before, residual_after;
+  // The two fields on the device with their renderers: shared with the next Derived when a job
+  // changes only TFs (an optimization, a reference-TF edit), so they are uploaded once per field.
+  std::shared_ptr<const DeviceField> ref, field;
+  std::shared_ptr<const GpuRenderer> ref_renderer, field_renderer;
+  std::unique_ptr<DeviceField> residual_before, residual_after;
   std::optional<Buffer> ref_tf, opt_tf, res_tf;
   FieldMapping ref_map{}, field_ref_map{}, field_opt_map{}, res_map{};
-  std::unique_ptr<GpuRenderer> ref_renderer, field_renderer, res_before_renderer, res_after_renderer;
+  std::unique_ptr<GpuRenderer> res_before_renderer, res_after_renderer;
   Volume res_before, res_after;  // host copies: slices, histograms, downloads
   FieldRange res_range;
   TransferFunction res_tf_table;
@@ -159,11 +163,23 @@ OptimizeResult ViewSession::run_optimization(const Volume& ref, const Volume& fi
 }
 
 std::unique_ptr<ViewSession::Derived> ViewSession::derive(const Volume& ref, const Volume& field,
-                                                          const TransferFunction& ref_tf, const OptimizeResult& r) {
+                                                          const TransferFunction& ref_tf, const OptimizeResult& r,
+                                                          const Derived* same_fields) {
   auto d = std::make_unique<Derived>();
   d->geometry = VolumeGeometry::from(ref.dims, ref.spacing, config_.render.z_scale);
-  d->ref = std::make_unique<DeviceField>(ctx_, ref.values, "view: reference field");
-  d->field = std::make_unique<DeviceField>(ctx_, field.values, "view: second field", d->ref->chunk_voxels());
+  if (same_fields) {
+    d->ref = same_fields->ref;
+    d->field = same_fields->field;
+    d->ref_renderer = same_fields->ref_renderer;
+    d->field_renderer = same_fields->field_renderer;
+  } else {
+    auto ref_dev = std::make_shared<DeviceField>(ctx_, ref.values, "view: reference field");
+    auto field_dev = std::make_shared<DeviceField>(ctx_, field.values, "view: second field", ref_dev->chunk_voxels());
+    d->ref_renderer = std::make_shared<GpuRenderer>(ctx_, *ref_dev, d->geometry);
+    d->field_renderer = std::make_shared<GpuRenderer>(ctx_, *field_dev, d->geometry);
+    d->ref = std::move(ref_dev);
+    d->field = std::move(field_dev);
+  }
   d->ref_tf.emplace(upload_tf(ctx_, ref_tf, "view: reference TF"));
   d->opt_tf.emplace(upload_tf(ctx_, r.tf, "view: optimized TF"));
   const uint32_t ref_n = uint32_t(ref_tf.size()), opt_n = uint32_t(r.tf.size());
@@ -178,8 +194,6 @@ std::unique_ptr<ViewSession::Derived> ViewSession::derive(const Volume& ref, con
   d->res_map = make_mapping(d->res_range, uint32_t(d->res_tf_table.size()));
   d->residual_before = std::make_unique<DeviceField>(ctx_, d->res_before.values, "view: residual before");
   d->residual_after = std::make_unique<DeviceField>(ctx_, d->res_after.values, "view: residual after");
-  d->ref_renderer = std::make_unique<GpuRenderer>(ctx_, *d->ref, d->geometry);
-  d->field_renderer = std::make_unique<GpuRenderer>(ctx_, *d->field, d->geometry);
   d->res_before_renderer = std::make_unique<GpuRenderer>(ctx_, *d->residual_before, d->geometry);
   d->res_after_renderer = std::make_unique<GpuRenderer>(ctx_, *d->residual_after, d->geometry);
   return d;
@@ -272,7 +286,7 @@ void ViewSession::optimize_job(const TransferFunction& ref_tf_in, const std::str
   std::lock_guard device(device_mutex_);
   const TransferFunction ref_tf = ref_tf_in;  // a copy: install() replaces the member it may refer to
   OptimizeResult r = run_optimization(ref_, field_, ref_tf, solver, settings);
-  auto derived = derive(ref_, field_, ref_tf, r);
+  auto derived = derive(ref_, field_, ref_tf, r, derived_.get());
   nlohmann::json summary = job_summary(r);
   install(std::nullopt, ref_tf, std::move(r), std::move(derived), solver, settings);
   finish_job(summary, t0);
@@ -313,7 +327,7 @@ uint64_t ViewSession::set_reference_tf(const ControlPointTf& points, bool reopti
   if (job_running_) throw ConflictError("a job is running: apply the reference TF when it ends");
   std::unique_lock device = lock_device_for_request();
   OptimizeResult r = result_;
-  auto derived = derive(ref_, field_, table, r);
+  auto derived = derive(ref_, field_, table, r, derived_.get());
   r.before = voxel_loss_gpu(ctx_, *derived->ref, *derived->field, derived->ref_map, derived->field_ref_map,
                             *derived->ref_tf, *derived->ref_tf);
   r.after = voxel_loss_gpu(ctx_, *derived->ref, *derived->field, derived->ref_map, derived->field_opt_map,

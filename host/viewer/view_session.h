@@ -89,6 +89,11 @@ class ViewSession {
   // The current or last job (GET /api/job).
   nlohmann::json job() const;
   bool job_running() const { return job_running_; }
+  // Increases whenever a TF or a field changes (state()["version"]).
+  uint64_t version() const {
+    std::lock_guard data(data_mutex_);
+    return version_;
+  }
   const RenderSettings& default_render() const { return config_.render; }
   const Volume& grid() const { return ref_; }  // dims, spacing, axes (fixed for the session)
 
@@ -143,8 +148,10 @@ class ViewSession {
   void initialize();
   OptimizeResult run_optimization(const Volume& ref, const Volume& field, const TransferFunction& ref_tf,
                                   const std::string& solver, const SolverSettings& settings);
+  // `same_fields`: the current Derived when ref and field are unchanged (its device copies and
+  // renderers are shared instead of uploaded again); nullptr for new fields.
   std::unique_ptr<Derived> derive(const Volume& ref, const Volume& field, const TransferFunction& ref_tf,
-                                  const OptimizeResult& result);
+                                  const OptimizeResult& result, const Derived* same_fields = nullptr);
   void install(std::optional<std::pair<Volume, Volume>> fields, TransferFunction ref_tf, OptimizeResult result,
                std::unique_ptr<Derived> derived, const std::string& solver, const SolverSettings& settings);
   std::pair<Volume, Volume> correlation_fields(const GridIndex& point);
