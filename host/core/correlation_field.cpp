@@ -9,6 +9,12 @@
 
 namespace tfm {
 
+void check_correlation_members(const Ensemble& ens) {
+  if (ens.member_count < 3)
+    throw std::runtime_error(ens.grid.name + ": " + std::to_string(ens.member_count) +
+                             " member(s); a correlation over members needs at least 3");
+}
+
 void check_reference_point(const EnsembleView& ens, uint64_t voxel, CorrelationMeasure measure) {
   if (voxel >= ens.voxel_count)
     throw std::invalid_argument("reference voxel " + std::to_string(voxel) + " is outside the ensemble's " +

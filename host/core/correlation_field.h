@@ -9,6 +9,7 @@
 
 #include "context.h"
 #include "correlation.h"
+#include "ensemble.h"
 
 namespace tfm {
 
@@ -26,6 +27,10 @@ struct CorrelationRequest {
 // `progress` sees voxels done of all voxels (twice the grid with point2).
 std::vector<float> correlation_field(Context& ctx, const EnsembleView& ens, const CorrelationRequest& request,
                                      const CorrelationProgress& progress = {});
+
+// Throws std::runtime_error "<ensemble>: N member(s); a correlation over members needs at least
+// 3" for an ensemble too small for any measure.
+void check_correlation_members(const Ensemble& ens);
 
 // Throws std::invalid_argument (the reasons above) unless `voxel` can be a reference point.
 void check_reference_point(const EnsembleView& ens, uint64_t voxel, CorrelationMeasure measure);

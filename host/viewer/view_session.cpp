@@ -117,6 +117,7 @@ ViewSession::ViewSession(Context& ctx, Volume ref, Volume field, ViewConfig conf
 
 ViewSession::ViewSession(Context& ctx, ViewEnsemble ensemble, ViewConfig config)
     : ctx_(ctx), config_(std::move(config)), ensemble_(std::move(ensemble)) {
+  check_correlation_members(ensemble_->ensemble);
   validate_correlation_params(ensemble_->params, ensemble_->ensemble.member_count);
   if (config_.ref_tf.size() >= 2 && !config_.ref_tf.range && !config_.ref_range)
     config_.ref_tf.range = measure_scale(ensemble_->params.measure);

@@ -63,9 +63,7 @@ int run(const CorrelateArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   const Ensemble ens = a.ensemble.empty() ? load_ensemble_members(member_files, vo) : load_ensemble(a.ensemble, vo);
   const std::string source = ens.grid.name;
-  if (ens.member_count < 3)
-    throw std::runtime_error(source + ": " + std::to_string(ens.member_count) +
-                             " member(s); a correlation over members needs at least 3");
+  check_correlation_members(ens);
   try {
     validate_correlation_params(params, ens.member_count);
   } catch (const std::invalid_argument& e) {

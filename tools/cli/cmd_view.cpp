@@ -10,6 +10,7 @@
 #include "cancellation.h"
 #include "cli.h"
 #include "correlation.h"
+#include "correlation_field.h"
 #include "ensemble_io.h"
 #include "input_options.h"
 #include "interrupts.h"
@@ -136,9 +137,7 @@ int run(ViewArgs a) {
     } else {
       e.ensemble = a.members.empty() ? load_ensemble(a.ensemble, vo) : load_ensemble_members(expand_member_patterns(a.members), vo);
     }
-    if (e.ensemble.member_count < 3)
-      throw std::runtime_error(e.ensemble.grid.name + ": " + std::to_string(e.ensemble.member_count) +
-                               " member(s); a correlation over members needs at least 3");
+    check_correlation_members(e.ensemble);  // before resolving the point, as correlate does
     const Volume& grid = e.ensemble.grid;
     e.point = !a.point.empty()  ? resolve_grid_point(grid, a.point, "--point")
               : a.demo          ? synthetic_ensemble_reference(e.ensemble)
