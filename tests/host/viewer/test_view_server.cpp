@@ -461,3 +461,27 @@ TEST_F(GpuTest, ViewEnsembleNewReferencePointRecomputesTheFields) {
 
 }  // namespace
 }  // namespace tfm
+
+namespace tfm {
+namespace {
+
+// Too few members for any correlation: refused before any field is computed, saying why.
+TEST_F(GpuTest, ViewEnsembleWithTwoMembersIsRefused) {
+  ViewEnsemble e;
+  e.ensemble.grid = empty_like(synthetic_reference(4, 4, 4));
+  e.ensemble.grid.name = "two.nc:t";
+  e.ensemble.member_count = 2;
+  e.ensemble.values.assign(2 * 64, 1.0f);
+  e.ensemble.values[70] = 2.0f;
+  try {
+    ViewSession session(ctx(), std::move(e), small_config());
+    ADD_FAILURE() << "a 2-member ensemble was accepted";
+  } catch (const std::runtime_error& err) {
+    EXPECT_NE(std::string(err.what()).find("two.nc:t: 2 member(s); a correlation over members needs at least 3"),
+              std::string::npos)
+        << err.what();
+  }
+}
+
+}  // namespace
+}  // namespace tfm
