@@ -39,8 +39,9 @@ Buffer::Buffer(Context& ctx, uint64_t bytes, MemoryUsage usage, const std::strin
   const auto& vk = ctx.vk();
   VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
   info.size = bytes;
-  info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
-               VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+  // Every buffer may also be read as a uniform texel buffer (DescriptorKind::UniformTexelBuffer).
+  info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT |
+               VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
   // A size past every memory heap fails in vkCreateBuffer or vkAllocateMemory with a bare
   // VK_ERROR_OUT_OF_DEVICE_MEMORY; say what was asked and what the device has instead.

@@ -19,6 +19,26 @@ constexpr uint32_t kDescriptorsPerPool = 1024;
 Binding::Binding(const Buffer& b) : buffers{&b} {}
 Binding::Binding(std::vector<const Buffer*> array) : buffers(std::move(array)) {}
 
+Binding Binding::texels(const Buffer& b, VkFormat format, uint64_t offset, uint64_t range) {
+  Binding binding(b);
+  binding.texel_format = format;
+  binding.texel_offset = offset;
+  binding.texel_range = range;
+  return binding;
+}
+
+static uint32_t texel_bytes(VkFormat format) {
+  switch (format) {
+    case VK_FORMAT_R32_SFLOAT:
+    case VK_FORMAT_R32_UINT: return 4;
+    case VK_FORMAT_R32G32_SFLOAT:
+    case VK_FORMAT_R32G32_UINT: return 8;
+    case VK_FORMAT_R32G32B32A32_SFLOAT:
+    case VK_FORMAT_R32G32B32A32_UINT: return 16;
+    default: throw std::logic_error("texel binding: unsupported format " + std::to_string(int(format)));
+  }
+}
+
 CommandBatch::CommandBatch(Context& ctx) : ctx_(ctx) {
   const auto& vk = ctx.vk();
   VkCommandPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
@@ -51,6 +71,7 @@ CommandBatch::~CommandBatch() {
   if (submitted_) vk.vkWaitForFences(ctx_.device(), 1, &fence_, VK_TRUE, UINT64_MAX);
   if (queries_) vk.vkDestroyQueryPool(ctx_.device(), queries_, nullptr);
   for (auto p : descriptor_pools_) vk.vkDestroyDescriptorPool(ctx_.device(), p, nullptr);
+  for (auto v : buffer_views_) vk.vkDestroyBufferView(ctx_.device(), v, nullptr);
   vk.vkDestroyFence(ctx_.device(), fence_, nullptr);
   vk.vkDestroyCommandPool(ctx_.device(), pool_, nullptr);
 }
@@ -68,11 +89,12 @@ VkDescriptorSet CommandBatch::allocate_set(VkDescriptorSetLayout layout) {
     if (r != VK_ERROR_OUT_OF_POOL_MEMORY && r != VK_ERROR_FRAGMENTED_POOL)
       throw_vk_error("vkAllocateDescriptorSets", r, __FILE__, __LINE__);
   }
-  VkDescriptorPoolSize size{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kDescriptorsPerPool};
+  const VkDescriptorPoolSize sizes[] = {{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kDescriptorsPerPool},
+                                       {VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, kDescriptorsPerPool}};
   VkDescriptorPoolCreateInfo info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   info.maxSets = kSetsPerPool;
-  info.poolSizeCount = 1;
-  info.pPoolSizes = &size;
+  info.poolSizeCount = 2;
+  info.pPoolSizes = sizes;
   VkDescriptorPool pool = VK_NULL_HANDLE;
   VK_CHECK(vk.vkCreateDescriptorPool(ctx_.device(), &info, nullptr, &pool));
   descriptor_pools_.push_back(pool);
@@ -99,24 +121,54 @@ void CommandBatch::dispatch(const ComputePipeline& pipeline, std::initializer_li
   const auto& vk = ctx_.vk();
   VkDescriptorSet set = allocate_set(pipeline.set_layout());
   std::vector<std::vector<VkDescriptorBufferInfo>> infos;
+  std::vector<VkBufferView> views;
   std::vector<VkWriteDescriptorSet> writes;
   infos.reserve(bindings.size());
+  views.reserve(bindings.size());
   uint32_t index = 0;
   for (const Binding& b : bindings) {
+    const std::string where = desc.shader + ": binding " + std::to_string(index);
     if (b.buffers.size() != desc.binding_counts[index])
-      throw std::logic_error(desc.shader + ": binding " + std::to_string(index) + " needs " +
-                             std::to_string(desc.binding_counts[index]) + " buffers");
-    auto& list = infos.emplace_back();
-    for (const Buffer* buf : b.buffers) {
-      if (!buf || !*buf) throw std::logic_error(desc.shader + ": binding " + std::to_string(index) + " is empty");
-      list.push_back({buf->handle(), 0, VK_WHOLE_SIZE});
-    }
+      throw std::logic_error(where + " needs " + std::to_string(desc.binding_counts[index]) + " buffers");
+    for (const Buffer* buf : b.buffers)
+      if (!buf || !*buf) throw std::logic_error(where + " is empty");
+    const bool texel = pipeline.binding_kind(index) == DescriptorKind::UniformTexelBuffer;
+    if (texel != (b.texel_format != VK_FORMAT_UNDEFINED))
+      throw std::logic_error(where + (texel ? " is a texel buffer: bind it with Binding::texels"
+                                            : " is a storage buffer, given as texels"));
     VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
     w.dstSet = set;
     w.dstBinding = index;
-    w.descriptorCount = static_cast<uint32_t>(list.size());
-    w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-    w.pBufferInfo = list.data();
+    w.descriptorType = descriptor_type(pipeline.binding_kind(index));
+    if (texel) {
+      if (b.buffers.size() != 1) throw std::logic_error(where + ": texel bindings take one buffer");
+      const Buffer& buf = *b.buffers[0];
+      const uint64_t range = b.texel_range == VK_WHOLE_SIZE ? buf.size() - b.texel_offset : b.texel_range;
+      const uint64_t texel = texel_bytes(b.texel_format);
+      if (b.texel_offset % limits.minTexelBufferOffsetAlignment || b.texel_offset + range > buf.size() ||
+          range % texel || range == 0)
+        throw std::logic_error(where + ": texel range [" + std::to_string(b.texel_offset) + ", +" +
+                               std::to_string(range) + ") misaligned or outside the buffer");
+      if (range / texel > limits.maxTexelBufferElements)
+        throw std::logic_error(where + ": " + std::to_string(range / texel) + " texels exceed the device's " +
+                               std::to_string(limits.maxTexelBufferElements));
+      VkBufferViewCreateInfo vi{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
+      vi.buffer = buf.handle();
+      vi.format = b.texel_format;
+      vi.offset = b.texel_offset;
+      vi.range = range;
+      VkBufferView view = VK_NULL_HANDLE;
+      VK_CHECK(vk.vkCreateBufferView(ctx_.device(), &vi, nullptr, &view));
+      buffer_views_.push_back(view);
+      views.push_back(view);
+      w.descriptorCount = 1;
+      w.pTexelBufferView = &views.back();
+    } else {
+      auto& list = infos.emplace_back();
+      for (const Buffer* buf : b.buffers) list.push_back({buf->handle(), 0, VK_WHOLE_SIZE});
+      w.descriptorCount = static_cast<uint32_t>(list.size());
+      w.pBufferInfo = list.data();
+    }
     writes.push_back(w);
     ++index;
   }

@@ -16,11 +16,18 @@ class Buffer;
 class ComputePipeline;
 class Context;
 
-// One binding of a dispatch: a whole buffer, or several buffers for an array binding.
+// One binding of a dispatch: a whole buffer, or several buffers for an array binding, for a
+// storage-buffer binding; or, made by texels(), a range of one buffer seen as texels of `format`
+// for a uniform-texel-buffer binding (the batch makes the buffer view and keeps it alive).
 struct Binding {
   Binding(const Buffer& b);  // NOLINT(google-explicit-constructor): bindings read as lists
   Binding(std::vector<const Buffer*> array);
+  // `offset` must be a multiple of the device's minTexelBufferOffsetAlignment and the range (the
+  // rest of the buffer when VK_WHOLE_SIZE) at most maxTexelBufferElements texels.
+  static Binding texels(const Buffer& b, VkFormat format, uint64_t offset = 0, uint64_t range = VK_WHOLE_SIZE);
   std::vector<const Buffer*> buffers;
+  VkFormat texel_format = VK_FORMAT_UNDEFINED;  // set for texel bindings
+  uint64_t texel_offset = 0, texel_range = VK_WHOLE_SIZE;
 };
 
 struct Groups {
@@ -63,6 +70,7 @@ class CommandBatch {
   VkCommandBuffer cmd_ = VK_NULL_HANDLE;
   VkFence fence_ = VK_NULL_HANDLE;
   std::vector<VkDescriptorPool> descriptor_pools_;
+  std::vector<VkBufferView> buffer_views_;  // of texel bindings, destroyed with the batch
   VkQueryPool queries_ = VK_NULL_HANDLE;
   uint32_t query_count_ = 0;
   std::vector<uint64_t> query_results_;

@@ -10,6 +10,11 @@
 
 namespace tfm {
 
+VkDescriptorType descriptor_type(DescriptorKind kind) {
+  return kind == DescriptorKind::UniformTexelBuffer ? VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER
+                                                    : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+}
+
 ComputePipeline::ComputePipeline(Context& ctx, PipelineDesc desc) : ctx_(ctx), desc_(std::move(desc)) {
   const auto& limits = ctx.limits();
   if (desc_.workgroup_size > limits.maxComputeWorkGroupInvocations)
@@ -30,7 +35,7 @@ ComputePipeline::ComputePipeline(Context& ctx, PipelineDesc desc) : ctx_(ctx), d
   for (uint32_t i = 0; i < desc_.binding_counts.size(); ++i) {
     VkDescriptorSetLayoutBinding b{};
     b.binding = i;
-    b.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    b.descriptorType = descriptor_type(binding_kind(i));
     b.descriptorCount = desc_.binding_counts[i];
     b.stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
     bindings.push_back(b);

@@ -1,5 +1,5 @@
-// Compute pipelines built from the embedded SPIR-V, with storage-buffer bindings, push constants
-// and specialization constants.
+// Compute pipelines built from the embedded SPIR-V, with storage-buffer or uniform-texel-buffer
+// bindings, push constants and specialization constants.
 #pragma once
 
 #include <cstdint>
@@ -13,10 +13,18 @@ namespace tfm {
 
 class Context;
 
+// What a binding of a pipeline holds. Texel buffers are read through the device's texture path:
+// on CPU devices (lavapipe) a texel fetch is a vector gather where a storage-buffer load with a
+// per-invocation index is a loop over the SIMD lanes, so the voxel-streaming kernels read their
+// fields and TFs as texel buffers.
+enum class DescriptorKind : uint8_t { StorageBuffer, UniformTexelBuffer };
+VkDescriptorType descriptor_type(DescriptorKind kind);
+
 struct PipelineDesc {
   std::string shader;                      // name, for messages and debug labels
   std::span<const uint32_t> spirv;         // SPIR-V words (shaders/shader_registry.h; must outlive the call)
-  std::vector<uint32_t> binding_counts;    // descriptors per storage-buffer binding 0..n-1
+  std::vector<uint32_t> binding_counts;    // descriptors per binding 0..n-1
+  std::vector<DescriptorKind> binding_kinds;  // kind of binding i; empty or shorter: storage buffers
   uint32_t push_constant_bytes = 0;
   std::vector<uint32_t> specialization;    // value of constant_id i (32-bit each)
   uint32_t workgroup_size = 1;             // invocations per workgroup (for limit checks)
@@ -31,6 +39,9 @@ class ComputePipeline {
   ComputePipeline(const ComputePipeline&) = delete;
   ComputePipeline& operator=(const ComputePipeline&) = delete;
 
+  DescriptorKind binding_kind(uint32_t binding) const {
+    return binding < desc_.binding_kinds.size() ? desc_.binding_kinds[binding] : DescriptorKind::StorageBuffer;
+  }
   VkPipeline pipeline() const { return pipeline_; }
   VkPipelineLayout layout() const { return layout_; }
   VkDescriptorSetLayout set_layout() const { return set_layout_; }

@@ -67,6 +67,45 @@ TEST_F(EngineTest, DispatchChecksBindingsPushAndGroupLimits) {
   EXPECT_THROW(ComputePipeline(ctx(), no_code), std::invalid_argument);
 }
 
+// Texel bindings: the kind must match the pipeline's, and a view must be aligned, inside its
+// buffer and within maxTexelBufferElements; the assembly's pipeline has both kinds.
+TEST_F(EngineTest, TexelBindingsCheckKindAlignmentAndRange) {
+  PipelineDesc desc;
+  desc.shader = "assemble_normal_equations";
+  desc.spirv = shader_spirv(desc.shader);
+  desc.binding_counts = {1, 1, 1, 1, 1, 1};
+  desc.binding_kinds = {DescriptorKind::StorageBuffer,      DescriptorKind::StorageBuffer,
+                        DescriptorKind::UniformTexelBuffer, DescriptorKind::StorageBuffer,
+                        DescriptorKind::UniformTexelBuffer, DescriptorKind::UniformTexelBuffer};
+  desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
+  // Global accumulators: the shared ones are sized by a constant this test does not set.
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
+                                    {TFM_ASSEMBLE_SPEC_MODE, TFM_REDUCE_RUNS_GLOBAL}});
+  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+  ComputePipeline pipe(ctx(), desc);
+  EXPECT_EQ(pipe.binding_kind(2), DescriptorKind::UniformTexelBuffer);
+  EXPECT_EQ(pipe.binding_kind(9), DescriptorKind::StorageBuffer);
+  const uint64_t align = ctx().limits().minTexelBufferOffsetAlignment;
+  Buffer b(ctx(), 4 * align + 64, MemoryUsage::Device, "b");
+  const VkFormat rgba = VK_FORMAT_R32G32B32A32_SFLOAT;
+  const Binding t = Binding::texels(b, rgba, 0, 64);
+  gpu::VoxelPairPush push{};
+  push.opt_tf_size = push.ref_tf_size = 2;  // no voxels: only zero sums, which touch nothing
+  CommandBatch batch(ctx());
+  EXPECT_THROW(batch.dispatch(pipe, {b, b, b, b, t, t}, push, {1}), std::logic_error);  // storage as texels
+  EXPECT_THROW(batch.dispatch(pipe, {b, b, t, t, t, t}, push, {1}), std::logic_error);  // texels as storage
+  if (align > 1)
+    EXPECT_THROW(batch.dispatch(pipe, {b, b, t, b, Binding::texels(b, rgba, align / 2, 64), t}, push, {1}),
+                 std::logic_error);
+  EXPECT_THROW(batch.dispatch(pipe, {b, b, t, b, Binding::texels(b, rgba, 4 * align, 128), t}, push, {1}),
+               std::logic_error);  // past the end
+  EXPECT_THROW(batch.dispatch(pipe, {b, b, t, b, Binding::texels(b, rgba, 0, 40), t}, push, {1}),
+               std::logic_error);  // not whole texels
+  // A valid set: nothing to read (voxel_count 0), views made and freed with the batch.
+  batch.dispatch(pipe, {b, b, t, b, Binding::texels(b, rgba, align, 64), t}, push, {1});
+  batch.submit_and_wait();
+}
+
 TEST_F(EngineTest, SplitFieldChunksAndArrays) {
   std::vector<float> v(5000);
   std::iota(v.begin(), v.end(), 0.0f);
