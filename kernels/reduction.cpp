@@ -26,7 +26,7 @@ const char* reduction_mode_name(ReductionMode mode) {
 bool is_cpu_device(const Context& ctx) { return ctx.properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU; }
 
 Reduction Reduction::choose(const Context& ctx, const char* kernel, uint32_t tf_size, uint64_t shared_bytes,
-                            const ReductionOptions& options) {
+                            const ReductionOptions& options, uint32_t private_max_bins) {
   if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
   const bool shared_fits = shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
   Reduction r;
@@ -39,11 +39,11 @@ Reduction Reduction::choose(const Context& ctx, const char* kernel, uint32_t tf_
                                    "enable shaderInt64 with 64-bit buffer and shared atomics");
   r.mode = options.mode;
   if (r.mode == ReductionMode::Auto) {
-    if (is_cpu_device(ctx) && tf_size <= kPrivateMaxBins && r.int64) r.mode = ReductionMode::Private;
+    if (is_cpu_device(ctx) && tf_size <= private_max_bins && r.int64) r.mode = ReductionMode::Private;
     else r.mode = shared_fits ? ReductionMode::RunsShared : ReductionMode::RunsGlobal;
   }
-  if (r.mode == ReductionMode::Private && tf_size > kPrivateMaxBins)
-    throw std::runtime_error(who + "private histograms hold at most " + std::to_string(kPrivateMaxBins) +
+  if (r.mode == ReductionMode::Private && tf_size > private_max_bins)
+    throw std::runtime_error(who + "private histograms hold at most " + std::to_string(private_max_bins) +
                              " TF entries, not " + std::to_string(tf_size));
   // Sums of two 32-bit words in private arrays take twice the gathers and scatters, and compile
   // slowly on lavapipe: private histograms are a 64-bit path only.

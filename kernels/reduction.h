@@ -14,7 +14,8 @@ namespace tfm {
 class Context;
 
 enum class ReductionMode {
-  Auto,        // Private on CPU devices with 64-bit atomics up to kPrivateMaxBins TF entries, else
+  Auto,        // Private on CPU devices with 64-bit atomics up to kPrivateMaxBins TF entries (the
+               // assembly: kAssemblePrivateMaxBins), else
                // RunsShared if it fits, else RunsGlobal
   RunsShared,  // register runs per lane, flushed to workgroup-shared accumulators
   RunsGlobal,  // register runs per lane, flushed to the global accumulators
@@ -30,12 +31,20 @@ struct ReductionOptions {
   ReductionMode mode = ReductionMode::Auto;
   AtomicWidth atomics = AtomicWidth::Auto;
   uint32_t workgroups = 0;  // per dispatch; 0: from the chunk size (tests force counts)
+  uint32_t range_quads = 0;  // assembly: quads per dispatch (texel view); 0: the device's
+                             // maxTexelBufferElements (tests force splits)
 };
 const char* reduction_mode_name(ReductionMode mode);
 
 // TF entries up to which CPU devices take the private-histogram path (each lane holds its
-// kernel's terms per entry, 88 bytes for the assembly: 88 KiB at 1024, in a CPU core's L2).
+// kernel's sums per entry: 4 for S^T r and the gradient, 32 KiB per lane at 1024). The assembly,
+// which splits its terms into passes, takes it up to kAssemblePrivateMaxBins.
 inline constexpr uint32_t kPrivateMaxBins = 1024;
+inline constexpr uint32_t kAssemblePrivateMaxBins = 4096;
+// 64-bit sums a lane's private histogram holds at most (the assembly's 11 terms of 1024 entries:
+// 88 KiB per lane, in a CPU core's L2; lavapipe keeps a SIMD vector's lanes together, 704 KiB
+// of its thread's stack). Kernels with more per entry split their terms into passes.
+inline constexpr uint32_t kPrivateHistogramSlots = 11 * 1024;
 
 // A resolved choice for one kernel.
 struct Reduction {
@@ -48,7 +57,7 @@ struct Reduction {
   // entries. Throws std::runtime_error naming what is missing when a forced mode or width does
   // not fit the device (shared memory, 64-bit atomics, kPrivateMaxBins, Private with 32-bit).
   static Reduction choose(const Context& ctx, const char* kernel, uint32_t tf_size, uint64_t shared_bytes,
-                          const ReductionOptions& options);
+                          const ReductionOptions& options, uint32_t private_max_bins = kPrivateMaxBins);
   // Workgroups of TFM_VOXEL_WORKGROUP for one dispatch over `voxels`: the forced count, else
   // voxel_groups() for the run modes and, for Private, enough lanes that each covers about
   // 16 N quads (its histogram is added to memory once, so lanes must cover many voxels) but at

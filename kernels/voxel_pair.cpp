@@ -16,7 +16,7 @@ namespace {
 // Bindings in the order record() lists each kernel's buffers.
 constexpr auto kAssembleBindingCounts =
     gpu::binding_counts({TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD, TFM_ASSEMBLE_BINDING_REF_TF,
-                         TFM_ASSEMBLE_BINDING_ACCUM});
+                         TFM_ASSEMBLE_BINDING_ACCUM, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS});
 constexpr auto kLossBindingCounts =
     gpu::binding_counts({TFM_LOSS_BINDING_REF_FIELD, TFM_LOSS_BINDING_OPT_FIELD, TFM_LOSS_BINDING_REF_TF,
                          TFM_LOSS_BINDING_OPT_TF, TFM_LOSS_BINDING_ACCUM});
@@ -54,38 +54,56 @@ static void check_pair(const DeviceField& ref, const DeviceField& opt) {
 }
 
 namespace {
-// Reference TF entries a CPU device copies into each lane's private memory (a larger TF is read
-// from its buffer): private arrays are cache-resident gathers on a CPU, buffer reads are not.
-constexpr uint32_t kRefTfCacheMax = 1024;
+// The bin terms a voxel adds (shaders/assemble_normal_equations.comp).
+constexpr uint32_t kBinTerms = 11;
 }  // namespace
+
+std::vector<AssembleNormalEquationsKernel::TermPass> assemble_term_passes(ReductionMode mode, uint32_t tf_size) {
+  if (mode != ReductionMode::Private) return {{0, kBinTerms}};
+  // As many terms per pass as keep a lane's histogram within kPrivateHistogramSlots, spread
+  // evenly over the fewest passes.
+  const uint32_t per_pass = std::clamp<uint32_t>(kPrivateHistogramSlots / tf_size, 1, kBinTerms);
+  const uint32_t count = (kBinTerms + per_pass - 1) / per_pass;
+  std::vector<AssembleNormalEquationsKernel::TermPass> passes;
+  for (uint32_t p = 0, first = 0; p < count; ++p) {
+    const uint32_t terms = (kBinTerms - first) / (count - p);
+    passes.push_back({first, terms});
+    first += terms;
+  }
+  return passes;
+}
 
 AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint32_t tf_size, ReductionOptions options)
     : ctx_(ctx),
       tf_size_(tf_size),
       reduction_(Reduction::choose(ctx, "assemble", tf_size, uint64_t(TFM_ASSEMBLE_SLOTS(tf_size)) * gpu::kFixedSlotBytes,
-                                   options)),
-      cache_ref_tf_(is_cpu_device(ctx)) {}
-
-AssembleNormalEquationsKernel::~AssembleNormalEquationsKernel() = default;
-
-uint32_t AssembleNormalEquationsKernel::slots() const { return TFM_ASSEMBLE_SLOTS(tf_size_); }
-
-const ComputePipeline& AssembleNormalEquationsKernel::pipeline(uint32_t ref_tf_size) const {
-  const uint32_t cached = cache_ref_tf_ && ref_tf_size <= kRefTfCacheMax ? ref_tf_size : 0u;
-  auto& slot = pipelines_[cached];
-  if (!slot) {
+                                   options, kAssemblePrivateMaxBins)),
+      passes_(assemble_term_passes(reduction_.mode, tf_size)),
+      // Ranges of at most maxTexelBufferElements quads, starting at multiples of 1024 bytes (every
+      // device's minTexelBufferOffsetAlignment is at most 256).
+      range_quads_(options.range_quads ? options.range_quads
+                                       : std::max<uint64_t>(64, ctx.limits().maxTexelBufferElements / 64 * 64)) {
+  if (range_quads_ % 64) throw std::invalid_argument("assemble: range_quads must be a multiple of 64");
+  for (const TermPass& pass : passes_) {
     PipelineDesc desc = reduction_.pipeline_desc("assemble_normal_equations", gpu::to_vector(kAssembleBindingCounts),
                                                  sizeof(gpu::VoxelPairPush));
+    desc.binding_kinds.assign(desc.binding_counts.size(), DescriptorKind::StorageBuffer);
+    for (uint32_t b : {TFM_ASSEMBLE_BINDING_REF_TF, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS})
+      desc.binding_kinds[b] = DescriptorKind::UniformTexelBuffer;
     desc.specialization = gpu::by_id(
         {{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
          {TFM_ASSEMBLE_SPEC_MODE, reduction_.shader_mode()},
          {TFM_ASSEMBLE_SPEC_SHARED_SLOTS, reduction_.mode == ReductionMode::RunsShared ? slots() : 1u},
          {TFM_ASSEMBLE_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size_ : 0u},
-         {TFM_ASSEMBLE_SPEC_TF_CACHE, cached}});
-    slot = std::make_unique<ComputePipeline>(ctx_, desc);
+         {TFM_ASSEMBLE_SPEC_TERM_FIRST, pass.first},
+         {TFM_ASSEMBLE_SPEC_TERM_COUNT, pass.count}});
+    pipelines_.push_back(std::make_unique<ComputePipeline>(ctx_, desc));
   }
-  return *slot;
 }
+
+AssembleNormalEquationsKernel::~AssembleNormalEquationsKernel() = default;
+
+uint32_t AssembleNormalEquationsKernel::slots() const { return TFM_ASSEMBLE_SLOTS(tf_size_); }
 
 void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
                                            const FieldMapping& ref_map, const FieldMapping& opt_map,
@@ -96,13 +114,27 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
     throw std::invalid_argument("assemble: accumulator buffer too small");
   if (ref_tf.size() < uint64_t(ref_map.tf_size) * 16)
     throw std::invalid_argument("assemble: reference TF buffer holds fewer entries than its mapping");
-  const ComputePipeline& pipe = pipeline(ref_map.tf_size);
+  const Binding tf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
+  const uint64_t range_quads = range_quads_;  // one dispatch per range and pass
   gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
   for (size_t c = 0; c < ref.chunk_count(); ++c) {
-    push.voxel_count = static_cast<uint32_t>(ref.chunk_size(c));
-    batch.dispatch(pipe, {ref.chunk(c), opt.chunk(c), ref_tf, accum}, push, {reduction_.groups(ctx_, ref.chunk_size(c))});
-    // Successive chunks add into the same accumulators.
-    batch.barrier();
+    const uint64_t chunk = ref.chunk_size(c);
+    for (uint64_t first = 0; first < chunk; first += 4 * range_quads) {
+      const uint64_t voxels = std::min(4 * range_quads, chunk - first);
+      // A range of fewer than 4 voxels has no quads; its texel binding is one float it never reads.
+      const VkFormat format = voxels >= 4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT;
+      const uint64_t bytes = voxels >= 4 ? voxels / 4 * 16 : 4;
+      push.voxel_count = static_cast<uint32_t>(voxels);
+      push.first_voxel = static_cast<uint32_t>(first);
+      for (const auto& pipe : pipelines_) {
+        batch.dispatch(*pipe,
+                       {ref.chunk(c), opt.chunk(c), tf, accum, Binding::texels(ref.chunk(c), format, first * 4, bytes),
+                        Binding::texels(opt.chunk(c), format, first * 4, bytes)},
+                       push, {reduction_.groups(ctx_, voxels)});
+        // Successive dispatches add into the same accumulators.
+        batch.barrier();
+      }
+    }
   }
 }
 

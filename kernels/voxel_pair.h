@@ -4,7 +4,7 @@
 
 #include <array>
 #include <cstdint>
-#include <map>
+#include <vector>
 #include <memory>
 
 #include "buffer.h"
@@ -33,20 +33,28 @@ class AssembleNormalEquationsKernel {
   uint32_t slots() const;
   ReductionMode mode() const { return reduction_.mode; }
   bool int64_atomics() const { return reduction_.int64; }
-  // Records one dispatch per chunk (barriers between them) into `batch`.
+  // Records one dispatch per chunk, texel range and term pass (barriers between them).
   void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
               const FieldMapping& opt_map, const Buffer& ref_tf, Buffer& accum) const;
 
- private:
-  // The pipeline for a reference TF of `ref_tf_size` entries (CPU devices copy it per lane).
-  const ComputePipeline& pipeline(uint32_t ref_tf_size) const;
+  // Which of the 11 bin terms one pass adds (shaders/assemble_normal_equations.comp).
+  struct TermPass {
+    uint32_t first = 0, count = 11;
+  };
+  const std::vector<TermPass>& passes() const { return passes_; }
 
+ private:
   Context& ctx_;
   uint32_t tf_size_;
   Reduction reduction_;
-  bool cache_ref_tf_;
-  mutable std::map<uint32_t, std::unique_ptr<ComputePipeline>> pipelines_;
+  std::vector<TermPass> passes_;
+  uint64_t range_quads_;
+  std::vector<std::unique_ptr<ComputePipeline>> pipelines_;  // one per pass
 };
+
+// The term passes of the assembly: all 11 terms at once, or in Private mode as many per pass as
+// keep a lane's histogram (terms x TF entries) within kPrivateHistogramSlots.
+std::vector<AssembleNormalEquationsKernel::TermPass> assemble_term_passes(ReductionMode mode, uint32_t tf_size);
 
 // Adds per-channel sums of squared and absolute colour differences and the voxel count to a
 // TFM_LOSS_SLOTS-slot fixed-point accumulator.

@@ -7,21 +7,31 @@
 // sum is an integer sum modulo 2^64. Integer addition is associative, so the totals are the same
 // bits however the terms are grouped: on every run, device, path, chunking and workgroup count.
 //
-// Layout of the work. Lanes take consecutive quads of voxels (one vec4 load of each field per
-// lane and step: a subgroup reads one contiguous span, coalesced), grid-stride over the chunk.
-// The reference TF is read from the buffer or, with TF_CACHE_ENTRIES, from a private copy.
-// Where the terms go depends on MODE (chosen by the host, kernels/voxel_pair.cpp):
+// Layout of the work. Lanes take consecutive quads of voxels (one RGBA32F texel of each field per
+// lane and step: a subgroup reads one contiguous span), grid-stride over the dispatch's range of
+// the chunk. Fields and the reference TF are read as uniform texel buffers, not storage buffers:
+// GPUs fetch them through the texture path as fast as plain loads, and CPU devices (lavapipe)
+// turn a texel fetch into one vector gather, where a storage-buffer load with a per-lane index
+// is a loop over the SIMD lanes that inserts each value through memory (measured on lavapipe:
+// the loads alone 300 ms for 41.5 M voxels as storage buffers, 20 ms as texels).
+// Where the terms go depends on MODE (chosen by the host, kernels/reduction.cpp):
 //  - RUNS_SHARED / RUNS_GLOBAL (GPUs): each lane sums the terms of its current TF bin in
 //    registers and adds them to the workgroup's shared accumulators (or straight to the global
 //    ones when the 6N+4 slots do not fit shared memory) only when its bin changes: once per run
 //    of voxels in one bin, not once per voxel. The workgroup adds its shared totals to the
 //    global accumulators once per slot.
-//  - PRIVATE (CPU devices such as lavapipe): each lane keeps its own histogram of the 11 bin
-//    terms for every TF entry in invocation-private memory and adds to it without atomics or
-//    branches: on a CPU, lanes are SIMD lanes of one thread, divergent branches cost as much as
-//    taken ones and atomics are locked instructions, so a branch-free private histogram is what
-//    keeps the voxel loop as cheap as a scalar CPU loop. Each lane adds its histogram to the
-//    global accumulators once at the end, so a lane must cover many voxels (the host sizes it).
+//  - PRIVATE (CPU devices such as lavapipe): each lane keeps its own histogram of the bin terms
+//    for every TF entry in invocation-private memory and adds to it without atomics or branches:
+//    on a CPU, lanes are SIMD lanes of one thread, a divergent branch costs as much as a taken
+//    one (lavapipe runs both sides under a mask; measured: register runs flushed on a bin change
+//    are 1.3-1.6x slower than adding every voxel to the histogram) and atomics are locked
+//    instructions. Each lane adds its histogram to the global accumulators once at the end, so
+//    a lane must cover many voxels (the host sizes it). A histogram of all 11 terms of N entries
+//    costs 88 N bytes per lane; above 1024 entries the host splits the 11 terms into passes
+//    (TERM_FIRST, TERM_COUNT) that each hold a few terms of every entry, so the private memory
+//    stays bounded and TF sizes up to 4096 cost a few cheap passes instead of a path change.
+// Term conversions use 32-bit float-to-integer conversions (fx_term): a 64-bit one has no vector
+// instruction on x86 before AVX-512 and was a third of the kernel's time on lavapipe.
 // Atomics: TFM_INT64 builds (devices with 64-bit buffer and shared atomics) add one 64-bit word
 // per slot; the default build adds the two 32-bit words of fixed_point.glsl with their carry.
 #version 450
@@ -42,15 +52,17 @@ layout(constant_id = TFM_ASSEMBLE_SPEC_MODE) const uint MODE = TFM_REDUCE_RUNS_S
 layout(constant_id = TFM_ASSEMBLE_SPEC_SHARED_SLOTS) const uint SHARED_SLOTS = 1u;
 // TF entries of each lane's private histogram (0 unless MODE is PRIVATE).
 layout(constant_id = TFM_ASSEMBLE_SPEC_PRIVATE_BINS) const uint PRIVATE_BINS = 0u;
-// Reference TF entries copied into private memory (0: read the buffer).
-layout(constant_id = TFM_ASSEMBLE_SPEC_TF_CACHE) const uint TF_CACHE_ENTRIES = 0u;
+// The bin terms this dispatch adds: TERM_COUNT of the 11, from TERM_FIRST (all 11 but in
+// PRIVATE passes). b^T b and the voxel count belong to the pass with TERM_FIRST = 0.
+layout(constant_id = TFM_ASSEMBLE_SPEC_TERM_FIRST) const uint TERM_FIRST = 0u;
+layout(constant_id = TFM_ASSEMBLE_SPEC_TERM_COUNT) const uint TERM_COUNT = 11u;
 
-// The same buffers seen as floats (the chunk's last voxel_count % 4 voxels) and as quads.
+// The chunk's voxels as floats (for the dispatch's last voxel_count % 4) and its range as quads.
 layout(std430, binding = TFM_ASSEMBLE_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
-layout(std430, binding = TFM_ASSEMBLE_BINDING_REF_FIELD) readonly buffer RefQuads { vec4 ref_quads[]; };
 layout(std430, binding = TFM_ASSEMBLE_BINDING_OPT_FIELD) readonly buffer OptField { float opt_field[]; };
-layout(std430, binding = TFM_ASSEMBLE_BINDING_OPT_FIELD) readonly buffer OptQuads { vec4 opt_quads[]; };
-layout(std430, binding = TFM_ASSEMBLE_BINDING_REF_TF) readonly buffer RefTf { vec4 ref_tf[]; };
+layout(binding = TFM_ASSEMBLE_BINDING_REF_QUADS) uniform samplerBuffer ref_quads;
+layout(binding = TFM_ASSEMBLE_BINDING_OPT_QUADS) uniform samplerBuffer opt_quads;
+layout(binding = TFM_ASSEMBLE_BINDING_REF_TF) uniform samplerBuffer ref_tf;
 
 TFM_DECLARE_ACCUMULATORS(TFM_ASSEMBLE_BINDING_ACCUM)
 void add_global(uint k, Fx v) TFM_ADD_GLOBAL(k, v)
@@ -60,37 +72,29 @@ void add_slot(uint k, Fx v) {
   else TFM_ADD_GLOBAL(k, v)
 }
 
-// The 11 terms a voxel adds to its bin j, in the order of a private histogram record:
-// M[j][j], M[j+1][j+1], M[j][j+1], (S^T b)[j][c], (S^T b)[j+1][c].
+// The 11 terms a voxel adds to its bin j, in this order: M[j][j], M[j+1][j+1], M[j][j+1],
+// (S^T b)[j][c], (S^T b)[j+1][c].
 #define TERMS 11u
+// Accumulator slot of term t of bin j (slot layout: shared_layout.h, TFM_ASSEMBLE_SLOTS).
+uint term_slot(uint t, uint j) {
+  const uint n = pc.opt_tf_size, stb = 2u * n - 1u;
+  return t == 0u ? j : t == 1u ? j + 1u : t == 2u ? n + j : t < 7u ? stb + 4u * j + (t - 3u) : stb + 4u * (j + 1u) + (t - 7u);
+}
+bool in_pass(uint t) { return t >= TERM_FIRST && t < TERM_FIRST + TERM_COUNT; }
 
-// Adds the 11 term sums of bin j (acc[base + t]) to their accumulator slots.
-#define TFM_ADD_BIN(add, j, acc, base)                                              \
-  {                                                                                 \
-    const uint n_ = pc.opt_tf_size, stb_ = 2u * n_ - 1u;                            \
-    add((j), acc[(base) + 0u]);                                                     \
-    add((j) + 1u, acc[(base) + 1u]);                                                \
-    add(n_ + (j), acc[(base) + 2u]);                                                \
-    for (uint c_ = 0u; c_ < 4u; ++c_) {                                             \
-      add(stb_ + 4u * (j) + c_, acc[(base) + 3u + c_]);                             \
-      add(stb_ + 4u * ((j) + 1u) + c_, acc[(base) + 7u + c_]);                      \
-    }                                                                               \
-  }
-
-vec4 tf_cache[TF_CACHE_ENTRIES + 1u];
-Fx hist[TERMS * PRIVATE_BINS + 1u];
+Fx hist[TERM_COUNT * PRIVATE_BINS + 1u];  // PRIVATE: [TERM_COUNT j + t - TERM_FIRST]
 Fx run[TERMS];    // RUNS modes: sums of the current bin
 uint run_bin;     // RUNS modes: the current bin, or NO_BIN
 const uint NO_BIN = 0xFFFFFFFFu;
 Fx btb[4];        // sum of b_c^2, per channel
 uint voxels;      // voxels with data in both fields
 
-vec4 ref_entry(uint j) { return TF_CACHE_ENTRIES > 0u ? tf_cache[j] : ref_tf[j]; }
-
 void flush_run() {
   if (run_bin == NO_BIN) return;
-  TFM_ADD_BIN(add_slot, run_bin, run, 0u)
-  for (uint t = 0u; t < TERMS; ++t) run[t] = FX_ZERO;
+  for (uint t = 0u; t < TERMS; ++t) {
+    add_slot(term_slot(t, run_bin), run[t]);
+    run[t] = FX_ZERO;
+  }
 }
 
 void take(float ref_value, float opt_value) {
@@ -102,24 +106,27 @@ void take(float ref_value, float opt_value) {
   // Without data the terms are 0 (private mode adds them: no branch), b likewise. `precise`
   // keeps the products and sums unfused, so every device (and the CPU reference of the exact
   // sums, assemble_normal_equations_fixed_point) forms the same float terms.
-  precise vec4 b = (1.0 - wr) * ref_entry(jr) + wr * ref_entry(jr + 1u);
+  precise vec4 b = (1.0 - wr) * texelFetch(ref_tf, int(jr)) + wr * texelFetch(ref_tf, int(jr + 1u));
   b = ok ? clamp(b, 0.0, 1.0) : vec4(0.0);
   const float w = ok ? wo : 0.0;
   const float u = ok ? 1.0 - wo : 0.0;
-  // The terms are listed out (no arrays, no loops): every index below is a constant.
-  const Fx t0 = fx_term(u * u), t1 = fx_term(w * w), t2 = fx_term(u * w);
-  const Fx t3 = fx_term(u * b.x), t4 = fx_term(u * b.y), t5 = fx_term(u * b.z), t6 = fx_term(u * b.w);
-  const Fx t7 = fx_term(w * b.x), t8 = fx_term(w * b.y), t9 = fx_term(w * b.z), t10 = fx_term(w * b.w);
-  for (uint c = 0u; c < 4u; ++c) fx_sum(btb[c], fx_term(b[c] * b[c]));
-  voxels += ok ? 1u : 0u;
-#define TFM_ADD_TERMS(acc, base)                                                     \
-  fx_sum(acc[(base) + 0u], t0), fx_sum(acc[(base) + 1u], t1), fx_sum(acc[(base) + 2u], t2), \
-  fx_sum(acc[(base) + 3u], t3), fx_sum(acc[(base) + 4u], t4), fx_sum(acc[(base) + 5u], t5), \
-  fx_sum(acc[(base) + 6u], t6), fx_sum(acc[(base) + 7u], t7), fx_sum(acc[(base) + 8u], t8), \
-  fx_sum(acc[(base) + 9u], t9), fx_sum(acc[(base) + 10u], t10)
+  if (TERM_FIRST == 0u) {
+    for (uint c = 0u; c < 4u; ++c) fx_sum(btb[c], fx_term(b[c] * b[c]));
+    voxels += ok ? 1u : 0u;
+  }
+  // The terms are listed out (no arrays, no loops): every index below is a constant, and terms
+  // outside the pass are constant zeros the compiler drops.
+#define TFM_TERM(i, value) const Fx t##i = in_pass(uint(i)) ? fx_term(value) : FX_ZERO
+  TFM_TERM(0, u * u); TFM_TERM(1, w * w); TFM_TERM(2, u * w);
+  TFM_TERM(3, u * b.x); TFM_TERM(4, u * b.y); TFM_TERM(5, u * b.z); TFM_TERM(6, u * b.w);
+  TFM_TERM(7, w * b.x); TFM_TERM(8, w * b.y); TFM_TERM(9, w * b.z); TFM_TERM(10, w * b.w);
+#define TFM_ADD_TERM(acc, base, i) if (in_pass(uint(i))) fx_sum(acc[(base) + uint(i) - TERM_FIRST], t##i)
+#define TFM_ADD_TERMS(acc, base)                                                                          \
+  TFM_ADD_TERM(acc, base, 0); TFM_ADD_TERM(acc, base, 1); TFM_ADD_TERM(acc, base, 2); TFM_ADD_TERM(acc, base, 3); \
+  TFM_ADD_TERM(acc, base, 4); TFM_ADD_TERM(acc, base, 5); TFM_ADD_TERM(acc, base, 6); TFM_ADD_TERM(acc, base, 7); \
+  TFM_ADD_TERM(acc, base, 8); TFM_ADD_TERM(acc, base, 9); TFM_ADD_TERM(acc, base, 10)
   if (MODE == TFM_REDUCE_PRIVATE) {
-    const uint base = TERMS * (ok ? jo : 0u);
-    TFM_ADD_TERMS(hist, base);
+    TFM_ADD_TERMS(hist, TERM_COUNT * (ok ? jo : 0u));
   } else if (ok) {
     if (jo != run_bin) {
       flush_run();
@@ -133,9 +140,7 @@ void main() {
   const uint n = pc.opt_tf_size;
   const uint slots = TFM_ASSEMBLE_SLOTS(n);
   if (MODE == TFM_REDUCE_RUNS_SHARED) TFM_SHARED_ACCUMULATORS_ZERO(slots)
-  for (uint j = 0u; j < TF_CACHE_ENTRIES; ++j) tf_cache[j] = ref_tf[j];
-  for (uint j = 0u; j < PRIVATE_BINS; ++j)
-    for (uint t = 0u; t < TERMS; ++t) hist[TERMS * j + t] = FX_ZERO;
+  for (uint k = 0u; k < TERM_COUNT * PRIVATE_BINS; ++k) hist[k] = FX_ZERO;
   for (uint t = 0u; t < TERMS; ++t) run[t] = FX_ZERO;
   for (uint c = 0u; c < 4u; ++c) btb[c] = FX_ZERO;
   run_bin = NO_BIN;
@@ -143,15 +148,15 @@ void main() {
 
   // Subgroups take segments of TFM_REDUCE_SEGMENT_STEPS quads per lane, lanes on consecutive
   // quads in each step: every step reads one contiguous span, and each subgroup streams through
-  // its own part of the chunk.
+  // its own part of the range.
   const uint quads = pc.voxel_count / 4u;
   const uint segment = gl_SubgroupSize * TFM_REDUCE_SEGMENT_STEPS;
   const uint subgroups = gl_NumWorkGroups.x * gl_NumSubgroups;
   for (uint s = gl_WorkGroupID.x * gl_NumSubgroups + gl_SubgroupID; s * segment < quads; s += subgroups) {
     const uint end = min(s * segment + segment, quads);
     for (uint q = s * segment + gl_SubgroupInvocationID; q < end; q += gl_SubgroupSize) {
-      const vec4 r = ref_quads[q];
-      const vec4 o = opt_quads[q];
+      const vec4 r = texelFetch(ref_quads, int(q));
+      const vec4 o = texelFetch(opt_quads, int(q));
       take(r.x, o.x);
       take(r.y, o.y);
       take(r.z, o.z);
@@ -159,15 +164,20 @@ void main() {
     }
   }
   if (gl_GlobalInvocationID.x == 0u)
-    for (uint i = 4u * quads; i < pc.voxel_count; ++i) take(ref_field[i], opt_field[i]);
+    for (uint i = pc.first_voxel + 4u * quads; i < pc.first_voxel + pc.voxel_count; ++i)
+      take(ref_field[i], opt_field[i]);
 
   if (MODE == TFM_REDUCE_PRIVATE) {
-    for (uint j = 0u; j + 1u < n; ++j) TFM_ADD_BIN(add_global, j, hist, TERMS * j)
+    for (uint j = 0u; j + 1u < n; ++j)
+      for (uint t = TERM_FIRST; t < TERM_FIRST + TERM_COUNT; ++t)
+        add_global(term_slot(t, j), hist[TERM_COUNT * j + t - TERM_FIRST]);
   } else {
     flush_run();
   }
-  for (uint c = 0u; c < 4u; ++c) add_slot(6u * n - 1u + c, btb[c]);
-  add_slot(6u * n + 3u, fx_count(voxels));
+  if (TERM_FIRST == 0u) {
+    for (uint c = 0u; c < 4u; ++c) add_slot(6u * n - 1u + c, btb[c]);
+    add_slot(6u * n + 3u, fx_count(voxels));
+  }
 
   if (MODE == TFM_REDUCE_RUNS_SHARED) TFM_SHARED_ACCUMULATORS_FLUSH(slots)
 }

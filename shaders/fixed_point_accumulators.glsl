@@ -18,9 +18,14 @@
 #define TFM_DECLARE_ACCUMULATORS(b_)                                          \
   layout(std430, binding = b_) buffer Accum { uint64_t accum[]; };            \
   shared uint64_t s_acc[SHARED_SLOTS];
-// floor(c 2^32) for 0 <= c < 2^32: c 2^32 is exact in float and the conversion truncates, the
-// same integer as fx_from_float.
-Fx fx_term(float c) { return uint64_t(c * TFM_FIXED_ONE); }
+// floor(c 2^32) for 0 <= c < 2^32, the same integer as fx_from_float, formed the same way: whole
+// and fraction each converted to 32 bits. (uint64_t(c * 2^32) is the same number, but a float
+// to 64-bit conversion has no vector instruction on x86 without AVX-512: CPU devices converted
+// lane by lane, a third of the assembly's time on lavapipe.)
+Fx fx_term(float c) {
+  const uvec2 v = fx_from_float(c);
+  return uint64_t(v.x) | (uint64_t(v.y) << 32);
+}
 // v (|v| < 2^31) in two's complement, truncated towards zero like fx_from_signed.
 Fx fx_signed_term(float v) {
   const uint64_t m = uint64_t(abs(v) * TFM_FIXED_ONE);

@@ -92,26 +92,32 @@ inline std::vector<uint> by_id(std::initializer_list<std::pair<uint, uint>> valu
 // ---- assemble_normal_equations.comp (and its TFM_INT64 variant) ----------------------------
 // Accumulator slots (unsigned): M diagonal [0, N), M super-diagonal [N, 2N-1),
 // S^T b as [2N-1 + 4j + c], b^T b per channel [6N-1 + c], voxel count [6N+3].
+// Bindings: the fields' chunks as storage buffers (float[], for the last voxel_count % 4 voxels)
+// and as RGBA32F texel buffers over the dispatch's range (quads), the reference TF as RGBA32F
+// texels, the accumulators.
 #define TFM_ASSEMBLE_BINDING_REF_FIELD 0
 #define TFM_ASSEMBLE_BINDING_OPT_FIELD 1
 #define TFM_ASSEMBLE_BINDING_REF_TF 2
 #define TFM_ASSEMBLE_BINDING_ACCUM 3
+#define TFM_ASSEMBLE_BINDING_REF_QUADS 4
+#define TFM_ASSEMBLE_BINDING_OPT_QUADS 5
 #define TFM_ASSEMBLE_SLOTS(n) (6u * (n) + 4u)
 // Specialization: workgroup size (TFM_SPEC_WORKGROUP_X), then these.
 #define TFM_ASSEMBLE_SPEC_MODE 1          // TFM_REDUCE_RUNS_SHARED, _RUNS_GLOBAL or _PRIVATE
 #define TFM_ASSEMBLE_SPEC_SHARED_SLOTS 2  // slots of workgroup-shared accumulators (RUNS_SHARED)
 #define TFM_ASSEMBLE_SPEC_PRIVATE_BINS 3  // TF entries of each lane's private histogram (PRIVATE)
-#define TFM_ASSEMBLE_SPEC_TF_CACHE 4      // reference TF entries copied per lane (0: read the buffer)
+#define TFM_ASSEMBLE_SPEC_TERM_FIRST 4    // first of the 11 bin terms a dispatch adds (PRIVATE passes)
+#define TFM_ASSEMBLE_SPEC_TERM_COUNT 5    // how many of them (11 but in PRIVATE passes)
 
 // Push constants of the kernels that map a pair of fields (reference, optimized) through TFs:
 // assemble_normal_equations and voxel_loss. A shader opts in with TFM_WANT_VOXEL_PAIR_PUSH
 // (GLSL allows one push-constant block per shader; other kernels have their own layout headers).
 #if defined(__cplusplus) || defined(TFM_WANT_VOXEL_PAIR_PUSH)
 TFM_PUSH_CONSTANTS(VoxelPairPush) {
-  uint voxel_count;   // voxels in this chunk
+  uint voxel_count;   // voxels in this dispatch's range
   uint opt_tf_size;   // N, entries of the TF being optimized
   uint ref_tf_size;   // entries of the reference TF
-  uint pad0;
+  uint first_voxel;   // the range's first voxel in the bound chunk (assembly: its quads start there)
   float ref_lo;       // reference field mapping: x = clamp((v - lo) * scale, 0, size-1)
   float ref_scale;
   float opt_lo;

@@ -127,13 +127,13 @@ std::string reduction_name(const ReductionOptions& o) {
 }
 
 std::string reduction_unavailable(const Context& ctx, const ReductionOptions& o, uint32_t tf_size,
-                                  uint64_t shared_bytes) {
+                                  uint64_t shared_bytes, uint32_t private_max_bins) {
   if ((o.atomics == AtomicWidth::Bits64 || o.mode == ReductionMode::Private) && !ctx.int64_atomics())
     return "needs shaderInt64 with 64-bit buffer and shared atomics";
   if (o.mode == ReductionMode::RunsShared && !fits_shared_memory(ctx, shared_bytes))
     return needs_shared_memory(ctx, shared_bytes);
-  if (o.mode == ReductionMode::Private && tf_size > kPrivateMaxBins)
-    return "private histograms hold at most " + std::to_string(kPrivateMaxBins) + " TF entries";
+  if (o.mode == ReductionMode::Private && tf_size > private_max_bins)
+    return "private histograms hold at most " + std::to_string(private_max_bins) + " TF entries";
   return "";
 }
 

@@ -123,9 +123,10 @@ std::vector<ReductionOptions> reduction_paths();
 // ", runs, shared memory, 64-bit atomics" (empty for the automatic choice).
 std::string reduction_name(const ReductionOptions& options);
 // Why the device cannot run `options` for a kernel of `tf_size` entries whose shared
-// accumulators take `shared_bytes`, or "" when it can.
+// accumulators take `shared_bytes` and whose private histograms hold up to `private_max_bins`
+// entries, or "" when it can.
 std::string reduction_unavailable(const Context& ctx, const ReductionOptions& options, uint32_t tf_size,
-                                  uint64_t shared_bytes);
+                                  uint64_t shared_bytes, uint32_t private_max_bins = kPrivateMaxBins);
 
 // Case names: "1 voxel", "257 voxels", ...
 std::string voxels_name(size_t voxels);

@@ -33,7 +33,8 @@ struct AssembleCase {
 // fixed-point slot: the device must form the same integer totals as the CPU's exact emulation.
 void assemble(Context& ctx, Check& check, const AssembleCase& c) {
   const std::string missing =
-      reduction_unavailable(ctx, {c.mode, c.atomics}, c.tf_size, uint64_t(TFM_ASSEMBLE_SLOTS(c.tf_size)) * 8);
+      reduction_unavailable(ctx, {c.mode, c.atomics}, c.tf_size, uint64_t(TFM_ASSEMBLE_SLOTS(c.tf_size)) * 8,
+                            kAssemblePrivateMaxBins);
   if (!missing.empty()) return check.skip(missing);
   const FieldPair p = random_pair(c.voxels, 1234u + uint32_t(c.voxels), kOptRange, c.tf_size);
   const TransferFunction ref_tf = random_tf(17, 99);

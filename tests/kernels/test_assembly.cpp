@@ -62,6 +62,7 @@ struct Case {
   ReductionMode mode = ReductionMode::Auto;
   AtomicWidth atomics = AtomicWidth::Auto;
   uint64_t chunk_voxels = 0;  // 0: no forced split
+  uint32_t range_quads = 0;    // 0: no forced split of chunks into texel ranges
 };
 
 bool available(Context& ctx, const Case& c) {
@@ -89,8 +90,10 @@ TEST_P(AssemblyVsCpu, MatchesDoubleReferenceAndExactSums) {
   FieldMapping opt_map = make_mapping({3.0, 8.0}, c.tf_size);
   DeviceField ref(ctx(), p.ref, "ref", c.chunk_voxels), opt(ctx(), p.opt, "opt", c.chunk_voxels);
   if (c.chunk_voxels) ASSERT_GT(ref.chunk_count(), 1u);
+  if (c.mode == ReductionMode::Private && c.tf_size > kPrivateHistogramSlots / 11)
+    EXPECT_GT(assemble_term_passes(c.mode, c.tf_size).size(), 1u);
   Buffer tf = upload_tf(ctx(), ref_tf, "ref tf");
-  GpuNormalEquations gpu(ctx(), c.tf_size, {c.mode, c.atomics});
+  GpuNormalEquations gpu(ctx(), c.tf_size, {c.mode, c.atomics, 0, c.range_quads});
   if (c.mode != ReductionMode::Auto) EXPECT_EQ(gpu.kernel().mode(), c.mode);
   if (c.atomics != AtomicWidth::Auto) EXPECT_EQ(gpu.kernel().int64_atomics(), c.atomics == AtomicWidth::Bits64);
   gpu.add(ref, opt, ref_map, opt_map, tf);
@@ -105,7 +108,9 @@ std::vector<Case> assembly_cases() {
   // The automatic choice on awkward sizes and TF sizes on both sides of the shared-memory and
   // private-histogram limits (682 and 1024 entries on lavapipe), then every forced path.
   std::vector<Case> cases = {{1, 64},           {13, 64},          {257, 2},           {8193, 3},
-                             {20000, 700},      {20000, 701},      {20000, 4096},      {100003, 64, M::Auto, W::Auto, 16384}};
+                             {20000, 700},      {20000, 701},      {20000, 4096},      {100003, 64, M::Auto, W::Auto, 16384},
+                             // chunks split into texel ranges of 64 quads, the last ones short
+                             {5003, 64, M::Auto, W::Auto, 1027, 64}, {259, 16, M::Auto, W::Auto, 0, 64}};
   for (M mode : {M::RunsShared, M::RunsGlobal, M::Private})
     for (W width : {W::Bits32, W::Bits64}) {
       if (mode == M::Private && width == W::Bits32) continue;  // a 64-bit path only
@@ -113,6 +118,9 @@ std::vector<Case> assembly_cases() {
       cases.push_back({8193, 3, mode, width});
       if (mode != M::RunsShared) cases.push_back({20000, 701, mode, width});
     }
+  // Private histograms of more than kPrivateHistogramSlots / 11 entries: the terms in passes.
+  // (4096 entries: the automatic choice above, on CPU devices.)
+  cases.push_back({20000, 2048, M::Private, W::Bits64});
   for (W width : {W::Bits32, W::Bits64}) cases.push_back({20000, 4096, M::RunsGlobal, width});
   return cases;
 }
@@ -123,6 +131,7 @@ std::string case_name(const ::testing::TestParamInfo<Case>& info) {
   std::string name = "v" + std::to_string(c.voxels) + "_n" + std::to_string(c.tf_size) + "_" + modes[int(c.mode)];
   if (c.atomics != AtomicWidth::Auto) name += c.atomics == AtomicWidth::Bits64 ? "_int64" : "_int32";
   if (c.chunk_voxels) name += "_chunks" + std::to_string(c.chunk_voxels);
+  if (c.range_quads) name += "_ranges" + std::to_string(c.range_quads);
   return name;
 }
 
@@ -170,11 +179,31 @@ TEST_F(AssemblyTest, DeterministicAcrossRunsPathsAndWorkgroups) {
     }
 }
 
+// Private passes: every one of the 11 bin terms in exactly one pass, in order, each pass's
+// histogram (terms x entries) within kPrivateHistogramSlots; the other modes take all at once.
+TEST(AssembleTermPasses, CoverEveryTermOnceWithinTheBudget) {
+  for (uint32_t n : {2u, 64u, 1024u, 1025u, 2048u, 3000u, 4096u}) {
+    const auto passes = assemble_term_passes(ReductionMode::Private, n);
+    uint32_t next = 0;
+    for (const auto& p : passes) {
+      EXPECT_EQ(p.first, next) << n;
+      EXPECT_GE(p.count, 1u);
+      EXPECT_LE(uint64_t(p.count) * n, kPrivateHistogramSlots) << n;
+      next += p.count;
+    }
+    EXPECT_EQ(next, 11u) << n;
+    EXPECT_EQ(passes.size(), n <= kPrivateHistogramSlots / 11 ? 1u : (11 + kPrivateHistogramSlots / n - 1) / (kPrivateHistogramSlots / n));
+  }
+  const auto runs = assemble_term_passes(ReductionMode::RunsShared, 4096);
+  ASSERT_EQ(runs.size(), 1u);
+  EXPECT_EQ(runs[0].count, 11u);
+}
+
 // A path the device cannot run is an error naming what is missing, never a silent fallback.
 TEST_F(AssemblyTest, UnavailablePathsThrow) {
   const uint32_t too_big = ctx().limits().maxComputeSharedMemorySize / 8;  // > (6N+4) * 8 bytes
   EXPECT_THROW(GpuNormalEquations(ctx(), too_big, {ReductionMode::RunsShared}), std::runtime_error);
-  EXPECT_THROW(GpuNormalEquations(ctx(), kPrivateMaxBins + 1, {ReductionMode::Private}), std::runtime_error);
+  EXPECT_THROW(GpuNormalEquations(ctx(), kAssemblePrivateMaxBins + 1, {ReductionMode::Private}), std::runtime_error);
   EXPECT_THROW(GpuNormalEquations(ctx(), 64, {ReductionMode::Private, AtomicWidth::Bits32}), std::runtime_error);
   if (!ctx().int64_atomics()) EXPECT_THROW(GpuNormalEquations(ctx(), 64, {ReductionMode::Auto, AtomicWidth::Bits64}), std::runtime_error);
   EXPECT_THROW(GpuNormalEquations(ctx(), 1), std::invalid_argument);
