@@ -27,6 +27,12 @@ Binding Binding::texels(const Buffer& b, VkFormat format, uint64_t offset, uint6
   return binding;
 }
 
+Binding Binding::texels(std::vector<const Buffer*> array, VkFormat format) {
+  Binding binding(std::move(array));
+  binding.texel_format = format;
+  return binding;
+}
+
 static uint32_t texel_bytes(VkFormat format) {
   switch (format) {
     case VK_FORMAT_R32_SFLOAT:
@@ -121,7 +127,7 @@ void CommandBatch::dispatch(const ComputePipeline& pipeline, std::initializer_li
   const auto& vk = ctx_.vk();
   VkDescriptorSet set = allocate_set(pipeline.set_layout());
   std::vector<std::vector<VkDescriptorBufferInfo>> infos;
-  std::vector<VkBufferView> views;
+  std::vector<std::vector<VkBufferView>> views;
   std::vector<VkWriteDescriptorSet> writes;
   infos.reserve(bindings.size());
   views.reserve(bindings.size());
@@ -141,28 +147,32 @@ void CommandBatch::dispatch(const ComputePipeline& pipeline, std::initializer_li
     w.dstBinding = index;
     w.descriptorType = descriptor_type(pipeline.binding_kind(index));
     if (texel) {
-      if (b.buffers.size() != 1) throw std::logic_error(where + ": texel bindings take one buffer");
-      const Buffer& buf = *b.buffers[0];
-      const uint64_t range = b.texel_range == VK_WHOLE_SIZE ? buf.size() - b.texel_offset : b.texel_range;
-      const uint64_t texel = texel_bytes(b.texel_format);
-      if (b.texel_offset % limits.minTexelBufferOffsetAlignment || b.texel_offset + range > buf.size() ||
-          range % texel || range == 0)
-        throw std::logic_error(where + ": texel range [" + std::to_string(b.texel_offset) + ", +" +
-                               std::to_string(range) + ") misaligned or outside the buffer");
-      if (range / texel > limits.maxTexelBufferElements)
-        throw std::logic_error(where + ": " + std::to_string(range / texel) + " texels exceed the device's " +
-                               std::to_string(limits.maxTexelBufferElements));
-      VkBufferViewCreateInfo vi{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
-      vi.buffer = buf.handle();
-      vi.format = b.texel_format;
-      vi.offset = b.texel_offset;
-      vi.range = range;
-      VkBufferView view = VK_NULL_HANDLE;
-      VK_CHECK(vk.vkCreateBufferView(ctx_.device(), &vi, nullptr, &view));
-      buffer_views_.push_back(view);
-      views.push_back(view);
-      w.descriptorCount = 1;
-      w.pTexelBufferView = &views.back();
+      if (b.buffers.size() > 1 && (b.texel_offset != 0 || b.texel_range != VK_WHOLE_SIZE))
+        throw std::logic_error(where + ": an array of texel buffers takes whole buffers");
+      auto& list = views.emplace_back();
+      for (const Buffer* buf : b.buffers) {
+        const uint64_t texel = texel_bytes(b.texel_format);
+        const uint64_t range = b.texel_range == VK_WHOLE_SIZE ? (buf->size() - b.texel_offset) / texel * texel
+                                                              : b.texel_range;
+        if (b.texel_offset % limits.minTexelBufferOffsetAlignment || b.texel_offset + range > buf->size() ||
+            range % texel || range == 0)
+          throw std::logic_error(where + ": texel range [" + std::to_string(b.texel_offset) + ", +" +
+                                 std::to_string(range) + ") misaligned or outside the buffer");
+        if (range / texel > limits.maxTexelBufferElements)
+          throw std::logic_error(where + ": " + std::to_string(range / texel) + " texels exceed the device's " +
+                                 std::to_string(limits.maxTexelBufferElements));
+        VkBufferViewCreateInfo vi{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
+        vi.buffer = buf->handle();
+        vi.format = b.texel_format;
+        vi.offset = b.texel_offset;
+        vi.range = range;
+        VkBufferView view = VK_NULL_HANDLE;
+        VK_CHECK(vk.vkCreateBufferView(ctx_.device(), &vi, nullptr, &view));
+        buffer_views_.push_back(view);
+        list.push_back(view);
+      }
+      w.descriptorCount = static_cast<uint32_t>(list.size());
+      w.pTexelBufferView = list.data();
     } else {
       auto& list = infos.emplace_back();
       for (const Buffer* buf : b.buffers) list.push_back({buf->handle(), 0, VK_WHOLE_SIZE});

@@ -25,6 +25,8 @@ struct Binding {
   // `offset` must be a multiple of the device's minTexelBufferOffsetAlignment and the range (the
   // rest of the buffer when VK_WHOLE_SIZE) at most maxTexelBufferElements texels.
   static Binding texels(const Buffer& b, VkFormat format, uint64_t offset = 0, uint64_t range = VK_WHOLE_SIZE);
+  // An array binding of texel buffers: each whole buffer seen as texels of `format`.
+  static Binding texels(std::vector<const Buffer*> array, VkFormat format);
   std::vector<const Buffer*> buffers;
   VkFormat texel_format = VK_FORMAT_UNDEFINED;  // set for texel bindings
   uint64_t texel_offset = 0, texel_range = VK_WHOLE_SIZE;

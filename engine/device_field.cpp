@@ -12,7 +12,10 @@ DeviceField::DeviceField(Context& ctx, uint64_t voxel_count, const std::string& 
     : ctx_(&ctx), voxels_(voxel_count) {
   if (voxel_count == 0) throw std::invalid_argument("DeviceField '" + name + "': no voxels");
   // Chunks are whole multiples of 1024 voxels so chunk boundaries never split a workgroup's span.
-  uint64_t device_chunk = (ctx.max_buffer_bytes() / sizeof(float)) / 1024 * 1024;
+  // Chunks fit one storage-buffer descriptor and one texel-buffer view of float32 texels (the
+  // renderer and the assembly read fields as texels).
+  uint64_t device_chunk =
+      (std::min<uint64_t>(ctx.max_buffer_bytes() / sizeof(float), ctx.limits().maxTexelBufferElements)) / 1024 * 1024;
   chunk_voxels_ = std::min(device_chunk, voxel_count);
   if (max_chunk_voxels) chunk_voxels_ = std::min(chunk_voxels_, max_chunk_voxels);
   size_t count = static_cast<size_t>((voxel_count + chunk_voxels_ - 1) / chunk_voxels_);
