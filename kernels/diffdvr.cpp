@@ -8,6 +8,7 @@
 #include <string>
 
 #include "context.h"
+#include "render_image.h"
 
 namespace tfm {
 
@@ -65,6 +66,7 @@ DiffDvrForwardKernel::DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks) 
   PipelineDesc desc;
   desc.shader = "render_image";
   desc.binding_counts = gpu::to_vector(gpu::kRenderBindingCounts);
+  desc.binding_kinds = march_binding_kinds(desc.binding_counts.size(), TFM_RENDER_BINDING_FIELD, TFM_RENDER_BINDING_TF);
   desc.push_constant_bytes = sizeof(gpu::RenderPush);
   desc.workgroup_size = TFM_RENDER_TILE * TFM_RENDER_TILE;
   desc.specialization = gpu::render_specialization(field_chunks, TFM_RENDER_MODE_DIFFDVR_STATE);
@@ -78,7 +80,7 @@ void DiffDvrForwardKernel::record(CommandBatch& batch, const DeviceField& field,
   check_pass(field, chunks_, tf, views, push, state, stop, row_begin, row_count);
   push.row_offset = row_begin;
   // Buffers in the binding order of gpu::kRenderBindingCounts; the state is the renderer's image.
-  batch.dispatch(*pipeline_, {field.chunk_array(TFM_RENDER_MAX_CHUNKS), tf, views, state, stop}, push,
+  batch.dispatch(*pipeline_, {march_field_binding(field), march_tf_binding(tf, push.tf_size), views, state, stop}, push,
                  tiles(push, row_count, TFM_RENDER_TILE));
 }
 
@@ -92,6 +94,8 @@ DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks
   PipelineDesc desc;
   desc.shader = "diffdvr_backward";
   desc.binding_counts = gpu::to_vector(kBackwardBindingCounts);
+  desc.binding_kinds =
+      march_binding_kinds(desc.binding_counts.size(), TFM_DIFFDVR_BWD_BINDING_FIELD, TFM_DIFFDVR_BWD_BINDING_TF);
   desc.push_constant_bytes = sizeof(gpu::RenderPush);
   desc.workgroup_size = TFM_DIFFDVR_BACKWARD_TILE * TFM_DIFFDVR_BACKWARD_TILE;
   const uint32_t shared_slots = use_shared_ ? slots() : 1u;
@@ -115,7 +119,8 @@ void DiffDvrBackwardKernel::record(CommandBatch& batch, const DeviceField& field
     throw std::invalid_argument("diffdvr: accumulator buffer too small");
   push.row_offset = row_begin;
   // Buffers in the binding order of kBackwardBindingCounts.
-  batch.dispatch(*pipeline_, {field.chunk_array(TFM_RENDER_MAX_CHUNKS), tf, views, state, stop, target, accum}, push,
+  batch.dispatch(*pipeline_,
+                 {march_field_binding(field), march_tf_binding(tf, push.tf_size), views, state, stop, target, accum}, push,
                  tiles(push, row_count, TFM_DIFFDVR_BACKWARD_TILE));
 }
 

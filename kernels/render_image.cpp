@@ -13,6 +13,20 @@ namespace tfm {
 static_assert(sizeof(gpu::RenderView) == 64, "RenderView must match the GLSL std430 struct");
 static_assert(sizeof(gpu::RenderPush) == 72, "RenderPush must match the GLSL push-constant block");
 
+std::vector<DescriptorKind> march_binding_kinds(size_t bindings, uint32_t field_binding, uint32_t tf_binding) {
+  std::vector<DescriptorKind> kinds(bindings, DescriptorKind::StorageBuffer);
+  kinds.at(field_binding) = kinds.at(tf_binding) = DescriptorKind::UniformTexelBuffer;
+  return kinds;
+}
+
+Binding march_field_binding(const DeviceField& field) {
+  return Binding::texels(field.chunk_array(TFM_RENDER_MAX_CHUNKS), VK_FORMAT_R32_SFLOAT);
+}
+
+Binding march_tf_binding(const Buffer& tf, uint32_t tf_size) {
+  return Binding::texels(tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(tf_size) * 16);
+}
+
 RenderImageKernel::RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32_t mode)
     : ctx_(ctx), chunks_(field_chunks) {
   if (field_chunks == 0 || field_chunks > TFM_RENDER_MAX_CHUNKS)
@@ -22,6 +36,7 @@ RenderImageKernel::RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32
   PipelineDesc desc;
   desc.shader = "render_image";
   desc.binding_counts = gpu::to_vector(gpu::kRenderBindingCounts);
+  desc.binding_kinds = march_binding_kinds(desc.binding_counts.size(), TFM_RENDER_BINDING_FIELD, TFM_RENDER_BINDING_TF);
   desc.push_constant_bytes = sizeof(gpu::RenderPush);
   desc.workgroup_size = TFM_RENDER_TILE * TFM_RENDER_TILE;
   desc.specialization = gpu::render_specialization(field_chunks, mode);
@@ -44,7 +59,8 @@ void RenderImageKernel::record(CommandBatch& batch, const DeviceField& field, co
   const Groups groups{(push.width + TFM_RENDER_TILE - 1) / TFM_RENDER_TILE,
                       (row_count + TFM_RENDER_TILE - 1) / TFM_RENDER_TILE, push.view_count};
   // Buffers in the binding order of gpu::kRenderBindingCounts.
-  batch.dispatch(*pipeline_, {field.chunk_array(TFM_RENDER_MAX_CHUNKS), tf, views, image, stop}, push, groups);
+  batch.dispatch(*pipeline_, {march_field_binding(field), march_tf_binding(tf, push.tf_size), views, image, stop}, push,
+                 groups);
 }
 
 }  // namespace tfm

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "buffer.h"
 #include "commands.h"
@@ -15,6 +16,13 @@
 namespace tfm {
 
 class Context;
+
+// The marching kernels (renderer, DiffDVR passes) read the field's chunks and the TF as texel
+// buffers (shaders/raymarch.glsl): the kinds of a pipeline's bindings with those two, and the
+// bindings themselves.
+std::vector<DescriptorKind> march_binding_kinds(size_t bindings, uint32_t field_binding, uint32_t tf_binding);
+Binding march_field_binding(const DeviceField& field);
+Binding march_tf_binding(const Buffer& tf, uint32_t tf_size);
 
 class RenderImageKernel {
  public:

@@ -21,8 +21,11 @@
 // The including shader defines TFM_WANT_RENDER_PUSH before including render_layout.h (for the
 // push block `rp`) and declares, before including this file:
 //   layout(constant_id = TFM_RENDER_SPEC_CHUNKS) const uint FIELD_CHUNKS;
-//   buffer array `field_chunks[TFM_RENDER_MAX_CHUNKS]` with member `float v[]`
-//   buffer `tf_table` with member `vec4 entries[]`
+//   texel-buffer array `field_chunks[TFM_RENDER_MAX_CHUNKS]` (R32F views of the chunks)
+//   texel buffer `tf_table` (RGBA32F entries)
+// Texel buffers, not storage buffers: on CPU devices (lavapipe) a texel fetch is one vector gather
+// where a storage-buffer load with a per-lane index loops over the SIMD lanes (see
+// assemble_normal_equations.comp); GPUs read both at the same speed.
 // (TFM_DECLARE_RAYMARCH_BINDINGS of render_layout.h declares exactly these.)
 #ifndef TFMATCH_RAYMARCH_GLSL
 #define TFMATCH_RAYMARCH_GLSL
@@ -124,16 +127,21 @@ vec3 sample_position(Ray ray, uint k, float dt) {
   return ray.entry + ((float(k) + 0.5) * dt) * ray.dir;
 }
 
-// One voxel of a chunked field. The chunk index is compared against a loop counter so every
-// descriptor index is dynamically uniform (no non-uniform indexing feature needed); with one
-// chunk the specialization folds it to a plain load.
+// One voxel of a chunked field. Every descriptor index is a constant (indexing an array of texel
+// buffers with a variable, even a uniform one, needs a device feature); chunks the
+// specialization does not have fold away, and with one chunk it is a plain fetch.
 float fetch_voxel(uint i, uint chunk_voxels) {
-  if (FIELD_CHUNKS == 1u) return field_chunks[0].v[i];
+  if (FIELD_CHUNKS == 1u) return texelFetch(field_chunks[0], int(i)).x;
   const uint c = i / chunk_voxels;
-  const uint off = i - c * chunk_voxels;
+  const int off = int(i - c * chunk_voxels);
   float value = 0.0;
-  for (uint k = 0u; k < FIELD_CHUNKS; ++k)
-    if (k == c) value = field_chunks[k].v[off];
+#if TFM_RENDER_MAX_CHUNKS != 8
+#error "fetch_voxel lists TFM_RENDER_MAX_CHUNKS chunks"
+#endif
+#define TFM_FETCH_CHUNK(k) if (FIELD_CHUNKS > uint(k) && c == uint(k)) value = texelFetch(field_chunks[k], off).x;
+  TFM_FETCH_CHUNK(0) TFM_FETCH_CHUNK(1) TFM_FETCH_CHUNK(2) TFM_FETCH_CHUNK(3)
+  TFM_FETCH_CHUNK(4) TFM_FETCH_CHUNK(5) TFM_FETCH_CHUNK(6) TFM_FETCH_CHUNK(7)
+#undef TFM_FETCH_CHUNK
   return value;
 }
 
@@ -170,7 +178,7 @@ bool sample_field(vec3 p, MarchParams mp, out float value) {
 // d rgba / d T_j = 1 - w, d rgba / d T_{j+1} = w.
 vec4 classify(float value, MarchParams mp, out uint j, out float w) {
   tf_coordinate(value, mp.tf_lo, mp.tf_scale, mp.tf_size, j, w);
-  return (1.0 - w) * tf_table.entries[j] + w * tf_table.entries[j + 1u];
+  return (1.0 - w) * texelFetch(tf_table, int(j)) + w * texelFetch(tf_table, int(j + 1u));
 }
 
 // Transmittance of one step for TF opacity a (alpha = 1 - tau).

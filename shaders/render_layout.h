@@ -61,9 +61,8 @@ TFM_RENDER_STRUCT(RenderView) {
 // The bindings shaders/raymarch.glsl expects (declare before including it).
 #define TFM_DECLARE_RAYMARCH_BINDINGS(field_binding, tf_binding)                                 \
   layout(constant_id = TFM_RENDER_SPEC_CHUNKS) const uint FIELD_CHUNKS = 1u;                     \
-  layout(std430, binding = field_binding) readonly buffer FieldChunk { float v[]; }              \
-      field_chunks[TFM_RENDER_MAX_CHUNKS];                                                       \
-  layout(std430, binding = tf_binding) readonly buffer TfTable { vec4 entries[]; } tf_table;
+  layout(binding = field_binding) uniform samplerBuffer field_chunks[TFM_RENDER_MAX_CHUNKS];     \
+  layout(binding = tf_binding) uniform samplerBuffer tf_table;
 #endif
 
 #ifdef __cplusplus
