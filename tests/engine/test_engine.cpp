@@ -11,6 +11,7 @@
 #include "commands.h"
 #include "device_field.h"
 #include "pipeline.h"
+#include "render_layout.h"
 #include "shared_layout.h"
 #include "vk_check.h"
 #include "vk_test_env.h"
@@ -104,6 +105,34 @@ TEST_F(EngineTest, TexelBindingsCheckKindAlignmentAndRange) {
   // A valid set: nothing to read (voxel_count 0), views made and freed with the batch.
   batch.dispatch(pipe, {b, b, t, b, Binding::texels(b, rgba, align, 64), t}, push, {1});
   batch.submit_and_wait();
+}
+
+// An array of texel buffers (the renderer's field chunks) takes whole buffers, one view each.
+TEST_F(EngineTest, TexelArraysTakeWholeBuffers) {
+  PipelineDesc desc;
+  desc.shader = "render_image";
+  desc.spirv = shader_spirv(desc.shader);
+  desc.binding_counts = gpu::to_vector(gpu::kRenderBindingCounts);
+  desc.binding_kinds.assign(desc.binding_counts.size(), DescriptorKind::StorageBuffer);
+  desc.binding_kinds[TFM_RENDER_BINDING_FIELD] = desc.binding_kinds[TFM_RENDER_BINDING_TF] =
+      DescriptorKind::UniformTexelBuffer;
+  desc.push_constant_bytes = sizeof(gpu::RenderPush);
+  desc.workgroup_size = TFM_RENDER_TILE * TFM_RENDER_TILE;
+  desc.specialization = gpu::render_specialization(1, TFM_RENDER_MODE_FORWARD);
+  ComputePipeline pipe(ctx(), desc);
+  Buffer b(ctx(), 1024, MemoryUsage::Device, "b");
+  const std::vector<const Buffer*> chunks(TFM_RENDER_MAX_CHUNKS, &b);
+  Binding offset = Binding::texels(chunks, VK_FORMAT_R32_SFLOAT);
+  offset.texel_offset = ctx().limits().minTexelBufferOffsetAlignment;
+  const Binding tf = Binding::texels(b, VK_FORMAT_R32G32B32A32_SFLOAT, 0, 64);
+  gpu::RenderPush push{};
+  CommandBatch batch(ctx());
+  EXPECT_THROW(batch.dispatch(pipe, {offset, tf, b, b, b}, push, {1}), std::logic_error);
+  EXPECT_THROW(batch.dispatch(pipe, {Binding::texels(std::vector<const Buffer*>(2, &b), VK_FORMAT_R32_SFLOAT), tf, b, b, b},
+                              push, {1}),
+               std::logic_error);  // fewer buffers than the array holds
+  // A valid set, never submitted (no views are read): views made and freed with the batch.
+  batch.dispatch(pipe, {Binding::texels(chunks, VK_FORMAT_R32_SFLOAT), tf, b, b, b}, push, {1});
 }
 
 TEST_F(EngineTest, SplitFieldChunksAndArrays) {
