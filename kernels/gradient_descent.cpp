@@ -17,7 +17,7 @@ namespace {
 // Bindings in the order record() lists each kernel's buffers.
 constexpr auto kGradientBindingCounts =
     gpu::binding_counts({TFM_GD_BINDING_REF_FIELD, TFM_GD_BINDING_OPT_FIELD, TFM_GD_BINDING_REF_TF, TFM_GD_BINDING_X,
-                         TFM_GD_BINDING_ACCUM});
+                         TFM_GD_BINDING_ACCUM, TFM_GD_BINDING_REF_QUADS, TFM_GD_BINDING_OPT_QUADS});
 constexpr auto kUpdateBindingCounts =
     gpu::binding_counts({TFM_GD_UPDATE_BINDING_ACCUM, TFM_GD_UPDATE_BINDING_X, TFM_GD_UPDATE_BINDING_M,
                          TFM_GD_UPDATE_BINDING_V, TFM_GD_UPDATE_BINDING_INV_DIAG, TFM_GD_UPDATE_BINDING_GRADIENT});
@@ -40,6 +40,9 @@ const ComputePipeline& GdGradientKernel::pipeline(uint32_t ref_tf_size) const {
     PipelineDesc desc =
         reduction_.pipeline_desc("gd_gradient", gpu::to_vector(kGradientBindingCounts), sizeof(gpu::VoxelPairPush));
     const bool shared = reduction_.mode == ReductionMode::RunsShared;
+    desc.binding_kinds.assign(desc.binding_counts.size(), DescriptorKind::StorageBuffer);
+    desc.binding_kinds[TFM_GD_BINDING_REF_QUADS] = desc.binding_kinds[TFM_GD_BINDING_OPT_QUADS] =
+        DescriptorKind::UniformTexelBuffer;
     desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
                                       {TFM_GD_SPEC_MODE, reduction_.shader_mode()},
                                       {TFM_GD_SPEC_SHARED_SLOTS, shared ? TFM_TF_GRADIENT_SLOTS(tf_size_) : 1u},
@@ -64,7 +67,15 @@ void GdGradientKernel::record(CommandBatch& batch, const DeviceField& ref, const
   gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
   for (size_t c = 0; c < ref.chunk_count(); ++c) {
     push.voxel_count = static_cast<uint32_t>(ref.chunk_size(c));
-    batch.dispatch(pipe, {ref.chunk(c), opt.chunk(c), ref_tf, x, accum}, push, {reduction_.groups(ctx_, ref.chunk_size(c))});
+    // Chunks fit one texel view (DeviceField); one of fewer than 4 voxels has no quads and binds
+    // one float it never reads.
+    const uint64_t voxels = ref.chunk_size(c);
+    const VkFormat format = voxels >= 4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT;
+    const uint64_t bytes = voxels >= 4 ? voxels / 4 * 16 : 4;
+    batch.dispatch(pipe,
+                   {ref.chunk(c), opt.chunk(c), ref_tf, x, accum, Binding::texels(ref.chunk(c), format, 0, bytes),
+                    Binding::texels(opt.chunk(c), format, 0, bytes)},
+                   push, {reduction_.groups(ctx_, voxels)});
     // Successive chunks add into the same accumulators.
     batch.barrier();
   }

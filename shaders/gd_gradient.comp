@@ -5,7 +5,8 @@
 // tf_pair_reduce.glsl describes, the loss per lane in registers; every term is converted to
 // 32.32 fixed point on its own and summed as an integer (the same bits for every mode, atomic
 // width, chunking and workgroup count). Lanes take consecutive quads of voxels in their
-// subgroup's segment, as in assemble_normal_equations.comp, which also explains the modes.
+// subgroup's segment, read as texels, as in assemble_normal_equations.comp, which also explains
+// the modes and the texel buffers (the last voxel_count % 4 voxels are read as floats).
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_basic : require
@@ -29,9 +30,9 @@ layout(constant_id = TFM_GD_SPEC_LOSS_L1) const bool LOSS_L1 = false;
 layout(constant_id = TFM_GD_SPEC_TF_CACHE) const uint TF_CACHE_ENTRIES = 0u;
 
 layout(std430, binding = TFM_GD_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
-layout(std430, binding = TFM_GD_BINDING_REF_FIELD) readonly buffer RefQuads { vec4 ref_quads[]; };
+layout(binding = TFM_GD_BINDING_REF_QUADS) uniform samplerBuffer ref_quads;
 layout(std430, binding = TFM_GD_BINDING_OPT_FIELD) readonly buffer OptField { float opt_field[]; };
-layout(std430, binding = TFM_GD_BINDING_OPT_FIELD) readonly buffer OptQuads { vec4 opt_quads[]; };
+layout(binding = TFM_GD_BINDING_OPT_QUADS) uniform samplerBuffer opt_quads;
 layout(std430, binding = TFM_GD_BINDING_REF_TF) readonly buffer RefTf { vec4 ref_tf[]; };
 layout(std430, binding = TFM_GD_BINDING_X) readonly buffer X { vec4 x[]; };
 TFM_DECLARE_ACCUMULATORS(TFM_GD_BINDING_ACCUM)
@@ -73,8 +74,8 @@ void main() {
   for (uint s = gl_WorkGroupID.x * gl_NumSubgroups + gl_SubgroupID; s * segment < quads; s += subgroups) {
     const uint end = min(s * segment + segment, quads);
     for (uint q = s * segment + gl_SubgroupInvocationID; q < end; q += gl_SubgroupSize) {
-      const vec4 rv = ref_quads[q];
-      const vec4 ov = opt_quads[q];
+      const vec4 rv = texelFetch(ref_quads, int(q));
+      const vec4 ov = texelFetch(opt_quads, int(q));
       take(rv.x, ov.x);
       take(rv.y, ov.y);
       take(rv.z, ov.z);

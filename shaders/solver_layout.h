@@ -130,6 +130,8 @@ TFM_PUSH_CONSTANTS(CglsPush) {
 #define TFM_GD_BINDING_REF_TF 2
 #define TFM_GD_BINDING_X 3
 #define TFM_GD_BINDING_ACCUM 4
+#define TFM_GD_BINDING_REF_QUADS 5  // the chunks again as RGBA32F texel buffers (quads of voxels)
+#define TFM_GD_BINDING_OPT_QUADS 6
 #define TFM_GD_LOSS_SLOT(n) TFM_TF_GRADIENT_SLOTS(n)
 #define TFM_GD_ACCUM_WORDS(n) (TFM_FIXED_SLOT_WORDS * (TFM_GD_LOSS_SLOT(n) + 4u))
 
