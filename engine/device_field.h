@@ -1,5 +1,6 @@
-// A scalar field on the device, split into chunks that each fit one storage-buffer descriptor
-// (maxStorageBufferRange is 128 MiB on lavapipe; a 10^8-voxel float field needs 400 MB).
+// A scalar field on the device, split into chunks that each fit one storage-buffer descriptor and
+// one float32 texel-buffer view (maxStorageBufferRange is 128 MiB on lavapipe; a 10^8-voxel float
+// field needs 400 MB).
 #pragma once
 
 #include <cstdint>

@@ -29,7 +29,7 @@ namespace {
 void check_chunks(uint32_t chunks) {
   if (chunks == 0 || chunks > TFM_RENDER_MAX_CHUNKS)
     throw std::runtime_error("diffdvr: the field needs " + std::to_string(chunks) +
-                             " storage buffers; the kernels bind at most " + std::to_string(TFM_RENDER_MAX_CHUNKS) +
+                             " buffers; the kernels bind at most " + std::to_string(TFM_RENDER_MAX_CHUNKS) +
                              " (volume too large for this device)");
 }
 

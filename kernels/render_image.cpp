@@ -31,7 +31,7 @@ RenderImageKernel::RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32
     : ctx_(ctx), chunks_(field_chunks) {
   if (field_chunks == 0 || field_chunks > TFM_RENDER_MAX_CHUNKS)
     throw std::runtime_error("render: the field needs " + std::to_string(field_chunks) +
-                             " storage buffers; the renderer binds at most " +
+                             " buffers; the renderer binds at most " +
                              std::to_string(TFM_RENDER_MAX_CHUNKS) + " (volume too large for this device)");
   PipelineDesc desc;
   desc.shader = "render_image";

@@ -24,7 +24,7 @@
 //    for every TF entry in invocation-private memory and adds to it without atomics or branches:
 //    on a CPU, lanes are SIMD lanes of one thread, a divergent branch costs as much as a taken
 //    one (lavapipe runs both sides under a mask; measured: register runs flushed on a bin change
-//    are 1.3-1.6x slower than adding every voxel to the histogram) and atomics are locked
+//    are 1.2-1.5x slower than adding every voxel to the histogram) and atomics are locked
 //    instructions. Each lane adds its histogram to the global accumulators once at the end, so
 //    a lane must cover many voxels (the host sizes it). A histogram of all 11 terms of N entries
 //    costs 88 N bytes per lane; above 1024 entries the host splits the 11 terms into passes
