@@ -47,8 +47,9 @@ void check_pass(const DeviceField& field, uint32_t chunks, const Buffer& tf, con
   if (uint64_t(row_begin) + row_count > push.height) throw std::invalid_argument("diffdvr: row band outside the image");
 }
 
-Groups tiles(const gpu::RenderPush& push, uint32_t row_count, uint32_t tile) {
-  return {(push.width + tile - 1) / tile, (row_count + tile - 1) / tile, push.view_count};
+// Workgroups of `columns` image columns and `rows` rows each over the band.
+Groups tiles(const gpu::RenderPush& push, uint32_t row_count, uint32_t columns, uint32_t rows) {
+  return {(push.width + columns - 1) / columns, (row_count + rows - 1) / rows, push.view_count};
 }
 
 // diffdvr_backward.comp's bindings in the order record() lists its buffers.
@@ -79,32 +80,68 @@ void DiffDvrForwardKernel::record(CommandBatch& batch, const DeviceField& field,
                                   uint32_t row_begin, uint32_t row_count) const {
   check_pass(field, chunks_, tf, views, push, state, stop, row_begin, row_count);
   push.row_offset = row_begin;
+  push.row_end = row_begin + row_count;
   // Buffers in the binding order of gpu::kRenderBindingCounts; the state is the renderer's image.
   batch.dispatch(*pipeline_, {march_field_binding(field), march_tf_binding(tf, push.tf_size), views, state, stop}, push,
-                 tiles(push, row_count, TFM_RENDER_TILE));
+                 tiles(push, row_count, TFM_RENDER_TILE, TFM_RENDER_TILE));
+}
+
+namespace {
+
+bool has_subgroup_reductions(const Context& ctx) {
+  const uint32_t need = VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_VOTE_BIT | VK_SUBGROUP_FEATURE_ARITHMETIC_BIT;
+  return (ctx.subgroup_operations() & need) == need;
+}
+
+}  // namespace
+
+std::string DiffDvrBackwardKernel::unsupported(const Context& ctx, uint32_t tf_size, ReductionMode mode) {
+  const uint64_t shared_bytes = uint64_t(TFM_DIFFDVR_SLOTS(tf_size)) * gpu::kFixedSlotBytes;
+  if (mode == ReductionMode::Private && tf_size > kDiffDvrPrivateMaxBins)
+    return "private histograms hold at most " + std::to_string(kDiffDvrPrivateMaxBins) + " TF entries, not " +
+           std::to_string(tf_size);
+  if (mode == ReductionMode::Private && !has_subgroup_reductions(ctx))
+    return "private histograms need subgroup basic, vote and arithmetic operations in compute shaders; the "
+           "device lacks them";
+  if (mode == ReductionMode::RunsShared && shared_bytes > ctx.limits().maxComputeSharedMemorySize)
+    return std::to_string(tf_size) + " TF entries need " + std::to_string(shared_bytes) +
+           " bytes of shared memory; the device has " + std::to_string(ctx.limits().maxComputeSharedMemorySize);
+  return {};
+}
+
+ReductionMode DiffDvrBackwardKernel::choose(const Context& ctx, uint32_t tf_size, ReductionMode mode) {
+  if (mode != ReductionMode::Auto) return mode;
+  if (is_cpu_device(ctx) && unsupported(ctx, tf_size, ReductionMode::Private).empty()) return ReductionMode::Private;
+  if (unsupported(ctx, tf_size, ReductionMode::RunsShared).empty()) return ReductionMode::RunsShared;
+  return ReductionMode::RunsGlobal;
 }
 
 DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks, uint32_t tf_size, ImageLoss loss,
-                                             bool force_global)
-    : chunks_(field_chunks), tf_size_(tf_size) {
+                                             ReductionMode mode)
+    : chunks_(field_chunks), tf_size_(tf_size), mode_(mode) {
   check_chunks(field_chunks);
   if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
-  const uint64_t shared_bytes = slots() * gpu::kFixedSlotBytes;
-  use_shared_ = !force_global && shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
+  mode_ = choose(ctx, tf_size, mode);
+  if (const std::string why = unsupported(ctx, tf_size, mode_); !why.empty())
+    throw std::runtime_error("diffdvr backward: " + why);
+  const bool use_shared = mode_ == ReductionMode::RunsShared;
+  const bool use_private = mode_ == ReductionMode::Private;
   PipelineDesc desc;
-  desc.shader = "diffdvr_backward";
+  desc.shader = use_private ? "diffdvr_backward_private" : "diffdvr_backward";
   desc.binding_counts = gpu::to_vector(kBackwardBindingCounts);
   desc.binding_kinds =
       march_binding_kinds(desc.binding_counts.size(), TFM_DIFFDVR_BWD_BINDING_FIELD, TFM_DIFFDVR_BWD_BINDING_TF);
   desc.push_constant_bytes = sizeof(gpu::RenderPush);
   desc.workgroup_size = TFM_DIFFDVR_BACKWARD_TILE * TFM_DIFFDVR_BACKWARD_TILE;
-  const uint32_t shared_slots = use_shared_ ? slots() : 1u;
+  const uint32_t shared_slots = use_shared ? slots() : 1u;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_DIFFDVR_BACKWARD_TILE},
                                     {TFM_SPEC_WORKGROUP_Y, TFM_DIFFDVR_BACKWARD_TILE},
                                     {TFM_RENDER_SPEC_CHUNKS, field_chunks},
                                     {TFM_DIFFDVR_SPEC_LOSS, static_cast<uint32_t>(loss)},
                                     {TFM_DIFFDVR_SPEC_SHARED_WORDS, shared_slots * TFM_FIXED_SLOT_WORDS},
-                                    {TFM_DIFFDVR_SPEC_USE_SHARED, use_shared_ ? 1u : 0u}});
+                                    {TFM_DIFFDVR_SPEC_USE_SHARED, use_shared ? 1u : 0u},
+                                    {TFM_DIFFDVR_SPEC_PRIVATE_BINS, use_private ? tf_size : 2u},
+                                    {TFM_DIFFDVR_SPEC_PIXELS_PER_LANE, use_private ? TFM_DIFFDVR_PRIVATE_PIXELS : 1u}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -118,10 +155,14 @@ void DiffDvrBackwardKernel::record(CommandBatch& batch, const DeviceField& field
   if (accum.size() < slots() * gpu::kFixedSlotBytes)
     throw std::invalid_argument("diffdvr: accumulator buffer too small");
   push.row_offset = row_begin;
+  push.row_end = row_begin + row_count;
   // Buffers in the binding order of kBackwardBindingCounts.
+  // A private-histogram lane marches TFM_DIFFDVR_PRIVATE_PIXELS rows 16 apart.
+  const uint32_t rows_per_group =
+      TFM_DIFFDVR_BACKWARD_TILE * (mode_ == ReductionMode::Private ? TFM_DIFFDVR_PRIVATE_PIXELS : 1u);
   batch.dispatch(*pipeline_,
                  {march_field_binding(field), march_tf_binding(tf, push.tf_size), views, state, stop, target, accum}, push,
-                 tiles(push, row_count, TFM_DIFFDVR_BACKWARD_TILE));
+                 tiles(push, row_count, TFM_DIFFDVR_BACKWARD_TILE, rows_per_group));
 }
 
 void FixedPointTotals::add(const uint32_t* words) {

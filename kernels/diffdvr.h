@@ -14,6 +14,7 @@
 #include "device_field.h"
 #include "diffdvr_layout.h"
 #include "pipeline.h"
+#include "reduction.h"
 
 namespace tfm {
 
@@ -44,15 +45,27 @@ class DiffDvrForwardKernel {
   std::unique_ptr<ComputePipeline> pipeline_;
 };
 
+// TF entries up to which CPU devices take the backward pass's private-histogram build (a vec4 per
+// entry and lane: 16 KiB per lane at 1024).
+inline constexpr uint32_t kDiffDvrPrivateMaxBins = 1024;
+
 class DiffDvrBackwardKernel {
  public:
-  // Accumulates in workgroup-shared memory when the device has room for the slots of `tf_size`
-  // entries, else straight to the buffer (`force_global` selects that path; same bits either way).
+  // How the gradient is summed (diffdvr_backward.comp's header explains each): Auto takes Private
+  // on CPU devices with subgroup arithmetic up to kDiffDvrPrivateMaxBins entries, else RunsShared
+  // when the slots of `tf_size` entries fit shared memory, else RunsGlobal. A forced mode the
+  // device cannot run throws std::runtime_error naming what is missing. The runs modes give the
+  // same bits; Private sums in another float grouping (deterministic too).
   DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks, uint32_t tf_size, ImageLoss loss,
-                        bool force_global = false);
+                        ReductionMode mode = ReductionMode::Auto);
   uint32_t tf_size() const { return tf_size_; }
   uint32_t slots() const { return TFM_DIFFDVR_SLOTS(tf_size_); }  // accumulator bytes: 8 per slot
-  bool uses_shared_memory() const { return use_shared_; }
+  ReductionMode mode() const { return mode_; }
+  // Why `mode` cannot run on this device for `tf_size` entries, or "" when it can (Auto: "").
+  static std::string unsupported(const Context& ctx, uint32_t tf_size, ReductionMode mode);
+  // The mode a kernel for `tf_size` entries takes when asked for `mode` (resolves Auto).
+  static ReductionMode choose(const Context& ctx, uint32_t tf_size, ReductionMode mode = ReductionMode::Auto);
+  bool uses_shared_memory() const { return mode_ == ReductionMode::RunsShared; }
   // Adds the loss of (state vs target) over rows [row_begin, row_begin + row_count) of every view
   // and its gradient w.r.t. `tf` to `accum`. `state`/`stop` are the forward pass's output for
   // (field, tf, views, push); `target` has the same layout. Throws std::invalid_argument when a
@@ -64,7 +77,7 @@ class DiffDvrBackwardKernel {
  private:
   uint32_t chunks_;
   uint32_t tf_size_;
-  bool use_shared_;
+  ReductionMode mode_;
   std::unique_ptr<ComputePipeline> pipeline_;
 };
 

@@ -11,7 +11,7 @@
 namespace tfm {
 
 static_assert(sizeof(gpu::RenderView) == 64, "RenderView must match the GLSL std430 struct");
-static_assert(sizeof(gpu::RenderPush) == 72, "RenderPush must match the GLSL push-constant block");
+static_assert(sizeof(gpu::RenderPush) == 76, "RenderPush must match the GLSL push-constant block");
 
 std::vector<DescriptorKind> march_binding_kinds(size_t bindings, uint32_t field_binding, uint32_t tf_binding) {
   std::vector<DescriptorKind> kinds(bindings, DescriptorKind::StorageBuffer);
@@ -54,8 +54,9 @@ void RenderImageKernel::record(CommandBatch& batch, const DeviceField& field, co
   if (views.size() < uint64_t(push.view_count) * sizeof(gpu::RenderView))
     throw std::invalid_argument("render: fewer camera records than views");
   if (tf.size() < uint64_t(push.tf_size) * 16) throw std::invalid_argument("render: TF buffer smaller than tf_size");
-  if (row_begin + row_count > push.height) throw std::invalid_argument("render: row band outside the image");
+  if (uint64_t(row_begin) + row_count > push.height) throw std::invalid_argument("render: row band outside the image");
   push.row_offset = row_begin;
+  push.row_end = row_begin + row_count;
   const Groups groups{(push.width + TFM_RENDER_TILE - 1) / TFM_RENDER_TILE,
                       (row_count + TFM_RENDER_TILE - 1) / TFM_RENDER_TILE, push.view_count};
   // Buffers in the binding order of gpu::kRenderBindingCounts.

@@ -9,10 +9,12 @@
 #include "render_layout.h"
 
 // ---- diffdvr_backward.comp ------------------------------------------------------------------
-// One invocation per pixel of the field being optimized: loss against the target pixel, then the
-// re-march k = k_stop-1 .. 0 inverting the compositing. 16x16 tiles: 256 rays share one flush
-// of the workgroup's accumulators.
+// One invocation per pixel of the field being optimized (the private build: per
+// TFM_DIFFDVR_PRIVATE_PIXELS pixels): loss against the target pixel, then the re-march
+// k = k_stop-1 .. 0 inverting the compositing. 16x16 tiles: 256 rays share one flush of the
+// workgroup's accumulators; a private workgroup covers 16 x (16 TFM_DIFFDVR_PRIVATE_PIXELS).
 #define TFM_DIFFDVR_BACKWARD_TILE 16
+#define TFM_DIFFDVR_PRIVATE_PIXELS 4
 #define TFM_DIFFDVR_BWD_BINDING_FIELD 0   // float chunks [TFM_RENDER_MAX_CHUNKS]
 #define TFM_DIFFDVR_BWD_BINDING_TF 1      // vec4 TF entries (the TF being optimized)
 #define TFM_DIFFDVR_BWD_BINDING_VIEWS 2   // RenderView per view
@@ -26,6 +28,8 @@
 #define TFM_DIFFDVR_SPEC_LOSS 3          // TFM_DIFFDVR_LOSS_*
 #define TFM_DIFFDVR_SPEC_SHARED_WORDS 4  // words of workgroup-shared accumulators (2 per slot)
 #define TFM_DIFFDVR_SPEC_USE_SHARED 5    // 0: add straight to the global accumulators (large N)
+#define TFM_DIFFDVR_SPEC_PRIVATE_BINS 6  // TFM_DIFFDVR_PRIVATE build: entries of a lane's histogram
+#define TFM_DIFFDVR_SPEC_PIXELS_PER_LANE 7  // TFM_DIFFDVR_PRIVATE build: pixels each lane marches
 #define TFM_DIFFDVR_LOSS_L2 0u           // sum over RGBA of (X - R)^2
 #define TFM_DIFFDVR_LOSS_L1 1u           // sum over RGBA of |X - R|
 

@@ -112,12 +112,17 @@ Ray view_ray(RenderView v, uvec2 pixel, MarchParams mp) {
   return ray;
 }
 
+// Pixel `pixel` of view `view` if it is in the image, the dispatch's rows and the views.
+bool pixel_in_dispatch(uvec2 pixel, uint view) {
+  return pixel.x < rp.width && pixel.y < rp.row_end && view < rp.view_count;
+}
+
 // The pixel and view of this invocation: x, y (offset by the dispatch's first row) and z of the
-// global id. False past the image or the views.
+// global id. False past the image, the dispatch's rows or the views.
 bool invocation_pixel(out uvec2 pixel, out uint view) {
   pixel = uvec2(gl_GlobalInvocationID.x, gl_GlobalInvocationID.y + rp.row_offset);
   view = gl_GlobalInvocationID.z;
-  return pixel.x < rp.width && pixel.y < rp.height && view < rp.view_count;
+  return pixel_in_dispatch(pixel, view);
 }
 
 // Index of a pixel of a view in the per-pixel buffers (image, state, stop, target).

@@ -85,7 +85,8 @@ inline std::vector<uint> render_specialization(uint field_chunks, uint mode) {
 TFM_PUSH_CONSTANTS(RenderPush) {
   uint width;             // image size in pixels
   uint height;
-  uint row_offset;        // first image row of this dispatch (renders may be split in bands)
+  uint row_offset;        // rows [row_offset, row_end) of the image are this dispatch's (renders
+  uint row_end;           // and backward passes may be split in bands)
   uint view_count;
   uint dim_x;             // grid size
   uint dim_y;

@@ -164,6 +164,7 @@ gpu::RenderPush make_render_push(const VolumeGeometry& g, const MarchConstants& 
   gpu::RenderPush p{};
   p.width = width;
   p.height = height;
+  p.row_end = height;  // the kernels' record() set the band they dispatch
   p.view_count = view_count;
   p.dim_x = uint32_t(g.dims[0]);
   p.dim_y = uint32_t(g.dims[1]);

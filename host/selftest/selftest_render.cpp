@@ -189,7 +189,7 @@ struct GradientScene {
   Volume reference;         // rendered with ref_tf into the target images
   TransferFunction ref_tf;
   ImageLoss loss = ImageLoss::L2;
-  bool force_global = false;
+  ReductionMode mode = ReductionMode::RunsShared;  // of the backward kernel
 };
 
 // The backward pass's loss and TF gradient against the CPU reverse mode, both from the same
@@ -202,9 +202,8 @@ struct GradientScene {
 void backward(Context& ctx, Check& check, const GradientScene& gs) {
   const Scene& s = gs.field;
   const uint32_t n = uint32_t(s.tf.size());
-  const uint64_t shared_bytes = uint64_t(TFM_DIFFDVR_SLOTS(n)) * 8;
-  if (!gs.force_global && !fits_shared_memory(ctx, shared_bytes))
-    return check.skip(needs_shared_memory(ctx, shared_bytes));
+  if (const std::string why = DiffDvrBackwardKernel::unsupported(ctx, n, gs.mode); !why.empty())
+    return check.skip(why);
   const size_t pixels = size_t(s.settings.width) * s.settings.height;
   std::vector<double> cpu_gradient(4 * size_t(n), 0.0);
   std::vector<float> target(4 * pixels * s.cameras.size());
@@ -227,9 +226,7 @@ void backward(Context& ctx, Check& check, const GradientScene& gs) {
 
   DeviceScene d(ctx, s);
   const DiffDvrForwardKernel forward_kernel(ctx, uint32_t(d.field.chunk_count()));
-  const DiffDvrBackwardKernel backward_kernel(ctx, uint32_t(d.field.chunk_count()), n, gs.loss, gs.force_global);
-  if (!gs.force_global)
-    check.require(backward_kernel.uses_shared_memory(), "the kernel did not take the shared-memory path");
+  const DiffDvrBackwardKernel backward_kernel(ctx, uint32_t(d.field.chunk_count()), n, gs.loss, gs.mode);
   Buffer target_buffer = make_buffer<float>(ctx, target, "selftest target images");
   Buffer accum(ctx, uint64_t(backward_kernel.slots()) * 8, MemoryUsage::Device, "selftest DiffDVR accumulators");
   CommandBatch batch(ctx);
@@ -372,8 +369,10 @@ void add_render_cases(CaseList& cases) {
     GradientScene gs = gradient_scene({10, 8, 7}, 13, 24, 24, 17);
     gs.field.chunk_voxels = gs.reference.voxel_count() / 3 + 1;
     add_backward("l2, NaNs, field in 3 chunks, 24x24 image, 3 views, shared memory", true, gs);
-    gs.force_global = true;
+    gs.mode = ReductionMode::RunsGlobal;
     add_backward("l2, NaNs, field in 3 chunks, 24x24 image, 3 views, global atomics", true, gs);
+    gs.mode = ReductionMode::Private;
+    add_backward("l2, NaNs, field in 3 chunks, 24x24 image, 3 views, private histograms", true, gs);
   }
   {
     // The reference is more opaque and redder in every channel than the field can be, so every
@@ -393,6 +392,12 @@ void add_render_cases(CaseList& cases) {
     add_backward("l2, optical-depth clamp active, 24x24 image, 3 views", true, gs);
   }
   add_backward("l2, 17x13 image (one past the 16x16 tile), N=2", true, gradient_scene({6, 5, 4}, 2, 17, 13));
+  {
+    // Lanes march 4 rows 16 apart: 70 rows end inside a lane's third row.
+    GradientScene gs = gradient_scene({6, 5, 4}, 11, 17, 70);
+    gs.mode = ReductionMode::Private;
+    add_backward("l2, 17x70 image, N=11, private histograms", true, gs);
+  }
   add_backward("l2, 1x1 image, N=127", true, gradient_scene({5, 9, 3}, 127, 1, 1));
   {
     GradientScene gs = gradient_scene({24, 20, 18}, 64, 48, 40, 41);

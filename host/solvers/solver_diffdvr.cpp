@@ -40,7 +40,7 @@ struct DiffDvrGradient::Buffers {
 DiffDvrGradient::DiffDvrGradient(Context& ctx, const DeviceField& ref, const DeviceField& opt,
                                  const VolumeGeometry& geometry, const FieldMapping& ref_map, const Buffer& ref_tf,
                                  const FieldMapping& opt_map, const RenderSettings& settings, ImageLoss loss,
-                                 bool force_global_atomics, uint32_t max_group_views)
+                                 ReductionMode reduction, uint32_t max_group_views)
     : ctx_(ctx),
       ref_(ref),
       opt_(opt),
@@ -52,7 +52,7 @@ DiffDvrGradient::DiffDvrGradient(Context& ctx, const DeviceField& ref, const Dev
       march_(march_constants(settings, geometry)),
       forward_ref_(ctx, uint32_t(ref.chunk_count())),
       forward_opt_(ctx, uint32_t(opt.chunk_count())),
-      backward_(ctx, uint32_t(opt.chunk_count()), opt_map.tf_size, loss, force_global_atomics),
+      backward_(ctx, uint32_t(opt.chunk_count()), opt_map.tf_size, loss, reduction),
       buffers_(std::make_unique<Buffers>()) {
   const uint64_t pixels = uint64_t(settings.width) * settings.height;
   const uint64_t by_memory = ctx.max_buffer_bytes() / (pixels * 16);

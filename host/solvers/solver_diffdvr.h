@@ -39,13 +39,13 @@ struct ImageLossGradient {
 class DiffDvrGradient {
  public:
   // `settings`: the optical model and the image size (width x height) of every view; the camera
-  // pose comes with each evaluation. Both fields live on `geometry`. `force_global_atomics` and
-  // `max_group_views` select the backward kernel's global-atomics path and smaller view groups
-  // (tests: every path gives the same bits). Throws std::runtime_error for invalid settings or a
-  // field too large for the kernels.
+  // pose comes with each evaluation. Both fields live on `geometry`. `reduction` forces the
+  // backward kernel's summing mode (DiffDvrBackwardKernel; tests run each), `max_group_views`
+  // smaller view groups (the same bits as one group). Throws std::runtime_error for invalid
+  // settings or a field too large for the kernels.
   DiffDvrGradient(Context& ctx, const DeviceField& ref, const DeviceField& opt, const VolumeGeometry& geometry,
                   const FieldMapping& ref_map, const Buffer& ref_tf, const FieldMapping& opt_map,
-                  const RenderSettings& settings, ImageLoss loss, bool force_global_atomics = false,
+                  const RenderSettings& settings, ImageLoss loss, ReductionMode reduction = ReductionMode::Auto,
                   uint32_t max_group_views = 64);
   ~DiffDvrGradient();
 

@@ -72,14 +72,15 @@ RenderSettings with_camera(const RenderSettings& s, const OrbitCamera& cam) {
   return out;
 }
 
-ImageLossGradient gpu_gradient(Context& ctx, const Case& c, uint64_t max_chunk_voxels = 0, bool force_global = false,
+ImageLossGradient gpu_gradient(Context& ctx, const Case& c, uint64_t max_chunk_voxels = 0,
+                               ReductionMode reduction = ReductionMode::Auto,
                                uint32_t max_group_views = 64) {
   const VolumeGeometry geo = VolumeGeometry::from(c.opt.dims, c.opt.spacing);
   DeviceField ref(ctx, c.ref.values, "test reference", max_chunk_voxels);
   DeviceField opt(ctx, c.opt.values, "test field", max_chunk_voxels);
   Buffer ref_tf = upload_tf(ctx, c.ref_tf, "test reference TF");
   DiffDvrGradient g(ctx, ref, opt, geo, make_mapping(c.range, uint32_t(c.ref_tf.size())), ref_tf,
-                    make_mapping(c.range, uint32_t(c.tf.size())), c.settings, c.loss, force_global, max_group_views);
+                    make_mapping(c.range, uint32_t(c.tf.size())), c.settings, c.loss, reduction, max_group_views);
   return g.evaluate(c.tf, c.cameras);
 }
 
@@ -220,10 +221,14 @@ class DiffDvrGradientTest : public test::GpuTest {
     const std::vector<double> reverse = cpu.gradient(&cpu_loss);
     const std::vector<double> fd = finite_differences(cpu, h);
     expect_close(reverse, fd, 1e-6, "CPU reverse mode vs central differences");
-    const ImageLossGradient gpu = gpu_gradient(ctx(), c);
-    expect_close(gpu.gradient, fd, 5e-5, "GPU backward pass vs central differences");
-    EXPECT_NEAR(gpu.loss, cpu_loss, 1e-4 * cpu_loss) << "GPU and CPU losses";
-    EXPECT_EQ(gpu.components, uint64_t(c.settings.width) * c.settings.height * c.cameras.size() * 4);
+    // The device's own choice (private histograms on lavapipe) and the GPUs' runs path.
+    for (ReductionMode mode : {ReductionMode::Auto, ReductionMode::RunsShared}) {
+      SCOPED_TRACE(reduction_mode_name(mode));
+      const ImageLossGradient gpu = gpu_gradient(ctx(), c, 0, mode);
+      expect_close(gpu.gradient, fd, 5e-5, "GPU backward pass vs central differences");
+      EXPECT_NEAR(gpu.loss, cpu_loss, 1e-4 * cpu_loss) << "GPU and CPU losses";
+      EXPECT_EQ(gpu.components, uint64_t(c.settings.width) * c.settings.height * c.cameras.size() * 4);
+    }
   }
 };
 
@@ -259,7 +264,7 @@ TEST_F(DiffDvrGradientTest, PooledReferenceViewsGiveTheSameBits) {
   DeviceField ref(ctx(), c.ref.values, "test reference"), opt(ctx(), c.opt.values, "test field");
   Buffer ref_tf = upload_tf(ctx(), c.ref_tf, "test reference TF");
   DiffDvrGradient g(ctx(), ref, opt, geo, make_mapping(c.range, uint32_t(c.ref_tf.size())), ref_tf,
-                    make_mapping(c.range, uint32_t(c.tf.size())), c.settings, c.loss, false, 3);
+                    make_mapping(c.range, uint32_t(c.tf.size())), c.settings, c.loss, ReductionMode::Auto, 3);
   g.set_view_pool(c.cameras);
   ASSERT_EQ(g.pool_size(), c.cameras.size());
   const std::vector<uint32_t> order = {2, 0, 3, 1};

@@ -65,14 +65,15 @@ Scene make_scene(std::array<uint64_t, 3> dims, uint32_t tf_size, uint32_t width,
   return s;
 }
 
-ImageLossGradient gpu(Context& ctx, const Scene& s, uint64_t max_chunk_voxels = 0, bool force_global = false,
+ImageLossGradient gpu(Context& ctx, const Scene& s, uint64_t max_chunk_voxels = 0,
+                      ReductionMode reduction = ReductionMode::Auto,
                       uint32_t max_group_views = 64, uint32_t* passes = nullptr) {
   const VolumeGeometry geo = VolumeGeometry::from(s.opt.dims, s.opt.spacing);
   DeviceField ref(ctx, s.ref.values, "reverse test reference", max_chunk_voxels);
   DeviceField opt(ctx, s.opt.values, "reverse test field", max_chunk_voxels);
   Buffer ref_tf = upload_tf(ctx, s.ref_tf, "reverse test reference TF");
   DiffDvrGradient g(ctx, ref, opt, geo, make_mapping({0, 1}, uint32_t(s.ref_tf.size())), ref_tf,
-                    make_mapping({0, 1}, uint32_t(s.tf.size())), s.settings, s.loss, force_global, max_group_views);
+                    make_mapping({0, 1}, uint32_t(s.tf.size())), s.settings, s.loss, reduction, max_group_views);
   ImageLossGradient out = g.evaluate(s.tf, s.cameras);
   if (passes) *passes = g.last_pass_count();
   return out;
@@ -105,20 +106,37 @@ class DiffDvrReverse : public test::GpuTest {
   // finite-difference test (test_diffdvr_gradient.cpp explains it). The largest term here is the
   // float TF coordinate with N = 127: |dw| <= 2^-24 * 126 = 7.5e-6. Lavapipe: <= 1.3e-5 for
   // that case, ~1e-6 for the others (printed).
+  // Every summing mode of the backward kernel the device runs: both runs paths and, with subgroup
+  // arithmetic, the private histograms (lavapipe's default).
+  std::vector<ReductionMode> modes() {
+    std::vector<ReductionMode> out = {ReductionMode::RunsShared, ReductionMode::RunsGlobal};
+    try {
+      DiffDvrBackwardKernel(ctx(), 1, 2, ImageLoss::L2, ReductionMode::Private);
+      out.push_back(ReductionMode::Private);
+    } catch (const std::runtime_error& e) {
+      std::printf("private histograms not tested: %s\n", e.what());
+    }
+    return out;
+  }
+
   void compare(const Scene& s, uint64_t max_chunk_voxels = 0, uint32_t* passes = nullptr) {
     const CpuTotal want = cpu(s);
-    const ImageLossGradient got = gpu(ctx(), s, max_chunk_voxels, false, 64, passes);
-    ASSERT_EQ(got.gradient.size(), want.gradient.size());
-    double scale = 0, worst = 0;
-    for (double g : want.gradient) scale = std::max(scale, std::abs(g));
-    ASSERT_GT(scale, 0.0) << "zero gradient: the case tests nothing";
-    for (size_t i = 0; i < want.gradient.size(); ++i) {
-      worst = std::max(worst, std::abs(got.gradient[i] - want.gradient[i]) / scale);
-      EXPECT_LE(std::abs(got.gradient[i] - want.gradient[i]), 5e-5 * scale)
-          << "entry " << i / 4 << " channel " << i % 4 << ": GPU " << got.gradient[i] << " CPU " << want.gradient[i];
+    for (ReductionMode mode : modes()) {
+      SCOPED_TRACE(reduction_mode_name(mode));
+      const ImageLossGradient got = gpu(ctx(), s, max_chunk_voxels, mode, 64, passes);
+      ASSERT_EQ(got.gradient.size(), want.gradient.size());
+      double scale = 0, worst = 0;
+      for (double g : want.gradient) scale = std::max(scale, std::abs(g));
+      ASSERT_GT(scale, 0.0) << "zero gradient: the case tests nothing";
+      for (size_t i = 0; i < want.gradient.size(); ++i) {
+        worst = std::max(worst, std::abs(got.gradient[i] - want.gradient[i]) / scale);
+        EXPECT_LE(std::abs(got.gradient[i] - want.gradient[i]), 5e-5 * scale)
+            << "entry " << i / 4 << " channel " << i % 4 << ": GPU " << got.gradient[i] << " CPU " << want.gradient[i];
+      }
+      EXPECT_NEAR(got.loss, want.loss, 1e-4 * want.loss);
+      std::printf("%s: GPU vs CPU reverse mode: max |difference| / max |gradient| = %.3g\n",
+                  reduction_mode_name(mode), worst);
     }
-    EXPECT_NEAR(got.loss, want.loss, 1e-4 * want.loss);
-    std::printf("GPU vs CPU reverse mode: max |difference| / max |gradient| = %.3g\n", worst);
   }
 };
 
@@ -156,25 +174,41 @@ TEST_F(DiffDvrReverse, MatchesOnOddImageAndTfSizes) {
   compare(make_scene({5, 9, 3}, 127, 1, 1));  // a single pixel; N = 127
 }
 
+bool same_bits(const ImageLossGradient& a, const ImageLossGradient& b) {
+  return a.loss == b.loss && a.gradient.size() == b.gradient.size() &&
+         std::memcmp(a.gradient.data(), b.gradient.data(), a.gradient.size() * sizeof(double)) == 0;
+}
+
 TEST_F(DiffDvrReverse, SharedAndGlobalAtomicsAndViewGroupsGiveIdenticalBits) {
   const Scene s = make_scene({8, 8, 8}, 9, 20, 18);
-  const ImageLossGradient shared = gpu(ctx(), s, 0, false);
-  const ImageLossGradient global = gpu(ctx(), s, 0, true);
-  const ImageLossGradient one_view_groups = gpu(ctx(), s, 0, false, 1);
-  ASSERT_EQ(shared.gradient.size(), global.gradient.size());
-  EXPECT_EQ(std::memcmp(shared.gradient.data(), global.gradient.data(), shared.gradient.size() * 8), 0);
-  EXPECT_EQ(std::memcmp(shared.gradient.data(), one_view_groups.gradient.data(), shared.gradient.size() * 8), 0);
-  EXPECT_EQ(shared.loss, global.loss);
-  EXPECT_EQ(shared.loss, one_view_groups.loss);
+  const ImageLossGradient shared = gpu(ctx(), s, 0, ReductionMode::RunsShared);
+  EXPECT_TRUE(same_bits(shared, gpu(ctx(), s, 0, ReductionMode::RunsGlobal)));
+  EXPECT_TRUE(same_bits(shared, gpu(ctx(), s, 0, ReductionMode::RunsShared, 1)));
   // A repeated evaluation (reference images reused) gives the same bits again.
   const VolumeGeometry geo = VolumeGeometry::from(s.opt.dims, s.opt.spacing);
   DeviceField ref(ctx(), s.ref.values, "ref"), opt(ctx(), s.opt.values, "opt");
   Buffer ref_tf = upload_tf(ctx(), s.ref_tf, "ref TF");
   DiffDvrGradient g(ctx(), ref, opt, geo, make_mapping({0, 1}, uint32_t(s.ref_tf.size())), ref_tf,
-                    make_mapping({0, 1}, uint32_t(s.tf.size())), s.settings, s.loss);
+                    make_mapping({0, 1}, uint32_t(s.tf.size())), s.settings, s.loss, ReductionMode::RunsShared);
   const ImageLossGradient first = g.evaluate(s.tf, s.cameras), again = g.evaluate(s.tf, s.cameras);
-  EXPECT_EQ(std::memcmp(first.gradient.data(), again.gradient.data(), first.gradient.size() * 8), 0);
-  EXPECT_EQ(std::memcmp(first.gradient.data(), shared.gradient.data(), first.gradient.size() * 8), 0);
+  EXPECT_TRUE(same_bits(first, again));
+  EXPECT_TRUE(same_bits(first, shared));
+}
+
+// The private histograms sum in another float grouping than the runs (close, not the same bits),
+// but are deterministic: the same bits on every evaluation and for every split of the views into
+// groups and of the images into row bands (bands start at multiples of the lanes' 64 rows here).
+TEST_F(DiffDvrReverse, PrivateHistogramsGiveTheSameBitsForEveryGroupingAndBand) {
+  const std::vector<ReductionMode> all = modes();
+  if (std::find(all.begin(), all.end(), ReductionMode::Private) == all.end())
+    GTEST_SKIP() << "the device cannot run the private-histogram backward pass";
+  Scene s = make_scene({8, 8, 8}, 9, 20, 150);
+  const ImageLossGradient one_group = gpu(ctx(), s, 0, ReductionMode::Private);
+  EXPECT_TRUE(same_bits(one_group, gpu(ctx(), s, 0, ReductionMode::Private)));
+  EXPECT_TRUE(same_bits(one_group, gpu(ctx(), s, 0, ReductionMode::Private, 1)));
+  // Every lane marches 4 rows 16 apart: the last workgroup's rows stop at the image (150 rows,
+  // not a multiple of 64) and each pixel is counted once, as the CPU reference shows.
+  compare(s);
 }
 
 }  // namespace

@@ -153,9 +153,10 @@ nlohmann::json bench_iterations(Context& ctx, const BenchArgs& a) {
               "  opacity scale %g, termination at opacity %g; best of %u (GPU timestamps). An iteration renders\n"
               "  the field (1 forward pass) and runs the backward pass against reference images taken from a\n"
               "  pool of 4 x views cameras rendered once (pool ms, wall time); forward-only is one render of the\n"
-              "  field from the same number of views with the renderer's kernel.\n\n",
+              "  field from the same number of views with the renderer's kernel. Backward pass: %s.\n\n",
               ctx.device_name().c_str(), static_cast<unsigned long long>(a.size), a.views, a.image, a.image,
-              a.settings.opacity_scale, a.settings.termination_opacity, a.repeat);
+              a.settings.opacity_scale, a.settings.termination_opacity, a.repeat,
+              reduction_mode_name(DiffDvrBackwardKernel::choose(ctx, 64)));
   std::printf("%5s %8s %9s %10s %6s %9s %10s %6s %10s %9s %9s %9s\n", "step", "steps/", "fwd-only", "iteration",
               "iter/", "forward", "backward", "bwd/", "fwd-only", "peak MiB", "peak MiB", "pool");
   std::printf("%5s %8s %9s %10s %6s %9s %10s %6s %10s %9s %9s %9s\n", "voxel", "ray", "ms", "ms", "fwd", "ms", "ms",
