@@ -43,7 +43,7 @@ __global__ void assemble_kernel(const float* ref, const float* opt, uint64_t cou
                                 uint32_t ref_n, float opt_lo, float opt_scale, uint32_t n, const float4* ref_tf,
                                 unsigned long long* global_acc, bool use_shared) {
   extern __shared__ unsigned long long shared_acc[];
-  const uint32_t slots = 6 * n + 4, stb = 2 * n - 1;
+  const uint32_t slots = 6 * n + 8, stb = 2 * n - 1;  // the last 4 (the before loss) stay 0 here
   unsigned long long* acc = use_shared ? shared_acc : global_acc;
   if (use_shared) {
     for (uint32_t k = threadIdx.x; k < slots; k += blockDim.x) shared_acc[k] = 0;
@@ -110,7 +110,7 @@ DirectAssembly assemble_direct(std::span<const float> ref, std::span<const float
   require_device("cuda-normal-equations");
   DirectAssembly out;
   const uint32_t n = opt_map.tf_size;
-  const size_t slots = 6 * size_t(n) + 4;
+  const size_t slots = 6 * size_t(n) + 8;  // TFM_ASSEMBLE_SLOTS(n)
   auto t0 = std::chrono::steady_clock::now();
   DeviceArray<float> dref(ref.data(), ref.size()), dopt(opt.data(), opt.size());
   DeviceArray<float> dtf(ref_tf_rgba.data(), ref_tf_rgba.size());

@@ -17,13 +17,22 @@ GpuNormalEquations::GpuNormalEquations(Context& ctx, uint32_t tf_size, Reduction
   reset();
 }
 
-void GpuNormalEquations::reset() { fill(ctx_, accum_, 0u); }
+void GpuNormalEquations::reset() {
+  fill(ctx_, accum_, 0u);
+  adds_ = 0;
+  with_before_ = false;
+}
 
 double GpuNormalEquations::add(const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
-                               const FieldMapping& opt_map, const Buffer& ref_tf) {
+                               const FieldMapping& opt_map, const Buffer& ref_tf, const FieldMapping* before_map) {
+  if (adds_ > 0 && with_before_ != (before_map != nullptr))
+    throw std::invalid_argument("GpuNormalEquations::add: every part of one system must (or must not) carry the "
+                                "before loss");
   CommandBatch batch(ctx_);
   uint32_t t0 = batch.timestamp();
-  kernel_.record(batch, ref, opt, ref_map, opt_map, ref_tf, accum_);
+  kernel_.record(batch, ref, opt, ref_map, opt_map, ref_tf, accum_, before_map);
+  ++adds_;
+  with_before_ = before_map != nullptr;
   uint32_t t1 = batch.timestamp();
   batch.submit_and_wait();
   return batch.elapsed_ms(t0, t1);
@@ -42,7 +51,7 @@ NormalEquations GpuNormalEquations::result() const {
   std::vector<uint32_t> words(size_t(kernel_.slots()) * 2);
   readback(ctx_, accum_, words.data(), words.size() * sizeof(uint32_t));
   std::vector<double> slots = decode_fixed_point(words);
-  return NormalEquations::from_slots(kernel_.tf_size(), slots);
+  return NormalEquations::from_slots(kernel_.tf_size(), slots, with_before_);
 }
 
 double VoxelLoss::rmse() const {
@@ -85,6 +94,15 @@ VoxelLoss voxel_loss_from_system(const NormalEquations& eq, std::span<const floa
     for (int c = 0; c < 4; ++c) x(j, c) = rgba[4 * j + c];
   VoxelLoss loss;
   loss.squared = eq.residual_squared_per_channel(x);
+  loss.absolute.fill(std::numeric_limits<double>::quiet_NaN());
+  loss.voxels = eq.voxels;
+  return loss;
+}
+
+VoxelLoss voxel_loss_before(const NormalEquations& eq, std::span<const float> ref_rgba) {
+  if (!eq.before) return voxel_loss_from_system(eq, ref_rgba);
+  VoxelLoss loss;
+  loss.squared = *eq.before;
   loss.absolute.fill(std::numeric_limits<double>::quiet_NaN());
   loss.voxels = eq.voxels;
   return loss;

@@ -21,9 +21,12 @@ class GpuNormalEquations {
  public:
   GpuNormalEquations(Context& ctx, uint32_t tf_size, ReductionOptions options = {});
   void reset();
-  // Adds the voxels of (ref, opt); returns the GPU time in ms (-1 without timestamps).
+  // Adds the voxels of (ref, opt); returns the GPU time in ms (-1 without timestamps). With
+  // `before_map` (the second field mapped onto the reference TF's entries) the system also
+  // carries the voxel loss before optimization (NormalEquations::before); every add() of one
+  // accumulation must then pass it (std::invalid_argument otherwise).
   double add(const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
-             const FieldMapping& opt_map, const Buffer& ref_tf);
+             const FieldMapping& opt_map, const Buffer& ref_tf, const FieldMapping* before_map = nullptr);
   NormalEquations result() const;
   // The exact totals: TFM_ASSEMBLE_SLOTS(N) unsigned 32.32 fixed-point numbers (integer value
   // = total * 2^32, modulo 2^64).
@@ -34,6 +37,8 @@ class GpuNormalEquations {
   Context& ctx_;
   AssembleNormalEquationsKernel kernel_;
   Buffer accum_;
+  uint32_t adds_ = 0;          // add() calls since reset()
+  bool with_before_ = false;   // whether they passed a before mapping
 };
 
 struct VoxelLoss {
@@ -56,6 +61,10 @@ VoxelLoss voxel_loss_gpu(Context& ctx, const DeviceField& ref, const DeviceField
 // the voxels. Absolute differences do not follow from M: they are NaN. Throws
 // std::invalid_argument when the TF size differs from the system's.
 VoxelLoss voxel_loss_from_system(const NormalEquations& eq, std::span<const float> rgba);
+// The voxel loss before optimization, the second field shown with the reference TF `ref_rgba`:
+// eq.before when the system carries it (a reference TF of another size), else
+// voxel_loss_from_system(eq, ref_rgba). Throws std::invalid_argument when neither applies.
+VoxelLoss voxel_loss_before(const NormalEquations& eq, std::span<const float> ref_rgba);
 
 // Uploads a TF table: N RGBA entries as 4N floats (the vec4 array every kernel reads).
 // Throws std::invalid_argument unless the size is a multiple of 4 and at least 2 entries.

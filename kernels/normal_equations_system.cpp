@@ -4,14 +4,16 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "shared_layout.h"  // TFM_ASSEMBLE_SLOTS
+
 namespace tfm {
 
 NormalEquations::NormalEquations(uint32_t n_) : n(n_), diag(n_, 0.0), off(n_ ? n_ - 1 : 0, 0.0), rhs(n_, 4) {
   rhs.setZero();
 }
 
-NormalEquations NormalEquations::from_slots(uint32_t n, std::span<const double> s) {
-  if (s.size() < 6u * n + 4u) throw std::invalid_argument("NormalEquations::from_slots: too few slots");
+NormalEquations NormalEquations::from_slots(uint32_t n, std::span<const double> s, bool with_before) {
+  if (s.size() < TFM_ASSEMBLE_SLOTS(n)) throw std::invalid_argument("NormalEquations::from_slots: too few slots");
   NormalEquations eq(n);
   for (uint32_t j = 0; j < n; ++j) eq.diag[j] = s[j];
   for (uint32_t j = 0; j + 1 < n; ++j) eq.off[j] = s[n + j];
@@ -19,6 +21,7 @@ NormalEquations NormalEquations::from_slots(uint32_t n, std::span<const double> 
     for (int c = 0; c < 4; ++c) eq.rhs(j, c) = s[2 * n - 1 + 4 * j + c];
   for (int c = 0; c < 4; ++c) eq.btb[c] = s[6 * n - 1 + c];
   eq.voxels = static_cast<uint64_t>(std::llround(s[6 * n + 3]));
+  if (with_before) eq.before = std::array<double, 4>{s[6 * n + 4], s[6 * n + 5], s[6 * n + 6], s[6 * n + 7]};
   return eq;
 }
 

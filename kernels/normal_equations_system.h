@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <optional>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -18,10 +19,14 @@ struct NormalEquations {
   Eigen::Matrix<double, Eigen::Dynamic, 4> rhs;  // S^T b
   std::array<double, 4> btb{};         // sum of b_c^2 per channel
   uint64_t voxels = 0;                  // voxels with data in both fields
+  // The loss before optimization when the reference TF has another size than n (the second field
+  // mapped onto the reference TF's own entries): per channel sum of (T_r(F_o) - b)^2.
+  std::optional<std::array<double, 4>> before;
 
   explicit NormalEquations(uint32_t n_ = 0);
-  // From the fixed-point accumulators of assemble_normal_equations (TFM_ASSEMBLE_SLOTS layout).
-  static NormalEquations from_slots(uint32_t n, std::span<const double> slots);
+  // From the fixed-point accumulators of assemble_normal_equations (TFM_ASSEMBLE_SLOTS layout);
+  // `with_before`: the slots carry the before loss.
+  static NormalEquations from_slots(uint32_t n, std::span<const double> slots, bool with_before = false);
   // ||S x - b||^2 summed over channels, from the system alone (x: n x 4).
   double residual_squared(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x) const;
   // The same per channel (each clamped at 0 against rounding).

@@ -10,7 +10,7 @@
 
 namespace tfm {
 
-static_assert(sizeof(gpu::VoxelPairPush) == 32, "VoxelPairPush must match the GLSL std430 block");
+static_assert(sizeof(gpu::VoxelPairPush) == 44, "VoxelPairPush must match the GLSL std430 block");
 
 namespace {
 // Bindings in the order record() lists each kernel's buffers.
@@ -107,7 +107,7 @@ uint32_t AssembleNormalEquationsKernel::slots() const { return TFM_ASSEMBLE_SLOT
 
 void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
                                            const FieldMapping& ref_map, const FieldMapping& opt_map,
-                                           const Buffer& ref_tf, Buffer& accum) const {
+                                           const Buffer& ref_tf, Buffer& accum, const FieldMapping* before_map) const {
   check_pair(ref, opt);
   if (opt_map.tf_size != tf_size_) throw std::invalid_argument("assemble: mapping TF size differs from kernel's");
   if (accum.size() < slots() * gpu::kFixedSlotBytes)
@@ -117,6 +117,13 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
   const Binding tf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
   const uint64_t range_quads = range_quads_;  // one dispatch per range and pass
   gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
+  if (before_map) {
+    if (before_map->tf_size != ref_map.tf_size)
+      throw std::invalid_argument("assemble: the before mapping must map onto the reference TF's entries");
+    push.before_lo = before_map->lo;
+    push.before_scale = before_map->scale;
+    push.with_before = 1;
+  }
   for (size_t c = 0; c < ref.chunk_count(); ++c) {
     const uint64_t chunk = ref.chunk_size(c);
     for (uint64_t first = 0; first < chunk; first += 4 * range_quads) {

@@ -33,9 +33,12 @@ class AssembleNormalEquationsKernel {
   uint32_t slots() const;
   ReductionMode mode() const { return reduction_.mode; }
   bool int64_atomics() const { return reduction_.int64; }
-  // Records one dispatch per chunk, texel range and term pass (barriers between them).
+  // Records one dispatch per chunk, texel range and term pass (barriers between them). With
+  // `before_map` (the second field mapped onto the reference TF's entries: tf_size of ref_map)
+  // the kernel also adds the loss before optimization to slots [6N+4, 6N+8) (shared_layout.h).
   void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
-              const FieldMapping& opt_map, const Buffer& ref_tf, Buffer& accum) const;
+              const FieldMapping& opt_map, const Buffer& ref_tf, Buffer& accum,
+              const FieldMapping* before_map = nullptr) const;
 
   // Which of the 11 bin terms one pass adds (shaders/assemble_normal_equations.comp).
   struct TermPass {

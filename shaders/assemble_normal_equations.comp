@@ -2,7 +2,8 @@
 // (DESIGN.md) for one chunk of voxels, adding into 32.32 fixed-point accumulators. b is the
 // reference colour T_r(F_r), evaluated here and never stored as a volume. NaN voxels are skipped.
 //
-// Exactness. Every term a voxel adds (15 of them: (1-w)^2, w^2, (1-w)w, (1-w)b_c, w b_c, b_c^2)
+// Exactness. Every term a voxel adds (15 of them: (1-w)^2, w^2, (1-w)w, (1-w)b_c, w b_c, b_c^2,
+// and with with_before the 4 squares of the loss before optimization, (T_r(F_o) - b)_c^2)
 // is a float in [0, 1], converted on its own to the 64-bit integer floor(term 2^32), and every
 // sum is an integer sum modulo 2^64. Integer addition is associative, so the totals are the same
 // bits however the terms are grouped: on every run, device, path, chunking and workgroup count.
@@ -53,7 +54,7 @@ layout(constant_id = TFM_ASSEMBLE_SPEC_SHARED_SLOTS) const uint SHARED_SLOTS = 1
 // TF entries of each lane's private histogram (0 unless MODE is PRIVATE).
 layout(constant_id = TFM_ASSEMBLE_SPEC_PRIVATE_BINS) const uint PRIVATE_BINS = 0u;
 // The bin terms this dispatch adds: TERM_COUNT of the 11, from TERM_FIRST (all 11 but in
-// PRIVATE passes). b^T b and the voxel count belong to the pass with TERM_FIRST = 0.
+// PRIVATE passes). b^T b, the voxel count and the before loss belong to the pass with TERM_FIRST = 0.
 layout(constant_id = TFM_ASSEMBLE_SPEC_TERM_FIRST) const uint TERM_FIRST = 0u;
 layout(constant_id = TFM_ASSEMBLE_SPEC_TERM_COUNT) const uint TERM_COUNT = 11u;
 
@@ -87,6 +88,7 @@ Fx run[TERMS];    // RUNS modes: sums of the current bin
 uint run_bin;     // RUNS modes: the current bin, or NO_BIN
 const uint NO_BIN = 0xFFFFFFFFu;
 Fx btb[4];        // sum of b_c^2, per channel
+Fx before[4];     // sum of (T_r(F_o) - b)_c^2, per channel (with_before)
 uint voxels;      // voxels with data in both fields
 
 void flush_run() {
@@ -113,6 +115,16 @@ void take(float ref_value, float opt_value) {
   if (TERM_FIRST == 0u) {
     for (uint c = 0u; c < 4u; ++c) fx_sum(btb[c], fx_term(b[c] * b[c]));
     voxels += ok ? 1u : 0u;
+    // The loss before optimization: the second field shown with the reference TF (its own
+    // mapping onto the reference TF's entries), against b. Four sums in registers, no bins.
+    if (pc.with_before != 0u) {
+      uint jb;
+      float wb;
+      tf_coordinate(opt_value, pc.before_lo, pc.before_scale, pc.ref_tf_size, jb, wb);
+      precise vec4 d = (1.0 - wb) * texelFetch(ref_tf, int(jb)) + wb * texelFetch(ref_tf, int(jb + 1u));
+      d = ok ? d - b : vec4(0.0);
+      for (uint c = 0u; c < 4u; ++c) fx_sum(before[c], fx_term(d[c] * d[c]));
+    }
   }
   // The terms are listed out (no arrays, no loops): every index below is a constant, and terms
   // outside the pass are constant zeros the compiler drops.
@@ -142,7 +154,7 @@ void main() {
   if (MODE == TFM_REDUCE_RUNS_SHARED) TFM_SHARED_ACCUMULATORS_ZERO(slots)
   for (uint k = 0u; k < TERM_COUNT * PRIVATE_BINS; ++k) hist[k] = FX_ZERO;
   for (uint t = 0u; t < TERMS; ++t) run[t] = FX_ZERO;
-  for (uint c = 0u; c < 4u; ++c) btb[c] = FX_ZERO;
+  for (uint c = 0u; c < 4u; ++c) btb[c] = before[c] = FX_ZERO;
   run_bin = NO_BIN;
   voxels = 0u;
 
@@ -177,6 +189,8 @@ void main() {
   if (TERM_FIRST == 0u) {
     for (uint c = 0u; c < 4u; ++c) add_slot(6u * n - 1u + c, btb[c]);
     add_slot(6u * n + 3u, fx_count(voxels));
+    if (pc.with_before != 0u)
+      for (uint c = 0u; c < 4u; ++c) add_slot(6u * n + 4u + c, before[c]);
   }
 
   if (MODE == TFM_REDUCE_RUNS_SHARED) TFM_SHARED_ACCUMULATORS_FLUSH(slots)

@@ -91,7 +91,10 @@ inline std::vector<uint> by_id(std::initializer_list<std::pair<uint, uint>> valu
 
 // ---- assemble_normal_equations.comp (and its TFM_INT64 variant) ----------------------------
 // Accumulator slots (unsigned): M diagonal [0, N), M super-diagonal [N, 2N-1),
-// S^T b as [2N-1 + 4j + c], b^T b per channel [6N-1 + c], voxel count [6N+3].
+// S^T b as [2N-1 + 4j + c], b^T b per channel [6N-1 + c], voxel count [6N+3], and, when the push
+// asks for it (with_before), the "before" loss per channel [6N+4 + c]: the sum of
+// (T_r(F_o) - b)^2 with the second field mapped onto the reference TF (before_lo, before_scale).
+// The loss of the optimized TF's size follows from M; this one is of another TF size.
 // Bindings: the fields' chunks as storage buffers (float[], for the last voxel_count % 4 voxels)
 // and as RGBA32F texel buffers over the dispatch's range (quads), the reference TF as RGBA32F
 // texels, the accumulators.
@@ -101,7 +104,7 @@ inline std::vector<uint> by_id(std::initializer_list<std::pair<uint, uint>> valu
 #define TFM_ASSEMBLE_BINDING_ACCUM 3
 #define TFM_ASSEMBLE_BINDING_REF_QUADS 4
 #define TFM_ASSEMBLE_BINDING_OPT_QUADS 5
-#define TFM_ASSEMBLE_SLOTS(n) (6u * (n) + 4u)
+#define TFM_ASSEMBLE_SLOTS(n) (6u * (n) + 8u)
 // Specialization: workgroup size (TFM_SPEC_WORKGROUP_X), then these.
 #define TFM_ASSEMBLE_SPEC_MODE 1          // TFM_REDUCE_RUNS_SHARED, _RUNS_GLOBAL or _PRIVATE
 #define TFM_ASSEMBLE_SPEC_SHARED_SLOTS 2  // slots of workgroup-shared accumulators (RUNS_SHARED)
@@ -122,6 +125,9 @@ TFM_PUSH_CONSTANTS(VoxelPairPush) {
   float ref_scale;
   float opt_lo;
   float opt_scale;
+  float before_lo;    // assembly only: the second field mapped onto the reference TF's entries
+  float before_scale;
+  uint with_before;   // assembly only: 1 adds the "before" loss slots
 } TFM_PUSH_INSTANCE(pc);
 #endif
 

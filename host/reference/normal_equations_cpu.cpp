@@ -64,15 +64,16 @@ NormalEquations assemble_normal_equations_cpu_threaded(std::span<const float> re
 
 std::vector<uint64_t> assemble_normal_equations_fixed_point(std::span<const float> ref, std::span<const float> opt,
                                                             const FieldMapping& ref_map, const FieldMapping& opt_map,
-                                                            const TransferFunction& ref_tf) {
+                                                            const TransferFunction& ref_tf,
+                                                            const FieldMapping* before_map) {
   if (ref.size() != opt.size()) throw std::invalid_argument("assemble_normal_equations_fixed_point: size mismatch");
-  if (ref_tf.size() != ref_map.tf_size)
+  if (ref_tf.size() != ref_map.tf_size || (before_map && before_map->tf_size != ref_map.tf_size))
     throw std::invalid_argument("assemble_normal_equations_fixed_point: TF size does not match the mapping");
   const uint32_t n = opt_map.tf_size, stb = 2 * n - 1;
   const std::vector<float> tf = ref_tf.as_floats();
   // floor(c 2^32) of a float c in [0, 1]: c 2^32 is exact in float, the conversion truncates.
   auto fx = [](float c) { return static_cast<uint64_t>(c * 4294967296.0f); };
-  std::vector<uint64_t> slots(6 * n + 4, 0);
+  std::vector<uint64_t> slots(6 * n + 8, 0);  // TFM_ASSEMBLE_SLOTS(n)
   for (size_t i = 0; i < ref.size(); ++i) {
     uint32_t jr, jo;
     float wr, wo;
@@ -88,6 +89,18 @@ std::vector<uint64_t> assemble_normal_equations_fixed_point(std::span<const floa
       slots[6 * n - 1 + c] += fx(b * b);
     }
     slots[6 * n + 3] += uint64_t(1) << 32;
+    if (before_map) {
+      // The loss before optimization: the same float operations as the kernel (unfused).
+      uint32_t jb;
+      float wb;
+      tf_coordinate(opt[i], *before_map, jb, wb);
+      for (int c = 0; c < 4; ++c) {
+        const float b = std::clamp((1.0f - wr) * tf[4 * jr + c] + wr * tf[4 * (jr + 1) + c], 0.0f, 1.0f);
+        const float v = (1.0f - wb) * tf[4 * jb + c] + wb * tf[4 * (jb + 1) + c];
+        const float d = v - b;
+        slots[6 * n + 4 + c] += fx(d * d);
+      }
+    }
   }
   return slots;
 }

@@ -19,10 +19,12 @@ NormalEquations assemble_normal_equations_cpu(std::span<const float> ref, std::s
 // The exact totals of the GPU assembly: per voxel the same float32 terms (including b clamped
 // to [0, 1]), each converted to floor(term 2^32) and summed modulo 2^64, in the slot layout of
 // TFM_ASSEMBLE_SLOTS(N). Every mode, atomic width and chunking of the kernel must give these
-// bits exactly. Throws std::invalid_argument when the sizes or TF sizes do not match.
+// bits exactly; with `before_map`, the before-loss slots too. Throws std::invalid_argument when
+// the sizes or TF sizes do not match.
 std::vector<uint64_t> assemble_normal_equations_fixed_point(std::span<const float> ref, std::span<const float> opt,
                                                             const FieldMapping& ref_map, const FieldMapping& opt_map,
-                                                            const TransferFunction& ref_tf);
+                                                            const TransferFunction& ref_tf,
+                                                            const FieldMapping* before_map = nullptr);
 // The same double-precision sums with `threads` threads (0: all cores), each over a contiguous
 // part of the voxels into its own system, added at the end: the plain multi-threaded CPU loop
 // `tfmatch bench` measures the GPU assembly against. Agrees with the one-thread reference to

@@ -56,6 +56,11 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
                        req.ref_tf,
                        ref_tf_buffer,
                        req.ref_tf.resampled(req.tf_size)};
+  // Before: the second field shown with the reference TF, as a user would without tfmatch. With
+  // as many entries as the optimized TF it is the system's own loss; else the field maps to the
+  // reference TF's entries and the assembly sums that loss in the same pass.
+  const FieldMapping opt_with_ref_tf = make_mapping(out.field_range, static_cast<uint32_t>(req.ref_tf.size()));
+  if (opt_with_ref_tf.tf_size != problem.opt_map.tf_size) problem.before_map = opt_with_ref_tf;
 
   checkpoint("solve");  // every solver passes here, however few steps of its own it checks
   SolverOutput solved = solver.solve(problem, args);
@@ -72,21 +77,9 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   if (!assembled.empty()) out.phases.push_back({"assemble for loss", assembled[0].wall_ms, assembled[0].gpu_ms});
   if (eq.voxels == 0)
     throw std::runtime_error("no voxel has data in both " + req.ref->name + " and " + req.field->name);
-  // Before: the second field shown with the reference TF, as a user would without tfmatch. With
-  // as many entries as the optimized TF it is the same system; else the field maps to the
-  // reference TF's entries and needs its own assembly.
   t0 = std::chrono::steady_clock::now();
-  const std::vector<float> ref_entries = req.ref_tf.as_floats();
-  const FieldMapping opt_with_ref_tf = make_mapping(out.field_range, static_cast<uint32_t>(req.ref_tf.size()));
-  double gpu_ms = -1.0;
-  if (opt_with_ref_tf.tf_size == problem.opt_map.tf_size) {
-    out.before = voxel_loss_from_system(eq, ref_entries);
-  } else {
-    GpuNormalEquations gpu(ctx, opt_with_ref_tf.tf_size);
-    gpu_ms = gpu.add(ref, opt, problem.ref_map, opt_with_ref_tf, ref_tf_buffer);
-    out.before = voxel_loss_from_system(gpu.result(), ref_entries);
-  }
-  out.phases.push_back({"loss before", ms_since(t0), gpu_ms});
+  out.before = voxel_loss_before(eq, req.ref_tf.as_floats());
+  out.phases.push_back({"loss before", ms_since(t0), -1.0});
   t0 = std::chrono::steady_clock::now();
   out.after = voxel_loss_from_system(eq, out.tf.as_floats());
   out.phases.push_back({"loss after", ms_since(t0), -1.0});

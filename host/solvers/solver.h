@@ -52,6 +52,10 @@ struct VoxelProblem {
   // M, S^T b and b^T b of (ref, opt) for opt_map, once a solver or run_optimize has assembled
   // them (assembled_system() in solver_support.h): the voxel loss of any TF follows from them.
   std::optional<NormalEquations> system = std::nullopt;
+  // When set (the reference TF has another size than N): the second field mapped onto the
+  // reference TF's entries; the assembly then also sums the loss before optimization
+  // (NormalEquations::before) in the same pass.
+  std::optional<FieldMapping> before_map = std::nullopt;
 };
 
 struct SolverOutput {

@@ -17,7 +17,8 @@ const NormalEquations& assembled_system(VoxelProblem& p, std::vector<PhaseTime>*
   if (!p.system) {
     const auto t0 = std::chrono::steady_clock::now();
     GpuNormalEquations gpu(p.ctx, p.opt_map.tf_size);
-    const double gpu_ms = gpu.add(p.ref, p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer);
+    const double gpu_ms =
+        gpu.add(p.ref, p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer, p.before_map ? &*p.before_map : nullptr);
     p.system = gpu.result();
     if (phases) phases->push_back({"assemble", ms_since(t0), gpu_ms});
   }

@@ -214,17 +214,15 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
   };
   if (range_pass) check_coverage();
 
-  // The assembly pass: the system for the optimized TF's size, the one for the reference TF's
-  // size when it differs (the loss before), and the downsampled copies.
+  // The assembly pass: the system for the optimized TF's size (with the loss before when the
+  // reference TF has another size) and the downsampled copies.
   t0 = std::chrono::steady_clock::now();
   Buffer ref_tf_buffer = upload_tf(ctx, req.ref_tf, "reference TF");
   const FieldMapping ref_map = make_mapping(out.ref_range, static_cast<uint32_t>(req.ref_tf.size()));
   const FieldMapping opt_map = make_mapping(out.field_range, req.tf_size);
   const FieldMapping opt_with_ref_tf = make_mapping(out.field_range, static_cast<uint32_t>(req.ref_tf.size()));
-  const bool second_system = opt_with_ref_tf.tf_size != opt_map.tf_size;
+  const FieldMapping* before_map = opt_with_ref_tf.tf_size != opt_map.tf_size ? &opt_with_ref_tf : nullptr;
   GpuNormalEquations gpu(ctx, opt_map.tf_size);
-  std::optional<GpuNormalEquations> gpu_before;
-  if (second_system) gpu_before.emplace(ctx, opt_with_ref_tf.tf_size);
   std::optional<BoxFilter> ref_box, field_box;
   if (req.preview_voxels) {
     s.preview_factor = box_factor(grid.dims, req.preview_voxels);
@@ -236,9 +234,8 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
   for_each_slab_pair(ref, field, s.slab_slices, [&](uint64_t z0, uint64_t nz, std::span<const float> r, std::span<const float> f) {
     if (!range_pass) measures.add(r, f, ref_user, field_user);
     const auto& d = device.upload(r, f);
-    const double ms = gpu.add(d.first, d.second, ref_map, opt_map, ref_tf_buffer);
+    const double ms = gpu.add(d.first, d.second, ref_map, opt_map, ref_tf_buffer, before_map);
     gpu_ms = ms >= 0 && gpu_ms >= 0 ? gpu_ms + ms : -1.0;
-    if (gpu_before) gpu_before->add(d.first, d.second, ref_map, opt_with_ref_tf, ref_tf_buffer);
     if (ref_box) ref_box->add(z0, nz, r), field_box->add(z0, nz, f);
   });
   out.phases.push_back({"read+assemble", ms_since(t0), gpu_ms});
@@ -271,7 +268,7 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
 
   t0 = std::chrono::steady_clock::now();
   const std::vector<float> ref_entries = req.ref_tf.as_floats();
-  out.before = voxel_loss_from_system(gpu_before ? gpu_before->result() : eq, ref_entries);
+  out.before = voxel_loss_before(eq, ref_entries);
   out.phases.push_back({"loss before", ms_since(t0), -1.0});
   t0 = std::chrono::steady_clock::now();
   out.after = voxel_loss_from_system(eq, out.tf.as_floats());

@@ -79,6 +79,25 @@ void expect_exact(const std::vector<uint64_t>& gpu, const std::vector<uint64_t>&
     ASSERT_EQ(gpu[k], exact[k]) << "fixed-point slot " << k << " (units of 2^-32)";
 }
 
+// The loss before optimization in double: the second field through `before_map` on the reference
+// TF against b, per channel, over the voxels with data in both fields.
+std::array<double, 4> direct_before_loss(const Pair& p, const FieldMapping& ref_map, const FieldMapping& before_map,
+                                         const TransferFunction& ref_tf) {
+  const std::vector<float> r = ref_tf.as_floats();
+  std::array<double, 4> sum{};
+  for (size_t i = 0; i < p.ref.size(); ++i) {
+    uint32_t jr, jb;
+    float wr, wb;
+    if (!tf_coordinate(p.ref[i], ref_map, jr, wr) || !tf_coordinate(p.opt[i], before_map, jb, wb)) continue;
+    for (int c = 0; c < 4; ++c) {
+      const double b = std::clamp((1.0 - wr) * r[4 * jr + c] + double(wr) * r[4 * (jr + 1) + c], 0.0, 1.0);
+      const double v = (1.0 - wb) * r[4 * jb + c] + double(wb) * r[4 * (jb + 1) + c];
+      sum[c] += (v - b) * (v - b);
+    }
+  }
+  return sum;
+}
+
 class AssemblyVsCpu : public test::GpuTest, public ::testing::WithParamInterface<Case> {};
 
 TEST_P(AssemblyVsCpu, MatchesDoubleReferenceAndExactSums) {
@@ -96,10 +115,19 @@ TEST_P(AssemblyVsCpu, MatchesDoubleReferenceAndExactSums) {
   GpuNormalEquations gpu(ctx(), c.tf_size, {c.mode, c.atomics, 0, c.range_quads});
   if (c.mode != ReductionMode::Auto) EXPECT_EQ(gpu.kernel().mode(), c.mode);
   if (c.atomics != AtomicWidth::Auto) EXPECT_EQ(gpu.kernel().int64_atomics(), c.atomics == AtomicWidth::Bits64);
-  gpu.add(ref, opt, ref_map, opt_map, tf);
+  // Every case also sums the loss before optimization (the second field on the reference TF's
+  // 17 entries), so it is checked on every path, chunking and range.
+  const FieldMapping before_map = make_mapping({3.0, 8.0}, 17);
+  gpu.add(ref, opt, ref_map, opt_map, tf, &before_map);
   NormalEquations cpu = assemble_normal_equations_cpu(p.ref, p.opt, ref_map, opt_map, ref_tf);
-  expect_close(gpu.result(), cpu, c.voxels);
-  expect_exact(gpu.fixed_point_slots(), assemble_normal_equations_fixed_point(p.ref, p.opt, ref_map, opt_map, ref_tf));
+  const NormalEquations got = gpu.result();
+  expect_close(got, cpu, c.voxels);
+  expect_exact(gpu.fixed_point_slots(),
+               assemble_normal_equations_fixed_point(p.ref, p.opt, ref_map, opt_map, ref_tf, &before_map));
+  ASSERT_TRUE(got.before.has_value());
+  const std::array<double, 4> want = direct_before_loss(p, ref_map, before_map, ref_tf);
+  for (int c = 0; c < 4; ++c)
+    EXPECT_NEAR((*got.before)[c], want[c], 1e-6 * want[c] + double(got.voxels) * std::ldexp(1.0, -31)) << "channel " << c;
 }
 
 std::vector<Case> assembly_cases() {
@@ -150,6 +178,33 @@ TEST_F(AssemblyTest, AllNanFieldContributesNothing) {
   EXPECT_EQ(eq.voxels, 0u);
   for (double d : eq.diag) EXPECT_EQ(d, 0.0);
   EXPECT_THROW(solve_normal_equations(eq), std::runtime_error);
+}
+
+// Without a before mapping the system carries no before loss (its slots stay 0), and the loss
+// before comes from the system (voxel_loss_before); one accumulation cannot mix the two.
+TEST_F(AssemblyTest, BeforeLossOnlyWhenAskedAndNeverMixed) {
+  Pair p = random_pair(5003, 21, 9);
+  const TransferFunction ref_tf = random_tf(9, 22);
+  const FieldMapping rm = make_mapping({0.0, 1.0}, 9), om = make_mapping({3.0, 8.0}, 9);
+  DeviceField ref(ctx(), p.ref, "ref"), opt(ctx(), p.opt, "opt");
+  Buffer tf = upload_tf(ctx(), ref_tf, "tf");
+  GpuNormalEquations gpu(ctx(), 9);
+  gpu.add(ref, opt, rm, om, tf);
+  const std::vector<uint64_t> slots = gpu.fixed_point_slots();
+  for (uint32_t c = 0; c < 4; ++c) EXPECT_EQ(slots[6 * 9 + 4 + c], 0u);
+  const NormalEquations eq = gpu.result();
+  EXPECT_FALSE(eq.before.has_value());
+  // Same TF size: the before loss is the system's own loss of the reference TF, equal to the
+  // direct sum (om maps the field onto the reference TF's 9 entries).
+  const VoxelLoss before = voxel_loss_before(eq, ref_tf.as_floats());
+  const std::array<double, 4> want = direct_before_loss(p, rm, om, ref_tf);
+  // x^T M x - 2 x^T S^T b + b^T b cancels: terms of up to ~4 per voxel, 1e-6 relative each.
+  for (int c = 0; c < 4; ++c) EXPECT_NEAR(before.squared[c], want[c], 4e-6 * double(eq.voxels)) << "channel " << c;
+  EXPECT_THROW(gpu.add(ref, opt, rm, om, tf, &om), std::invalid_argument);
+  EXPECT_THROW(voxel_loss_before(eq, std::vector<float>(4 * 5, 0.5f)), std::invalid_argument);
+  const FieldMapping wrong = make_mapping({3.0, 8.0}, 5);  // not the reference TF's size
+  GpuNormalEquations other(ctx(), 9);
+  EXPECT_THROW(other.add(ref, opt, rm, om, tf, &wrong), std::invalid_argument);
 }
 
 // Bit-identical totals across runs, modes, atomic widths and workgroup counts (integer sums do
