@@ -234,6 +234,25 @@ TEST_F(AssemblyTest, DeterministicAcrossRunsPathsAndWorkgroups) {
     }
 }
 
+// The multi-threaded CPU loop `tfmatch bench` compares against: the one-thread reference's sums
+// to double rounding, for thread counts that split the voxels unevenly.
+TEST(AssemblyCpuLoop, ThreadedMatchesOneThread) {
+  Pair p = random_pair(100003, 31, 64);
+  const TransferFunction ref_tf = random_tf(17, 32);
+  const FieldMapping rm = make_mapping({0.0, 1.0}, 17), om = make_mapping({3.0, 8.0}, 64);
+  const NormalEquations one = assemble_normal_equations_cpu(p.ref, p.opt, rm, om, ref_tf);
+  for (unsigned threads : {2u, 3u, 7u}) {
+    const NormalEquations many = assemble_normal_equations_cpu_threaded(p.ref, p.opt, rm, om, ref_tf, threads);
+    ASSERT_EQ(many.voxels, one.voxels);
+    for (uint32_t j = 0; j < 64; ++j) {
+      EXPECT_NEAR(many.diag[j], one.diag[j], 1e-12 * one.diag[j]) << threads << " threads, entry " << j;
+      for (int c = 0; c < 4; ++c) EXPECT_NEAR(many.rhs(j, c), one.rhs(j, c), 1e-12 * std::abs(one.rhs(j, c)) + 1e-15);
+    }
+    for (uint32_t j = 0; j + 1 < 64; ++j) EXPECT_NEAR(many.off[j], one.off[j], 1e-12 * one.off[j]);
+    for (int c = 0; c < 4; ++c) EXPECT_NEAR(many.btb[c], one.btb[c], 1e-12 * one.btb[c]);
+  }
+}
+
 // Private passes: every one of the 11 bin terms in exactly one pass, in order, each pass's
 // histogram (terms x entries) within kPrivateHistogramSlots; the other modes take all at once.
 TEST(AssembleTermPasses, CoverEveryTermOnceWithinTheBudget) {
