@@ -10,7 +10,7 @@
 
 namespace tfm {
 
-static_assert(sizeof(gpu::VoxelPairPush) == 44, "VoxelPairPush must match the GLSL std430 block");
+static_assert(sizeof(gpu::VoxelPairPush) == 40, "VoxelPairPush must match the GLSL std430 block");
 
 namespace {
 // Bindings in the order record() lists each kernel's buffers.
@@ -84,6 +84,12 @@ AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint3
       range_quads_(options.range_quads ? options.range_quads
                                        : std::max<uint64_t>(64, ctx.limits().maxTexelBufferElements / 64 * 64)) {
   if (range_quads_ % 64) throw std::invalid_argument("assemble: range_quads must be a multiple of 64");
+  // Pipelines are compiled on first use: a kernel records either variant (pipelines()).
+}
+
+const std::vector<std::unique_ptr<ComputePipeline>>& AssembleNormalEquationsKernel::pipelines(bool with_before) const {
+  std::vector<std::unique_ptr<ComputePipeline>>& out = pipelines_[with_before ? 1 : 0];
+  if (!out.empty()) return out;
   for (const TermPass& pass : passes_) {
     PipelineDesc desc = reduction_.pipeline_desc("assemble_normal_equations", gpu::to_vector(kAssembleBindingCounts),
                                                  sizeof(gpu::VoxelPairPush));
@@ -96,9 +102,11 @@ AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint3
          {TFM_ASSEMBLE_SPEC_SHARED_SLOTS, reduction_.mode == ReductionMode::RunsShared ? slots() : 1u},
          {TFM_ASSEMBLE_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size_ : 0u},
          {TFM_ASSEMBLE_SPEC_TERM_FIRST, pass.first},
-         {TFM_ASSEMBLE_SPEC_TERM_COUNT, pass.count}});
-    pipelines_.push_back(std::make_unique<ComputePipeline>(ctx_, desc));
+         {TFM_ASSEMBLE_SPEC_TERM_COUNT, pass.count},
+         {TFM_ASSEMBLE_SPEC_WITH_BEFORE, with_before ? 1u : 0u}});
+    out.push_back(std::make_unique<ComputePipeline>(ctx_, desc));
   }
+  return out;
 }
 
 AssembleNormalEquationsKernel::~AssembleNormalEquationsKernel() = default;
@@ -122,8 +130,8 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
       throw std::invalid_argument("assemble: the before mapping must map onto the reference TF's entries");
     push.before_lo = before_map->lo;
     push.before_scale = before_map->scale;
-    push.with_before = 1;
   }
+  const auto& passes = pipelines(before_map != nullptr);
   for (size_t c = 0; c < ref.chunk_count(); ++c) {
     const uint64_t chunk = ref.chunk_size(c);
     for (uint64_t first = 0; first < chunk; first += 4 * range_quads) {
@@ -133,7 +141,7 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
       const uint64_t bytes = voxels >= 4 ? voxels / 4 * 16 : 4;
       push.voxel_count = static_cast<uint32_t>(voxels);
       push.first_voxel = static_cast<uint32_t>(first);
-      for (const auto& pipe : pipelines_) {
+      for (const auto& pipe : passes) {
         batch.dispatch(*pipe,
                        {ref.chunk(c), opt.chunk(c), tf, accum, Binding::texels(ref.chunk(c), format, first * 4, bytes),
                         Binding::texels(opt.chunk(c), format, first * 4, bytes)},

@@ -52,7 +52,9 @@ class AssembleNormalEquationsKernel {
   Reduction reduction_;
   std::vector<TermPass> passes_;
   uint64_t range_quads_;
-  std::vector<std::unique_ptr<ComputePipeline>> pipelines_;  // one per pass
+  // One per pass, without and with the before loss, each compiled when first recorded.
+  const std::vector<std::unique_ptr<ComputePipeline>>& pipelines(bool with_before) const;
+  mutable std::array<std::vector<std::unique_ptr<ComputePipeline>>, 2> pipelines_;
 };
 
 // The term passes of the assembly: all 11 terms at once, or in Private mode as many per pass as

@@ -3,7 +3,7 @@
 // reference colour T_r(F_r), evaluated here and never stored as a volume. NaN voxels are skipped.
 //
 // Exactness. Every term a voxel adds (15 of them: (1-w)^2, w^2, (1-w)w, (1-w)b_c, w b_c, b_c^2,
-// and with with_before the 4 squares of the loss before optimization, (T_r(F_o) - b)_c^2)
+// and with WITH_BEFORE the 4 squares of the loss before optimization, (T_r(F_o) - b)_c^2)
 // is a float in [0, 1], converted on its own to the 64-bit integer floor(term 2^32), and every
 // sum is an integer sum modulo 2^64. Integer addition is associative, so the totals are the same
 // bits however the terms are grouped: on every run, device, path, chunking and workgroup count.
@@ -57,6 +57,10 @@ layout(constant_id = TFM_ASSEMBLE_SPEC_PRIVATE_BINS) const uint PRIVATE_BINS = 0
 // PRIVATE passes). b^T b, the voxel count and the before loss belong to the pass with TERM_FIRST = 0.
 layout(constant_id = TFM_ASSEMBLE_SPEC_TERM_FIRST) const uint TERM_FIRST = 0u;
 layout(constant_id = TFM_ASSEMBLE_SPEC_TERM_COUNT) const uint TERM_COUNT = 11u;
+// Also sum the loss before optimization (a reference TF of another size than N). A constant, not
+// a push value: a branch on a push value in the voxel loop made the plain assembly ~40% slower on
+// lavapipe (measured), so pipelines without it compile the loop without it.
+layout(constant_id = TFM_ASSEMBLE_SPEC_WITH_BEFORE) const bool WITH_BEFORE = false;
 
 // The chunk's voxels as floats (for the dispatch's last voxel_count % 4) and its range as quads.
 layout(std430, binding = TFM_ASSEMBLE_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
@@ -88,7 +92,7 @@ Fx run[TERMS];    // RUNS modes: sums of the current bin
 uint run_bin;     // RUNS modes: the current bin, or NO_BIN
 const uint NO_BIN = 0xFFFFFFFFu;
 Fx btb[4];        // sum of b_c^2, per channel
-Fx before[4];     // sum of (T_r(F_o) - b)_c^2, per channel (with_before)
+Fx before[4];     // sum of (T_r(F_o) - b)_c^2, per channel (WITH_BEFORE)
 uint voxels;      // voxels with data in both fields
 
 void flush_run() {
@@ -117,7 +121,7 @@ void take(float ref_value, float opt_value) {
     voxels += ok ? 1u : 0u;
     // The loss before optimization: the second field shown with the reference TF (its own
     // mapping onto the reference TF's entries), against b. Four sums in registers, no bins.
-    if (pc.with_before != 0u) {
+    if (WITH_BEFORE) {
       uint jb;
       float wb;
       tf_coordinate(opt_value, pc.before_lo, pc.before_scale, pc.ref_tf_size, jb, wb);
@@ -189,7 +193,7 @@ void main() {
   if (TERM_FIRST == 0u) {
     for (uint c = 0u; c < 4u; ++c) add_slot(6u * n - 1u + c, btb[c]);
     add_slot(6u * n + 3u, fx_count(voxels));
-    if (pc.with_before != 0u)
+    if (WITH_BEFORE)
       for (uint c = 0u; c < 4u; ++c) add_slot(6u * n + 4u + c, before[c]);
   }
 

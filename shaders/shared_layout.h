@@ -91,8 +91,8 @@ inline std::vector<uint> by_id(std::initializer_list<std::pair<uint, uint>> valu
 
 // ---- assemble_normal_equations.comp (and its TFM_INT64 variant) ----------------------------
 // Accumulator slots (unsigned): M diagonal [0, N), M super-diagonal [N, 2N-1),
-// S^T b as [2N-1 + 4j + c], b^T b per channel [6N-1 + c], voxel count [6N+3], and, when the push
-// asks for it (with_before), the "before" loss per channel [6N+4 + c]: the sum of
+// S^T b as [2N-1 + 4j + c], b^T b per channel [6N-1 + c], voxel count [6N+3], and, with the
+// specialization WITH_BEFORE, the "before" loss per channel [6N+4 + c]: the sum of
 // (T_r(F_o) - b)^2 with the second field mapped onto the reference TF (before_lo, before_scale).
 // The loss of the optimized TF's size follows from M; this one is of another TF size.
 // Bindings: the fields' chunks as storage buffers (float[], for the last voxel_count % 4 voxels)
@@ -111,6 +111,7 @@ inline std::vector<uint> by_id(std::initializer_list<std::pair<uint, uint>> valu
 #define TFM_ASSEMBLE_SPEC_PRIVATE_BINS 3  // TF entries of each lane's private histogram (PRIVATE)
 #define TFM_ASSEMBLE_SPEC_TERM_FIRST 4    // first of the 11 bin terms a dispatch adds (PRIVATE passes)
 #define TFM_ASSEMBLE_SPEC_TERM_COUNT 5    // how many of them (11 but in PRIVATE passes)
+#define TFM_ASSEMBLE_SPEC_WITH_BEFORE 6   // 1: also sum the before loss (push: before_lo, before_scale)
 
 // Push constants of the kernels that map a pair of fields (reference, optimized) through TFs:
 // assemble_normal_equations and voxel_loss. A shader opts in with TFM_WANT_VOXEL_PAIR_PUSH
@@ -125,9 +126,8 @@ TFM_PUSH_CONSTANTS(VoxelPairPush) {
   float ref_scale;
   float opt_lo;
   float opt_scale;
-  float before_lo;    // assembly only: the second field mapped onto the reference TF's entries
-  float before_scale;
-  uint with_before;   // assembly only: 1 adds the "before" loss slots
+  float before_lo;    // assembly with WITH_BEFORE: the second field mapped onto the reference
+  float before_scale; // TF's entries
 } TFM_PUSH_INSTANCE(pc);
 #endif
 
