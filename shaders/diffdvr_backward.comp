@@ -30,8 +30,8 @@
 //    workgroup into the global ones, or straight into the global ones. The march is two nested
 //    loops, one run per outer iteration (see backpropagate_runs).
 //  - TFM_DIFFDVR_PRIVATE build (CPU devices such as lavapipe): each invocation marches
-//    PIXELS_PER_LANE pixels (rows 16 apart, so a workgroup steps through 16x16 tiles) in one flat
-//    loop and adds every sample to its own float histogram of the TF entries (a vec4 per entry),
+//    PIXELS_PER_LANE pixels (rows 16 apart, so a workgroup steps through 16x16 tiles), each ray in
+//    one flat loop, and adds every sample to its own float histogram of the TF entries (a vec4 per entry),
 //    without atomics or branches. At the end the lanes of a subgroup sum their histograms
 //    exactly (each entry converted to fixed point, then subgroupAdd on 16-bit pieces, which
 //    cannot overflow) and one lane adds the sum to the global accumulators. On lavapipe, lanes
@@ -40,7 +40,9 @@
 //    run loop and the flushes (measured, 8 views of 512^2 of a 128^3 field, 64 entries: backward
 //    pass 7.1-7.7 s with runs, 3.2-4.3 s with private histograms of 4 pixels per lane).
 // Both builds are deterministic (a lane's float sums follow its samples in order); they sum the
-// same terms in different float groupings, so their bits differ slightly from each other.
+// same terms in different float groupings, so their bits differ slightly from each other. The
+// private build's grouping also depends on which rows a dispatch covers: row bands that cut a
+// lane's 4 rows give other (equally close) bits than one dispatch over the image.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #ifdef TFM_DIFFDVR_PRIVATE

@@ -197,8 +197,10 @@ TEST_F(DiffDvrReverse, SharedAndGlobalAtomicsAndViewGroupsGiveIdenticalBits) {
 
 // The private histograms sum in another float grouping than the runs (close, not the same bits),
 // but are deterministic: the same bits on every evaluation and for every split of the views into
-// groups and of the images into row bands (bands start at multiples of the lanes' 64 rows here).
-TEST_F(DiffDvrReverse, PrivateHistogramsGiveTheSameBitsForEveryGroupingAndBand) {
+// groups (a lane's pixels stay the same). A split into row bands that cuts a lane's 64 rows
+// changes its float grouping, so bands are not covered here (the match with the CPU reference
+// over 16-row bands is, in MatchesWhenTheSumsAreSplitIntoGroupsAndRowBands).
+TEST_F(DiffDvrReverse, PrivateHistogramsGiveTheSameBitsOnEveryEvaluationAndViewGrouping) {
   const std::vector<ReductionMode> all = modes();
   if (std::find(all.begin(), all.end(), ReductionMode::Private) == all.end())
     GTEST_SKIP() << "the device cannot run the private-histogram backward pass";
