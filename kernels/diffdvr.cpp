@@ -97,8 +97,9 @@ bool has_subgroup_reductions(const Context& ctx) {
 
 std::string DiffDvrBackwardKernel::unsupported(const Context& ctx, uint32_t tf_size, ReductionMode mode) {
   const uint64_t shared_bytes = uint64_t(TFM_DIFFDVR_SLOTS(tf_size)) * gpu::kFixedSlotBytes;
-  if (mode == ReductionMode::Private && tf_size > kDiffDvrPrivateMaxBins)
-    return "private histograms hold at most " + std::to_string(kDiffDvrPrivateMaxBins) + " TF entries, not " +
+  if (mode == ReductionMode::Private && tf_size > private_limit(ctx, kDiffDvrPrivateMaxBins))
+    return "private histograms hold at most " + std::to_string(private_limit(ctx, kDiffDvrPrivateMaxBins)) +
+           " TF entries on this device, not " +
            std::to_string(tf_size);
   if (mode == ReductionMode::Private && !has_subgroup_reductions(ctx))
     return "private histograms need subgroup basic, vote and arithmetic operations in compute shaders; the "

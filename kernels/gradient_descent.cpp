@@ -34,7 +34,9 @@ GdGradientKernel::GdGradientKernel(Context& ctx, uint32_t tf_size, bool l1, Redu
 GdGradientKernel::~GdGradientKernel() = default;
 
 const ComputePipeline& GdGradientKernel::pipeline(uint32_t ref_tf_size) const {
-  const uint32_t cached = reduction_.mode == ReductionMode::Private && ref_tf_size <= kPrivateMaxBins ? ref_tf_size : 0u;
+  const bool private_cache =
+      reduction_.mode == ReductionMode::Private && ref_tf_size <= private_limit(ctx_, kPrivateMaxBins);
+  const uint32_t cached = private_cache ? ref_tf_size : 0u;
   auto& slot = pipelines_[cached];
   if (!slot) {
     PipelineDesc desc =

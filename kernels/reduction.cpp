@@ -25,6 +25,10 @@ const char* reduction_mode_name(ReductionMode mode) {
 
 bool is_cpu_device(const Context& ctx) { return ctx.properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU; }
 
+uint32_t private_limit(const Context& ctx, uint32_t cpu_limit) {
+  return is_cpu_device(ctx) ? cpu_limit : std::max<uint32_t>(1, cpu_limit / kGpuPrivateBudgetDivisor);
+}
+
 Reduction Reduction::choose(const Context& ctx, const char* kernel, uint32_t tf_size, uint64_t shared_bytes,
                             const ReductionOptions& options, uint32_t private_max_bins) {
   if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
@@ -42,9 +46,10 @@ Reduction Reduction::choose(const Context& ctx, const char* kernel, uint32_t tf_
     if (is_cpu_device(ctx) && tf_size <= private_max_bins && r.int64) r.mode = ReductionMode::Private;
     else r.mode = shared_fits ? ReductionMode::RunsShared : ReductionMode::RunsGlobal;
   }
-  if (r.mode == ReductionMode::Private && tf_size > private_max_bins)
-    throw std::runtime_error(who + "private histograms hold at most " + std::to_string(private_max_bins) +
-                             " TF entries, not " + std::to_string(tf_size));
+  if (r.mode == ReductionMode::Private && tf_size > private_limit(ctx, private_max_bins))
+    throw std::runtime_error(who + "private histograms hold at most " +
+                             std::to_string(private_limit(ctx, private_max_bins)) + " TF entries on this device, not " +
+                             std::to_string(tf_size));
   // Sums of two 32-bit words in private arrays take twice the gathers and scatters, and compile
   // slowly on lavapipe: private histograms are a 64-bit path only.
   if (r.mode == ReductionMode::Private && !r.int64)

@@ -45,6 +45,14 @@ inline constexpr uint32_t kAssemblePrivateMaxBins = 4096;
 // 88 KiB per lane, in a CPU core's L2; lavapipe keeps a SIMD vector's lanes together, 704 KiB
 // of its thread's stack). Kernels with more per entry split their terms into passes.
 inline constexpr uint32_t kPrivateHistogramSlots = 11 * 1024;
+// The budgets above are for CPU devices. GPUs get an eighth of them: Auto never takes private
+// histograms there (they are a cross-check of the other paths), and a GPU compiler puts a large
+// private array in local memory or refuses it (measured on an H100, NVIDIA driver 580: the
+// assembly with 11 x 701 sums per invocation, 61.7 KiB, failed vkCreateComputePipelines with
+// VK_ERROR_UNKNOWN; 11 x 64 built and matched the CPU).
+inline constexpr uint32_t kGpuPrivateBudgetDivisor = 8;
+// A CPU-device limit of entries or slots (cpu_limit) as it holds on this device.
+uint32_t private_limit(const Context& ctx, uint32_t cpu_limit);
 
 // A resolved choice for one kernel.
 struct Reduction {
@@ -54,8 +62,10 @@ struct Reduction {
   uint32_t tf_size = 0;
 
   // Resolves `options` for a kernel whose shared accumulators take `shared_bytes` for `tf_size`
-  // entries. Throws std::runtime_error naming what is missing when a forced mode or width does
-  // not fit the device (shared memory, 64-bit atomics, kPrivateMaxBins, Private with 32-bit).
+  // entries and whose private histograms hold up to private_max_bins entries on a CPU device
+  // (private_limit() on others). Throws std::runtime_error naming what is missing when a forced
+  // mode or width does not fit the device (shared memory, 64-bit atomics, the private limit,
+  // Private with 32-bit).
   static Reduction choose(const Context& ctx, const char* kernel, uint32_t tf_size, uint64_t shared_bytes,
                           const ReductionOptions& options, uint32_t private_max_bins = kPrivateMaxBins);
   // Workgroups of TFM_VOXEL_WORKGROUP for one dispatch over `voxels`: the forced count, else

@@ -58,11 +58,12 @@ namespace {
 constexpr uint32_t kBinTerms = 11;
 }  // namespace
 
-std::vector<AssembleNormalEquationsKernel::TermPass> assemble_term_passes(ReductionMode mode, uint32_t tf_size) {
+std::vector<AssembleNormalEquationsKernel::TermPass> assemble_term_passes(ReductionMode mode, uint32_t tf_size,
+                                                                          uint32_t slots) {
   if (mode != ReductionMode::Private) return {{0, kBinTerms}};
-  // As many terms per pass as keep a lane's histogram within kPrivateHistogramSlots, spread
-  // evenly over the fewest passes.
-  const uint32_t per_pass = std::clamp<uint32_t>(kPrivateHistogramSlots / tf_size, 1, kBinTerms);
+  // As many terms per pass as keep a lane's histogram within `slots`, spread evenly over the
+  // fewest passes.
+  const uint32_t per_pass = std::clamp<uint32_t>(slots / tf_size, 1, kBinTerms);
   const uint32_t count = (kBinTerms + per_pass - 1) / per_pass;
   std::vector<AssembleNormalEquationsKernel::TermPass> passes;
   for (uint32_t p = 0, first = 0; p < count; ++p) {
@@ -78,7 +79,7 @@ AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint3
       tf_size_(tf_size),
       reduction_(Reduction::choose(ctx, "assemble", tf_size, uint64_t(TFM_ASSEMBLE_SLOTS(tf_size)) * gpu::kFixedSlotBytes,
                                    options, kAssemblePrivateMaxBins)),
-      passes_(assemble_term_passes(reduction_.mode, tf_size)),
+      passes_(assemble_term_passes(reduction_.mode, tf_size, private_limit(ctx, kPrivateHistogramSlots))),
       // Ranges of at most maxTexelBufferElements quads, starting at multiples of 1024 bytes (every
       // device's minTexelBufferOffsetAlignment is at most 256).
       range_quads_(options.range_quads ? options.range_quads

@@ -58,8 +58,10 @@ class AssembleNormalEquationsKernel {
 };
 
 // The term passes of the assembly: all 11 terms at once, or in Private mode as many per pass as
-// keep a lane's histogram (terms x TF entries) within kPrivateHistogramSlots.
-std::vector<AssembleNormalEquationsKernel::TermPass> assemble_term_passes(ReductionMode mode, uint32_t tf_size);
+// keep a lane's histogram (terms x TF entries) within `slots` (the device's
+// private_limit(ctx, kPrivateHistogramSlots)).
+std::vector<AssembleNormalEquationsKernel::TermPass> assemble_term_passes(ReductionMode mode, uint32_t tf_size,
+                                                                          uint32_t slots = kPrivateHistogramSlots);
 
 // Adds per-channel sums of squared and absolute colour differences and the voxel count to a
 // TFM_LOSS_SLOTS-slot fixed-point accumulator.

@@ -132,8 +132,9 @@ std::string reduction_unavailable(const Context& ctx, const ReductionOptions& o,
     return "needs shaderInt64 with 64-bit buffer and shared atomics";
   if (o.mode == ReductionMode::RunsShared && !fits_shared_memory(ctx, shared_bytes))
     return needs_shared_memory(ctx, shared_bytes);
-  if (o.mode == ReductionMode::Private && tf_size > private_max_bins)
-    return "private histograms hold at most " + std::to_string(private_max_bins) + " TF entries";
+  if (o.mode == ReductionMode::Private && tf_size > private_limit(ctx, private_max_bins))
+    return "private histograms hold at most " + std::to_string(private_limit(ctx, private_max_bins)) +
+           " TF entries on this device";
   return "";
 }
 

@@ -174,6 +174,9 @@ void add_voxel_cases(CaseList& cases) {
   // 72 KiB of shared slots for N = 1500: run where a device has them, else skipped saying so.
   add_assemble({20000, 1500, M::RunsShared}, true);
   add_assemble({100003, 256}, false);
+  // Private histograms in term passes on every device: one pass on a CPU, three within a GPU's
+  // smaller private budget (reduction.h).
+  add_assemble({100003, 300, M::Private, AtomicWidth::Bits64}, false);
   add_assemble({100003, 64, M::Auto, AtomicWidth::Auto, 16384}, false);
 
   auto add_loss = [&](size_t voxels, uint64_t chunk, bool quick) {

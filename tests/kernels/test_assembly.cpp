@@ -67,7 +67,9 @@ struct Case {
 
 bool available(Context& ctx, const Case& c) {
   if (c.atomics == AtomicWidth::Bits64 && !ctx.int64_atomics()) return false;
-  if (c.mode == ReductionMode::Private && !ctx.int64_atomics()) return false;
+  if (c.mode == ReductionMode::Private &&
+      (!ctx.int64_atomics() || c.tf_size > private_limit(ctx, kAssemblePrivateMaxBins)))
+    return false;
   const uint64_t shared_bytes = uint64_t(TFM_ASSEMBLE_SLOTS(c.tf_size)) * 8;
   return c.mode != ReductionMode::RunsShared || shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
 }
@@ -102,15 +104,15 @@ class AssemblyVsCpu : public test::GpuTest, public ::testing::WithParamInterface
 
 TEST_P(AssemblyVsCpu, MatchesDoubleReferenceAndExactSums) {
   const Case c = GetParam();
-  if (!available(ctx(), c)) GTEST_SKIP() << "the device lacks 64-bit atomics or the shared memory for this path";
+  if (!available(ctx(), c)) GTEST_SKIP() << "the device lacks 64-bit atomics, or the shared or private memory for this path";
   Pair p = random_pair(c.voxels, 1234u + uint32_t(c.voxels), c.tf_size);
   TransferFunction ref_tf = random_tf(17, 99);
   FieldMapping ref_map = make_mapping({0.0, 1.0}, 17);
   FieldMapping opt_map = make_mapping({3.0, 8.0}, c.tf_size);
   DeviceField ref(ctx(), p.ref, "ref", c.chunk_voxels), opt(ctx(), p.opt, "opt", c.chunk_voxels);
   if (c.chunk_voxels) ASSERT_GT(ref.chunk_count(), 1u);
-  if (c.mode == ReductionMode::Private && c.tf_size > kPrivateHistogramSlots / 11)
-    EXPECT_GT(assemble_term_passes(c.mode, c.tf_size).size(), 1u);
+  if (c.mode == ReductionMode::Private && c.tf_size > private_limit(ctx(), kPrivateHistogramSlots) / 11)
+    EXPECT_GT(assemble_term_passes(c.mode, c.tf_size, private_limit(ctx(), kPrivateHistogramSlots)).size(), 1u);
   Buffer tf = upload_tf(ctx(), ref_tf, "ref tf");
   GpuNormalEquations gpu(ctx(), c.tf_size, {c.mode, c.atomics, 0, c.range_quads});
   if (c.mode != ReductionMode::Auto) EXPECT_EQ(gpu.kernel().mode(), c.mode);
@@ -279,7 +281,8 @@ TEST(AssembleTermPasses, CoverEveryTermOnceWithinTheBudget) {
 TEST_F(AssemblyTest, UnavailablePathsThrow) {
   const uint32_t too_big = ctx().limits().maxComputeSharedMemorySize / 8;  // > (6N+4) * 8 bytes
   EXPECT_THROW(GpuNormalEquations(ctx(), too_big, {ReductionMode::RunsShared}), std::runtime_error);
-  EXPECT_THROW(GpuNormalEquations(ctx(), kAssemblePrivateMaxBins + 1, {ReductionMode::Private}), std::runtime_error);
+  EXPECT_THROW(GpuNormalEquations(ctx(), private_limit(ctx(), kAssemblePrivateMaxBins) + 1, {ReductionMode::Private}),
+               std::runtime_error);
   EXPECT_THROW(GpuNormalEquations(ctx(), 64, {ReductionMode::Private, AtomicWidth::Bits32}), std::runtime_error);
   if (!ctx().int64_atomics()) EXPECT_THROW(GpuNormalEquations(ctx(), 64, {ReductionMode::Auto, AtomicWidth::Bits64}), std::runtime_error);
   EXPECT_THROW(GpuNormalEquations(ctx(), 1), std::invalid_argument);
