@@ -19,6 +19,8 @@ namespace {
 // set it.
 std::atomic<int> g_signal{-1};
 static_assert(std::atomic<int>::is_always_lock_free);
+// Set when a check throws Cancelled (the watchdog thread reads it).
+std::atomic<bool> g_acknowledged{false};
 
 // Longest a TFMATCH_PAUSE_AT pause waits for the cancellation it is there for.
 constexpr auto kMaxPause = std::chrono::seconds(60);
@@ -32,12 +34,19 @@ void request_cancel(int signal) noexcept {
 
 bool cancel_requested() noexcept { return g_signal.load() >= 0; }
 
-void reset_cancel() noexcept { g_signal.store(-1); }
+void reset_cancel() noexcept {
+  g_signal.store(-1);
+  g_acknowledged.store(false);
+}
 
 void check_cancelled() {
   const int s = g_signal.load();
-  if (s >= 0) throw Cancelled(s);
+  if (s < 0) return;
+  g_acknowledged.store(true);
+  throw Cancelled(s);
 }
+
+bool cancel_acknowledged() noexcept { return g_acknowledged.load(); }
 
 namespace {
 
@@ -81,6 +90,7 @@ void checkpoint(const char* phase) {
       while ((pause->ignore_flag || !cancel_requested()) && std::chrono::steady_clock::now() < end)
         std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
+    if (trace && cancel_requested()) std::fprintf(stderr, "tfmatch: stopping at a checkpoint of phase %s\n", phase);
   }
   check_cancelled();
 }

@@ -28,6 +28,10 @@ bool cancel_requested() noexcept;
 void reset_cancel() noexcept;
 // Throws Cancelled when the flag is set.
 void check_cancelled();
+// True once a check has thrown Cancelled since the last reset: the work has stopped and is
+// unwinding (freeing device objects, removing temporary files). The command line's watchdog
+// gives such a process longer to exit than one still inside a step.
+bool cancel_acknowledged() noexcept;
 
 // check_cancelled() at a named point of a long phase ("load", "solve", "render", "write",
 // "report"). Two environment variables make phases observable, for tests and for finding where a

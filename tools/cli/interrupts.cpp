@@ -38,8 +38,14 @@ void watchdog() {
   // Give the work kGrace to reach a checkpoint and unwind (main() then exits and this thread
   // with it); a second signal cuts the wait short.
   pollfd wake{g_wake[0], POLLIN, 0};
-  while (::poll(&wake, 1, int(g_grace_ms.load())) < 0 && errno == EINTR) {
+  int woken = 0;
+  while ((woken = ::poll(&wake, 1, int(g_grace_ms.load()))) < 0 && errno == EINTR) {
   }
+  // Stopped at a checkpoint and unwinding: more time to free the device, unless a second signal
+  // came meanwhile.
+  if (woken == 0 && cancel_acknowledged())
+    while (::poll(&wake, 1, int(kTeardownGrace.count())) < 0 && errno == EINTR) {
+    }
   abandon_temporary_paths(signal);
   std::fprintf(stderr, "\ntfmatch: interrupted (%s): stopped without waiting for the current step; "
                        "temporary files removed, no output written\n", signal_name(signal));

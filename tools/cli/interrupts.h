@@ -3,7 +3,9 @@
 // and unwinds, which removes its temporary files and staged outputs (host/io/atomic_file.h), and
 // main() exits with 128 + the signal (130, 143). If the work has not stopped within kGrace (a
 // long GPU submission or library call has no checkpoint), or a second signal comes, the watchdog
-// removes every pending temporary path itself and exits at once with the same code.
+// removes every pending temporary path itself and exits at once with the same code. Work that did
+// stop at a checkpoint and is still unwinding then gets kTeardownGrace more: freeing a Vulkan
+// device takes most of a second on some drivers (NVIDIA 580 with the validation layer).
 #pragma once
 
 #include <chrono>
@@ -11,6 +13,7 @@
 namespace tfm::cli {
 
 constexpr std::chrono::milliseconds kGrace{800};
+constexpr std::chrono::milliseconds kTeardownGrace{4000};
 
 // Installs the handlers and starts the watchdog; call once, before any work.
 void install_interrupt_handlers();

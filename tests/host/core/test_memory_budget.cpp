@@ -58,6 +58,8 @@ TEST(Cancellation, PassesStdExceptionHandlersAndResets) {
   request_cancel(15);
   request_cancel(2);  // the first request's signal is kept
   EXPECT_TRUE(cancel_requested());
+  // Requested but not yet seen by the work: the watchdog must not wait for a teardown.
+  EXPECT_FALSE(cancel_acknowledged());
   int signal = -1;
   try {
     try {
@@ -69,7 +71,9 @@ TEST(Cancellation, PassesStdExceptionHandlersAndResets) {
     signal = c.signal();
   }
   EXPECT_EQ(signal, 15);
+  EXPECT_TRUE(cancel_acknowledged());  // a check threw: the work is unwinding
   reset_cancel();
+  EXPECT_FALSE(cancel_acknowledged());
   EXPECT_NO_THROW(checkpoint("solve"));
 }
 
