@@ -8,6 +8,9 @@ namespace tfm::cuda {
 
 namespace {
 
+// The deterministic SpGEMM: the same A^T A bits on every run (the default may sum in any order).
+constexpr cusparseSpGEMMAlg_t kAlg = CUSPARSE_SPGEMM_CSR_ALG_DETERMINITIC;
+
 // C = A^T A with the three-phase SpGEMM (work estimation, compute, copy into sized arrays).
 DeviceCsr spgemm_ata(cusparseHandle_t handle, const DeviceCsr& at, const DeviceCsr& a) {
   const double one = 1.0, zero = 0.0;
@@ -21,18 +24,18 @@ DeviceCsr spgemm_ata(cusparseHandle_t handle, const DeviceCsr& at, const DeviceC
   } guard{desc};
   size_t bytes1 = 0, bytes2 = 0;
   check(cusparseSpGEMM_workEstimation(handle, op, op, &one, mat_at.d, mat_a.d, &zero, mat_c.d, CUDA_R_64F,
-                                      CUSPARSE_SPGEMM_DEFAULT, desc, &bytes1, nullptr),
+                                      kAlg, desc, &bytes1, nullptr),
         "cusparseSpGEMM_workEstimation (size)");
   DeviceArray<char> buffer1(bytes1);
   check(cusparseSpGEMM_workEstimation(handle, op, op, &one, mat_at.d, mat_a.d, &zero, mat_c.d, CUDA_R_64F,
-                                      CUSPARSE_SPGEMM_DEFAULT, desc, &bytes1, buffer1.get()),
+                                      kAlg, desc, &bytes1, buffer1.get()),
         "cusparseSpGEMM_workEstimation");
   check(cusparseSpGEMM_compute(handle, op, op, &one, mat_at.d, mat_a.d, &zero, mat_c.d, CUDA_R_64F,
-                               CUSPARSE_SPGEMM_DEFAULT, desc, &bytes2, nullptr),
+                               kAlg, desc, &bytes2, nullptr),
         "cusparseSpGEMM_compute (size)");
   DeviceArray<char> buffer2(bytes2);
   check(cusparseSpGEMM_compute(handle, op, op, &one, mat_at.d, mat_a.d, &zero, mat_c.d, CUDA_R_64F,
-                               CUSPARSE_SPGEMM_DEFAULT, desc, &bytes2, buffer2.get()),
+                               kAlg, desc, &bytes2, buffer2.get()),
         "cusparseSpGEMM_compute");
   int64_t rows = 0, cols = 0, nnz = 0;
   check(cusparseSpMatGetSize(mat_c.d, &rows, &cols, &nnz), "cusparseSpMatGetSize");
@@ -45,22 +48,27 @@ DeviceCsr spgemm_ata(cusparseHandle_t handle, const DeviceCsr& at, const DeviceC
   c.val = DeviceArray<double>(size_t(nnz));
   check(cusparseCsrSetPointers(mat_c.d, c.row_ptr.get(), c.col.get(), c.val.get()), "cusparseCsrSetPointers");
   check(cusparseSpGEMM_copy(handle, op, op, &one, mat_at.d, mat_a.d, &zero, mat_c.d, CUDA_R_64F,
-                            CUSPARSE_SPGEMM_DEFAULT, desc),
+                            kAlg, desc),
         "cusparseSpGEMM_copy");
   return c;
 }
 
 }  // namespace
 
+// CSR algorithm 2: bit-identical results on every run for the non-transposed product (the only one
+// used here; A^T is formed explicitly). The default split A^T's long rows across blocks and gave
+// cuda-cgls different bits from run to run on an H100 (CUDA 13.0).
+constexpr cusparseSpMVAlg_t kSpmvAlg = CUSPARSE_SPMV_CSR_ALG2;
+
 void spmv(cusparseHandle_t handle, const SpMat& m, const DnVec& x, const DnVec& y, DeviceArray<char>& buffer) {
   const double one = 1.0, zero = 0.0;
   size_t bytes = 0;
   check(cusparseSpMV_bufferSize(handle, CUSPARSE_OPERATION_NON_TRANSPOSE, &one, m.d, x.d, &zero, y.d, CUDA_R_64F,
-                                CUSPARSE_SPMV_ALG_DEFAULT, &bytes),
+                                kSpmvAlg, &bytes),
         "cusparseSpMV_bufferSize");
   if (bytes > buffer.size()) buffer = DeviceArray<char>(bytes);
   check(cusparseSpMV(handle, CUSPARSE_OPERATION_NON_TRANSPOSE, &one, m.d, x.d, &zero, y.d, CUDA_R_64F,
-                     CUSPARSE_SPMV_ALG_DEFAULT, buffer.get()),
+                     kSpmvAlg, buffer.get()),
         "cusparseSpMV");
 }
 
