@@ -262,7 +262,10 @@ TEST_F(CorrelationKernelGpu, RejectsBadInputWithClearMessages) {
 // the rows of a 2-D dispatch cover every voxel once.
 TEST_F(CorrelationKernelGpu, ChunksOfMoreGroupsThanOneRowHolds) {
   const CorrelationParams params{CorrelationMeasure::MiBinned, 6};
-  const uint64_t voxels = std::min<uint64_t>(ctx().limits().maxComputeWorkGroupCount[0], 1u << 20) + 300;
+  const uint32_t row = ctx().limits().maxComputeWorkGroupCount[0];
+  // GPUs hold 2^31 - 1 groups in a row: more voxels than that do not fit one test.
+  if (row > (1u << 20)) GTEST_SKIP() << "one dispatch row holds " << row << " workgroups on this device";
+  const uint64_t voxels = uint64_t(row) + 300;
   const CorrelationEnsemble e = correlation_test_ensemble(33, voxels, 8);
   const std::vector<float> reference = e.reference();
   CorrelationKernel kernel(ctx());
