@@ -8,8 +8,11 @@ namespace tfm::cuda {
 
 namespace {
 
-// The deterministic SpGEMM: the same A^T A bits on every run (the default may sum in any order).
-constexpr cusparseSpGEMMAlg_t kAlg = CUSPARSE_SPGEMM_CSR_ALG_DETERMINITIC;
+// The default SpGEMM. CUSPARSE_SPGEMM_CSR_ALG_DETERMINITIC failed with "internal error" in the
+// size query of cusparseSpGEMM_compute on an H100 (CUDA 13.0): that algorithm wants the
+// cusparseSpGEMMreuse_* calls. The test NormalEquationsMatchExactSolution checks that two runs
+// give the same TF bits.
+constexpr cusparseSpGEMMAlg_t kAlg = CUSPARSE_SPGEMM_DEFAULT;
 
 // C = A^T A with the three-phase SpGEMM (work estimation, compute, copy into sized arrays).
 DeviceCsr spgemm_ata(cusparseHandle_t handle, const DeviceCsr& at, const DeviceCsr& a) {

@@ -47,11 +47,14 @@ std::array<uint64_t, 3> parse_dims(const std::string& s) {
   return d;
 }
 
-// Best GPU time (ms) of copying every chunk of `field` into a scratch buffer.
+// Best GPU time (ms) of copying every chunk of `field` into a scratch buffer, `repeats` times and
+// for at least 0.3 s, so that a GPU that idled at low clocks (an H100 idles at 345 MHz) has had
+// work for a while before the copy and the assemblies after it are timed.
 double copy_ms(Context& ctx, const DeviceField& field, int repeats) {
   Buffer scratch(ctx, field.chunk(0).size(), MemoryUsage::Device, "copy scratch");
   double best = 1e300;
-  for (int r = 0; r < repeats; ++r) {
+  const auto warm_until = std::chrono::steady_clock::now() + std::chrono::milliseconds(300);
+  for (int r = 0; r < repeats || std::chrono::steady_clock::now() < warm_until; ++r) {
     CommandBatch batch(ctx);
     uint32_t t0 = batch.timestamp();
     for (size_t c = 0; c < field.chunk_count(); ++c) {
