@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# The checks to run on a machine with a real GPU, in one go: the device report, the conformance
+# self-test, the test suite, the paper's solver table (Vulkan, CUDA and CPU solvers side by side)
+# and every benchmark, all on the device tfmatch picks (TFMATCH_DEVICE chooses another).
+#
+#   tools/gpu-check.sh [--parts LIST] [BUILD_DIR [OUT_DIR]]    (defaults: all parts, build, gpu-check)
+#
+# Each step writes OUT_DIR/<step>.log (and .json where the command has JSON) and one line to
+# OUT_DIR/summary.txt: exit code and seconds. Every step has a time limit, so a hang costs one
+# step, not the run. LIST (comma separated) picks parts, so that a machine lent for a few minutes
+# can take them in several calls: check (devices, self-test, test suite), solvers (the table),
+# bench (assembly, DiffDVR, renderer), bench-long (correlation, streaming); solvers-necker and
+# solvers-combustion are the table's GPU rows at one size each, cuda the CUDA solvers' tests.
+set -uo pipefail
+
+parts=check,solvers,bench,bench-long
+if [ "${1:-}" = "--parts" ]; then parts=$2; shift 2; fi
+want() { [[ ",$parts," == *",$1,"* ]]; }
+build=$(realpath "${1:-build}")
+out=$(realpath -m "${2:-gpu-check}")
+mkdir -p "$out"
+tfm=$build/tfmatch
+jobs=$(nproc)
+gpu_solvers=normal-equations,qp,cgls,gradient-descent,histogram-matching,cuda-normal-equations,cuda-cgls,diffdvr
+solvers=$gpu_solvers,eigen-normal-equations,eigen-cgls
+
+step() {  # step NAME LIMIT_S COMMAND...: run COMMAND with a limit, log it, note its exit code
+  local name=$1 limit=$2
+  shift 2
+  local start_ms rc
+  start_ms=$(date +%s%3N)
+  timeout --kill-after=10 "$limit" "$@" >"$out/$name.log" 2>&1
+  rc=$?
+  local ms=$(($(date +%s%3N) - start_ms))
+  printf '%-22s rc=%-4s %4d.%01d s%s\n' "$name" "$rc" $((ms / 1000)) $((ms % 1000 / 100)) \
+    "$([ "$rc" = 124 ] && echo "  (hit its ${limit} s limit)")" | tee -a "$out/summary.txt"
+}
+
+if want check; then
+  step version 20 "$tfm" --version
+  step devices 30 "$tfm" devices --json "$out/devices.json"
+  step selftest 120 "$tfm" selftest --json "$out/selftest.json"
+  # The tests that need tools of the build machine (cmake scripts over the source tree, nm,
+  # a browser) are left to it.
+  if command -v ctest >/dev/null; then
+    step ctest 240 ctest --test-dir "$build" -j"$jobs" --timeout 120 --output-on-failure \
+      -E '^(Package\.|View\.Browser|Layers\.|Embedding\.NoLibrary)'
+  else  # no CMake on the machine: the main suite in one process, validation on as under ctest
+    step gtest 240 env TFMATCH_VALIDATION=1 "$build/tests/tfmatch_tests" --gtest_brief=1
+  fi
+fi
+if want solvers || want solvers-necker; then
+  # The paper's Table 1 sizes: Necker (250x352x20) and Combustion (480x720x120), synthetic pair.
+  step solvers-necker 90 "$tfm" solvers --synthetic --size 250x352x20 --solvers "$solvers" \
+    --json "$out/solvers-necker.json"
+fi
+if want solvers || want solvers-combustion; then
+  step solvers-combustion 120 "$tfm" solvers --synthetic --size 480x720x120 --solvers "$gpu_solvers" \
+    --json "$out/solvers-combustion.json"
+fi
+if want solvers; then
+  # At 41.5 M voxels the CPU baselines take minutes: their own step, so a limit cuts only them.
+  step solvers-combustion-cpu 120 "$tfm" solvers --synthetic --size 480x720x120 \
+    --solvers eigen-normal-equations,eigen-cgls --json "$out/solvers-combustion-cpu.json"
+fi
+if want cuda; then
+  step cuda-tests 120 ctest --test-dir "$build" -j"$jobs" --output-on-failure -R '^Cuda'
+fi
+if want bench; then
+  step bench 120 "$tfm" bench --repeats 3 --json "$out/bench.json"
+  step bench-diffdvr 90 "$tfm" bench-diffdvr --repeat 3
+  step bench-render 60 "$tfm" bench-render --repeat 5
+fi
+if want bench-long; then
+  step bench-correlate 90 "$tfm" bench-correlate
+  step bench-stream 60 "$tfm" bench-stream --voxels 100000000 --dir "${TMPDIR:-/tmp}"
+fi
+cat "$out/summary.txt"
