@@ -106,9 +106,14 @@ float kendall(const CorrelationReference& r, const float* y, Scratch& s) {
   return float(std::clamp(numerator / (std::sqrt(n0 - n1) * std::sqrt(n0 - double(y_ties))), -1.0, 1.0));
 }
 
-// The kernel's binning in float (shaders/correlation_mi_binned.comp), so both count alike.
+// The kernel's binning in float (shaders/correlation_mi_binned.comp), so both count alike: the
+// largest b < bins with b * range <= (value - lo) * bins, the quotient only a guess.
 uint32_t bin_of(float value, float lo, float range, uint32_t bins) {
-  return std::min(uint32_t((value - lo) * float(bins) / range), bins - 1);
+  const float scaled = (value - lo) * float(bins);
+  uint32_t b = std::min(uint32_t(scaled / range), bins - 1);
+  if (b > 0 && float(b) * range > scaled) --b;
+  else if (b + 1 < bins && float(b + 1) * range <= scaled) ++b;
+  return b;
 }
 
 float mi_binned(const CorrelationReference& r, const float* y, float y_lo, float y_hi, Scratch& s) {
