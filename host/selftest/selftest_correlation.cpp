@@ -18,6 +18,7 @@ struct CorrelationCase {
   uint32_t members;
   uint64_t voxels;
   uint64_t max_device_bytes = 0;  // small: several chunks
+  bool bin_edges = false;         // bin_edge_ensemble, against the CPU peer's float binning
 };
 
 // Bound: CorrelationKernel::error_bound (the test data make every comparison exact in float).
@@ -25,14 +26,23 @@ struct CorrelationCase {
 void correlation(Context& ctx, Check& check, const CorrelationCase& c) {
   if (const uint64_t bytes = CorrelationKernel::shared_memory_bytes(c.params, c.members); !fits_shared_memory(ctx, bytes))
     return check.skip(needs_shared_memory(ctx, bytes));
-  const CorrelationEnsemble e = correlation_test_ensemble(c.members, c.voxels, 7u * c.members + uint32_t(c.voxels));
+  const CorrelationEnsemble e = c.bin_edges ? bin_edge_ensemble(c.members, c.voxels)
+                                            : correlation_test_ensemble(c.members, c.voxels, 7u * c.members + uint32_t(c.voxels));
   const std::vector<float> reference = e.reference();
   CorrelationKernel kernel(ctx);
   uint32_t chunks = 0;
   const std::vector<float> g =
       kernel.compute(e.view(), reference, c.params, [&](uint64_t, uint64_t) { ++chunks; }, c.max_device_bytes);
   if (c.max_device_bytes) check.require(chunks > 1, "the ensemble was not split into chunks");
-  const std::vector<double> r = correlation_field_reference(e.view(), reference, c.params);
+  // Values on bin edges: the binning is a convention (float products, shaders/correlation_mi_binned.comp)
+  // that the double reference does not follow, so the CPU peer, which does, is the reference.
+  std::vector<double> r;
+  if (c.bin_edges) {
+    const std::vector<float> peer = correlation_field_cpu(e.view(), reference, c.params);
+    r.assign(peer.begin(), peer.end());
+  } else {
+    r = correlation_field_reference(e.view(), reference, c.params);
+  }
   const double bound = CorrelationKernel::error_bound(c.params, c.members);
   for (uint64_t v = 0; v < c.voxels; ++v) {
     if (std::isnan(r[v]))
@@ -48,6 +58,7 @@ std::string correlation_name(const CorrelationCase& c) {
   if (c.params.measure == CorrelationMeasure::MiKraskov) s += ", k=" + std::to_string(c.params.k);
   if (c.params.measure == CorrelationMeasure::MiCoefficient) s += ", coefficient, k=" + std::to_string(c.params.k);
   if (c.max_device_bytes) s += ", chunks";
+  if (c.bin_edges) s += ", values within 4 ulp of bin edges";
   return s;
 }
 
@@ -79,6 +90,14 @@ void add_correlation_cases(CaseList& cases) {
     add(100, 9, 0, true);
     add(33, 13, 0, false);
     add(1000, 9, 0, false);
+  }
+  // mi-binned on values within 4 ulp of its bin edges, on both strategies: every device must bin
+  // them as the CPU peer does (a division-decided binning did not on NVIDIA's driver 580).
+  for (const uint32_t members : {30u, 100u}) {
+    const CorrelationCase c{{CorrelationMeasure::MiBinned, 10}, members, 300, 0, true};
+    cases.push_back({"correlation_mi_binned", "CorrelationKernel", correlation_name(c), members == 30,
+                     CorrelationKernel::workgroup_size(c.params, members),
+                     [c](Context& ctx, Check& check) { correlation(ctx, check, c); }});
   }
 }
 

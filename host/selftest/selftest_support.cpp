@@ -92,6 +92,20 @@ CorrelationEnsemble correlation_test_ensemble(uint32_t members, uint64_t voxels,
   return e;
 }
 
+CorrelationEnsemble bin_edge_ensemble(uint32_t members, uint64_t voxels) {
+  CorrelationEnsemble e{members, voxels, std::vector<float>(size_t(members) * voxels)};
+  for (uint32_t m = 0; m < members; ++m)
+    for (uint64_t v = 0; v < voxels; ++v) {
+      // Members 0 and 1 hold 0 and 3, so every range is exactly 3.
+      const uint32_t k = m == 0 ? 0u : m == 1 ? 10u : uint32_t((m * 7 + v * 3 + m * v) % 11);
+      float value = float(k * 3) / 10.0f;
+      const int ulps = m < 2 ? 0 : int((m + 5 * v) % 9) - 4;
+      for (int u = 0; u < std::abs(ulps); ++u) value = std::nextafter(value, ulps < 0 ? 0.0f : 4.0f);
+      e.values[m * voxels + v] = std::clamp(value, 0.0f, 3.0f);
+    }
+  return e;
+}
+
 bool classify(const std::vector<float>& tf, const FieldMapping& map, float v, double out[4]) {
   uint32_t j;
   float w;

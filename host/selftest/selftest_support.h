@@ -109,6 +109,9 @@ struct CorrelationEnsemble {
   std::vector<float> reference() const { return ensemble_series(view(), 0); }
 };
 CorrelationEnsemble correlation_test_ensemble(uint32_t members, uint64_t voxels, uint32_t seed);
+// Every series spans [0, 3] and its other values lie within 4 ulp of the edges of 10 equal bins
+// (k * 3 / 10 in float): where a binning by division and one by products part ways.
+CorrelationEnsemble bin_edge_ensemble(uint32_t members, uint64_t voxels);
 
 // The words of a device buffer.
 std::vector<uint32_t> read_words(Context& ctx, const Buffer& buffer, size_t words);

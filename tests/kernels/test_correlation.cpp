@@ -21,6 +21,7 @@
 namespace tfm {
 namespace {
 
+using selftest::bin_edge_ensemble;
 using selftest::correlation_test_ensemble;
 using selftest::CorrelationEnsemble;
 
@@ -265,17 +266,7 @@ TEST_F(CorrelationKernelGpu, RejectsBadInputWithClearMessages) {
 TEST_F(CorrelationKernelGpu, MiBinnedCountsValuesOnBinEdgesAsTheCpuPeer) {
   const CorrelationParams params{CorrelationMeasure::MiBinned, 10};
   for (const uint32_t members : {30u, 100u}) {
-    const uint64_t voxels = 500;
-    CorrelationEnsemble e{members, voxels, std::vector<float>(size_t(members) * voxels)};
-    for (uint32_t m = 0; m < members; ++m)
-      for (uint64_t v = 0; v < voxels; ++v) {
-        // Every series holds 0 and 3 (members 0 and 1), so its range is exactly 3.
-        const uint32_t k = m == 0 ? 0u : m == 1 ? 10u : uint32_t((m * 7 + v * 3 + m * v) % 11);
-        float value = float(k * 3) / 10.0f;
-        const int ulps = m < 2 ? 0 : int((m + 5 * v) % 9) - 4;
-        for (int u = 0; u < std::abs(ulps); ++u) value = std::nextafter(value, ulps < 0 ? 0.0f : 4.0f);
-        e.values[m * voxels + v] = std::clamp(value, 0.0f, 3.0f);
-      }
+    const CorrelationEnsemble e = bin_edge_ensemble(members, 500);
     const std::vector<float> reference = e.reference();
     const std::vector<float> g = CorrelationKernel(ctx()).compute(e.view(), reference, params);
     const std::vector<float> c = correlation_field_cpu(e.view(), reference, params);
