@@ -75,4 +75,3 @@ if want bench-long; then
   step bench-correlate 90 "$tfm" bench-correlate
   step bench-stream 60 "$tfm" bench-stream --voxels 100000000 --dir "${TMPDIR:-/tmp}"
 fi
-cat "$out/summary.txt"

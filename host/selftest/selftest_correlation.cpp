@@ -26,15 +26,16 @@ struct CorrelationCase {
 void correlation(Context& ctx, Check& check, const CorrelationCase& c) {
   if (const uint64_t bytes = CorrelationKernel::shared_memory_bytes(c.params, c.members); !fits_shared_memory(ctx, bytes))
     return check.skip(needs_shared_memory(ctx, bytes));
-  const CorrelationEnsemble e = c.bin_edges ? bin_edge_ensemble(c.members, c.voxels)
-                                            : correlation_test_ensemble(c.members, c.voxels, 7u * c.members + uint32_t(c.voxels));
+  const uint32_t seed = 7u * c.members + uint32_t(c.voxels);
+  const CorrelationEnsemble e =
+      c.bin_edges ? bin_edge_ensemble(c.members, c.voxels) : correlation_test_ensemble(c.members, c.voxels, seed);
   const std::vector<float> reference = e.reference();
   CorrelationKernel kernel(ctx);
   uint32_t chunks = 0;
   const std::vector<float> g =
       kernel.compute(e.view(), reference, c.params, [&](uint64_t, uint64_t) { ++chunks; }, c.max_device_bytes);
   if (c.max_device_bytes) check.require(chunks > 1, "the ensemble was not split into chunks");
-  // Values on bin edges: the binning is a convention (float products, shaders/correlation_mi_binned.comp)
+  // Values on bin edges: the binning is a convention (float products, correlation_mi_binned.comp)
   // that the double reference does not follow, so the CPU peer, which does, is the reference.
   std::vector<double> r;
   if (c.bin_edges) {

@@ -104,7 +104,8 @@ class AssemblyVsCpu : public test::GpuTest, public ::testing::WithParamInterface
 
 TEST_P(AssemblyVsCpu, MatchesDoubleReferenceAndExactSums) {
   const Case c = GetParam();
-  if (!available(ctx(), c)) GTEST_SKIP() << "the device lacks 64-bit atomics, or the shared or private memory for this path";
+  if (!available(ctx(), c))
+    GTEST_SKIP() << "the device lacks 64-bit atomics, or the shared or private memory for this path";
   Pair p = random_pair(c.voxels, 1234u + uint32_t(c.voxels), c.tf_size);
   TransferFunction ref_tf = random_tf(17, 99);
   FieldMapping ref_map = make_mapping({0.0, 1.0}, 17);
