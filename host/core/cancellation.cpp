@@ -25,6 +25,10 @@ std::atomic<bool> g_acknowledged{false};
 // Longest a TFMATCH_PAUSE_AT pause waits for the cancellation it is there for.
 constexpr auto kMaxPause = std::chrono::seconds(60);
 
+// When the program started, about: TFMATCH_TRACE_PHASES prints each phase's first checkpoint
+// with the seconds since then.
+const auto g_start = std::chrono::steady_clock::now();
+
 }  // namespace
 
 void request_cancel(int signal) noexcept {
@@ -82,7 +86,9 @@ void checkpoint(const char* phase) {
       std::lock_guard lock(mutex);
       count = ++reached[phase];
     }
-    if (count == 1 && trace) std::fprintf(stderr, "tfmatch: phase %s\n", phase);
+    if (count == 1 && trace)
+      std::fprintf(stderr, "tfmatch: phase %s (at %.3f s)\n", phase,
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - g_start).count());
     if (pause && count == pause->nth && pause->phase == phase) {
       std::fprintf(stderr, "tfmatch: paused in phase %s\n", phase);
       std::fflush(stderr);
