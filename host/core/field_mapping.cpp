@@ -6,19 +6,50 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 namespace tfm {
 
 FiniteStats finite_stats(std::span<const float> values) {
-  FiniteStats s;
-  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-  for (float v : values) {
-    if (!std::isfinite(v)) { ++s.nan; continue; }
-    lo = std::min<double>(lo, v);
-    hi = std::max<double>(hi, v);
-    ++s.finite;
+  // Branch-free over kLanes independent float minima/maxima, so the compiler vectorizes it (float
+  // min/max are exact; the loop with a branch per value took twice as long on 41 M voxels). The
+  // per-lane counts of non-finite values are emptied every 2^20 groups, before they could wrap.
+  constexpr size_t kLanes = 16;
+  constexpr float kMax = std::numeric_limits<float>::max();
+  float lo[kLanes], hi[kLanes];
+  uint32_t bad[kLanes];
+  std::fill_n(lo, kLanes, std::numeric_limits<float>::infinity());
+  std::fill_n(hi, kLanes, -std::numeric_limits<float>::infinity());
+  std::fill_n(bad, kLanes, 0u);
+  uint64_t non_finite = 0;
+  const float* v = values.data();
+  const size_t n = values.size(), whole = n - n % kLanes;
+  for (size_t i = 0; i < whole;) {
+    const size_t end = std::min(whole, i + (kLanes << 20));
+    for (; i < end; i += kLanes)
+      for (size_t j = 0; j < kLanes; ++j) {
+        const float x = v[i + j];
+        const bool finite = std::fabs(x) <= kMax;  // false for NaN and infinities
+        lo[j] = finite && x < lo[j] ? x : lo[j];
+        hi[j] = finite && x > hi[j] ? x : hi[j];
+        bad[j] += !finite;
+      }
+    for (size_t j = 0; j < kLanes; ++j) non_finite += std::exchange(bad[j], 0u);
   }
-  if (s.finite) s.lo = lo, s.hi = hi;
+  for (size_t i = whole; i < n; ++i) {
+    const float x = v[i];
+    if (std::fabs(x) <= kMax)
+      lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x);
+    else
+      ++non_finite;
+  }
+  FiniteStats s;
+  s.nan = non_finite;
+  s.finite = n - non_finite;
+  if (s.finite) {
+    s.lo = *std::min_element(lo, lo + kLanes);
+    s.hi = *std::max_element(hi, hi + kLanes);
+  }
   return s;
 }
 

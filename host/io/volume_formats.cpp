@@ -17,6 +17,8 @@
 namespace tfm {
 namespace {
 
+// Each element is copied out before its float is stored, so `dst` may be `src` for four-byte
+// types (decoding in place).
 template <class T>
 void convert(const char* src, uint64_t count, bool big_endian, float* dst) {
   const bool swap = big_endian != (std::endian::native == std::endian::big);

@@ -26,7 +26,7 @@ size_t element_bytes(ElementType t);
 const char* element_type_name(ElementType t);
 
 // Decodes `count` elements stored with the given byte order into floats (64-bit integers and
-// doubles are rounded to the nearest float).
+// doubles are rounded to the nearest float). `dst` may equal `src` for four-byte types.
 void decode_elements(const char* src, uint64_t count, ElementType type, bool big_endian, float* dst);
 
 // Upper bound on the voxels of any grid a reader accepts: header sizes are checked against it

@@ -3,6 +3,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <future>
 #include <iomanip>
 #include <stdexcept>
 
@@ -24,8 +25,12 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   out.device = ctx.device_name();
   out.voxels_total = req.ref->voxel_count();
   const FieldRange* ref_user = req.ref_range ? &*req.ref_range : (req.ref_tf.range ? &*req.ref_tf.range : nullptr);
+  // The two fields' min/max side by side (a read of each field from memory).
+  std::future<FieldRange> field_range = std::async(std::launch::async, [&] {
+    return resolve_range(req.field->values, req.field_range ? &*req.field_range : nullptr, req.field->name);
+  });
   out.ref_range = resolve_range(req.ref->values, ref_user, req.ref->name);
-  out.field_range = resolve_range(req.field->values, req.field_range ? &*req.field_range : nullptr, req.field->name);
+  out.field_range = field_range.get();
   // A range from a TF file or the user can miss the field (a [0, 1] TF on temperatures in K):
   // every voxel would clamp to one entry and the fit would look perfect. Say so, or stop.
   if (ref_user) {

@@ -61,6 +61,60 @@ TEST(RawVolume, FlagsForTypeDimsAndByteOrder) {
   EXPECT_EQ(finite_stats(dv.values).nan, 2u);
 }
 
+// Four-byte elements are read into the values and decoded in place, block by block (4 Mi
+// elements): both byte orders, integer and float types, and a volume one block and a bit long.
+TEST(RawVolume, FourByteTypesDecodeInPlaceAcrossBlocks) {
+  TempDir dir;
+  const uint64_t n = (uint64_t(1) << 22) + 5;
+  std::vector<uint32_t> u(n);
+  for (uint64_t i = 0; i < n; ++i) u[i] = uint32_t(i * 2654435761u) >> 9;  // exact in float
+  write_values(dir / "u_4194309x1x1_uint32.raw", u, /*big_endian=*/true);
+  VolumeOptions big;
+  big.big_endian = true;
+  const Volume vu = load_volume(dir / "u_4194309x1x1_uint32.raw", big);
+  ASSERT_EQ(vu.values.size(), n);
+  for (uint64_t i : {uint64_t(0), uint64_t(1), (uint64_t(1) << 22) - 1, uint64_t(1) << 22, n - 1})
+    EXPECT_EQ(vu.values[i], float(u[i])) << i;
+  std::vector<int32_t> s = {-7, 2147483647, -2147483647 - 1, 12345};
+  write_values(dir / "s_4x1x1_int32.raw", s);
+  const Volume vs = load_volume(dir / "s_4x1x1_int32.raw");
+  EXPECT_EQ(vs.values, (std::vector<float>{-7.0f, 2147483648.0f, -2147483648.0f, 12345.0f}));
+  std::vector<float> f = {1.5f, -0.0f, NAN, 3e38f, -1e-40f, 2.0f};
+  for (bool be : {false, true}) {
+    write_values(dir / "f_3x2x1_float32.raw", f, be);
+    VolumeOptions o;
+    o.big_endian = be;
+    const Volume vf = load_volume(dir / "f_3x2x1_float32.raw", o);
+    for (size_t i = 0; i < f.size(); ++i)
+      EXPECT_EQ(std::bit_cast<uint32_t>(vf.values[i]), std::bit_cast<uint32_t>(f[i])) << i << (be ? " big" : " little");
+  }
+}
+
+// The vectorized finite min/max against a plain loop, on sizes around its 16 lanes, with NaN and
+// infinities in the lanes and in the tail.
+TEST(FiniteStats, MatchesAPlainLoopOnAwkwardSizes) {
+  for (size_t n : {size_t(0), size_t(1), size_t(15), size_t(16), size_t(17), size_t(33), size_t(1000003)}) {
+    std::vector<float> v(n);
+    for (size_t i = 0; i < n; ++i) v[i] = std::sin(0.37f * float(i)) * 100.0f + float(i % 7);
+    if (n > 2) v[n - 1] = NAN, v[n / 2] = INFINITY, v[1] = -INFINITY;
+    if (n > 100) v[5] = -250.5f, v[n - 2] = 1e30f;
+    double lo = INFINITY, hi = -INFINITY;
+    uint64_t finite = 0;
+    for (float x : v)
+      if (std::isfinite(x)) lo = std::min<double>(lo, x), hi = std::max<double>(hi, x), ++finite;
+    const FiniteStats s = finite_stats(v);
+    EXPECT_EQ(s.finite, finite) << n;
+    EXPECT_EQ(s.nan, n - finite) << n;
+    if (finite) {
+      EXPECT_EQ(s.lo, lo) << n;
+      EXPECT_EQ(s.hi, hi) << n;
+    }
+  }
+  const std::vector<float> none = {NAN, INFINITY, -INFINITY};
+  EXPECT_EQ(finite_stats(none).finite, 0u);
+  EXPECT_EQ(finite_stats(none).nan, 3u);
+}
+
 TEST(RawVolume, ErrorsNameTheFileAndTheProblem) {
   TempDir dir;
   write_values(dir / "x_2x2x2_complex64.raw", std::vector<float>(8));
