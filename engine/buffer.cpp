@@ -132,14 +132,29 @@ void upload(Context& ctx, Buffer& dst, const void* data, uint64_t bytes, uint64_
     std::memcpy(static_cast<char*>(dst.mapped()) + offset, data, bytes);
     return;
   }
-  Buffer staging(ctx, std::min(bytes, kStagingBytes), MemoryUsage::Upload, "staging upload");
-  for (uint64_t done = 0; done < bytes; done += staging.size()) {
-    uint64_t n = std::min(staging.size(), bytes - done);
-    std::memcpy(staging.mapped(), static_cast<const char*>(data) + done, n);
-    CommandBatch batch(ctx);
-    batch.copy(staging, 0, dst, offset + done, n);
-    batch.submit_and_wait();
+  // The two staging halves in turn: the host fills one while the device copies the other (a
+  // DMA transfer on a discrete GPU; the driver's queue thread on lavapipe).
+  StagingBuffers& staging = ctx.staging();
+  std::lock_guard lock(staging.mutex);
+  const uint64_t half = std::min(bytes, kStagingBytes / 2);
+  std::optional<CommandBatch> copies[2];
+  uint64_t piece = 0;
+  for (uint64_t done = 0; done < bytes; done += half, ++piece) {
+    const size_t slot = piece % 2;
+    if (copies[slot]) copies[slot].reset();  // waits until the device has read this half
+    Buffer& stage = staging.half[slot];
+    if (!stage || stage.size() < half) {
+      stage = Buffer();  // the old one first: the footprint stays bounded
+      stage = Buffer(ctx, half, MemoryUsage::Upload, "staging upload");
+    }
+    const uint64_t n = std::min(half, bytes - done);
+    std::memcpy(stage.mapped(), static_cast<const char*>(data) + done, n);
+    copies[slot].emplace(ctx);
+    copies[slot]->copy(stage, 0, dst, offset + done, n);
+    copies[slot]->submit();
   }
+  for (auto& c : copies)
+    if (c) c->wait();
 }
 
 void readback(Context& ctx, const Buffer& src, void* data, uint64_t bytes, uint64_t offset) {

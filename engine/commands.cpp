@@ -217,6 +217,11 @@ uint32_t CommandBatch::timestamp() {
 }
 
 void CommandBatch::submit_and_wait() {
+  submit();
+  wait();
+}
+
+void CommandBatch::submit() {
   if (submitted_) throw std::logic_error("CommandBatch submitted twice");
   const auto& vk = ctx_.vk();
   // Make every device write available to the host before the fence signals.
@@ -234,7 +239,14 @@ void CommandBatch::submit_and_wait() {
     VK_CHECK(vk.vkQueueSubmit(ctx_.queue(), 1, &submit, fence_));
   }
   submitted_ = true;
+}
+
+void CommandBatch::wait() {
+  if (!submitted_) throw std::logic_error("CommandBatch waited for before it was submitted");
+  if (waited_) return;
+  const auto& vk = ctx_.vk();
   VK_CHECK(vk.vkWaitForFences(ctx_.device(), 1, &fence_, VK_TRUE, UINT64_MAX));
+  waited_ = true;
   if (queries_ && query_count_ > 0) {
     query_results_.resize(query_count_);
     VK_CHECK(vk.vkGetQueryPoolResults(ctx_.device(), queries_, 0, query_count_,

@@ -62,6 +62,10 @@ class CommandBatch {
   // Submits, waits for completion (device writes then visible to the host) and resets nothing:
   // a batch is submitted once.
   void submit_and_wait();
+  // The same in two steps, so the host can work while the device runs the batch: submit() once,
+  // then wait() (again a no-op). Destroying a submitted batch waits for it.
+  void submit();
+  void wait();
   // Milliseconds between timestamp slots a and b (after submit_and_wait); -1 without timestamps.
   double elapsed_ms(uint32_t a, uint32_t b) const;
 
@@ -76,7 +80,7 @@ class CommandBatch {
   VkQueryPool queries_ = VK_NULL_HANDLE;
   uint32_t query_count_ = 0;
   std::vector<uint64_t> query_results_;
-  bool submitted_ = false;
+  bool submitted_ = false, waited_ = false;
 };
 
 }  // namespace tfm

@@ -172,7 +172,7 @@ std::vector<DeviceSummary> enumerate_devices() {
   return out;
 }
 
-Context::Context() : dispatch_(std::make_unique<Dispatch>()) {}
+Context::Context() : dispatch_(std::make_unique<Dispatch>()), staging_(std::make_unique<StagingBuffers>()) {}
 
 std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
   PFN_vkGetInstanceProcAddr get = loader_get_instance_proc_addr();
@@ -345,6 +345,7 @@ uint64_t Context::max_buffer_bytes() const {
 }
 
 Context::~Context() {
+  staging_.reset();  // its buffers belong to the device, also an adopted one
   if (!owns_) return;
   const Dispatch& vk = *dispatch_;
   if (device_) {

@@ -14,6 +14,8 @@
 
 #include <vulkan/vulkan_core.h>
 
+#include "buffer.h"
+
 namespace tfm {
 
 struct Dispatch;  // engine/vk_dispatch.h, private to engine/*.cpp
@@ -110,6 +112,8 @@ class Context {
 
   // Serializes queue submissions made through this context.
   std::mutex& queue_mutex() { return queue_mutex_; }
+  // The staging memory upload() reuses (buffer.h).
+  StagingBuffers& staging() { return *staging_; }
 
   void set_debug_name(VkObjectType type, uint64_t handle, const char* name) const;
 
@@ -154,6 +158,7 @@ class Context {
   std::vector<std::string> messages_;
   std::mutex queue_mutex_;
   std::atomic<uint64_t> buffer_bytes_{0}, peak_buffer_bytes_{0};
+  std::unique_ptr<StagingBuffers> staging_;  // released before the device
 };
 
 }  // namespace tfm

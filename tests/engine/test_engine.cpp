@@ -22,8 +22,9 @@ namespace {
 using EngineTest = test::GpuTest;
 
 TEST_F(EngineTest, UploadReadbackRoundTripThroughStaging) {
-  // Odd sizes, and one larger than the 64 MiB staging buffer so it is split.
-  for (size_t words : {size_t(1), size_t(13), size_t(1027), (size_t(80) << 20) / 4 + 3}) {
+  // Odd sizes; one larger than the two 32 MiB staging halves, so both are filled in turn while
+  // the device copies the other; then small ones again through the staging the context kept.
+  for (size_t words : {size_t(1), size_t(13), size_t(1027), (size_t(80) << 20) / 4 + 3, size_t(5), size_t(4099)}) {
     std::vector<uint32_t> data(words);
     std::iota(data.begin(), data.end(), 7u);
     Buffer b(ctx(), words * 4, MemoryUsage::Device, "roundtrip");
@@ -32,6 +33,12 @@ TEST_F(EngineTest, UploadReadbackRoundTripThroughStaging) {
     std::vector<uint32_t> back(words, 0);
     readback(ctx(), b, back.data(), words * 4);
     ASSERT_EQ(std::memcmp(data.data(), back.data(), words * 4), 0) << words;
+    // The second half again at an offset, from other values.
+    const size_t half = words / 2;
+    for (size_t i = half; i < words; ++i) data[i] = uint32_t(i * 2654435761u);
+    upload(ctx(), b, data.data() + half, (words - half) * 4, half * 4);
+    readback(ctx(), b, back.data(), words * 4);
+    ASSERT_EQ(std::memcmp(data.data(), back.data(), words * 4), 0) << words << " at an offset";
   }
 }
 
