@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <future>
 #include <span>
 #include <stdexcept>
 
@@ -15,20 +16,34 @@ namespace tfm {
 namespace {
 
 // Calls fn(z0, nz, ref values, field values) for each slab of `slab_slices` z-slices of both fields,
-// in z order, reusing one host buffer per field.
+// in z order. The next slab is read on another thread while fn works on this one (two host
+// buffers per field), so the disk and the device overlap; a read's error or cancellation reaches
+// the caller from the slab it belongs to.
 template <class Fn>
 void for_each_slab_pair(VolumeSlabReader& ref, VolumeSlabReader& field, uint64_t slab_slices, Fn fn) {
   const uint64_t s = ref.slice_voxels(), nz = ref.grid().dims[2];
   const uint64_t capacity = std::min(slab_slices, nz) * s;
-  check_memory(2 * capacity * sizeof(float), "streaming " + ref.grid().name + " and " + field.grid().name + " (" +
-                                                 std::to_string(capacity) + " voxels per slab)");
-  std::vector<float> a(capacity), b(capacity);
-  for (uint64_t z0 = 0; z0 < nz; z0 += slab_slices) {
-    checkpoint("stream");
+  const int buffers = nz > slab_slices ? 2 : 1;
+  check_memory(2 * uint64_t(buffers) * capacity * sizeof(float),
+               "streaming " + ref.grid().name + " and " + field.grid().name + " (" + std::to_string(capacity) +
+                   " voxels per slab)");
+  std::vector<float> a[2], b[2];
+  for (int i = 0; i < buffers; ++i) a[i].resize(capacity), b[i].resize(capacity);
+  auto read = [&](uint64_t z0, int slot) {
     const uint64_t n = std::min(slab_slices, nz - z0);
-    ref.read_slices(z0, n, a.data());
-    field.read_slices(z0, n, b.data());
-    fn(z0, n, std::span<const float>(a.data(), n * s), std::span<const float>(b.data(), n * s));
+    ref.read_slices(z0, n, a[slot].data());
+    field.read_slices(z0, n, b[slot].data());
+  };
+  checkpoint("stream");
+  read(0, 0);
+  int slot = 0;
+  for (uint64_t z0 = 0; z0 < nz; z0 += slab_slices, slot ^= 1) {
+    const uint64_t n = std::min(slab_slices, nz - z0);
+    std::future<void> next;  // its destructor waits for the read, also when fn throws
+    if (z0 + slab_slices < nz) next = std::async(std::launch::async, read, z0 + slab_slices, slot ^ 1);
+    fn(z0, n, std::span<const float>(a[slot].data(), n * s), std::span<const float>(b[slot].data(), n * s));
+    if (next.valid()) next.get();
+    checkpoint("stream");
   }
 }
 
@@ -174,11 +189,11 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
   s.streamed = ref.streams() && field.streams();
   uint64_t slab_voxels = req.slab_voxels;
   if (slab_voxels == 0) {
-    // Host buffers and device fields of both fields: 16 bytes per slab voxel; a quarter of what
-    // the budget leaves.
+    // Two host buffers (one read ahead) and a device field per field: 24 bytes per slab voxel;
+    // a quarter of what the budget leaves.
     const uint64_t held = resident_memory(), budget = memory_budget().bytes;
     const uint64_t left = budget > held ? budget - held : 0;
-    slab_voxels = std::clamp<uint64_t>(left / 4 / 16, uint64_t(1) << 16, kDefaultSlabVoxels);
+    slab_voxels = std::clamp<uint64_t>(left / 4 / 24, uint64_t(1) << 16, kDefaultSlabVoxels);
   }
   s.slab_slices = std::clamp<uint64_t>(slab_voxels / ref.slice_voxels(), 1, grid.dims[2]);
   s.slabs = (grid.dims[2] + s.slab_slices - 1) / s.slab_slices;

@@ -4,8 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <bit>
+#include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
+#include "cancellation.h"
 #include "formats_test_util.h"
 #include "gpu_voxel_ops.h"
 #include "optimize.h"
@@ -63,6 +66,62 @@ TEST_F(StreamedOptimizeTest, SystemStreamedFromEachFormatIsBitIdentical) {
       ASSERT_TRUE(rs && os);
       expect_same_system(assemble_streamed(ctx(), *rs, *os, ref_map, opt_map, tf_buffer, slab, 1024), expected);
     }
+  }
+}
+
+// A field in memory read slab by slab that records the slabs asked for, and at `z_fail` throws
+// a read error or (with `cancel`) requests cancellation, as a file cut short or Ctrl-C would.
+class ScriptedSlabs final : public VolumeSlabReader {
+ public:
+  ScriptedSlabs(const Volume& v, uint64_t z_fail, bool cancel) : values_(v.values), z_fail_(z_fail), cancel_(cancel) {
+    grid_ = v;
+    grid_.values.clear();
+  }
+  void read_slices(uint64_t z0, uint64_t nz, float* out) override {
+    check_slices(z0, nz);
+    reads.push_back(z0);
+    if (z0 == z_fail_ && cancel_) request_cancel(0);
+    if (z0 == z_fail_ && !cancel_) throw std::runtime_error("scripted.raw: read failed at slice " + std::to_string(z0));
+    std::copy_n(values_.begin() + std::ptrdiff_t(z0 * slice_voxels()), nz * slice_voxels(), out);
+  }
+  std::vector<uint64_t> reads;  // z0 of each read, in order (one thread at a time reads)
+
+ private:
+  std::vector<float> values_;
+  uint64_t z_fail_;
+  bool cancel_;
+};
+
+// The next slab is read on another thread while the device works on this one: slabs are still
+// read once each in z order, and a read error or a cancellation in a later slab reaches the
+// caller, after which nothing more is read.
+TEST_F(StreamedOptimizeTest, ReadAheadKeepsOrderAndPassesOnErrorsAndCancellation) {
+  const Volume ref = slab_test::test_field({37, 29, 23}, 0);
+  const Volume opt = slab_test::test_field({37, 29, 23}, 4);
+  const TransferFunction tf = demo_transfer_function(32);
+  const Buffer tf_buffer = upload_tf(ctx(), tf, "ref tf");
+  const FieldMapping ref_map = make_mapping(resolve_range(ref.values, nullptr, "ref"), 32);
+  const FieldMapping opt_map = make_mapping(resolve_range(opt.values, nullptr, "opt"), 13);
+  GpuNormalEquations whole(ctx(), 13);
+  whole.add(DeviceField(ctx(), ref.values, "ref"), DeviceField(ctx(), opt.values, "opt"), ref_map, opt_map, tf_buffer);
+  const std::vector<uint64_t> all{0, 5, 10, 15, 20}, to_ten{0, 5, 10};
+  {
+    ScriptedSlabs r(ref, 99, false), o(opt, 99, false);
+    expect_same_system(assemble_streamed(ctx(), r, o, ref_map, opt_map, tf_buffer, 5), whole.result());
+    EXPECT_EQ(r.reads, all);
+    EXPECT_EQ(o.reads, all);
+  }
+  {
+    ScriptedSlabs r(ref, 99, false), o(opt, 10, false);
+    formats_test::expect_error([&] { assemble_streamed(ctx(), r, o, ref_map, opt_map, tf_buffer, 5); },
+                               {"scripted.raw", "read failed at slice 10"});
+    EXPECT_EQ(o.reads, to_ten);
+  }
+  {
+    ScriptedSlabs r(ref, 10, true), o(opt, 99, false);
+    EXPECT_THROW(assemble_streamed(ctx(), r, o, ref_map, opt_map, tf_buffer, 5), Cancelled);
+    reset_cancel();
+    EXPECT_EQ(r.reads, to_ten);
   }
 }
 
