@@ -45,7 +45,7 @@ const ComputePipeline& GdGradientKernel::pipeline(uint32_t ref_tf_size) const {
     desc.binding_kinds.assign(desc.binding_counts.size(), DescriptorKind::StorageBuffer);
     desc.binding_kinds[TFM_GD_BINDING_REF_QUADS] = desc.binding_kinds[TFM_GD_BINDING_OPT_QUADS] =
         DescriptorKind::UniformTexelBuffer;
-    desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
+    desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, reduction_.workgroup_size},
                                       {TFM_GD_SPEC_MODE, reduction_.shader_mode()},
                                       {TFM_GD_SPEC_SHARED_SLOTS, shared ? TFM_TF_GRADIENT_SLOTS(tf_size_) : 1u},
                                       {TFM_GD_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size_ : 0u},

@@ -54,6 +54,8 @@ Reduction Reduction::choose(const Context& ctx, const char* kernel, uint32_t tf_
   // slowly on lavapipe: private histograms are a 64-bit path only.
   if (r.mode == ReductionMode::Private && !r.int64)
     throw std::runtime_error(who + "private histograms need 64-bit integers and atomics");
+  if (r.mode == ReductionMode::Private)
+    r.workgroup_size = std::clamp<uint32_t>(ctx.subgroup_size(), 1, ctx.limits().maxComputeWorkGroupSize[0]);
   if (r.mode == ReductionMode::RunsShared && !shared_fits)
     throw std::runtime_error(who + std::to_string(tf_size) + " TF entries need " + std::to_string(shared_bytes) +
                              " bytes of shared memory; the device has " +
@@ -67,11 +69,11 @@ uint32_t Reduction::groups(const Context& ctx, uint64_t voxels) const {
   if (mode != ReductionMode::Private) return voxel_groups(ctx, voxels);
   const uint64_t quads = voxels / 4;
   const uint64_t per_lane = std::clamp<uint64_t>(16ull * tf_size, 2048, 32768);
-  uint64_t groups = (quads / per_lane + TFM_VOXEL_WORKGROUP) / TFM_VOXEL_WORKGROUP;
-  // Smaller volumes: more, shorter lanes (down to 4 N quads each, at least 256), so that up to 16
-  // workgroups keep every core of a CPU device busy.
+  uint64_t groups = (quads / per_lane + workgroup_size) / workgroup_size;
+  // Smaller volumes: more, shorter lanes (down to 4 N quads each, at least 256), so that up to
+  // kPrivateMinGroups workgroups keep every core of a CPU device busy.
   const uint64_t min_per_lane = std::max<uint64_t>(256, 4ull * tf_size);
-  groups = std::max(groups, std::min<uint64_t>(16, quads / (min_per_lane * TFM_VOXEL_WORKGROUP)));
+  groups = std::max(groups, std::min<uint64_t>(kPrivateMinGroups, quads / (min_per_lane * workgroup_size)));
   return static_cast<uint32_t>(std::clamp<uint64_t>(groups, 1, max_groups));
 }
 
@@ -88,7 +90,7 @@ PipelineDesc Reduction::pipeline_desc(const char* shader, std::vector<uint32_t> 
   desc.shader = int64 ? std::string(shader) + "_int64" : std::string(shader);
   desc.binding_counts = std::move(binding_counts);
   desc.push_constant_bytes = push_bytes;
-  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+  desc.workgroup_size = workgroup_size;
   desc.spirv = shader_spirv(desc.shader);
   return desc;
 }

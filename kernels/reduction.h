@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "pipeline.h"
+#include "shared_layout.h"  // TFM_VOXEL_WORKGROUP
 
 namespace tfm {
 
@@ -43,7 +44,11 @@ inline constexpr uint32_t kPrivateMaxBins = 1024;
 inline constexpr uint32_t kAssemblePrivateMaxBins = 4096;
 // 64-bit sums a lane's private histogram holds at most (the assembly's 11 terms of 1024 entries:
 // 88 KiB per lane, in a CPU core's L2; lavapipe keeps a SIMD vector's lanes together, 704 KiB
-// of its thread's stack). Kernels with more per entry split their terms into passes.
+// of its thread's stack). Kernels with more per entry split their terms into passes. Measured
+// with larger budgets (lavapipe, LLVM 15, 8 lanes): 11 x 2048 made N = 4096 1.5x faster, but
+// from 11 x 3900 sums per lane (2.7 MB per SIMD vector) on the assembly returned wrong sums
+// without any error (11 x 3800 still right; a larger stack limit changed nothing), so the budget
+// keeps a wide margin below a limit that is not understood.
 inline constexpr uint32_t kPrivateHistogramSlots = 11 * 1024;
 // The budgets above are for CPU devices. GPUs get an eighth of them: Auto never takes private
 // histograms there (they are a cross-check of the other paths), and a GPU compiler puts a large
@@ -51,6 +56,9 @@ inline constexpr uint32_t kPrivateHistogramSlots = 11 * 1024;
 // assembly with 11 x 701 sums per invocation, 61.7 KiB, failed vkCreateComputePipelines with
 // VK_ERROR_UNKNOWN; 11 x 64 built and matched the CPU).
 inline constexpr uint32_t kGpuPrivateBudgetDivisor = 8;
+// Workgroups a Private dispatch over a small volume is split into at least (when each lane still
+// covers its minimum of voxels), so that every core of a CPU device has work.
+inline constexpr uint64_t kPrivateMinGroups = 16;
 // A CPU-device limit of entries or slots (cpu_limit) as it holds on this device.
 uint32_t private_limit(const Context& ctx, uint32_t cpu_limit);
 
@@ -60,6 +68,10 @@ struct Reduction {
   bool int64 = false;
   uint32_t workgroups = 0;  // forced count, or 0
   uint32_t tf_size = 0;
+  // Invocations per workgroup: TFM_VOXEL_WORKGROUP, but one subgroup for Private (a CPU device
+  // runs a workgroup on one thread, and a lane's cost is its histogram's flush: more, smaller
+  // groups spread the same lanes over every core).
+  uint32_t workgroup_size = TFM_VOXEL_WORKGROUP;
 
   // Resolves `options` for a kernel whose shared accumulators take `shared_bytes` for `tf_size`
   // entries and whose private histograms hold up to private_max_bins entries on a CPU device
@@ -68,16 +80,17 @@ struct Reduction {
   // Private with 32-bit).
   static Reduction choose(const Context& ctx, const char* kernel, uint32_t tf_size, uint64_t shared_bytes,
                           const ReductionOptions& options, uint32_t private_max_bins = kPrivateMaxBins);
-  // Workgroups of TFM_VOXEL_WORKGROUP for one dispatch over `voxels`: the forced count, else
+  // Workgroups of workgroup_size for one dispatch over `voxels`: the forced count, else
   // voxel_groups() for the run modes and, for Private, enough lanes that each covers about
   // 16 N quads (its histogram is added to memory once, so lanes must cover many voxels) but at
-  // most 32768 (lavapipe stops a shader after 65535 loop iterations), and up to 16 workgroups
-  // of shorter lanes when the volume is small (every core of a CPU device gets work).
+  // most 32768 (lavapipe stops a shader after 65535 loop iterations), and up to kPrivateMinGroups
+  // workgroups of shorter lanes when the volume is small (every core of a CPU device gets work).
   uint32_t groups(const Context& ctx, uint64_t voxels) const;
   // The TFM_*_RUNS_SHARED / _RUNS_GLOBAL / _PRIVATE value of the shaders' MODE constant.
   uint32_t shader_mode() const;
   // A pipeline of `shader` (its _int64 build when this reduction uses 64-bit atomics) over
-  // TFM_VOXEL_WORKGROUP invocations; the caller adds the specialization constants.
+  // workgroup_size invocations; the caller adds the specialization constants (with
+  // TFM_SPEC_WORKGROUP_X = workgroup_size).
   PipelineDesc pipeline_desc(const char* shader, std::vector<uint32_t> binding_counts, uint32_t push_bytes) const;
 };
 

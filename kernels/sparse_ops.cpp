@@ -170,7 +170,7 @@ SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool up
   PipelineDesc desc =
       reduction_.pipeline_desc("sparse_scatter", gpu::to_vector(kScatterBindingCounts), sizeof(gpu::SparsePush));
   const bool shared = reduction_.mode == ReductionMode::RunsShared;
-  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, reduction_.workgroup_size},
                                     {TFM_SCATTER_SPEC_MODE, reduction_.shader_mode()},
                                     {TFM_SCATTER_SPEC_SHARED_SLOTS, shared ? TFM_TF_GRADIENT_SLOTS(tf_size) : 1u},
                                     {TFM_SCATTER_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size : 0u},

@@ -98,7 +98,7 @@ const std::vector<std::unique_ptr<ComputePipeline>>& AssembleNormalEquationsKern
     for (uint32_t b : {TFM_ASSEMBLE_BINDING_REF_TF, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS})
       desc.binding_kinds[b] = DescriptorKind::UniformTexelBuffer;
     desc.specialization = gpu::by_id(
-        {{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
+        {{TFM_SPEC_WORKGROUP_X, reduction_.workgroup_size},
          {TFM_ASSEMBLE_SPEC_MODE, reduction_.shader_mode()},
          {TFM_ASSEMBLE_SPEC_SHARED_SLOTS, reduction_.mode == ReductionMode::RunsShared ? slots() : 1u},
          {TFM_ASSEMBLE_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size_ : 0u},
