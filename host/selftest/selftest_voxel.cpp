@@ -1,6 +1,7 @@
 // Self-test cases of the voxel-pair kernels: assemble_normal_equations (every mode and atomic
 // width, chunked fields, TF sizes past shared memory, exact fixed-point totals), voxel_loss,
 // residual_map and field_histogram, each against its double-precision CPU reference.
+#include <array>
 #include <cmath>
 #include <string>
 
@@ -9,6 +10,7 @@
 #include "histogram.h"
 #include "histogram_cpu.h"
 #include "normal_equations_cpu.h"
+#include "read_bound.h"
 #include "render_layout.h"
 #include "residual_map.h"
 #include "selftest_support.h"
@@ -151,6 +153,19 @@ void histogram(Context& ctx, Check& check, size_t voxels, uint32_t bins, bool gl
   for (uint32_t k = 0; k < bins; ++k) check.equal("bin", k, double(g.bins[k]), double(c.bins[k]));
 }
 
+// The bench's read bound: the sums of both fields' value bits are integers, equal to the
+// reference's exactly (every voxel read once).
+void read_bound(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels) {
+  std::vector<float> ref = random_floats(voxels, 17u + uint32_t(voxels), -3.0f, 3.0f);
+  std::vector<float> opt = random_floats(voxels, 29u + uint32_t(voxels), 0.0f, 100.0f);
+  for (size_t i = 5; i < voxels; i += 13) ref[i] = NAN;
+  const DeviceField dref(ctx, ref, "selftest ref", chunk_voxels), dopt(ctx, opt, "selftest opt", chunk_voxels);
+  const std::array<uint32_t, 2> g = FieldPairReadKernel(ctx).run(dref, dopt);
+  const std::array<uint32_t, 2> c = field_pair_bit_sums(ref, opt);
+  check.equal("first field's bit sum", 0, double(g[0]), double(c[0]));
+  check.equal("second field's bit sum", 1, double(g[1]), double(c[1]));
+}
+
 }  // namespace
 
 void add_voxel_cases(CaseList& cases) {
@@ -214,6 +229,15 @@ void add_voxel_cases(CaseList& cases) {
   add_histogram(past_group, 4096, false, 0, true);
   add_histogram(5000, 65536, true, 1024, true);
   add_histogram(100003, 4096, false, 16384, false);
+
+  auto add_read = [&](size_t voxels, uint64_t chunk, bool quick) {
+    std::string name = voxels_name(voxels) + (chunk ? ", chunks of " + std::to_string(chunk) : "");
+    cases.push_back({"field_pair_read", "FieldPairReadKernel", name, quick, TFM_VOXEL_WORKGROUP,
+                     [=](Context& ctx, Check& check) { read_bound(ctx, check, voxels, chunk); }});
+  };
+  add_read(1, 0, true);
+  add_read(4 * past_group + 3, 1024, true);
+  add_read(100003, 0, false);
 }
 
 }  // namespace tfm::selftest

@@ -154,6 +154,7 @@ TEST_F(CliConventions, JsonDashKeepsStdoutToOneJsonDocument) {
           " --tf-size 8 --json -",
       "solvers --synthetic --size 8x6x4 --solvers normal-equations --json -",
       "bench-render --size 16 --images 16 --repeat 1 --cpu-rows 2 --json -",
+      "bench --sizes 9x7x5 --tf-sizes 4 --repeats 1 --json -",
   };
   for (const std::string& args : runs) {
     const test::CliSplitResult r = run_cli_split(args);

@@ -1,0 +1,89 @@
+// Pipeline and dispatches of the assembly's read bound.
+#include "read_bound.h"
+
+#include <algorithm>
+#include <bit>
+#include <stdexcept>
+
+#include "buffer.h"
+#include "commands.h"
+#include "context.h"
+#include "read_bound_layout.h"
+#include "shader_registry.h"
+#include "voxel_pair.h"
+
+namespace tfm {
+
+static_assert(sizeof(gpu::ReadBoundPush) == 8, "ReadBoundPush must match the GLSL std430 block");
+
+namespace {
+constexpr auto kBindingCounts =
+    gpu::binding_counts({TFM_READ_BINDING_REF_FIELD, TFM_READ_BINDING_OPT_FIELD, TFM_READ_BINDING_REF_QUADS,
+                         TFM_READ_BINDING_OPT_QUADS, TFM_READ_BINDING_RESULT});
+}  // namespace
+
+std::array<uint32_t, 2> field_pair_bit_sums(std::span<const float> ref, std::span<const float> opt) {
+  std::array<uint32_t, 2> s{0, 0};
+  for (float v : ref) s[0] += std::bit_cast<uint32_t>(v);
+  for (float v : opt) s[1] += std::bit_cast<uint32_t>(v);
+  return s;
+}
+
+FieldPairReadKernel::FieldPairReadKernel(Context& ctx, uint64_t range_quads)
+    : ctx_(ctx),
+      range_quads_(range_quads ? range_quads : std::max<uint64_t>(64, ctx.limits().maxTexelBufferElements / 64 * 64)) {
+  if (range_quads_ % 64) throw std::invalid_argument("field_pair_read: range_quads must be a multiple of 64");
+  PipelineDesc desc;
+  desc.shader = "field_pair_read";
+  desc.binding_counts = gpu::to_vector(kBindingCounts);
+  desc.binding_kinds.assign(desc.binding_counts.size(), DescriptorKind::StorageBuffer);
+  desc.binding_kinds[TFM_READ_BINDING_REF_QUADS] = desc.binding_kinds[TFM_READ_BINDING_OPT_QUADS] =
+      DescriptorKind::UniformTexelBuffer;
+  desc.push_constant_bytes = sizeof(gpu::ReadBoundPush);
+  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP}});
+  desc.spirv = shader_spirv(desc.shader);
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+}
+
+FieldPairReadKernel::~FieldPairReadKernel() = default;
+
+void FieldPairReadKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
+                                 Buffer& result) const {
+  if (ref.voxel_count() != opt.voxel_count() || ref.chunk_voxels() != opt.chunk_voxels())
+    throw std::invalid_argument("field_pair_read: fields differ in size or chunking");
+  if (result.size() < 2 * sizeof(uint32_t)) throw std::invalid_argument("field_pair_read: result buffer too small");
+  // Ranges of at most range_quads_ quads, as the assembly dispatches them (kernels/voxel_pair.cpp).
+  for (size_t c = 0; c < ref.chunk_count(); ++c) {
+    const uint64_t chunk = ref.chunk_size(c);
+    for (uint64_t first = 0; first < chunk; first += 4 * range_quads_) {
+      const uint64_t voxels = std::min(4 * range_quads_, chunk - first);
+      const VkFormat format = voxels >= 4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT;
+      const uint64_t bytes = voxels >= 4 ? voxels / 4 * 16 : 4;
+      const gpu::ReadBoundPush push{static_cast<uint32_t>(voxels), static_cast<uint32_t>(first)};
+      batch.dispatch(*pipeline_,
+                     {ref.chunk(c), opt.chunk(c), Binding::texels(ref.chunk(c), format, first * 4, bytes),
+                      Binding::texels(opt.chunk(c), format, first * 4, bytes), result},
+                     push, {voxel_groups(ctx_, voxels)});
+      batch.barrier();
+    }
+  }
+}
+
+std::array<uint32_t, 2> FieldPairReadKernel::run(const DeviceField& ref, const DeviceField& opt, double* gpu_ms) const {
+  Buffer result(ctx_, 2 * sizeof(uint32_t), MemoryUsage::Device, "read bound sums");
+  CommandBatch batch(ctx_);
+  batch.fill(result, 0u);
+  batch.barrier();
+  const bool timed = gpu_ms && ctx_.timestamps_supported();
+  const uint32_t t0 = timed ? batch.timestamp() : 0;
+  record(batch, ref, opt, result);
+  const uint32_t t1 = timed ? batch.timestamp() : 0;
+  batch.submit_and_wait();
+  if (gpu_ms) *gpu_ms = timed ? batch.elapsed_ms(t0, t1) : -1.0;
+  std::array<uint32_t, 2> sums{};
+  readback(ctx_, result, sums.data(), sizeof(sums));
+  return sums;
+}
+
+}  // namespace tfm

@@ -1,0 +1,42 @@
+// The read bound of the normal-equation assembly (shaders/field_pair_read.comp): both fields read
+// with the assembly's access pattern and nothing computed but an integer sum of the values' bits.
+// `tfmatch bench` reports the assembly as a fraction of this speed; the sums prove every voxel
+// was read once (field_pair_bit_sums is the CPU reference).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+
+#include "device_field.h"
+#include "pipeline.h"
+
+namespace tfm {
+
+class Buffer;
+class CommandBatch;
+class Context;
+
+// The sums modulo 2^32 of the bit patterns of every value of `ref` and of `opt`.
+std::array<uint32_t, 2> field_pair_bit_sums(std::span<const float> ref, std::span<const float> opt);
+
+class FieldPairReadKernel {
+ public:
+  // `range_quads`: quads per dispatch (a texel view each), a multiple of 64; 0: the device's
+  // maxTexelBufferElements, as the assembly (tests force splits).
+  explicit FieldPairReadKernel(Context& ctx, uint64_t range_quads = 0);
+  ~FieldPairReadKernel();
+  // Records reading every voxel of both fields (same size and chunking) and adding the two bit
+  // sums to `result` (two uint32, which the caller zeroes).
+  void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, Buffer& result) const;
+  // Runs it alone; `gpu_ms` receives the GPU time where the device has timestamps (else -1).
+  std::array<uint32_t, 2> run(const DeviceField& ref, const DeviceField& opt, double* gpu_ms = nullptr) const;
+
+ private:
+  Context& ctx_;
+  uint64_t range_quads_;
+  std::unique_ptr<ComputePipeline> pipeline_;
+};
+
+}  // namespace tfm
