@@ -31,8 +31,7 @@ std::array<uint32_t, 2> field_pair_bit_sums(std::span<const float> ref, std::spa
 
 FieldPairReadKernel::FieldPairReadKernel(Context& ctx, uint64_t range_quads)
     : ctx_(ctx),
-      range_quads_(range_quads ? range_quads : std::max<uint64_t>(64, ctx.limits().maxTexelBufferElements / 64 * 64)) {
-  if (range_quads_ % 64) throw std::invalid_argument("field_pair_read: range_quads must be a multiple of 64");
+      range_quads_(texel_range_quads(ctx, range_quads, "field_pair_read")) {
   PipelineDesc desc;
   desc.shader = "field_pair_read";
   desc.binding_counts = gpu::to_vector(kBindingCounts);
@@ -53,20 +52,14 @@ void FieldPairReadKernel::record(CommandBatch& batch, const DeviceField& ref, co
   if (ref.voxel_count() != opt.voxel_count() || ref.chunk_voxels() != opt.chunk_voxels())
     throw std::invalid_argument("field_pair_read: fields differ in size or chunking");
   if (result.size() < 2 * sizeof(uint32_t)) throw std::invalid_argument("field_pair_read: result buffer too small");
-  // Ranges of at most range_quads_ quads, as the assembly dispatches them (kernels/voxel_pair.cpp).
-  for (size_t c = 0; c < ref.chunk_count(); ++c) {
-    const uint64_t chunk = ref.chunk_size(c);
-    for (uint64_t first = 0; first < chunk; first += 4 * range_quads_) {
-      const uint64_t voxels = std::min(4 * range_quads_, chunk - first);
-      const VkFormat format = voxels >= 4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT;
-      const uint64_t bytes = voxels >= 4 ? voxels / 4 * 16 : 4;
-      const gpu::ReadBoundPush push{static_cast<uint32_t>(voxels), static_cast<uint32_t>(first)};
-      batch.dispatch(*pipeline_,
-                     {ref.chunk(c), opt.chunk(c), Binding::texels(ref.chunk(c), format, first * 4, bytes),
-                      Binding::texels(opt.chunk(c), format, first * 4, bytes), result},
-                     push, {voxel_groups(ctx_, voxels)});
-      batch.barrier();
-    }
+  for (const QuadRange& r : quad_ranges(ref, range_quads_)) {  // the assembly's dispatches
+    const gpu::ReadBoundPush push{static_cast<uint32_t>(r.voxels), static_cast<uint32_t>(r.first)};
+    batch.dispatch(*pipeline_,
+                   {ref.chunk(r.chunk), opt.chunk(r.chunk),
+                    Binding::texels(ref.chunk(r.chunk), r.format, r.first * 4, r.bytes),
+                    Binding::texels(opt.chunk(r.chunk), r.format, r.first * 4, r.bytes), result},
+                   push, {voxel_groups(ctx_, r.voxels)});
+    batch.barrier();
   }
 }
 

@@ -40,6 +40,28 @@ uint32_t voxel_groups(const Context& ctx, uint64_t voxels) {
   return static_cast<uint32_t>(std::clamp<uint64_t>(groups, 1, ctx.limits().maxComputeWorkGroupCount[0]));
 }
 
+uint64_t texel_range_quads(const Context& ctx, uint64_t requested, const char* kernel) {
+  if (requested % 64) throw std::invalid_argument(std::string(kernel) + ": range_quads must be a multiple of 64");
+  return requested ? requested : std::max<uint64_t>(64, ctx.limits().maxTexelBufferElements / 64 * 64);
+}
+
+std::vector<QuadRange> quad_ranges(const DeviceField& field, uint64_t range_quads) {
+  std::vector<QuadRange> out;
+  for (size_t c = 0; c < field.chunk_count(); ++c) {
+    const uint64_t chunk = field.chunk_size(c);
+    for (uint64_t first = 0; first < chunk; first += 4 * range_quads) {
+      QuadRange r;
+      r.chunk = c;
+      r.first = first;
+      r.voxels = std::min(4 * range_quads, chunk - first);
+      r.format = r.voxels >= 4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT;
+      r.bytes = r.voxels >= 4 ? r.voxels / 4 * 16 : 4;
+      out.push_back(r);
+    }
+  }
+  return out;
+}
+
 std::vector<double> decode_fixed_point(const std::vector<uint32_t>& words) {
   // Unsigned slots of shaders/fixed_point.glsl (signed ones: FixedPointTotals).
   std::vector<double> out(words.size() / TFM_FIXED_SLOT_WORDS);
@@ -80,11 +102,7 @@ AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint3
       reduction_(Reduction::choose(ctx, "assemble", tf_size, uint64_t(TFM_ASSEMBLE_SLOTS(tf_size)) * gpu::kFixedSlotBytes,
                                    options, kAssemblePrivateMaxBins)),
       passes_(assemble_term_passes(reduction_.mode, tf_size, private_limit(ctx, kPrivateHistogramSlots))),
-      // Ranges of at most maxTexelBufferElements quads, starting at multiples of 1024 bytes (every
-      // device's minTexelBufferOffsetAlignment is at most 256).
-      range_quads_(options.range_quads ? options.range_quads
-                                       : std::max<uint64_t>(64, ctx.limits().maxTexelBufferElements / 64 * 64)) {
-  if (range_quads_ % 64) throw std::invalid_argument("assemble: range_quads must be a multiple of 64");
+      range_quads_(texel_range_quads(ctx, options.range_quads, "assemble")) {
   // Pipelines are compiled on first use: a kernel records either variant (pipelines()).
 }
 
@@ -124,7 +142,6 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
   if (ref_tf.size() < uint64_t(ref_map.tf_size) * 16)
     throw std::invalid_argument("assemble: reference TF buffer holds fewer entries than its mapping");
   const Binding tf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
-  const uint64_t range_quads = range_quads_;  // one dispatch per range and pass
   gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
   if (before_map) {
     if (before_map->tf_size != ref_map.tf_size)
@@ -133,23 +150,17 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
     push.before_scale = before_map->scale;
   }
   const auto& passes = pipelines(before_map != nullptr);
-  for (size_t c = 0; c < ref.chunk_count(); ++c) {
-    const uint64_t chunk = ref.chunk_size(c);
-    for (uint64_t first = 0; first < chunk; first += 4 * range_quads) {
-      const uint64_t voxels = std::min(4 * range_quads, chunk - first);
-      // A range of fewer than 4 voxels has no quads; its texel binding is one float it never reads.
-      const VkFormat format = voxels >= 4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT;
-      const uint64_t bytes = voxels >= 4 ? voxels / 4 * 16 : 4;
-      push.voxel_count = static_cast<uint32_t>(voxels);
-      push.first_voxel = static_cast<uint32_t>(first);
-      for (const auto& pipe : passes) {
-        batch.dispatch(*pipe,
-                       {ref.chunk(c), opt.chunk(c), tf, accum, Binding::texels(ref.chunk(c), format, first * 4, bytes),
-                        Binding::texels(opt.chunk(c), format, first * 4, bytes)},
-                       push, {reduction_.groups(ctx_, voxels)});
-        // Successive dispatches add into the same accumulators.
-        batch.barrier();
-      }
+  for (const QuadRange& r : quad_ranges(ref, range_quads_)) {  // one dispatch per range and pass
+    push.voxel_count = static_cast<uint32_t>(r.voxels);
+    push.first_voxel = static_cast<uint32_t>(r.first);
+    for (const auto& pipe : passes) {
+      batch.dispatch(*pipe,
+                     {ref.chunk(r.chunk), opt.chunk(r.chunk), tf, accum,
+                      Binding::texels(ref.chunk(r.chunk), r.format, r.first * 4, r.bytes),
+                      Binding::texels(opt.chunk(r.chunk), r.format, r.first * 4, r.bytes)},
+                     push, {reduction_.groups(ctx_, r.voxels)});
+      // Successive dispatches add into the same accumulators.
+      batch.barrier();
     }
   }
 }

@@ -78,6 +78,23 @@ class VoxelLossKernel {
 
 // Workgroups for a 1-D voxel kernel over `voxels` (each invocation loops over ~32 voxels).
 uint32_t voxel_groups(const Context& ctx, uint64_t voxels);
+
+// Kernels that read a chunk's voxels in quads, as RGBA32F texels (the assembly and its read
+// bound), dispatch once per range of at most `range_quads` quads: `requested` if given (a
+// multiple of 64, else std::invalid_argument naming `kernel`), else the device's
+// maxTexelBufferElements rounded down to 64, so ranges start at multiples of 1024 bytes (every
+// device's minTexelBufferOffsetAlignment is at most 256).
+uint64_t texel_range_quads(const Context& ctx, uint64_t requested, const char* kernel);
+struct QuadRange {
+  size_t chunk = 0;
+  uint64_t first = 0, voxels = 0;  // within the chunk
+  // The texel view over the range's quads, from byte first * 4; a range of fewer than 4 voxels
+  // has no quads, and its view is one float that is never read.
+  VkFormat format = VK_FORMAT_R32G32B32A32_SFLOAT;
+  uint64_t bytes = 0;
+};
+// The ranges of every chunk of `field`, in order.
+std::vector<QuadRange> quad_ranges(const DeviceField& field, uint64_t range_quads);
 // Decodes `slots` 32.32 fixed-point accumulators read back as 2*slots uint32 words.
 std::vector<double> decode_fixed_point(const std::vector<uint32_t>& words);
 

@@ -35,20 +35,34 @@ void expect_same_system(const NormalEquations& a, const NormalEquations& b) {
   EXPECT_EQ(a.btb, b.btb);
 }
 
-// Awkward sizes (a slice of 37 x 29 voxels, 23 slices; slabs of 1, 5 and 23 slices; device chunks
-// of 1024 voxels, so slabs split across chunks): the same bits as the whole fields in one add().
+// Two fields of awkward size (a slice of 37 x 29 voxels, 23 slices), their mappings for a
+// reference TF of 32 entries and 13 optimized ones, and their system from the whole fields in one
+// add().
+struct SlabProblem {
+  explicit SlabProblem(Context& ctx)
+      : ref(slab_test::test_field({37, 29, 23}, 0)),
+        opt(slab_test::test_field({37, 29, 23}, 4)),
+        tf_buffer(upload_tf(ctx, demo_transfer_function(32), "ref tf")),
+        ref_map(make_mapping(resolve_range(ref.values, nullptr, "ref"), 32)),
+        opt_map(make_mapping(resolve_range(opt.values, nullptr, "opt"), 13)) {
+    GpuNormalEquations gpu(ctx, 13);
+    gpu.add(DeviceField(ctx, ref.values, "ref"), DeviceField(ctx, opt.values, "opt"), ref_map, opt_map, tf_buffer);
+    whole = gpu.result();
+  }
+  Volume ref, opt;
+  Buffer tf_buffer;
+  FieldMapping ref_map, opt_map;
+  NormalEquations whole;
+};
+
+// Slabs of 1, 5 and 23 slices and device chunks of 1024 voxels, so slabs split across chunks:
+// the same bits as the whole fields in one add().
 TEST_F(StreamedOptimizeTest, SystemStreamedFromEachFormatIsBitIdentical) {
   TempDir dir;
-  const Volume ref = slab_test::test_field({37, 29, 23}, 0);
-  const Volume opt = slab_test::test_field({37, 29, 23}, 4);
-  const TransferFunction tf = demo_transfer_function(32);
-  const Buffer tf_buffer = upload_tf(ctx(), tf, "ref tf");
-  const FieldMapping ref_map = make_mapping(resolve_range(ref.values, nullptr, "ref"), 32);
-  const FieldMapping opt_map = make_mapping(resolve_range(opt.values, nullptr, "opt"), 13);
-  GpuNormalEquations whole(ctx(), 13);
-  whole.add(DeviceField(ctx(), ref.values, "ref"), DeviceField(ctx(), opt.values, "opt"), ref_map, opt_map, tf_buffer);
-  const NormalEquations expected = whole.result();
-  ASSERT_GT(expected.voxels, 0u);
+  const SlabProblem p(ctx());
+  const Volume& ref = p.ref;
+  const Volume& opt = p.opt;
+  ASSERT_GT(p.whole.voxels, 0u);
   const std::vector<std::pair<std::string, std::string>> files{
       {slab_test::write_raw(dir.path(), "ref", ref).string(), slab_test::write_raw(dir.path(), "opt", opt).string()},
       {slab_test::write_netcdf(dir.path(), "ref", ref).string() + ":T,time=1",
@@ -64,7 +78,7 @@ TEST_F(StreamedOptimizeTest, SystemStreamedFromEachFormatIsBitIdentical) {
       auto rs = open_volume_slabs(r);
       auto os = open_volume_slabs(o);
       ASSERT_TRUE(rs && os);
-      expect_same_system(assemble_streamed(ctx(), *rs, *os, ref_map, opt_map, tf_buffer, slab, 1024), expected);
+      expect_same_system(assemble_streamed(ctx(), *rs, *os, p.ref_map, p.opt_map, p.tf_buffer, slab, 1024), p.whole);
     }
   }
 }
@@ -96,18 +110,16 @@ class ScriptedSlabs final : public VolumeSlabReader {
 // read once each in z order, and a read error or a cancellation in a later slab reaches the
 // caller, after which nothing more is read.
 TEST_F(StreamedOptimizeTest, ReadAheadKeepsOrderAndPassesOnErrorsAndCancellation) {
-  const Volume ref = slab_test::test_field({37, 29, 23}, 0);
-  const Volume opt = slab_test::test_field({37, 29, 23}, 4);
-  const TransferFunction tf = demo_transfer_function(32);
-  const Buffer tf_buffer = upload_tf(ctx(), tf, "ref tf");
-  const FieldMapping ref_map = make_mapping(resolve_range(ref.values, nullptr, "ref"), 32);
-  const FieldMapping opt_map = make_mapping(resolve_range(opt.values, nullptr, "opt"), 13);
-  GpuNormalEquations whole(ctx(), 13);
-  whole.add(DeviceField(ctx(), ref.values, "ref"), DeviceField(ctx(), opt.values, "opt"), ref_map, opt_map, tf_buffer);
+  const SlabProblem p(ctx());
+  const Volume& ref = p.ref;
+  const Volume& opt = p.opt;
+  const FieldMapping& ref_map = p.ref_map;
+  const FieldMapping& opt_map = p.opt_map;
+  const Buffer& tf_buffer = p.tf_buffer;
   const std::vector<uint64_t> all{0, 5, 10, 15, 20}, to_ten{0, 5, 10};
   {
     ScriptedSlabs r(ref, 99, false), o(opt, 99, false);
-    expect_same_system(assemble_streamed(ctx(), r, o, ref_map, opt_map, tf_buffer, 5), whole.result());
+    expect_same_system(assemble_streamed(ctx(), r, o, ref_map, opt_map, tf_buffer, 5), p.whole);
     EXPECT_EQ(r.reads, all);
     EXPECT_EQ(o.reads, all);
   }
