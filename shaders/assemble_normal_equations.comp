@@ -46,6 +46,7 @@
 #include "shared_layout.h"
 #include "tf_common.glsl"
 #include "fixed_point_accumulators.glsl"
+#include "quad_segments.glsl"
 
 layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 layout(constant_id = TFM_ASSEMBLE_SPEC_MODE) const uint MODE = TFM_REDUCE_RUNS_SHARED;
@@ -162,22 +163,15 @@ void main() {
   run_bin = NO_BIN;
   voxels = 0u;
 
-  // Subgroups take segments of TFM_REDUCE_SEGMENT_STEPS quads per lane, lanes on consecutive
-  // quads in each step: every step reads one contiguous span, and each subgroup streams through
-  // its own part of the range.
+  // Lanes on consecutive quads, each subgroup through its own segments (quad_segments.glsl).
   const uint quads = pc.voxel_count / 4u;
-  const uint segment = gl_SubgroupSize * TFM_REDUCE_SEGMENT_STEPS;
-  const uint subgroups = gl_NumWorkGroups.x * gl_NumSubgroups;
-  for (uint s = gl_WorkGroupID.x * gl_NumSubgroups + gl_SubgroupID; s * segment < quads; s += subgroups) {
-    const uint end = min(s * segment + segment, quads);
-    for (uint q = s * segment + gl_SubgroupInvocationID; q < end; q += gl_SubgroupSize) {
-      const vec4 r = texelFetch(ref_quads, int(q));
-      const vec4 o = texelFetch(opt_quads, int(q));
-      take(r.x, o.x);
-      take(r.y, o.y);
-      take(r.z, o.z);
-      take(r.w, o.w);
-    }
+  TFM_FOR_EACH_QUAD(q, quads) {
+    const vec4 r = texelFetch(ref_quads, int(q));
+    const vec4 o = texelFetch(opt_quads, int(q));
+    take(r.x, o.x);
+    take(r.y, o.y);
+    take(r.z, o.z);
+    take(r.w, o.w);
   }
   if (gl_GlobalInvocationID.x == 0u)
     for (uint i = pc.first_voxel + 4u * quads; i < pc.first_voxel + pc.voxel_count; ++i)

@@ -3,10 +3,10 @@
 // buffer copy is no such bound: NVIDIA's vkCmdCopyBuffer reached 206-421 GB/s on an H100 whose
 // memory does about 3 TB/s).
 //
-// Same access pattern as shaders/assemble_normal_equations.comp: subgroups take segments of
-// TFM_REDUCE_SEGMENT_STEPS quads per lane, lanes on consecutive quads (one RGBA32F texel of each
-// field's uniform texel buffer per lane and step), and invocation 0 reads the range's last
-// count % 4 voxels from the storage buffers. The bits of every value are summed as integers
+// Same access pattern as shaders/assemble_normal_equations.comp: lanes on consecutive quads in
+// their subgroup's segments (quad_segments.glsl), one RGBA32F texel of each field's uniform texel
+// buffer per lane and step, and invocation 0 reads the range's last count % 4 voxels from the
+// storage buffers. The bits of every value are summed as integers
 // (modulo 2^32), one sum per field, so no load can be dropped; each lane adds its two sums to the
 // result once. Integer sums are exact and independent of order: the CPU reference
 // (field_pair_bit_sums) checks that every voxel was read, and read once.
@@ -15,6 +15,7 @@
 #extension GL_KHR_shader_subgroup_basic : require
 #define TFM_WANT_READ_BOUND_PUSH
 #include "read_bound_layout.h"
+#include "quad_segments.glsl"
 
 layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 
@@ -27,14 +28,9 @@ layout(std430, binding = TFM_READ_BINDING_RESULT) buffer Result { uint result[];
 void main() {
   uvec4 ref_sum = uvec4(0u), opt_sum = uvec4(0u);
   const uint quads = pc.voxel_count / 4u;
-  const uint segment = gl_SubgroupSize * TFM_REDUCE_SEGMENT_STEPS;
-  const uint subgroups = gl_NumWorkGroups.x * gl_NumSubgroups;
-  for (uint s = gl_WorkGroupID.x * gl_NumSubgroups + gl_SubgroupID; s * segment < quads; s += subgroups) {
-    const uint end = min(s * segment + segment, quads);
-    for (uint q = s * segment + gl_SubgroupInvocationID; q < end; q += gl_SubgroupSize) {
-      ref_sum += floatBitsToUint(texelFetch(ref_quads, int(q)));
-      opt_sum += floatBitsToUint(texelFetch(opt_quads, int(q)));
-    }
+  TFM_FOR_EACH_QUAD(q, quads) {
+    ref_sum += floatBitsToUint(texelFetch(ref_quads, int(q)));
+    opt_sum += floatBitsToUint(texelFetch(opt_quads, int(q)));
   }
   uint r = ref_sum.x + ref_sum.y + ref_sum.z + ref_sum.w;
   uint o = opt_sum.x + opt_sum.y + opt_sum.z + opt_sum.w;

@@ -18,6 +18,7 @@
 #include "solver_layout.h"
 #include "tf_common.glsl"
 #include "fixed_point_accumulators.glsl"
+#include "quad_segments.glsl"
 
 layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 layout(constant_id = TFM_GD_SPEC_MODE) const uint MODE = TFM_REDUCE_RUNS_SHARED;
@@ -69,18 +70,13 @@ void main() {
   pair_begin();
 
   const uint quads = pc.voxel_count / 4u;
-  const uint segment = gl_SubgroupSize * TFM_REDUCE_SEGMENT_STEPS;
-  const uint subgroups = gl_NumWorkGroups.x * gl_NumSubgroups;
-  for (uint s = gl_WorkGroupID.x * gl_NumSubgroups + gl_SubgroupID; s * segment < quads; s += subgroups) {
-    const uint end = min(s * segment + segment, quads);
-    for (uint q = s * segment + gl_SubgroupInvocationID; q < end; q += gl_SubgroupSize) {
-      const vec4 rv = texelFetch(ref_quads, int(q));
-      const vec4 ov = texelFetch(opt_quads, int(q));
-      take(rv.x, ov.x);
-      take(rv.y, ov.y);
-      take(rv.z, ov.z);
-      take(rv.w, ov.w);
-    }
+  TFM_FOR_EACH_QUAD(q, quads) {
+    const vec4 rv = texelFetch(ref_quads, int(q));
+    const vec4 ov = texelFetch(opt_quads, int(q));
+    take(rv.x, ov.x);
+    take(rv.y, ov.y);
+    take(rv.z, ov.z);
+    take(rv.w, ov.w);
   }
   if (gl_GlobalInvocationID.x == 0u)
     for (uint i = 4u * quads; i < pc.voxel_count; ++i) take(ref_field[i], opt_field[i]);
