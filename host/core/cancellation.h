@@ -36,10 +36,11 @@ bool cancel_acknowledged() noexcept;
 // check_cancelled() at a named point of a long phase ("load", "solve", "render", "write",
 // "report"). Two environment variables make phases observable, for tests and for finding where a
 // run spends its time: TFMATCH_TRACE_PHASES=1 prints "tfmatch: phase NAME (at T s)" on stderr the
-// first time each phase is reached (T: seconds since the program started), and TFMATCH_PAUSE_AT=NAME[#K][!] waits at that phase's first (K-th)
-// checkpoint, after printing "tfmatch: paused in phase NAME", until cancellation is requested, so
-// a test can send a signal while the phase is under way; with "!" it waits without looking at the
-// flag (up to a minute), as a step without checkpoints would.
+// first time each phase is reached (T: seconds since the program started), and
+// TFMATCH_PAUSE_AT=NAME[#K][!] waits at that phase's first (K-th) checkpoint, after printing
+// "tfmatch: paused in phase NAME", until cancellation is requested, so a test can send a signal
+// while the phase is under way; with "!" it waits without looking at the flag (up to a minute),
+// as a step without checkpoints would.
 void checkpoint(const char* phase);
 
 }  // namespace tfm

@@ -1,6 +1,7 @@
 // Self-test cases of the voxel-pair kernels: assemble_normal_equations (every mode and atomic
 // width, chunked fields, TF sizes past shared memory, exact fixed-point totals), voxel_loss,
-// residual_map and field_histogram, each against its double-precision CPU reference.
+// residual_map, field_histogram and field_pair_read (the bench's read bound), each against its
+// CPU reference.
 #include <array>
 #include <cmath>
 #include <string>
