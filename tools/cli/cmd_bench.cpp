@@ -143,7 +143,8 @@ int run(const BenchArgs& a) {
               << std::setprecision(2) << copy_bytes_per_s / 1e9 << " GB/s copy); read bound " << std::setprecision(0)
               << read_voxels_per_s / 1e6 << " M voxels/s (" << std::setprecision(2) << read_voxels_per_s * 8.0 / 1e9
               << " GB/s read)\n"
-              << "    N      GPU ms   M vox/s   CPU loop ms   M vox/s   GPU/CPU   GPU/copy   GPU/read   max rel. diff   path\n";
+              << "    N      GPU ms   M vox/s   CPU loop ms   M vox/s   GPU/CPU   GPU/copy   GPU/read"
+                 "   max rel. diff   path\n";
     nlohmann::json entry{{"dims", size}, {"voxels", voxels}, {"copy_ms", copy_best},
                          {"copy_bytes_per_s", copy_bytes_per_s}, {"copy_bound_voxels_per_s", bound_voxels_per_s},
                          {"read_ms", read_best}, {"read_bound_voxels_per_s", read_voxels_per_s},
