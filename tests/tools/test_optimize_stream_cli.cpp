@@ -86,6 +86,8 @@ TEST_F(OptimizeStreamCli, BenchStreamMeasuresAndCleansUp) {
   const std::string j = read_text(dir / "b.json");
   EXPECT_NE(j.find("\"peak_rss_bytes\""), std::string::npos) << j;
   EXPECT_NE(j.find("\"read_once_s\""), std::string::npos) << j;
+  EXPECT_NE(j.find("\"optimize_over_read\""), std::string::npos) << j;
+  EXPECT_NE(r.output.find("optimize / read"), std::string::npos) << r.output;
 }
 
 }  // namespace
