@@ -27,7 +27,8 @@
 //    one (lavapipe runs both sides under a mask; measured: register runs flushed on a bin change
 //    are 1.2-1.5x slower than adding every voxel to the histogram) and atomics are locked
 //    instructions. Each lane adds its histogram to the global accumulators once at the end, so
-//    a lane must cover many voxels (the host sizes it). A histogram of all 11 terms of N entries
+//    a lane must cover many voxels (the host sizes it), and a workgroup is one subgroup (a CPU
+//    device runs a workgroup on one thread: small groups spread the lanes over every core). A histogram of all 11 terms of N entries
 //    costs 88 N bytes per lane; above 1024 entries the host splits the 11 terms into passes
 //    (TERM_FIRST, TERM_COUNT) that each hold a few terms of every entry, so the private memory
 //    stays bounded and TF sizes up to 4096 cost a few cheap passes instead of a path change.
