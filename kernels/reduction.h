@@ -47,8 +47,9 @@ inline constexpr uint32_t kAssemblePrivateMaxBins = 4096;
 // of its thread's stack). Kernels with more per entry split their terms into passes. Measured
 // with larger budgets (lavapipe, LLVM 15, 8 lanes): 11 x 2048 made N = 4096 1.5x faster, but
 // from 11 x 3900 sums per lane (2.7 MB per SIMD vector) on the assembly returned wrong sums
-// without any error (11 x 3800 still right; a larger stack limit changed nothing), so the budget
-// keeps a wide margin below a limit that is not understood.
+// without any error (11 x 3800 still right; a larger stack limit changed nothing) — only when
+// two or more workgroups ran (1.76 M voxels; not at 0.4 M, one workgroup), so the budget keeps a
+// wide margin below a limit that is not understood, and the tests run its edge on two workgroups.
 inline constexpr uint32_t kPrivateHistogramSlots = 11 * 1024;
 // The budgets above are for CPU devices. GPUs get an eighth of them: Auto never takes private
 // histograms there (they are a cross-check of the other paths), and a GPU compiler puts a large

@@ -193,6 +193,10 @@ void add_voxel_cases(CaseList& cases) {
   // Private histograms in term passes on every device: one pass on a CPU, three within a GPU's
   // smaller private budget (reduction.h).
   add_assemble({100003, 300, M::Private, AtomicWidth::Bits64}, false);
+  // The largest private histogram in one pass on a CPU device, over enough voxels for two
+  // workgroups (the budget's edge: lavapipe returned wrong sums silently for histograms 3.8x this
+  // size once two workgroups ran at once); in passes within a GPU's budget.
+  add_assemble({300007, 1024, M::Private, AtomicWidth::Bits64}, false);
   add_assemble({100003, 64, M::Auto, AtomicWidth::Auto, 16384}, false);
 
   auto add_loss = [&](size_t voxels, uint64_t chunk, bool quick) {

@@ -149,8 +149,11 @@ std::vector<Case> assembly_cases() {
       cases.push_back({8193, 3, mode, width});
       if (mode != M::RunsShared) cases.push_back({20000, 701, mode, width});
     }
-  // Private histograms of more than kPrivateHistogramSlots / 11 entries: the terms in passes.
-  // (4096 entries: the automatic choice above, on CPU devices.)
+  // The largest private histogram in one pass (all 11 terms of kPrivateHistogramSlots / 11
+  // entries), over enough voxels for two workgroups: lavapipe returned wrong sums silently for
+  // histograms 3.8x this size once two workgroups ran at once (reduction.h). Beyond it the terms
+  // in passes (4096 entries: the automatic choice above, on CPU devices).
+  cases.push_back({300007, 1024, M::Private, W::Bits64});
   cases.push_back({20000, 2048, M::Private, W::Bits64});
   for (W width : {W::Bits32, W::Bits64}) cases.push_back({20000, 4096, M::RunsGlobal, width});
   return cases;
