@@ -95,6 +95,7 @@ struct QuadRange {
 };
 // The ranges of every chunk of `field`, in order.
 std::vector<QuadRange> quad_ranges(const DeviceField& field, uint64_t range_quads);
+
 // Decodes `slots` 32.32 fixed-point accumulators read back as 2*slots uint32 words.
 std::vector<double> decode_fixed_point(const std::vector<uint32_t>& words);
 

@@ -90,13 +90,16 @@ TEST(RawVolume, FourByteTypesDecodeInPlaceAcrossBlocks) {
   }
 }
 
-// The vectorized finite min/max against a plain loop, on sizes around its 16 lanes, with NaN and
-// infinities in the lanes and in the tail.
+// The vectorized finite min/max against a plain loop, on sizes around its 16 lanes and past the
+// 2^24 values after which it empties its per-lane counts, with NaN and infinities in the lanes,
+// on both sides of that point and in the tail.
 TEST(FiniteStats, MatchesAPlainLoopOnAwkwardSizes) {
-  for (size_t n : {size_t(0), size_t(1), size_t(15), size_t(16), size_t(17), size_t(33), size_t(1000003)}) {
+  for (size_t n : {size_t(0), size_t(1), size_t(15), size_t(16), size_t(17), size_t(33), size_t(1000003),
+                   (size_t(16) << 20) + 35}) {
     std::vector<float> v(n);
     for (size_t i = 0; i < n; ++i) v[i] = std::sin(0.37f * float(i)) * 100.0f + float(i % 7);
     if (n > 2) v[n - 1] = NAN, v[n / 2] = INFINITY, v[1] = -INFINITY;
+    for (size_t i = 3; i < n; i += 1000003) v[i] = NAN;  // in every block of counts
     if (n > 100) v[5] = -250.5f, v[n - 2] = 1e30f;
     double lo = INFINITY, hi = -INFINITY;
     uint64_t finite = 0;
