@@ -83,6 +83,7 @@ std::vector<VolumeFormat> make_table() {
       .describe = describe_vti,
       .open_slabs = open_vti_slabs,  // appended raw, uncompressed
       .writable = true,  // write_vti (volume_vti.h)
+      .concurrent_reads = true,
   });
   t.push_back({
       .name = "nrrd",
@@ -103,6 +104,7 @@ std::vector<VolumeFormat> make_table() {
       .describe = describe_raw,
       .open_slabs = open_raw_slabs,
       .writable = true,  // float32, write_raw_float32 (volume_io.h)
+      .concurrent_reads = true,
   });
   t.push_back({
       .name = "dat",
@@ -112,6 +114,7 @@ std::vector<VolumeFormat> make_table() {
       .read = read_dat_volume,
       .describe = describe_dat,
       .open_slabs = open_dat_slabs,
+      .concurrent_reads = true,
   });
   return t;
 }

@@ -42,6 +42,10 @@ struct VolumeFormat {
   // not allow it (compressed, text): it is loaded whole. nullptr here: the format never streams.
   std::unique_ptr<VolumeSlabReader> (*open_slabs)(const std::filesystem::path& path, const VolumeOptions& options) = nullptr;
   bool writable = false;  // tfmatch writes this format too (convert-volume, residual maps)
+  // read() and open_slabs() may run in two threads at once: the reader is tfmatch's own code over
+  // thread-safe libraries (zlib, expat). load_volume_pair() reads two such files side by side.
+  // Not netCDF-C or ecCodes, which are not thread-safe.
+  bool concurrent_reads = false;
 
   bool has_variables() const { return !selects.empty(); }
 };

@@ -1,7 +1,13 @@
 // load_volume(): parses "path:SELECTION", finds the file's row of the format table (extension, else
 // the first bytes), checks the selection against what that format has and calls its reader.
 #include <charconv>
+#include <exception>
+#include <future>
+#include <optional>
 #include <stdexcept>
+#include <utility>
+
+#include "memory_budget.h"
 
 #include "volume.h"
 #include "volume_format_table.h"
@@ -83,6 +89,52 @@ Volume load_volume(const std::string& spec, const VolumeOptions& defaults) {
   if (v.voxel_count() == 0 || v.values.size() != v.voxel_count())
     throw std::runtime_error(path.string() + ": the volume is empty");
   return v;
+}
+
+namespace {
+
+// The voxel count of `spec` from its header when its format may be read beside another file;
+// nullopt when it may not or the header does not say (a compressed VTI).
+std::optional<uint64_t> concurrent_voxel_count(const std::string& spec, const VolumeOptions& defaults) {
+  const VolumeSpec s = parse_volume_spec(spec, defaults);
+  const VolumeFormat& format = checked_format(s.path, s.options);
+  if (!format.concurrent_reads || !format.open_slabs) return std::nullopt;
+  const std::unique_ptr<VolumeSlabReader> r = format.open_slabs(s.path, s.options);
+  if (!r) return std::nullopt;
+  return r->grid().voxel_count();
+}
+
+}  // namespace
+
+std::pair<Volume, Volume> load_volume_pair(const std::string& first, const std::string& second,
+                                           const VolumeOptions& options) {
+  const std::optional<uint64_t> n_first = concurrent_voxel_count(first, options);
+  const std::optional<uint64_t> n_second = n_first ? concurrent_voxel_count(second, options) : std::nullopt;
+  if (!n_first || !n_second) {
+    Volume a = load_volume(first, options);
+    return {std::move(a), load_volume(second, options)};
+  }
+  // Each reader checks its own volume against the budget; side by side, neither sees what the
+  // other is about to allocate, so both are checked together first.
+  check_memory((*n_first + *n_second) * sizeof(float), first + " and " + second + ": reading both (decoded as float32)");
+  std::future<Volume> b = std::async(std::launch::async, [&] { return load_volume(second, options); });
+  Volume a;
+  std::exception_ptr a_error;
+  try {
+    a = load_volume(first, options);
+  } catch (...) {
+    a_error = std::current_exception();
+  }
+  Volume vb;
+  std::exception_ptr b_error;
+  try {
+    vb = b.get();  // waited for even after the first failed: the thread refers to this frame
+  } catch (...) {
+    b_error = std::current_exception();
+  }
+  if (a_error) std::rethrow_exception(a_error);
+  if (b_error) std::rethrow_exception(b_error);
+  return {std::move(a), std::move(vb)};
 }
 
 std::unique_ptr<VolumeSlabReader> open_volume_slabs(const std::string& spec, const VolumeOptions& defaults) {

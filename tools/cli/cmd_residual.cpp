@@ -47,8 +47,7 @@ int run(const ResidualArgs& a) {
   if (!a.image.empty()) check_render_size(*ctx, a.settings);
   OutputBatch outputs;
   const VolumeOptions vo = a.volume_flags.options();
-  Volume ref = load_volume(a.ref, vo);
-  Volume field = load_volume(a.field, vo);
+  auto [ref, field] = load_volume_pair(a.ref, a.field, vo);
   require_same_grid(ref, field);
   TransferFunction ref_tf = read_transfer_function(a.ref_tf);
   TransferFunction field_tf = read_transfer_function(a.field_tf);

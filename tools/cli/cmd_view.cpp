@@ -6,6 +6,7 @@
 #include <iostream>
 #include <map>
 #include <thread>
+#include <tuple>
 
 #include "cancellation.h"
 #include "cli.h"
@@ -156,8 +157,7 @@ int run(ViewArgs a) {
       config.title = "demo: synthetic reference vs remapped field";
     } else {
       const VolumeOptions vo = a.in.volume.options();
-      ref = load_volume(a.in.ref, vo);
-      field = load_volume(a.in.field, vo);
+      std::tie(ref, field) = load_volume_pair(a.in.ref, a.in.field, vo);
       config.title = field.name + " matched to " + ref.name;
     }
     config.markers = resolve_markers(ref, a.markers);

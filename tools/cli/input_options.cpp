@@ -2,6 +2,7 @@
 #include "input_options.h"
 
 #include <iostream>
+#include <tuple>
 
 #include "cli.h"
 #include "tf_formats.h"
@@ -62,8 +63,7 @@ void add_volume_flags(CLI::App* sub, VolumeFlags& f, FieldSelectors selectors) {
 
 void load_inputs(const InputArgs& a, LoadedInputs& out) {
   const VolumeOptions vo = a.volume.options();
-  out.ref = load_volume(a.ref, vo);
-  out.field = load_volume(a.field, vo);
+  std::tie(out.ref, out.field) = load_volume_pair(a.ref, a.field, vo);
   out.request.ref = &out.ref;
   out.request.field = &out.field;
   load_tf_and_ranges(a, out.request);

@@ -2,9 +2,16 @@
 // `tfmatch info` on every shared data file, and the info / convert commands end to end.
 #include <gtest/gtest.h>
 
+#include <cstring>
+#include <filesystem>
+#include <utility>
+#include <vector>
+
 #include "base64.h"
 #include "cli_runner.h"
 #include "formats_test_util.h"
+#include "memory_budget.h"
+#include "slab_test_files.h"
 #include "volume.h"
 #include "volume_format_table.h"
 #include "volume_formats.h"
@@ -97,6 +104,67 @@ TEST(FormatsIo, DatDescriptors) {
   expect_error([&] { load_volume((dir / "e.dat").string()); }, {"missing.raw"});
   formats_test::write_bytes(dir / "f.dat", "ObjectFileName: d.raw\nResolution: 4 1 1\nFormat: USHORT\n");
   expect_error([&] { load_volume((dir / "f.dat").string()); }, {"d.raw", "has 4 bytes", "needs 8"});
+}
+
+// Two volumes loaded as a pair are what load_volume() gives for each, bit for bit, whether both
+// are read side by side (raw, .dat, uncompressed VTI) or one after the other (NetCDF, a
+// compressed VTI); errors name the file that is wrong, the first one's when both are.
+TEST(FormatsIo, LoadsPairsAsLoadVolumeDoes) {
+  TempDir dir;
+  const Volume a = slab_test::test_field({13, 7, 11}, 1), b = slab_test::test_field({13, 7, 11}, 2);
+  const std::string raw_a = slab_test::write_raw(dir.path(), "a", a).string();
+  const std::string raw_b = slab_test::write_raw(dir.path(), "b", b).string();
+  const std::string vti_b = slab_test::write_vti_file(dir.path(), "b", b, false).string() + ":scalars";
+  const std::string vti_z = slab_test::write_vti_file(dir.path(), "b", b, true).string() + ":scalars";
+  const std::string nc_b = slab_test::write_netcdf(dir.path(), "b", b).string() + ":T";
+  formats_test::write_bytes(dir / "b.dat", "ObjectFileName: " + std::filesystem::path(raw_b).filename().string() +
+                                               "\nResolution: 13 7 11\nFormat: FLOAT\n");
+  const std::string dat_b = (dir / "b.dat").string();
+  auto same = [](const Volume& got, const Volume& want) {
+    EXPECT_EQ(got.name, want.name);
+    EXPECT_EQ(got.dims, want.dims);
+    EXPECT_EQ(got.spacing, want.spacing);
+    EXPECT_EQ(got.origin, want.origin);
+    ASSERT_EQ(got.values.size(), want.values.size());
+    EXPECT_EQ(std::memcmp(got.values.data(), want.values.data(), got.values.size() * sizeof(float)), 0) << got.name;
+  };
+  for (const auto& [first, second] : std::vector<std::pair<std::string, std::string>>{
+           {raw_a, raw_b}, {raw_a, dat_b}, {vti_b, raw_a}, {raw_a, vti_z}, {nc_b, raw_a}, {raw_a, nc_b}, {raw_a, raw_a}}) {
+    SCOPED_TRACE(first + " and " + second);
+    const auto [x, y] = load_volume_pair(first, second);
+    same(x, load_volume(first));
+    same(y, load_volume(second));
+  }
+  formats_test::write_bytes(dir / "short_13x7x11_float32.raw", std::string(100, '\0'));
+  const std::string shorter = (dir / "short_13x7x11_float32.raw").string();
+  expect_error([&] { load_volume_pair(raw_a, shorter); }, {"short_13x7x11_float32.raw"});
+  expect_error([&] { load_volume_pair(shorter, raw_a); }, {"short_13x7x11_float32.raw"});
+  expect_error([&] { load_volume_pair(raw_a, (dir / "none.raw").string()); }, {"none.raw", "no such file"});
+  expect_error([&] { load_volume_pair((dir / "none.vti").string(), shorter); }, {"none.vti", "no such file"});
+  expect_error([&] { load_volume_pair(shorter, nc_b); }, {"short_13x7x11_float32.raw"});
+}
+
+// Read side by side, neither reader sees the other's allocation: the pair is checked against the
+// budget as a whole, as reading one after the other would check the second beside the first.
+TEST(FormatsIo, LoadsPairsWithinTheMemoryBudgetOfBoth) {
+  TempDir dir;
+  Volume v;
+  v.dims = {256, 256, 32};  // 8 MiB as float32
+  v.values.assign(v.voxel_count(), 1.5f);
+  const std::string a = slab_test::write_raw(dir.path(), "a", v).string();
+  const std::string b = slab_test::write_raw(dir.path(), "b", v).string();
+  v = Volume();
+  set_memory_budget(resident_memory() + (uint64_t(12) << 20), "--max-memory test");
+  EXPECT_NO_THROW(load_volume(a));  // one fits
+  try {
+    load_volume_pair(a, b);
+    ADD_FAILURE() << "two volumes of 8 MiB passed a budget of 12 MiB";
+  } catch (const MemoryBudgetExceeded& e) {
+    const std::string m = e.what();
+    for (const char* needle : {"a_256x256x32_float32.raw", "b_256x256x32_float32.raw", "needs 16.0 MiB", "--max-memory test"})
+      EXPECT_NE(m.find(needle), std::string::npos) << m;
+  }
+  set_memory_budget(0, "");
 }
 
 // Every file of ../shared/data is described; loadable arrays have grids, ranges are finite.
