@@ -28,9 +28,6 @@ std::optional<uint32_t> find_memory_type(const VkPhysicalDeviceMemoryProperties&
   return fallback;
 }
 
-// Staging buffers are bounded so that uploading a large field never doubles its footprint.
-constexpr uint64_t kStagingBytes = 64ull << 20;
-
 }  // namespace
 
 Buffer::Buffer(Context& ctx, uint64_t bytes, MemoryUsage usage, const std::string& debug_name)

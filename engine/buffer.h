@@ -48,6 +48,10 @@ class Buffer {
   void* mapped_ = nullptr;
 };
 
+// Host memory upload() stages through, at most, and readback() at a time: bounded so that moving
+// a large field never doubles its footprint.
+inline constexpr uint64_t kStagingBytes = 64ull << 20;
+
 // The staging memory upload() reuses, one per Context: two host-visible halves of at most 32 MiB,
 // so the host fills one while the device copies the other. Kept between uploads because a new
 // allocation is new memory the system must map and zero page by page (lavapipe: a streamed slab

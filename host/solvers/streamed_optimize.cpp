@@ -190,8 +190,9 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
   uint64_t slab_voxels = req.slab_voxels;
   if (slab_voxels == 0) {
     // Two host buffers (one read ahead) and a device field per field: 24 bytes per slab voxel;
-    // a quarter of what the budget leaves.
-    const uint64_t held = resident_memory(), budget = memory_budget().bytes;
+    // a quarter of what the budget leaves beside the context's staging memory (not yet resident
+    // before the first upload).
+    const uint64_t held = resident_memory() + kStagingBytes, budget = memory_budget().bytes;
     const uint64_t left = budget > held ? budget - held : 0;
     slab_voxels = std::clamp<uint64_t>(left / 4 / 24, uint64_t(1) << 16, kDefaultSlabVoxels);
   }
