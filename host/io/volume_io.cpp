@@ -8,7 +8,6 @@
 #include <utility>
 
 #include "memory_budget.h"
-
 #include "volume.h"
 #include "volume_format_table.h"
 #include "volume_formats.h"
