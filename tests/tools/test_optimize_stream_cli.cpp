@@ -88,6 +88,17 @@ TEST_F(OptimizeStreamCli, BenchStreamMeasuresAndCleansUp) {
   EXPECT_NE(j.find("\"read_once_s\""), std::string::npos) << j;
   EXPECT_NE(j.find("\"optimize_over_read\""), std::string::npos) << j;
   EXPECT_NE(r.output.find("optimize / read"), std::string::npos) << r.output;
+  EXPECT_NE(j.find("\"streamed\": \"yes\""), std::string::npos) << j;
+  // The whole-volume path, for the same ratio.
+  const auto whole = run_cli("bench-stream --stream off --voxels 2000 --dir " + bench.string() + " --json " +
+                             (dir / "w.json").string());
+  ASSERT_EQ(whole.exit_code, 0) << whole.output;
+  EXPECT_NE(whole.output.find("--stream off"), std::string::npos) << whole.output;
+  EXPECT_TRUE(fs::is_empty(bench));
+  const std::string w = read_text(dir / "w.json");
+  EXPECT_NE(w.find("\"stream\": \"off\""), std::string::npos) << w;
+  EXPECT_EQ(w.find("\"streamed\""), std::string::npos) << w;  // optimize's summary of a whole load
+  EXPECT_NE(w.find("\"optimize_over_read\""), std::string::npos) << w;
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 // `tfmatch bench-stream`: the streamed `optimize` (host/solvers/streamed_optimize.h) on volumes
 // generated on disk: per size, two raw float32 files of N voxels are written, then timed are one
 // plain read of both files (the I/O bound) and `tfmatch optimize --stream on` run as a child
-// process (wall time and peak RSS from wait4). The files' page-cache pages are dropped before
+// process (wall time and peak RSS from wait4); `--stream off` times the whole-volume path
+// instead (both fields loaded, then uploaded), the same ratio to a read. The files' page-cache pages are dropped before
 // each measurement, so both read from the disk. The files live in a staged directory that is
 // removed afterwards, also on an error or an interrupt.
 #include <fcntl.h>
@@ -37,6 +38,7 @@ struct BenchArgs {
   std::vector<uint64_t> voxels{100'000'000, 800'000'000};
   std::string dir;  // default: the temporary directory
   std::string solver = "normal-equations";
+  std::string stream = "on";  // optimize --stream: on (slabs from disk) or off (loaded whole)
   bool report = false;  // optimize --report too (box-filtered copies, renderings)
   std::string json;
 };
@@ -173,7 +175,8 @@ int run(const BenchArgs& a) {
       if (std::fscanf(f, "%lf %lf %lf", &load[0], &load[1], &load[2]) != 3) load[0] = load[1] = load[2] = -1;
       std::fclose(f);
     }
-    std::cout << "tfmatch bench-stream: optimize --stream on (--solver " << a.solver << ", ranges from the data: 2 passes)"
+    std::cout << "tfmatch bench-stream: optimize --stream " << a.stream << " (--solver " << a.solver
+              << (a.stream == "on" ? ", ranges from the data: 2 passes)" : ", both fields loaded whole, ranges from the data)")
               << (a.report ? ", with --report (512x512)" : "") << " in " << base.string() << "; " << format_bytes(free_bytes) << " free; load average " << load[0] << " "
               << load[1] << " " << load[2] << "; page cache dropped before each run\n";
     std::cout << std::left << std::setw(14) << "voxels" << std::setw(18) << "grid" << std::setw(11) << "files"
@@ -195,9 +198,9 @@ int run(const BenchArgs& a) {
       drop_cached_pages(field);
       std::vector<std::string> args{"optimize", "--ref", ref.string(), "--field", field.string(), "--ref-tf",
                                     (work / "tf.json").string(), "--out", (work / "out.json").string(), "--json",
-                                    (work / "summary.json").string(), "--stream", "on", "--solver", a.solver};
+                                    (work / "summary.json").string(), "--stream", a.stream, "--solver", a.solver};
       if (a.report) args.insert(args.end(), {"--report", (work / "report").string(), "--width", "512", "--height", "512"});
-    if (memory_budget().source.rfind("--max-memory", 0) == 0)
+      if (memory_budget().source.rfind("--max-memory", 0) == 0)
         args.insert(args.begin(), {"--max-memory", std::to_string(memory_budget().bytes)});
       const ChildRun r = run_self(args, work / "optimize.log");
       if (r.exit_code != 0) {
@@ -230,7 +233,7 @@ int run(const BenchArgs& a) {
   }  // the scratch directory is gone
   OutputBatch outputs;
   json.write({{"benchmark", "bench-stream"}, {"load_average", load}, {"dir", base.string()}, {"report", a.report},
-              {"runs", rows}});
+              {"stream", a.stream}, {"runs", rows}});
   outputs.commit();
   return 0;
 }
@@ -244,6 +247,9 @@ CommandRegistration reg(94, [](CLI::App& app) {
   sub->add_option("--dir", args->dir, "Where the files are written (default: the temporary directory); removed after");
   sub->add_option("--solver", args->solver, "normal-equations or qp")->check(CLI::IsMember({"normal-equations", "qp"}))
       ->capture_default_str();
+  sub->add_option("--stream", args->stream, "optimize --stream: on (slab by slab from disk) or off (both fields "
+                  "loaded whole: the ratio to a read of the whole-volume path)")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
   sub->add_flag("--report", args->report, "Also write optimize's report (512x512 renderings of box-filtered copies)");
   add_json_option(sub, args->json, "the measurements");
   sub->callback([args] { exit_code() = run(*args); });
