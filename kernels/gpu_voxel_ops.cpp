@@ -64,25 +64,49 @@ double VoxelLoss::mae() const {
   return (absolute[0] + absolute[1] + absolute[2] + absolute[3]) / (4.0 * double(voxels));
 }
 
-VoxelLoss voxel_loss_gpu(Context& ctx, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
-                         const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, double* gpu_ms) {
+namespace {
+
+// One or two losses (TFM_LOSS_SLOTS slots each) measured in one pass.
+std::vector<VoxelLoss> measure_voxel_losses(Context& ctx, const DeviceField& ref, const DeviceField& opt,
+                                            const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                            const Buffer& ref_tf, const Buffer& opt_tf,
+                                            const FieldMapping* before_map, double* gpu_ms) {
+  const size_t losses = before_map ? 2 : 1;
   VoxelLossKernel kernel(ctx);
-  Buffer accum(ctx, TFM_LOSS_SLOTS * 2 * sizeof(uint32_t), MemoryUsage::Device, "voxel loss accumulators");
+  Buffer accum(ctx, losses * TFM_LOSS_SLOTS * gpu::kFixedSlotBytes, MemoryUsage::Device, "voxel loss accumulators");
   CommandBatch batch(ctx);
   batch.fill(accum, 0u);
   batch.barrier();
   uint32_t t0 = batch.timestamp();
-  kernel.record(batch, ref, opt, ref_map, opt_map, ref_tf, opt_tf, accum);
+  kernel.record(batch, ref, opt, ref_map, opt_map, ref_tf, opt_tf, accum, before_map);
   uint32_t t1 = batch.timestamp();
   batch.submit_and_wait();
   if (gpu_ms) *gpu_ms = batch.elapsed_ms(t0, t1);
-  std::vector<uint32_t> words(TFM_LOSS_SLOTS * 2);
+  std::vector<uint32_t> words(losses * TFM_LOSS_SLOTS * TFM_FIXED_SLOT_WORDS);
   readback(ctx, accum, words.data(), words.size() * sizeof(uint32_t));
-  std::vector<double> s = decode_fixed_point(words);
-  VoxelLoss loss;
-  for (int c = 0; c < 4; ++c) loss.squared[c] = s[c], loss.absolute[c] = s[4 + c];
-  loss.voxels = static_cast<uint64_t>(std::llround(s[8]));
-  return loss;
+  const std::vector<double> s = decode_fixed_point(words);
+  std::vector<VoxelLoss> out(losses);
+  for (size_t l = 0; l < losses; ++l) {
+    const double* slots = s.data() + l * TFM_LOSS_SLOTS;
+    for (int c = 0; c < 4; ++c) out[l].squared[c] = slots[c], out[l].absolute[c] = slots[4 + c];
+    out[l].voxels = static_cast<uint64_t>(std::llround(slots[8]));
+  }
+  return out;
+}
+
+}  // namespace
+
+VoxelLoss voxel_loss_gpu(Context& ctx, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
+                         const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, double* gpu_ms) {
+  return measure_voxel_losses(ctx, ref, opt, ref_map, opt_map, ref_tf, opt_tf, nullptr, gpu_ms)[0];
+}
+
+VoxelLosses voxel_losses_gpu(Context& ctx, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
+                             const FieldMapping& before_map, const FieldMapping& opt_map, const Buffer& ref_tf,
+                             const Buffer& opt_tf, double* gpu_ms) {
+  const std::vector<VoxelLoss> l =
+      measure_voxel_losses(ctx, ref, opt, ref_map, opt_map, ref_tf, opt_tf, &before_map, gpu_ms);
+  return {l[1], l[0]};
 }
 
 VoxelLoss voxel_loss_from_system(const NormalEquations& eq, std::span<const float> rgba) {

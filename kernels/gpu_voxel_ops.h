@@ -56,6 +56,16 @@ VoxelLoss voxel_loss_gpu(Context& ctx, const DeviceField& ref, const DeviceField
                          const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf,
                          double* gpu_ms = nullptr);
 
+// The voxel losses of a fit, both in one pass over the voxels: `before`, the second field shown
+// with the reference TF (`before_map` maps it onto the reference TF's entries), and `after`, with
+// `opt_tf` through `opt_map`. Each is what voxel_loss_gpu() gives, bit for bit.
+struct VoxelLosses {
+  VoxelLoss before, after;
+};
+VoxelLosses voxel_losses_gpu(Context& ctx, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
+                             const FieldMapping& before_map, const FieldMapping& opt_map, const Buffer& ref_tf,
+                             const Buffer& opt_tf, double* gpu_ms = nullptr);
+
 // The voxel loss of the TF `rgba` (N entries as 4N floats, the values the kernels read) from the
 // assembled system alone: per channel ||S x - b||^2 = x^T M x - 2 x^T S^T b + b^T b, no pass over
 // the voxels. Absolute differences do not follow from M: they are NaN. Throws

@@ -19,7 +19,8 @@ constexpr auto kAssembleBindingCounts =
                          TFM_ASSEMBLE_BINDING_ACCUM, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS});
 constexpr auto kLossBindingCounts =
     gpu::binding_counts({TFM_LOSS_BINDING_REF_FIELD, TFM_LOSS_BINDING_OPT_FIELD, TFM_LOSS_BINDING_REF_TF,
-                         TFM_LOSS_BINDING_OPT_TF, TFM_LOSS_BINDING_ACCUM});
+                         TFM_LOSS_BINDING_OPT_TF, TFM_LOSS_BINDING_ACCUM, TFM_LOSS_BINDING_REF_QUADS,
+                         TFM_LOSS_BINDING_OPT_QUADS});
 }  // namespace
 
 gpu::VoxelPairPush make_voxel_pair_push(const FieldMapping& ref, const FieldMapping& opt) {
@@ -165,29 +166,76 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
   }
 }
 
-VoxelLossKernel::VoxelLossKernel(Context& ctx) : ctx_(ctx) {
+VoxelLossKernel::VoxelLossKernel(Context& ctx, uint64_t range_quads, uint32_t workgroup_size)
+    : ctx_(ctx),
+      range_quads_(texel_range_quads(ctx, range_quads, "voxel_loss")),
+      workgroup_size_(workgroup_size       ? workgroup_size
+                      : is_cpu_device(ctx) ? std::clamp<uint32_t>(ctx.subgroup_size(), 1, ctx.limits().maxComputeWorkGroupSize[0])
+                                           : TFM_VOXEL_WORKGROUP) {
+  // Whole subgroups: the lanes of quad_segments.glsl stride by the subgroup size.
+  if (workgroup_size_ > ctx.limits().maxComputeWorkGroupSize[0] || workgroup_size_ % ctx.subgroup_size() != 0)
+    throw std::invalid_argument("voxel_loss: workgroup size " + std::to_string(workgroup_size_) + " is not a multiple of "
+                                "the subgroup size " + std::to_string(ctx.subgroup_size()) + " within the device's " +
+                                std::to_string(ctx.limits().maxComputeWorkGroupSize[0]));
+}
+
+uint32_t VoxelLossKernel::groups(uint64_t voxels) const {
+  if (workgroup_size_ == TFM_VOXEL_WORKGROUP) return voxel_groups(ctx_, voxels);
+  // Small groups (a CPU device): lanes of about kCpuLaneVoxels voxels, but at least
+  // kPrivateMinGroups groups of 64 voxels per lane where the range has them, for every core.
+  const uint64_t lane_groups = voxels / (uint64_t(workgroup_size_) * kCpuLaneVoxels);
+  const uint64_t spread = std::min<uint64_t>(kPrivateMinGroups, voxels / (uint64_t(workgroup_size_) * 64));
+  return static_cast<uint32_t>(
+      std::clamp<uint64_t>(std::max(lane_groups, spread), 1, ctx_.limits().maxComputeWorkGroupCount[0]));
+}
+
+VoxelLossKernel::~VoxelLossKernel() = default;
+
+const ComputePipeline& VoxelLossKernel::pipeline(bool with_before) const {
+  std::unique_ptr<ComputePipeline>& p = pipelines_[with_before ? 1 : 0];
+  if (p) return *p;
   PipelineDesc desc;
   desc.shader = "voxel_loss";
   desc.binding_counts = gpu::to_vector(kLossBindingCounts);
+  desc.binding_kinds.assign(desc.binding_counts.size(), DescriptorKind::UniformTexelBuffer);
+  for (uint32_t b : {TFM_LOSS_BINDING_REF_FIELD, TFM_LOSS_BINDING_OPT_FIELD, TFM_LOSS_BINDING_ACCUM})
+    desc.binding_kinds[b] = DescriptorKind::StorageBuffer;
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
-  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP}});
+  desc.workgroup_size = workgroup_size_;
+  desc.specialization =
+      gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_}, {TFM_LOSS_SPEC_WITH_BEFORE, with_before ? 1u : 0u}});
   desc.spirv = shader_spirv(desc.shader);
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+  p = std::make_unique<ComputePipeline>(ctx_, desc);
+  return *p;
 }
 
 void VoxelLossKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
                              const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
-                             const Buffer& opt_tf, Buffer& accum) const {
+                             const Buffer& opt_tf, Buffer& accum, const FieldMapping* before_map) const {
   check_pair(ref, opt);
-  if (accum.size() < TFM_LOSS_SLOTS * gpu::kFixedSlotBytes)
+  if (accum.size() < (before_map ? 2 : 1) * TFM_LOSS_SLOTS * gpu::kFixedSlotBytes)
     throw std::invalid_argument("voxel loss: accumulator too small");
+  if (ref_tf.size() < uint64_t(ref_map.tf_size) * 16 || opt_tf.size() < uint64_t(opt_map.tf_size) * 16)
+    throw std::invalid_argument("voxel loss: a TF buffer holds fewer entries than its mapping");
+  const Binding rtf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
+  const Binding otf = Binding::texels(opt_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(opt_map.tf_size) * 16);
   gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
-  for (size_t c = 0; c < ref.chunk_count(); ++c) {
-    push.voxel_count = static_cast<uint32_t>(ref.chunk_size(c));
-    batch.dispatch(*pipeline_, {ref.chunk(c), opt.chunk(c), ref_tf, opt_tf, accum}, push,
-                   {voxel_groups(ctx_, ref.chunk_size(c))});
-    // Successive chunks add into the same accumulators.
+  if (before_map) {
+    if (before_map->tf_size != ref_map.tf_size)
+      throw std::invalid_argument("voxel loss: the before mapping must map onto the reference TF's entries");
+    push.before_lo = before_map->lo;
+    push.before_scale = before_map->scale;
+  }
+  const ComputePipeline& pipe = pipeline(before_map != nullptr);
+  for (const QuadRange& r : quad_ranges(ref, range_quads_)) {
+    push.voxel_count = static_cast<uint32_t>(r.voxels);
+    push.first_voxel = static_cast<uint32_t>(r.first);
+    batch.dispatch(pipe,
+                   {ref.chunk(r.chunk), opt.chunk(r.chunk), rtf, otf, accum,
+                    Binding::texels(ref.chunk(r.chunk), r.format, r.first * 4, r.bytes),
+                    Binding::texels(opt.chunk(r.chunk), r.format, r.first * 4, r.bytes)},
+                   push, {groups(r.voxels)});
+    // Successive ranges add into the same accumulators.
     batch.barrier();
   }
 }

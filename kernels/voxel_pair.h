@@ -64,16 +64,31 @@ std::vector<AssembleNormalEquationsKernel::TermPass> assemble_term_passes(Reduct
                                                                           uint32_t slots = kPrivateHistogramSlots);
 
 // Adds per-channel sums of squared and absolute colour differences and the voxel count to a
-// TFM_LOSS_SLOTS-slot fixed-point accumulator.
+// TFM_LOSS_SLOTS-slot fixed-point accumulator; with `before_map` (the second field mapped onto
+// the reference TF's entries) also the loss before optimization, in the same pass, to slots
+// TFM_LOSS_SLOTS.. 2 TFM_LOSS_SLOTS - 1. Dispatches per range of at most `range_quads` quads
+// (texel_range_quads). Workgroups of `workgroup_size` invocations, a multiple of the subgroup
+// size (std::invalid_argument otherwise); 0: TFM_VOXEL_WORKGROUP, but
+// one subgroup on a CPU device, which runs a workgroup on one thread and its invocations as
+// coroutines between barriers (lavapipe, 41.5 M voxels, both losses: 0.41 s in groups of 256,
+// 0.19-0.21 s in groups of 8). Every choice gives the same bits (tests force splits and sizes).
 class VoxelLossKernel {
  public:
-  explicit VoxelLossKernel(Context& ctx);
+  explicit VoxelLossKernel(Context& ctx, uint64_t range_quads = 0, uint32_t workgroup_size = 0);
+  ~VoxelLossKernel();
   void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
-              const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, Buffer& accum) const;
+              const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, Buffer& accum,
+              const FieldMapping* before_map = nullptr) const;
 
  private:
+  // Lanes of a small-workgroup dispatch cover about this many voxels (each adds its sums once).
+  static constexpr uint64_t kCpuLaneVoxels = 4096;
+  const ComputePipeline& pipeline(bool with_before) const;  // compiled on first use
+  uint32_t groups(uint64_t voxels) const;                   // per dispatch over `voxels`
   Context& ctx_;
-  std::unique_ptr<ComputePipeline> pipeline_;
+  uint64_t range_quads_;
+  uint32_t workgroup_size_;
+  mutable std::array<std::unique_ptr<ComputePipeline>, 2> pipelines_;
 };
 
 // Workgroups for a 1-D voxel kernel over `voxels` (each invocation loops over ~32 voxels).

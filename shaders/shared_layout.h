@@ -126,20 +126,27 @@ TFM_PUSH_CONSTANTS(VoxelPairPush) {
   float ref_scale;
   float opt_lo;
   float opt_scale;
-  float before_lo;    // assembly with WITH_BEFORE: the second field mapped onto the reference
-  float before_scale; // TF's entries
+  float before_lo;    // WITH_BEFORE (assembly, voxel loss): the second field mapped onto the
+  float before_scale; // reference TF's entries
 } TFM_PUSH_INSTANCE(pc);
 #endif
 
 // ---- voxel_loss.comp ----------------------------------------------------------------------
-// Specialization: workgroup size only. Accumulator slots (unsigned): sum of squared difference
-// per channel [0,4), sum of absolute difference per channel [4,8), voxel count [8].
+// Bindings: both fields as storage buffers (the range's last count % 4 voxels) and as uniform
+// texel buffers of RGBA32F quads over the dispatch's range, both TFs as texels, the accumulators.
+// Accumulator slots (unsigned) of one loss: sum of squared difference per channel [0,4), sum of
+// absolute difference per channel [4,8), voxel count [8]; with WITH_BEFORE the loss before
+// optimization follows in [9,18).
 #define TFM_LOSS_BINDING_REF_FIELD 0
 #define TFM_LOSS_BINDING_OPT_FIELD 1
 #define TFM_LOSS_BINDING_REF_TF 2
 #define TFM_LOSS_BINDING_OPT_TF 3
 #define TFM_LOSS_BINDING_ACCUM 4
+#define TFM_LOSS_BINDING_REF_QUADS 5
+#define TFM_LOSS_BINDING_OPT_QUADS 6
 #define TFM_LOSS_SLOTS 9u
+// Specialization: workgroup size (TFM_SPEC_WORKGROUP_X), then this.
+#define TFM_LOSS_SPEC_WITH_BEFORE 1  // 1: also the before loss (push: before_lo, before_scale)
 
 #ifdef __cplusplus
 // How a field maps to TF coordinates in float32, as tf_coordinate() of tf_common.glsl computes it:

@@ -75,32 +75,41 @@ std::string assemble_name(const AssembleCase& c) {
 // Bound per channel: each d is formed in float from values in [-0.1, 1.1] (two products and two
 // sums per colour, then a difference: < 6e-7), so d^2 moves by < 2 |d| 6e-7 + 2^-24 < 2e-6 and
 // |d| by < 1e-6; each term is truncated to 2^-32 in fixed point. The voxel count is exact.
-void voxel_loss(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels) {
+// With `before`, the pass that also measures the second field shown with the reference TF
+// (voxel_losses_gpu), each loss checked the same way.
+void voxel_loss(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels, bool before) {
   const uint32_t n = 23;
   const FieldPair p = random_pair(voxels, 77u + uint32_t(voxels), kOptRange, n);
   const TransferFunction ref_tf = random_tf(17, 5, -0.1, 1.1), opt_tf = random_tf(n, 6, -0.1, 1.1);
   const FieldMapping ref_map = make_mapping({0.0, 1.0}, 17), opt_map = make_mapping(kOptRange, n);
+  const FieldMapping before_map = make_mapping(kOptRange, 17);
   DeviceField ref(ctx, p.ref, "selftest reference", chunk_voxels), opt(ctx, p.opt, "selftest field", chunk_voxels);
   Buffer rtf = upload_tf(ctx, ref_tf, "selftest reference TF"), otf = upload_tf(ctx, opt_tf, "selftest TF");
-  const VoxelLoss g = voxel_loss_gpu(ctx, ref, opt, ref_map, opt_map, rtf, otf);
+  VoxelLosses g;
+  if (before) g = voxel_losses_gpu(ctx, ref, opt, ref_map, before_map, opt_map, rtf, otf);
+  else g.after = voxel_loss_gpu(ctx, ref, opt, ref_map, opt_map, rtf, otf);
   const std::vector<float> rf = ref_tf.as_floats(), of = opt_tf.as_floats();
-  double squared[4] = {0, 0, 0, 0}, absolute[4] = {0, 0, 0, 0};
-  uint64_t counted = 0;
-  for (size_t i = 0; i < voxels; ++i) {
-    double b[4], v[4];
-    if (!classify(rf, ref_map, p.ref[i], b) || !classify(of, opt_map, p.opt[i], v)) continue;
-    ++counted;
-    for (int ch = 0; ch < 4; ++ch) {
-      squared[ch] += (v[ch] - b[ch]) * (v[ch] - b[ch]);
-      absolute[ch] += std::abs(v[ch] - b[ch]);
+  auto expect = [&](const VoxelLoss& got, const std::vector<float>& tf, const FieldMapping& map, bool is_before) {
+    double squared[4] = {0, 0, 0, 0}, absolute[4] = {0, 0, 0, 0};
+    uint64_t counted = 0;
+    for (size_t i = 0; i < voxels; ++i) {
+      double b[4], v[4];
+      if (!classify(rf, ref_map, p.ref[i], b) || !classify(tf, map, p.opt[i], v)) continue;
+      ++counted;
+      for (int ch = 0; ch < 4; ++ch) {
+        squared[ch] += (v[ch] - b[ch]) * (v[ch] - b[ch]);
+        absolute[ch] += std::abs(v[ch] - b[ch]);
+      }
     }
-  }
-  check.equal("voxel count", 0, double(g.voxels), double(counted));
-  const double per_term = std::ldexp(1.0, -32) + 1e-12;
-  for (int ch = 0; ch < 4; ++ch) {
-    check.near("sum of squares, channel", ch, g.squared[ch], squared[ch], double(counted) * (2e-6 + per_term));
-    check.near("sum of |d|, channel", ch, g.absolute[ch], absolute[ch], double(counted) * (1e-6 + per_term));
-  }
+    check.equal(is_before ? "before: voxel count" : "voxel count", 0, double(got.voxels), double(counted));
+    const double per_term = std::ldexp(1.0, -32) + 1e-12;
+    for (int ch = 0; ch < 4; ++ch) {
+      check.near(is_before ? "before: sum of squares, channel" : "sum of squares, channel", ch, got.squared[ch], squared[ch], double(counted) * (2e-6 + per_term));
+      check.near(is_before ? "before: sum of |d|, channel" : "sum of |d|, channel", ch, got.absolute[ch], absolute[ch], double(counted) * (1e-6 + per_term));
+    }
+  };
+  expect(g.after, of, opt_map, false);
+  if (before) expect(g.before, rf, before_map, true);
 }
 
 // Reference residual || premul(T_r(F_r)) - premul(T_o(F_o)) ||_2. Bound (tests/
@@ -199,17 +208,21 @@ void add_voxel_cases(CaseList& cases) {
   add_assemble({300007, 1024, M::Private, AtomicWidth::Bits64}, false);
   add_assemble({100003, 64, M::Auto, AtomicWidth::Auto, 16384}, false);
 
-  auto add_loss = [&](size_t voxels, uint64_t chunk, bool quick) {
-    std::string name = voxels_name(voxels) + (chunk ? ", chunks of " + std::to_string(chunk) : "");
+  auto add_loss = [&](size_t voxels, uint64_t chunk, bool quick, bool before = false) {
+    std::string name = voxels_name(voxels) + (chunk ? ", chunks of " + std::to_string(chunk) : "") +
+                       (before ? ", before and after in one pass" : "");
     cases.push_back({"voxel_loss", "VoxelLossKernel", name, quick, TFM_VOXEL_WORKGROUP,
-                     [=](Context& ctx, Check& check) { voxel_loss(ctx, check, voxels, chunk); }});
+                     [=](Context& ctx, Check& check) { voxel_loss(ctx, check, voxels, chunk, before); }});
   };
   add_loss(1, 0, true);
   add_loss(13, 0, true);
   add_loss(past_group, 0, true);
   add_loss(5000, 1024, true);
+  add_loss(13, 0, true, true);
+  add_loss(5000, 1024, true, true);
   add_loss(100003, 0, false);
   add_loss(100003, 16384, false);
+  add_loss(100003, 16384, false, true);
 
   auto add_residual = [&](size_t voxels, uint64_t chunk, bool quick) {
     std::string name = voxels_name(voxels) + (chunk ? ", chunks of " + std::to_string(chunk) : "");

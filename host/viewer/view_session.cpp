@@ -324,15 +324,16 @@ uint64_t ViewSession::set_reference_tf(const ControlPointTf& points, bool reopti
     return start_job("optimize", [this, table, solver, settings] { optimize_job(table, solver, settings); });
   }
   // The optimized TF stays; what depends on the reference TF follows: both voxel losses (one pass
-  // each) and the residual maps.
+  // for both) and the residual maps.
   if (job_running_) throw ConflictError("a job is running: apply the reference TF when it ends");
   std::unique_lock device = lock_device_for_request();
   OptimizeResult r = result_;
   auto derived = derive(ref_, field_, table, r, derived_.get());
-  r.before = voxel_loss_gpu(ctx_, *derived->ref, *derived->field, derived->ref_map, derived->field_ref_map,
-                            *derived->ref_tf, *derived->ref_tf);
-  r.after = voxel_loss_gpu(ctx_, *derived->ref, *derived->field, derived->ref_map, derived->field_opt_map,
-                           *derived->ref_tf, *derived->opt_tf);
+  const VoxelLosses losses = voxel_losses_gpu(ctx_, *derived->ref, *derived->field, derived->ref_map,
+                                              derived->field_ref_map, derived->field_opt_map, *derived->ref_tf,
+                                              *derived->opt_tf);
+  r.before = losses.before;
+  r.after = losses.after;
   install(std::nullopt, table, std::move(r), std::move(derived), solver_, solver_settings_);
   return 0;
 }

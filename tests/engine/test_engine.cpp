@@ -53,18 +53,23 @@ TEST_F(EngineTest, DispatchChecksBindingsPushAndGroupLimits) {
   PipelineDesc desc;
   desc.shader = "voxel_loss";
   desc.spirv = shader_spirv(desc.shader);
-  desc.binding_counts = {1, 1, 1, 1, 1};
+  desc.binding_counts = {1, 1, 1, 1, 1, 1, 1};
+  desc.binding_kinds = {DescriptorKind::StorageBuffer,      DescriptorKind::StorageBuffer,
+                        DescriptorKind::UniformTexelBuffer, DescriptorKind::UniformTexelBuffer,
+                        DescriptorKind::StorageBuffer,      DescriptorKind::UniformTexelBuffer,
+                        DescriptorKind::UniformTexelBuffer};
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.specialization = {TFM_VOXEL_WORKGROUP};
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
   ComputePipeline pipe(ctx(), desc);
   Buffer b(ctx(), 256, MemoryUsage::Device, "b");
+  const Binding t = Binding::texels(b, VK_FORMAT_R32G32B32A32_SFLOAT, 0, 256);
   gpu::VoxelPairPush push{};
   {
     CommandBatch batch(ctx());
-    EXPECT_THROW(batch.dispatch(pipe, {b, b, b, b}, push, {1}), std::logic_error);
-    EXPECT_THROW(batch.dispatch(pipe, {b, b, b, b, b}, &push, 4, {1}), std::logic_error);
-    EXPECT_THROW(batch.dispatch(pipe, {b, b, b, b, b}, push, {ctx().limits().maxComputeWorkGroupCount[0] + 1u}),
+    EXPECT_THROW(batch.dispatch(pipe, {b, b, t, t, b, t}, push, {1}), std::logic_error);
+    EXPECT_THROW(batch.dispatch(pipe, {b, b, t, t, b, t, t}, &push, 4, {1}), std::logic_error);
+    EXPECT_THROW(batch.dispatch(pipe, {b, b, t, t, b, t, t}, push, {ctx().limits().maxComputeWorkGroupCount[0] + 1u}),
                  std::runtime_error);
   }
   PipelineDesc too_big = desc;

@@ -345,6 +345,82 @@ TEST_F(AssemblyTest, LossFromSystemEqualsDirectVoxelLoss) {
   EXPECT_THROW(voxel_loss_from_system(eq, std::vector<float>(4 * (n + 1), 0.5f)), std::invalid_argument);
 }
 
+// The voxel-loss kernel: its fixed-point words are the same for every workgroup size, range
+// split and chunking; with a before mapping the one pass gives, in its two halves, the words of
+// the two single-loss passes (after, then before); and the sums match the double loop.
+TEST_F(AssemblyTest, VoxelLossesInOnePassAreTheSingleLossesBitForBit) {
+  const uint32_t n = 23;
+  const Pair p = random_pair(20011, 41, n);  // 20011 % 4 = 3: a tail of storage-buffer voxels
+  const TransferFunction ref_tf = random_tf(9, 42, -0.1, 1.1), opt_tf = random_tf(n, 43, -0.1, 1.1);
+  const FieldMapping rm = make_mapping({0.0, 1.0}, 9), om = make_mapping({3.0, 8.0}, n);
+  const FieldMapping bm = make_mapping({3.0, 8.0}, 9);  // the second field onto the reference TF
+  Buffer rtf = upload_tf(ctx(), ref_tf, "ref tf"), otf = upload_tf(ctx(), opt_tf, "opt tf");
+  auto words = [&](const DeviceField& ref, const DeviceField& opt, uint64_t range_quads, uint32_t workgroup,
+                   const FieldMapping& map, const Buffer& tf, const FieldMapping* before) {
+    const VoxelLossKernel kernel(ctx(), range_quads, workgroup);
+    const size_t slots = (before ? 2 : 1) * TFM_LOSS_SLOTS;
+    Buffer accum(ctx(), slots * 8, MemoryUsage::Device, "loss words");
+    CommandBatch batch(ctx());
+    batch.fill(accum, 0u);
+    batch.barrier();
+    kernel.record(batch, ref, opt, rm, map, rtf, tf, accum, before);
+    batch.submit_and_wait();
+    std::vector<uint32_t> w(slots * 2);
+    readback(ctx(), accum, w.data(), w.size() * sizeof(uint32_t));
+    return w;
+  };
+  const DeviceField ref(ctx(), p.ref, "ref"), opt(ctx(), p.opt, "opt");
+  const std::vector<uint32_t> after = words(ref, opt, 0, 0, om, otf, nullptr);
+  const std::vector<uint32_t> before = words(ref, opt, 0, 0, bm, rtf, nullptr);
+  std::vector<uint32_t> both = after;
+  both.insert(both.end(), before.begin(), before.end());
+  EXPECT_EQ(words(ref, opt, 0, 0, om, otf, &bm), both);
+  const DeviceField ref_chunks(ctx(), p.ref, "ref", 4096), opt_chunks(ctx(), p.opt, "opt", 4096);
+  for (uint32_t workgroup : {ctx().subgroup_size(), 2 * ctx().subgroup_size(), uint32_t(TFM_VOXEL_WORKGROUP)})
+    for (uint64_t range_quads : {uint64_t(0), uint64_t(64), uint64_t(704)}) {
+      SCOPED_TRACE("workgroup " + std::to_string(workgroup) + ", ranges of " + std::to_string(range_quads) + " quads");
+      EXPECT_EQ(words(ref, opt, range_quads, workgroup, om, otf, &bm), both);
+      EXPECT_EQ(words(ref_chunks, opt_chunks, range_quads, workgroup, om, otf, &bm), both);
+    }
+  // voxel_losses_gpu is the same pass, voxel_loss_gpu the single one.
+  const VoxelLosses l = voxel_losses_gpu(ctx(), ref, opt, rm, bm, om, rtf, otf);
+  const VoxelLoss single = voxel_loss_gpu(ctx(), ref, opt, rm, om, rtf, otf);
+  EXPECT_EQ(l.after.squared, single.squared);
+  EXPECT_EQ(l.after.absolute, single.absolute);
+  EXPECT_EQ(l.after.voxels, single.voxels);
+  // Against the double loop: d of floats in [-0.1, 1.1] moves by < 6e-7, d^2 by < 2e-6, and
+  // each term is truncated to 2^-32.
+  const std::vector<float> r = ref_tf.as_floats(), o = opt_tf.as_floats();
+  std::array<double, 4> sq_after{}, abs_after{}, sq_before{}, abs_before{};
+  uint64_t counted = 0;
+  for (size_t i = 0; i < p.ref.size(); ++i) {
+    uint32_t jr, jo, jb;
+    float wr, wo, wb;
+    if (!tf_coordinate(p.ref[i], rm, jr, wr) || !tf_coordinate(p.opt[i], om, jo, wo)) continue;
+    tf_coordinate(p.opt[i], bm, jb, wb);
+    ++counted;
+    for (int c = 0; c < 4; ++c) {
+      const double b = std::clamp((1.0 - wr) * r[4 * jr + c] + double(wr) * r[4 * (jr + 1) + c], 0.0, 1.0);
+      const double va = std::clamp((1.0 - wo) * o[4 * jo + c] + double(wo) * o[4 * (jo + 1) + c], 0.0, 1.0);
+      const double vb = std::clamp((1.0 - wb) * r[4 * jb + c] + double(wb) * r[4 * (jb + 1) + c], 0.0, 1.0);
+      sq_after[c] += (va - b) * (va - b), abs_after[c] += std::abs(va - b);
+      sq_before[c] += (vb - b) * (vb - b), abs_before[c] += std::abs(vb - b);
+    }
+  }
+  ASSERT_EQ(l.after.voxels, counted);
+  ASSERT_EQ(l.before.voxels, counted);
+  const double term = std::ldexp(1.0, -32);
+  for (int c = 0; c < 4; ++c) {
+    EXPECT_NEAR(l.after.squared[c], sq_after[c], double(counted) * (2e-6 + term)) << "channel " << c;
+    EXPECT_NEAR(l.after.absolute[c], abs_after[c], double(counted) * (1e-6 + term)) << "channel " << c;
+    EXPECT_NEAR(l.before.squared[c], sq_before[c], double(counted) * (2e-6 + term)) << "channel " << c;
+    EXPECT_NEAR(l.before.absolute[c], abs_before[c], double(counted) * (1e-6 + term)) << "channel " << c;
+  }
+  const FieldMapping wrong = make_mapping({3.0, 8.0}, 5);  // not the reference TF's size
+  EXPECT_THROW(voxel_losses_gpu(ctx(), ref, opt, rm, wrong, om, rtf, otf), std::invalid_argument);
+  if (ctx().subgroup_size() > 1) EXPECT_THROW(VoxelLossKernel(ctx(), 0, ctx().subgroup_size() + 1), std::invalid_argument);
+}
+
 // splitmix64: a cheap, reproducible stream for generating a large field chunk by chunk.
 uint64_t splitmix(uint64_t x) {
   x += 0x9E3779B97F4A7C15ull;
