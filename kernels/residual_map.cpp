@@ -15,16 +15,24 @@ namespace {
 // Bindings in the order record() lists its buffers.
 constexpr auto kResidualBindingCounts =
     gpu::binding_counts({TFM_RESIDUAL_BINDING_REF_FIELD, TFM_RESIDUAL_BINDING_OPT_FIELD, TFM_RESIDUAL_BINDING_REF_TF,
-                         TFM_RESIDUAL_BINDING_OPT_TF, TFM_RESIDUAL_BINDING_OUT});
+                         TFM_RESIDUAL_BINDING_OPT_TF, TFM_RESIDUAL_BINDING_OUT, TFM_RESIDUAL_BINDING_REF_QUADS,
+                         TFM_RESIDUAL_BINDING_OPT_QUADS, TFM_RESIDUAL_BINDING_OUT_QUADS});
 }  // namespace
 
-ResidualMapKernel::ResidualMapKernel(Context& ctx) : ctx_(ctx) {
+ResidualMapKernel::ResidualMapKernel(Context& ctx, uint64_t range_quads, uint32_t workgroup_size)
+    : ctx_(ctx),
+      range_quads_(texel_range_quads(ctx, range_quads, "residual_map")),
+      workgroup_size_(lane_workgroup_size(ctx, workgroup_size, "residual_map")) {
   PipelineDesc desc;
   desc.shader = "residual_map";
   desc.binding_counts = gpu::to_vector(kResidualBindingCounts);
+  desc.binding_kinds.assign(desc.binding_counts.size(), DescriptorKind::UniformTexelBuffer);
+  for (uint32_t b : {TFM_RESIDUAL_BINDING_REF_FIELD, TFM_RESIDUAL_BINDING_OPT_FIELD, TFM_RESIDUAL_BINDING_OUT,
+                     TFM_RESIDUAL_BINDING_OUT_QUADS})
+    desc.binding_kinds[b] = DescriptorKind::StorageBuffer;
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
-  desc.workgroup_size = TFM_RESIDUAL_WORKGROUP;
-  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_RESIDUAL_WORKGROUP}});
+  desc.workgroup_size = workgroup_size_;
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -37,12 +45,18 @@ void ResidualMapKernel::record(CommandBatch& batch, const DeviceField& ref, cons
       throw std::invalid_argument("residual map: fields differ in size or chunking");
   if (ref_tf.size() < uint64_t(ref_map.tf_size) * 16 || opt_tf.size() < uint64_t(opt_map.tf_size) * 16)
     throw std::invalid_argument("residual map: TF buffer smaller than its mapping's size");
+  const Binding rtf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
+  const Binding otf = Binding::texels(opt_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(opt_map.tf_size) * 16);
   gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
-  for (size_t c = 0; c < ref.chunk_count(); ++c) {
-    push.voxel_count = static_cast<uint32_t>(ref.chunk_size(c));
-    // Chunks write disjoint buffers: no barrier between them.
-    batch.dispatch(*pipeline_, {ref.chunk(c), opt.chunk(c), ref_tf, opt_tf, out.chunk(c)}, push,
-                   {voxel_groups(ctx_, ref.chunk_size(c))});
+  for (const QuadRange& r : quad_ranges(ref, range_quads_)) {
+    push.voxel_count = static_cast<uint32_t>(r.voxels);
+    push.first_voxel = static_cast<uint32_t>(r.first);
+    // Ranges write disjoint voxels: no barrier between them.
+    batch.dispatch(*pipeline_,
+                   {ref.chunk(r.chunk), opt.chunk(r.chunk), rtf, otf, out.chunk(r.chunk),
+                    Binding::texels(ref.chunk(r.chunk), r.format, r.first * 4, r.bytes),
+                    Binding::texels(opt.chunk(r.chunk), r.format, r.first * 4, r.bytes), out.chunk(r.chunk)},
+                   push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
   }
 }
 

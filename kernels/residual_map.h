@@ -16,14 +16,18 @@ class Context;
 
 class ResidualMapKernel {
  public:
-  explicit ResidualMapKernel(Context& ctx);
-  // Records one dispatch per chunk. `ref_map`/`opt_map` carry each TF's size. Throws
+  // Dispatches per range of at most `range_quads` quads (texel_range_quads) in workgroups of
+  // lane_workgroup_size(ctx, workgroup_size) (voxel_pair.h); tests force both.
+  explicit ResidualMapKernel(Context& ctx, uint64_t range_quads = 0, uint32_t workgroup_size = 0);
+  // Records one dispatch per range. `ref_map`/`opt_map` carry each TF's size. Throws
   // std::invalid_argument when the three fields differ in size or chunking.
   void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
               const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, DeviceField& out) const;
 
  private:
   Context& ctx_;
+  uint64_t range_quads_;
+  uint32_t workgroup_size_;
   std::unique_ptr<ComputePipeline> pipeline_;
 };
 

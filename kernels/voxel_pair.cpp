@@ -41,6 +41,24 @@ uint32_t voxel_groups(const Context& ctx, uint64_t voxels) {
   return static_cast<uint32_t>(std::clamp<uint64_t>(groups, 1, ctx.limits().maxComputeWorkGroupCount[0]));
 }
 
+uint32_t lane_workgroup_size(const Context& ctx, uint32_t requested, const char* kernel) {
+  const uint32_t limit = ctx.limits().maxComputeWorkGroupSize[0], subgroup = std::max(1u, ctx.subgroup_size());
+  const uint32_t size = requested ? requested : is_cpu_device(ctx) ? std::min(subgroup, limit) : TFM_VOXEL_WORKGROUP;
+  if (size == 0 || size > limit || size % subgroup != 0)
+    throw std::invalid_argument(std::string(kernel) + ": workgroup size " + std::to_string(size) +
+                                " is not a multiple of the subgroup size " + std::to_string(subgroup) +
+                                " within the device's " + std::to_string(limit));
+  return size;
+}
+
+uint32_t lane_groups(const Context& ctx, uint32_t workgroup_size, uint64_t voxels) {
+  if (workgroup_size == TFM_VOXEL_WORKGROUP) return voxel_groups(ctx, voxels);
+  const uint64_t long_lanes = voxels / (uint64_t(workgroup_size) * kLaneVoxels);
+  const uint64_t spread = std::min<uint64_t>(kPrivateMinGroups, voxels / (uint64_t(workgroup_size) * 64));
+  return static_cast<uint32_t>(
+      std::clamp<uint64_t>(std::max(long_lanes, spread), 1, ctx.limits().maxComputeWorkGroupCount[0]));
+}
+
 uint64_t texel_range_quads(const Context& ctx, uint64_t requested, const char* kernel) {
   if (requested % 64) throw std::invalid_argument(std::string(kernel) + ": range_quads must be a multiple of 64");
   return requested ? requested : std::max<uint64_t>(64, ctx.limits().maxTexelBufferElements / 64 * 64);
@@ -169,25 +187,7 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
 VoxelLossKernel::VoxelLossKernel(Context& ctx, uint64_t range_quads, uint32_t workgroup_size)
     : ctx_(ctx),
       range_quads_(texel_range_quads(ctx, range_quads, "voxel_loss")),
-      workgroup_size_(workgroup_size       ? workgroup_size
-                      : is_cpu_device(ctx) ? std::clamp<uint32_t>(ctx.subgroup_size(), 1, ctx.limits().maxComputeWorkGroupSize[0])
-                                           : TFM_VOXEL_WORKGROUP) {
-  // Whole subgroups: the lanes of quad_segments.glsl stride by the subgroup size.
-  if (workgroup_size_ > ctx.limits().maxComputeWorkGroupSize[0] || workgroup_size_ % ctx.subgroup_size() != 0)
-    throw std::invalid_argument("voxel_loss: workgroup size " + std::to_string(workgroup_size_) + " is not a multiple of "
-                                "the subgroup size " + std::to_string(ctx.subgroup_size()) + " within the device's " +
-                                std::to_string(ctx.limits().maxComputeWorkGroupSize[0]));
-}
-
-uint32_t VoxelLossKernel::groups(uint64_t voxels) const {
-  if (workgroup_size_ == TFM_VOXEL_WORKGROUP) return voxel_groups(ctx_, voxels);
-  // Small groups (a CPU device): lanes of about kCpuLaneVoxels voxels, but at least
-  // kPrivateMinGroups groups of 64 voxels per lane where the range has them, for every core.
-  const uint64_t lane_groups = voxels / (uint64_t(workgroup_size_) * kCpuLaneVoxels);
-  const uint64_t spread = std::min<uint64_t>(kPrivateMinGroups, voxels / (uint64_t(workgroup_size_) * 64));
-  return static_cast<uint32_t>(
-      std::clamp<uint64_t>(std::max(lane_groups, spread), 1, ctx_.limits().maxComputeWorkGroupCount[0]));
-}
+      workgroup_size_(lane_workgroup_size(ctx, workgroup_size, "voxel_loss")) {}
 
 VoxelLossKernel::~VoxelLossKernel() = default;
 
@@ -234,7 +234,7 @@ void VoxelLossKernel::record(CommandBatch& batch, const DeviceField& ref, const 
                    {ref.chunk(r.chunk), opt.chunk(r.chunk), rtf, otf, accum,
                     Binding::texels(ref.chunk(r.chunk), r.format, r.first * 4, r.bytes),
                     Binding::texels(opt.chunk(r.chunk), r.format, r.first * 4, r.bytes)},
-                   push, {groups(r.voxels)});
+                   push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
     // Successive ranges add into the same accumulators.
     batch.barrier();
   }

@@ -67,11 +67,8 @@ std::vector<AssembleNormalEquationsKernel::TermPass> assemble_term_passes(Reduct
 // TFM_LOSS_SLOTS-slot fixed-point accumulator; with `before_map` (the second field mapped onto
 // the reference TF's entries) also the loss before optimization, in the same pass, to slots
 // TFM_LOSS_SLOTS.. 2 TFM_LOSS_SLOTS - 1. Dispatches per range of at most `range_quads` quads
-// (texel_range_quads). Workgroups of `workgroup_size` invocations, a multiple of the subgroup
-// size (std::invalid_argument otherwise); 0: TFM_VOXEL_WORKGROUP, but
-// one subgroup on a CPU device, which runs a workgroup on one thread and its invocations as
-// coroutines between barriers (lavapipe, 41.5 M voxels, both losses: 0.41 s in groups of 256,
-// 0.19-0.21 s in groups of 8). Every choice gives the same bits (tests force splits and sizes).
+// (texel_range_quads) in workgroups of lane_workgroup_size(ctx, workgroup_size). Every choice
+// gives the same bits (tests force splits and sizes).
 class VoxelLossKernel {
  public:
   explicit VoxelLossKernel(Context& ctx, uint64_t range_quads = 0, uint32_t workgroup_size = 0);
@@ -81,10 +78,7 @@ class VoxelLossKernel {
               const FieldMapping* before_map = nullptr) const;
 
  private:
-  // Lanes of a small-workgroup dispatch cover about this many voxels (each adds its sums once).
-  static constexpr uint64_t kCpuLaneVoxels = 4096;
   const ComputePipeline& pipeline(bool with_before) const;  // compiled on first use
-  uint32_t groups(uint64_t voxels) const;                   // per dispatch over `voxels`
   Context& ctx_;
   uint64_t range_quads_;
   uint32_t workgroup_size_;
@@ -93,6 +87,19 @@ class VoxelLossKernel {
 
 // Workgroups for a 1-D voxel kernel over `voxels` (each invocation loops over ~32 voxels).
 uint32_t voxel_groups(const Context& ctx, uint64_t voxels);
+
+// Workgroup size of a quad kernel whose lanes each keep their own sums or write their own voxels
+// (voxel loss, residual map): `requested` if given, else one subgroup on a CPU device — which
+// runs a workgroup on one thread and its invocations as coroutines between barriers (lavapipe,
+// 41.5 M voxels, both voxel losses: 0.41 s in groups of 256, 0.19-0.21 s in groups of 8) — and
+// TFM_VOXEL_WORKGROUP elsewhere. Throws std::invalid_argument naming `kernel` unless the size is
+// a multiple of the subgroup size (quad_segments.glsl strides by it) within the device's limit.
+uint32_t lane_workgroup_size(const Context& ctx, uint32_t requested, const char* kernel);
+// Workgroups of `workgroup_size` for one dispatch over `voxels`: voxel_groups() at
+// TFM_VOXEL_WORKGROUP; smaller groups get lanes of about kLaneVoxels voxels, but at least
+// kPrivateMinGroups groups (lanes of 64 voxels or more) so that every core has work.
+inline constexpr uint64_t kLaneVoxels = 4096;
+uint32_t lane_groups(const Context& ctx, uint32_t workgroup_size, uint64_t voxels);
 
 // Kernels that read a chunk's voxels in quads, as RGBA32F texels (the assembly and its read
 // bound), dispatch once per range of at most `range_quads` quads: `requested` if given (a

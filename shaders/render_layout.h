@@ -106,14 +106,19 @@ TFM_PUSH_CONSTANTS(RenderPush) {
 #endif
 
 // ---- residual_map.comp ----------------------------------------------------------------------
-// 1-D over one chunk of voxels, push constants: VoxelPairPush (shared_layout.h), whose
-// `opt_*` fields describe the second field and its TF. Specialization: workgroup size only.
-#define TFM_RESIDUAL_WORKGROUP 256
+// 1-D over one range of a chunk's voxels (first_voxel, voxel_count), push constants:
+// VoxelPairPush (shared_layout.h), whose `opt_*` fields describe the second field and its TF.
+// Bindings: both fields as storage buffers (the range's last count % 4 voxels) and as uniform
+// texel buffers of RGBA32F quads over the range, both TFs as texels, the output chunk as floats
+// (the tail) and as vec4 quads. Specialization: workgroup size only.
 #define TFM_RESIDUAL_BINDING_REF_FIELD 0
 #define TFM_RESIDUAL_BINDING_OPT_FIELD 1
 #define TFM_RESIDUAL_BINDING_REF_TF 2
 #define TFM_RESIDUAL_BINDING_OPT_TF 3
 #define TFM_RESIDUAL_BINDING_OUT 4
+#define TFM_RESIDUAL_BINDING_REF_QUADS 5
+#define TFM_RESIDUAL_BINDING_OPT_QUADS 6
+#define TFM_RESIDUAL_BINDING_OUT_QUADS 7
 
 #ifdef __cplusplus
 }  // namespace tfm::gpu

@@ -226,12 +226,12 @@ void add_voxel_cases(CaseList& cases) {
 
   auto add_residual = [&](size_t voxels, uint64_t chunk, bool quick) {
     std::string name = voxels_name(voxels) + (chunk ? ", chunks of " + std::to_string(chunk) : "");
-    cases.push_back({"residual_map", "ResidualMapKernel", name, quick, TFM_RESIDUAL_WORKGROUP,
+    cases.push_back({"residual_map", "ResidualMapKernel", name, quick, TFM_VOXEL_WORKGROUP,
                      [=](Context& ctx, Check& check) { residual(ctx, check, voxels, chunk); }});
   };
   add_residual(1, 0, true);
   add_residual(13, 0, true);
-  add_residual(TFM_RESIDUAL_WORKGROUP + 1, 0, true);
+  add_residual(TFM_VOXEL_WORKGROUP + 1, 0, true);
   add_residual(5000, 1024, true);
   add_residual(100003, 0, false);
   add_residual(100003, 16384, false);
