@@ -13,8 +13,8 @@
 
 namespace tfm {
 
-static_assert(sizeof(gpu::PreparePush) == 32, "PreparePush must match the GLSL std430 block");
-static_assert(sizeof(gpu::SparsePush) == 8, "SparsePush must match the GLSL std430 block");
+static_assert(sizeof(gpu::PreparePush) == 36, "PreparePush must match the GLSL std430 block");
+static_assert(sizeof(gpu::SparsePush) == 12, "SparsePush must match the GLSL std430 block");
 static_assert(sizeof(gpu::CglsState) == 112, "CglsState must match the GLSL std430 struct");
 
 namespace {
@@ -23,13 +23,26 @@ constexpr uint64_t kRgbaBytes = 4 * sizeof(float);
 // Bindings in the order record() lists each kernel's buffers.
 constexpr auto kPrepareBindingCounts =
     gpu::binding_counts({TFM_PREPARE_BINDING_REF_FIELD, TFM_PREPARE_BINDING_OPT_FIELD, TFM_PREPARE_BINDING_REF_TF,
-                         TFM_PREPARE_BINDING_COORD, TFM_PREPARE_BINDING_RGBA});
+                         TFM_PREPARE_BINDING_COORD, TFM_PREPARE_BINDING_RGBA, TFM_PREPARE_BINDING_COORD_QUADS});
 constexpr auto kGatherBindingCounts =
     gpu::binding_counts({TFM_GATHER_BINDING_COORD, TFM_GATHER_BINDING_X, TFM_GATHER_BINDING_OUT,
-                         TFM_GATHER_BINDING_NORM, TFM_GATHER_BINDING_STATE});
+                         TFM_GATHER_BINDING_NORM, TFM_GATHER_BINDING_STATE, TFM_GATHER_BINDING_COORD_QUADS});
 constexpr auto kScatterBindingCounts =
     gpu::binding_counts({TFM_SCATTER_BINDING_COORD, TFM_SCATTER_BINDING_RESIDUAL, TFM_SCATTER_BINDING_P,
-                         TFM_SCATTER_BINDING_STATE, TFM_SCATTER_BINDING_ACCUM});
+                         TFM_SCATTER_BINDING_STATE, TFM_SCATTER_BINDING_ACCUM, TFM_SCATTER_BINDING_COORD_QUADS,
+                         TFM_SCATTER_BINDING_RESIDUAL_TEXELS});
+
+// Binding kinds: uniform texel buffers at `texels`, storage buffers elsewhere.
+std::vector<DescriptorKind> kinds_with_texels(size_t count, std::initializer_list<uint32_t> texels) {
+  std::vector<DescriptorKind> kinds(count, DescriptorKind::StorageBuffer);
+  for (uint32_t b : texels) kinds[b] = DescriptorKind::UniformTexelBuffer;
+  return kinds;
+}
+
+// A TF-sized vector (N RGBA entries) as texels.
+Binding tf_texels(const Buffer& b, uint32_t n) {
+  return Binding::texels(b, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(n) * kRgbaBytes);
+}
 }  // namespace
 
 VoxelVectors::VoxelVectors(Context& ctx, const DeviceField& ref, const DeviceField& opt, uint64_t max_chunk_voxels)
@@ -66,6 +79,12 @@ VoxelVectors::VoxelVectors(Context& ctx, const DeviceField& ref, const DeviceFie
 
 uint64_t VoxelVectors::chunk_size(size_t c) const { return std::min(chunk_voxels_, voxels_ - chunk_begin(c)); }
 
+std::vector<uint64_t> VoxelVectors::chunk_sizes() const {
+  std::vector<uint64_t> sizes(chunk_count());
+  for (size_t c = 0; c < sizes.size(); ++c) sizes[c] = chunk_size(c);
+  return sizes;
+}
+
 std::vector<float> VoxelVectors::read_coords(Context& ctx) const {
   std::vector<float> out(voxels_);
   for (size_t c = 0; c < chunk_count(); ++c)
@@ -80,13 +99,18 @@ std::vector<float> VoxelVectors::read_rgba(Context& ctx) const {
   return out;
 }
 
-SparsePrepareKernel::SparsePrepareKernel(Context& ctx) : ctx_(ctx) {
+SparsePrepareKernel::SparsePrepareKernel(Context& ctx, uint64_t range_quads, uint32_t workgroup_size)
+    : ctx_(ctx),
+      range_quads_(voxel_texel_range_quads(ctx, range_quads, "sparse_prepare")),
+      workgroup_size_(lane_workgroup_size(ctx, workgroup_size, "sparse_prepare")) {
   PipelineDesc desc;
   desc.shader = "sparse_prepare";
   desc.binding_counts = gpu::to_vector(kPrepareBindingCounts);
+  desc.binding_kinds = kinds_with_texels(desc.binding_counts.size(), {TFM_PREPARE_BINDING_REF_FIELD,
+                                                                      TFM_PREPARE_BINDING_OPT_FIELD, TFM_PREPARE_BINDING_REF_TF});
   desc.push_constant_bytes = sizeof(gpu::PreparePush);
-  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP}});
+  desc.workgroup_size = workgroup_size_;
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -96,6 +120,8 @@ void SparsePrepareKernel::record(CommandBatch& batch, const DeviceField& ref, co
                                  VoxelVectors& v) const {
   if (ref.voxel_count() != v.voxel_count() || opt.voxel_count() != v.voxel_count())
     throw std::invalid_argument("sparse_prepare: fields and voxel vectors differ in size");
+  if (ref_tf.size() < uint64_t(ref_map.tf_size) * kRgbaBytes)
+    throw std::invalid_argument("sparse_prepare: TF buffer smaller than its mapping's size");
   gpu::PreparePush push{};
   push.opt_tf_size = opt_map.tf_size;
   push.ref_tf_size = ref_map.tf_size;
@@ -103,23 +129,39 @@ void SparsePrepareKernel::record(CommandBatch& batch, const DeviceField& ref, co
   push.ref_scale = ref_map.scale;
   push.opt_lo = opt_map.lo;
   push.opt_scale = opt_map.scale;
-  for (size_t c = 0; c < v.chunk_count(); ++c) {
-    push.voxel_count = static_cast<uint32_t>(v.chunk_size(c));
-    push.field_offset = static_cast<uint32_t>(v.field_offset(c));
-    const size_t f = v.field_chunk(c);
-    batch.dispatch(*pipeline_, {ref.chunk(f), opt.chunk(f), ref_tf, v.coord(c), v.rgba(c)}, push,
-                   {voxel_groups(ctx_, v.chunk_size(c))});
+  const Binding tf = tf_texels(ref_tf, ref_map.tf_size);
+  const uint64_t align = ctx_.limits().minTexelBufferOffsetAlignment;
+  for (const QuadRange& r : quad_ranges(v.chunk_sizes(), range_quads_)) {
+    // The fields' views start at the alignment at or below the range's first voxel.
+    const uint64_t first = v.field_offset(r.chunk) + r.first, view = first * 4 / align * align;
+    push.voxel_count = static_cast<uint32_t>(r.voxels);
+    push.first_voxel = static_cast<uint32_t>(r.first);
+    push.field_shift = static_cast<uint32_t>(first - view / 4);
+    const uint64_t bytes = (push.field_shift + r.voxels) * 4;
+    const size_t f = v.field_chunk(r.chunk);
+    batch.dispatch(*pipeline_,
+                   {Binding::texels(ref.chunk(f), VK_FORMAT_R32_SFLOAT, view, bytes),
+                    Binding::texels(opt.chunk(f), VK_FORMAT_R32_SFLOAT, view, bytes), tf, v.coord(r.chunk),
+                    v.rgba(r.chunk), v.coord(r.chunk)},
+                   push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
   }
 }
 
-SparseGatherKernel::SparseGatherKernel(Context& ctx, bool write_out, bool accumulate_norm, bool scaled)
-    : ctx_(ctx), scaled_(scaled), dummy_state_(ctx, sizeof(gpu::CglsState), MemoryUsage::Device, "gather unused state") {
+SparseGatherKernel::SparseGatherKernel(Context& ctx, bool write_out, bool accumulate_norm, bool scaled,
+                                       uint64_t range_quads, uint32_t workgroup_size)
+    : ctx_(ctx),
+      scaled_(scaled),
+      range_quads_(texel_range_quads(ctx, range_quads, "sparse_gather")),
+      workgroup_size_(lane_workgroup_size(ctx, workgroup_size, "sparse_gather")),
+      dummy_state_(ctx, sizeof(gpu::CglsState), MemoryUsage::Device, "gather unused state") {
   PipelineDesc desc;
   desc.shader = "sparse_gather";
   desc.binding_counts = gpu::to_vector(kGatherBindingCounts);
+  desc.binding_kinds =
+      kinds_with_texels(desc.binding_counts.size(), {TFM_GATHER_BINDING_X, TFM_GATHER_BINDING_COORD_QUADS});
   desc.push_constant_bytes = sizeof(gpu::SparsePush);
-  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
+  desc.workgroup_size = workgroup_size_;
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_},
                                     {TFM_GATHER_SPEC_WRITE_OUT, write_out ? 1u : 0u},
                                     {TFM_GATHER_SPEC_ACCUMULATE_NORM, accumulate_norm ? 1u : 0u},
                                     {TFM_GATHER_SPEC_NORM_SCALED, scaled ? 1u : 0u}});
@@ -136,12 +178,16 @@ void SparseGatherKernel::record(CommandBatch& batch, VoxelVectors& v, uint32_t t
   if (scaled_ && (!state || state->size() < sizeof(gpu::CglsState)))
     throw std::invalid_argument("sparse_gather: the scaled norm needs the CGLS state");
   const Buffer& st = scaled_ ? *state : dummy_state_;
-  gpu::SparsePush push{0, tf_size};
-  for (size_t c = 0; c < v.chunk_count(); ++c) {
-    push.voxel_count = static_cast<uint32_t>(v.chunk_size(c));
-    batch.dispatch(*pipeline_, {v.coord(c), x, v.rgba(c), norm_accum, st}, push,
-                   {voxel_groups(ctx_, v.chunk_size(c))});
-    // Successive chunks add into the same accumulators.
+  const Binding xt = tf_texels(x, tf_size);
+  gpu::SparsePush push{0, tf_size, 0};
+  for (const QuadRange& r : quad_ranges(v.chunk_sizes(), range_quads_)) {
+    push.voxel_count = static_cast<uint32_t>(r.voxels);
+    push.first_voxel = static_cast<uint32_t>(r.first);
+    batch.dispatch(*pipeline_,
+                   {v.coord(r.chunk), xt, v.rgba(r.chunk), norm_accum, st,
+                    Binding::texels(v.coord(r.chunk), r.format, r.first * 4, r.bytes)},
+                   push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
+    // Successive ranges add into the same accumulators.
     batch.barrier();
   }
 }
@@ -160,15 +206,19 @@ std::vector<double> decode_signed_fixed_point(const std::vector<uint32_t>& words
   return totals.values();
 }
 
-SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool update_residual, ReductionOptions options)
+SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool update_residual, ReductionOptions options,
+                                         uint64_t range_quads)
     : ctx_(ctx),
       tf_size_(tf_size),
       update_(update_residual),
+      range_quads_(voxel_texel_range_quads(ctx, range_quads, "sparse_scatter")),  // r: a texel per voxel
       reduction_(Reduction::choose(ctx, "sparse_scatter", tf_size, signed_accumulator_bytes(tf_size), options)),
       dummy_p_(ctx, uint64_t(tf_size) * kRgbaBytes, MemoryUsage::Device, "scatter unused p"),
       dummy_state_(ctx, sizeof(gpu::CglsState), MemoryUsage::Device, "scatter unused state") {
   PipelineDesc desc =
       reduction_.pipeline_desc("sparse_scatter", gpu::to_vector(kScatterBindingCounts), sizeof(gpu::SparsePush));
+  desc.binding_kinds = kinds_with_texels(desc.binding_counts.size(), {TFM_SCATTER_BINDING_P, TFM_SCATTER_BINDING_COORD_QUADS,
+                                                                      TFM_SCATTER_BINDING_RESIDUAL_TEXELS});
   const bool shared = reduction_.mode == ReductionMode::RunsShared;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, reduction_.workgroup_size},
                                     {TFM_SCATTER_SPEC_MODE, reduction_.shader_mode()},
@@ -195,12 +245,18 @@ void SparseScatterKernel::record_chunks(CommandBatch& batch, VoxelVectors& v, co
                                         Buffer& accum) const {
   if (accum.size() < signed_accumulator_bytes(tf_size_))
     throw std::invalid_argument("sparse_scatter: accumulator buffer too small");
-  gpu::SparsePush push{0, tf_size_};
-  for (size_t c = 0; c < v.chunk_count(); ++c) {
-    push.voxel_count = static_cast<uint32_t>(v.chunk_size(c));
-    batch.dispatch(*pipeline_, {v.coord(c), v.rgba(c), p, state, accum}, push,
-                   {reduction_.groups(ctx_, v.chunk_size(c))});
-    // Successive chunks add into the same accumulators.
+  const Binding pt = tf_texels(p, tf_size_);
+  gpu::SparsePush push{0, tf_size_, 0};
+  for (const QuadRange& r : quad_ranges(v.chunk_sizes(), range_quads_)) {
+    push.voxel_count = static_cast<uint32_t>(r.voxels);
+    push.first_voxel = static_cast<uint32_t>(r.first);
+    batch.dispatch(*pipeline_,
+                   {v.coord(r.chunk), v.rgba(r.chunk), pt, state, accum,
+                    Binding::texels(v.coord(r.chunk), r.format, r.first * 4, r.bytes),
+                    Binding::texels(v.rgba(r.chunk), VK_FORMAT_R32G32B32A32_SFLOAT, r.first * kRgbaBytes,
+                                    r.voxels * kRgbaBytes)},
+                   push, {reduction_.groups(ctx_, r.voxels)});
+    // Successive ranges add into the same accumulators.
     batch.barrier();
   }
 }

@@ -33,6 +33,7 @@ class VoxelVectors {
   size_t chunk_count() const { return coord_.size(); }
   uint64_t chunk_begin(size_t c) const { return c * chunk_voxels_; }
   uint64_t chunk_size(size_t c) const;
+  std::vector<uint64_t> chunk_sizes() const;  // of every chunk, in order
   // The chunk of the input fields that holds chunk c, and c's first voxel inside it.
   size_t field_chunk(size_t c) const { return size_t(chunk_begin(c) / field_chunk_voxels_); }
   uint64_t field_offset(size_t c) const { return chunk_begin(c) % field_chunk_voxels_; }
@@ -53,24 +54,31 @@ class VoxelVectors {
 };
 
 // Writes coordinates and b = clamp(T_r(F_r), 0, 1) of every voxel (TFM_NO_DATA / 0 where either
-// field has no data).
+// field has no data). Dispatches per range of at most `range_quads` quads
+// (voxel_texel_range_quads) in workgroups of lane_workgroup_size(ctx, workgroup_size).
 class SparsePrepareKernel {
  public:
-  explicit SparsePrepareKernel(Context& ctx);
+  explicit SparsePrepareKernel(Context& ctx, uint64_t range_quads = 0, uint32_t workgroup_size = 0);
   void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
               const FieldMapping& opt_map, const Buffer& ref_tf, VoxelVectors& vectors) const;
 
  private:
   Context& ctx_;
+  uint64_t range_quads_;
+  uint32_t workgroup_size_;
   std::unique_ptr<ComputePipeline> pipeline_;
 };
 
 // q = S x (x: N RGBA entries). With `write_out` stores q in the vectors' RGBA chunks; with
 // `accumulate_norm` adds ||q_c||^2 to TFM_GATHER_NORM_SLOTS unsigned 32.32 slots, of q / p_scale
-// (from a CGLS state buffer) when `scaled`.
+// (from a CGLS state buffer) when `scaled` — and then does nothing once every channel of that
+// state has stopped. Dispatches per range of at most `range_quads` quads (texel_range_quads) in
+// workgroups of lane_workgroup_size(ctx, workgroup_size) (voxel_pair.h); every choice gives the
+// same bits (tests force them).
 class SparseGatherKernel {
  public:
-  SparseGatherKernel(Context& ctx, bool write_out, bool accumulate_norm, bool scaled = false);
+  SparseGatherKernel(Context& ctx, bool write_out, bool accumulate_norm, bool scaled = false, uint64_t range_quads = 0,
+                     uint32_t workgroup_size = 0);
   // `state` is required when scaled, ignored otherwise.
   void record(CommandBatch& batch, VoxelVectors& vectors, uint32_t tf_size, const Buffer& x, Buffer& norm_accum,
               const Buffer* state = nullptr) const;
@@ -78,17 +86,22 @@ class SparseGatherKernel {
  private:
   Context& ctx_;
   bool scaled_;
+  uint64_t range_quads_;
+  uint32_t workgroup_size_;
   std::unique_ptr<ComputePipeline> pipeline_;
   Buffer dummy_state_;
 };
 
 // s += S^T r, r = the vectors' RGBA chunks, into 4N signed slots (TFM_FIXED_SLOT_WORDS words each:
 // signed_accumulator_bytes(N)). With `update_residual` first r -= alpha (S p), alpha from the
-// CGLS state. The same bits for every ReductionOptions; throws as Reduction::choose when a
-// forced one does not fit the device.
+// CGLS state. Dispatches per range of at most `range_quads` quads (voxel_texel_range_quads: r is
+// read as a texel per voxel). The same bits for every
+// ReductionOptions and range split; throws as Reduction::choose when a forced one does not fit
+// the device.
 class SparseScatterKernel {
  public:
-  SparseScatterKernel(Context& ctx, uint32_t tf_size, bool update_residual, ReductionOptions options = {});
+  SparseScatterKernel(Context& ctx, uint32_t tf_size, bool update_residual, ReductionOptions options = {},
+                      uint64_t range_quads = 0);
   ReductionMode mode() const { return reduction_.mode; }
   bool int64_atomics() const { return reduction_.int64; }
   // Plain S^T r.
@@ -103,6 +116,7 @@ class SparseScatterKernel {
   Context& ctx_;
   uint32_t tf_size_;
   bool update_;
+  uint64_t range_quads_;
   Reduction reduction_;
   std::unique_ptr<ComputePipeline> pipeline_;
   Buffer dummy_p_, dummy_state_;

@@ -64,10 +64,26 @@ uint64_t texel_range_quads(const Context& ctx, uint64_t requested, const char* k
   return requested ? requested : std::max<uint64_t>(64, ctx.limits().maxTexelBufferElements / 64 * 64);
 }
 
+uint64_t voxel_texel_range_quads(const Context& ctx, uint64_t requested, const char* kernel) {
+  const uint64_t texels = ctx.limits().maxTexelBufferElements;
+  const uint64_t limit = std::max<uint64_t>(64, (texels - std::min<uint64_t>(texels, 64)) / 4 / 64 * 64);
+  const uint64_t quads = requested ? texel_range_quads(ctx, requested, kernel) : limit;
+  if (quads > limit)
+    throw std::invalid_argument(std::string(kernel) + ": ranges of " + std::to_string(quads) + " quads exceed the device's " +
+                                std::to_string(texels) + " texels");
+  return quads;
+}
+
 std::vector<QuadRange> quad_ranges(const DeviceField& field, uint64_t range_quads) {
+  std::vector<uint64_t> sizes(field.chunk_count());
+  for (size_t c = 0; c < sizes.size(); ++c) sizes[c] = field.chunk_size(c);
+  return quad_ranges(sizes, range_quads);
+}
+
+std::vector<QuadRange> quad_ranges(std::span<const uint64_t> chunk_voxels, uint64_t range_quads) {
   std::vector<QuadRange> out;
-  for (size_t c = 0; c < field.chunk_count(); ++c) {
-    const uint64_t chunk = field.chunk_size(c);
+  for (size_t c = 0; c < chunk_voxels.size(); ++c) {
+    const uint64_t chunk = chunk_voxels[c];
     for (uint64_t first = 0; first < chunk; first += 4 * range_quads) {
       QuadRange r;
       r.chunk = c;

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
 #include <vector>
 #include <memory>
 
@@ -107,6 +108,10 @@ uint32_t lane_groups(const Context& ctx, uint32_t workgroup_size, uint64_t voxel
 // maxTexelBufferElements rounded down to 64, so ranges start at multiples of 1024 bytes (every
 // device's minTexelBufferOffsetAlignment is at most 256).
 uint64_t texel_range_quads(const Context& ctx, uint64_t requested, const char* kernel);
+// The same for kernels that see a voxel as one texel (an RGBA vector per voxel, or a field viewed
+// from up to 64 texels before the range to meet the offset alignment): ranges of at most
+// maxTexelBufferElements - 64 voxels; a `requested` beyond that also throws.
+uint64_t voxel_texel_range_quads(const Context& ctx, uint64_t requested, const char* kernel);
 struct QuadRange {
   size_t chunk = 0;
   uint64_t first = 0, voxels = 0;  // within the chunk
@@ -115,8 +120,9 @@ struct QuadRange {
   VkFormat format = VK_FORMAT_R32G32B32A32_SFLOAT;
   uint64_t bytes = 0;
 };
-// The ranges of every chunk of `field`, in order.
+// The ranges of every chunk of `field`, in order; of chunks of the given sizes.
 std::vector<QuadRange> quad_ranges(const DeviceField& field, uint64_t range_quads);
+std::vector<QuadRange> quad_ranges(std::span<const uint64_t> chunk_voxels, uint64_t range_quads);
 
 // Decodes `slots` 32.32 fixed-point accumulators read back as 2*slots uint32 words.
 std::vector<double> decode_fixed_point(const std::vector<uint32_t>& words);

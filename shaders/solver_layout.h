@@ -26,17 +26,20 @@ struct uvec4 { uint x, y, z, w; };
 #define TFM_NO_DATA (-1.0)
 
 // ---- sparse_prepare.comp: coordinates and b (reference colours) per voxel ------------------------
-// Specialization: workgroup size only.
+// Specialization: workgroup size only. Both fields as R32F texels, the reference TF as RGBA32F
+// texels; the coordinate chunk bound twice (floats, vec4 quads).
 #define TFM_PREPARE_BINDING_REF_FIELD 0
 #define TFM_PREPARE_BINDING_OPT_FIELD 1
 #define TFM_PREPARE_BINDING_REF_TF 2
 #define TFM_PREPARE_BINDING_COORD 3
 #define TFM_PREPARE_BINDING_RGBA 4
+#define TFM_PREPARE_BINDING_COORD_QUADS 5
 
 #if defined(__cplusplus) || defined(TFM_WANT_PREPARE_PUSH)
 TFM_PUSH_CONSTANTS(PreparePush) {
-  uint voxel_count;   // voxels in this chunk of the voxel vectors
-  uint field_offset;  // index of its first voxel inside the bound field chunks
+  uint voxel_count;   // voxels in this range of a chunk of the voxel vectors
+  uint field_shift;   // texel of the range's first voxel in the bound field views
+  uint first_voxel;   // the range's first voxel in its chunk (a multiple of 4)
   uint opt_tf_size;
   uint ref_tf_size;
   float ref_lo;
@@ -58,6 +61,7 @@ TFM_PUSH_CONSTANTS(PreparePush) {
 #define TFM_GATHER_BINDING_OUT 2
 #define TFM_GATHER_BINDING_NORM 3
 #define TFM_GATHER_BINDING_STATE 4
+#define TFM_GATHER_BINDING_COORD_QUADS 5  // the range's coordinates as RGBA32F texels
 #define TFM_GATHER_NORM_SLOTS 4u
 
 // ---- sparse_scatter.comp: s += S^T r (signed slots), optionally after r -= alpha (S p) ----------
@@ -72,12 +76,16 @@ TFM_PUSH_CONSTANTS(PreparePush) {
 #define TFM_SCATTER_BINDING_P 2
 #define TFM_SCATTER_BINDING_STATE 3
 #define TFM_SCATTER_BINDING_ACCUM 4
+#define TFM_SCATTER_BINDING_COORD_QUADS 5       // the range's coordinates as RGBA32F texels
+#define TFM_SCATTER_BINDING_RESIDUAL_TEXELS 6   // the range's r, one RGBA32F texel per voxel
 
-// Push constants of sparse_gather and sparse_scatter.
+// Push constants of sparse_gather and sparse_scatter: one range of a chunk of the voxel vectors.
+// p (scatter) and x (gather) are bound as N RGBA32F texels.
 #if defined(__cplusplus) || defined(TFM_WANT_SPARSE_PUSH)
 TFM_PUSH_CONSTANTS(SparsePush) {
-  uint voxel_count;  // voxels in this chunk
+  uint voxel_count;  // voxels in this range
   uint tf_size;      // N
+  uint first_voxel;  // the range's first voxel in its chunk (a multiple of 4)
 } TFM_PUSH_INSTANCE(pc);
 #endif
 

@@ -101,6 +101,7 @@ void gather(Context& ctx, Check& check, const SparseCase& c, float scale) {
   Buffer norm(ctx, TFM_GATHER_NORM_SLOTS * 8, MemoryUsage::Device, "selftest norm");
   gpu::CglsState st{};
   st.p_scale = {scale, scale, scale, scale};
+  st.running = {1, 1, 1, 1};  // a stopped state makes the scaled gather do nothing
   Buffer state = make_buffer<gpu::CglsState>(ctx, std::span<const gpu::CglsState>(&st, 1), "selftest CGLS state");
   const bool scaled = scale != 1.0f;
   const SparseGatherKernel kernel(ctx, true, true, scaled);

@@ -1,8 +1,11 @@
 // The matrix-free solver kernels against double-precision CPU references: sparse_prepare
 // (coordinates, b), sparse_gather (S x, ||S x||^2) and sparse_scatter (S^T r, plain and with the
 // CGLS residual update) on awkward sizes with NaNs, split chunks, every reduction mode and atomic
-// width, and bit-identical results across runs, paths and workgroup counts.
+// width, and bit-identical results across runs, paths, range splits and workgroup counts and sizes.
+#include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <utility>
 #include <cstdio>
 #include <random>
 #include <string>
@@ -237,6 +240,118 @@ TEST_F(SolverKernels, ScatterIsBitIdenticalAcrossRunsAndPaths) {
       path.workgroups = groups;
       ASSERT_EQ(first, scatter_once(ctx(), *vectors_, n, path)) << path_name(path);
     }
+}
+
+// Prepare, gather and scatter read their voxels in ranges of quads (texel views) in workgroups of
+// any whole number of subgroups: every range split, workgroup size and chunking gives the same
+// bits. Vector chunks of 750 voxels inside field chunks of 6000 start off every texel alignment
+// above 8 bytes (the prepare's views start below them); 20011 voxels leave a tail of 3.
+TEST_F(SolverKernels, SameBitsForEveryRangeSplitWorkgroupSizeAndChunking) {
+  const uint32_t n = 23;
+  const size_t voxels = 20011;
+  const Case c = make_case(voxels, n, 61);
+  Buffer tf = upload_tf(ctx(), c.ref_tf, "ref tf");
+  const std::vector<float> x = random_vec4s(n, 62, -0.5f, 1.5f);
+  Buffer xb = make_buffer<float>(ctx(), x, "x");
+  struct Bits {
+    std::vector<float> coords, b, q;
+    std::vector<uint32_t> norm, scatter;
+  };
+  auto words = [&](const Buffer& buf, size_t count) {
+    std::vector<uint32_t> w(count);
+    readback(ctx(), buf, w.data(), count * 4);
+    return w;
+  };
+  auto run = [&](uint64_t field_chunk, uint64_t vector_chunk, uint64_t range_quads, uint32_t workgroup) {
+    const DeviceField ref(ctx(), c.ref, "ref", field_chunk), opt(ctx(), c.opt, "opt", field_chunk);
+    VoxelVectors v(ctx(), ref, opt, vector_chunk);
+    Buffer norm(ctx(), TFM_GATHER_NORM_SLOTS * 8, MemoryUsage::Device, "norm");
+    Buffer accum(ctx(), signed_accumulator_bytes(n), MemoryUsage::Device, "accum");
+    const SparsePrepareKernel prepare(ctx(), range_quads, workgroup);
+    const SparseScatterKernel scatter(ctx(), n, false, {}, range_quads);
+    const SparseGatherKernel gather(ctx(), true, true, false, range_quads, workgroup);
+    Bits out;
+    CommandBatch batch(ctx());
+    prepare.record(batch, ref, opt, c.ref_map, c.opt_map, tf, v);
+    batch.fill(accum, 0u);
+    batch.fill(norm, 0u);
+    batch.barrier();
+    scatter.record(batch, v, accum);  // S^T b
+    batch.submit_and_wait();
+    out.coords = v.read_coords(ctx());
+    out.b = v.read_rgba(ctx());
+    out.scatter = words(accum, signed_accumulator_bytes(n) / 4);
+    CommandBatch batch2(ctx());
+    gather.record(batch2, v, n, xb, norm);  // q = S x over b
+    batch2.submit_and_wait();
+    out.q = v.read_rgba(ctx());
+    out.norm = words(norm, TFM_GATHER_NORM_SLOTS * 2);
+    return out;
+  };
+  auto same = [](const std::vector<float>& a, const std::vector<float>& b) {
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
+  };
+  const Bits base = run(0, 0, 0, 0);
+  for (auto [field_chunk, vector_chunk] : {std::pair<uint64_t, uint64_t>{0, 0}, {6000, 750}, {8192, 4096}})
+    for (uint64_t range_quads : {uint64_t(0), uint64_t(64), uint64_t(704)})
+      for (uint32_t workgroup : {ctx().subgroup_size(), 2 * ctx().subgroup_size(), uint32_t(TFM_VOXEL_WORKGROUP)}) {
+        SCOPED_TRACE("field chunks " + std::to_string(field_chunk) + ", vector chunks " + std::to_string(vector_chunk) +
+                     ", ranges of " + std::to_string(range_quads) + " quads, workgroup " + std::to_string(workgroup));
+        const Bits b = run(field_chunk, vector_chunk, range_quads, workgroup);
+        EXPECT_TRUE(same(b.coords, base.coords));
+        EXPECT_TRUE(same(b.b, base.b));
+        EXPECT_TRUE(same(b.q, base.q));
+        EXPECT_EQ(b.norm, base.norm);
+        EXPECT_EQ(b.scatter, base.scatter);
+      }
+  // The base run against the CPU: coordinates exactly, b and q within a few float roundings.
+  for (size_t i = 0; i < voxels; ++i) {
+    uint32_t j;
+    float w;
+    double b[4];
+    if (!reference_voxel(c, i, j, w, b)) {
+      ASSERT_EQ(base.coords[i], float(TFM_NO_DATA)) << "voxel " << i;
+      for (int ch = 0; ch < 4; ++ch) ASSERT_EQ(base.q[4 * i + ch], 0.0f) << "voxel " << i;
+      continue;
+    }
+    ASSERT_EQ(base.coords[i], float(j) + w) << "voxel " << i;
+    for (int ch = 0; ch < 4; ++ch) {
+      ASSERT_NEAR(base.b[4 * i + ch], b[ch], 1e-6) << "voxel " << i;
+      ASSERT_NEAR(base.q[4 * i + ch], (1.0 - double(w)) * x[4 * j + ch] + double(w) * x[4 * (j + 1) + ch], 1e-6)
+          << "voxel " << i;
+    }
+  }
+  EXPECT_THROW(SparseGatherKernel(ctx(), true, true, false, 100), std::invalid_argument);  // not a multiple of 64
+  EXPECT_THROW(SparsePrepareKernel(ctx(), 0, ctx().subgroup_size() + 1), std::invalid_argument);
+  EXPECT_THROW(SparseScatterKernel(ctx(), n, false, {}, uint64_t(ctx().limits().maxTexelBufferElements) / 4 + 64),
+               std::invalid_argument);  // r is a texel per voxel
+}
+
+// A scaled gather (CGLS) recorded after every channel stopped adds nothing and writes nothing.
+TEST_F(SolverKernels, ScaledGatherDoesNothingOnceEveryChannelStopped) {
+  const uint32_t n = 7;
+  const Case c = make_case(5000, n, 71);
+  run_prepare(c, 0, 0);
+  const std::vector<float> b = vectors_->read_rgba(ctx());
+  Buffer xb = make_buffer<float>(ctx(), random_vec4s(n, 72, -0.5f, 1.5f), "x");
+  Buffer norm(ctx(), TFM_GATHER_NORM_SLOTS * 8, MemoryUsage::Device, "norm");
+  gpu::CglsState st{};
+  st.p_scale = {1, 1, 1, 1};
+  for (uint32_t running : {0u, 1u}) {
+    SCOPED_TRACE("running " + std::to_string(running));
+    st.running = {0, running, 0, 0};
+    Buffer state = make_buffer<gpu::CglsState>(ctx(), std::span<const gpu::CglsState>(&st, 1), "state");
+    fill(ctx(), norm, 0u);
+    const SparseGatherKernel gather(ctx(), true, true, true);
+    CommandBatch batch(ctx());
+    gather.record(batch, *vectors_, n, xb, norm, &state);
+    batch.submit_and_wait();
+    std::vector<uint32_t> w(TFM_GATHER_NORM_SLOTS * 2);
+    readback(ctx(), norm, w.data(), w.size() * 4);
+    const bool untouched = vectors_->read_rgba(ctx()) == b;
+    EXPECT_EQ(untouched, running == 0);
+    EXPECT_EQ(std::all_of(w.begin(), w.end(), [](uint32_t v) { return v == 0; }), running == 0);
+  }
 }
 
 TEST_F(SolverKernels, ScatterUpdateAppliesResidualStep) {
