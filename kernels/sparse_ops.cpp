@@ -230,7 +230,7 @@ SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool up
 
 void SparseScatterKernel::record(CommandBatch& batch, VoxelVectors& v, Buffer& accum) const {
   if (update_) throw std::logic_error("sparse_scatter: this pipeline updates the residual; use record_update");
-  record_chunks(batch, v, dummy_p_, dummy_state_, accum);
+  record_ranges(batch, v, dummy_p_, dummy_state_, accum);
 }
 
 void SparseScatterKernel::record_update(CommandBatch& batch, VoxelVectors& v, const Buffer& p, const Buffer& state,
@@ -238,10 +238,10 @@ void SparseScatterKernel::record_update(CommandBatch& batch, VoxelVectors& v, co
   if (!update_) throw std::logic_error("sparse_scatter: this pipeline does not update the residual");
   if (p.size() < uint64_t(tf_size_) * kRgbaBytes || state.size() < sizeof(gpu::CglsState))
     throw std::invalid_argument("sparse_scatter: p or state buffer too small");
-  record_chunks(batch, v, p, state, accum);
+  record_ranges(batch, v, p, state, accum);
 }
 
-void SparseScatterKernel::record_chunks(CommandBatch& batch, VoxelVectors& v, const Buffer& p, const Buffer& state,
+void SparseScatterKernel::record_ranges(CommandBatch& batch, VoxelVectors& v, const Buffer& p, const Buffer& state,
                                         Buffer& accum) const {
   if (accum.size() < signed_accumulator_bytes(tf_size_))
     throw std::invalid_argument("sparse_scatter: accumulator buffer too small");

@@ -111,7 +111,7 @@ class SparseScatterKernel {
                      Buffer& accum) const;
 
  private:
-  void record_chunks(CommandBatch& batch, VoxelVectors& vectors, const Buffer& p, const Buffer& state,
+  void record_ranges(CommandBatch& batch, VoxelVectors& vectors, const Buffer& p, const Buffer& state,
                      Buffer& accum) const;
   Context& ctx_;
   uint32_t tf_size_;
