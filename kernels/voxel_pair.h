@@ -90,7 +90,7 @@ class VoxelLossKernel {
 uint32_t voxel_groups(const Context& ctx, uint64_t voxels);
 
 // Workgroup size of a quad kernel whose lanes each keep their own sums or write their own voxels
-// (voxel loss, residual map): `requested` if given, else one subgroup on a CPU device — which
+// (voxel loss, residual map, the CGLS prepare and gather): `requested` if given, else one subgroup on a CPU device — which
 // runs a workgroup on one thread and its invocations as coroutines between barriers (lavapipe,
 // 41.5 M voxels, both voxel losses: 0.41 s in groups of 256, 0.19-0.21 s in groups of 8) — and
 // TFM_VOXEL_WORKGROUP elsewhere. Throws std::invalid_argument naming `kernel` unless the size is
@@ -102,11 +102,11 @@ uint32_t lane_workgroup_size(const Context& ctx, uint32_t requested, const char*
 inline constexpr uint64_t kLaneVoxels = 4096;
 uint32_t lane_groups(const Context& ctx, uint32_t workgroup_size, uint64_t voxels);
 
-// Kernels that read a chunk's voxels in quads, as RGBA32F texels (the assembly and its read
-// bound), dispatch once per range of at most `range_quads` quads: `requested` if given (a
-// multiple of 64, else std::invalid_argument naming `kernel`), else the device's
-// maxTexelBufferElements rounded down to 64, so ranges start at multiples of 1024 bytes (every
-// device's minTexelBufferOffsetAlignment is at most 256).
+// Kernels that read a chunk's voxels in quads, as RGBA32F texels (the assembly, its read bound,
+// the voxel loss, the residual map, the CGLS gather), dispatch once per range of at most
+// `range_quads` quads: `requested` if given (a multiple of 64, else std::invalid_argument naming
+// `kernel`), else the device's maxTexelBufferElements rounded down to 64, so ranges start at
+// multiples of 1024 bytes (every device's minTexelBufferOffsetAlignment is at most 256).
 uint64_t texel_range_quads(const Context& ctx, uint64_t requested, const char* kernel);
 // The same for kernels that see a voxel as one texel (an RGBA vector per voxel, or a field viewed
 // from up to 64 texels before the range to meet the offset alignment): ranges of at most
