@@ -12,10 +12,13 @@
 
 namespace tfm {
 
-static_assert(sizeof(gpu::HistogramPush) == 16, "HistogramPush must match the GLSL std430 block");
+static_assert(sizeof(gpu::HistogramPush) == 20, "HistogramPush must match the GLSL std430 block");
 
 namespace {
-constexpr auto kBindingCounts = gpu::binding_counts({TFM_HIST_BINDING_FIELD, TFM_HIST_BINDING_COUNTS});
+constexpr auto kBindingCounts =
+    gpu::binding_counts({TFM_HIST_BINDING_FIELD, TFM_HIST_BINDING_COUNTS, TFM_HIST_BINDING_QUADS});
+// lavapipe stops a shader after 65535 iterations of a loop: a lane takes at most 32768 quads.
+constexpr uint64_t kMaxLaneQuads = 32768;
 }  // namespace
 
 uint64_t FieldHistogram::finite() const {
@@ -24,20 +27,39 @@ uint64_t FieldHistogram::finite() const {
   return n;
 }
 
-FieldHistogramKernel::FieldHistogramKernel(Context& ctx, uint32_t bins, bool force_global) : ctx_(ctx), bins_(bins) {
+FieldHistogramKernel::FieldHistogramKernel(Context& ctx, uint32_t bins, HistogramMode mode) : ctx_(ctx), bins_(bins) {
   if (bins < 1 || bins > TFM_HIST_MAX_BINS)
     throw std::invalid_argument("histogram: " + std::to_string(bins) + " bins (need 1 to " +
                                 std::to_string(TFM_HIST_MAX_BINS) + ")");
-  const uint64_t shared_bytes = uint64_t(TFM_HIST_COUNTERS(bins)) * sizeof(uint32_t);
-  use_shared_ = !force_global && shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
+  const uint32_t counters = TFM_HIST_COUNTERS(bins);
+  const bool fits_shared = uint64_t(counters) * sizeof(uint32_t) <= ctx.limits().maxComputeSharedMemorySize;
+  const bool fits_private = counters <= private_limit(ctx, kPrivateHistogramCounters);
+  if (mode == HistogramMode::Auto)
+    mode = is_cpu_device(ctx) && fits_private ? HistogramMode::Private
+           : fits_shared                      ? HistogramMode::Shared
+                                              : HistogramMode::Global;
+  if ((mode == HistogramMode::Shared && !fits_shared) || (mode == HistogramMode::Private && !fits_private))
+    throw std::invalid_argument("histogram: " + std::to_string(counters) + " counters do not fit the device's " +
+                                (mode == HistogramMode::Shared ? "shared memory" : "private budget"));
+  mode_ = mode;
+  const bool priv = mode == HistogramMode::Private;
+  workgroup_size_ = priv ? lane_workgroup_size(ctx, 0, "field_histogram") : TFM_VOXEL_WORKGROUP;
+  // Private lanes flush their counters once: lanes cover 16 times as many quads where the range
+  // has them, and never fewer voxels than counters when the range is spread over more groups.
+  lane_voxels_ = 4 * std::min<uint64_t>(kMaxLaneQuads, 16 * uint64_t(counters));
+  const uint32_t shader_mode = priv ? TFM_HIST_MODE_PRIVATE : mode == HistogramMode::Shared ? TFM_HIST_MODE_SHARED
+                                                                                           : TFM_HIST_MODE_GLOBAL;
   PipelineDesc desc;
   desc.shader = "field_histogram";
   desc.binding_counts = gpu::to_vector(kBindingCounts);
+  desc.binding_kinds.assign(desc.binding_counts.size(), DescriptorKind::StorageBuffer);
+  desc.binding_kinds[TFM_HIST_BINDING_QUADS] = DescriptorKind::UniformTexelBuffer;
   desc.push_constant_bytes = sizeof(gpu::HistogramPush);
-  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP},
-                                    {TFM_HIST_SPEC_SHARED_WORDS, use_shared_ ? TFM_HIST_COUNTERS(bins) : 1u},
-                                    {TFM_HIST_SPEC_USE_SHARED, use_shared_ ? 1u : 0u}});
+  desc.workgroup_size = workgroup_size_;
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_},
+                                    {TFM_HIST_SPEC_SHARED_WORDS, mode == HistogramMode::Shared ? counters : 1u},
+                                    {TFM_HIST_SPEC_MODE, shader_mode},
+                                    {TFM_HIST_SPEC_PRIVATE_COUNTERS, priv ? counters : 1u}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -55,17 +77,22 @@ FieldHistogram FieldHistogramKernel::run(const DeviceField& field, double lo, do
   push.lo = float(lo);
   push.scale = histogram_scale(lo, hi, bins_);
   // uint32 counters: one batch counts at most 2^32 - 1 voxels before they are read and summed.
-  size_t c = 0;
-  while (c < field.chunk_count()) {
+  const std::vector<QuadRange> ranges = quad_ranges(field, texel_range_quads(ctx_, 0, "field_histogram"));
+  size_t i = 0;
+  while (i < ranges.size()) {
     CommandBatch batch(ctx_);
     batch.fill(counts, 0u);
     batch.barrier();
     uint64_t in_batch = 0;
-    for (; c < field.chunk_count() && in_batch + field.chunk_size(c) <= std::numeric_limits<uint32_t>::max(); ++c) {
-      push.voxel_count = uint32_t(field.chunk_size(c));
-      batch.dispatch(*pipeline_, {field.chunk(c), counts}, push, {voxel_groups(ctx_, field.chunk_size(c))});
+    for (; i < ranges.size() && in_batch + ranges[i].voxels <= std::numeric_limits<uint32_t>::max(); ++i) {
+      const QuadRange& r = ranges[i];
+      push.voxel_count = uint32_t(r.voxels);
+      push.first_voxel = uint32_t(r.first);
+      batch.dispatch(*pipeline_,
+                     {field.chunk(r.chunk), counts, Binding::texels(field.chunk(r.chunk), r.format, r.first * 4, r.bytes)},
+                     push, {lane_groups(ctx_, workgroup_size_, r.voxels, lane_voxels_, TFM_HIST_COUNTERS(bins_))});
       batch.barrier();
-      in_batch += field.chunk_size(c);
+      in_batch += r.voxels;
     }
     batch.submit_and_wait();
     readback(ctx_, counts, words.data(), words.size() * sizeof(uint32_t));

@@ -37,20 +37,30 @@ inline uint32_t histogram_counter(float v, float lo, float scale, uint32_t bins)
   return 1u + std::min(uint32_t(std::floor(t)), bins - 1u);
 }
 
+// Where the shader keeps its counts (field_histogram.comp): Auto takes Private on CPU devices
+// within kPrivateHistogramCounters, else Shared where the counters fit the workgroup's shared
+// memory, else Global.
+enum class HistogramMode { Auto, Private, Shared, Global };
+// Counters one invocation keeps privately on a CPU device: the bytes of the assembly's private
+// budget (kPrivateHistogramSlots 64-bit sums, reduction.h); private_limit() on others.
+inline constexpr uint32_t kPrivateHistogramCounters = 2 * 11 * 1024;
+
 class FieldHistogramKernel {
  public:
-  // `bins` in [1, TFM_HIST_MAX_BINS] (std::invalid_argument otherwise). Counts in workgroup-shared
-  // memory when the counters fit, else in the buffer (`force_global` selects that path; tests).
-  FieldHistogramKernel(Context& ctx, uint32_t bins, bool force_global = false);
+  // `bins` in [1, TFM_HIST_MAX_BINS] (std::invalid_argument otherwise). `mode` forces a path
+  // (tests; std::invalid_argument where the device cannot hold its counters).
+  FieldHistogramKernel(Context& ctx, uint32_t bins, HistogramMode mode = HistogramMode::Auto);
   uint32_t bins() const { return bins_; }
-  bool uses_shared_memory() const { return use_shared_; }
+  HistogramMode mode() const { return mode_; }
   // The histogram of `field` over [lo, hi] (finite, lo < hi; std::invalid_argument otherwise).
   FieldHistogram run(const DeviceField& field, double lo, double hi) const;
 
  private:
   Context& ctx_;
   uint32_t bins_;
-  bool use_shared_;
+  HistogramMode mode_;
+  uint32_t workgroup_size_;
+  uint64_t lane_voxels_;  // Private: voxels per lane, so that a lane's flush is small beside them
   std::unique_ptr<ComputePipeline> pipeline_;
 };
 

@@ -51,10 +51,12 @@ uint32_t lane_workgroup_size(const Context& ctx, uint32_t requested, const char*
   return size;
 }
 
-uint32_t lane_groups(const Context& ctx, uint32_t workgroup_size, uint64_t voxels) {
+uint32_t lane_groups(const Context& ctx, uint32_t workgroup_size, uint64_t voxels, uint64_t lane_voxels,
+                     uint64_t min_lane_voxels) {
   if (workgroup_size == TFM_VOXEL_WORKGROUP) return voxel_groups(ctx, voxels);
-  const uint64_t long_lanes = voxels / (uint64_t(workgroup_size) * kLaneVoxels);
-  const uint64_t spread = std::min<uint64_t>(kPrivateMinGroups, voxels / (uint64_t(workgroup_size) * 64));
+  const uint64_t long_lanes = voxels / (uint64_t(workgroup_size) * std::max<uint64_t>(1, lane_voxels));
+  const uint64_t spread =
+      std::min<uint64_t>(kPrivateMinGroups, voxels / (uint64_t(workgroup_size) * std::max<uint64_t>(1, min_lane_voxels)));
   return static_cast<uint32_t>(
       std::clamp<uint64_t>(std::max(long_lanes, spread), 1, ctx.limits().maxComputeWorkGroupCount[0]));
 }

@@ -97,10 +97,11 @@ uint32_t voxel_groups(const Context& ctx, uint64_t voxels);
 // a multiple of the subgroup size (quad_segments.glsl strides by it) within the device's limit.
 uint32_t lane_workgroup_size(const Context& ctx, uint32_t requested, const char* kernel);
 // Workgroups of `workgroup_size` for one dispatch over `voxels`: voxel_groups() at
-// TFM_VOXEL_WORKGROUP; smaller groups get lanes of about kLaneVoxels voxels, but at least
-// kPrivateMinGroups groups (lanes of 64 voxels or more) so that every core has work.
+// TFM_VOXEL_WORKGROUP; smaller groups get lanes of about `lane_voxels` voxels, but at least
+// kPrivateMinGroups groups (lanes of `min_lane_voxels` or more) so that every core has work.
 inline constexpr uint64_t kLaneVoxels = 4096;
-uint32_t lane_groups(const Context& ctx, uint32_t workgroup_size, uint64_t voxels);
+uint32_t lane_groups(const Context& ctx, uint32_t workgroup_size, uint64_t voxels, uint64_t lane_voxels = kLaneVoxels,
+                     uint64_t min_lane_voxels = 64);
 
 // Kernels that read a chunk's voxels in quads, as RGBA32F texels (the assembly, its read bound,
 // the voxel loss, the residual map, the CGLS gather), dispatch once per range of at most

@@ -148,12 +148,16 @@ void residual(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels) 
 
 // Counts are integers: every counter equals the reference's exactly (values binned with the
 // shader's float32 arithmetic, histogram_counter()).
-void histogram(Context& ctx, Check& check, size_t voxels, uint32_t bins, bool global, uint64_t chunk_voxels) {
+void histogram(Context& ctx, Check& check, size_t voxels, uint32_t bins, HistogramMode mode, uint64_t chunk_voxels) {
   std::vector<float> values = random_floats(voxels, 91u + uint32_t(voxels) + bins, -0.5f, 10.5f);
   for (size_t i = 3; i < voxels; i += 11) values[i] = NAN;
-  const FieldHistogramKernel kernel(ctx, bins, global);
-  if (!global && !kernel.uses_shared_memory()) return check.skip("needs " + std::to_string(4 * TFM_HIST_COUNTERS(bins)) +
-                                                                 " bytes of shared memory");
+  std::unique_ptr<FieldHistogramKernel> made;
+  try {
+    made = std::make_unique<FieldHistogramKernel>(ctx, bins, mode);
+  } catch (const std::invalid_argument& e) {
+    return check.skip(std::string("needs ") + e.what());
+  }
+  const FieldHistogramKernel& kernel = *made;
   DeviceField field(ctx, values, "selftest field", chunk_voxels);
   const FieldHistogram g = kernel.run(field, 0.0, 10.0);
   const FieldHistogram c = field_histogram_cpu(values, 0.0, 10.0, bins);
@@ -236,17 +240,22 @@ void add_voxel_cases(CaseList& cases) {
   add_residual(100003, 0, false);
   add_residual(100003, 16384, false);
 
-  auto add_histogram = [&](size_t voxels, uint32_t bins, bool global, uint64_t chunk, bool quick) {
-    std::string name = voxels_name(voxels) + ", " + std::to_string(bins) + " bins, " + (global ? "global" : "shared") +
+  using H = HistogramMode;
+  auto add_histogram = [&](size_t voxels, uint32_t bins, H mode, uint64_t chunk, bool quick) {
+    const char* path = mode == H::Private ? "private" : mode == H::Shared ? "shared" : "global";
+    std::string name = voxels_name(voxels) + ", " + std::to_string(bins) + " bins, " + path +
                        (chunk ? ", chunks of " + std::to_string(chunk) : "");
     cases.push_back({"field_histogram", "FieldHistogramKernel", name, quick, TFM_VOXEL_WORKGROUP,
-                     [=](Context& ctx, Check& check) { histogram(ctx, check, voxels, bins, global, chunk); }});
+                     [=](Context& ctx, Check& check) { histogram(ctx, check, voxels, bins, mode, chunk); }});
   };
-  add_histogram(1, 16, false, 0, true);
-  add_histogram(13, 7, true, 0, true);
-  add_histogram(past_group, 4096, false, 0, true);
-  add_histogram(5000, 65536, true, 1024, true);
-  add_histogram(100003, 4096, false, 16384, false);
+  add_histogram(1, 16, H::Shared, 0, true);
+  add_histogram(13, 7, H::Global, 0, true);
+  add_histogram(13, 7, H::Private, 0, true);
+  add_histogram(past_group, 4096, H::Shared, 0, true);
+  add_histogram(past_group, 4096, H::Private, 0, true);
+  add_histogram(5000, 65536, H::Global, 1024, true);
+  add_histogram(100003, 4096, H::Shared, 16384, false);
+  add_histogram(100003, 4096, H::Private, 16384, false);
 
   auto add_read = [&](size_t voxels, uint64_t chunk, bool quick) {
     std::string name = voxels_name(voxels) + (chunk ? ", chunks of " + std::to_string(chunk) : "");

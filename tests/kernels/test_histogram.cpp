@@ -1,13 +1,14 @@
 // Field-histogram kernel against its CPU reference: awkward sizes (1, 13, one past a workgroup,
-// 70001), NaN and out-of-range values, the shared-memory and global paths, fields split into
-// several buffers, bin counts from 1 to 65536; and the reference's binning against an independent
-// double-precision computation away from bin edges.
+// 70001), NaN and out-of-range values, the private, shared-memory and global paths, fields split
+// into several buffers and ranges, bin counts from 1 to 65536; and the reference's binning against
+// an independent double-precision computation away from bin edges.
 #include <cmath>
 #include <random>
 #include <vector>
 
 #include "histogram.h"
 #include "histogram_cpu.h"
+#include "reduction.h"
 #include "vk_test_env.h"
 
 namespace tfm {
@@ -31,14 +32,18 @@ void expect_equal(const FieldHistogram& gpu, const FieldHistogram& cpu) {
 
 class Histogram : public test::GpuTest {};
 
-TEST_F(Histogram, MatchesCpuReferenceOnAwkwardSizesBothPaths) {
+TEST_F(Histogram, MatchesCpuReferenceOnAwkwardSizesEveryPath) {
   for (size_t n : {size_t(1), size_t(13), size_t(TFM_VOXEL_WORKGROUP + 1), size_t(70001)}) {
     for (uint32_t bins : {1u, 7u, 100u, 4096u}) {
-      for (bool global : {false, true}) {
-        SCOPED_TRACE(testing::Message() << n << " voxels, " << bins << " bins, global " << global);
+      for (HistogramMode mode : {HistogramMode::Private, HistogramMode::Shared, HistogramMode::Global}) {
+        SCOPED_TRACE(testing::Message() << n << " voxels, " << bins << " bins, mode " << int(mode));
         const std::vector<float> values = awkward_values(n, uint32_t(n + bins));
-        FieldHistogramKernel kernel(ctx(), bins, global);
-        EXPECT_EQ(kernel.uses_shared_memory(), !global);
+        if (mode == HistogramMode::Private && TFM_HIST_COUNTERS(bins) > private_limit(ctx(), kPrivateHistogramCounters)) {
+          EXPECT_THROW(FieldHistogramKernel(ctx(), bins, mode), std::invalid_argument);  // a GPU's smaller budget
+          continue;
+        }
+        FieldHistogramKernel kernel(ctx(), bins, mode);
+        EXPECT_EQ(kernel.mode(), mode);
         DeviceField field(ctx(), values, "histogram test field");
         const FieldHistogram gpu = kernel.run(field, 0.0, 10.0);
         const FieldHistogram cpu = field_histogram_cpu(values, 0.0, 10.0, bins);
@@ -55,9 +60,26 @@ TEST_F(Histogram, SameCountsWhateverTheChunkingAndBeyondSharedMemory) {
   for (uint64_t chunk : {uint64_t(0), uint64_t(4096), uint64_t(12345)}) {
     SCOPED_TRACE(chunk);
     DeviceField field(ctx(), values, "chunked field", chunk);
-    FieldHistogramKernel kernel(ctx(), 65536);  // 65539 counters: more than shared memory holds
-    EXPECT_FALSE(kernel.uses_shared_memory());
+    FieldHistogramKernel kernel(ctx(), 65536);  // 65539 counters: beyond shared memory and the private budget
+    EXPECT_EQ(kernel.mode(), HistogramMode::Global);
     expect_equal(kernel.run(field, -1.0, 11.0), cpu);
+  }
+  EXPECT_THROW(FieldHistogramKernel(ctx(), 65536, HistogramMode::Private), std::invalid_argument);
+  EXPECT_THROW(FieldHistogramKernel(ctx(), 65536, HistogramMode::Shared), std::invalid_argument);
+}
+
+// Lanes on quads in ranges: the private path over enough voxels for long lanes, a tail of 3, and
+// chunks, each against the reference; Auto takes the private path on a CPU device.
+TEST_F(Histogram, PrivateCountsOverLongLanesAndChunks) {
+  const std::vector<float> values = awkward_values(1000003, 5);
+  const FieldHistogram cpu = field_histogram_cpu(values, 0.0, 10.0, 1000);
+  const FieldHistogramKernel automatic(ctx(), 1000);
+  if (ctx().properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU) EXPECT_EQ(automatic.mode(), HistogramMode::Private);
+  for (uint64_t chunk : {uint64_t(0), uint64_t(262144 + 4)}) {
+    SCOPED_TRACE(chunk);
+    DeviceField field(ctx(), values, "long field", chunk);
+    expect_equal(FieldHistogramKernel(ctx(), 1000, HistogramMode::Private).run(field, 0.0, 10.0), cpu);
+    expect_equal(automatic.run(field, 0.0, 10.0), cpu);
   }
 }
 
