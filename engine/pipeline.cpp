@@ -15,6 +15,12 @@ VkDescriptorType descriptor_type(DescriptorKind kind) {
                                                     : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
 }
 
+std::vector<DescriptorKind> texel_binding_kinds(size_t count, std::initializer_list<uint32_t> texels) {
+  std::vector<DescriptorKind> kinds(count, DescriptorKind::StorageBuffer);
+  for (uint32_t b : texels) kinds.at(b) = DescriptorKind::UniformTexelBuffer;
+  return kinds;
+}
+
 ComputePipeline::ComputePipeline(Context& ctx, PipelineDesc desc) : ctx_(ctx), desc_(std::move(desc)) {
   const auto& limits = ctx.limits();
   if (desc_.workgroup_size > limits.maxComputeWorkGroupInvocations)

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <initializer_list>
 #include <span>
 #include <string>
 #include <vector>
@@ -19,6 +20,9 @@ class Context;
 // fields and TFs as texel buffers.
 enum class DescriptorKind : uint8_t { StorageBuffer, UniformTexelBuffer };
 VkDescriptorType descriptor_type(DescriptorKind kind);
+// Kinds of `count` bindings: uniform texel buffers at the bindings `texels` names, storage buffers
+// elsewhere (PipelineDesc::binding_kinds). Throws std::out_of_range for a binding past `count`.
+std::vector<DescriptorKind> texel_binding_kinds(size_t count, std::initializer_list<uint32_t> texels);
 
 struct PipelineDesc {
   std::string shader;                      // name, for messages and debug labels

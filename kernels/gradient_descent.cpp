@@ -42,9 +42,8 @@ const ComputePipeline& GdGradientKernel::pipeline(uint32_t ref_tf_size) const {
     PipelineDesc desc =
         reduction_.pipeline_desc("gd_gradient", gpu::to_vector(kGradientBindingCounts), sizeof(gpu::VoxelPairPush));
     const bool shared = reduction_.mode == ReductionMode::RunsShared;
-    desc.binding_kinds.assign(desc.binding_counts.size(), DescriptorKind::StorageBuffer);
-    desc.binding_kinds[TFM_GD_BINDING_REF_QUADS] = desc.binding_kinds[TFM_GD_BINDING_OPT_QUADS] =
-        DescriptorKind::UniformTexelBuffer;
+    desc.binding_kinds =
+        texel_binding_kinds(desc.binding_counts.size(), {TFM_GD_BINDING_REF_QUADS, TFM_GD_BINDING_OPT_QUADS});
     desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, reduction_.workgroup_size},
                                       {TFM_GD_SPEC_MODE, reduction_.shader_mode()},
                                       {TFM_GD_SPEC_SHARED_SLOTS, shared ? TFM_TF_GRADIENT_SLOTS(tf_size_) : 1u},

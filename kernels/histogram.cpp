@@ -52,8 +52,7 @@ FieldHistogramKernel::FieldHistogramKernel(Context& ctx, uint32_t bins, Histogra
   PipelineDesc desc;
   desc.shader = "field_histogram";
   desc.binding_counts = gpu::to_vector(kBindingCounts);
-  desc.binding_kinds.assign(desc.binding_counts.size(), DescriptorKind::StorageBuffer);
-  desc.binding_kinds[TFM_HIST_BINDING_QUADS] = DescriptorKind::UniformTexelBuffer;
+  desc.binding_kinds = texel_binding_kinds(desc.binding_counts.size(), {TFM_HIST_BINDING_QUADS});
   desc.push_constant_bytes = sizeof(gpu::HistogramPush);
   desc.workgroup_size = workgroup_size_;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_},

@@ -35,9 +35,8 @@ FieldPairReadKernel::FieldPairReadKernel(Context& ctx, uint64_t range_quads)
   PipelineDesc desc;
   desc.shader = "field_pair_read";
   desc.binding_counts = gpu::to_vector(kBindingCounts);
-  desc.binding_kinds.assign(desc.binding_counts.size(), DescriptorKind::StorageBuffer);
-  desc.binding_kinds[TFM_READ_BINDING_REF_QUADS] = desc.binding_kinds[TFM_READ_BINDING_OPT_QUADS] =
-      DescriptorKind::UniformTexelBuffer;
+  desc.binding_kinds =
+      texel_binding_kinds(desc.binding_counts.size(), {TFM_READ_BINDING_REF_QUADS, TFM_READ_BINDING_OPT_QUADS});
   desc.push_constant_bytes = sizeof(gpu::ReadBoundPush);
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP}});

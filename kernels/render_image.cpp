@@ -14,9 +14,7 @@ static_assert(sizeof(gpu::RenderView) == 64, "RenderView must match the GLSL std
 static_assert(sizeof(gpu::RenderPush) == 76, "RenderPush must match the GLSL push-constant block");
 
 std::vector<DescriptorKind> march_binding_kinds(size_t bindings, uint32_t field_binding, uint32_t tf_binding) {
-  std::vector<DescriptorKind> kinds(bindings, DescriptorKind::StorageBuffer);
-  kinds.at(field_binding) = kinds.at(tf_binding) = DescriptorKind::UniformTexelBuffer;
-  return kinds;
+  return texel_binding_kinds(bindings, {field_binding, tf_binding});
 }
 
 Binding march_field_binding(const DeviceField& field) {

@@ -26,10 +26,9 @@ ResidualMapKernel::ResidualMapKernel(Context& ctx, uint64_t range_quads, uint32_
   PipelineDesc desc;
   desc.shader = "residual_map";
   desc.binding_counts = gpu::to_vector(kResidualBindingCounts);
-  desc.binding_kinds.assign(desc.binding_counts.size(), DescriptorKind::UniformTexelBuffer);
-  for (uint32_t b : {TFM_RESIDUAL_BINDING_REF_FIELD, TFM_RESIDUAL_BINDING_OPT_FIELD, TFM_RESIDUAL_BINDING_OUT,
-                     TFM_RESIDUAL_BINDING_OUT_QUADS})
-    desc.binding_kinds[b] = DescriptorKind::StorageBuffer;
+  desc.binding_kinds = texel_binding_kinds(desc.binding_counts.size(),
+                                           {TFM_RESIDUAL_BINDING_REF_TF, TFM_RESIDUAL_BINDING_OPT_TF,
+                                            TFM_RESIDUAL_BINDING_REF_QUADS, TFM_RESIDUAL_BINDING_OPT_QUADS});
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = workgroup_size_;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_}});

@@ -32,13 +32,6 @@ constexpr auto kScatterBindingCounts =
                          TFM_SCATTER_BINDING_STATE, TFM_SCATTER_BINDING_ACCUM, TFM_SCATTER_BINDING_COORD_QUADS,
                          TFM_SCATTER_BINDING_RESIDUAL_TEXELS});
 
-// Binding kinds: uniform texel buffers at `texels`, storage buffers elsewhere.
-std::vector<DescriptorKind> kinds_with_texels(size_t count, std::initializer_list<uint32_t> texels) {
-  std::vector<DescriptorKind> kinds(count, DescriptorKind::StorageBuffer);
-  for (uint32_t b : texels) kinds[b] = DescriptorKind::UniformTexelBuffer;
-  return kinds;
-}
-
 // A TF-sized vector (N RGBA entries) as texels.
 Binding tf_texels(const Buffer& b, uint32_t n) {
   return Binding::texels(b, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(n) * kRgbaBytes);
@@ -106,7 +99,7 @@ SparsePrepareKernel::SparsePrepareKernel(Context& ctx, uint64_t range_quads, uin
   PipelineDesc desc;
   desc.shader = "sparse_prepare";
   desc.binding_counts = gpu::to_vector(kPrepareBindingCounts);
-  desc.binding_kinds = kinds_with_texels(desc.binding_counts.size(), {TFM_PREPARE_BINDING_REF_FIELD,
+  desc.binding_kinds = texel_binding_kinds(desc.binding_counts.size(), {TFM_PREPARE_BINDING_REF_FIELD,
                                                                       TFM_PREPARE_BINDING_OPT_FIELD, TFM_PREPARE_BINDING_REF_TF});
   desc.push_constant_bytes = sizeof(gpu::PreparePush);
   desc.workgroup_size = workgroup_size_;
@@ -158,7 +151,7 @@ SparseGatherKernel::SparseGatherKernel(Context& ctx, bool write_out, bool accumu
   desc.shader = "sparse_gather";
   desc.binding_counts = gpu::to_vector(kGatherBindingCounts);
   desc.binding_kinds =
-      kinds_with_texels(desc.binding_counts.size(), {TFM_GATHER_BINDING_X, TFM_GATHER_BINDING_COORD_QUADS});
+      texel_binding_kinds(desc.binding_counts.size(), {TFM_GATHER_BINDING_X, TFM_GATHER_BINDING_COORD_QUADS});
   desc.push_constant_bytes = sizeof(gpu::SparsePush);
   desc.workgroup_size = workgroup_size_;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_},
@@ -217,7 +210,7 @@ SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool up
       dummy_state_(ctx, sizeof(gpu::CglsState), MemoryUsage::Device, "scatter unused state") {
   PipelineDesc desc =
       reduction_.pipeline_desc("sparse_scatter", gpu::to_vector(kScatterBindingCounts), sizeof(gpu::SparsePush));
-  desc.binding_kinds = kinds_with_texels(desc.binding_counts.size(), {TFM_SCATTER_BINDING_P, TFM_SCATTER_BINDING_COORD_QUADS,
+  desc.binding_kinds = texel_binding_kinds(desc.binding_counts.size(), {TFM_SCATTER_BINDING_P, TFM_SCATTER_BINDING_COORD_QUADS,
                                                                       TFM_SCATTER_BINDING_RESIDUAL_TEXELS});
   const bool shared = reduction_.mode == ReductionMode::RunsShared;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, reduction_.workgroup_size},

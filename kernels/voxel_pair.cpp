@@ -149,9 +149,9 @@ const std::vector<std::unique_ptr<ComputePipeline>>& AssembleNormalEquationsKern
   for (const TermPass& pass : passes_) {
     PipelineDesc desc = reduction_.pipeline_desc("assemble_normal_equations", gpu::to_vector(kAssembleBindingCounts),
                                                  sizeof(gpu::VoxelPairPush));
-    desc.binding_kinds.assign(desc.binding_counts.size(), DescriptorKind::StorageBuffer);
-    for (uint32_t b : {TFM_ASSEMBLE_BINDING_REF_TF, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS})
-      desc.binding_kinds[b] = DescriptorKind::UniformTexelBuffer;
+    desc.binding_kinds = texel_binding_kinds(
+        desc.binding_counts.size(),
+        {TFM_ASSEMBLE_BINDING_REF_TF, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS});
     desc.specialization = gpu::by_id(
         {{TFM_SPEC_WORKGROUP_X, reduction_.workgroup_size},
          {TFM_ASSEMBLE_SPEC_MODE, reduction_.shader_mode()},
@@ -215,9 +215,9 @@ const ComputePipeline& VoxelLossKernel::pipeline(bool with_before) const {
   PipelineDesc desc;
   desc.shader = "voxel_loss";
   desc.binding_counts = gpu::to_vector(kLossBindingCounts);
-  desc.binding_kinds.assign(desc.binding_counts.size(), DescriptorKind::UniformTexelBuffer);
-  for (uint32_t b : {TFM_LOSS_BINDING_REF_FIELD, TFM_LOSS_BINDING_OPT_FIELD, TFM_LOSS_BINDING_ACCUM})
-    desc.binding_kinds[b] = DescriptorKind::StorageBuffer;
+  desc.binding_kinds = texel_binding_kinds(desc.binding_counts.size(),
+                                           {TFM_LOSS_BINDING_REF_TF, TFM_LOSS_BINDING_OPT_TF, TFM_LOSS_BINDING_REF_QUADS,
+                                            TFM_LOSS_BINDING_OPT_QUADS});
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = workgroup_size_;
   desc.specialization =

@@ -120,6 +120,14 @@ TEST_F(EngineTest, TexelBindingsCheckKindAlignmentAndRange) {
 }
 
 // An array of texel buffers (the renderer's field chunks) takes whole buffers, one view each.
+TEST(PipelineDesc, TexelBindingKindsMarkTheNamedBindings) {
+  const std::vector<DescriptorKind> kinds = texel_binding_kinds(4, {1, 3});
+  const std::vector<DescriptorKind> expected = {DescriptorKind::StorageBuffer, DescriptorKind::UniformTexelBuffer,
+                                                DescriptorKind::StorageBuffer, DescriptorKind::UniformTexelBuffer};
+  EXPECT_EQ(kinds, expected);
+  EXPECT_THROW(texel_binding_kinds(2, {2}), std::out_of_range);
+}
+
 TEST_F(EngineTest, TexelArraysTakeWholeBuffers) {
   PipelineDesc desc;
   desc.shader = "render_image";
