@@ -1,6 +1,6 @@
 // Histogram of one range of a field chunk over B equal bins of [lo, hi], with counters for values
 // below, above and NaN (layout: histogram_layout.h). The bin is computed in float32 with
-// `precise`, so the host mirror (histogram_bin() in kernels/histogram.h) puts every value in the
+// `precise`, so the host mirror (histogram_counter() in kernels/histogram.h) puts every value in the
 // same bin.
 //
 // Integer counts are exact and their sum does not depend on the order of the adds, so the result

@@ -304,7 +304,12 @@ TEST_F(SolverKernels, SameBitsForEveryRangeSplitWorkgroupSizeAndChunking) {
         EXPECT_EQ(b.norm, base.norm);
         EXPECT_EQ(b.scatter, base.scatter);
       }
-  // The base run against the CPU: coordinates exactly, b and q within a few float roundings.
+  // The base run against the CPU: coordinates exactly, b and q within a few float roundings,
+  // ||q||^2 and S^T b within the bounds of GatherMatchesCpuProductAndNorm and
+  // ScatterMatchesCpuTransposeProduct.
+  double norm2[4] = {0, 0, 0, 0};
+  std::vector<double> stb(4 * n, 0.0), magnitude(4 * n, 0.0);
+  uint64_t counted = 0;
   for (size_t i = 0; i < voxels; ++i) {
     uint32_t j;
     float w;
@@ -314,13 +319,27 @@ TEST_F(SolverKernels, SameBitsForEveryRangeSplitWorkgroupSizeAndChunking) {
       for (int ch = 0; ch < 4; ++ch) ASSERT_EQ(base.q[4 * i + ch], 0.0f) << "voxel " << i;
       continue;
     }
+    ++counted;
     ASSERT_EQ(base.coords[i], float(j) + w) << "voxel " << i;
     for (int ch = 0; ch < 4; ++ch) {
+      const double q = (1.0 - double(w)) * x[4 * j + ch] + double(w) * x[4 * (j + 1) + ch];
       ASSERT_NEAR(base.b[4 * i + ch], b[ch], 1e-6) << "voxel " << i;
-      ASSERT_NEAR(base.q[4 * i + ch], (1.0 - double(w)) * x[4 * j + ch] + double(w) * x[4 * (j + 1) + ch], 1e-6)
-          << "voxel " << i;
+      ASSERT_NEAR(base.q[4 * i + ch], q, 1e-6) << "voxel " << i;
+      norm2[ch] += q * q;
+      const double r = base.b[4 * i + ch];  // the residual the scatter read
+      stb[4 * j + ch] += (1.0 - double(w)) * r;
+      stb[4 * (j + 1) + ch] += double(w) * r;
+      magnitude[4 * j + ch] += (1.0 - double(w)) * r;
+      magnitude[4 * (j + 1) + ch] += double(w) * r;
     }
   }
+  const std::vector<double> norm = decode_fixed_point(base.norm);
+  for (int ch = 0; ch < 4; ++ch)
+    EXPECT_NEAR(norm[ch], norm2[ch], double(counted) * (4e-6 + std::ldexp(1.0, -32))) << "channel " << ch;
+  const std::vector<double> s = decode_signed_fixed_point(base.scatter);
+  for (size_t k = 0; k < stb.size(); ++k)
+    EXPECT_NEAR(s[k], stb[k], magnitude[k] * std::ldexp(1.0, -22) + double(2 * counted) * std::ldexp(1.0, -32) + 1e-12)
+        << "slot " << k;
   EXPECT_THROW(SparseGatherKernel(ctx(), true, true, false, 100), std::invalid_argument);  // not a multiple of 64
   EXPECT_THROW(SparsePrepareKernel(ctx(), 0, ctx().subgroup_size() + 1), std::invalid_argument);
   EXPECT_THROW(SparseScatterKernel(ctx(), n, false, {}, uint64_t(ctx().limits().maxTexelBufferElements) / 4 + 64),
