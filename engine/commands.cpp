@@ -6,6 +6,7 @@
 #include "buffer.h"
 #include "context.h"
 #include "pipeline.h"
+#include "phase_timer.h"
 #include "vk_check.h"
 #include "vk_dispatch.h"
 
@@ -74,7 +75,10 @@ CommandBatch::~CommandBatch() {
   const auto& vk = ctx_.vk();
   // A batch recorded but never submitted, or destroyed by an exception mid-wait, must not be
   // freed while the device may still use it.
-  if (submitted_) vk.vkWaitForFences(ctx_.device(), 1, &fence_, VK_TRUE, UINT64_MAX);
+  if (submitted_ && !waited_) {
+    PhaseScope timing(Phase::Compute);
+    vk.vkWaitForFences(ctx_.device(), 1, &fence_, VK_TRUE, UINT64_MAX);
+  }
   if (queries_) vk.vkDestroyQueryPool(ctx_.device(), queries_, nullptr);
   for (auto p : descriptor_pools_) vk.vkDestroyDescriptorPool(ctx_.device(), p, nullptr);
   for (auto v : buffer_views_) vk.vkDestroyBufferView(ctx_.device(), v, nullptr);
@@ -244,6 +248,8 @@ void CommandBatch::submit() {
 void CommandBatch::wait() {
   if (!submitted_) throw std::logic_error("CommandBatch waited for before it was submitted");
   if (waited_) return;
+  // Device work waited for inside an upload or a readback counts as that transfer (nested scopes).
+  PhaseScope timing(Phase::Compute);
   const auto& vk = ctx_.vk();
   VK_CHECK(vk.vkWaitForFences(ctx_.device(), 1, &fence_, VK_TRUE, UINT64_MAX));
   waited_ = true;

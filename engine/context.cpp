@@ -4,11 +4,13 @@
 #include <algorithm>
 #include <cctype>
 #include <cstdlib>
+#include <cstdio>
 #include <cstring>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
 
+#include "phase_timer.h"
 #include "vk_check.h"
 #include "vk_dispatch.h"
 
@@ -109,6 +111,15 @@ std::vector<VkPhysicalDevice> physical_devices(const Dispatch& vk, VkInstance in
 }
 
 // Whether `pd` supports 64-bit integer atomics on buffers and shared memory (Vulkan 1.2 features).
+bool device_extension_available(const Dispatch& vk, VkPhysicalDevice pd, const char* name) {
+  uint32_t count = 0;
+  VK_CHECK(vk.vkEnumerateDeviceExtensionProperties(pd, nullptr, &count, nullptr));
+  std::vector<VkExtensionProperties> exts(count);
+  VK_CHECK(vk.vkEnumerateDeviceExtensionProperties(pd, nullptr, &count, exts.data()));
+  return std::any_of(exts.begin(), exts.end(),
+                     [&](const VkExtensionProperties& e) { return std::strcmp(e.extensionName, name) == 0; });
+}
+
 bool supports_int64_atomics(const Dispatch& vk, VkPhysicalDevice pd) {
   VkPhysicalDeviceProperties props{};
   vk.vkGetPhysicalDeviceProperties(pd, &props);
@@ -175,6 +186,7 @@ std::vector<DeviceSummary> enumerate_devices() {
 Context::Context() : dispatch_(std::make_unique<Dispatch>()), staging_(std::make_unique<StagingBuffers>()) {}
 
 std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
+  PhaseScope timing(Phase::Startup);
   PFN_vkGetInstanceProcAddr get = loader_get_instance_proc_addr();
   ContextOptions options = options_in;
   if (!options.device_index && options.device_name.empty()) {
@@ -277,8 +289,15 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
     atomic_features.shaderBufferInt64Atomics = VK_TRUE;
     atomic_features.shaderSharedInt64Atomics = VK_TRUE;
   }
+  // Importing host memory lets large transfers skip the staging copy (buffer.cpp).
+  const bool external_memory_host =
+      device_extension_available(vk, ctx->physical_device_, VK_EXT_EXTERNAL_MEMORY_HOST_EXTENSION_NAME);
+  std::vector<const char*> device_extensions;
+  if (external_memory_host) device_extensions.push_back(VK_EXT_EXTERNAL_MEMORY_HOST_EXTENSION_NAME);
   VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
   if (int64_atomics) device_info.pNext = &atomic_features;
+  device_info.enabledExtensionCount = static_cast<uint32_t>(device_extensions.size());
+  device_info.ppEnabledExtensionNames = device_extensions.data();
   device_info.queueCreateInfoCount = 1;
   device_info.pQueueCreateInfos = &queue_info;
   device_info.pEnabledFeatures = &enabled;
@@ -286,7 +305,8 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
   load_device_functions(vk, ctx->device_);
   vk.vkGetDeviceQueue(ctx->device_, ctx->queue_family_, 0, &ctx->queue_);
   ctx->int64_atomics_ = int64_atomics;
-  ctx->load_device_info();
+  ctx->load_device_info(external_memory_host);
+  ctx->create_pipeline_cache(VK_NULL_HANDLE);
   return ctx;
 }
 
@@ -308,11 +328,12 @@ std::unique_ptr<Context> Context::adopt(const ExternalDevice& external) {
   // Debug names work only if the host enabled VK_EXT_debug_utils; the entry point says so.
   ctx->debug_utils_ = vk.vkSetDebugUtilsObjectNameEXT != nullptr;
   ctx->int64_atomics_ = external.int64_atomics_enabled && supports_int64_atomics(vk, external.physical_device);
-  ctx->load_device_info();
+  ctx->load_device_info(external.external_memory_host_enabled);
+  ctx->create_pipeline_cache(external.pipeline_cache);
   return ctx;
 }
 
-void Context::load_device_info() {
+void Context::load_device_info(bool external_memory_host) {
   const Dispatch& vk = *dispatch_;
   vk.vkGetPhysicalDeviceProperties(physical_device_, &properties_);
   vk.vkGetPhysicalDeviceMemoryProperties(physical_device_, &memory_);
@@ -325,7 +346,10 @@ void Context::load_device_info() {
     throw std::invalid_argument("the queue family given to tfmatch has no compute capability");
   timestamp_valid_bits_ = properties_.limits.timestampPeriod > 0 ? families[queue_family_].timestampValidBits : 0;
 
+  VkPhysicalDeviceExternalMemoryHostPropertiesEXT host_memory{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_EXTERNAL_MEMORY_HOST_PROPERTIES_EXT};
   VkPhysicalDeviceMaintenance3Properties maint3{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
+  if (external_memory_host) maint3.pNext = &host_memory;
   VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
   subgroup.pNext = &maint3;
   VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
@@ -334,6 +358,81 @@ void Context::load_device_info() {
   subgroup_size_ = subgroup.subgroupSize;
   subgroup_operations_ = compute_subgroup_operations(subgroup);
   max_allocation_bytes_ = maint3.maxMemoryAllocationSize;
+  if (external_memory_host && dispatch_->vkGetMemoryHostPointerPropertiesEXT)
+    min_import_alignment_ = host_memory.minImportedHostPointerAlignment;
+  const char* env = std::getenv("TFMATCH_HOST_IMPORT");
+  set_host_import(!(env && std::string(env) == "0"));
+}
+
+void Context::create_pipeline_cache(VkPipelineCache borrowed) {
+  if (borrowed) {
+    pipeline_cache_ = borrowed;
+    return;
+  }
+  VkPipelineCacheCreateInfo info{VK_STRUCTURE_TYPE_PIPELINE_CACHE_CREATE_INFO};
+  VK_CHECK(dispatch_->vkCreatePipelineCache(device_, &info, nullptr, &pipeline_cache_));
+  owns_pipeline_cache_ = true;
+}
+
+std::string Context::pipeline_cache_identity() const {
+  char head[64];
+  std::snprintf(head, sizeof head, "%04x-%04x-%08x-", properties_.vendorID, properties_.deviceID,
+                properties_.driverVersion);
+  std::string id = head;
+  for (uint8_t byte : properties_.pipelineCacheUUID) {
+    char hex[3];
+    std::snprintf(hex, sizeof hex, "%02x", byte);
+    id += hex;
+  }
+  return id;
+}
+
+bool Context::merge_pipeline_cache_data(std::span<const uint8_t> data, std::string* why_not) {
+  // The header every implementation writes first (VkPipelineCacheHeaderVersionOne): length,
+  // version, vendor ID, device ID, pipelineCacheUUID. Checked here so that data of another
+  // device or driver build is never handed to a driver, some of which trust what they are given.
+  auto refuse = [&](const std::string& why) {
+    if (why_not) *why_not = why;
+    return false;
+  };
+  auto word = [&](size_t i) {
+    uint32_t w = 0;
+    std::memcpy(&w, data.data() + 4 * i, 4);
+    return w;
+  };
+  constexpr size_t kHeaderBytes = 16 + VK_UUID_SIZE;
+  if (data.size() < kHeaderBytes) return refuse("shorter than a pipeline-cache header");
+  if (word(0) < kHeaderBytes || word(0) > data.size()) return refuse("header length " + std::to_string(word(0)) + " is not valid");
+  if (word(1) != VK_PIPELINE_CACHE_HEADER_VERSION_ONE) return refuse("header version " + std::to_string(word(1)) + " is not 1");
+  if (word(2) != properties_.vendorID || word(3) != properties_.deviceID) return refuse("written for another device");
+  if (std::memcmp(data.data() + 16, properties_.pipelineCacheUUID, VK_UUID_SIZE) != 0)
+    return refuse("written by another driver build (pipelineCacheUUID differs)");
+  VkPipelineCacheCreateInfo info{VK_STRUCTURE_TYPE_PIPELINE_CACHE_CREATE_INFO};
+  info.initialDataSize = data.size();
+  info.pInitialData = data.data();
+  VkPipelineCache loaded = VK_NULL_HANDLE;
+  VK_CHECK(dispatch_->vkCreatePipelineCache(device_, &info, nullptr, &loaded));
+  std::unique_lock lock(pipeline_cache_mutex_);
+  const VkResult merged = dispatch_->vkMergePipelineCaches(device_, pipeline_cache_, 1, &loaded);
+  dispatch_->vkDestroyPipelineCache(device_, loaded, nullptr);
+  VK_CHECK(merged);
+  return true;
+}
+
+std::vector<uint8_t> Context::pipeline_cache_data() {
+  std::shared_lock lock(pipeline_cache_mutex_);
+  // The size can grow between the two calls only if a pipeline is created meanwhile on another
+  // thread: VK_INCOMPLETE then asks for another round.
+  for (;;) {
+    size_t size = 0;
+    VK_CHECK(dispatch_->vkGetPipelineCacheData(device_, pipeline_cache_, &size, nullptr));
+    std::vector<uint8_t> data(size);
+    const VkResult r = dispatch_->vkGetPipelineCacheData(device_, pipeline_cache_, &size, data.data());
+    if (r == VK_INCOMPLETE) continue;
+    VK_CHECK(r);
+    data.resize(size);
+    return data;
+  }
 }
 
 PFN_vkGetDeviceProcAddr Context::get_device_proc_addr() const { return dispatch_->vkGetDeviceProcAddr; }
@@ -346,8 +445,9 @@ uint64_t Context::max_buffer_bytes() const {
 
 Context::~Context() {
   staging_.reset();  // its buffers belong to the device, also an adopted one
-  if (!owns_) return;
   const Dispatch& vk = *dispatch_;
+  if (owns_pipeline_cache_) vk.vkDestroyPipelineCache(device_, pipeline_cache_, nullptr);
+  if (!owns_) return;
   if (device_) {
     vk.vkDeviceWaitIdle(device_);
     vk.vkDestroyDevice(device_, nullptr);

@@ -9,6 +9,8 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <shared_mutex>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -44,6 +46,12 @@ struct ExternalDevice {
   // Set when the host created `device` with shaderInt64, shaderBufferInt64Atomics and
   // shaderSharedInt64Atomics enabled: the accumulating kernels then use 64-bit atomics.
   bool int64_atomics_enabled = false;
+  // The host's pipeline cache for tfmatch's pipelines (borrowed, never destroyed); null: tfmatch
+  // keeps one of its own for the context's lifetime.
+  VkPipelineCache pipeline_cache = VK_NULL_HANDLE;
+  // Set when the host enabled VK_EXT_external_memory_host on `device`: large transfers then copy
+  // straight from and to the caller's host memory (buffer.h).
+  bool external_memory_host_enabled = false;
 };
 
 struct DeviceSummary {
@@ -104,6 +112,13 @@ class Context {
   bool int64_atomics() const { return int64_atomics_; }
   // Largest buffer a single storage-buffer descriptor may address (and one allocation may hold).
   uint64_t max_buffer_bytes() const;
+  // Whether large transfers import the caller's host memory (VK_EXT_external_memory_host: the
+  // copy engine reads or writes it in place, no staging copy): enabled where the device has the
+  // extension, unless TFMATCH_HOST_IMPORT=0; set_host_import(false) turns it off for this context.
+  bool host_import() const { return host_import_; }
+  void set_host_import(bool enabled) { host_import_ = enabled && min_import_alignment_ > 0; }
+  // minImportedHostPointerAlignment: imported ranges start and end on multiples of it (0: none).
+  uint64_t min_import_alignment() const { return min_import_alignment_; }
 
   // Validation messages (errors and warnings) seen since the last call; empty when validation
   // is off. Tests fail on any.
@@ -116,6 +131,24 @@ class Context {
   StagingBuffers& staging() { return *staging_; }
 
   void set_debug_name(VkObjectType type, uint64_t handle, const char* name) const;
+
+  // The pipeline cache every ComputePipeline of this context is created through. Pipelines are
+  // created when a kernel first needs them; a cache filled by an earlier process (seeded with
+  // merge_pipeline_cache_data) lets the driver skip compiling them again.
+  VkPipelineCache pipeline_cache() const { return pipeline_cache_; }
+  // Held shared while a pipeline is created through the cache, exclusively while data is merged
+  // into it (Vulkan requires external synchronization of a merge's destination).
+  std::shared_mutex& pipeline_cache_mutex() { return pipeline_cache_mutex_; }
+  // What identifies the driver build a pipeline cache is valid for: vendor and device IDs, driver
+  // version and the device's pipelineCacheUUID, as "vvvv-dddd-driver-uuidhex".
+  std::string pipeline_cache_identity() const;
+  // Adds the pipelines in `data` (vkGetPipelineCacheData's output of an earlier run) to this
+  // context's cache. Data whose header names another device, driver build or header version is
+  // not given to the driver: returns false and says why in `why_not` (a stale cache is harmless,
+  // never an error). Throws VulkanError only when the driver fails on data that matched.
+  bool merge_pipeline_cache_data(std::span<const uint8_t> data, std::string* why_not = nullptr);
+  // The cache's contents now (vkGetPipelineCacheData), to store for the next run.
+  std::vector<uint8_t> pipeline_cache_data();
 
   // Bytes held by tfm::Buffer objects of this context (device and staging), and the most held
   // at once since the last reset_peak_buffer_bytes(): benchmarks report peak memory with it.
@@ -131,7 +164,8 @@ class Context {
 
  private:
   Context();
-  void load_device_info();
+  void load_device_info(bool external_memory_host);
+  void create_pipeline_cache(VkPipelineCache borrowed);
   static VKAPI_ATTR VkBool32 VKAPI_CALL debug_callback(VkDebugUtilsMessageSeverityFlagBitsEXT,
                                                       VkDebugUtilsMessageTypeFlagsEXT,
                                                       const VkDebugUtilsMessengerCallbackDataEXT*,
@@ -153,12 +187,17 @@ class Context {
   uint32_t subgroup_size_ = 0;
   uint32_t subgroup_operations_ = 0;
   bool int64_atomics_ = false;
+  bool host_import_ = false;
+  uint64_t min_import_alignment_ = 0;
   uint64_t max_allocation_bytes_ = 0;
   std::mutex messages_mutex_;
   std::vector<std::string> messages_;
   std::mutex queue_mutex_;
   std::atomic<uint64_t> buffer_bytes_{0}, peak_buffer_bytes_{0};
   std::unique_ptr<StagingBuffers> staging_;  // released before the device
+  VkPipelineCache pipeline_cache_ = VK_NULL_HANDLE;
+  bool owns_pipeline_cache_ = false;
+  std::shared_mutex pipeline_cache_mutex_;
 };
 
 }  // namespace tfm

@@ -1,10 +1,13 @@
 // Shader module, descriptor-set layout, pipeline layout and pipeline for one compute kernel.
 #include "pipeline.h"
 
+#include <mutex>
+#include <shared_mutex>
 #include <span>
 #include <stdexcept>
 
 #include "context.h"
+#include "phase_timer.h"
 #include "vk_check.h"
 #include "vk_dispatch.h"
 
@@ -22,6 +25,7 @@ std::vector<DescriptorKind> texel_binding_kinds(size_t count, std::initializer_l
 }
 
 ComputePipeline::ComputePipeline(Context& ctx, PipelineDesc desc) : ctx_(ctx), desc_(std::move(desc)) {
+  PhaseScope timing(Phase::Pipelines);
   const auto& limits = ctx.limits();
   if (desc_.workgroup_size > limits.maxComputeWorkGroupInvocations)
     throw std::runtime_error(desc_.shader + ": workgroup of " + std::to_string(desc_.workgroup_size) +
@@ -75,7 +79,10 @@ ComputePipeline::ComputePipeline(Context& ctx, PipelineDesc desc) : ctx_(ctx), d
   info.stage.pName = "main";
   info.stage.pSpecializationInfo = entries.empty() ? nullptr : &spec;
   info.layout = layout_;
-  VK_CHECK(vk.vkCreateComputePipelines(ctx.device(), VK_NULL_HANDLE, 1, &info, nullptr, &pipeline_));
+  {
+    std::shared_lock lock(ctx.pipeline_cache_mutex());
+    VK_CHECK(vk.vkCreateComputePipelines(ctx.device(), ctx.pipeline_cache(), 1, &info, nullptr, &pipeline_));
+  }
   ctx.set_debug_name(VK_OBJECT_TYPE_PIPELINE, reinterpret_cast<uint64_t>(pipeline_), desc_.shader.c_str());
 }
 

@@ -35,6 +35,7 @@ void load_instance_functions(Dispatch& d, PFN_vkGetInstanceProcAddr get, VkInsta
   load(d.vkGetPhysicalDeviceFeatures2, get, instance, "vkGetPhysicalDeviceFeatures2");
   load(d.vkGetPhysicalDeviceMemoryProperties, get, instance, "vkGetPhysicalDeviceMemoryProperties");
   load(d.vkGetPhysicalDeviceQueueFamilyProperties, get, instance, "vkGetPhysicalDeviceQueueFamilyProperties");
+  load(d.vkEnumerateDeviceExtensionProperties, get, instance, "vkEnumerateDeviceExtensionProperties");
   load(d.vkCreateDevice, get, instance, "vkCreateDevice");
   load(d.vkCreateDebugUtilsMessengerEXT, get, instance, "vkCreateDebugUtilsMessengerEXT");
   load(d.vkDestroyDebugUtilsMessengerEXT, get, instance, "vkDestroyDebugUtilsMessengerEXT");

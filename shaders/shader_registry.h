@@ -14,5 +14,8 @@ namespace tfm {
 std::span<const uint32_t> shader_spirv(std::string_view name);
 // Every embedded shader's name, sorted.
 std::vector<std::string> shader_names();
+// A 64-bit hash (FNV-1a) of every embedded shader's name and words: changes with any shader or
+// build of them, so a pipeline cache stored for one build is not offered to another.
+uint64_t shaders_fingerprint();
 
 }  // namespace tfm
