@@ -26,6 +26,13 @@ class Buffer {
   // Throws VulkanError (e.g. VK_ERROR_OUT_OF_DEVICE_MEMORY) and std::runtime_error when no
   // memory type fits. Usage always includes storage and transfer src/dst.
   Buffer(Context& ctx, uint64_t bytes, MemoryUsage usage, const std::string& debug_name);
+  // A transfer buffer over `bytes` of the caller's host memory at `pointer` (both multiples of
+  // Context::min_import_alignment()), imported with VK_EXT_external_memory_host: the device copies
+  // from or to it in place. The memory must stay allocated, and the host must not touch it while
+  // the device uses it. Returns an empty Buffer when the device cannot import that memory (no
+  // extension, a read-only mapping, no host-coherent type for it). Not counted in buffer_bytes():
+  // it allocates nothing.
+  static Buffer import_host(Context& ctx, void* pointer, uint64_t bytes, const std::string& debug_name);
   ~Buffer();
   Buffer(Buffer&& other) noexcept;
   Buffer& operator=(Buffer&& other) noexcept;
@@ -46,6 +53,7 @@ class Buffer {
   VkDeviceMemory memory_ = VK_NULL_HANDLE;
   uint64_t bytes_ = 0;
   void* mapped_ = nullptr;
+  bool tracked_ = true;  // counted in the context's buffer_bytes()
 };
 
 // Host memory upload() stages through, at most, and readback() at a time: bounded so that moving
@@ -61,10 +69,15 @@ struct StagingBuffers {
   Buffer half[2];
 };
 
-// Copies host bytes into `dst` at `offset` (through the context's staging buffers unless dst is a
-// host buffer).
+// Host memory transfers at least this large copy their page-aligned interior straight from or to
+// the caller's memory where the context imports host memory (Context::host_import()); the
+// unaligned ends, and smaller transfers, go through staging.
+inline constexpr uint64_t kHostImportMinBytes = 4ull << 20;
+
+// Copies host bytes into `dst` at `offset`: in place where host memory can be imported, else
+// through the context's staging buffers (a host buffer is written directly).
 void upload(Context& ctx, Buffer& dst, const void* data, uint64_t bytes, uint64_t offset = 0);
-// Copies `bytes` from `src` at `offset` to host memory.
+// Copies `bytes` from `src` at `offset` to host memory, the same ways.
 void readback(Context& ctx, const Buffer& src, void* data, uint64_t bytes, uint64_t offset = 0);
 // Sets every 32-bit word of `dst` to `value` and waits.
 void fill(Context& ctx, Buffer& dst, uint32_t value);

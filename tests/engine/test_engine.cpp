@@ -21,7 +21,19 @@ namespace {
 
 using EngineTest = test::GpuTest;
 
+// Turns in-place transfers of host memory on or off for a test's scope, then restores them.
+class HostImport {
+ public:
+  HostImport(Context& ctx, bool enabled) : ctx_(ctx), was_(ctx.host_import()) { ctx.set_host_import(enabled); }
+  ~HostImport() { ctx_.set_host_import(was_); }
+
+ private:
+  Context& ctx_;
+  bool was_;
+};
+
 TEST_F(EngineTest, UploadReadbackRoundTripThroughStaging) {
+  const HostImport staged_only(ctx(), false);
   // Odd sizes; one larger than the two 32 MiB staging halves, so both are filled in turn while
   // the device copies the other; then small ones again through the staging the context kept.
   for (size_t words : {size_t(1), size_t(13), size_t(1027), (size_t(80) << 20) / 4 + 3, size_t(5), size_t(4099)}) {
@@ -40,6 +52,57 @@ TEST_F(EngineTest, UploadReadbackRoundTripThroughStaging) {
     readback(ctx(), b, back.data(), words * 4);
     ASSERT_EQ(std::memcmp(data.data(), back.data(), words * 4), 0) << words << " at an offset";
   }
+}
+
+TEST_F(EngineTest, LargeTransfersInPlaceGiveTheStagedBits) {
+  if (!ctx().host_import()) GTEST_SKIP() << ctx().device_name() << " cannot import host memory (VK_EXT_external_memory_host)";
+  const uint64_t align = ctx().min_import_alignment();
+  ASSERT_GT(align, 0u);
+  // Sizes at and past the threshold, starting 0, 1 and 3 words past an alignment boundary, so the
+  // aligned interior goes in place and the unaligned head and tail through staging; offsets into
+  // the device buffer that are not multiples of the alignment either.
+  const size_t min_words = kHostImportMinBytes / 4;
+  for (size_t words : {min_words, min_words + 1027, 3 * min_words + 13}) {
+    for (size_t shift : {size_t(0), size_t(1), size_t(3)}) {
+      SCOPED_TRACE(std::to_string(words) + " words, " + std::to_string(shift) + " past an alignment boundary");
+      std::vector<uint32_t> storage(words + align);
+      uint32_t* aligned = reinterpret_cast<uint32_t*>((reinterpret_cast<uintptr_t>(storage.data()) + align - 1) / align * align);
+      uint32_t* data = aligned + shift;
+      ASSERT_LE(data + words, storage.data() + storage.size());
+      for (size_t i = 0; i < words; ++i) data[i] = uint32_t(i * 2654435761u + shift);
+      const size_t dst_words = words + 5;
+      Buffer b(ctx(), dst_words * 4, MemoryUsage::Device, "in place");
+      {
+        const HostImport staged(ctx(), false);
+        std::vector<uint32_t> zeros(dst_words, 0xdeadbeefu);
+        upload(ctx(), b, zeros.data(), dst_words * 4);
+      }
+      const uint64_t held = ctx().buffer_bytes();
+      upload(ctx(), b, data, words * 4, 5 * 4);  // in place
+      EXPECT_EQ(ctx().buffer_bytes(), held) << "an imported buffer allocates nothing";
+      std::vector<uint32_t> staged_back(dst_words), in_place_back(dst_words + align);
+      {
+        const HostImport staged(ctx(), false);
+        readback(ctx(), b, staged_back.data(), dst_words * 4);
+      }
+      uint32_t* dst = in_place_back.data() + 1;  // an unaligned destination too
+      readback(ctx(), b, dst, dst_words * 4);
+      for (size_t i = 0; i < 5; ++i) ASSERT_EQ(staged_back[i], 0xdeadbeefu) << "before the offset, word " << i;
+      ASSERT_EQ(std::memcmp(staged_back.data() + 5, data, words * 4), 0) << "uploaded in place, read back staged";
+      ASSERT_EQ(std::memcmp(dst, staged_back.data(), dst_words * 4), 0) << "read back in place";
+    }
+  }
+}
+
+TEST_F(EngineTest, ImportTakesOnlyAlignedHostMemory) {
+  if (!ctx().host_import()) GTEST_SKIP() << ctx().device_name() << " cannot import host memory (VK_EXT_external_memory_host)";
+  const uint64_t align = ctx().min_import_alignment();
+  std::vector<char> storage(4 * align);
+  char* aligned = reinterpret_cast<char*>((reinterpret_cast<uintptr_t>(storage.data()) + align - 1) / align * align);
+  EXPECT_TRUE(Buffer::import_host(ctx(), aligned, align, "aligned"));
+  EXPECT_FALSE(Buffer::import_host(ctx(), aligned + 4, align, "pointer off the alignment"));
+  EXPECT_FALSE(Buffer::import_host(ctx(), aligned, align + 4, "size off the alignment"));
+  EXPECT_FALSE(Buffer::import_host(ctx(), aligned, 0, "nothing"));
 }
 
 TEST_F(EngineTest, TransfersPastTheEndThrow) {

@@ -159,14 +159,28 @@ TEST_F(CliConventions, JsonDashKeepsStdoutToOneJsonDocument) {
   for (const std::string& args : runs) {
     const test::CliSplitResult r = run_cli_split(args);
     ASSERT_EQ(r.exit_code, 0) << args << "\n" << r.output << r.errors;
-    EXPECT_NO_THROW((void)nlohmann::json::parse(r.output)) << args << ": stdout is not one JSON document:\n" << r.output;
+    nlohmann::json j;
+    EXPECT_NO_THROW(j = nlohmann::json::parse(r.output)) << args << ": stdout is not one JSON document:\n" << r.output;
+    // Every JSON object says where the run's time went, up to the moment it was written.
+    if (!j.is_object()) continue;
+    ASSERT_TRUE(j.contains("timings")) << args;
+    EXPECT_GT(j["timings"]["total_ms"].get<double>(), j["timings"]["startup_ms"].get<double>()) << args;
+    if (args.rfind("bench --", 0) == 0) {
+      for (const char* rate : {"upload_staged_bytes_per_s", "host_memcpy_bytes_per_s"})
+        EXPECT_GT(j["runs"][0][rate].get<double>(), 0.0) << rate;
+      EXPECT_GE(j["runs"][0]["upload_in_place_bytes_per_s"].get<double>(), 0.0);  // 0: the device cannot import
+    }
   }
   // A file instead: the text as usual, and the same JSON in the file.
   const test::CliResult text = run_cli("info " + nc + " --json " + dir / "info.json");
   ASSERT_EQ(text.exit_code, 0) << text.output;
   EXPECT_TRUE(contains(text.output, "A")) << text.output;
   std::ifstream in(dir / "info.json");
-  EXPECT_EQ(nlohmann::json::parse(in), nlohmann::json::parse(run_cli_split("info " + nc + " --json -").output));
+  // The same document but for the run's own timings.
+  nlohmann::json in_file = nlohmann::json::parse(in), on_stdout = nlohmann::json::parse(run_cli_split("info " + nc + " --json -").output);
+  EXPECT_EQ(in_file.erase("timings"), 1u);
+  EXPECT_EQ(on_stdout.erase("timings"), 1u);
+  EXPECT_EQ(in_file, on_stdout);
 }
 
 TEST_F(CliConventions, FieldSelectorsOnEveryCommandThatReadsFields) {

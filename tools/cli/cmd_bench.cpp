@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
@@ -49,14 +50,25 @@ std::array<uint64_t, 3> parse_dims(const std::string& s) {
   return d;
 }
 
+// Best device time (ms) of `run` (which returns its own GPU time) over at least `repeats` runs and
+// `warm_ms` of back-to-back device work. The assembly's repeats alternate with the CPU loop's, and a
+// GPU left idle through a CPU loop drops its clocks (an H100 or H200 idles at 345 MHz, 5.7x below
+// its 1980 MHz boost). Timed that way on an H200 (2026-11-27) the assembly took 15.9 ms here and
+// 2.8 ms inside `optimize`, where uploads had just kept the GPU busy: 5.7x, the clocks' ratio. So
+// each round keeps the device busy for a while before its best time counts.
+template <class Run>
+double warm_best_ms(int repeats, Run&& run, int warm_ms = 200) {
+  double best = 1e300;
+  const auto warm_until = std::chrono::steady_clock::now() + std::chrono::milliseconds(warm_ms);
+  for (int r = 0; r < repeats || std::chrono::steady_clock::now() < warm_until; ++r) best = std::min(best, run());
+  return best;
+}
+
 // Best GPU time (ms) of copying every chunk of `field` into a scratch buffer, `repeats` times and
-// for at least 0.3 s, so that a GPU that idled at low clocks (an H100 idles at 345 MHz) has had
-// work for a while before the copy and the assemblies after it are timed.
+// for at least 0.3 s (warm_best_ms).
 double copy_ms(Context& ctx, const DeviceField& field, int repeats) {
   Buffer scratch(ctx, field.chunk(0).size(), MemoryUsage::Device, "copy scratch");
-  double best = 1e300;
-  const auto warm_until = std::chrono::steady_clock::now() + std::chrono::milliseconds(300);
-  for (int r = 0; r < repeats || std::chrono::steady_clock::now() < warm_until; ++r) {
+  return warm_best_ms(repeats, [&] {
     CommandBatch batch(ctx);
     uint32_t t0 = batch.timestamp();
     for (size_t c = 0; c < field.chunk_count(); ++c) {
@@ -65,9 +77,8 @@ double copy_ms(Context& ctx, const DeviceField& field, int repeats) {
     }
     uint32_t t1 = batch.timestamp();
     batch.submit_and_wait();
-    best = std::min(best, batch.elapsed_ms(t0, t1));
-  }
-  return best;
+    return batch.elapsed_ms(t0, t1);
+  }, 300);
 }
 
 // Best GPU time (ms) of reading both fields with the assembly's loads (FieldPairReadKernel);
@@ -83,6 +94,44 @@ double read_ms(Context& ctx, const DeviceField& ref, const DeviceField& opt, con
     if (r > 0) best = std::min(best, ms);
   }
   return best;
+}
+
+// Host-to-device rates (bytes/s) of uploading both fields, best of `repeats`: in place (host
+// memory imported, Context::host_import(); 0 where the device cannot) and through staging, beside
+// a plain host memcpy of the same bytes into memory already touched: the rate a staged upload's
+// own host copy cannot beat.
+struct UploadRates {
+  double in_place = 0, staged = 0, host_memcpy = 0;
+};
+UploadRates upload_rates(Context& ctx, DeviceField& dref, DeviceField& dopt, const Volume& ref, const Volume& field,
+                         int repeats) {
+  const double bytes = double(ref.values.size() + field.values.size()) * sizeof(float);
+  auto best_rate = [&](auto&& transfer) {
+    double best = 1e300;
+    for (int r = 0; r < repeats; ++r) {
+      const auto t0 = std::chrono::steady_clock::now();
+      transfer();
+      best = std::min(best, seconds_since(t0));
+    }
+    return bytes / best;
+  };
+  UploadRates rates;
+  std::vector<float> copy(ref.values.size() + field.values.size(), 1.0f);  // touched: no page faults timed
+  rates.host_memcpy = best_rate([&] {
+    std::memcpy(copy.data(), ref.values.data(), ref.values.size() * sizeof(float));
+    std::memcpy(copy.data() + ref.values.size(), field.values.data(), field.values.size() * sizeof(float));
+  });
+  const bool import = ctx.host_import();
+  auto both = [&] {
+    dref.upload(ref.values);
+    dopt.upload(field.values);
+  };
+  ctx.set_host_import(false);
+  rates.staged = best_rate(both);
+  ctx.set_host_import(true);
+  if (ctx.host_import()) rates.in_place = best_rate(both);
+  ctx.set_host_import(import);
+  return rates;
 }
 
 // Largest relative difference of any entry of M, S^T b and b^T b between two systems.
@@ -138,16 +187,21 @@ int run(const BenchArgs& a) {
     // The read bound: both fields read as the assembly reads them, 8 bytes per voxel.
     const double read_best = read_ms(*ctx, dref, dopt, field_pair_bit_sums(ref.values, field.values), a.repeats);
     const double read_voxels_per_s = double(voxels) / (read_best * 1e-3);
+    const UploadRates up = upload_rates(*ctx, dref, dopt, ref, field, a.repeats);
     std::cout << "\n  " << size << " (" << std::setprecision(3) << double(voxels) / 1e6 << " M voxels); copy bound "
               << std::fixed << std::setprecision(0) << bound_voxels_per_s / 1e6 << " M voxels/s ("
               << std::setprecision(2) << copy_bytes_per_s / 1e9 << " GB/s copy); read bound " << std::setprecision(0)
               << read_voxels_per_s / 1e6 << " M voxels/s (" << std::setprecision(2) << read_voxels_per_s * 8.0 / 1e9
               << " GB/s read)\n"
+              << "  upload of both fields: in place " << std::setprecision(2) << up.in_place / 1e9 << " GB/s, staged "
+              << up.staged / 1e9 << " GB/s; host memcpy " << up.host_memcpy / 1e9 << " GB/s\n"
               << "    N      GPU ms   M vox/s   CPU loop ms   M vox/s   GPU/CPU   GPU/copy   GPU/read"
                  "   max rel. diff   path\n";
     nlohmann::json entry{{"dims", size}, {"voxels", voxels}, {"copy_ms", copy_best},
                          {"copy_bytes_per_s", copy_bytes_per_s}, {"copy_bound_voxels_per_s", bound_voxels_per_s},
                          {"read_ms", read_best}, {"read_bound_voxels_per_s", read_voxels_per_s},
+                         {"upload_in_place_bytes_per_s", up.in_place}, {"upload_staged_bytes_per_s", up.staged},
+                         {"host_memcpy_bytes_per_s", up.host_memcpy},
                          {"tf_sizes", nlohmann::json::array()}};
     for (uint32_t n : a.tf_sizes) {
       const FieldMapping om = make_mapping(field_range, n);
@@ -158,8 +212,10 @@ int run(const BenchArgs& a) {
       double gpu_best = 1e300, cpu_best = 1e300;
       NormalEquations cpu(n);
       for (int r = 0; r < a.repeats; ++r) {
-        gpu.reset();
-        gpu_best = std::min(gpu_best, gpu.add(dref, dopt, rm, om, tfb));
+        gpu_best = std::min(gpu_best, warm_best_ms(1, [&] {
+                              gpu.reset();
+                              return gpu.add(dref, dopt, rm, om, tfb);
+                            }));
         const auto t0 = std::chrono::steady_clock::now();
         cpu = assemble_normal_equations_cpu_threaded(ref.values, field.values, rm, om, tf, threads);
         cpu_best = std::min(cpu_best, seconds_since(t0) * 1e3);
