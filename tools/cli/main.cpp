@@ -3,8 +3,10 @@
 #include <cctype>
 #include <cstdlib>
 #include <exception>
+#include <filesystem>
 #include <iostream>
 #include <new>
+#include <optional>
 #include <sstream>
 #include <string_view>
 
@@ -12,7 +14,10 @@
 #include "cli.h"
 #include "interrupts.h"
 #include "memory_budget.h"
+#include "phase_timer.h"
+#include "pipeline_cache_file.h"
 #include "progress.h"
+#include "shader_registry.h"
 #include "tfmatch_version.h"  // generated in the build directory (top-level CMakeLists.txt)
 #include "vk_check.h"
 
@@ -77,10 +82,39 @@ std::shared_ptr<Context> make_context(bool validation_when_installed) {
   } else if (validation_when_installed) {
     options.validation = true;
   }
-  return std::shared_ptr<Context>(Context::create(options).release(), [](Context* ctx) {
+  std::unique_ptr<Context> created = Context::create(options);
+  // The pipelines of earlier runs on this device and build, so this one need not compile them.
+  std::optional<std::filesystem::path> cache_file;
+  std::vector<uint8_t> cached;
+  if (const auto dir = pipeline_cache_directory()) {
+    PhaseScope timing(Phase::Startup);
+    cache_file = pipeline_cache_path(*dir, created->pipeline_cache_identity(), shaders_fingerprint());
+    StoredPipelineCache stored = read_pipeline_cache(*cache_file);
+    std::string note = stored.note;
+    try {
+      if (!stored.data.empty() && created->merge_pipeline_cache_data(stored.data, &note)) cached = std::move(stored.data);
+      else if (!stored.data.empty()) note = "pipeline cache " + cache_file->string() + " ignored: " + note;
+    } catch (const VulkanError& e) {
+      note = "pipeline cache " + cache_file->string() + " ignored: the driver refused it (" + e.what() + ")";
+    }
+    if (!note.empty() && !globals().quiet) std::cerr << "tfmatch: note: " << note << "\n";
+  }
+  return std::shared_ptr<Context>(created.release(), [cache_file, cached = std::move(cached)](Context* ctx) {
     auto messages = ctx->take_validation_messages();
     for (const std::string& m : messages) std::cerr << "tfmatch: Vulkan validation " << m << "\n";
     if (!messages.empty()) validation_failed() = true;
+    // Stored only when this run added pipelines; a failure to store costs the next run time only.
+    if (cache_file) {
+      try {
+        const std::vector<uint8_t> data = ctx->pipeline_cache_data();
+        if (data != cached) {
+          const std::string problem = write_pipeline_cache(*cache_file, data);
+          if (!problem.empty() && !globals().quiet) std::cerr << "tfmatch: note: pipeline cache not stored: " << problem << "\n";
+        }
+      } catch (const std::exception& e) {
+        if (!globals().quiet) std::cerr << "tfmatch: note: pipeline cache not stored: " << e.what() << "\n";
+      }
+    }
     delete ctx;
   });
 }
