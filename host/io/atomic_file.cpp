@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include "cancellation.h"
+#include "phase_timer.h"
 
 namespace fs = std::filesystem;
 
@@ -84,6 +85,7 @@ OutputBatchState* g_batch = nullptr;  // the outermost open batch's (single-thre
 }  // namespace
 
 void write_file_atomically(const fs::path& path, std::string_view bytes) {
+  PhaseScope timing(Phase::Write);
   check_replaceable(path);
   const fs::path tmp = temporary_name(path);
   int fd = -1;

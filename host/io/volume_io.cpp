@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "memory_budget.h"
+#include "phase_timer.h"
 #include "volume.h"
 #include "volume_format_table.h"
 #include "volume_formats.h"
@@ -81,6 +82,7 @@ const VolumeFormat& checked_format(const std::filesystem::path& path, const Volu
 }  // namespace
 
 Volume load_volume(const std::string& spec, const VolumeOptions& defaults) {
+  PhaseScope timing(Phase::Read);
   VolumeSpec s = parse_volume_spec(spec, defaults);
   const std::filesystem::path& path = s.path;
   const VolumeOptions& options = s.options;
@@ -107,6 +109,7 @@ std::optional<uint64_t> concurrent_voxel_count(const std::string& spec, const Vo
 
 std::pair<Volume, Volume> load_volume_pair(const std::string& first, const std::string& second,
                                            const VolumeOptions& options) {
+  PhaseScope timing(Phase::Read);
   const std::optional<uint64_t> n_first = concurrent_voxel_count(first, options);
   const std::optional<uint64_t> n_second = n_first ? concurrent_voxel_count(second, options) : std::nullopt;
   if (!n_first || !n_second) {
@@ -116,7 +119,10 @@ std::pair<Volume, Volume> load_volume_pair(const std::string& first, const std::
   // Each reader checks its own volume against the budget; side by side, neither sees what the
   // other is about to allocate, so both are checked together first.
   check_memory((*n_first + *n_second) * sizeof(float), first + " and " + second + ": reading both (decoded as float32)");
-  std::future<Volume> b = std::async(std::launch::async, [&] { return load_volume(second, options); });
+  std::future<Volume> b = std::async(std::launch::async, [&] {
+    const UntimedThread overlapped;  // this thread's time is the waiting one's
+    return load_volume(second, options);
+  });
   Volume a;
   std::exception_ptr a_error;
   try {

@@ -8,6 +8,7 @@
 
 #include "atomic_file.h"
 #include "memory_budget.h"
+#include "phase_timer.h"
 #include "volume_formats.h"  // read_file_bytes, kMaxDeflateRatio
 
 namespace tfm {
@@ -26,6 +27,7 @@ png_image describe(const Image& image) {
 }  // namespace
 
 std::string encode_png(const Image& image) {
+  PhaseScope timing(Phase::Write);  // encoding is part of writing an image
   if (image.width == 0 || image.height == 0 || image.rgb.size() != size_t(image.width) * image.height * 3)
     throw std::invalid_argument("encode_png: empty or inconsistent image");
   png_image p = describe(image);

@@ -10,6 +10,7 @@
 
 #include "cancellation.h"
 #include "memory_budget.h"
+#include "phase_timer.h"
 #include "solver_support.h"
 
 namespace tfm {
@@ -35,14 +36,24 @@ void for_each_slab_pair(VolumeSlabReader& ref, VolumeSlabReader& field, uint64_t
     field.read_slices(z0, n, b[slot].data());
   };
   checkpoint("stream");
-  read(0, 0);
+  {
+    PhaseScope timing(Phase::Read);
+    read(0, 0);
+  }
   int slot = 0;
   for (uint64_t z0 = 0; z0 < nz; z0 += slab_slices, slot ^= 1) {
     const uint64_t n = std::min(slab_slices, nz - z0);
     std::future<void> next;  // its destructor waits for the read, also when fn throws
-    if (z0 + slab_slices < nz) next = std::async(std::launch::async, read, z0 + slab_slices, slot ^ 1);
+    if (z0 + slab_slices < nz)
+      next = std::async(std::launch::async, [&, z = z0 + slab_slices, into = slot ^ 1] {
+        const UntimedThread overlapped;  // counted as the time the loop below waits for it
+        read(z, into);
+      });
     fn(z0, n, std::span<const float>(a[slot].data(), n * s), std::span<const float>(b[slot].data(), n * s));
-    if (next.valid()) next.get();
+    if (next.valid()) {
+      PhaseScope timing(Phase::Read);  // what the read did not hide behind the slab's work
+      next.get();
+    }
     checkpoint("stream");
   }
 }

@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "atomic_file.h"
+#include "phase_timer.h"
 
 namespace tfm::cli {
 namespace {
@@ -105,9 +106,24 @@ JsonOutput::~JsonOutput() {
   ::close(stdout_fd_);
 }
 
+nlohmann::json timings_json() {
+  const PhaseTimes t = phase_times();
+  nlohmann::json j;
+  double counted = 0;
+  for (size_t i = 0; i < kPhaseCount; ++i) {
+    j[std::string(phase_name(Phase(i))) + "_ms"] = t.seconds[i] * 1e3;
+    counted += t.seconds[i];
+  }
+  j["total_ms"] = t.since_start_s * 1e3;
+  j["other_ms"] = (t.since_start_s - counted) * 1e3;
+  return j;
+}
+
 void JsonOutput::write(const nlohmann::json& j) const {
   if (!wanted()) return;
-  const std::string text = j.dump(2) + "\n";
+  nlohmann::json out = j;
+  if (out.is_object()) out["timings"] = timings_json();
+  const std::string text = out.dump(2) + "\n";
   if (!to_stdout()) return write_file_atomically(target_, text);
   for (size_t done = 0; done < text.size();) {
     const ssize_t n = ::write(stdout_fd_, text.data() + done, text.size() - done);
