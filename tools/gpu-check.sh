@@ -9,11 +9,12 @@
 # OUT_DIR/summary.txt: exit code and seconds. Every step has a time limit, so a hang costs one
 # step, not the run. LIST (comma separated) picks parts, so that a machine lent for a few minutes
 # can take them in several calls: check (devices, self-test, test suite), solvers (the table),
-# bench (assembly, DiffDVR, renderer), bench-long (correlation, streaming); solvers-necker and
+# bench (assembly, DiffDVR, renderer), bench-long (correlation, streaming), startup (a process's
+# fixed cost, the pipeline cache, the phases of --json "timings"); solvers-necker and
 # solvers-combustion are the table's GPU rows at one size each, cuda the CUDA solvers' tests.
 set -uo pipefail
 
-parts=check,solvers,bench,bench-long
+parts=check,solvers,bench,bench-long,startup
 if [ "${1:-}" = "--parts" ]; then parts=$2; shift 2; fi
 want() { [[ ",$parts," == *",$1,"* ]]; }
 build=$(realpath "${1:-build}")
@@ -74,4 +75,19 @@ fi
 if want bench-long; then
   step bench-correlate 90 "$tfm" bench-correlate
   step bench-stream 60 "$tfm" bench-stream --voxels 100000000 --dir "${TMPDIR:-/tmp}"
+fi
+if want startup; then
+  # A process's fixed cost and where a run's time goes (--json "timings"): the demo's 96^3 pair,
+  # optimized first with an empty pipeline cache (every pipeline compiled), then twice with the
+  # cache the first run left; `devices` (an instance, no device) for the driver's own floor.
+  demo=$out/startup-demo
+  cache=$out/startup-cache
+  rm -rf "$demo" "$cache"
+  step startup-demo 60 "$tfm" demo --out "$demo" -q
+  for run in cold warm warm-again; do
+    step "startup-$run" 60 env TFMATCH_PIPELINE_CACHE="$cache" "$tfm" optimize \
+      --ref "$demo/reference_96x96x96_float32.raw" --field "$demo/field_96x96x96_float32.raw" \
+      --ref-tf "$demo/reference_tf.json" --out "$out/startup-tf.json" --json "$out/startup-$run.json"
+  done
+  step startup-devices 30 "$tfm" devices
 fi
