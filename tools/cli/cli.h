@@ -2,6 +2,7 @@
 #pragma once
 
 #include <functional>
+#include <future>
 #include <memory>
 #include <string>
 #include <vector>
@@ -49,6 +50,21 @@ void check_usage(const std::function<void()>& check);
 // collected are printed to stderr as the context is released, and the exit code becomes 3.
 // `validation_when_installed` turns the layer on without --validation where it is installed.
 std::shared_ptr<Context> make_context(bool validation_when_installed = false);
+
+// make_context() on a helper thread, begun at construction, so that a command reads its inputs
+// while the driver creates the instance and device (each takes 0.1 s or more on a GPU driver,
+// about as long as reading a large pair of fields from the page cache). get() waits for it
+// (counted as start-up time, the part the reading did not hide) and rethrows what it threw; the
+// destructor waits too, so an input error reported first still finds the device released.
+class StartingContext {
+ public:
+  StartingContext();
+  std::shared_ptr<Context> get();
+
+ private:
+  std::future<std::shared_ptr<Context>> started_;
+  std::shared_ptr<Context> context_;
+};
 
 // `tfmatch --version`: version, git commit, build type, Vulkan headers, compiler (one per line).
 std::string version_text();

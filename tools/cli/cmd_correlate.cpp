@@ -60,6 +60,7 @@ int run(const CorrelateArgs& a) {
 
   VolumeOptions vo = a.volume_flags.options();
   vo.member_dim = a.member_dim;
+  StartingContext starting;  // the device starts while the members are read
   const auto t0 = std::chrono::steady_clock::now();
   const Ensemble ens = a.ensemble.empty() ? load_ensemble_members(member_files, vo) : load_ensemble(a.ensemble, vo);
   const std::string source = ens.grid.name;
@@ -87,7 +88,7 @@ int run(const CorrelateArgs& a) {
   }
   const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-  auto ctx = make_context();
+  auto ctx = starting.get();
   const auto t1 = std::chrono::steady_clock::now();
   Volume field = empty_like(ens.grid);
   field.name = field_name(a);

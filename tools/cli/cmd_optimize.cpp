@@ -192,10 +192,13 @@ int run(const OptimizeArgs& a) {
     throw CLI::ValidationError("--marker", "markers are drawn on the report's renderings: add --report DIR");
   if (a.report.empty() && !a.slice_point.empty())
     throw CLI::ValidationError("--slice-point", "slices are part of the report: add --report DIR");
-  auto ctx = make_context();
-  if (!a.report.empty()) check_render_size(*ctx, a.render);
+  StartingContext starting;  // the device starts while the fields are read
   OutputBatch outputs;  // nothing appears unless every output is complete
-  if (std::optional<Streams> streams = open_streams(a)) return run_streamed(a, *ctx, *streams, settings, json, outputs);
+  if (std::optional<Streams> streams = open_streams(a)) {
+    auto ctx = starting.get();
+    if (!a.report.empty()) check_render_size(*ctx, a.render);
+    return run_streamed(a, *ctx, *streams, settings, json, outputs);
+  }
   LoadedInputs loaded;
   try {
     load_inputs(a.in, loaded);
@@ -204,6 +207,8 @@ int run(const OptimizeArgs& a) {
     throw MemoryBudgetExceeded(std::string(e.what()) + " (normal-equations and qp read volumes larger than memory "
                                "slab by slab from disk: --solver normal-equations --stream on)");
   }
+  auto ctx = starting.get();
+  if (!a.report.empty()) check_render_size(*ctx, a.render);
   const Volume& ref = loaded.ref;
   const std::vector<GridIndex> markers = resolve_markers(ref, a.markers);
   const std::optional<GridIndex> slice_point = resolve_slice_point(ref, a.slice_point);

@@ -119,6 +119,20 @@ std::shared_ptr<Context> make_context(bool validation_when_installed) {
   });
 }
 
+StartingContext::StartingContext()
+    : started_(std::async(std::launch::async, [] {
+        const UntimedThread overlapped;  // counted as the wait in get()
+        return make_context();
+      })) {}
+
+std::shared_ptr<Context> StartingContext::get() {
+  if (!context_) {
+    PhaseScope timing(Phase::Startup);
+    context_ = started_.get();
+  }
+  return context_;
+}
+
 FieldRange parse_range(const std::string& text, const std::string& flag) {
   auto comma = text.find(',');
   FieldRange r;
