@@ -152,9 +152,9 @@ int run(ViewArgs a) {
     if (a.demo) {
       const uint64_t n = a.size ? a.size : 96;
       ref = synthetic_reference(n, n, n);
-      field = synthetic_remapped(ref);
+      field = synthetic_changed(ref);  // as `tfmatch demo`: a monotone remap with two real changes
       config.ref_tf = demo_transfer_function(64);
-      config.title = "demo: synthetic reference vs remapped field";
+      config.title = "demo: synthetic reference vs a remapped field with real changes";
     } else {
       const VolumeOptions vo = a.in.volume.options();
       std::tie(ref, field) = load_volume_pair(a.in.ref, a.in.field, vo);
