@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <cmath>
 #include <regex>
 
 #include <nlohmann/json.hpp>
@@ -163,8 +164,51 @@ TEST(ViewCli, Era5EnsembleFromTheSharedData) {
   EXPECT_EQ(view.process->finish(std::chrono::seconds(30)).exit_code, 0);
 }
 
+// Without --ref-tf a pair starts from a built-in map, chosen by the reference's range and said on
+// stderr and in the page's title; --ref-tf takes a built-in name as well.
+TEST(ViewCli, StartsFromABuiltInTfWithoutRefTf) {
+  TempDir dir;
+  std::vector<float> signed_values(10 * 10 * 10), positive(signed_values.size());
+  for (size_t i = 0; i < signed_values.size(); ++i) {
+    signed_values[i] = float(std::sin(0.37 * double(i)));  // in [-1, 1]: a correlation-like field
+    positive[i] = 2.0f + signed_values[i] * signed_values[i];
+  }
+  const std::string a = (dir.path / "a_10x10x10_float32.raw").string(), b = (dir.path / "b_10x10x10_float32.raw").string();
+  test::write_floats(a, signed_values);
+  test::write_floats(b, positive);
+  const std::string small = " --width 32 --height 32";
+  {
+    RunningView view("--ref " + a + " --field " + b + small);
+    ASSERT_GT(view.port, 0) << view.process->output();
+    const std::string title = view.state()["title"].get<std::string>();
+    EXPECT_NE(title.find("built-in diverging"), std::string::npos) << title;
+    view.process->signal(SIGINT);
+    const test::CliResult done = view.process->finish(std::chrono::seconds(30));
+    EXPECT_EQ(done.exit_code, 0) << done.output;
+    EXPECT_NE(done.output.find("note: no --ref-tf"), std::string::npos) << done.output;
+    EXPECT_NE(done.output.find("'diverging'"), std::string::npos) << done.output;
+  }
+  {
+    RunningView view("--ref " + b + " --field " + a + small);  // a positive reference: viridis
+    ASSERT_GT(view.port, 0) << view.process->output();
+    EXPECT_NE(view.state()["title"].get<std::string>().find("built-in viridis"), std::string::npos);
+    view.process->signal(SIGINT);
+    EXPECT_EQ(view.process->finish(std::chrono::seconds(30)).exit_code, 0);
+  }
+  {
+    RunningView view("--ref " + b + " --field " + a + " --ref-tf inferno,opacity=tent" + small);
+    ASSERT_GT(view.port, 0) << view.process->output();
+    EXPECT_EQ(view.state()["title"].get<std::string>().find("built-in"), std::string::npos);
+    view.process->signal(SIGINT);
+    const test::CliResult done = view.process->finish(std::chrono::seconds(30));
+    EXPECT_EQ(done.exit_code, 0) << done.output;
+    EXPECT_NE(done.output.find("opacity tent"), std::string::npos) << done.output;
+  }
+  EXPECT_EQ(dir.entries().size(), 2u);  // nothing written beside the two fields
+}
+
 TEST(ViewCli, UsageErrors) {
-  for (const char* args : {"view", "view --demo --ref a.raw", "view --ref a.raw --field b.raw --port 0",
+  for (const char* args : {"view", "view --demo --ref a.raw", "view --ref a.raw --port 0",
                            "view --demo --port 70000", "view --demo --solver nothing", "view --demo --lr 0.1"}) {
     const test::CliResult r = run_cli(args);
     EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
