@@ -2,6 +2,7 @@
 // background, to read its output as it comes, send it signals and measure its peak memory.
 #pragma once
 
+#include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
 #include <sys/resource.h>
@@ -24,49 +25,27 @@ namespace tfm::test {
 struct CliResult {
   int exit_code = -1;
   std::string output;  // stdout and stderr together
-  uint64_t peak_rss_bytes = 0;  // CliProcess only
-  double seconds = 0;           // CliProcess only: from start to exit
+  uint64_t peak_rss_bytes = 0;
+  double seconds = 0;      // from start to exit
+  bool timed_out = false;  // killed at the caller's deadline (exit_code then says SIGKILL)
 };
 
-inline CliResult run_cli(const std::string& args) {
-  CliResult r;
-  std::string cmd = std::string(TFMATCH_CLI_PATH) + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (!pipe) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) r.output.append(buf, n);
-  int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
-}
-
-// `tfmatch ARGS` with stdout and stderr kept apart: `output` is stdout alone (what `--json -`
-// promises to keep to JSON), `errors` is stderr.
-struct CliSplitResult {
-  int exit_code = -1;
-  std::string output, errors;
-};
-inline CliSplitResult run_cli_split(const std::string& args) {
-  char name[] = "/tmp/tfmatch_stderr_XXXXXX";
-  const int fd = mkstemp(name);
-  if (fd < 0) return {};
-  close(fd);
-  const CliResult r = run_cli(args + " 2>" + name + " #");  // the '#' comments out run_cli's own 2>&1
-  CliSplitResult out{r.exit_code, r.output, {}};
-  std::ifstream in(name, std::ios::binary);
-  out.errors.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  std::remove(name);
-  return out;
-}
+// How long run_cli lets a command run by default: longer than the slowest run a test makes
+// that way, so that a command that does not end (`view` serving after an option it should have
+// refused) fails its test instead of hanging the suite.
+constexpr std::chrono::seconds kCliTimeout{600};
+// For runs that must end before any work (usage errors, help): seconds on the slowest machine.
+constexpr std::chrono::seconds kQuickCliTimeout{60};
+using CliEnvironment = std::vector<std::pair<std::string, std::string>>;
 
 // `tfmatch ARGS` started in the background (through `sh -c "exec ..."`, so the process signalled
 // is tfmatch itself) with extra environment variables; stdout and stderr together in one pipe.
 class CliProcess {
  public:
-  explicit CliProcess(const std::string& args, const std::vector<std::pair<std::string, std::string>>& env = {}) {
+  explicit CliProcess(const std::string& args, const CliEnvironment& env = {}) {
     int fds[2];
-    if (pipe(fds) != 0) return;
+    // Close-on-exec: a later child (a run_cli while a `view` runs) does not inherit this pipe.
+    if (pipe2(fds, O_CLOEXEC) != 0) return;
     start_ = std::chrono::steady_clock::now();
     pid_ = fork();
     if (pid_ == 0) {
@@ -104,11 +83,13 @@ class CliProcess {
   void signal(int sig) { kill(pid_, sig); }
   // Reads the rest of the output and reaps the process (killing it after `timeout`).
   CliResult finish(std::chrono::milliseconds timeout = std::chrono::seconds(120)) {
+    bool timed_out = false;
     const auto end = std::chrono::steady_clock::now() + timeout;
     while (read_some(int(std::max<int64_t>(
         1, std::chrono::duration_cast<std::chrono::milliseconds>(end - std::chrono::steady_clock::now()).count())))) {
       if (std::chrono::steady_clock::now() > end) {
         kill(pid_, SIGKILL);
+        timed_out = true;
         break;
       }
     }
@@ -117,6 +98,7 @@ class CliProcess {
     wait4(pid_, &status, 0, &usage);
     reaped_ = true;
     CliResult r;
+    r.timed_out = timed_out;
     r.output = output_;
     r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
     r.peak_rss_bytes = uint64_t(usage.ru_maxrss) * 1024;
@@ -142,6 +124,34 @@ class CliProcess {
   std::string output_;
   std::chrono::steady_clock::time_point start_;
 };
+
+// `tfmatch ARGS` (through the shell: ARGS may quote and redirect) with extra environment
+// variables, run to its end or killed at `timeout`; stdout and stderr together.
+inline CliResult run_cli(const std::string& args, std::chrono::milliseconds timeout = kCliTimeout,
+                         const CliEnvironment& env = {}) {
+  CliProcess p(args, env);
+  return p.finish(timeout);
+}
+
+// `tfmatch ARGS` with stdout and stderr kept apart: `output` is stdout alone (what `--json -`
+// promises to keep to JSON), `errors` is stderr.
+struct CliSplitResult {
+  int exit_code = -1;
+  std::string output, errors;
+  bool timed_out = false;
+};
+inline CliSplitResult run_cli_split(const std::string& args, std::chrono::milliseconds timeout = kCliTimeout) {
+  char name[] = "/tmp/tfmatch_stderr_XXXXXX";
+  const int fd = mkstemp(name);
+  if (fd < 0) return {};
+  close(fd);
+  const CliResult r = run_cli(args + " 2>" + name, timeout);  // the shell's redirection: stderr to the file
+  CliSplitResult out{r.exit_code, r.output, {}, r.timed_out};
+  std::ifstream in(name, std::ios::binary);
+  out.errors.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  std::remove(name);
+  return out;
+}
 
 // Every file under `dir`, relative, sorted (what a run left behind).
 inline std::vector<std::string> files_under(const std::filesystem::path& dir) {
