@@ -38,35 +38,46 @@ constexpr std::chrono::seconds kCliTimeout{600};
 constexpr std::chrono::seconds kQuickCliTimeout{60};
 using CliEnvironment = std::vector<std::pair<std::string, std::string>>;
 
-// `tfmatch ARGS` started in the background (through `sh -c "exec ..."`, so the process signalled
-// is tfmatch itself) with extra environment variables; stdout and stderr together in one pipe.
+// `tfmatch ARGS` started in the background with extra environment variables; stdout and stderr
+// together in one pipe. Through `sh -c "exec LAUNCHER tfmatch ..."` (ARGS may quote and redirect):
+// the launcher (tests/support/launcher) passes signals on to tfmatch, ends as it did and reports
+// its peak memory, which ru_maxrss of a process forked from this one would not tell apart from
+// this process's own.
 class CliProcess {
  public:
   explicit CliProcess(const std::string& args, const CliEnvironment& env = {}) {
-    int fds[2];
-    // Close-on-exec: a later child (a run_cli while a `view` runs) does not inherit this pipe.
+    int fds[2], rss[2];
+    // Close-on-exec: a later child (a run_cli while a `view` runs) does not inherit these pipes.
     if (pipe2(fds, O_CLOEXEC) != 0) return;
+    if (pipe2(rss, O_CLOEXEC) != 0) {
+      close(fds[0]);
+      close(fds[1]);
+      return;
+    }
     start_ = std::chrono::steady_clock::now();
     pid_ = fork();
     if (pid_ == 0) {
       dup2(fds[1], 1);
       dup2(fds[1], 2);
-      close(fds[0]);
-      close(fds[1]);
+      fcntl(rss[1], F_SETFD, 0);  // the launcher's report pipe stays open across exec
+      setenv("TFMATCH_LAUNCHER_RSS_FD", std::to_string(rss[1]).c_str(), 1);
       for (const auto& [k, v] : env) setenv(k.c_str(), v.c_str(), 1);
-      const std::string cmd = "exec " + std::string(TFMATCH_CLI_PATH) + " " + args;
+      const std::string cmd = "exec " + std::string(TFMATCH_CLI_LAUNCHER) + " " + TFMATCH_CLI_PATH + " " + args;
       execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
       _exit(127);
     }
     close(fds[1]);
+    close(rss[1]);
     fd_ = fds[0];
+    rss_fd_ = rss[0];
   }
   ~CliProcess() {
     if (pid_ > 0 && !reaped_) {
-      kill(pid_, SIGKILL);
+      kill(pid_, SIGKILL);  // and tfmatch with the launcher (PR_SET_PDEATHSIG)
       waitpid(pid_, nullptr, 0);
     }
     if (fd_ >= 0) close(fd_);
+    if (rss_fd_ >= 0) close(rss_fd_);
   }
   CliProcess(const CliProcess&) = delete;
   CliProcess& operator=(const CliProcess&) = delete;
@@ -101,7 +112,9 @@ class CliProcess {
     r.timed_out = timed_out;
     r.output = output_;
     r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    r.peak_rss_bytes = uint64_t(usage.ru_maxrss) * 1024;
+    r.peak_rss_bytes = launcher_peak_rss();
+    // Without the launcher's report (it was killed): the launcher's own, an upper bound.
+    if (r.peak_rss_bytes == 0) r.peak_rss_bytes = uint64_t(usage.ru_maxrss) * 1024;
     r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
     return r;
   }
@@ -118,8 +131,19 @@ class CliProcess {
     output_.append(buf, size_t(n));
     return true;
   }
+  // tfmatch's peak resident memory as the launcher reports it after its end; 0 without a report.
+  uint64_t launcher_peak_rss() {
+    if (rss_fd_ < 0) return 0;
+    std::string text;
+    char buf[64];
+    ssize_t n;
+    while ((n = read(rss_fd_, buf, sizeof buf)) > 0) text.append(buf, size_t(n));
+    close(rss_fd_);
+    rss_fd_ = -1;
+    return std::strtoull(text.c_str(), nullptr, 10);
+  }
   pid_t pid_ = -1;
-  int fd_ = -1;
+  int fd_ = -1, rss_fd_ = -1;
   bool reaped_ = false;
   std::string output_;
   std::chrono::steady_clock::time_point start_;
