@@ -97,9 +97,12 @@ class CliConventions : public ::testing::Test {
     std::ofstream(dir / "tf.json") << R"({"rgba": [[0,0,1,0.1],[0,1,0,0.6],[1,0,0,0.9]]})";
   }
   // Expects a usage error (exit code 2) that says every needle, and that `out` was not written.
+  // Refused before any work: by a short deadline, so a wrongly accepted option (a benchmark that
+  // runs) fails the test instead of holding it for minutes.
   static void expect_usage_error(const std::string& args, const std::vector<std::string>& needles,
                                  const std::string& out = "") {
-    const test::CliResult r = run_cli(args);
+    const test::CliResult r = run_cli(args, test::kQuickCliTimeout);
+    EXPECT_FALSE(r.timed_out) << args << "\n" << r.output;
     EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
     for (const std::string& n : needles) EXPECT_TRUE(contains(r.output, n)) << "missing '" << n << "' in:\n" << r.output;
     if (!out.empty()) EXPECT_FALSE(std::filesystem::exists(out)) << args << " wrote " << out;
