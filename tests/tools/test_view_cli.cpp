@@ -207,14 +207,28 @@ TEST(ViewCli, StartsFromABuiltInTfWithoutRefTf) {
   EXPECT_EQ(dir.entries().size(), 2u);  // nothing written beside the two fields
 }
 
+// Each refused for its own reason (the message says which) before anything is served. Every run
+// has --port 0 and a deadline: an option wrongly accepted starts a server, which must fail the
+// test (timed out) rather than hang it or take a fixed port another run may hold.
 TEST(ViewCli, UsageErrors) {
-  for (const char* args : {"view", "view --demo --ref a.raw", "view --ref a.raw --port 0",
-                           "view --demo --port 70000", "view --demo --solver nothing", "view --demo --lr 0.1"}) {
-    const test::CliResult r = run_cli(args);
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"view --port 0", "view: give one of: --ref/--ref-tf/--field (a pair of fields), --report DIR"},
+      {"view --port 0 --demo --ref a.raw", "view: give one of:"},
+      {"view --port 0 --ref a.raw", "view: a pair of fields needs --ref and --field (and --ref-tf, else a built-in map)"},
+      {"view --demo --port 70000", "--port: Value 70000 not in range 0 to 65535"},
+      {"view --port 0 --demo --solver nothing", "unknown solver 'nothing' (available: "},
+      {"view --port 0 --demo --lr 0.1", "--lr applies to solvers diffdvr, gradient-descent, not to normal-equations"},
+  };
+  for (const auto& [args, message] : cases) {
+    const test::CliResult r = run_cli(args, test::kQuickCliTimeout);
+    EXPECT_FALSE(r.timed_out) << args << ": accepted and serving\n" << r.output;
     EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(message), std::string::npos) << args << ": no '" << message << "' in\n" << r.output;
+    EXPECT_EQ(r.output.find("?token="), std::string::npos) << args << ": served\n" << r.output;
   }
   // An address that is not this machine's cannot be bound: a clear error, exit 1.
-  const test::CliResult r = run_cli("view --demo --size 8 --port 0 --bind 192.0.2.1");
+  const test::CliResult r = run_cli("view --demo --size 8 --port 0 --bind 192.0.2.1", test::kQuickCliTimeout);
+  EXPECT_FALSE(r.timed_out) << r.output;
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("cannot listen on 192.0.2.1"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("warning: listening on 192.0.2.1"), std::string::npos) << r.output;
