@@ -315,8 +315,11 @@ struct ViewServer::Impl {
         const uint64_t n = session.grid().dims[size_t(axis)];
         const uint64_t index = integer_param(req, "index", n / 2, 0, n - 1);
         const uint32_t size = uint32_t(integer_param(req, "size", 384, 64, 1024, 413));
+        const std::string shade = req.has_param("shade") ? req.get_param_value("shade") : "colour";
+        if (shade != "colour" && shade != "opacity") throw bad_request("parameter shade: colour or opacity");
         take_device_slot();
-        send_png(res, session.slice(view, axis, index, size), req, std::string(view_kind_name(view)) + "_slice_" + axis_text);
+        send_png(res, session.slice(view, axis, index, size, shade == "opacity" ? SliceShading::Opacity : SliceShading::Colour),
+                 req, std::string(view_kind_name(view)) + "_slice_" + axis_text);
       });
     });
     server.Get("/api/tf-plot", [this](const httplib::Request& req, httplib::Response& res) {

@@ -452,13 +452,14 @@ nlohmann::json ViewSession::image_metrics(const RenderSettings& settings) {
           {"optimized_tf", compare_images(ref, after).to_json()}};
 }
 
-Image ViewSession::slice(ViewKind view, int axis, uint64_t index, uint32_t max_size) {
+Image ViewSession::slice(ViewKind view, int axis, uint64_t index, uint32_t max_size, SliceShading shading) {
   std::unique_lock device = lock_device_for_request();
   const Derived& d = *derived_;
   SliceStyle style;
   style.background = config_.render.background;
   style.z_scale = config_.render.z_scale;
   style.max_size = max_size;
+  style.shading = shading;
   style.opacity_scale = max_opacity(ref_tf_);  // one scale for the three classified fields (as the report)
   SliceStyle res_style = style;
   res_style.opacity_scale = max_opacity(d.res_tf_table);
@@ -537,7 +538,11 @@ nlohmann::json ViewSession::state() const {
   static const char* kAxisNames[3] = {"x", "y", "z"};
   for (int k = 0; k < 3; ++k) {
     const GridAxis& a = ref_.axes[size_t(k)];
-    axes.push_back({{"name", a.name.empty() ? kAxisNames[k] : a.name}, {"units", a.units}});
+    // The first and last index's coordinates: the page labels slice axes with them.
+    axes.push_back({{"name", a.name.empty() ? kAxisNames[k] : a.name},
+                    {"units", a.units},
+                    {"first", axis_coordinate(ref_, k, 0)},
+                    {"last", axis_coordinate(ref_, k, ref_.dims[size_t(k)] - 1)}});
   }
   nlohmann::json extra = nlohmann::json::object();
   for (const auto& [k, v] : solver_settings_.extra) extra[k] = v;
