@@ -60,7 +60,7 @@ Image slice_image(const Volume& v, const SliceValues& s, const TransferFunction&
     }
     Rgba c;
     for (int k = 0; k < 4; ++k) c[k] = std::clamp((1.0 - w) * tf.rgba[j][k] + double(w) * tf.rgba[j + 1][k], 0.0, 1.0);
-    const double a = std::min(1.0, c[3] / style.opacity_scale);
+    const double a = style.shading == SliceShading::Colour ? 1.0 : std::min(1.0, c[3] / style.opacity_scale);
     colour[i] = srgb8(a * c[0] + (1 - a) * style.background[0], a * c[1] + (1 - a) * style.background[1],
                       a * c[2] + (1 - a) * style.background[2]);
   }
@@ -72,6 +72,55 @@ Image slice_image(const Volume& v, const SliceValues& s, const TransferFunction&
     }
   }
   return img;
+}
+
+std::string axis_label(const Volume& v, int axis) {
+  static const char* names[3] = {"x", "y", "z"};
+  const GridAxis& a = v.axes[size_t(axis)];
+  std::string label = a.name.empty() ? names[axis] : a.name;
+  if (!a.units.empty()) label += " (" + a.units + ")";
+  return label;
+}
+
+namespace {
+std::string coordinate_text(const Volume& v, int axis, uint64_t i) {
+  std::ostringstream os;
+  os << axis_coordinate(v, axis, i);
+  return os.str();
+}
+}  // namespace
+
+Image label_slice_axes(const Image& picture, const Volume& v, const SliceValues& s) {
+  const Rgb8 ink{60, 60, 60}, tick{150, 150, 150};
+  const int line = text_height(1), pad = 4;
+  const std::string up_first = coordinate_text(v, s.up, 0), up_last = coordinate_text(v, s.up, s.height - 1);
+  const std::string up_name = axis_label(v, s.up);
+  // The vertical axis's values sit left of the picture, its name above them.
+  const int left = pad + std::max({text_width(up_first), text_width(up_last)}) + pad + 3;
+  const int top = line + line / 2 + pad + 2;  // room for the name above the top value
+  const int bottom = 3 + pad + 2 * line + pad;
+  const int right = pad + text_width(coordinate_text(v, s.across, s.width - 1)) / 2;
+  Image out(uint32_t(left + int(picture.width) + right), uint32_t(top + int(picture.height) + bottom));
+  blit(out, picture, left, top);
+  const int x0 = left, x1 = left + int(picture.width) - 1, y0 = top, y1 = top + int(picture.height) - 1;
+  // Ticks at the first and last voxel's centre (each voxel is a cell of equal size).
+  const double cell_w = double(picture.width) / double(s.width), cell_h = double(picture.height) / double(s.height);
+  const double first_x = x0 + 0.5 * cell_w, last_x = x1 + 1 - 0.5 * cell_w;
+  const double top_y = y0 + 0.5 * cell_h, bottom_y = y1 + 1 - 0.5 * cell_h;
+  draw_line(out, first_x, y1 + 1, first_x, y1 + 4, tick);
+  draw_line(out, last_x, y1 + 1, last_x, y1 + 4, tick);
+  draw_line(out, x0 - 4, top_y, x0 - 1, top_y, tick);
+  draw_line(out, x0 - 4, bottom_y, x0 - 1, bottom_y, tick);
+  const std::string across_first = coordinate_text(v, s.across, 0), across_last = coordinate_text(v, s.across, s.width - 1);
+  const int ty = y1 + 4 + pad / 2;
+  draw_text(out, std::max(0, int(first_x) - text_width(across_first) / 2), ty, across_first, ink);
+  draw_text(out, int(last_x) - text_width(across_last) / 2, ty, across_last, ink);
+  const std::string across_name = axis_label(v, s.across);
+  draw_text(out, x0 + (int(picture.width) - text_width(across_name)) / 2, ty + line, across_name, ink);
+  draw_text(out, x0 - 4 - pad - text_width(up_last), int(top_y) - line / 2, up_last, ink);
+  draw_text(out, x0 - 4 - pad - text_width(up_first), int(bottom_y) - line / 2, up_first, ink);
+  draw_text(out, std::max(0, x0 - text_width(up_name) / 2), 1, up_name, ink);
+  return out;
 }
 
 std::string describe_slice(const Volume& v, int axis, uint64_t index) {

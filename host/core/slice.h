@@ -29,23 +29,38 @@ struct SliceValues {
 // Throws std::invalid_argument for an axis outside 0..2 or an index outside the grid.
 SliceValues extract_slice(const Volume& v, int axis, uint64_t index);
 
+// How a slice shows a voxel: the TF's colour at full strength (Colour: what the value is, even
+// where the TF makes it nearly transparent), or that colour over the background by its opacity
+// (Opacity: what a rendering lets through; low opacities fade to the background).
+enum class SliceShading { Colour, Opacity };
+
 struct SliceStyle {
   std::array<double, 3> background{1.0, 1.0, 1.0};  // linear RGB (as RenderSettings::background)
   std::array<double, 3> no_data{0.55, 0.55, 0.55};  // NaN voxels, linear RGB
-  // A slice shows one sample per pixel rather than an integral along a ray, so the TF's opacity
-  // is rescaled: alpha / opacity_scale (clamped to 1) over the background. Pass the largest
-  // opacity of the TF the picture is compared with, so fully opaque means "as opaque as it gets".
+  SliceShading shading = SliceShading::Colour;
+  // Opacity shading: a slice shows one sample per pixel rather than an integral along a ray, so
+  // the TF's opacity is rescaled: alpha / opacity_scale (clamped to 1) over the background. Pass
+  // the largest opacity of the TF the picture is compared with, so fully opaque means "as opaque
+  // as it gets".
   double opacity_scale = 1.0;
   double z_scale = 1.0;       // vertical exaggeration of z (RenderSettings::z_scale)
   uint32_t max_size = 384;    // longer side of the picture, pixels (at least one per voxel)
 };
 
-// T(v) of every voxel of the slice over the background (linear RGB), sRGB-encoded.
+// T(v) of every voxel of the slice as style.shading says (linear RGB), sRGB-encoded.
 Image slice_image(const Volume& v, const SliceValues& slice, const TransferFunction& tf, const FieldRange& range,
                   const SliceStyle& style);
 
 // The largest opacity of a TF (at least 1e-6), for SliceStyle::opacity_scale.
 double max_opacity(const TransferFunction& tf);
+
+// `picture` (slice_image of `slice`) with its axes labelled in margins: below, the horizontal
+// axis's name, units and first and last coordinates; at the left, the vertical axis's (the top
+// row is its last index).
+Image label_slice_axes(const Image& picture, const Volume& v, const SliceValues& slice);
+
+// "lon (degrees_east)" or "x": an axis as a label names it.
+std::string axis_label(const Volume& v, int axis);
 
 // "z = 12 (level 500 hPa)"-style description of a slice for captions.
 std::string describe_slice(const Volume& v, int axis, uint64_t index);

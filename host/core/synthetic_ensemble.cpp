@@ -88,14 +88,14 @@ Ensemble synthetic_ensemble(uint64_t nx, uint64_t ny, uint64_t nz, uint32_t memb
   return e;
 }
 
-TransferFunction correlation_transfer_function(uint32_t n) {
-  // Opacity a smooth step from 0 below t = 0.3 to 0.9 at the top, so weak dependence is
-  // transparent and strong dependence shows as a solid core.
+TransferFunction correlation_transfer_function(uint32_t n, double min_opacity) {
+  // Opacity a smooth step from 0 (or the floor) below t = 0.3 to 0.9 at the top, so weak
+  // dependence is transparent and strong dependence shows as a solid core.
   const ColorStop stops[] = {{0.0, 0.25, 0.05, 0.45}, {0.5, 0.85, 0.25, 0.35}, {0.8, 0.98, 0.62, 0.15},
                              {1.0, 0.99, 0.95, 0.55}};
-  return tf_from_color_stops(n, stops, [](double t) {
+  return tf_from_color_stops(n, stops, [min_opacity](double t) {
     const double u = std::clamp((t - 0.3) / 0.7, 0.0, 1.0);
-    return 0.9 * u * u * (3 - 2 * u);
+    return min_opacity + (0.9 - min_opacity) * u * u * (3 - 2 * u);
   });
 }
 

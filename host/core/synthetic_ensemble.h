@@ -23,8 +23,10 @@ Ensemble synthetic_ensemble(uint64_t nx, uint64_t ny, uint64_t nz, uint32_t memb
 GridIndex synthetic_ensemble_reference(const Ensemble& ens);
 
 // A TF for dependence fields (MI, |correlation|): transparent at the low end, opacity and a
-// purple-orange-yellow colour rising towards the high end; N entries.
-TransferFunction correlation_transfer_function(uint32_t n = 64);
+// purple-orange-yellow colour rising towards the high end; N entries. `min_opacity` > 0 keeps
+// weak dependence visible too (a map of a thin grid, where a transparent voxel leaves a hole
+// rather than showing what lies behind it).
+TransferFunction correlation_transfer_function(uint32_t n = 64, double min_opacity = 0.0);
 
 // Centres (voxels) and width of the blobs: a, n, q, c.
 struct EnsembleBlobs {

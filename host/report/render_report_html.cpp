@@ -111,9 +111,9 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
   if (!s.slices.empty()) {
     h << "<h2>Slices</h2>\n<p class=\"note\">Axis-aligned planes through voxel "
       << escape(describe_grid_point(in.ref, s.slice_point))
-      << ": each voxel's TF colour over the background, its opacity scaled so the TF's most opaque entry "
-         "is opaque (a slice shows one sample, not a ray's integral); the residual on the scale above. "
-         "North and up are up; grey is no data.</p>\n";
+      << ": each voxel's TF colour at full strength (opacity is what the renderings above show; a slice "
+         "shows what the value is, even where the TF makes it nearly transparent); the residual on the scale "
+         "above. North and up are up, the axes labelled with the grid's coordinates; grey is no data.</p>\n";
     for (const auto& sl : s.slices) h << figure(sl.file, sl.caption);
   }
 

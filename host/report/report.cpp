@@ -163,7 +163,7 @@ void write_slices(const ReportInputs& in, const Volume& residual, const Transfer
   style.background = in.settings.background;
   style.z_scale = in.settings.z_scale;
   style.max_size = std::clamp<uint32_t>(in.settings.width * 3 / 4, 160, 480);
-  style.opacity_scale = max_opacity(in.ref_tf);  // one scale for the three classified fields
+  style.opacity_scale = max_opacity(in.ref_tf);  // (opacity shading) one scale for the three classified fields
   SliceStyle res_style = style;
   res_style.opacity_scale = max_opacity(res_tf);
   static const char* names[3] = {"x", "y", "z"};
@@ -172,10 +172,12 @@ void write_slices(const ReportInputs& in, const Volume& residual, const Transfer
     if (ref.width < 2 || ref.height < 2) continue;  // a line, not a plane
     const SliceValues field = extract_slice(in.field, axis, out.slice_point[size_t(axis)]);
     const SliceValues res = extract_slice(residual, axis, out.slice_point[size_t(axis)]);
-    const Image row = compose_panels({{slice_image(in.ref, ref, in.ref_tf, r.ref_range, style), "Reference"},
-                                      {slice_image(in.field, field, in.ref_tf, r.field_range, style), "Field, reference TF"},
-                                      {slice_image(in.field, field, r.tf, r.field_range, style), "Field, optimized TF"},
-                                      {slice_image(residual, res, res_tf, res_range, res_style), "Residual, optimized TF"}},
+    auto labelled = [&](const Volume& v, const SliceValues& sv, const TransferFunction& tf, const FieldRange& range,
+                        const SliceStyle& st) { return label_slice_axes(slice_image(v, sv, tf, range, st), v, sv); };
+    const Image row = compose_panels({{labelled(in.ref, ref, in.ref_tf, r.ref_range, style), "Reference"},
+                                      {labelled(in.field, field, in.ref_tf, r.field_range, style), "Field, reference TF"},
+                                      {labelled(in.field, field, r.tf, r.field_range, style), "Field, optimized TF"},
+                                      {labelled(residual, res, res_tf, res_range, res_style), "Residual, optimized TF"}},
                                      4);
     const std::string file = std::string("slices_") + names[axis] + ".png";
     save(file, row);

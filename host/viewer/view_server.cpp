@@ -2,6 +2,7 @@
 #include "view_server.h"
 
 #include <httplib.h>
+#include <sys/socket.h>
 
 #include <algorithm>
 #include <charconv>
@@ -12,7 +13,9 @@
 #include <thread>
 
 #include "cancellation.h"
+#include "connection_workers.h"
 #include "png_io.h"
+#include "progress_events.h"
 #include "tf_points.h"
 #include "view_page.h"
 #include "vk_check.h"
@@ -149,6 +152,18 @@ bool same_token(const std::string& a, const std::string& b) {
   return diff == 0;
 }
 
+// httplib's queue of accepted connections on ConnectionWorkers: a thread per open connection up
+// to the cap, instead of a fixed pool whose threads every waiting connection holds.
+class ConnectionQueue : public httplib::TaskQueue {
+ public:
+  explicit ConnectionQueue(size_t max_connections) : workers_(max_connections) {}
+  void enqueue(std::function<void()> fn) override { workers_.enqueue(std::move(fn)); }
+  void shutdown() override { workers_.shutdown(); }
+
+ private:
+  ConnectionWorkers workers_;
+};
+
 }  // namespace
 
 std::string random_token() {
@@ -165,6 +180,8 @@ std::string random_token() {
 struct ViewServer::Impl {
   ViewSession& session;
   ViewServerOptions options;
+  EventHub events;
+  ProgressPublisher publisher;
   httplib::Server server;
   std::thread thread;
   int port = 0;
@@ -175,16 +192,30 @@ struct ViewServer::Impl {
   double tokens = 0.0;
   std::chrono::steady_clock::time_point refilled = std::chrono::steady_clock::now();
 
-  Impl(ViewSession& s, ViewServerOptions o) : session(s), options(std::move(o)) {
+  Impl(ViewSession& s, ViewServerOptions o)
+      : session(s), options(std::move(o)), events(options.max_event_streams), publisher(session, events) {
     if (options.token.empty()) options.token = random_token();
     tokens = options.device_requests_per_second;
     if (options.assets_dir.empty()) page = view_page_html();
     else view_page_html(options.assets_dir);  // a missing file fails now, not on the first request
     routes();
     server.set_payload_max_length(1 << 20);
-    server.set_read_timeout(10);
+    server.new_task_queue = [max = options.max_connections] { return new ConnectionQueue(max); };
+    server.set_keep_alive_timeout(options.idle_timeout_s);
+    server.set_read_timeout(options.read_timeout_s);
     server.set_write_timeout(30);
+    // httplib listens with its compiled-in backlog of 5: a burst of connections (a page's six, a
+    // few tabs, clients that connect and wait) overflows it, and the kernel drops SYNs that a
+    // client sends again only a second later (150 connects took 20 s). The socket-options hook
+    // sees the listening socket; a second listen() after binding raises the backlog in place.
+    int listening = -1;
+    server.set_socket_options([&listening](socket_t sock) {
+      const int yes = 1;  // SO_REUSEADDR (restart at once after a stop), not httplib's SO_REUSEPORT (port sharing)
+      ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+      listening = sock;
+    });
     port = options.port == 0 ? server.bind_to_any_port(options.bind) : (server.bind_to_port(options.bind, options.port) ? options.port : -1);
+    if (port >= 0 && listening >= 0) ::listen(listening, SOMAXCONN);
     if (port < 0)
       throw std::runtime_error("tfmatch view: cannot listen on " + options.bind + ":" + std::to_string(options.port) +
                                " (address not on this machine, or port in use)");
@@ -210,6 +241,12 @@ struct ViewServer::Impl {
   void routes() {
     // Every request, the page included, must carry the token (http_api.md "Access").
     server.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+      if (ConnectionWorkers::current_over_capacity()) {
+        send_error(res, 503, "too many open connections (" + std::to_string(options.max_connections) +
+                                 "): try again shortly");
+        res.set_header("Connection", "close");
+        return httplib::Server::HandlerResponse::Handled;
+      }
       const std::string given = req.has_param("token") ? req.get_param_value("token") : req.get_header_value("X-Tfmatch-Token");
       if (same_token(given, options.token)) return httplib::Server::HandlerResponse::Unhandled;
       send_error(res, 403, "missing or wrong token: open the URL tfmatch view printed");
@@ -234,15 +271,17 @@ struct ViewServer::Impl {
     server.Get("/api/job", [this](const httplib::Request&, httplib::Response& res) {
       guarded(res, [&] { send_json(res, session.job()); });
     });
-    server.Get("/api/progress", [this](const httplib::Request&, httplib::Response& res) {
-      // Server-sent events: the job now, every 250 ms while it runs, once more at its end.
+    server.Get("/api/progress", [this](const httplib::Request& req, httplib::Response& res) {
+      // Server-sent events (progress_events.h): the stream waits on the hub between events, on
+      // a thread of its own, so open streams neither poll the session nor hold up requests.
       res.set_header("Cache-Control", "no-store");
-      res.set_chunked_content_provider("text/event-stream", [this](size_t offset, httplib::DataSink& sink) {
-        if (offset > 0) std::this_thread::sleep_for(std::chrono::milliseconds(250));
-        const bool running = session.job_running();  // read before the job: its last state follows
-        const std::string event = "data: " + session.job().dump() + "\n\n";
-        if (!sink.write(event.data(), event.size())) return false;  // the client went away: nothing else changes
-        if (!running) sink.done();
+      const bool follow = req.has_param("follow") && req.get_param_value("follow") == "1";
+      auto stream = std::make_shared<ProgressStream>(session, events, follow);
+      res.set_chunked_content_provider("text/event-stream", [stream](size_t, httplib::DataSink& sink) {
+        const ProgressStream::Chunk chunk = stream->next();
+        // A failed write is a client that went away: nothing else changes.
+        if (!chunk.bytes.empty() && !sink.write(chunk.bytes.data(), chunk.bytes.size())) return false;
+        if (chunk.last) sink.done();
         return true;
       });
     });
@@ -276,8 +315,11 @@ struct ViewServer::Impl {
         const uint64_t n = session.grid().dims[size_t(axis)];
         const uint64_t index = integer_param(req, "index", n / 2, 0, n - 1);
         const uint32_t size = uint32_t(integer_param(req, "size", 384, 64, 1024, 413));
+        const std::string shade = req.has_param("shade") ? req.get_param_value("shade") : "colour";
+        if (shade != "colour" && shade != "opacity") throw bad_request("parameter shade: colour or opacity");
         take_device_slot();
-        send_png(res, session.slice(view, axis, index, size), req, std::string(view_kind_name(view)) + "_slice_" + axis_text);
+        send_png(res, session.slice(view, axis, index, size, shade == "opacity" ? SliceShading::Opacity : SliceShading::Colour),
+                 req, std::string(view_kind_name(view)) + "_slice_" + axis_text);
       });
     });
     server.Get("/api/tf-plot", [this](const httplib::Request& req, httplib::Response& res) {
@@ -314,6 +356,7 @@ struct ViewServer::Impl {
         const std::string solver = body["solver"].get<std::string>();
         check_options_apply(settings, {solver});  // throws naming the solver an option belongs to
         send_json(res, {{"job", session.optimize(solver, settings)}}, 202);
+        publisher.poke();
       });
     });
     server.Post("/api/ref-tf", [this](const httplib::Request& req, httplib::Response& res) {
@@ -330,6 +373,7 @@ struct ViewServer::Impl {
         const uint64_t version = session.version();
         if (job) send_json(res, {{"job", job}, {"version", version}}, 202);
         else send_json(res, {{"version", version}});
+        publisher.poke();
       });
     });
     server.Post("/api/point", [this](const httplib::Request& req, httplib::Response& res) {
@@ -341,6 +385,7 @@ struct ViewServer::Impl {
           throw bad_request("\"point\" must be [i, j, k], three grid indices >= 0");
         const GridIndex point{p[0].get<uint64_t>(), p[1].get<uint64_t>(), p[2].get<uint64_t>()};
         send_json(res, {{"job", session.set_point(point)}}, 202);
+        publisher.poke();
       });
     });
     server.Get("/api/download", [this](const httplib::Request& req, httplib::Response& res) {
@@ -370,11 +415,15 @@ void ViewServer::start() {
 }
 
 void ViewServer::stop() {
+  // Streams first: httplib joins the connection threads, and a stream's thread waits on the hub.
+  impl_->events.close();
+  impl_->publisher.stop();
   impl_->server.stop();
   if (impl_->thread.joinable()) impl_->thread.join();
 }
 
 int ViewServer::port() const { return impl_->port; }
+size_t ViewServer::event_streams() const { return impl_->events.streams(); }
 const std::string& ViewServer::token() const { return impl_->options.token; }
 
 std::string ViewServer::url() const {

@@ -1,6 +1,6 @@
 // The HTTP server of `tfmatch view` (cpp-httplib): the page and the endpoints of
-// host/viewer/http_api.md over one ViewSession, guarded by a random token, with bounded sizes
-// and request rates.
+// host/viewer/http_api.md over one ViewSession, guarded by a random token, with bounded sizes,
+// request rates, connections and event streams.
 #pragma once
 
 #include <cstdint>
@@ -19,6 +19,15 @@ struct ViewServerOptions {
   // into the binary (editing the page without rebuilding); empty: built in.
   std::string assets_dir;
   uint32_t device_requests_per_second = 40;  // renders, slices, plots, metrics: more get 429
+  // Every open connection is served by a thread of its own, so event streams and idle or slow
+  // clients never hold up pictures; more open connections than this get 503 with Retry-After.
+  size_t max_connections = 256;
+  // Open GET /api/progress streams (a page holds one); a new one replaces the oldest.
+  size_t max_event_streams = 16;
+  // A connection that sends no request for this long is closed; one whose request stops
+  // arriving for this long is answered 400 and closed.
+  int idle_timeout_s = 2;
+  int read_timeout_s = 2;
 };
 
 class ViewServer {
@@ -35,6 +44,7 @@ class ViewServer {
 
   int port() const;
   const std::string& token() const;
+  size_t event_streams() const;  // GET /api/progress streams open now
   // http://ADDRESS:PORT/?token=TOKEN (loopback for a wildcard address).
   std::string url() const;
 

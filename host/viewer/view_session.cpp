@@ -20,6 +20,7 @@
 #include "tf_json.h"
 #include "tf_plot.h"
 #include "tf_points.h"
+#include "view_session_derived.h"
 #include "volume_vti.h"
 
 namespace tfm {
@@ -92,22 +93,6 @@ std::optional<ViewKind> parse_view_kind(std::string_view name) {
 
 const char* view_kind_name(ViewKind view) { return kViewNames[int(view)]; }
 
-// Everything on the device for the current fields and TFs, made by derive() off to the side and
-// installed whole, so a picture never mixes one state's field with another's TF.
-struct ViewSession::Derived {
-  VolumeGeometry geometry;
-  // The two fields on the device with their renderers: shared with the next Derived when a job
-  // changes only TFs (an optimization, a reference-TF edit), so they are uploaded once per field.
-  std::shared_ptr<const DeviceField> ref, field;
-  std::shared_ptr<const GpuRenderer> ref_renderer, field_renderer;
-  std::unique_ptr<DeviceField> residual_before, residual_after;
-  std::optional<Buffer> ref_tf, opt_tf, res_tf;
-  FieldMapping ref_map{}, field_ref_map{}, field_opt_map{}, res_map{};
-  std::unique_ptr<GpuRenderer> res_before_renderer, res_after_renderer;
-  Volume res_before, res_after;  // host copies: slices, histograms, downloads
-  FieldRange res_range;
-  TransferFunction res_tf_table;
-};
 
 ViewSession::ViewSession(Context& ctx, Volume ref, Volume field, ViewConfig config)
     : ctx_(ctx), config_(std::move(config)), ref_(std::move(ref)), field_(std::move(field)) {
@@ -394,120 +379,6 @@ nlohmann::json ViewSession::job() const {
   return j;
 }
 
-// ---- device requests ----------------------------------------------------------------------------
-
-std::unique_lock<std::mutex> ViewSession::lock_device_for_request() {
-  if (job_running_) throw BusyError("the device is busy with a job; try again when it ends");
-  std::unique_lock lock(device_mutex_);
-  return lock;
-}
-
-std::vector<GridIndex> ViewSession::markers() const {
-  if (ensemble_) return {ensemble_->point};
-  return config_.markers;
-}
-
-Image ViewSession::render_picture(ViewKind view, const RenderSettings& s_in, bool decorate, double* distance_used) {
-  RenderSettings s = s_in;
-  s.z_scale = config_.render.z_scale;  // the renderers' geometry
-  validate(s);
-  check_render_size(ctx_, s);
-  const Derived& d = *derived_;
-  const GpuRenderer* renderer = nullptr;
-  const FieldMapping* map = nullptr;
-  const Buffer* tf = nullptr;
-  switch (view) {
-    case ViewKind::Reference: renderer = d.ref_renderer.get(), map = &d.ref_map, tf = &*d.ref_tf; break;
-    case ViewKind::FieldRefTf: renderer = d.field_renderer.get(), map = &d.field_ref_map, tf = &*d.ref_tf; break;
-    case ViewKind::FieldOptTf: renderer = d.field_renderer.get(), map = &d.field_opt_map, tf = &*d.opt_tf; break;
-    case ViewKind::Residual: renderer = d.res_after_renderer.get(), map = &d.res_map, tf = &*d.res_tf; break;
-    case ViewKind::ResidualBefore: renderer = d.res_before_renderer.get(), map = &d.res_map, tf = &*d.res_tf; break;
-  }
-  Image picture = composite_over(renderer->render(*map, *tf, s), s.background);
-  if (decorate) {
-    draw_box_outline(picture, d.geometry, s);
-    draw_markers(picture, d.geometry, s, markers());
-  }
-  if (distance_used) {
-    const CameraFrame frame = orbit_frame(s.camera, d.geometry, s.width, s.height);
-    *distance_used = glm::length(frame.eye - d.geometry.center()) / d.geometry.radius();
-  }
-  return picture;
-}
-
-Image ViewSession::render(ViewKind view, const RenderSettings& settings, double* distance_used, double* render_ms) {
-  std::unique_lock device = lock_device_for_request();
-  const auto t0 = std::chrono::steady_clock::now();
-  Image picture = render_picture(view, settings, true, distance_used);
-  if (render_ms) *render_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  return picture;
-}
-
-nlohmann::json ViewSession::image_metrics(const RenderSettings& settings) {
-  std::unique_lock device = lock_device_for_request();
-  const Image ref = render_picture(ViewKind::Reference, settings, false, nullptr);
-  const Image before = render_picture(ViewKind::FieldRefTf, settings, false, nullptr);
-  const Image after = render_picture(ViewKind::FieldOptTf, settings, false, nullptr);
-  return {{"reference_tf", compare_images(ref, before).to_json()},
-          {"optimized_tf", compare_images(ref, after).to_json()}};
-}
-
-Image ViewSession::slice(ViewKind view, int axis, uint64_t index, uint32_t max_size) {
-  std::unique_lock device = lock_device_for_request();
-  const Derived& d = *derived_;
-  SliceStyle style;
-  style.background = config_.render.background;
-  style.z_scale = config_.render.z_scale;
-  style.max_size = max_size;
-  style.opacity_scale = max_opacity(ref_tf_);  // one scale for the three classified fields (as the report)
-  SliceStyle res_style = style;
-  res_style.opacity_scale = max_opacity(d.res_tf_table);
-  switch (view) {
-    case ViewKind::Reference:
-      return slice_image(ref_, extract_slice(ref_, axis, index), ref_tf_, result_.ref_range, style);
-    case ViewKind::FieldRefTf:
-      return slice_image(field_, extract_slice(field_, axis, index), ref_tf_, result_.field_range, style);
-    case ViewKind::FieldOptTf:
-      return slice_image(field_, extract_slice(field_, axis, index), result_.tf, result_.field_range, style);
-    case ViewKind::Residual:
-      return slice_image(d.res_after, extract_slice(d.res_after, axis, index), d.res_tf_table, d.res_range, res_style);
-    case ViewKind::ResidualBefore:
-      return slice_image(d.res_before, extract_slice(d.res_before, axis, index), d.res_tf_table, d.res_range,
-                         res_style);
-  }
-  throw std::invalid_argument("unknown view");
-}
-
-Image ViewSession::tf_plot(ViewKind view, uint32_t width, uint32_t height, bool log_counts) {
-  std::unique_lock device = lock_device_for_request();
-  const Derived& d = *derived_;
-  TfPlotOptions plot;
-  plot.width = width;
-  plot.height = height;
-  plot.log_counts = log_counts;
-  switch (view) {
-    case ViewKind::Reference:
-      plot.title = "Reference TF, reference field histogram";
-      plot.axis_label = ref_.name;
-      return plot_transfer_function(ref_tf_, ref_.values, result_.ref_range, plot);
-    case ViewKind::FieldRefTf:
-      plot.title = "Reference TF, field histogram";
-      plot.axis_label = field_.name;
-      return plot_transfer_function(ref_tf_, field_.values, result_.field_range, plot);
-    case ViewKind::FieldOptTf:
-      plot.title = "Optimized TF (" + result_.solver + "), field histogram";
-      plot.axis_label = field_.name;
-      return plot_transfer_function(result_.tf, field_.values, result_.field_range, plot);
-    case ViewKind::Residual:
-    case ViewKind::ResidualBefore:
-      plot.title = view == ViewKind::Residual ? "Residual TF, histogram after" : "Residual TF, histogram before";
-      plot.axis_label = "residual (RGBA distance)";
-      return plot_transfer_function(d.res_tf_table, (view == ViewKind::Residual ? d.res_after : d.res_before).values,
-                                    d.res_range, plot);
-  }
-  throw std::invalid_argument("unknown view");
-}
-
 // ---- state and downloads ----------------------------------------------------------------------
 
 nlohmann::json ViewSession::render_commands() const {
@@ -537,7 +408,11 @@ nlohmann::json ViewSession::state() const {
   static const char* kAxisNames[3] = {"x", "y", "z"};
   for (int k = 0; k < 3; ++k) {
     const GridAxis& a = ref_.axes[size_t(k)];
-    axes.push_back({{"name", a.name.empty() ? kAxisNames[k] : a.name}, {"units", a.units}});
+    // The first and last index's coordinates: the page labels slice axes with them.
+    axes.push_back({{"name", a.name.empty() ? kAxisNames[k] : a.name},
+                    {"units", a.units},
+                    {"first", axis_coordinate(ref_, k, 0)},
+                    {"last", axis_coordinate(ref_, k, ref_.dims[size_t(k)] - 1)}});
   }
   nlohmann::json extra = nlohmann::json::object();
   for (const auto& [k, v] : solver_settings_.extra) extra[k] = v;

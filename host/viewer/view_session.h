@@ -27,6 +27,7 @@
 #include "optimize.h"
 #include "render.h"
 #include "render_settings.h"
+#include "slice.h"
 #include "solver.h"
 #include "tf_formats.h"
 #include "transfer_function.h"
@@ -107,9 +108,11 @@ class ViewSession {
                double* render_ms = nullptr);
   // Image RMSE / PSNR / SSIM of the field with each TF against the reference at `settings`.
   nlohmann::json image_metrics(const RenderSettings& settings);
-  // Plane `index` of `axis` (0..2) classified by the view's TF (slice.h). Throws
-  // std::invalid_argument for an axis or index outside the grid.
-  Image slice(ViewKind view, int axis, uint64_t index, uint32_t max_size);
+  // Plane `index` of `axis` (0..2) classified by the view's TF (slice.h): its colours at full
+  // strength, or over the background by opacity. Throws std::invalid_argument for an axis or
+  // index outside the grid.
+  Image slice(ViewKind view, int axis, uint64_t index, uint32_t max_size,
+              SliceShading shading = SliceShading::Colour);
   // The view's TF over its field's histogram (tf_plot.h).
   Image tf_plot(ViewKind view, uint32_t width, uint32_t height, bool log_counts);
 

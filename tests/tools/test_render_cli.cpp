@@ -53,6 +53,22 @@ TEST_F(RenderCli, RenderWritesAPngOfTheRequestedSize) {
   EXPECT_GT(lit, 3 * 40) << "box outline";
 }
 
+// A thin grid (here 4 levels) renders as a map by default: from above, north up, opacity per
+// box height, the map's aspect; exactly what those settings give when spelled out.
+TEST_F(RenderCli, ThinGridsRenderAsAMapFromAboveByDefault) {
+  const std::string common = "render --volume " + dir / "a_6x5x4_float32.raw" + " --tf " + dir / "tf.json";
+  auto r = run_cli(common + " --out " + dir / "map.png");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const Image map = read_png(dir / "map.png");
+  EXPECT_EQ(map.width, 512u);
+  EXPECT_EQ(map.height, 427u);  // 512 * 5 / 6
+  // Box 6 long and 4 high: opacity scale 20 * 6 / 4.
+  r = run_cli(common + " --out " + dir / "spelled.png" +
+              " --azimuth -90 --elevation 90 --opacity-scale 30 --width 512 --height 427");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(read_png(dir / "spelled.png").rgb, map.rgb);
+}
+
 // A ParaView preset holds sRGB colours; rendered fully opaque over black, its colour must come
 // out as the same 8-bit sRGB value ParaView would show (the TF table itself is linear).
 TEST_F(RenderCli, PresetColoursRenderAsParaViewShowsThem) {

@@ -9,10 +9,12 @@
 #include <fstream>
 #include <cmath>
 #include <regex>
+#include <set>
 
 #include <nlohmann/json.hpp>
 
 #include "cli_runner.h"
+#include "png_io.h"
 #include "vk_test_env.h"
 // After Eigen (through the project headers): OpenSSL's headers, which httplib.h includes, define
 // macros that break Eigen's product kernels when they come first.
@@ -147,19 +149,63 @@ TEST(ViewCli, ReopensAReportsInputs) {
   EXPECT_NE(missing.output.find("inputs.json"), std::string::npos) << missing.output;
 }
 
+// How much of a picture shows data: the share of pixels away from the white background, and how
+// many colours (5 bits a channel) they take.
+struct Visibility {
+  double shown = 0.0;
+  size_t colours = 0;
+};
+Visibility visibility(const Image& img) {
+  size_t shown = 0;
+  std::set<int> colours;
+  for (size_t i = 0; i < size_t(img.width) * img.height; ++i) {
+    const uint8_t* p = &img.rgb[3 * i];
+    if (std::max({255 - p[0], 255 - p[1], 255 - p[2]}) <= 8) continue;
+    ++shown;
+    colours.insert((p[0] >> 3) << 10 | (p[1] >> 3) << 5 | (p[2] >> 3));
+  }
+  return {double(shown) / double(size_t(img.width) * img.height), colours.size()};
+}
+
+// Issue 29: the README's ERA5 recipe (a 120 x 61 x 2 grid) opened with four blank slabs seen at
+// 20 degrees, and nearly white slices. With the defaults it opens as a map seen from above, north
+// up, every view and slice showing the fields in colour.
 TEST(ViewCli, Era5EnsembleFromTheSharedData) {
   const std::string d = test::shared_data_dir();
   if (d.empty()) GTEST_SKIP() << "needs ../shared/data (ERA5 ensemble)";
-  RunningView view("--ensemble " + d + "/era5_ensemble_grib1/era5-levels-members.grib:t --point lon=9,lat=45,level=850");
+  RunningView view("--ensemble " + d + "/era5_ensemble_grib1/era5-levels-members.grib:t --measure mi-coefficient "
+                   "--versus pearson --point lon=9,lat=45,level=850");
   ASSERT_GT(view.port, 0) << view.process->output();
   const nlohmann::json s = view.state();
   EXPECT_EQ(s["mode"], "ensemble");
   EXPECT_EQ(s["ensemble"]["members"], 10);
   EXPECT_EQ(s["ensemble"]["point"], nlohmann::json({3, 45, 0}));
   EXPECT_EQ(s["grid"]["dims"], nlohmann::json({120, 61, 2}));
-  int status = 0;
-  view.get("/api/render?view=residual&w=64&h=48", &status);
-  EXPECT_EQ(status, 200);
+  EXPECT_EQ(s["grid"]["axes"][0]["first"], 0.0);
+  EXPECT_EQ(s["grid"]["axes"][0]["last"], 357.0);
+  EXPECT_EQ(s["grid"]["axes"][1]["last"], 90.0);
+  const nlohmann::json& r = s["render"];
+  EXPECT_EQ(r["camera"]["elevation_deg"], 90.0);  // from above
+  EXPECT_EQ(r["camera"]["azimuth_deg"], -90.0);   // north up
+  EXPECT_EQ(r["width"], 512);
+  EXPECT_NEAR(r["height"].get<double>(), 512.0 * 61 / 120, 2.0);  // the map's aspect
+  for (const char* v : {"reference", "field-ref-tf", "field-opt-tf", "residual"}) {
+    int status = 0;
+    const std::string png = view.get(std::string("/api/render?view=") + v, &status);
+    ASSERT_EQ(status, 200) << v;
+    const Visibility seen = visibility(decode_png(png, v));
+    EXPECT_GT(seen.shown, 0.6) << v;
+    EXPECT_GE(seen.colours, 20u) << v;
+    std::printf("[ era5 ] %-13s %.0f %% of pixels shown, %zu colours\n", v, 100 * seen.shown, seen.colours);
+  }
+  for (const char* v : {"reference", "field-ref-tf", "field-opt-tf", "residual"}) {
+    int status = 0;
+    const std::string png = view.get(std::string("/api/slice?view=") + v + "&axis=z&index=0", &status);
+    ASSERT_EQ(status, 200) << v;
+    const Visibility seen = visibility(decode_png(png, v));
+    EXPECT_GT(seen.shown, 0.6) << v << " slice";
+    EXPECT_GE(seen.colours, 20u) << v << " slice";
+  }
   view.process->signal(SIGINT);
   EXPECT_EQ(view.process->finish(std::chrono::seconds(30)).exit_code, 0);
 }

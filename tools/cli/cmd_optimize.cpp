@@ -38,6 +38,7 @@ struct OptimizeArgs {
   std::string histogram = "log";              // report TF plots: log or linear counts
   std::string stream = "auto";                // auto, on, off: read both fields slab by slab
   RenderSettings render;
+  RenderChoices render_chosen;
 };
 
 // Both fields opened for a streamed run, or nothing when the run loads them whole: with
@@ -137,7 +138,9 @@ int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const So
   if (!a.report.empty()) {
     set_progress_enabled(!globals().quiet);
     const Volume& ref = s.ref_preview;
-    ReportInputs inputs{ref, s.field_preview, req.ref_tf, result, a.render};
+    RenderSettings render = a.render;  // the whole grid's shape decides, not the preview's
+    apply_grid_defaults(render, streams.ref->grid().dims, streams.ref->grid().spacing, a.render_chosen);
+    ReportInputs inputs{ref, s.field_preview, req.ref_tf, result, render};
     const uint64_t k = s.preview_factor;
     for (GridIndex m : markers) inputs.markers.push_back({m[0] / k, m[1] / k, m[2] / k});
     if (slice_point) inputs.slice_point = GridIndex{(*slice_point)[0] / k, (*slice_point)[1] / k, (*slice_point)[2] / k};
@@ -208,8 +211,12 @@ int run(const OptimizeArgs& a) {
                                "slab by slab from disk: --solver normal-equations --stream on)");
   }
   auto ctx = starting.get();
-  if (!a.report.empty()) check_render_size(*ctx, a.render);
   const Volume& ref = loaded.ref;
+  // Image-based solvers render what the report shows: both take the grid's defaults.
+  RenderSettings render = a.render;
+  apply_grid_defaults(render, ref.dims, ref.spacing, a.render_chosen);
+  settings.render = render;
+  if (!a.report.empty()) check_render_size(*ctx, render);
   const std::vector<GridIndex> markers = resolve_markers(ref, a.markers);
   const std::optional<GridIndex> slice_point = resolve_slice_point(ref, a.slice_point);
   const Volume& field = loaded.field;
@@ -224,8 +231,8 @@ int run(const OptimizeArgs& a) {
   std::optional<ReportSummary> summary;
   if (!a.report.empty()) {
     set_progress_enabled(!globals().quiet);
-    ReportInputs inputs{ref, field, req.ref_tf, result, a.render};
-    inputs.extra_figures = solver_report_figures(result, a.render.width);  // diffdvr: loss curve
+    ReportInputs inputs{ref, field, req.ref_tf, result, render};
+    inputs.extra_figures = solver_report_figures(result, render.width);  // diffdvr: loss curve
     inputs.title = "tfmatch: " + field.name + " matched to " + ref.name;
     inputs.markers = markers;
     inputs.slice_point = slice_point;
@@ -273,7 +280,10 @@ CommandRegistration reg(10, [](CLI::App& app) {
                   "then shows box-filtered copies")
       ->check(CLI::IsMember({"auto", "on", "off"}))->capture_default_str();
   sub->footer(solver_descriptions());
-  sub->callback([args] { exit_code() = run(*args); });
+  sub->callback([args, sub] {
+    args->render_chosen = render_choices(*sub);
+    exit_code() = run(*args);
+  });
 });
 
 }  // namespace

@@ -25,9 +25,10 @@ struct RenderArgs {
   std::vector<std::string> markers;
   VolumeFlags volume_flags;
   RenderSettings settings;
+  RenderChoices chosen;
 };
 
-int run(const RenderArgs& a) {
+int run(RenderArgs a) {
   set_progress_enabled(!globals().quiet);
   FilePlan().input_spec(a.volume, "--volume").input_spec(a.tf, "--tf").output(a.out, "--out").check();
   if (!a.range.empty()) parse_range(a.range, "--range");  // a bad range fails before anything loads
@@ -36,6 +37,7 @@ int run(const RenderArgs& a) {
   check_render_size(*ctx, a.settings);  // before loading: a too-large image fails in a second
   OutputBatch outputs;
   Volume volume = load_volume(a.volume, a.volume_flags.options());
+  apply_grid_defaults(a.settings, volume.dims, volume.spacing, a.chosen);
   TransferFunction tf = read_transfer_function(a.tf);
   const FieldRange range = field_range_for(volume, tf, a.range, "--range", a.allow_out_of_range);
   const std::vector<GridIndex> markers = resolve_markers(volume, a.markers);
@@ -73,7 +75,10 @@ CommandRegistration reg(20, [](CLI::App& app) {
   add_volume_flags(sub, args->volume_flags);
   add_render_options(sub, args->settings);
   add_marker_option(sub, args->markers);
-  sub->callback([args] { exit_code() = run(*args); });
+  sub->callback([args, sub] {
+    args->chosen = render_choices(*sub);
+    exit_code() = run(*args);
+  });
 });
 
 }  // namespace

@@ -28,9 +28,10 @@ struct ResidualArgs {
   bool allow_out_of_range = false;
   VolumeFlags volume_flags;
   RenderSettings settings;
+  RenderChoices chosen;
 };
 
-int run(const ResidualArgs& a) {
+int run(ResidualArgs a) {
   set_progress_enabled(!globals().quiet);
   FilePlan()
       .input_spec(a.ref, "--ref")
@@ -49,6 +50,7 @@ int run(const ResidualArgs& a) {
   const VolumeOptions vo = a.volume_flags.options();
   auto [ref, field] = load_volume_pair(a.ref, a.field, vo);
   require_same_grid(ref, field);
+  apply_grid_defaults(a.settings, ref.dims, ref.spacing, a.chosen);
   TransferFunction ref_tf = read_transfer_function(a.ref_tf);
   TransferFunction field_tf = read_transfer_function(a.field_tf);
   const FieldRange ref_range = field_range_for(ref, ref_tf, a.ref_range, "--ref-range", a.allow_out_of_range);
@@ -109,7 +111,10 @@ CommandRegistration reg(21, [](CLI::App& app) {
   sub->add_option("--display-range", args->display_range, "Residual range lo,hi the image maps (default: 0,max)");
   add_volume_flags(sub, args->volume_flags);
   add_render_options(sub, args->settings);
-  sub->callback([args] { exit_code() = run(*args); });
+  sub->callback([args, sub] {
+    args->chosen = render_choices(*sub);
+    exit_code() = run(*args);
+  });
 });
 
 }  // namespace

@@ -45,6 +45,7 @@ struct ViewArgs {
   std::map<std::string, std::string> extra;
   std::vector<std::string> markers;
   RenderSettings render;
+  RenderChoices render_chosen;
   std::string bind = "127.0.0.1";
   int port = 8765;
 };
@@ -169,7 +170,11 @@ int run(ViewArgs a) {
     e.point = !a.point.empty()  ? resolve_grid_point(grid, a.point, "--point")
               : a.demo          ? synthetic_ensemble_reference(e.ensemble)
                                 : GridIndex{grid.dims[0] / 2, grid.dims[1] / 2, grid.dims[2] / 2};
-    if (config.ref_tf.size() < 2) config.ref_tf = correlation_transfer_function(64);  // its range: the measure's scale
+    apply_grid_defaults(config.render, grid.dims, grid.spacing, a.render_chosen);
+    // Its range: the measure's scale. On a map (a thin grid seen from above) weak dependence is
+    // shown faintly rather than as holes in it.
+    if (config.ref_tf.size() < 2)
+      config.ref_tf = correlation_transfer_function(64, is_thin_grid(grid.dims, grid.spacing, config.render.z_scale) ? 0.1 : 0.0);
     config.title = std::string(correlation_measure_name(e.params.measure)) + " vs " + correlation_measure_name(e.versus) +
                    " of " + (a.demo ? std::string("the built-in ensemble") : grid.name);
     session = std::make_unique<ViewSession>(*ctx, std::move(e), config);
@@ -188,6 +193,7 @@ int run(ViewArgs a) {
       if (config.ref_tf.size() < 2) config.title += " (" + use_default_tf(ref, config) + ")";
     }
     config.markers = resolve_markers(ref, a.markers);
+    apply_grid_defaults(config.render, ref.dims, ref.spacing, a.render_chosen);
     session = std::make_unique<ViewSession>(*ctx, std::move(ref), std::move(field), config);
   }
 
@@ -252,8 +258,9 @@ CommandRegistration reg(15, [](CLI::App& app) {
   sub->add_option("--port", args->port, "TCP port (0: any free port)")->check(CLI::Range(0, 65535))->capture_default_str();
   sub->add_option("--bind", args->bind, "Address to listen on (default: this machine only; another prints a warning)")
       ->capture_default_str();
-  sub->callback([args, ens] {
+  sub->callback([args, ens, sub] {
     args->ensemble_given = ens->count() > 0;
+    args->render_chosen = render_choices(*sub);
     exit_code() = run(*args);
   });
 });

@@ -99,9 +99,19 @@ std::vector<GridIndex> resolve_markers(const Volume& grid, const std::vector<std
   return out;
 }
 
+RenderChoices render_choices(const CLI::App& sub) {
+  RenderChoices c;
+  c.camera_angles = sub.count("--azimuth") + sub.count("--elevation") > 0;
+  c.opacity_scale = sub.count("--opacity-scale") > 0;
+  c.image_size = sub.count("--width") + sub.count("--height") > 0;
+  return c;
+}
+
 void add_render_options(CLI::App* sub, RenderSettings& s) {
   const std::string g = "Rendering";
-  sub->add_option("--azimuth", s.camera.azimuth_deg, "Camera azimuth about the grid's z axis, degrees")
+  sub->add_option("--azimuth", s.camera.azimuth_deg,
+                  "Camera azimuth about the grid's z axis, degrees (thin grids: -90 with elevation 90, a map with "
+                  "north up)")
       ->capture_default_str()->group(g);
   sub->add_option("--elevation", s.camera.elevation_deg, "Camera elevation above the xy plane, degrees (-90..90)")
       ->check(CLI::Range(-90.0, 90.0))->capture_default_str()->group(g);
@@ -131,7 +141,8 @@ void add_render_options(CLI::App* sub, RenderSettings& s) {
   sub->add_option("--step", s.step_voxels, "Ray-marching step, in voxels of the finest axis")
       ->check(CLI::Range(0.01, 64.0))->capture_default_str()->group(g);
   sub->add_option("--opacity-scale", s.opacity_scale,
-                  "Extinction of TF opacity 1 per box length (sigma = a * scale)")
+                  "Extinction of TF opacity 1 per box length (sigma = a * scale); thin grids (<= 4 levels, or 8 "
+                  "times wider than tall): times box length / height")
       ->check(CLI::NonNegativeNumber)->capture_default_str()->group(g);
   sub->add_option("--termination", s.termination_opacity, "Stop a ray once its opacity reaches this (< 1)")
       ->check(CLI::Range(0.01, 0.9999))->capture_default_str()->group(g);

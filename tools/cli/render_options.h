@@ -11,6 +11,7 @@
 #include <CLI/CLI.hpp>
 
 #include "grid_point.h"
+#include "render_defaults.h"
 #include "render_settings.h"
 #include "transfer_function.h"
 #include "volume.h"
@@ -21,6 +22,9 @@ namespace tfm::cli {
 // Adds the flags to `sub`, writing into `settings` (which must outlive parsing; its current
 // values are the defaults shown in --help). Flags go into the group "Rendering".
 void add_render_options(CLI::App* sub, RenderSettings& settings);
+// Which of those flags the command line gave (after parsing `sub`): the grid's defaults
+// (render_defaults.h, apply_grid_defaults) take the place of the others.
+RenderChoices render_choices(const CLI::App& sub);
 
 // --marker (repeatable): grid points drawn as red dots on the renderings (reference points of a
 // correlation field), as I,J,K indices or lon=..,lat=..,level=.. coordinates.

@@ -502,6 +502,38 @@
     updateSliceLabel();
   }
 
+  // Each slice picture framed by its axes: the vertical axis's last and first coordinates at its
+  // top and bottom, the horizontal axis's first and last below it, both named (the picture itself
+  // stays the click target, so http_api.md's click formula holds).
+  function buildSliceAxes() {
+    for (const frame of $$('.slice-frame')) {
+      const body = document.createElement('div');
+      body.className = 'slice-body';
+      frame.replaceWith(body);
+      const v = document.createElement('div');
+      v.className = 'axis-v';
+      v.innerHTML = '<span class="last"></span><span class="name"></span><span class="first"></span>';
+      const h = document.createElement('div');
+      h.className = 'axis-h';
+      h.innerHTML = '<span class="first"></span><span class="name"></span><span class="last"></span>';
+      body.append(v, frame, document.createElement('div'), h);
+    }
+  }
+
+  function updateSliceAxes(axis) {
+    const L = sliceLayout(axis);
+    const ax = (i) => (V.state.grid.axes && V.state.grid.axes[i]) || {};
+    const label = (i) => axisName(i) + (ax(i).units ? ` (${ax(i).units})` : '');
+    const value = (i, key, n) => fmt(ax(i)[key] !== undefined ? ax(i)[key] : (key === 'first' ? 0 : n - 1), 4);
+    for (const [cls, i, n] of [['.axis-h', L.across, L.nAcross], ['.axis-v', L.up, L.nUp]]) {
+      for (const el of $$(cls)) {
+        $('.first', el).textContent = value(i, 'first', n);
+        $('.last', el).textContent = value(i, 'last', n);
+        $('.name', el).textContent = label(i);
+      }
+    }
+  }
+
   function updateSliceLabel() {
     const axis = sliceAxis(), i = AXES.indexOf(axis);
     const ax = V.state.grid.axes && V.state.grid.axes[i];
@@ -525,15 +557,17 @@
     if (jobRunning) return;
     const gen = ++sliceGen;
     const axis = sliceAxis(), index = sliceIndex(), size = sliceSize();
+    const shade = $('#slice-shade').checked ? 'opacity' : 'colour';
     begin();
     try {
-      const pngs = await Promise.all(VIEWS.map((view) => fetchPng('/api/slice', { view, axis, index, size })));
+      const pngs = await Promise.all(VIEWS.map((view) => fetchPng('/api/slice', { view, axis, index, size, shade })));
       if (gen !== sliceGen) { pngs.forEach((p) => URL.revokeObjectURL(p.url)); return; }
       VIEWS.forEach((view, i) => {
         showPng($(`.slice[data-view="${view}"] img`), pngs[i]);
         V.sliceHashes[view] = pngs[i].hash;
       });
       sliceShown = { axis, index };
+      updateSliceAxes(axis);
       updateMarkers();
       await nextFrame();
       V.sliceVersion++;
@@ -584,6 +618,8 @@
       });
     }
     $('#slice-index').addEventListener('input', () => { updateSliceLabel(); scheduleSlices(); });
+    $('#slice-shade').addEventListener('change', scheduleSlices);
+    buildSliceAxes();
     for (const img of $$('.slice img')) {
       img.addEventListener('mousemove', (ev) => {
         const p = voxelAt(img, ev.clientX, ev.clientY);

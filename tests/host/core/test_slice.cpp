@@ -1,6 +1,7 @@
 // Axis-aligned slices: which voxels each picture row and column shows (north and up at the top),
 // picture sizes from spacing and vertical exaggeration, colours over the background, no-data grey,
 // and errors for planes outside the grid.
+#include <algorithm>
 #include <cmath>
 
 #include <gtest/gtest.h>
@@ -65,7 +66,7 @@ TEST(Slice, PictureKeepsThePhysicalAspectWithVerticalExaggeration) {
   EXPECT_EQ(img.height, 20u);
 }
 
-TEST(Slice, ColoursAreTheTfOverTheBackgroundInSrgb) {
+TEST(Slice, ColoursAreTheTfsAtFullStrengthOrOverTheBackgroundByOpacity) {
   Volume v;
   v.dims = {2, 2, 1};
   v.values = {0.0f, 1.0f, NAN, 0.5f};  // rows from the top: (y=1) NaN, 0.5 ; (y=0) 0, 1
@@ -73,8 +74,18 @@ TEST(Slice, ColoursAreTheTfOverTheBackgroundInSrgb) {
   tf.rgba = {{0.0, 0.0, 0.0, 0.25}, {1.0, 0.0, 0.0, 0.5}};
   SliceStyle style;
   style.background = {1.0, 1.0, 1.0};
-  style.opacity_scale = max_opacity(tf);  // 0.5: the most opaque entry shows opaque
   style.max_size = 2;
+  // By default the TF's colour whatever its opacity: low opacities do not fade to white.
+  const Image full = slice_image(v, extract_slice(v, 2, 0), tf, {0.0, 1.0}, style);
+  ASSERT_EQ(full.width, 2u);
+  auto full_px = [&](uint32_t x, uint32_t y) { return Rgb8{full.at(x, y)[0], full.at(x, y)[1], full.at(x, y)[2]}; };
+  EXPECT_EQ(full_px(0, 0), srgb8(0.55, 0.55, 0.55));
+  EXPECT_EQ(full_px(1, 1), srgb8(1.0, 0.0, 0.0));
+  EXPECT_EQ(full_px(0, 1), srgb8(0.0, 0.0, 0.0));
+  EXPECT_EQ(full_px(1, 0), srgb8(0.5, 0.0, 0.0));
+
+  style.shading = SliceShading::Opacity;
+  style.opacity_scale = max_opacity(tf);  // 0.5: the most opaque entry shows opaque
   const Image img = slice_image(v, extract_slice(v, 2, 0), tf, {0.0, 1.0}, style);
   ASSERT_EQ(img.width, 2u);
   auto px = [&](uint32_t x, uint32_t y) { return Rgb8{img.at(x, y)[0], img.at(x, y)[1], img.at(x, y)[2]}; };
@@ -82,6 +93,47 @@ TEST(Slice, ColoursAreTheTfOverTheBackgroundInSrgb) {
   EXPECT_EQ(px(1, 1), srgb8(1.0, 0.0, 0.0));     // value 1: red at full (scaled) opacity
   EXPECT_EQ(px(0, 1), srgb8(0.5, 0.5, 0.5));     // value 0: black at half opacity over white
   EXPECT_EQ(px(1, 0), srgb8(0.5 * 0.75 + 0.25, 0.25, 0.25));  // 0.5: (0.5,0,0) at 0.75 over white
+}
+
+// The axes drawn around a slice: the picture itself unchanged inside margins, the coordinates
+// and names of both axes in ink beside and below it.
+TEST(Slice, LabelledAxesFrameThePictureUnchanged) {
+  Volume v = numbered(30, 12, 2);
+  v.axes[0] = {"lon", "degrees_east", {}};
+  v.axes[1] = {"lat", "degrees_north", {}};
+  v.spacing = {3.0, 3.0, 1.0};
+  v.origin = {0.0, -90.0, 0.0};
+  TransferFunction tf;
+  tf.rgba = {{0, 0, 1, 1}, {1, 0, 0, 1}};
+  SliceStyle style;
+  style.max_size = 120;
+  const SliceValues z = extract_slice(v, 2, 0);
+  const Image picture = slice_image(v, z, tf, {0.0, 1000.0}, style);
+  const Image labelled = label_slice_axes(picture, v, z);
+  ASSERT_GT(labelled.width, picture.width + 10);
+  ASSERT_GT(labelled.height, picture.height + 2 * uint32_t(text_height()));
+  // Find the picture inside: its top-left pixel's colour runs on for its width.
+  bool found = false;
+  for (uint32_t oy = 0; oy + picture.height <= labelled.height && !found; ++oy)
+    for (uint32_t ox = 0; ox + picture.width <= labelled.width && !found; ++ox) {
+      bool same = true;
+      for (uint32_t y = 0; y < picture.height && same; y += 7)
+        for (uint32_t x = 0; x < picture.width && same; x += 5)
+          same = std::equal(picture.at(x, y), picture.at(x, y) + 3, labelled.at(ox + x, oy + y));
+      if (!same) continue;
+      found = true;
+      // Something is written below and left of it (the axes' numbers and names).
+      int ink_below = 0, ink_left = 0;
+      for (uint32_t y = oy + picture.height + 2; y < labelled.height; ++y)
+        for (uint32_t x = 0; x < labelled.width; ++x) ink_below += labelled.at(x, y)[0] < 160;
+      for (uint32_t y = 0; y < labelled.height; ++y)
+        for (uint32_t x = 0; x + 2 < ox; ++x) ink_left += labelled.at(x, y)[0] < 160;
+      EXPECT_GT(ink_below, 40);
+      EXPECT_GT(ink_left, 20);
+    }
+  EXPECT_TRUE(found);
+  EXPECT_EQ(axis_label(v, 0), "lon (degrees_east)");
+  EXPECT_EQ(axis_label(v, 2), "z");
 }
 
 TEST(Slice, DescribesThePlaneWithItsCoordinate) {
