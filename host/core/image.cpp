@@ -2,6 +2,7 @@
 #include "image.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <stdexcept>
 
@@ -62,24 +63,71 @@ constexpr uint8_t kFont[95][7] = {
     {0x00, 0x00, 0x08, 0x15, 0x02, 0x00, 0x00},                                              // ~
 };
 
+}  // namespace
+
+uint8_t srgb_byte_formula(double linear) {
+  // NaN clamps to 0 rather than propagating into the cast.
+  const double v = std::isnan(linear) ? 0.0 : std::clamp(linear, 0.0, 1.0);
+  return static_cast<uint8_t>(std::lround(linear_to_srgb(v) * 255.0));
+}
+
+namespace {
+
+// srgb_byte_formula without a pow per channel (three per pixel made composing a 512^2 picture
+// cost more than its read-back): the smallest linear value of each byte, found once by bisection
+// over the doubles with the formula itself, so the table gives the formula's byte for every input
+// (the formula is monotone). Buckets of 1/4096 narrow a lookup to a step or two.
+class SrgbBytes {
+ public:
+  SrgbBytes() {
+    for (int b = 1; b < 256; ++b) {
+      // Non-negative doubles order as their bit patterns: bisect those, 0.0 below b, 1.0 at 255.
+      uint64_t lo = std::bit_cast<uint64_t>(0.0), hi = std::bit_cast<uint64_t>(1.0);
+      while (hi - lo > 1) {
+        const uint64_t mid = lo + (hi - lo) / 2;
+        (srgb_byte_formula(std::bit_cast<double>(mid)) >= b ? hi : lo) = mid;
+      }
+      first_[size_t(b)] = std::bit_cast<double>(hi);
+    }
+    for (size_t k = 0; k < kBuckets + 1; ++k) bucket_[k] = srgb_byte_formula(double(k) / kBuckets);
+  }
+  uint8_t operator()(double linear) const {
+    const double v = std::isnan(linear) ? 0.0 : std::clamp(linear, 0.0, 1.0);
+    // v * kBuckets is exact (a power of two), so v is at least its bucket's lower end.
+    int b = bucket_[size_t(v * kBuckets)];
+    while (b < 255 && v >= first_[size_t(b) + 1]) ++b;
+    return uint8_t(b);
+  }
+
+ private:
+  static constexpr size_t kBuckets = 4096;
+  std::array<double, 256> first_{};  // first_[b]: the smallest v with formula(v) >= b
+  std::array<uint8_t, kBuckets + 1> bucket_{};
+};
+
+const SrgbBytes& srgb_bytes() {
+  static const SrgbBytes table;
+  return table;
+}
+
 template <class T>
 Image composite(std::span<const T> rgba, uint32_t width, uint32_t height, const std::array<double, 3>& bg) {
   if (rgba.size() != size_t(width) * height * 4) throw std::invalid_argument("composite_over: size mismatch");
-  Image out(width, height);
+  Image out;  // every byte written below: no fill first
+  out.width = width;
+  out.height = height;
+  out.rgb.resize(size_t(width) * height * 3);
+  const SrgbBytes& srgb = srgb_bytes();
   for (size_t i = 0; i < size_t(width) * height; ++i) {
     const double a = double(rgba[4 * i + 3]);
-    for (int c = 0; c < 3; ++c) out.rgb[3 * i + c] = srgb_byte(double(rgba[4 * i + c]) + (1.0 - a) * bg[c]);
+    for (int c = 0; c < 3; ++c) out.rgb[3 * i + c] = srgb(double(rgba[4 * i + c]) + (1.0 - a) * bg[c]);
   }
   return out;
 }
 
 }  // namespace
 
-uint8_t srgb_byte(double linear) {
-  // NaN clamps to 0 rather than propagating into the cast.
-  const double v = std::isnan(linear) ? 0.0 : std::clamp(linear, 0.0, 1.0);
-  return static_cast<uint8_t>(std::lround(linear_to_srgb(v) * 255.0));
-}
+uint8_t srgb_byte(double linear) { return srgb_bytes()(linear); }
 
 Rgb8 srgb8(double r, double g, double b) { return {srgb_byte(r), srgb_byte(g), srgb_byte(b)}; }
 

@@ -11,6 +11,10 @@
   const LOWRES_DIVISOR = 4;
   const LOWRES_MIN_INTERVAL_MS = 125;   // at most 8 sets of 4 low-res images a second (the server's limit: 40 requests/s)
   const WHEEL_SETTLE_MS = 250;
+  // This page among others on the same server: its cameras are numbered, so the server drops a
+  // picture still waiting for a camera this page has moved past (410) instead of rendering it.
+  const CLIENT = Math.random().toString(36).slice(2, 10);
+  let cameraSeq = 0;
   const MIN_DISTANCE = 1.05, MAX_DISTANCE = 1000;  // tfmatch render: 0 (framed) or (1, 10000]
 
   const $ = (sel, root = document) => root.querySelector(sel);
@@ -85,6 +89,7 @@
   // ends); anything else goes to the banner.
   function deviceError(e, what) {
     if (isAbort(e)) return;
+    if (e instanceof ApiError && e.status === 410) return;  // superseded: a newer camera is on its way
     if (e instanceof ApiError && e.status === 503) { watchJob(); return; }
     showError(what + ': ' + (e.message || e));
   }
@@ -241,10 +246,12 @@
     const cam = { ...V.camera };
     const w = full ? cam.w : Math.max(16, Math.round(cam.w / LOWRES_DIVISOR));
     const h = full ? cam.h : Math.max(16, Math.round(cam.h / LOWRES_DIVISOR));
+    const seq = ++cameraSeq;
     begin();
     try {
+      // frame=fast: PNGs encoded for speed, the same pixels as the downloads.
       const pngs = await Promise.all(VIEWS.map((view) =>
-        fetchPng('/api/render', { view, ...cameraQuery(cam, w, h) }, abort.signal)));
+        fetchPng('/api/render', { view, ...cameraQuery(cam, w, h), frame: 'fast', client: CLIENT, seq }, abort.signal)));
       if (gen !== imageGen) { pngs.forEach((p) => URL.revokeObjectURL(p.url)); return; }
       VIEWS.forEach((view, i) => {
         showPng($(`.view[data-view="${view}"] img`), pngs[i]);
@@ -264,7 +271,7 @@
           $('#fullres-text').title = `from the end of the interaction until all four ${w}×${h} images were shown`;
         }
         if (ms.length) $('#render-ms').textContent = `(server: ${ms.map((x) => Math.round(x)).join(' + ')} ms)`;
-        loadMetrics(cam);
+        loadMetrics(cam, seq);
       } else {
         V.lowResVersion++;
       }
@@ -412,12 +419,13 @@
 
   // ---- metrics ----------------------------------------------------------------------------------
   let metricsAbort = null;
-  async function loadMetrics(cam) {
+  async function loadMetrics(cam, seq) {
     if (metricsAbort) metricsAbort.abort();
     const abort = metricsAbort = new AbortController();
     begin();
     try {
-      const res = await api('/api/metrics', cameraQuery(cam), { signal: abort.signal });
+      const query = seq === undefined ? cameraQuery(cam) : { ...cameraQuery(cam), client: CLIENT, seq };
+      const res = await api('/api/metrics', query, { signal: abort.signal });
       const m = await res.json();
       if (abort !== metricsAbort) return;
       V.imageMetrics = m;

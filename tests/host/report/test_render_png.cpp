@@ -1,6 +1,7 @@
 // PNG round trips, compositing over the background, the TF plot's parts, text and panels.
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
 #include <fstream>
 #include <random>
@@ -35,6 +36,26 @@ TEST(RenderPng, RoundTripKeepsEveryByte) {
   }
 }
 
+// Interactive frames: other bytes, the same pixels, on awkward sizes and content (flat runs,
+// noise, a single row).
+TEST(RenderPng, FastEncodingKeepsEveryPixel) {
+  std::mt19937 rng(7);
+  for (auto [w, h] : {std::pair{1u, 1u}, {13u, 1u}, {127u, 33u}, {512u, 260u}}) {
+    Image img(w, h);
+    for (uint32_t y = 0; y < h; ++y)
+      for (uint32_t x = 0; x < w; ++x)
+        if ((x / 7 + y / 5) % 3 == 0)  // patches of noise on white, as a rendering has
+          img.set(int(x), int(y), {uint8_t(rng()), uint8_t(rng()), uint8_t(rng())});
+    const std::string fast = encode_png_fast(img);
+    const Image back = decode_png(fast, "fast");
+    ASSERT_EQ(back.width, w);
+    ASSERT_EQ(back.height, h);
+    EXPECT_EQ(back.rgb, img.rgb) << w << "x" << h;
+    EXPECT_EQ(decode_png(encode_png(img), "plain").rgb, back.rgb);
+  }
+  EXPECT_THROW(encode_png_fast(Image()), std::invalid_argument);
+}
+
 TEST(RenderPng, ReadingANonPngNamesTheFile) {
   test::TempDir dir;
   std::ofstream(dir / "x.png") << "not a png";
@@ -63,6 +84,32 @@ TEST(RenderPng, CompositesPremultipliedColourOverTheBackground) {
   EXPECT_EQ(img.at(1, 0)[1], 0);
   EXPECT_EQ(img.at(1, 0)[2], 188);
   EXPECT_EQ(r.samples(), 3u);
+}
+
+// srgb_byte's table gives the formula's byte everywhere: at every step's boundary and next to
+// it, and on a dense random sample (uniform, and near zero where the curve is linear).
+TEST(RenderPng, SrgbTableEqualsTheFormula) {
+  for (int b = 0; b < 256; ++b) {
+    // The formula's smallest input of byte b, by bisection on the bit patterns.
+    uint64_t lo = 0, hi = std::bit_cast<uint64_t>(1.0);
+    if (b == 0) hi = 0;
+    while (hi - lo > 1) {
+      const uint64_t mid = lo + (hi - lo) / 2;
+      (srgb_byte_formula(std::bit_cast<double>(mid)) >= b ? hi : lo) = mid;
+    }
+    for (int64_t d = -3; d <= 3; ++d) {
+      const double v = std::bit_cast<double>(uint64_t(int64_t(hi) + d));
+      ASSERT_EQ(srgb_byte(v), srgb_byte_formula(v)) << "byte " << b << ", " << d << " ulp: " << v;
+    }
+  }
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> unit(-0.1, 1.1), small(0.0, 0.01);
+  for (int i = 0; i < 2000000; ++i) {
+    const double v = i % 4 ? unit(rng) : small(rng);
+    ASSERT_EQ(srgb_byte(v), srgb_byte_formula(v)) << v;
+  }
+  for (double v : {0.0, -0.0, 1.0, std::nextafter(1.0, 0.0), double(NAN), double(INFINITY), -double(INFINITY)})
+    EXPECT_EQ(srgb_byte(v), srgb_byte_formula(v)) << v;
 }
 
 TEST(RenderPng, SrgbEncodingFollowsThePiecewiseCurve) {
