@@ -745,11 +745,20 @@
     updateMarkers();
   }
 
-  // Everything that depends on the TFs or fields, shown again (after a job, after Apply).
+  // Everything that depends on the TFs or fields, shown again (after a job, after Apply, after
+  // another page's change). `refreshing` lets a version event wait for a refresh already on its way.
+  let refreshing = null;
   async function refreshAll() {
-    await loadState();
-    if (jobRunning) return;
-    await Promise.all([loadImages(true), loadSlices(), loadPlots()]);
+    const p = refreshing = (async () => {
+      await loadState();
+      if (jobRunning) return;
+      await Promise.all([loadImages(true), loadSlices(), loadPlots()]);
+    })();
+    try {
+      await p;
+    } finally {
+      if (refreshing === p) refreshing = null;
+    }
   }
 
   // ---- solver form ------------------------------------------------------------------------------
@@ -950,7 +959,38 @@
     $('#progress').hidden = false;
     $('#job-message').hidden = true;
     setStatus('job running…', 'busy');
-    followProgress();
+    if (!pageStream) followProgress();  // else the page's own stream brings the job's progress
+  }
+
+  // ---- other pages on the same server ----------------------------------------------------------
+  // One stream for the page's life (?follow=1): a job started and a change applied from another
+  // page or browser show here too. Pushed out by newer streams (the server keeps 16), it stops;
+  // the page then notices others' jobs when the device answers 503, as before.
+  let pageStream = null;
+  let ownChanges = 0;        // this page's changes in flight: their versions are refreshed by them
+
+  function followServer() {
+    const es = pageStream = new EventSource(apiUrl('/api/progress', { follow: 1 }));
+    es.onmessage = (ev) => {
+      let job;
+      try { job = JSON.parse(ev.data); } catch (_) { return; }
+      if (job.state === 'running' && !jobRunning && (jobExpected === null || job.id >= jobExpected)) {
+        startJob(job.id, job.kind);
+        return;
+      }
+      onJobUpdate(job);
+    };
+    es.addEventListener('version', async (ev) => {
+      let version;
+      try { version = JSON.parse(ev.data).version; } catch (_) { return; }
+      if (refreshing) await refreshing.catch(() => {});
+      if (!V.state || jobRunning || ownChanges > 0 || !(version > V.state.version)) return;
+      refreshAll().catch((e) => deviceError(e, "showing another page's change"));
+    });
+    es.addEventListener('replaced', () => {
+      es.close();
+      if (pageStream === es) pageStream = null;
+    });
   }
 
   // Something answered 503 or 409: a job runs that this page did not start (or lost track of).
@@ -1394,6 +1434,7 @@
       };
       $('#tf-apply').disabled = true;
       begin();
+      ownChanges++;
       try {
         const res = await postJson('/api/ref-tf', body);
         const r = await res.json();
@@ -1409,6 +1450,7 @@
         err.hidden = false;
         if (e instanceof ApiError && e.status === 409) watchJob();
       } finally {
+        ownChanges--;
         end();
         $('#tf-apply').disabled = jobRunning;
       }
@@ -1445,6 +1487,7 @@
       return;
     }
     const st = V.state;
+    followServer();
     defaultSize = initialSize(st);
     buildSizeChoices();
     resetCamera();
