@@ -169,17 +169,32 @@ void fill_rect(Image& img, int x, int y, int w, int h, Rgb8 c) {
 
 void draw_line(Image& img, double x0, double y0, double x1, double y1, Rgb8 c, double width) {
   const double r = 0.5 * width;
-  const int xa = int(std::floor(std::min(x0, x1) - r - 1)), xb = int(std::ceil(std::max(x0, x1) + r + 1));
-  const int ya = int(std::floor(std::min(y0, y1) - r - 1)), yb = int(std::ceil(std::max(y0, y1) + r + 1));
-  const double dx = x1 - x0, dy = y1 - y0, len2 = dx * dx + dy * dy;
-  for (int y = ya; y <= yb; ++y)
-    for (int x = xa; x <= xb; ++x) {
+  // Pixels farther than r + 0.5 from the line get no coverage: visit only the image's part of the
+  // segment's box, and on each row only the band around the line (a box outline's diagonal edge
+  // across a 1024^2 picture visited a million pixels for about two thousand drawn).
+  const int xa = std::max(0, int(std::floor(std::min(x0, x1) - r - 1)));
+  const int xb = std::min(int(img.width) - 1, int(std::ceil(std::max(x0, x1) + r + 1)));
+  const int ya = std::max(0, int(std::floor(std::min(y0, y1) - r - 1)));
+  const int yb = std::min(int(img.height) - 1, int(std::ceil(std::max(y0, y1) + r + 1)));
+  const double dx = x1 - x0, dy = y1 - y0, len2 = dx * dx + dy * dy, len = std::sqrt(len2);
+  const bool banded = std::abs(dy) > 1e-9 * len;
+  for (int y = ya; y <= yb; ++y) {
+    int xlo = xa, xhi = xb;
+    if (banded) {
+      // Distance to the line is |px - xc| |dy| / len on this row, xc where the line crosses it;
+      // one pixel of margin each side.
+      const double xc = x0 + (y + 0.5 - y0) * dx / dy, half = (r + 0.5) * len / std::abs(dy);
+      xlo = std::max(xlo, int(std::floor(xc - half - 0.5)) - 1);
+      xhi = std::min(xhi, int(std::ceil(xc + half - 0.5)) + 1);
+    }
+    for (int x = xlo; x <= xhi; ++x) {
       // Coverage from the distance of the pixel centre to the segment: 1 inside, ramps over 1 px.
       const double px = x + 0.5, py = y + 0.5;
       const double s = len2 > 0 ? std::clamp(((px - x0) * dx + (py - y0) * dy) / len2, 0.0, 1.0) : 0.0;
       const double d = std::hypot(px - (x0 + s * dx), py - (y0 + s * dy));
       img.blend(x, y, c, std::clamp(r + 0.5 - d, 0.0, 1.0));
     }
+  }
 }
 
 void draw_dot(Image& img, double x, double y, double radius, Rgb8 fill, Rgb8 outline) {

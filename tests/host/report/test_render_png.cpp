@@ -56,6 +56,31 @@ TEST(RenderPng, FastEncodingKeepsEveryPixel) {
   EXPECT_THROW(encode_png_fast(Image()), std::invalid_argument);
 }
 
+// draw_line visits only the band around the line: the same pixels as visiting the whole box
+// (this test's brute force), for lines steep, flat, short, degenerate and leaving the image.
+TEST(RenderPng, LinesDrawTheSamePixelsAsTheWholeBox) {
+  auto brute = [](Image& img, double x0, double y0, double x1, double y1, Rgb8 c, double width) {
+    const double r = 0.5 * width, dx = x1 - x0, dy = y1 - y0, len2 = dx * dx + dy * dy;
+    for (int y = int(std::floor(std::min(y0, y1) - r - 1)); y <= int(std::ceil(std::max(y0, y1) + r + 1)); ++y)
+      for (int x = int(std::floor(std::min(x0, x1) - r - 1)); x <= int(std::ceil(std::max(x0, x1) + r + 1)); ++x) {
+        const double px = x + 0.5, py = y + 0.5;
+        const double s = len2 > 0 ? std::clamp(((px - x0) * dx + (py - y0) * dy) / len2, 0.0, 1.0) : 0.0;
+        img.blend(x, y, c, std::clamp(r + 0.5 - std::hypot(px - (x0 + s * dx), py - (y0 + s * dy)), 0.0, 1.0));
+      }
+  };
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> pos(-40.0, 140.0), w(0.5, 4.0);
+  std::vector<std::array<double, 5>> lines = {{10, 10, 90, 11, 1}, {10, 10, 11, 90, 1}, {5, 5, 5, 5, 2},
+                                              {0.5, 0.5, 99.5, 79.5, 1}, {-30, 40, 130, 41, 1.5}};
+  for (int i = 0; i < 300; ++i) lines.push_back({pos(rng), pos(rng), pos(rng), pos(rng), w(rng)});
+  for (const auto& l : lines) {
+    Image fast(100, 80, {250, 250, 250}), slow(100, 80, {250, 250, 250});
+    draw_line(fast, l[0], l[1], l[2], l[3], {20, 90, 160}, l[4]);
+    brute(slow, l[0], l[1], l[2], l[3], {20, 90, 160}, l[4]);
+    ASSERT_EQ(fast.rgb, slow.rgb) << l[0] << "," << l[1] << " -> " << l[2] << "," << l[3] << " width " << l[4];
+  }
+}
+
 TEST(RenderPng, ReadingANonPngNamesTheFile) {
   test::TempDir dir;
   std::ofstream(dir / "x.png") << "not a png";
