@@ -41,6 +41,9 @@ struct RenderedImage {
 // transfer curve, rounded once. Every picture written for people goes through this, so a
 // linear 0.5 grey shows as 188 and a ParaView preset's sRGB 0.5 grey as 128, as in ParaView.
 uint8_t srgb_byte(double linear);
+// The same byte from the formula itself (a pow per call): what srgb_byte's table is built from
+// and checked against.
+uint8_t srgb_byte_formula(double linear);
 Rgb8 srgb8(double r, double g, double b);
 
 // C + (1 - A) * background per channel in linear RGB (the background is linear too), then

@@ -1,6 +1,8 @@
 // GPU rendering of a device field into a host image.
 #include "render.h"
 
+#include <chrono>
+
 #include <algorithm>
 #include <cmath>
 
@@ -34,7 +36,19 @@ GpuRenderer::GpuRenderer(Context& ctx, const DeviceField& field, const VolumeGeo
     : ctx_(ctx), field_(field), geometry_(geometry), kernel_(ctx, uint32_t(field.chunk_count())) {}
 
 RenderedImage GpuRenderer::render(const FieldMapping& mapping, const Buffer& tf, const RenderSettings& s,
-                                  Progress* progress, double* gpu_ms) const {
+                                  Progress* progress, double* gpu_ms, RenderCallTimes* times) const {
+  return render_impl(mapping, tf, s, progress, gpu_ms, times, true);
+}
+
+RenderedImage GpuRenderer::render_colours(const FieldMapping& mapping, const Buffer& tf, const RenderSettings& s,
+                                          RenderCallTimes* times) const {
+  return render_impl(mapping, tf, s, nullptr, nullptr, times, false);
+}
+
+RenderedImage GpuRenderer::render_impl(const FieldMapping& mapping, const Buffer& tf, const RenderSettings& s,
+                                       Progress* progress, double* gpu_ms, RenderCallTimes* times,
+                                       bool read_stop) const {
+  const auto t0 = std::chrono::steady_clock::now();
   const MarchConstants march = march_constants(s, geometry_);
   const CameraFrame frame = orbit_frame(s.camera, geometry_, s.width, s.height);
   const gpu::RenderView view = make_render_view(frame);
@@ -63,14 +77,22 @@ RenderedImage GpuRenderer::render(const FieldMapping& mapping, const Buffer& tf,
     if (progress) progress->update(row + rows);
   }
   if (gpu_ms) *gpu_ms = timed ? total_ms : -1.0;
+  const auto t1 = std::chrono::steady_clock::now();
 
   RenderedImage out;
   out.width = s.width;
   out.height = s.height;
   out.rgba.resize(pixels * 4);
-  out.stop.resize(pixels);
   readback(ctx_, image, out.rgba.data(), pixels * 16);
-  readback(ctx_, stop, out.stop.data(), pixels * 4);
+  if (read_stop) {
+    out.stop.resize(pixels);
+    readback(ctx_, stop, out.stop.data(), pixels * 4);
+  }
+  if (times) {
+    const auto t2 = std::chrono::steady_clock::now();
+    times->dispatch_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+    times->readback_ms = std::chrono::duration<double, std::milli>(t2 - t1).count();
+  }
   return out;
 }
 

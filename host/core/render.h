@@ -19,6 +19,12 @@
 
 namespace tfm {
 
+// Wall-clock time of a GpuRenderer::render call's parts, milliseconds.
+struct RenderCallTimes {
+  double dispatch_ms = 0.0;  // recording, submitting and waiting for the render
+  double readback_ms = 0.0;  // the image back to host memory
+};
+
 class GpuRenderer {
  public:
   // The pipeline is specialized for the field's chunk count. Throws std::runtime_error when the
@@ -27,11 +33,18 @@ class GpuRenderer {
 
   // Renders settings.camera. With `progress`, the image is rendered in bands of rows, one
   // submission each, and progress->update(rows done) after each; otherwise in one dispatch.
-  // `gpu_ms` receives the GPU time (sum over bands; -1 without timestamps).
+  // `gpu_ms` receives the GPU time (sum over bands; -1 without timestamps), `times` the wall
+  // time of the dispatch and the read-back.
   RenderedImage render(const FieldMapping& mapping, const Buffer& tf, const RenderSettings& settings,
-                       Progress* progress = nullptr, double* gpu_ms = nullptr) const;
+                       Progress* progress = nullptr, double* gpu_ms = nullptr, RenderCallTimes* times = nullptr) const;
+  // The colours only (RenderedImage::stop left empty), in one dispatch: what a picture needs,
+  // without reading back the stop indices DiffDVR uses.
+  RenderedImage render_colours(const FieldMapping& mapping, const Buffer& tf, const RenderSettings& settings,
+                               RenderCallTimes* times = nullptr) const;
 
  private:
+  RenderedImage render_impl(const FieldMapping& mapping, const Buffer& tf, const RenderSettings& settings,
+                            Progress* progress, double* gpu_ms, RenderCallTimes* times, bool read_stop) const;
   Context& ctx_;
   const DeviceField& field_;
   VolumeGeometry geometry_;

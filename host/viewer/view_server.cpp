@@ -8,6 +8,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <mutex>
 #include <random>
 #include <thread>
@@ -51,6 +52,8 @@ void guarded(httplib::Response& res, Handler&& handler) {
     send_error(res, 503, e.what());
   } catch (const ConflictError& e) {
     send_error(res, 409, e.what());
+  } catch (const SupersededError& e) {
+    send_error(res, 410, e.what());
   } catch (const VulkanError& e) {
     send_error(res, 500, std::string("device failure: ") + e.what());
   } catch (const Cancelled&) {
@@ -145,6 +148,20 @@ nlohmann::json parse_body(const httplib::Request& req) {
   return body;
 }
 
+// The picture's breakdown as a Server-Timing header (milliseconds; shown by browsers' developer
+// tools, read by the page and tests/browser/camera_latency.mjs).
+std::string server_timing(const PictureTiming& t, double encode_ms) {
+  std::string out;
+  char part[64];
+  for (const auto& [name, ms] : {std::pair{"wait", t.wait_ms}, std::pair{"render", t.render_ms},
+                                 std::pair{"readback", t.readback_ms}, std::pair{"compose", t.compose_ms},
+                                 std::pair{"decorate", t.decorate_ms}, std::pair{"encode", encode_ms}}) {
+    std::snprintf(part, sizeof part, "%s%s;dur=%.2f", out.empty() ? "" : ", ", name, ms);
+    out += part;
+  }
+  return out;
+}
+
 bool same_token(const std::string& a, const std::string& b) {
   // Constant time in the length of the expected token: no early exit reveals a prefix.
   unsigned diff = unsigned(a.size() != b.size());
@@ -231,8 +248,35 @@ struct ViewServer::Impl {
     tokens -= 1.0;
   }
 
+  // The newest camera each page (client=) has asked for (seq=): a picture still waiting for the
+  // device for an older one is dropped when its turn comes, not rendered.
+  std::mutex camera_mutex;
+  std::map<std::string, uint64_t> newest_camera;
+
+  // The request's camera sequence, noted as its client's newest; and a test, for when the device
+  // is the request's, of whether it still is. Requests without client= are always wanted.
+  std::function<bool()> camera_wanted(const httplib::Request& req) {
+    if (!req.has_param("client")) return {};
+    const std::string client = req.get_param_value("client");
+    if (client.empty() || client.size() > 32) throw bad_request("parameter client: 1 to 32 characters");
+    const uint64_t seq = integer_param(req, "seq", 0, 0, uint64_t(1) << 53);
+    std::lock_guard lock(camera_mutex);
+    if (newest_camera.size() > 256 && !newest_camera.count(client)) newest_camera.clear();  // bounded
+    uint64_t& newest = newest_camera[client];
+    newest = std::max(newest, seq);
+    return [this, client, seq] {
+      std::lock_guard lock(camera_mutex);
+      auto it = newest_camera.find(client);
+      return it == newest_camera.end() || it->second <= seq;
+    };
+  }
+
   void send_png(httplib::Response& res, const Image& img, const httplib::Request& req, const std::string& name) {
-    res.set_content(encode_png(img), "image/png");
+    // Interactive frames (frame=fast) trade size for encoding time; anything else, downloads
+    // included, is the PNG `tfmatch render` writes, byte for byte.
+    const bool fast = req.has_param("frame") && req.get_param_value("frame") == "fast" &&
+                      !(req.has_param("download") && req.get_param_value("download") == "1");
+    res.set_content(fast ? encode_png_fast(img) : encode_png(img), "image/png");
     res.set_header("Cache-Control", "no-store");
     if (req.has_param("download") && req.get_param_value("download") == "1")
       res.set_header("Content-Disposition", "attachment; filename=\"" + name + ".png\"");
@@ -290,19 +334,24 @@ struct ViewServer::Impl {
         const ViewKind view = view_param(req);
         const RenderSettings s = camera_params(req, session.default_render());
         take_device_slot();
-        double distance = 0.0, ms = 0.0;
-        const Image img = session.render(view, s, &distance, &ms);
+        double distance = 0.0;
+        PictureTiming timing;
+        const Image img = session.render(view, s, &distance, &timing, camera_wanted(req));
+        const auto encode_start = std::chrono::steady_clock::now();
         send_png(res, img, req, view_kind_name(view));
+        const double encode_ms =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - encode_start).count();
         res.set_header("X-Tfmatch-Distance", std::to_string(distance));
-        res.set_header("X-Tfmatch-Render-Ms", std::to_string(ms));
-        res.set_header("Access-Control-Expose-Headers", "X-Tfmatch-Distance, X-Tfmatch-Render-Ms");
+        res.set_header("X-Tfmatch-Render-Ms", std::to_string(timing.picture_ms()));
+        res.set_header("Server-Timing", server_timing(timing, encode_ms));
+        res.set_header("Access-Control-Expose-Headers", "X-Tfmatch-Distance, X-Tfmatch-Render-Ms, Server-Timing");
       });
     });
     server.Get("/api/metrics", [this](const httplib::Request& req, httplib::Response& res) {
       guarded(res, [&] {
         const RenderSettings s = camera_params(req, session.default_render());
         take_device_slot();
-        send_json(res, session.image_metrics(s));
+        send_json(res, session.image_metrics(s, camera_wanted(req)));
       });
     });
     server.Get("/api/slice", [this](const httplib::Request& req, httplib::Response& res) {

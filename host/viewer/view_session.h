@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -46,10 +47,26 @@ class BusyError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+// A picture whose client has asked for a newer camera while it waited for the device: dropped,
+// not rendered (HTTP 410).
+class SupersededError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
 // A request that cannot apply now or here: a job runs, or ensemble-only in pair mode (HTTP 409).
 class ConflictError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
+};
+
+// Where a picture's time went (GET /api/render's Server-Timing header), milliseconds.
+struct PictureTiming {
+  double wait_ms = 0.0;      // for the device: requests are served one at a time
+  double render_ms = 0.0;    // recording, submitting and waiting for the render
+  double readback_ms = 0.0;  // the image back to the host
+  double compose_ms = 0.0;   // over the background, to 8-bit sRGB
+  double decorate_ms = 0.0;  // box outline and markers
+  double picture_ms() const { return render_ms + readback_ms + compose_ms + decorate_ms; }
 };
 
 // An ensemble and the two measures compared (ensemble mode): the reference field is `measure`'s
@@ -102,12 +119,14 @@ class ViewSession {
   // settings the device cannot render (render.h check_render_size) ----
   // The picture `tfmatch render` makes of the view's field and TF with `settings` (sRGB, box
   // outline, markers). `distance_used` receives the camera distance in bounding-sphere radii
-  // (the framed one when settings.camera.distance is 0); `render_ms` the time it took once the
-  // device was this request's (without waiting for other requests).
+  // (the framed one when settings.camera.distance is 0); `timing` where the time went. With
+  // `wanted`, asked once the device is this request's: false throws SupersededError instead of
+  // rendering (a camera the client has moved past).
   Image render(ViewKind view, const RenderSettings& settings, double* distance_used = nullptr,
-               double* render_ms = nullptr);
-  // Image RMSE / PSNR / SSIM of the field with each TF against the reference at `settings`.
-  nlohmann::json image_metrics(const RenderSettings& settings);
+               PictureTiming* timing = nullptr, const std::function<bool()>& wanted = {});
+  // Image RMSE / PSNR / SSIM of the field with each TF against the reference at `settings`
+  // (`wanted` as for render).
+  nlohmann::json image_metrics(const RenderSettings& settings, const std::function<bool()>& wanted = {});
   // Plane `index` of `axis` (0..2) classified by the view's TF (slice.h): its colours at full
   // strength, or over the background by opacity. Throws std::invalid_argument for an axis or
   // index outside the grid.
@@ -164,7 +183,9 @@ class ViewSession {
   void finish_job(nlohmann::json summary, std::chrono::steady_clock::time_point start);
   uint64_t start_job(const std::string& kind, std::function<void()> work);
   std::unique_lock<std::mutex> lock_device_for_request();
-  Image render_picture(ViewKind view, const RenderSettings& settings, bool decorate, double* distance_used);
+  // Under device_mutex_: the rendering of `settings` (its z scale set to the session's).
+  RenderedImage render_on_device(ViewKind view, RenderSettings& settings, PictureTiming* timing);
+  Image render_picture(ViewKind view, const RenderSettings& settings, bool decorate);
   std::vector<GridIndex> markers() const;
   nlohmann::json render_commands() const;
 

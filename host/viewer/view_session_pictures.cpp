@@ -23,8 +23,34 @@ std::vector<GridIndex> ViewSession::markers() const {
   return config_.markers;
 }
 
-Image ViewSession::render_picture(ViewKind view, const RenderSettings& s_in, bool decorate, double* distance_used) {
-  RenderSettings s = s_in;
+namespace {
+
+double ms_between(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+// The picture of a rendering: over the background in 8-bit sRGB, with the box outline and the
+// markers when decorated. Needs no device: render() does it after letting the device go, so it
+// overlaps the next request's render.
+Image finish_picture(const RenderedImage& rendered, const RenderSettings& s, const VolumeGeometry& geometry,
+                     const std::vector<GridIndex>& markers, bool decorate, PictureTiming* timing) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Image picture = composite_over(rendered, s.background);
+  const auto t1 = std::chrono::steady_clock::now();
+  if (decorate) {
+    draw_box_outline(picture, geometry, s);
+    draw_markers(picture, geometry, s, markers);
+  }
+  if (timing) {
+    timing->compose_ms = ms_between(t0, t1);
+    timing->decorate_ms = ms_between(t1, std::chrono::steady_clock::now());
+  }
+  return picture;
+}
+
+}  // namespace
+
+RenderedImage ViewSession::render_on_device(ViewKind view, RenderSettings& s, PictureTiming* timing) {
   s.z_scale = config_.render.z_scale;  // the renderers' geometry
   validate(s);
   check_render_size(ctx_, s);
@@ -39,31 +65,52 @@ Image ViewSession::render_picture(ViewKind view, const RenderSettings& s_in, boo
     case ViewKind::Residual: renderer = d.res_after_renderer.get(), map = &d.res_map, tf = &*d.res_tf; break;
     case ViewKind::ResidualBefore: renderer = d.res_before_renderer.get(), map = &d.res_map, tf = &*d.res_tf; break;
   }
-  Image picture = composite_over(renderer->render(*map, *tf, s), s.background);
-  if (decorate) {
-    draw_box_outline(picture, d.geometry, s);
-    draw_markers(picture, d.geometry, s, markers());
+  RenderCallTimes times;
+  RenderedImage rendered = renderer->render_colours(*map, *tf, s, &times);
+  if (timing) {
+    timing->render_ms = times.dispatch_ms;
+    timing->readback_ms = times.readback_ms;
   }
-  if (distance_used) {
-    const CameraFrame frame = orbit_frame(s.camera, d.geometry, s.width, s.height);
-    *distance_used = glm::length(frame.eye - d.geometry.center()) / d.geometry.radius();
-  }
-  return picture;
+  return rendered;
 }
 
-Image ViewSession::render(ViewKind view, const RenderSettings& settings, double* distance_used, double* render_ms) {
-  std::unique_lock device = lock_device_for_request();
+Image ViewSession::render_picture(ViewKind view, const RenderSettings& settings, bool decorate) {
+  RenderSettings s = settings;
+  const RenderedImage rendered = render_on_device(view, s, nullptr);
+  return finish_picture(rendered, s, derived_->geometry, markers(), decorate, nullptr);
+}
+
+Image ViewSession::render(ViewKind view, const RenderSettings& settings, double* distance_used, PictureTiming* timing,
+                          const std::function<bool()>& wanted) {
   const auto t0 = std::chrono::steady_clock::now();
-  Image picture = render_picture(view, settings, true, distance_used);
-  if (render_ms) *render_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  return picture;
+  std::unique_lock device = lock_device_for_request();
+  if (timing) timing->wait_ms = ms_between(t0, std::chrono::steady_clock::now());
+  if (wanted && !wanted()) throw SupersededError("a newer camera from the same client replaced this picture");
+  RenderSettings s = settings;
+  const RenderedImage rendered = render_on_device(view, s, timing);
+  // What the picture needs of the session's state, copied while the device (and so the state a
+  // job would replace) is still this request's.
+  const VolumeGeometry geometry = derived_->geometry;
+  const std::vector<GridIndex> dots = markers();
+  device.unlock();
+  if (distance_used) {
+    const CameraFrame frame = orbit_frame(s.camera, geometry, s.width, s.height);
+    *distance_used = glm::length(frame.eye - geometry.center()) / geometry.radius();
+  }
+  return finish_picture(rendered, s, geometry, dots, true, timing);
 }
 
-nlohmann::json ViewSession::image_metrics(const RenderSettings& settings) {
+nlohmann::json ViewSession::image_metrics(const RenderSettings& settings, const std::function<bool()>& wanted) {
   std::unique_lock device = lock_device_for_request();
-  const Image ref = render_picture(ViewKind::Reference, settings, false, nullptr);
-  const Image before = render_picture(ViewKind::FieldRefTf, settings, false, nullptr);
-  const Image after = render_picture(ViewKind::FieldOptTf, settings, false, nullptr);
+  // Asked before each of the three renders: a page that moves the camera meanwhile waits for at
+  // most one of them, not all three, before its new pictures start.
+  auto picture = [&](ViewKind view) {
+    if (wanted && !wanted()) throw SupersededError("a newer camera from the same client replaced these metrics");
+    return render_picture(view, settings, false);
+  };
+  const Image ref = picture(ViewKind::Reference);
+  const Image before = picture(ViewKind::FieldRefTf);
+  const Image after = picture(ViewKind::FieldOptTf);
   return {{"reference_tf", compare_images(ref, before).to_json()},
           {"optimized_tf", compare_images(ref, after).to_json()}};
 }

@@ -326,6 +326,43 @@ async function pairMode(browser) {
     /done/.test(await text(page, '#job-message')));
   console.log(`  (progress events seen during gradient descent: ${v.progressEvents - beforeGd.progressEvents})`);
 
+  // two pages on one server: a second page follows the first page's job to its end, and both
+  // show a change applied by another client (here a plain POST) without being told to reload
+  {
+    const otherBrowser = await browser.createBrowserContext();  // its own connections, as another browser
+    const second = await openPage(otherBrowser, srv, 'pair: second page');
+    await page.bringToFront();
+    if (second.ok) {
+      const one = await viewer(page), two = await viewer(second.page);
+      await page.$eval('#opt-iterations', (e) => { e.value = ''; });
+      await page.type('#opt-iterations', '25');
+      await page.click('#run-button');
+      await waitIdle(page, `v.jobsDone > ${one.jobsDone}`, 'pair: the job started on the first page', 90000);
+      const ended = await viewer(page);
+      await waitIdle(second.page, `v.jobsDone > ${two.jobsDone} && v.state.version === ${ended.state.version}`,
+        'pair: the second page following that job', 30000);
+      const seen = await viewer(second.page);
+      check('pair: a second page follows a job started on the first, and refreshes after it',
+        seen.lastJob && seen.lastJob.id === ended.lastJob.id && seen.imageVersion > two.imageVersion &&
+        seen.state.optimized_tf.solver === 'gradient-descent', JSON.stringify(seen.lastJob));
+      const points = ended.state.ref_tf.points;
+      const edit = await fetch(`${srv.origin}/api/ref-tf?token=${srv.token}`, {
+        method: 'POST', headers: { 'Content-Type': 'application/json' },
+        body: JSON.stringify({ ...points, opacity: points.opacity.map((p) => ({ ...p, a: p.a * 0.8 })) }) });
+      const version = (await edit.json()).version;
+      const shown1 = await waitIdle(page, `v.state.version === ${version}`, 'pair: the first page showing another client\'s edit', 30000);
+      const shown2 = await waitIdle(second.page, `v.state.version === ${version}`, 'pair: the second page showing it', 30000);
+      const after1 = await viewer(page), after2 = await viewer(second.page);
+      check('pair: both pages show another client\'s reference-TF edit', edit.status === 200 && shown1 && shown2 &&
+        differs(ended.imageHashes.reference, after1.imageHashes.reference) &&
+        differs(seen.imageHashes.reference, after2.imageHashes.reference));
+      check('pair: the second page shows no errors', after2.errors.length === 0 && second.issues.pageErrors.length === 0,
+        JSON.stringify([after2.errors, second.issues.pageErrors]));
+    }
+    await otherBrowser.close();
+    v = await viewer(page);
+  }
+
   // slices: move the slider, then change the axis
   const beforeSlice = v;
   await page.focus('#slice-index');
@@ -498,7 +535,11 @@ try {
   browser = await puppeteer.launch({
     executablePath: chromium,
     headless: true,
-    args: ['--no-sandbox', '--disable-gpu', '--disable-dev-shm-usage', '--no-first-run', '--no-default-browser-check'],
+    // A page in a background tab must keep running (timers, animation frames): the test drives
+    // two pages of one server at once.
+    args: ['--no-sandbox', '--disable-gpu', '--disable-dev-shm-usage', '--no-first-run', '--no-default-browser-check',
+           '--disable-background-timer-throttling', '--disable-renderer-backgrounding',
+           '--disable-backgrounding-occluded-windows'],
   });
   await pairMode(browser);
   await ensembleMode(browser);

@@ -11,6 +11,10 @@
   const LOWRES_DIVISOR = 4;
   const LOWRES_MIN_INTERVAL_MS = 125;   // at most 8 sets of 4 low-res images a second (the server's limit: 40 requests/s)
   const WHEEL_SETTLE_MS = 250;
+  // This page among others on the same server: its cameras are numbered, so the server drops a
+  // picture still waiting for a camera this page has moved past (410) instead of rendering it.
+  const CLIENT = Math.random().toString(36).slice(2, 10);
+  let cameraSeq = 0;
   const MIN_DISTANCE = 1.05, MAX_DISTANCE = 1000;  // tfmatch render: 0 (framed) or (1, 10000]
 
   const $ = (sel, root = document) => root.querySelector(sel);
@@ -85,6 +89,7 @@
   // ends); anything else goes to the banner.
   function deviceError(e, what) {
     if (isAbort(e)) return;
+    if (e instanceof ApiError && e.status === 410) return;  // superseded: a newer camera is on its way
     if (e instanceof ApiError && e.status === 503) { watchJob(); return; }
     showError(what + ': ' + (e.message || e));
   }
@@ -241,10 +246,12 @@
     const cam = { ...V.camera };
     const w = full ? cam.w : Math.max(16, Math.round(cam.w / LOWRES_DIVISOR));
     const h = full ? cam.h : Math.max(16, Math.round(cam.h / LOWRES_DIVISOR));
+    const seq = ++cameraSeq;
     begin();
     try {
+      // frame=fast: PNGs encoded for speed, the same pixels as the downloads.
       const pngs = await Promise.all(VIEWS.map((view) =>
-        fetchPng('/api/render', { view, ...cameraQuery(cam, w, h) }, abort.signal)));
+        fetchPng('/api/render', { view, ...cameraQuery(cam, w, h), frame: 'fast', client: CLIENT, seq }, abort.signal)));
       if (gen !== imageGen) { pngs.forEach((p) => URL.revokeObjectURL(p.url)); return; }
       VIEWS.forEach((view, i) => {
         showPng($(`.view[data-view="${view}"] img`), pngs[i]);
@@ -264,7 +271,7 @@
           $('#fullres-text').title = `from the end of the interaction until all four ${w}×${h} images were shown`;
         }
         if (ms.length) $('#render-ms').textContent = `(server: ${ms.map((x) => Math.round(x)).join(' + ')} ms)`;
-        loadMetrics(cam);
+        loadMetrics(cam, seq);
       } else {
         V.lowResVersion++;
       }
@@ -412,12 +419,13 @@
 
   // ---- metrics ----------------------------------------------------------------------------------
   let metricsAbort = null;
-  async function loadMetrics(cam) {
+  async function loadMetrics(cam, seq) {
     if (metricsAbort) metricsAbort.abort();
     const abort = metricsAbort = new AbortController();
     begin();
     try {
-      const res = await api('/api/metrics', cameraQuery(cam), { signal: abort.signal });
+      const query = seq === undefined ? cameraQuery(cam) : { ...cameraQuery(cam), client: CLIENT, seq };
+      const res = await api('/api/metrics', query, { signal: abort.signal });
       const m = await res.json();
       if (abort !== metricsAbort) return;
       V.imageMetrics = m;
@@ -737,11 +745,20 @@
     updateMarkers();
   }
 
-  // Everything that depends on the TFs or fields, shown again (after a job, after Apply).
+  // Everything that depends on the TFs or fields, shown again (after a job, after Apply, after
+  // another page's change). `refreshing` lets a version event wait for a refresh already on its way.
+  let refreshing = null;
   async function refreshAll() {
-    await loadState();
-    if (jobRunning) return;
-    await Promise.all([loadImages(true), loadSlices(), loadPlots()]);
+    const p = refreshing = (async () => {
+      await loadState();
+      if (jobRunning) return;
+      await Promise.all([loadImages(true), loadSlices(), loadPlots()]);
+    })();
+    try {
+      await p;
+    } finally {
+      if (refreshing === p) refreshing = null;
+    }
   }
 
   // ---- solver form ------------------------------------------------------------------------------
@@ -942,7 +959,38 @@
     $('#progress').hidden = false;
     $('#job-message').hidden = true;
     setStatus('job running…', 'busy');
-    followProgress();
+    if (!pageStream) followProgress();  // else the page's own stream brings the job's progress
+  }
+
+  // ---- other pages on the same server ----------------------------------------------------------
+  // One stream for the page's life (?follow=1): a job started and a change applied from another
+  // page or browser show here too. Pushed out by newer streams (the server keeps 16), it stops;
+  // the page then notices others' jobs when the device answers 503, as before.
+  let pageStream = null;
+  let ownChanges = 0;        // this page's changes in flight: their versions are refreshed by them
+
+  function followServer() {
+    const es = pageStream = new EventSource(apiUrl('/api/progress', { follow: 1 }));
+    es.onmessage = (ev) => {
+      let job;
+      try { job = JSON.parse(ev.data); } catch (_) { return; }
+      if (job.state === 'running' && !jobRunning && (jobExpected === null || job.id >= jobExpected)) {
+        startJob(job.id, job.kind);
+        return;
+      }
+      onJobUpdate(job);
+    };
+    es.addEventListener('version', async (ev) => {
+      let version;
+      try { version = JSON.parse(ev.data).version; } catch (_) { return; }
+      if (refreshing) await refreshing.catch(() => {});
+      if (!V.state || jobRunning || ownChanges > 0 || !(version > V.state.version)) return;
+      refreshAll().catch((e) => deviceError(e, "showing another page's change"));
+    });
+    es.addEventListener('replaced', () => {
+      es.close();
+      if (pageStream === es) pageStream = null;
+    });
   }
 
   // Something answered 503 or 409: a job runs that this page did not start (or lost track of).
@@ -1386,6 +1434,7 @@
       };
       $('#tf-apply').disabled = true;
       begin();
+      ownChanges++;
       try {
         const res = await postJson('/api/ref-tf', body);
         const r = await res.json();
@@ -1401,6 +1450,7 @@
         err.hidden = false;
         if (e instanceof ApiError && e.status === 409) watchJob();
       } finally {
+        ownChanges--;
         end();
         $('#tf-apply').disabled = jobRunning;
       }
@@ -1437,6 +1487,7 @@
       return;
     }
     const st = V.state;
+    followServer();
     defaultSize = initialSize(st);
     buildSizeChoices();
     resetCamera();

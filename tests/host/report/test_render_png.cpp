@@ -1,6 +1,7 @@
 // PNG round trips, compositing over the background, the TF plot's parts, text and panels.
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
 #include <fstream>
 #include <random>
@@ -42,6 +43,51 @@ TEST(RenderPng, RoundTripKeepsEveryByte) {
   }
 }
 
+// Interactive frames: other bytes, the same pixels, on awkward sizes and content (flat runs,
+// noise, a single row).
+TEST(RenderPng, FastEncodingKeepsEveryPixel) {
+  std::mt19937 rng(7);
+  for (auto [w, h] : {std::pair{1u, 1u}, {13u, 1u}, {127u, 33u}, {512u, 260u}}) {
+    Image img(w, h);
+    for (uint32_t y = 0; y < h; ++y)
+      for (uint32_t x = 0; x < w; ++x)
+        if ((x / 7 + y / 5) % 3 == 0)  // patches of noise on white, as a rendering has
+          img.set(int(x), int(y), {uint8_t(rng()), uint8_t(rng()), uint8_t(rng())});
+    const std::string fast = encode_png_fast(img);
+    const Image back = decode_png(fast, "fast");
+    ASSERT_EQ(back.width, w);
+    ASSERT_EQ(back.height, h);
+    EXPECT_EQ(back.rgb, img.rgb) << w << "x" << h;
+    EXPECT_EQ(decode_png(encode_png(img), "plain").rgb, back.rgb);
+  }
+  EXPECT_THROW(encode_png_fast(Image()), std::invalid_argument);
+}
+
+// draw_line visits only the band around the line: the same pixels as visiting the whole box
+// (this test's brute force), for lines steep, flat, short, degenerate and leaving the image.
+TEST(RenderPng, LinesDrawTheSamePixelsAsTheWholeBox) {
+  auto brute = [](Image& img, double x0, double y0, double x1, double y1, Rgb8 c, double width) {
+    const double r = 0.5 * width, dx = x1 - x0, dy = y1 - y0, len2 = dx * dx + dy * dy;
+    for (int y = int(std::floor(std::min(y0, y1) - r - 1)); y <= int(std::ceil(std::max(y0, y1) + r + 1)); ++y)
+      for (int x = int(std::floor(std::min(x0, x1) - r - 1)); x <= int(std::ceil(std::max(x0, x1) + r + 1)); ++x) {
+        const double px = x + 0.5, py = y + 0.5;
+        const double s = len2 > 0 ? std::clamp(((px - x0) * dx + (py - y0) * dy) / len2, 0.0, 1.0) : 0.0;
+        img.blend(x, y, c, std::clamp(r + 0.5 - std::hypot(px - (x0 + s * dx), py - (y0 + s * dy)), 0.0, 1.0));
+      }
+  };
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> pos(-40.0, 140.0), w(0.5, 4.0);
+  std::vector<std::array<double, 5>> lines = {{10, 10, 90, 11, 1}, {10, 10, 11, 90, 1}, {5, 5, 5, 5, 2},
+                                              {0.5, 0.5, 99.5, 79.5, 1}, {-30, 40, 130, 41, 1.5}};
+  for (int i = 0; i < 300; ++i) lines.push_back({pos(rng), pos(rng), pos(rng), pos(rng), w(rng)});
+  for (const auto& l : lines) {
+    Image fast(100, 80, {250, 250, 250}), slow(100, 80, {250, 250, 250});
+    draw_line(fast, l[0], l[1], l[2], l[3], {20, 90, 160}, l[4]);
+    brute(slow, l[0], l[1], l[2], l[3], {20, 90, 160}, l[4]);
+    ASSERT_EQ(fast.rgb, slow.rgb) << l[0] << "," << l[1] << " -> " << l[2] << "," << l[3] << " width " << l[4];
+  }
+}
+
 TEST(RenderPng, ReadingANonPngNamesTheFile) {
   test::TempDir dir;
   std::ofstream(dir / "x.png") << "not a png";
@@ -70,6 +116,32 @@ TEST(RenderPng, CompositesPremultipliedColourOverTheBackground) {
   EXPECT_EQ(img.at(1, 0)[1], 0);
   EXPECT_EQ(img.at(1, 0)[2], 188);
   EXPECT_EQ(r.samples(), 3u);
+}
+
+// srgb_byte's table gives the formula's byte everywhere: at every step's boundary and next to
+// it, and on a dense random sample (uniform, and near zero where the curve is linear).
+TEST(RenderPng, SrgbTableEqualsTheFormula) {
+  for (int b = 0; b < 256; ++b) {
+    // The formula's smallest input of byte b, by bisection on the bit patterns.
+    uint64_t lo = 0, hi = std::bit_cast<uint64_t>(1.0);
+    if (b == 0) hi = 0;
+    while (hi - lo > 1) {
+      const uint64_t mid = lo + (hi - lo) / 2;
+      (srgb_byte_formula(std::bit_cast<double>(mid)) >= b ? hi : lo) = mid;
+    }
+    for (int64_t d = -3; d <= 3; ++d) {
+      const double v = std::bit_cast<double>(uint64_t(int64_t(hi) + d));
+      ASSERT_EQ(srgb_byte(v), srgb_byte_formula(v)) << "byte " << b << ", " << d << " ulp: " << v;
+    }
+  }
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> unit(-0.1, 1.1), small(0.0, 0.01);
+  for (int i = 0; i < 2000000; ++i) {
+    const double v = i % 4 ? unit(rng) : small(rng);
+    ASSERT_EQ(srgb_byte(v), srgb_byte_formula(v)) << v;
+  }
+  for (double v : {0.0, -0.0, 1.0, std::nextafter(1.0, 0.0), double(NAN), double(INFINITY), -double(INFINITY)})
+    EXPECT_EQ(srgb_byte(v), srgb_byte_formula(v)) << v;
 }
 
 TEST(RenderPng, SrgbEncodingFollowsThePiecewiseCurve) {

@@ -1,0 +1,119 @@
+// `tfmatch view`'s interactive frames in-process: fast-encoded frames carry the downloads'
+// pixels, every picture says where its time went (Server-Timing), and a picture or metrics
+// request for a camera its page has moved past is dropped (410) without touching other pages.
+#include <gtest/gtest.h>
+
+#include <map>
+
+#include "png_io.h"
+#include "synthetic.h"
+#include "view_server.h"
+#include "view_session.h"
+#include "vk_test_env.h"
+// After Eigen (through the project headers): see test_view_server.cpp.
+#include <httplib.h>
+
+namespace tfm {
+namespace {
+
+using test::GpuTest;
+
+class ViewServerFramesTest : public GpuTest {
+ protected:
+  void SetUp() override {
+    ViewConfig c;
+    c.ref_tf = demo_transfer_function(16);
+    c.tf_size = 16;
+    c.render.width = 40;
+    c.render.height = 32;
+    const Volume ref = synthetic_reference(13, 11, 9);
+    session_ = std::make_unique<ViewSession>(ctx(), ref, synthetic_remapped(ref), c);
+    server_ = std::make_unique<ViewServer>(*session_, ViewServerOptions{});
+    server_->start();
+    client_ = std::make_unique<httplib::Client>("127.0.0.1", server_->port());
+    client_->set_read_timeout(120);
+  }
+  void TearDown() override {
+    server_.reset();
+    session_.reset();
+    GpuTest::TearDown();
+  }
+  httplib::Result get(const std::string& path) { return client_->Get(path + "&token=" + server_->token()); }
+
+  std::unique_ptr<ViewSession> session_;
+  std::unique_ptr<ViewServer> server_;
+  std::unique_ptr<httplib::Client> client_;
+};
+
+// Server-Timing: "name;dur=ms, ..." as a map.
+std::map<std::string, double> server_timing(const std::string& header) {
+  std::map<std::string, double> parts;
+  size_t at = 0;
+  while (at < header.size()) {
+    const size_t end = std::min(header.find(',', at), header.size());
+    std::string part = header.substr(at, end - at);
+    part.erase(0, part.find_first_not_of(' '));
+    const size_t semi = part.find(";dur=");
+    if (semi != std::string::npos) parts[part.substr(0, semi)] = std::stod(part.substr(semi + 5));
+    at = end + 1;
+  }
+  return parts;
+}
+
+TEST_F(ViewServerFramesTest, FastFramesShowTheDownloadsPixels) {
+  for (const char* view : {"reference", "field-opt-tf", "residual"}) {
+    const std::string camera = std::string("/api/render?view=") + view + "&az=21&el=33&w=57&h=45";
+    auto fast = get(camera + "&frame=fast&client=a&seq=1");
+    auto download = get(camera + "&download=1");
+    auto plain = get(camera);
+    ASSERT_TRUE(fast && download && plain);
+    ASSERT_EQ(fast->status, 200) << fast->body;
+    ASSERT_EQ(download->status, 200) << download->body;
+    // Downloads stay the PNG `tfmatch render` writes (other tests compare those bytes).
+    EXPECT_EQ(download->body, plain->body) << view;
+    EXPECT_NE(fast->body, download->body) << view;
+    const Image a = decode_png(fast->body, "fast"), b = decode_png(download->body, "download");
+    EXPECT_EQ(a.width, b.width);
+    EXPECT_EQ(a.rgb, b.rgb) << view;
+    // frame=fast never applies to a download.
+    auto both = get(camera + "&frame=fast&download=1");
+    ASSERT_TRUE(both);
+    EXPECT_EQ(both->body, download->body);
+
+    const auto parts = server_timing(fast->get_header_value("Server-Timing"));
+    for (const char* name : {"wait", "render", "readback", "compose", "decorate", "encode"}) {
+      ASSERT_TRUE(parts.count(name)) << name << " in " << fast->get_header_value("Server-Timing");
+      EXPECT_GE(parts.at(name), 0.0) << name;
+    }
+    EXPECT_GT(parts.at("render"), 0.0);
+  }
+}
+
+// Sequence numbers are noted when a request arrives and checked when the device is its turn: a
+// picture for seq 1 after one for seq 5 from the same page is dropped, deterministically.
+TEST_F(ViewServerFramesTest, PicturesForACameraThePageMovedPastAreDropped) {
+  auto newer = get("/api/render?view=reference&w=24&h=20&frame=fast&client=page1&seq=5");
+  ASSERT_TRUE(newer);
+  EXPECT_EQ(newer->status, 200);
+  for (const char* path : {"/api/render?view=field-opt-tf&w=24&h=20&frame=fast&client=page1&seq=1",
+                           "/api/metrics?w=24&h=20&client=page1&seq=4"}) {
+    auto older = get(path);
+    ASSERT_TRUE(older);
+    EXPECT_EQ(older->status, 410) << path << ": " << older->body;
+    EXPECT_NE(older->body.find("newer camera"), std::string::npos) << older->body;
+  }
+  // The same camera (the other views of its set), another page, or no page id: rendered.
+  for (const char* path : {"/api/render?view=residual&w=24&h=20&frame=fast&client=page1&seq=5",
+                           "/api/render?view=reference&w=24&h=20&frame=fast&client=page2&seq=1",
+                           "/api/metrics?w=24&h=20&client=page1&seq=5", "/api/render?view=reference&w=24&h=20"}) {
+    auto r = get(path);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 200) << path << ": " << r->body;
+  }
+  auto bad = get("/api/render?view=reference&client=&seq=1");
+  ASSERT_TRUE(bad);
+  EXPECT_EQ(bad->status, 400);
+}
+
+}  // namespace
+}  // namespace tfm
