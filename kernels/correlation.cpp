@@ -195,10 +195,50 @@ struct CorrelationKernel::Impl {
     return *slot;
   }
 
+  // A device buffer kept between compute() calls, grown when a call needs more: a new allocation
+  // of the ensemble's size on every call cost as much as the whole field's computation.
+  Buffer& kept(Buffer& buffer, uint64_t bytes, const char* name) {
+    if (!buffer || buffer.size() < bytes) {
+      buffer = Buffer();  // the old one first: the footprint stays bounded
+      buffer = Buffer(ctx, bytes, MemoryUsage::Device, name);
+    }
+    return buffer;
+  }
+  Buffer series, result;
+  std::vector<float> gathered;  // a chunk laid out on the host, when it cannot go up member by member
+
   static constexpr auto kBindingCounts =
       gpu::binding_counts({TFM_CORR_BINDING_ENSEMBLE, TFM_CORR_BINDING_OUT, TFM_CORR_BINDING_REF_VALUES,
                            TFM_CORR_BINDING_REF_ORDER, TFM_CORR_BINDING_REF_GROUP, TFM_CORR_BINDING_TABLE});
 };
+
+namespace {
+
+// Puts voxels [v0, v0 + n) of `ens` into `series` in the chunk layout of the strategy
+// (shaders/correlation_layout.h). Member-major chunks are the ensemble's own layout, member by
+// member: each member's run of n values goes up straight from the caller's array where it is
+// large enough to be copied in place (buffer.h), else the runs are packed into `gathered` and go
+// up together (one transfer instead of M small ones). Voxel-major chunks are transposed on the
+// host into `gathered`.
+void upload_chunk(Context& ctx, const EnsembleView& ens, uint64_t v0, uint32_t n, bool voxel_major,
+                  std::vector<float>& gathered, Buffer& series) {
+  const uint32_t members = ens.member_count;
+  const uint64_t run_bytes = uint64_t(n) * sizeof(float);
+  if (!voxel_major && ctx.host_import() && run_bytes >= kHostImportMinBytes) {
+    for (uint32_t m = 0; m < members; ++m)
+      upload(ctx, series, ens.values + m * ens.voxel_count + v0, run_bytes, m * run_bytes);
+    return;
+  }
+  gathered.resize(uint64_t(n) * members);
+  if (voxel_major)
+    gather_series(ens, v0, n, gathered.data());
+  else
+    for (uint32_t m = 0; m < members; ++m)
+      std::memcpy(gathered.data() + uint64_t(m) * n, ens.values + m * ens.voxel_count + v0, run_bytes);
+  upload(ctx, series, gathered.data(), run_bytes * members);
+}
+
+}  // namespace
 
 namespace {
 
@@ -266,38 +306,25 @@ std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span
   Buffer order = make_buffer<uint32_t>(ctx, ref.order, "correlation reference order");
   Buffer group = make_buffer<uint32_t>(ctx, ref.group, "correlation reference tie groups");
   Buffer table = make_buffer<float>(ctx, ref.table, "correlation count table");
-  Buffer staging(ctx, chunk * members * sizeof(float), MemoryUsage::Upload, "correlation ensemble staging");
-  Buffer series(ctx, chunk * members * sizeof(float), MemoryUsage::Device, "correlation ensemble chunk");
-  Buffer result(ctx, chunk * sizeof(float), MemoryUsage::Device, "correlation result chunk");
-  Buffer readback(ctx, chunk * sizeof(float), MemoryUsage::Readback, "correlation result readback");
+  Buffer& series = impl_->kept(impl_->series, chunk * members * sizeof(float), "correlation ensemble chunk");
+  Buffer& result = impl_->kept(impl_->result, chunk * sizeof(float), "correlation result chunk");
   gpu::CorrelationPush push = make_push(ref);
   const uint64_t max_x = ctx.limits().maxComputeWorkGroupCount[0];
   for (uint64_t v0 = 0; v0 < voxels; v0 += chunk) {
     const uint32_t n = uint32_t(std::min(chunk, voxels - v0));
-    // The chunk layout of the strategy (shaders/correlation_layout.h): member-major for one
-    // invocation per voxel, voxel-major for one workgroup per voxel.
-    float* dst = static_cast<float*>(staging.mapped());
-    if (plan.group_per_voxel)
-      gather_series(ens, v0, n, dst);
-    else
-      for (uint32_t m = 0; m < members; ++m)
-        std::memcpy(dst + uint64_t(m) * n, ens.values + m * voxels + v0, uint64_t(n) * sizeof(float));
+    // Each transfer waits for its copies, so the chunk is on the device before the kernel reads it
+    // (and the previous chunk's kernel, waited for below, has finished reading `series`).
+    upload_chunk(ctx, ens, v0, n, plan.group_per_voxel, impl_->gathered, series);
     push.voxel_count = n;
     // One voxel per workgroup or invocation, never more (shaders/correlation_common.glsl): rows
     // of at most maxComputeWorkGroupCount[0] groups (the limits guarantee 65535 rows).
     const uint64_t groups = plan.group_per_voxel ? n : (n + plan.workgroup - 1) / plan.workgroup;
     const uint64_t groups_x = std::min(groups, max_x);
     CommandBatch batch(ctx);
-    batch.copy(staging, 0, series, 0, uint64_t(n) * members * sizeof(float));
-    // The chunk is on the device before the kernel reads it.
-    batch.barrier();
     batch.dispatch(pipeline, {series, result, values, order, group, table}, push,
                    {uint32_t(groups_x), uint32_t((groups + groups_x - 1) / groups_x)});
-    // The results are written before they are copied out.
-    batch.barrier();
-    batch.copy(result, 0, readback, 0, uint64_t(n) * sizeof(float));
     batch.submit_and_wait();
-    std::memcpy(out.data() + v0, readback.mapped(), uint64_t(n) * sizeof(float));
+    readback(ctx, result, out.data() + v0, uint64_t(n) * sizeof(float));
     if (progress) progress(v0 + n, voxels);
   }
   return out;

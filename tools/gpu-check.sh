@@ -10,11 +10,12 @@
 # step, not the run. LIST (comma separated) picks parts, so that a machine lent for a few minutes
 # can take them in several calls: check (devices, self-test, test suite), solvers (the table),
 # bench (assembly, DiffDVR, renderer), bench-long (correlation, streaming), startup (a process's
-# fixed cost, the pipeline cache, the phases of --json "timings"); solvers-necker and
+# fixed cost, the pipeline cache, the phases of --json "timings"), torch (the PyTorch peer,
+# tools/torch_peer.py, where PyTorch is installed); solvers-necker and
 # solvers-combustion are the table's GPU rows at one size each, cuda the CUDA solvers' tests.
 set -uo pipefail
 
-parts=check,solvers,bench,bench-long,startup
+parts=check,solvers,bench,bench-long,startup,torch
 if [ "${1:-}" = "--parts" ]; then parts=$2; shift 2; fi
 want() { [[ ",$parts," == *",$1,"* ]]; }
 build=$(realpath "${1:-build}")
@@ -90,4 +91,9 @@ if want startup; then
       --ref-tf "$demo/reference_tf.json" --out "$out/startup-tf.json" --json "$out/startup-$run.json"
   done
   step startup-devices 30 "$tfm" devices
+fi
+if want torch; then
+  # What a user would write instead, in PyTorch on the same GPU (tools/torch_peer.py), checked
+  # against double-precision NumPy first: the peer figures of the README's GPU tables.
+  step torch 180 python3 "$(dirname "$0")/torch_peer.py" --check --json "$out/torch.json"
 fi

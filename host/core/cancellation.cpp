@@ -54,15 +54,16 @@ bool cancel_acknowledged() noexcept { return g_acknowledged.load(); }
 
 namespace {
 
-// TFMATCH_PAUSE_AT=NAME[#K][!], parsed once.
+// TFMATCH_PAUSE_AT=NAME[#K][!] (or set_pause_point's value) and the checkpoints of its phase passed
+// since it was set.
 struct PausePoint {
   std::string phase;
   uint64_t nth = 1;
   bool ignore_flag = false;
+  uint64_t reached = 0;
 };
 
-std::optional<PausePoint> pause_point() {
-  const char* text = std::getenv("TFMATCH_PAUSE_AT");
+std::optional<PausePoint> parse_pause_point(const char* text) {
   if (!text || !*text) return std::nullopt;
   PausePoint p{text};
   if (!p.phase.empty() && p.phase.back() == '!') p.ignore_flag = true, p.phase.pop_back();
@@ -73,12 +74,48 @@ std::optional<PausePoint> pause_point() {
   return p;
 }
 
+std::mutex g_pause_mutex;
+std::optional<PausePoint> g_pause;  // guarded by g_pause_mutex
+// Whether g_pause may hold a pause: checkpoints without one (the usual case) take no lock.
+std::atomic<bool> g_pause_set{false};
+std::atomic<int> g_paused{0};  // checkpoints waiting at the pause point now
+
+// The environment's pause, read at the first checkpoint of the process (before: a
+// set_pause_point call replaces it).
+std::once_flag g_environment_read;
+void read_environment_once() {
+  std::call_once(g_environment_read, [] {
+    std::lock_guard lock(g_pause_mutex);
+    g_pause = parse_pause_point(std::getenv("TFMATCH_PAUSE_AT"));
+    g_pause_set = g_pause.has_value();
+  });
+}
+
+// Counts a checkpoint of `phase` and tells whether it is the pause point's (and whether that
+// pause ignores the flag).
+bool at_pause_point(const char* phase, bool& ignore_flag) {
+  if (!g_pause_set.load()) return false;
+  std::lock_guard lock(g_pause_mutex);
+  if (!g_pause || g_pause->phase != phase) return false;
+  ignore_flag = g_pause->ignore_flag;
+  return ++g_pause->reached == g_pause->nth;
+}
+
 }  // namespace
+
+void set_pause_point(const char* spec) {
+  read_environment_once();  // so that the environment's value cannot replace this one later
+  std::lock_guard lock(g_pause_mutex);
+  g_pause = parse_pause_point(spec);
+  g_pause_set = g_pause.has_value();
+}
+
+bool paused_at_checkpoint() noexcept { return g_paused.load() > 0; }
 
 void checkpoint(const char* phase) {
   static const bool trace = std::getenv("TFMATCH_TRACE_PHASES") != nullptr;
-  static const std::optional<PausePoint> pause = pause_point();
-  if (trace || pause) {
+  read_environment_once();
+  if (trace) {
     static std::mutex mutex;
     static std::map<std::string, uint64_t> reached;  // checkpoints passed per phase
     uint64_t count = 0;
@@ -86,18 +123,21 @@ void checkpoint(const char* phase) {
       std::lock_guard lock(mutex);
       count = ++reached[phase];
     }
-    if (count == 1 && trace)
+    if (count == 1)
       std::fprintf(stderr, "tfmatch: phase %s (at %.3f s)\n", phase,
                    std::chrono::duration<double>(std::chrono::steady_clock::now() - g_start).count());
-    if (pause && count == pause->nth && pause->phase == phase) {
-      std::fprintf(stderr, "tfmatch: paused in phase %s\n", phase);
-      std::fflush(stderr);
-      const auto end = std::chrono::steady_clock::now() + kMaxPause;
-      while ((pause->ignore_flag || !cancel_requested()) && std::chrono::steady_clock::now() < end)
-        std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    }
-    if (trace && cancel_requested()) std::fprintf(stderr, "tfmatch: stopping at a checkpoint of phase %s\n", phase);
   }
+  bool ignore_flag = false;
+  if (at_pause_point(phase, ignore_flag)) {
+    std::fprintf(stderr, "tfmatch: paused in phase %s\n", phase);
+    std::fflush(stderr);
+    ++g_paused;
+    const auto end = std::chrono::steady_clock::now() + kMaxPause;
+    while ((ignore_flag || !cancel_requested()) && std::chrono::steady_clock::now() < end)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    --g_paused;
+  }
+  if (trace && cancel_requested()) std::fprintf(stderr, "tfmatch: stopping at a checkpoint of phase %s\n", phase);
   check_cancelled();
 }
 

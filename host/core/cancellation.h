@@ -43,4 +43,11 @@ bool cancel_acknowledged() noexcept;
 // as a step without checkpoints would.
 void checkpoint(const char* phase);
 
+// The pause of TFMATCH_PAUSE_AT for a host or a test in this process, which has read the
+// environment at its first checkpoint: `spec` as that variable's value, its K counting the
+// checkpoints passed from this call on; nullptr or "" removes the pause (the environment's too).
+void set_pause_point(const char* spec);
+// True while a checkpoint waits at the pause point: the work is held there for certain.
+bool paused_at_checkpoint() noexcept;
+
 }  // namespace tfm

@@ -227,6 +227,7 @@ int draw_bitmap_text(Image& img, int x, int y, const std::string& text, Rgb8 c, 
 }  // namespace
 
 void set_text_face(const TextFace* face) { g_face = face; }
+const TextFace* text_face() { return g_face; }
 
 int draw_text(Image& img, int x, int y, const std::string& text, Rgb8 c, int scale) {
   return g_face ? g_face->draw(img, x, y, text, c, scale) : draw_bitmap_text(img, x, y, text, c, scale);

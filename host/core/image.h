@@ -75,6 +75,7 @@ class TextFace {
 };
 // Installs `face` for every later draw_text (nullptr: the bitmap font); it must outlive its use.
 void set_text_face(const TextFace* face);
+const TextFace* text_face();  // the installed face (nullptr: the bitmap font)
 void blit(Image& dst, const Image& src, int x, int y);
 // A filled disc centred at (x, y) in the coordinates of draw_line (pixel (i, j) covers
 // [i, i+1) x [j, j+1)), anti-aliased, inside a one-pixel ring of `outline`.

@@ -49,6 +49,12 @@ std::string format_duration(double s) {
   return buf;
 }
 
+double estimated_seconds_left(double elapsed_s, uint64_t done, uint64_t total) {
+  if (done == 0 || total == 0) return -1.0;
+  const double fraction = double(done) / double(total);
+  return elapsed_s * (1.0 - fraction) / fraction;
+}
+
 ScopedProgressObserver::ScopedProgressObserver(ProgressObserver observer) : previous_(std::move(t_observer)) {
   t_observer = std::move(observer);
 }
@@ -58,9 +64,11 @@ void Progress::notify() const {
   if (t_observer) t_observer(label_, done_, total_);
 }
 
-Progress::Progress(std::string label, uint64_t total)
+Progress::Progress(std::string label, uint64_t total, ProgressClock clock)
     : label_(std::move(label)), total_(total), active_(progress_enabled()), terminal_(::isatty(STDERR_FILENO) == 1),
-      start_(std::chrono::steady_clock::now()), last_(start_) {
+      clock_(clock ? std::move(clock) : ProgressClock([] { return std::chrono::steady_clock::now(); })),
+      start_(clock_()),
+      last_(start_) {
   notify();
   if (active_ && terminal_) draw(false);
 }
@@ -71,7 +79,7 @@ void Progress::update(uint64_t done) {
   done_ = done;
   notify();
   if (!active_) return;
-  const auto now = std::chrono::steady_clock::now();
+  const auto now = clock_();
   if (terminal_) {
     if (now - last_ < std::chrono::milliseconds(100)) return;
     last_ = now;
@@ -95,7 +103,7 @@ void Progress::finish() {
 }
 
 void Progress::draw(bool final_line) {
-  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  const double s = std::chrono::duration<double>(clock_() - start_).count();
   if (total_ > 0)
     std::fprintf(stderr, "\r\033[K%s %3.0f%% (%.1f s)", label_.c_str(), 100.0 * double(done_) / double(total_), s);
   else
@@ -106,12 +114,12 @@ void Progress::draw(bool final_line) {
 
 // "diffdvr: 40% (20/50), 1m10s elapsed, ~1m45s left": one line a log keeps as it is.
 void Progress::print_plain_line() {
-  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  const double s = std::chrono::duration<double>(clock_() - start_).count();
   const auto done = static_cast<unsigned long long>(done_);
   if (total_ > 0) {
     const double fraction = double(done_) / double(total_);
-    // The time left assumes the rate so far holds; unknown before any work is done.
-    const std::string left = done_ > 0 ? "~" + format_duration(s * (1.0 - fraction) / fraction) : "?";
+    const double left_s = estimated_seconds_left(s, done_, total_);
+    const std::string left = left_s >= 0 ? "~" + format_duration(left_s) : "?";
     std::fprintf(stderr, "%s: %.0f%% (%llu/%llu), %s elapsed, %s left\n", label_.c_str(), 100.0 * fraction, done,
                  static_cast<unsigned long long>(total_), format_duration(s).c_str(), left.c_str());
   } else {

@@ -24,6 +24,14 @@ double progress_interval_s();
 // "1m10s", "3.2s", "2h05m": a duration for people.
 std::string format_duration(double seconds);
 
+// The time left that a plain line states, `elapsed_s` after `done` of `total` units: the rate so
+// far holds (20 of 50 done after T: 1.5 T left). Negative when unknown: nothing done yet, or no
+// total.
+double estimated_seconds_left(double elapsed_s, uint64_t done, uint64_t total);
+
+// Where a Progress reads the time: std::chrono::steady_clock::now unless given (tests step it).
+using ProgressClock = std::function<std::chrono::steady_clock::time_point()>;
+
 // Something other than stderr that follows progress on this thread: a server that streams a job's
 // progress to a web page (host/viewer). Called on every update() and set_label() of a Progress
 // made on the thread that installed it, whether or not progress lines are enabled, with the
@@ -44,7 +52,7 @@ class ScopedProgressObserver {
 class Progress {
  public:
   // `total` units of work; 0 means unknown (only the count is shown).
-  Progress(std::string label, uint64_t total);
+  Progress(std::string label, uint64_t total, ProgressClock clock = {});
   ~Progress();  // finishes the line
   Progress(const Progress&) = delete;
   Progress& operator=(const Progress&) = delete;
@@ -61,6 +69,7 @@ class Progress {
   uint64_t total_ = 0, done_ = 0;
   bool active_ = false;
   bool terminal_ = false;
+  ProgressClock clock_;
   std::chrono::steady_clock::time_point start_, last_;
 };
 

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "transfer_function.h"
 #include "volume.h"
@@ -15,6 +16,15 @@ Volume synthetic_reference(uint64_t nx, uint64_t ny, uint64_t nz);
 // units (g(t) = 40 + 300 * (0.55 + 0.45 sin(2.6 pi t - 0.9))), plus a sphere of real structural
 // difference (a different pattern) that no transfer function can explain.
 Volume synthetic_remapped(const Volume& reference, bool with_structural_difference = true);
+
+// The default demo's second field: a monotone nonlinear remap of the reference into other units
+// (g(t) = 250 + 60 (exp(1.6 t) - 1) / (exp(1.6) - 1), "kelvin"), with a little deterministic noise
+// (0.2 % of the range), plus two regions of real structural change that no TF can explain: the
+// sphere of synthetic_difference_region() filled with another pattern, and one blob of the
+// reference moved by a tenth of the box. Where the fields differ in structure, `changed` (when
+// given) gets 1 per voxel, else 0: the sphere, and every voxel where the moved blob changes the
+// reference's value by more than 0.02 of its range.
+Volume synthetic_changed(const Volume& reference, std::vector<uint8_t>* changed = nullptr);
 
 // Centre and radius (in voxels) of the structural-difference sphere of synthetic_remapped().
 struct Sphere {

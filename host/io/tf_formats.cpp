@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "atomic_file.h"
+#include "builtin_tf.h"
 #include "volume_formats.h"
 #include "xml_tree.h"
 #include "tf_json.h"
@@ -299,16 +300,35 @@ TransferFunction parse_transfer_function(std::string_view text, const std::strin
   return table_from_control_points(parse_paraview_preset(text, name, options.preset, notes), options.table_size);
 }
 
+std::optional<BuiltinTf> builtin_tf_named_by(const std::string& spec) {
+  std::error_code ec;
+  if (spec.empty() || std::filesystem::exists(spec, ec)) return std::nullopt;
+  try {
+    return parse_builtin_tf(spec);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(e.what());
+  }
+}
+
 TransferFunction read_transfer_function(const std::filesystem::path& path_in, const TfReadOptions& options_in,
                                         std::vector<std::string>* notes) {
   std::filesystem::path path = path_in;
   TfReadOptions options = options_in;
   const std::string spec = path_in.string();
+  if (const auto builtin = builtin_tf_named_by(spec)) {
+    const size_t n = options.table_size ? options.table_size : kDefaultBuiltinTfSize;
+    if (notes)
+      notes->push_back(spec + ": the built-in " + builtin_tf_source(builtin->name) + ", " + std::to_string(n) +
+                       " entries, opacity " + opacity_shape_name(builtin->opacity));
+    return builtin_transfer_function(*builtin, n);
+  }
   if (!std::filesystem::exists(path)) {
     auto colon = spec.rfind(':');
     if (colon != std::string::npos && colon > 0 && std::filesystem::exists(spec.substr(0, colon))) {
       path = spec.substr(0, colon);
       options.preset = spec.substr(colon + 1);
+    } else {
+      throw std::runtime_error(spec + ": no such file, nor a built-in transfer function (" + builtin_tf_syntax() + ")");
     }
   }
   std::error_code ec;

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "builtin_tf.h"
 #include "color_spaces.h"
 #include "transfer_function.h"
 #include "tf_json.h"
@@ -63,9 +64,18 @@ struct TfReadOptions {
   std::string preset;      // ParaView preset name in a file holding several
 };
 
-// By content: XML (first non-blank character '<'), a JSON object with "rgba" (tfmatch), else a
-// ParaView preset. `path` may end in ":PRESET" to name a preset. `notes` (optional) receives what
-// the reader assumed. Throws std::runtime_error naming the file.
+// The built-in map that `spec` names (builtin_tf.h), if it names one: a spec is a built-in name
+// (optionally with ",opacity=SHAPE") only when no file of exactly that name exists, so a file
+// called "viridis" is still read as a file. Throws std::runtime_error for a built-in name with a
+// bad option ("viridis,opacity=round").
+std::optional<BuiltinTf> builtin_tf_named_by(const std::string& spec);
+
+// A built-in map's name (builtin_tf_named_by; a table of options.table_size entries, 64 when 0),
+// else a file by content: XML (first non-blank character '<'), a JSON object with "rgba"
+// (tfmatch), else a ParaView preset. `path` may end in ":PRESET" to name a preset. `notes`
+// (optional) receives what the reader assumed (for a built-in: its source, size and opacity).
+// Throws std::runtime_error naming the file; for a path that is neither a file nor a built-in
+// name, the message lists the built-in names.
 TransferFunction read_transfer_function(const std::filesystem::path& path, const TfReadOptions& options = {},
                                         std::vector<std::string>* notes = nullptr);
 TransferFunction parse_transfer_function(std::string_view text, const std::string& name, const TfReadOptions& options = {},

@@ -123,7 +123,11 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
     << metric_row("Image SSIM", s.before.ssim, s.after.ssim, 5, true)
     << metric_row("Voxel RMSE (RGBA)", r.before.rmse(), r.after.rmse(), 5, false)
     << metric_row("Voxel MAE (RGBA)", r.before.mae(), r.after.mae(), 5, false)
-    << metric_row("Residual max", s.residual_max_before, s.residual_max_after, 4, false) << "</table>\n"
+    << metric_row("Residual max", s.residual_max_before, s.residual_max_after, 4, false);
+  if (s.residual_inside_before && s.residual_inside_after)
+    h << metric_row("Residual inside the changed regions (%)", 100 * *s.residual_inside_before,
+                    100 * *s.residual_inside_after, 3, true);
+  h << "</table>\n"
     << "<p class=\"note\">Image metrics compare each rendering of the second field with the reference "
        "rendering on the 8-bit sRGB pictures as written to the PNGs (composited over the background in "
        "linear RGB), measured before the box outline and markers are drawn on them. SSIM: Wang et al. 2004, 11&times;11 "

@@ -54,6 +54,22 @@ Image stack_rows(const std::vector<Image>& rows, Rgb8 background) {
 
 // The numbers as a picture, for overview.png (the HTML page has them as a table): three columns
 // at fixed positions (the font is proportional), then the warnings, wrapped to the panel.
+// The share of the residual map's sum (finite voxels) that lies where `mask` is set; 0 when the
+// residual is 0 everywhere.
+double fraction_inside(const Volume& residual, const std::vector<uint8_t>& mask) {
+  if (mask.size() != residual.values.size())
+    throw std::runtime_error("the changed-regions mask has " + std::to_string(mask.size()) + " voxels, the fields " +
+                             std::to_string(residual.values.size()));
+  double inside = 0, all = 0;
+  for (size_t i = 0; i < mask.size(); ++i) {
+    const float r = residual.values[i];
+    if (!std::isfinite(r)) continue;
+    all += r;
+    if (mask[i]) inside += r;
+  }
+  return all > 0 ? inside / all : 0.0;
+}
+
 Image metrics_panel(const ReportSummary& s, const OptimizeResult& r, uint32_t width, uint32_t height) {
   Image img(width, height);
   const Rgb8 ink{30, 30, 30}, muted{110, 110, 110}, warn{150, 80, 0};
@@ -63,12 +79,15 @@ Image metrics_panel(const ReportSummary& s, const OptimizeResult& r, uint32_t wi
   auto row = [](const std::string& name, double before, double after, int digits) {
     return Row{name, report_number(before, digits), report_number(after, digits)};
   };
-  const std::vector<Row> rows = {{"", "ref TF", "opt TF"},
+  std::vector<Row> rows = {{"", "ref TF", "opt TF"},
                                  row("image RMSE", s.before.rmse, s.after.rmse, 4),
                                  row("PSNR dB", s.before.psnr, s.after.psnr, 4),
                                  row("SSIM", s.before.ssim, s.after.ssim, 3),
                                  row("voxel RMSE", r.before.rmse(), r.after.rmse(), 3),
                                  row("residual max", s.residual_max_before, s.residual_max_after, 3)};
+  if (s.residual_inside_before && s.residual_inside_after)
+    rows.push_back({"in changed", report_number(100 * *s.residual_inside_before, 2) + "%",
+                   report_number(100 * *s.residual_inside_after, 2) + "%"});
   // Scale 2 when the table fits, else 1 (small images).
   auto widths = [&](int scale) {
     int a = 0, b = 0, c = 0;
@@ -243,6 +262,10 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   const Volume res_after = residual_map_gpu(ctx, in.ref, ref, field, ref_map, field_opt_tf_map, ref_tf, opt_tf);
   out.residual_max_before = max_value(res_before);
   out.residual_max_after = max_value(res_after);
+  if (!in.changed_regions.empty()) {
+    out.residual_inside_before = fraction_inside(res_before, in.changed_regions);
+    out.residual_inside_after = fraction_inside(res_after, in.changed_regions);
+  }
   // One display range for both, so the two pictures are comparable.
   const FieldRange res_range = residual_display_range({&res_before, &res_after});
   const TransferFunction res_tf = residual_transfer_function();
@@ -303,6 +326,9 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   metrics["residual"] = {{"max_reference_tf", out.residual_max_before},
                          {"max_optimized_tf", out.residual_max_after},
                          {"display_range", {res_range.lo, res_range.hi}}};
+  if (out.residual_inside_before && out.residual_inside_after)
+    metrics["residual"]["fraction_inside_changed_regions"] = {{"reference_tf", *out.residual_inside_before},
+                                                              {"optimized_tf", *out.residual_inside_after}};
   metrics["render_settings"] = settings_json(s);
   metrics["histogram"] = in.histogram_log ? "log" : "linear";
   metrics["font"] = font.empty() ? "built-in 5x7 bitmap (DejaVu Sans not found)" : font;

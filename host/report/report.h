@@ -45,6 +45,10 @@ struct ReportInputs {
   std::optional<GridIndex> slice_point;
   std::vector<ReportFigure> extra_figures;
   nlohmann::json extra_metrics;    // merged into metrics.json under "extra" when not null
+  // Where the two fields are known to differ in structure (1 per voxel of a ground-truth mask, in
+  // the fields' order; the demo's changed regions): the report then states how much of the
+  // residual lies there, before and after optimization. Empty: not known.
+  std::vector<uint8_t> changed_regions;
   // Shown under the title (a streamed run: the pictures are of a downsampled copy).
   std::vector<std::string> notes;
   bool histogram_log = true;       // TF plots: log(1 + count) bars, else counts (each plot says which)
@@ -60,6 +64,8 @@ struct ReportSummary {
   ImageMetrics before;  // reference image vs the field with the reference TF
   ImageMetrics after;   // reference image vs the field with the optimized TF
   double residual_max_before = 0.0, residual_max_after = 0.0;
+  // With ReportInputs::changed_regions: the fraction of the residual map's sum inside them.
+  std::optional<double> residual_inside_before, residual_inside_after;
   std::filesystem::path index;  // index.html
   struct Slice {
     std::string file;     // slices_z.png, ...

@@ -119,6 +119,7 @@ ComparisonResult compare_solvers(Context& ctx, const OptimizeRequest& request, s
     if (r.details.contains("iterations")) row.iterations = r.details["iterations"].get<int64_t>();
     row.rmse = r.after.rmse();
     row.mae = r.after.mae();
+    row.tf = r.tf;
     const Eigen::MatrixX4d x = as_matrix(r.tf);
     row.max_diff_to_qp = (x - x_qp).cwiseAbs().maxCoeff();
     for (int c = 0; c < 4; ++c) row.kkt = std::max(row.kkt, box_kkt_residual(h, eq.rhs.col(c), x.col(c)));

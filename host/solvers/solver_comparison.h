@@ -19,6 +19,7 @@ struct ComparisonRow {
   double total_ms = 0.0;             // sum of the phases' wall times
   int64_t iterations = -1;           // -1: not an iterative solver
   double rmse = 0.0, mae = 0.0;      // voxel loss of the returned TF (GPU, RGBA)
+  TransferFunction tf;               // the solver's result
   double max_diff_to_qp = 0.0;       // largest |x - x_qp| over entries and channels
   std::string box;                   // "enforced", "projected" or "clamped K"
   double kkt = 0.0;                  // box KKT residual of the returned TF (TF units), 0 = optimal

@@ -2,8 +2,10 @@
 // reference gives Spearman = Kendall = 1 (-1 decreasing); an independent shuffled copy gives
 // mutual information near 0; a bivariate Gaussian with correlation rho gives Pearson ~ rho,
 // Spearman ~ (6/pi) asin(rho/2), Kendall ~ (2/pi) asin(rho), Kraskov MI ~ -ln(1 - rho^2)/2 and
-// its coefficient ~ |rho|, within the sampling error of M = 1000 members.
+// its coefficient ~ |rho|, within the sampling error of M = 1000 members; Pearson and Spearman on
+// enough samples that the tolerance tells their two closed forms apart.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <numeric>
@@ -102,10 +104,7 @@ TEST_F(CorrelationClosedForms, BivariateGaussianMatchesTheKnownMeasures) {
     };
     using std::numbers::pi;
     SCOPED_TRACE("rho = " + std::to_string(rho));
-    // Standard errors of one sample are ~(1 - rho^2)/sqrt(M) <= 0.032 and of the mean of 8 a third
-    // of that; the bounds are about 4 standard errors of the mean.
-    EXPECT_NEAR(mean_of({CorrelationMeasure::Pearson}), rho, 0.045);
-    EXPECT_NEAR(mean_of({CorrelationMeasure::Spearman}), 6 / pi * std::asin(rho / 2), 0.045);
+    // Pearson and Spearman: PearsonAndSpearmanTellTheirClosedFormsApart, on more samples.
     EXPECT_NEAR(mean_of({CorrelationMeasure::Kendall}), 2 / pi * std::asin(rho), 0.035);
     // KSG is nearly unbiased for Gaussians (Kraskov et al. 2004); its spread at M = 1000, k = 3
     // is ~0.015 per sample.
@@ -118,6 +117,70 @@ TEST_F(CorrelationClosedForms, BivariateGaussianMatchesTheKnownMeasures) {
     for (uint32_t v = 0; v < samples; ++v)
       EXPECT_NEAR(coefficient[v], std::sqrt(1 - std::exp(-2 * std::max(double(ksg[v]), 0.0))), 1e-6) << "voxel " << v;
     if (rho >= 0.6) EXPECT_NEAR(mean_of({CorrelationMeasure::MiCoefficient, 16, 3}), rho, 0.03);
+  }
+}
+
+// Pearson's mean is rho and Spearman's (6/pi) asin(rho/2), which differ by only 0.0085 to 0.018
+// for rho in {0.3, 0.6, 0.9}: the tolerance must be under half that difference, so that a kernel
+// computing either closed form's measure in place of the other fails (checked below, live).
+// Standard error of one sample (M members; Fisher's z, and Bonett & Wright 2000 for Spearman):
+//   Pearson (1 - rho^2) / sqrt(M - 3),  Spearman (1 - rho_s^2) sqrt((1 + rho_s^2 / 2) / (M - 3)).
+// The voxels of one kernel call share their reference series, so their errors are correlated;
+// a mean of correlated samples of equal variance has at most that variance, so the mean over
+// kBatches calls, each with its own reference, has a standard error of at most sigma /
+// sqrt(kBatches) whatever the voxels per call add. The tolerance is 4 of those. The sample
+// means' own bias (Pearson's rho (1 - rho^2) / 2M, Spearman's exact expectation's 3e-4 at M =
+// 1000) is far below it.
+TEST_F(CorrelationClosedForms, PearsonAndSpearmanTellTheirClosedFormsApart) {
+  constexpr uint32_t kMembers = 1000, kBatches = 512, kPerRho = 4;
+  const std::vector<double> rhos = {0.0, 0.3, 0.6, 0.9};
+  using std::numbers::pi;
+  auto pearson_form = [](double rho) { return rho; };
+  auto spearman_form = [](double rho) { return 6 / pi * std::asin(rho / 2); };
+  auto tolerance = [&](CorrelationMeasure m, double rho) {
+    const double r = m == CorrelationMeasure::Pearson ? pearson_form(rho) : spearman_form(rho);
+    const double spread = m == CorrelationMeasure::Pearson ? 1.0 : std::sqrt(1 + r * r / 2);
+    const double sigma = (1 - r * r) * spread / std::sqrt(double(kMembers - 3));
+    return 4 * sigma / std::sqrt(double(kBatches)) + CorrelationKernel::error_bound({m}, kMembers);
+  };
+  std::mt19937 rng(4321);
+  std::normal_distribution<double> normal;
+  CorrelationKernel kernel(ctx());
+  // Sums of the voxels' values per measure (Pearson, Spearman) and rho.
+  std::vector<std::array<double, 2>> sums(rhos.size(), {0.0, 0.0});
+  for (uint32_t b = 0; b < kBatches; ++b) {
+    std::vector<double> x(kMembers);
+    for (double& v : x) v = normal(rng);
+    const std::vector<float> xf(x.begin(), x.end());
+    std::vector<std::vector<float>> s;
+    for (double rho : rhos)
+      for (uint32_t k = 0; k < kPerRho; ++k) {
+        std::vector<float> y(kMembers);
+        for (uint32_t m = 0; m < kMembers; ++m) y[m] = float(rho * x[m] + std::sqrt(1 - rho * rho) * normal(rng));
+        s.push_back(std::move(y));
+      }
+    const Ensemble e(s);
+    for (int which = 0; which < 2; ++which) {
+      const std::vector<float> g =
+          kernel.compute(e.view(), xf, {which == 0 ? CorrelationMeasure::Pearson : CorrelationMeasure::Spearman});
+      for (size_t r = 0; r < rhos.size(); ++r)
+        for (uint32_t k = 0; k < kPerRho; ++k) sums[r][size_t(which)] += g[r * kPerRho + k];
+    }
+  }
+  for (size_t r = 0; r < rhos.size(); ++r) {
+    const double rho = rhos[r];
+    SCOPED_TRACE("rho = " + std::to_string(rho));
+    const double pearson = sums[r][0] / (kBatches * kPerRho), spearman = sums[r][1] / (kBatches * kPerRho);
+    const double tol_p = tolerance(CorrelationMeasure::Pearson, rho), tol_s = tolerance(CorrelationMeasure::Spearman, rho);
+    EXPECT_NEAR(pearson, pearson_form(rho), tol_p);
+    EXPECT_NEAR(spearman, spearman_form(rho), tol_s);
+    if (rho == 0.0) continue;  // both forms are 0 there
+    const double gap = std::abs(pearson_form(rho) - spearman_form(rho));
+    // Within tol of the right form and gap > 2 tol: more than tol from the wrong one, always.
+    EXPECT_GT(gap, 2 * tol_p) << "the Pearson tolerance cannot tell the forms apart";
+    EXPECT_GT(gap, 2 * tol_s) << "the Spearman tolerance cannot tell the forms apart";
+    EXPECT_GT(std::abs(pearson - spearman_form(rho)), tol_p) << "Pearson's mean passes for Spearman's form";
+    EXPECT_GT(std::abs(spearman - pearson_form(rho)), tol_s) << "Spearman's mean passes for Pearson's form";
   }
 }
 

@@ -2,6 +2,7 @@
 // background, to read its output as it comes, send it signals and measure its peak memory.
 #pragma once
 
+#include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
 #include <sys/resource.h>
@@ -24,70 +25,59 @@ namespace tfm::test {
 struct CliResult {
   int exit_code = -1;
   std::string output;  // stdout and stderr together
-  uint64_t peak_rss_bytes = 0;  // CliProcess only
-  double seconds = 0;           // CliProcess only: from start to exit
+  uint64_t peak_rss_bytes = 0;
+  double seconds = 0;      // from start to exit
+  bool timed_out = false;  // killed at the caller's deadline (exit_code then says SIGKILL)
 };
 
-inline CliResult run_cli(const std::string& args) {
-  CliResult r;
-  std::string cmd = std::string(TFMATCH_CLI_PATH) + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (!pipe) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) r.output.append(buf, n);
-  int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
-}
+// How long run_cli lets a command run by default: longer than the slowest run a test makes
+// that way, so that a command that does not end (`view` serving after an option it should have
+// refused) fails its test instead of hanging the suite.
+constexpr std::chrono::seconds kCliTimeout{600};
+// For runs that must end before any work (usage errors, help): seconds on the slowest machine.
+constexpr std::chrono::seconds kQuickCliTimeout{60};
+using CliEnvironment = std::vector<std::pair<std::string, std::string>>;
 
-// `tfmatch ARGS` with stdout and stderr kept apart: `output` is stdout alone (what `--json -`
-// promises to keep to JSON), `errors` is stderr.
-struct CliSplitResult {
-  int exit_code = -1;
-  std::string output, errors;
-};
-inline CliSplitResult run_cli_split(const std::string& args) {
-  char name[] = "/tmp/tfmatch_stderr_XXXXXX";
-  const int fd = mkstemp(name);
-  if (fd < 0) return {};
-  close(fd);
-  const CliResult r = run_cli(args + " 2>" + name + " #");  // the '#' comments out run_cli's own 2>&1
-  CliSplitResult out{r.exit_code, r.output, {}};
-  std::ifstream in(name, std::ios::binary);
-  out.errors.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  std::remove(name);
-  return out;
-}
-
-// `tfmatch ARGS` started in the background (through `sh -c "exec ..."`, so the process signalled
-// is tfmatch itself) with extra environment variables; stdout and stderr together in one pipe.
+// `tfmatch ARGS` started in the background with extra environment variables; stdout and stderr
+// together in one pipe. Through `sh -c "exec LAUNCHER tfmatch ..."` (ARGS may quote and redirect):
+// the launcher (tests/support/launcher) passes signals on to tfmatch, ends as it did and reports
+// its peak memory, which ru_maxrss of a process forked from this one would not tell apart from
+// this process's own.
 class CliProcess {
  public:
-  explicit CliProcess(const std::string& args, const std::vector<std::pair<std::string, std::string>>& env = {}) {
-    int fds[2];
-    if (pipe(fds) != 0) return;
+  explicit CliProcess(const std::string& args, const CliEnvironment& env = {}) {
+    int fds[2], rss[2];
+    // Close-on-exec: a later child (a run_cli while a `view` runs) does not inherit these pipes.
+    if (pipe2(fds, O_CLOEXEC) != 0) return;
+    if (pipe2(rss, O_CLOEXEC) != 0) {
+      close(fds[0]);
+      close(fds[1]);
+      return;
+    }
     start_ = std::chrono::steady_clock::now();
     pid_ = fork();
     if (pid_ == 0) {
       dup2(fds[1], 1);
       dup2(fds[1], 2);
-      close(fds[0]);
-      close(fds[1]);
+      fcntl(rss[1], F_SETFD, 0);  // the launcher's report pipe stays open across exec
+      setenv("TFMATCH_LAUNCHER_RSS_FD", std::to_string(rss[1]).c_str(), 1);
       for (const auto& [k, v] : env) setenv(k.c_str(), v.c_str(), 1);
-      const std::string cmd = "exec " + std::string(TFMATCH_CLI_PATH) + " " + args;
+      const std::string cmd = "exec " + std::string(TFMATCH_CLI_LAUNCHER) + " " + TFMATCH_CLI_PATH + " " + args;
       execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
       _exit(127);
     }
     close(fds[1]);
+    close(rss[1]);
     fd_ = fds[0];
+    rss_fd_ = rss[0];
   }
   ~CliProcess() {
     if (pid_ > 0 && !reaped_) {
-      kill(pid_, SIGKILL);
+      kill(pid_, SIGKILL);  // and tfmatch with the launcher (PR_SET_PDEATHSIG)
       waitpid(pid_, nullptr, 0);
     }
     if (fd_ >= 0) close(fd_);
+    if (rss_fd_ >= 0) close(rss_fd_);
   }
   CliProcess(const CliProcess&) = delete;
   CliProcess& operator=(const CliProcess&) = delete;
@@ -104,11 +94,13 @@ class CliProcess {
   void signal(int sig) { kill(pid_, sig); }
   // Reads the rest of the output and reaps the process (killing it after `timeout`).
   CliResult finish(std::chrono::milliseconds timeout = std::chrono::seconds(120)) {
+    bool timed_out = false;
     const auto end = std::chrono::steady_clock::now() + timeout;
     while (read_some(int(std::max<int64_t>(
         1, std::chrono::duration_cast<std::chrono::milliseconds>(end - std::chrono::steady_clock::now()).count())))) {
       if (std::chrono::steady_clock::now() > end) {
         kill(pid_, SIGKILL);
+        timed_out = true;
         break;
       }
     }
@@ -117,9 +109,12 @@ class CliProcess {
     wait4(pid_, &status, 0, &usage);
     reaped_ = true;
     CliResult r;
+    r.timed_out = timed_out;
     r.output = output_;
     r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    r.peak_rss_bytes = uint64_t(usage.ru_maxrss) * 1024;
+    r.peak_rss_bytes = launcher_peak_rss();
+    // Without the launcher's report (it was killed): the launcher's own, an upper bound.
+    if (r.peak_rss_bytes == 0) r.peak_rss_bytes = uint64_t(usage.ru_maxrss) * 1024;
     r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
     return r;
   }
@@ -136,12 +131,51 @@ class CliProcess {
     output_.append(buf, size_t(n));
     return true;
   }
+  // tfmatch's peak resident memory as the launcher reports it after its end; 0 without a report.
+  uint64_t launcher_peak_rss() {
+    if (rss_fd_ < 0) return 0;
+    std::string text;
+    char buf[64];
+    ssize_t n;
+    while ((n = read(rss_fd_, buf, sizeof buf)) > 0) text.append(buf, size_t(n));
+    close(rss_fd_);
+    rss_fd_ = -1;
+    return std::strtoull(text.c_str(), nullptr, 10);
+  }
   pid_t pid_ = -1;
-  int fd_ = -1;
+  int fd_ = -1, rss_fd_ = -1;
   bool reaped_ = false;
   std::string output_;
   std::chrono::steady_clock::time_point start_;
 };
+
+// `tfmatch ARGS` (through the shell: ARGS may quote and redirect) with extra environment
+// variables, run to its end or killed at `timeout`; stdout and stderr together.
+inline CliResult run_cli(const std::string& args, std::chrono::milliseconds timeout = kCliTimeout,
+                         const CliEnvironment& env = {}) {
+  CliProcess p(args, env);
+  return p.finish(timeout);
+}
+
+// `tfmatch ARGS` with stdout and stderr kept apart: `output` is stdout alone (what `--json -`
+// promises to keep to JSON), `errors` is stderr.
+struct CliSplitResult {
+  int exit_code = -1;
+  std::string output, errors;
+  bool timed_out = false;
+};
+inline CliSplitResult run_cli_split(const std::string& args, std::chrono::milliseconds timeout = kCliTimeout) {
+  char name[] = "/tmp/tfmatch_stderr_XXXXXX";
+  const int fd = mkstemp(name);
+  if (fd < 0) return {};
+  close(fd);
+  const CliResult r = run_cli(args + " 2>" + name, timeout);  // the shell's redirection: stderr to the file
+  CliSplitResult out{r.exit_code, r.output, {}, r.timed_out};
+  std::ifstream in(name, std::ios::binary);
+  out.errors.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  std::remove(name);
+  return out;
+}
 
 // Every file under `dir`, relative, sorted (what a run left behind).
 inline std::vector<std::string> files_under(const std::filesystem::path& dir) {

@@ -1,6 +1,9 @@
 // `tfmatch bench-correlate` as a user runs it, on tiny sizes: the table and the JSON name every
-// (measure, member count) with positive GPU and CPU rates, and bad options fail clearly.
+// (measure, member count) with rates that are its voxels over its times, and bad options fail
+// clearly.
+#include <cstdio>
 #include <fstream>
+#include <regex>
 #include <set>
 #include <string>
 
@@ -8,10 +11,14 @@
 #include <nlohmann/json.hpp>
 
 #include "cli_runner.h"
+#include "correlation.h"
 
 namespace tfm {
 namespace {
 
+// Each row's rates are its voxels over its measured times, its strategy the kernel's for that
+// measure and member count, its GPU and CPU fields agree within the kernels' error bounds, and the
+// table prints the JSON's numbers.
 TEST(BenchCorrelateCli, TinyRunWritesTableAndJson) {
   test::TempDir dir;
   const std::string json = dir / "bench.json";
@@ -24,14 +31,36 @@ TEST(BenchCorrelateCli, TinyRunWritesTableAndJson) {
   std::ifstream in(json);
   const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
   ASSERT_TRUE(j.is_object()) << "no JSON in " << json;
+  EXPECT_EQ(j["bins"], 16);
+  EXPECT_EQ(j["k"], 3);
   std::set<std::pair<std::string, int>> seen;
   for (const auto& row : j["results"]) {
-    seen.insert({row["measure"].get<std::string>(), row["members"].get<int>()});
-    EXPECT_EQ(row["voxels"].get<int>(), 300);
-    EXPECT_GT(row["gpu_voxels_per_s"].get<double>(), 0.0);
-    EXPECT_GT(row["cpu_voxels_per_s"].get<double>(), 0.0);
-    EXPECT_NEAR(row["ratio"].get<double>(),
-                row["gpu_voxels_per_s"].get<double>() / row["cpu_voxels_per_s"].get<double>(), 1e-9);
+    const std::string measure = row["measure"].get<std::string>();
+    const uint32_t members = row["members"].get<uint32_t>();
+    SCOPED_TRACE(measure + " M=" + std::to_string(members));
+    seen.insert({measure, int(members)});
+    const double voxels = row["voxels"].get<double>(), gpu_s = row["gpu_s"].get<double>(),
+                 cpu_s = row["cpu_s"].get<double>();
+    EXPECT_EQ(voxels, 300);
+    ASSERT_GT(gpu_s, 0.0);
+    ASSERT_GT(cpu_s, 0.0);
+    EXPECT_DOUBLE_EQ(row["gpu_voxels_per_s"].get<double>(), voxels / gpu_s);
+    EXPECT_DOUBLE_EQ(row["cpu_voxels_per_s"].get<double>(), voxels / cpu_s);
+    EXPECT_DOUBLE_EQ(row["ratio"].get<double>(), voxels / gpu_s / (voxels / cpu_s));
+    const CorrelationParams params{parse_correlation_measure(measure), 16, 3};
+    EXPECT_EQ(row["strategy"], CorrelationKernel::strategy(params, members));
+    // Each side within the bound of the exact value (kernels/correlation.h), so within twice it
+    // of each other.
+    EXPECT_LE(row["max_abs_difference"].get<double>(), 2 * CorrelationKernel::error_bound(params, members));
+    // The table's line for this row: its rates as printed (%.4g).
+    char rates[64];
+    std::snprintf(rates, sizeof rates, "%13.4g %13.4g", row["gpu_voxels_per_s"].get<double>(),
+                  row["cpu_voxels_per_s"].get<double>());
+    const size_t at = r.output.find(rates);
+    ASSERT_NE(at, std::string::npos) << "no line with '" << rates << "' in\n" << r.output;
+    const size_t start = r.output.rfind('\n', at) + 1;
+    const std::string line = r.output.substr(start, r.output.find('\n', at) - start);
+    EXPECT_TRUE(std::regex_search(line, std::regex("^" + measure + " +" + std::to_string(members) + " +300 "))) << line;
   }
   EXPECT_EQ(seen.size(), 6u);
   EXPECT_TRUE(seen.count({"mi-coefficient", 40}));

@@ -44,7 +44,9 @@ class CliOutputs : public ::testing::Test {
   void expect_refused(const std::string& args, std::initializer_list<std::string> needles) {
     const std::vector<std::string> before = files_under(dir.path);
     test::CliProcess p(args, {{"TFMATCH_TRACE_PHASES", "1"}});
-    const test::CliResult r = p.finish();
+    // Refused before any work: a command that ran instead (a whole benchmark) fails by the deadline.
+    const test::CliResult r = p.finish(test::kQuickCliTimeout);
+    EXPECT_FALSE(r.timed_out) << args << "\n" << r.output;
     EXPECT_NE(r.exit_code, 0) << r.output;
     for (const std::string& n : needles) EXPECT_NE(r.output.find(n), std::string::npos) << "no '" << n << "' in\n" << r.output;
     EXPECT_EQ(r.output.find("phase load"), std::string::npos) << "work started before the check:\n" << r.output;
@@ -142,7 +144,9 @@ TEST_F(CliOutputs, EveryCommandThatWritesChecksItsFilesFirst) {
   // A correlate that fails after its check (a point outside the grid) writes neither output.
   const test::CliResult r = run_cli("correlate --members '" + dir / "m*_8x8x8_float32.raw" + "' --point 9,1,1 --out " +
                                     dir / "c.vti" + " --json " + dir / "c.json");
+  EXPECT_FALSE(r.timed_out) << r.output;
   EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("--point '9,1,1': index 9 along x is outside the grid 8x8x8"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir / "c.vti"));
   EXPECT_FALSE(fs::exists(dir / "c.json"));
   for (const std::string& f : files_under(dir.path)) EXPECT_EQ(f.find("/."), std::string::npos) << f;

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli_runner.h"
+#include "scoped_env.h"
 #include "pipeline_cache_file.h"
 #include "slab_test_files.h"
 
@@ -22,23 +23,7 @@ namespace fs = std::filesystem;
 using test::run_cli;
 using test::run_cli_split;
 
-// Sets an environment variable the CLI inherits (unsets it with nullopt) for the scope.
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, std::optional<std::string> value) : name_(name) {
-    if (const char* old = std::getenv(name)) old_ = old;
-    if (value) ::setenv(name, value->c_str(), 1);
-    else ::unsetenv(name);
-  }
-  ~ScopedEnv() {
-    if (old_) ::setenv(name_, old_->c_str(), 1);
-    else ::unsetenv(name_);
-  }
-
- private:
-  const char* name_;
-  std::optional<std::string> old_;
-};
+using test::ScopedEnv;
 // Points the CLI's pipeline cache somewhere for the scope.
 struct CacheDirectory : ScopedEnv {
   explicit CacheDirectory(const std::string& value) : ScopedEnv("TFMATCH_PIPELINE_CACHE", value) {}

@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <cmath>
 #include <regex>
 #include <set>
 
@@ -209,14 +210,71 @@ TEST(ViewCli, Era5EnsembleFromTheSharedData) {
   EXPECT_EQ(view.process->finish(std::chrono::seconds(30)).exit_code, 0);
 }
 
+// Without --ref-tf a pair starts from a built-in map, chosen by the reference's range and said on
+// stderr and in the page's title; --ref-tf takes a built-in name as well.
+TEST(ViewCli, StartsFromABuiltInTfWithoutRefTf) {
+  TempDir dir;
+  std::vector<float> signed_values(10 * 10 * 10), positive(signed_values.size());
+  for (size_t i = 0; i < signed_values.size(); ++i) {
+    signed_values[i] = float(std::sin(0.37 * double(i)));  // in [-1, 1]: a correlation-like field
+    positive[i] = 2.0f + signed_values[i] * signed_values[i];
+  }
+  const std::string a = (dir.path / "a_10x10x10_float32.raw").string(), b = (dir.path / "b_10x10x10_float32.raw").string();
+  test::write_floats(a, signed_values);
+  test::write_floats(b, positive);
+  const std::string small = " --width 32 --height 32";
+  {
+    RunningView view("--ref " + a + " --field " + b + small);
+    ASSERT_GT(view.port, 0) << view.process->output();
+    const std::string title = view.state()["title"].get<std::string>();
+    EXPECT_NE(title.find("built-in diverging"), std::string::npos) << title;
+    view.process->signal(SIGINT);
+    const test::CliResult done = view.process->finish(std::chrono::seconds(30));
+    EXPECT_EQ(done.exit_code, 0) << done.output;
+    EXPECT_NE(done.output.find("note: no --ref-tf"), std::string::npos) << done.output;
+    EXPECT_NE(done.output.find("'diverging'"), std::string::npos) << done.output;
+  }
+  {
+    RunningView view("--ref " + b + " --field " + a + small);  // a positive reference: viridis
+    ASSERT_GT(view.port, 0) << view.process->output();
+    EXPECT_NE(view.state()["title"].get<std::string>().find("built-in viridis"), std::string::npos);
+    view.process->signal(SIGINT);
+    EXPECT_EQ(view.process->finish(std::chrono::seconds(30)).exit_code, 0);
+  }
+  {
+    RunningView view("--ref " + b + " --field " + a + " --ref-tf inferno,opacity=tent" + small);
+    ASSERT_GT(view.port, 0) << view.process->output();
+    EXPECT_EQ(view.state()["title"].get<std::string>().find("built-in"), std::string::npos);
+    view.process->signal(SIGINT);
+    const test::CliResult done = view.process->finish(std::chrono::seconds(30));
+    EXPECT_EQ(done.exit_code, 0) << done.output;
+    EXPECT_NE(done.output.find("opacity tent"), std::string::npos) << done.output;
+  }
+  EXPECT_EQ(dir.entries().size(), 2u);  // nothing written beside the two fields
+}
+
+// Each refused for its own reason (the message says which) before anything is served. Every run
+// has --port 0 and a deadline: an option wrongly accepted starts a server, which must fail the
+// test (timed out) rather than hang it or take a fixed port another run may hold.
 TEST(ViewCli, UsageErrors) {
-  for (const char* args : {"view", "view --demo --ref a.raw", "view --ref a.raw --field b.raw --port 0",
-                           "view --demo --port 70000", "view --demo --solver nothing", "view --demo --lr 0.1"}) {
-    const test::CliResult r = run_cli(args);
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"view --port 0", "view: give one of: --ref/--ref-tf/--field (a pair of fields), --report DIR"},
+      {"view --port 0 --demo --ref a.raw", "view: give one of:"},
+      {"view --port 0 --ref a.raw", "view: a pair of fields needs --ref and --field (and --ref-tf, else a built-in map)"},
+      {"view --demo --port 70000", "--port: Value 70000 not in range 0 to 65535"},
+      {"view --port 0 --demo --solver nothing", "unknown solver 'nothing' (available: "},
+      {"view --port 0 --demo --lr 0.1", "--lr applies to solvers diffdvr, gradient-descent, not to normal-equations"},
+  };
+  for (const auto& [args, message] : cases) {
+    const test::CliResult r = run_cli(args, test::kQuickCliTimeout);
+    EXPECT_FALSE(r.timed_out) << args << ": accepted and serving\n" << r.output;
     EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(message), std::string::npos) << args << ": no '" << message << "' in\n" << r.output;
+    EXPECT_EQ(r.output.find("?token="), std::string::npos) << args << ": served\n" << r.output;
   }
   // An address that is not this machine's cannot be bound: a clear error, exit 1.
-  const test::CliResult r = run_cli("view --demo --size 8 --port 0 --bind 192.0.2.1");
+  const test::CliResult r = run_cli("view --demo --size 8 --port 0 --bind 192.0.2.1", test::kQuickCliTimeout);
+  EXPECT_FALSE(r.timed_out) << r.output;
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("cannot listen on 192.0.2.1"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("warning: listening on 192.0.2.1"), std::string::npos) << r.output;

@@ -2,6 +2,7 @@
 // ParaView presets (formats by content and extension, host/tf_formats.h).
 #include <iostream>
 
+#include "builtin_tf.h"
 #include "cli.h"
 #include "output_check.h"
 #include "output_options.h"
@@ -28,10 +29,12 @@ int run(const ConvertTfArgs& a) {
 CommandRegistration reg(40, [](CLI::App& app) {
   auto args = std::make_shared<ConvertTfArgs>();
   auto* sub = app.add_subcommand("convert-tf", "Convert a transfer function: .json (tfmatch), .xml (framework), .paraview.json");
-  sub->add_option("in", args->in, "Input TF (tfmatch JSON, XML, ParaView preset; FILE:PRESET picks a preset)")->required();
+  sub->add_option("in", args->in, "Input TF (tfmatch JSON, XML, ParaView preset; FILE:PRESET picks a preset), or a "
+                  "built-in map to edit: " + builtin_tf_syntax())->required();
   sub->add_option("out", args->out, "Output TF; format from the extension")->required()
       ->check(output_format(transfer_function_format()));
-  sub->add_option("--size", args->size, "Table entries when the input has control points (default: 256, or exact)")
+  sub->add_option("--size", args->size, "Table entries when the input has control points (default: 256, or exact) or is a built-in map "
+                  "(default: 64)")
       ->check(CLI::Range(size_t(2), size_t(1) << 16));
   sub->callback([args] { exit_code() = run(*args); });
 });

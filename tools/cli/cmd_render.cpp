@@ -3,6 +3,7 @@
 #include <iostream>
 
 #include "atomic_file.h"
+#include "builtin_tf.h"
 #include "cli.h"
 #include "input_options.h"
 #include "output_check.h"
@@ -66,7 +67,8 @@ CommandRegistration reg(20, [](CLI::App& app) {
   auto args = std::make_shared<RenderArgs>();
   auto* sub = app.add_subcommand("render", "Render a volume with a transfer function into a PNG image");
   sub->add_option("--volume", args->volume, "Volume file, or FILE:VAR[,time=N][,member=N]")->required();
-  sub->add_option("--tf", args->tf, "Transfer function (tfmatch JSON, framework XML or ParaView preset[:NAME])")->required();
+  sub->add_option("--tf", args->tf, "Transfer function (tfmatch JSON, framework XML or ParaView preset[:NAME]), or a built-in map: " +
+                  builtin_tf_syntax() + " (a file of that name wins)")->required();
   sub->add_option("--out", args->out, "Output image (PNG)")->required()->check(output_format(png_format()));
   sub->add_option("--range", args->range, "Field range lo,hi mapped to the TF (default: TF file's, else finite min/max)");
   add_allow_out_of_range_flag(sub, args->allow_out_of_range);

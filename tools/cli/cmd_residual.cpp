@@ -97,7 +97,8 @@ CommandRegistration reg(21, [](CLI::App& app) {
   auto args = std::make_shared<ResidualArgs>();
   auto* sub = app.add_subcommand("residual", "Residual map between REF with REF-TF and FIELD with FIELD-TF");
   sub->add_option("--ref", args->ref, "Reference field: FILE or FILE:VAR[,time=N][,member=N]")->required();
-  sub->add_option("--ref-tf", args->ref_tf, "Reference transfer function (tfmatch JSON, XML or ParaView preset)")->required();
+  sub->add_option("--ref-tf", args->ref_tf, "Reference transfer function (tfmatch JSON, XML or ParaView preset, or a built-in map name as "
+                  "optimize --ref-tf)")->required();
   sub->add_option("--field", args->field, "Second field")->required();
   sub->add_option("--field-tf", args->field_tf, "Transfer function of the second field (e.g. the optimized one; any TF format)")
       ->required();

@@ -5,9 +5,11 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <sstream>
 #include <thread>
 #include <tuple>
 
+#include "builtin_tf.h"
 #include "cancellation.h"
 #include "cli.h"
 #include "correlation.h"
@@ -79,6 +81,30 @@ void inputs_from_report(const std::string& dir, InputArgs& in, ViewArgs& a) {
   a.smooth = j.value("smooth", 0.0);
 }
 
+// Without --ref-tf a pair starts from a built-in map chosen by the reference's range (a signed
+// field gets the diverging map, centred on zero so that zero is its transparent middle), and
+// says so on stderr. Returns the words for the page's title.
+std::string use_default_tf(const Volume& ref, ViewConfig& config) {
+  const FiniteStats stats = finite_stats(ref.values);
+  const FieldRange range = config.ref_range ? *config.ref_range : FieldRange{stats.lo, stats.hi};
+  const BuiltinTf tf = default_builtin_tf(range);
+  config.ref_tf = builtin_transfer_function(tf, kDefaultBuiltinTfSize);
+  std::string why = "its range does not span zero";
+  if (tf.name == "diverging") {
+    why = "its range spans zero";
+    const double m = std::max(-range.lo, range.hi);
+    if (!config.ref_range && std::isfinite(m)) config.ref_tf.range = FieldRange{-m, m};
+  }
+  std::ostringstream note;
+  note << "tfmatch view: note: no --ref-tf: the reference " << ref.name << " starts with the built-in '" << tf.name
+       << "' (" << builtin_tf_source(tf.name) << ", opacity " << opacity_shape_name(tf.opacity) << ") because "
+       << why << " ([" << range.lo << ", " << range.hi << "])";
+  if (config.ref_tf.range)
+    note << "; mapped over [" << config.ref_tf.range->lo << ", " << config.ref_tf.range->hi << "] so that 0 is its middle";
+  std::cerr << note.str() << "; --ref-tf NAME or FILE chooses another\n";
+  return "reference TF: built-in " + tf.name + ", the default";
+}
+
 int run(ViewArgs a) {
   set_progress_enabled(!globals().quiet);
   const int modes = int(a.demo) + int(!a.report.empty()) + int(!a.in.ref.empty() || !a.in.field.empty()) +
@@ -90,8 +116,8 @@ int run(ViewArgs a) {
     throw CLI::ValidationError("--ensemble", "needs FILE[:VAR], or --demo for the built-in ensemble");
   const bool ensemble_mode = a.ensemble_given || !a.members.empty();
   if (!a.report.empty()) inputs_from_report(a.report, a.in, a);
-  if (!ensemble_mode && !a.demo && (a.in.ref.empty() || a.in.field.empty() || a.in.ref_tf.empty()))
-    throw CLI::ValidationError("view", "a pair of fields needs --ref, --ref-tf and --field");
+  if (!ensemble_mode && !a.demo && (a.in.ref.empty() || a.in.field.empty()))
+    throw CLI::ValidationError("view", "a pair of fields needs --ref and --field (and --ref-tf, else a built-in map)");
 
   SolverSettings settings;
   settings.solve.ridge = a.ridge;
@@ -157,13 +183,14 @@ int run(ViewArgs a) {
     if (a.demo) {
       const uint64_t n = a.size ? a.size : 96;
       ref = synthetic_reference(n, n, n);
-      field = synthetic_remapped(ref);
+      field = synthetic_changed(ref);  // as `tfmatch demo`: a monotone remap with two real changes
       config.ref_tf = demo_transfer_function(64);
-      config.title = "demo: synthetic reference vs remapped field";
+      config.title = "demo: synthetic reference vs a remapped field with real changes";
     } else {
       const VolumeOptions vo = a.in.volume.options();
       std::tie(ref, field) = load_volume_pair(a.in.ref, a.in.field, vo);
       config.title = field.name + " matched to " + ref.name;
+      if (config.ref_tf.size() < 2) config.title += " (" + use_default_tf(ref, config) + ")";
     }
     config.markers = resolve_markers(ref, a.markers);
     apply_grid_defaults(config.render, ref.dims, ref.spacing, a.render_chosen);
@@ -201,6 +228,9 @@ CommandRegistration reg(15, [](CLI::App& app) {
       "ensemble reference points) rendered by tfmatch on the device. Prints the URL; Ctrl-C stops. Only this machine "
       "can connect by default, and every request needs the URL's random token");
   add_input_options(sub, args->in, /*required=*/false);
+  sub->footer("Without --ref-tf a pair of fields starts from a built-in map: 'diverging' (opacity vee, mapped "
+              "symmetrically about 0) when the reference's range spans zero, else 'viridis'; a note on stderr and the "
+              "page's title say which.");
   sub->add_option("--report", args->report, "Reopen the inputs of a report directory (optimize --report, demo)");
   sub->add_flag("--demo", args->demo, "The built-in pair of fields of `tfmatch demo` (with --ensemble: the built-in ensemble)");
   sub->add_option("--size", args->size, "--demo: grid size (default 96 for the pair, 64 for the ensemble)")

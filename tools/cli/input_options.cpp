@@ -14,7 +14,8 @@ namespace tfm::cli {
 void add_input_options(CLI::App* sub, InputArgs& a, bool required) {
   auto* ref = sub->add_option("--ref", a.ref, "Reference field: FILE or FILE:VAR[@LEVELTYPE][,time=N][,member=N]");
   auto* tf = sub->add_option("--ref-tf", a.ref_tf, "Reference transfer function: tfmatch JSON, framework XML or "
-                             "ParaView preset (FILE:PRESET picks one)");
+                             "ParaView preset (FILE:PRESET picks one), or a built-in map: " + builtin_tf_syntax() +
+                             " (a file of that name wins)");
   auto* field = sub->add_option("--field", a.field, "Field whose transfer function is optimized");
   if (required) {
     ref->required();
@@ -86,13 +87,23 @@ std::string absolute_spec(const std::string& spec, const std::filesystem::path& 
   const std::filesystem::path p(spec);
   return p.is_absolute() ? spec : (std::filesystem::absolute(base) / p).lexically_normal().string();
 }
+// A TF spec as absolute_spec() makes it, except a built-in map's name, which stays a name.
+std::string absolute_tf_spec(const std::string& spec, const std::filesystem::path& base) {
+  bool builtin = false;
+  try {
+    builtin = !spec.empty() && parse_builtin_tf(spec);
+  } catch (const std::invalid_argument&) {
+    builtin = true;  // a built-in name with a bad option: kept as typed, for its reader's message
+  }
+  return builtin && !std::filesystem::exists(std::filesystem::absolute(base) / spec) ? spec : absolute_spec(spec, base);
+}
 }  // namespace
 
 nlohmann::json input_args_json(const InputArgs& a) {
   const std::filesystem::path cwd = std::filesystem::current_path();
   nlohmann::json j = {{"ref", absolute_spec(a.ref, cwd)},
                       {"field", absolute_spec(a.field, cwd)},
-                      {"ref_tf", absolute_spec(a.ref_tf, cwd)},
+                      {"ref_tf", absolute_tf_spec(a.ref_tf, cwd)},
                       {"tf_size", a.tf_size},
                       {"ref_range", a.ref_range},
                       {"field_range", a.field_range},
@@ -111,7 +122,7 @@ InputArgs input_args_from_json(const nlohmann::json& j, const std::filesystem::p
   auto text = [&](const char* key) { return j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : std::string(); };
   a.ref = absolute_spec(text("ref"), base);
   a.field = absolute_spec(text("field"), base);
-  a.ref_tf = absolute_spec(text("ref_tf"), base);
+  a.ref_tf = absolute_tf_spec(text("ref_tf"), base);
   a.tf_size = j.value("tf_size", 64u);
   a.ref_range = text("ref_range");
   a.field_range = text("field_range");

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cli_runner.h"
+#include "scoped_env.h"
 #include "pipeline_cache_file.h"
 
 namespace tfm {
@@ -20,23 +21,7 @@ namespace {
 namespace fs = std::filesystem;
 using test::TempDir;
 
-// Sets (or unsets, with nullopt) an environment variable for the scope, then restores it.
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, std::optional<std::string> value) : name_(name) {
-    if (const char* old = std::getenv(name)) old_ = old;
-    if (value) ::setenv(name, value->c_str(), 1);
-    else ::unsetenv(name);
-  }
-  ~ScopedEnv() {
-    if (old_) ::setenv(name_, old_->c_str(), 1);
-    else ::unsetenv(name_);
-  }
-
- private:
-  const char* name_;
-  std::optional<std::string> old_;
-};
+using test::ScopedEnv;
 
 std::vector<uint8_t> bytes_of(size_t n, uint8_t seed) {
   std::vector<uint8_t> v(n);

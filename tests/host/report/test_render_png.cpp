@@ -22,6 +22,13 @@ const TextFace* report_face() {
   return face.get();
 }
 
+// The process-wide face, back to what it was at scope exit (the binary also runs every test in
+// one process, in any order).
+struct TextFaceGuard {
+  const TextFace* previous = text_face();
+  ~TextFaceGuard() { set_text_face(previous); }
+};
+
 TEST(RenderPng, RoundTripKeepsEveryByte) {
   test::TempDir dir;
   std::mt19937 rng(1);
@@ -164,6 +171,7 @@ TEST(RenderPng, TfPlotShowsHistogramCurveAndColourBar) {
   o.width = 220;
   o.height = 170;
   o.axis_label = "T [K]";
+  TextFaceGuard guard;
   for (const TextFace* face : {static_cast<const TextFace*>(nullptr), report_face()}) {
     set_text_face(face);
     SCOPED_TRACE(face ? "FreeType" : "bitmap font");
@@ -242,6 +250,7 @@ TEST(RenderPng, FreeTypeFaceDrawsAntiAliasedText) {
 }
 
 TEST(RenderPng, TextAndPanels) {
+  TextFaceGuard guard;
   set_text_face(nullptr);  // the bitmap font's exact sizes
   Image img(40, 12);
   const int w = draw_text(img, 1, 1, "Ab1", {0, 0, 0});

@@ -3,6 +3,7 @@
 // `tfmatch solvers` prints its table and JSON, and rejects bad input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include <nlohmann/json.hpp>
@@ -32,19 +33,32 @@ OptimizeRequest request_for(const test::SolverProblem& p) {
   return req;
 }
 
+// The largest |x - x_qp| over entries and channels, from the tables themselves: the comparison's
+// own column is what these tests check, so it cannot be what they read.
+double max_abs_difference(const TransferFunction& x, const TransferFunction& x_qp) {
+  EXPECT_EQ(x.size(), x_qp.size());
+  double d = 0.0;
+  for (size_t j = 0; j < std::min(x.size(), x_qp.size()); ++j)
+    for (size_t c = 0; c < 4; ++c) d = std::max(d, std::abs(double(x.rgba[j][c]) - double(x_qp.rgba[j][c])));
+  return d;
+}
+
 TEST_F(SolverComparison, AllSolversAgreeWhenConstraintsAreInactive) {
   const test::SolverProblem p = test::make_solver_problem(6000, 16, 10, 0.2, 0.8, 12, 0.05, 19);
   const ComparisonResult r = compare_solvers(ctx(), request_for(p), kVoxelSolvers);
   ASSERT_EQ(r.rows.size(), kVoxelSolvers.size());
   EXPECT_EQ(r.rows[0].solver, "qp");
+  ASSERT_EQ(r.rows[0].tf.size(), p.opt_map.tf_size);
   for (const ComparisonRow& row : r.rows) {
     SCOPED_TRACE(row.solver);
     ASSERT_TRUE(row.error.empty()) << row.error;
+    const double diff = max_abs_difference(row.tf, r.rows[0].tf);
+    EXPECT_EQ(row.max_diff_to_qp, diff) << "the table's max|x-x_qp| column";
     // Direct solves differ from the QP (GPU fixed-point assembly) by the assembly's rounding,
     // < 1e-6; CGLS stops at relative residual 1e-6 in float (< 1e-4, see test_solver_cgls.cpp);
     // gradient descent (300 Adam steps, final step 2e-4) settles within ~1e-3.
     const double tol = row.solver == "gradient-descent" ? 2e-3 : (row.solver == "cgls" ? 1e-4 : 1e-5);
-    EXPECT_LT(row.max_diff_to_qp, tol);
+    EXPECT_LT(diff, tol);
     EXPECT_LT(row.kkt, 10 * tol);
     EXPECT_NEAR(row.rmse, r.rows[0].rmse, 1e-3);
     EXPECT_FALSE(row.phases.empty());
@@ -71,16 +85,21 @@ TEST_F(SolverComparison, RankDeficientWithAndWithoutSmoothnessHasNoNaN) {
     req.settings.solve.smooth = smooth;
     req.settings.extra["iterations"] = "50";  // gradient descent: only finiteness matters here
     const ComparisonResult r = compare_solvers(ctx(), req, kVoxelSolvers);
+    ASSERT_EQ(r.rows.size(), kVoxelSolvers.size());
+    ASSERT_EQ(r.rows[0].tf.size(), p.opt_map.tf_size);
     for (const ComparisonRow& row : r.rows) {
       SCOPED_TRACE(row.solver);
       ASSERT_TRUE(row.error.empty()) << row.error;
+      const double diff = max_abs_difference(row.tf, r.rows[0].tf);
+      EXPECT_TRUE(std::isfinite(diff));
+      EXPECT_EQ(row.max_diff_to_qp, diff) << "the table's max|x-x_qp| column";
       EXPECT_TRUE(std::isfinite(row.rmse));
       EXPECT_TRUE(std::isfinite(row.max_diff_to_qp));
       EXPECT_TRUE(std::isfinite(row.kkt));
       EXPECT_FALSE(to_json(r).dump().find("nan") != std::string::npos);
       // The direct and CGLS solvers agree with the QP on the referenced entries and put 0 (no
       // smoothness) or the smooth continuation into the others.
-      if (row.solver != "gradient-descent") EXPECT_LT(row.max_diff_to_qp, 1e-4);
+      if (row.solver != "gradient-descent") EXPECT_LT(diff, 1e-4);
     }
   }
 }

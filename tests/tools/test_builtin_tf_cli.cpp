@@ -1,0 +1,98 @@
+// Built-in transfer functions from the command line, with no TF file anywhere: convert-tf writes
+// one out for editing, optimize and render take a name where they take a TF file, a report
+// records the name, and a name that is neither a file nor a built-in fails listing the names.
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "builtin_tf.h"
+#include "cli_runner.h"
+#include "png_io.h"
+#include "tf_formats.h"
+#include "tf_json.h"
+
+namespace tfm {
+namespace {
+
+using test::run_cli;
+using test::TempDir;
+using test::write_floats;
+
+class BuiltinTfCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::vector<float> a(8 * 8 * 8), b(a.size());
+    for (size_t i = 0; i < a.size(); ++i) {
+      a[i] = float(i % 29) / 28.0f;
+      b[i] = 5.0f + 3.0f * a[i] * a[i];
+    }
+    write_floats(ref, a);
+    write_floats(field, b);
+  }
+  TempDir dir;
+  const std::string ref = dir / "ref_8x8x8_float32.raw", field = dir / "field_8x8x8_float32.raw";
+};
+
+TEST_F(BuiltinTfCli, ConvertTfWritesABuiltInMapForEditing) {
+  auto r = run_cli("convert-tf viridis " + dir / "viridis.json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const TransferFunction written = read_tf_json(dir / "viridis.json");
+  const TransferFunction expected = builtin_transfer_function({"viridis", OpacityShape::Ramp}, 64);
+  ASSERT_EQ(written.size(), 64u);
+  for (size_t j = 0; j < 64; ++j) EXPECT_EQ(written.rgba[j], expected.rgba[j]) << "entry " << j;
+  // Any format, any size, any opacity; the ParaView preset reads back through the same loader.
+  r = run_cli("convert-tf diverging,opacity=flat " + dir / "d.paraview.json" + " --size 16");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const TransferFunction preset = read_transfer_function(dir / "d.paraview.json", TfReadOptions{16, ""});
+  ASSERT_EQ(preset.size(), 16u);
+  const TransferFunction flat = builtin_transfer_function({"diverging", OpacityShape::Flat}, 16);
+  for (size_t j = 0; j < 16; ++j) {
+    EXPECT_DOUBLE_EQ(preset.rgba[j][3], 0.5);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(preset.rgba[j][c], flat.rgba[j][c], 1e-9) << j;
+  }
+}
+
+TEST_F(BuiltinTfCli, OptimizeAndRenderTakeANameWhereTheyTakeATfFile) {
+  auto r = run_cli("optimize --ref " + ref + " --field " + field + " --ref-tf inferno --out " + dir / "opt.json" +
+                   " --report " + dir / "report" + " --width 32 --height 32");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("built-in matplotlib's inferno"), std::string::npos) << r.output;
+  EXPECT_EQ(read_tf_json(dir / "opt.json").size(), 64u);
+  // The report records the name, not a path under the working directory, so that
+  // `view --report` finds the same map.
+  std::ifstream inputs(dir / "report/inputs.json");
+  ASSERT_TRUE(inputs) << r.output;
+  EXPECT_EQ(nlohmann::json::parse(inputs)["ref_tf"], "inferno");
+
+  r = run_cli("render --volume " + ref + " --tf cool-warm,opacity=tent --out " + dir / "r.png" +
+              " --width 24 --height 20");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const Image img = read_png(dir / "r.png");
+  EXPECT_EQ(img.width, 24u);
+  EXPECT_EQ(img.height, 20u);
+  // residual takes names for both TFs.
+  r = run_cli("residual --ref " + ref + " --ref-tf grey --field " + field + " --field-tf " + dir / "opt.json" +
+              " --out " + dir / "res.raw");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+}
+
+TEST_F(BuiltinTfCli, UnknownNamesFailListingTheBuiltInMaps) {
+  // Neither a file nor a built-in: exit 1, as for a missing TF file, naming what was typed and
+  // every name there is.
+  auto r = run_cli("optimize --ref " + ref + " --field " + field + " --ref-tf magma --out " + dir / "o.json");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  for (const char* part : {"magma: no such file", "viridis", "inferno", "cool-warm", "grey", "diverging", "opacity="})
+    EXPECT_NE(r.output.find(part), std::string::npos) << part << " in:\n" << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "o.json"));
+  r = run_cli("render --volume " + ref + " --tf viridis,opacity=round --out " + dir / "r.png");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("ramp|flat|tent|vee"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "r.png"));
+  // --help says how to name one.
+  r = run_cli("render --help");
+  EXPECT_NE(r.output.find("cool-warm"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace tfm
