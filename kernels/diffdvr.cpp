@@ -12,15 +12,6 @@
 
 namespace tfm {
 
-ImageLoss parse_image_loss(const std::string& name) {
-  if (name == "l2") return ImageLoss::L2;
-  if (name == "l1") return ImageLoss::L1;
-  throw std::runtime_error("--loss: expected l2 or l1, got '" + name + "'");
-}
-
-const char* image_loss_name(ImageLoss loss) { return loss == ImageLoss::L2 ? "l2" : "l1"; }
-
-
 static_assert(uint32_t(ImageLoss::L2) == TFM_DIFFDVR_LOSS_L2 && uint32_t(ImageLoss::L1) == TFM_DIFFDVR_LOSS_L1,
               "the host enum is the specialization constant");
 

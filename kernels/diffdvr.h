@@ -13,6 +13,7 @@
 #include "commands.h"
 #include "device_field.h"
 #include "diffdvr_layout.h"
+#include "image_loss.h"
 #include "pipeline.h"
 #include "reduction.h"
 
@@ -20,14 +21,6 @@ namespace tfm {
 
 class Context;
 
-// Per-pixel image loss over RGBA X = (premultiplied colour, opacity) against a target R.
-enum class ImageLoss : uint32_t {
-  L2 = 0,  // sum of (X - R)^2
-  L1 = 1,  // sum of |X - R| (derivative sign(X - R), 0 where equal)
-};
-// "l2" or "l1"; throws std::runtime_error naming the value otherwise.
-ImageLoss parse_image_loss(const std::string& name);
-const char* image_loss_name(ImageLoss loss);
 
 
 class DiffDvrForwardKernel {

@@ -10,6 +10,7 @@
 #include "context.h"
 #include "device_field.h"
 #include "normal_equations_system.h"
+#include "transfer_function.h"
 #include "voxel_pair.h"
 
 namespace tfm {
@@ -79,5 +80,10 @@ VoxelLoss voxel_loss_before(const NormalEquations& eq, std::span<const float> re
 // Uploads a TF table: N RGBA entries as 4N floats (the vec4 array every kernel reads).
 // Throws std::invalid_argument unless the size is a multiple of 4 and at least 2 entries.
 Buffer upload_tf(Context& ctx, std::span<const float> rgba, const std::string& name);
+// The same for a TF table (host/model/transfer_function.h).
+inline Buffer upload_tf(Context& ctx, const TransferFunction& tf, const std::string& name) {
+  const std::vector<float> v = tf.as_floats();
+  return upload_tf(ctx, std::span<const float>(v), name);
+}
 
 }  // namespace tfm

@@ -21,12 +21,6 @@ constexpr auto kBindingCounts =
 constexpr uint64_t kMaxLaneQuads = 32768;
 }  // namespace
 
-uint64_t FieldHistogram::finite() const {
-  uint64_t n = below + above;
-  for (uint64_t c : bins) n += c;
-  return n;
-}
-
 FieldHistogramKernel::FieldHistogramKernel(Context& ctx, uint32_t bins, HistogramMode mode) : ctx_(ctx), bins_(bins) {
   if (bins < 1 || bins > TFM_HIST_MAX_BINS)
     throw std::invalid_argument("histogram: " + std::to_string(bins) + " bins (need 1 to " +

@@ -62,4 +62,44 @@ void RenderImageKernel::record(CommandBatch& batch, const DeviceField& field, co
                  groups);
 }
 
+gpu::RenderView make_render_view(const CameraFrame& f) {
+  gpu::RenderView v{};
+  auto put = [](float* dst, const glm::dvec3& src, double w) {
+    dst[0] = float(src.x), dst[1] = float(src.y), dst[2] = float(src.z), dst[3] = float(w);
+  };
+  put(v.eye, f.eye, f.tan_half_fov);
+  put(v.forward, f.forward, f.aspect);
+  put(v.right, f.right, 0.0);
+  put(v.up, f.up, 0.0);
+  return v;
+}
+
+gpu::RenderPush make_render_push(const VolumeGeometry& g, const MarchConstants& m, const FieldMapping& map,
+                                 const DeviceField& field, uint32_t width, uint32_t height, uint32_t view_count) {
+  const uint64_t voxels = g.dims[0] * g.dims[1] * g.dims[2];
+  if (voxels >= (uint64_t(1) << 32))
+    throw std::runtime_error("render: grids of 2^32 voxels or more are not supported (32-bit voxel indices)");
+  if (field.voxel_count() != voxels) throw std::invalid_argument("render: field size differs from the grid");
+  gpu::RenderPush p{};
+  p.width = width;
+  p.height = height;
+  p.row_end = height;  // the kernels' record() set the band they dispatch
+  p.view_count = view_count;
+  p.dim_x = uint32_t(g.dims[0]);
+  p.dim_y = uint32_t(g.dims[1]);
+  p.dim_z = uint32_t(g.dims[2]);
+  p.chunk_voxels = uint32_t(field.chunk_voxels());
+  p.tf_size = map.tf_size;
+  p.tf_lo = map.lo;
+  p.tf_scale = map.scale;
+  p.dt = float(m.dt);
+  p.depth_per_alpha = float(m.depth_per_alpha);
+  p.stop_transmittance = float(m.stop_transmittance);
+  p.max_steps = m.max_steps;
+  p.inv_axis_x = float(1.0 / g.axis_scale.x);
+  p.inv_axis_y = float(1.0 / g.axis_scale.y);
+  p.inv_axis_z = float(1.0 / g.axis_scale.z);
+  return p;
+}
+
 }  // namespace tfm

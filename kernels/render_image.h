@@ -1,6 +1,6 @@
 // Wrapper of shaders/render_image.comp: one dispatch renders a band of image rows of one field
-// from `view_count` cameras (gpu::RenderView, gpu::RenderPush of shaders/render_layout.h; the
-// host packs them from its camera model with host/core/camera.h).
+// from `view_count` cameras (gpu::RenderView, gpu::RenderPush of shaders/render_layout.h, packed
+// from the camera model of host/model/camera.h by make_render_view and make_render_push below).
 #pragma once
 
 #include <cstdint>
@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "buffer.h"
+#include "camera.h"
 #include "commands.h"
 #include "device_field.h"
 #include "pipeline.h"
@@ -41,5 +42,12 @@ class RenderImageKernel {
   uint32_t chunks_;
   std::unique_ptr<ComputePipeline> pipeline_;
 };
+
+// The GPU records of a camera frame and of one render dispatch (shaders/render_layout.h).
+gpu::RenderView make_render_view(const CameraFrame& frame);
+// Throws std::runtime_error when the grid has 2^32 voxels or more (32-bit voxel indices).
+gpu::RenderPush make_render_push(const VolumeGeometry& geometry, const MarchConstants& march,
+                                 const FieldMapping& mapping, const DeviceField& field, uint32_t width,
+                                 uint32_t height, uint32_t view_count);
 
 }  // namespace tfm

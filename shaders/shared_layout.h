@@ -151,7 +151,7 @@ TFM_PUSH_CONSTANTS(VoxelPairPush) {
 #ifdef __cplusplus
 // How a field maps to TF coordinates in float32, as tf_coordinate() of tf_common.glsl computes it:
 // x = clamp((v - lo) * scale, 0, tf_size - 1), scale = (tf_size - 1) / (hi - lo) rounded to float
-// (host/core/field_mapping.h makes one from a range and mirrors the arithmetic bit for bit).
+// (host/model/field_mapping.h makes one from a range and mirrors the arithmetic bit for bit).
 struct FieldMapping {
   float lo = 0.0f;
   float scale = 1.0f;

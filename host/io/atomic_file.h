@@ -16,7 +16,7 @@ namespace tfm {
 struct OutputBatchState;  // atomic_file.cpp
 
 // Writes `bytes` to `path` through ".NAME.tmp-PID-K" in the same directory, in blocks with a
-// cancellation checkpoint ("write", host/core/cancellation.h) after each. Renames it over `path`
+// cancellation checkpoint ("write", host/model/cancellation.h) after each. Renames it over `path`
 // at once, or when the open OutputBatch commits. On any error or cancellation the temporary file
 // is removed. Throws std::runtime_error naming `path` when it is a directory, an existing
 // read-only file, or cannot be written.

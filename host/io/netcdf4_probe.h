@@ -22,7 +22,7 @@ bool has_hdf5_signature(std::string_view head);
 // "<path>: malformed netCDF-4/HDF5 file: ..." when the child is killed by a signal (a crash
 // inside HDF5), exits with a non-zero status (an abort, a sanitizer's crash report) or runs
 // longer than `timeout` (then it is killed), and checks the cancellation
-// flag (host/core/cancellation.h) while it waits. An error netCDF-C reports in the child is left
+// flag (host/model/cancellation.h) while it waits. An error netCDF-C reports in the child is left
 // for the caller's own open to report. Returns quietly on success.
 void probe_netcdf4_metadata(const std::string& path, std::string_view memory = {},
                             std::chrono::milliseconds timeout = std::chrono::seconds(30));

@@ -127,7 +127,7 @@ FileInfo describe_nrrd(const std::filesystem::path& path, const VolumeOptions& o
 FileInfo describe_raw(const std::filesystem::path& path, const VolumeOptions& options);
 FileInfo describe_dat(const std::filesystem::path& path, const VolumeOptions& options);
 
-// The row's open_slabs (host/core/volume_slabs.h): nullptr when the file cannot stream.
+// The row's open_slabs (host/model/volume_slabs.h): nullptr when the file cannot stream.
 std::unique_ptr<VolumeSlabReader> open_raw_slabs(const std::filesystem::path& path, const VolumeOptions& options);
 std::unique_ptr<VolumeSlabReader> open_dat_slabs(const std::filesystem::path& path, const VolumeOptions& options);
 std::unique_ptr<VolumeSlabReader> open_netcdf_slabs(const std::filesystem::path& path, const VolumeOptions& options);

@@ -49,7 +49,7 @@ std::pair<Volume, Volume> load_volume_pair(const std::string& first, const std::
                                            const VolumeOptions& options = {});
 
 // `spec` (as load_volume() takes it) opened to be read a slab of z-slices at a time, without
-// loading it (host/core/volume_slabs.h): raw and .dat files, NetCDF variables (netCDF-C reads any
+// loading it (host/model/volume_slabs.h): raw and .dat files, NetCDF variables (netCDF-C reads any
 // hyperslab) and VTI arrays in uncompressed raw appended data. nullptr for any other format or
 // encoding. Checks the header and the file's size first; throws as load_volume() does.
 std::unique_ptr<VolumeSlabReader> open_volume_slabs(const std::string& spec, const VolumeOptions& options = {});

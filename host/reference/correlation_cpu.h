@@ -7,7 +7,7 @@
 #include <span>
 #include <vector>
 
-#include "correlation.h"
+#include "correlation_measure.h"
 
 namespace tfm {
 

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "diffdvr.h"  // ImageLoss
+#include "image_loss.h"
 #include "render_settings.h"
 #include "transfer_function.h"
 #include "volume.h"

@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <span>
 
-#include "histogram.h"
+#include "field_histogram.h"
 
 namespace tfm {
 

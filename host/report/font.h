@@ -1,5 +1,5 @@
 // The report's font: DejaVu Sans (Debian's fonts-dejavu-core) rendered with FreeType, installed
-// as the TextFace every plot, panel label and overview picture draws with (host/core/image.h).
+// as the TextFace every plot, panel label and overview picture draws with (host/model/image.h).
 #pragma once
 
 #include <filesystem>

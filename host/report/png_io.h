@@ -22,7 +22,7 @@ void write_png(const std::filesystem::path& path, const Image& image);
 // alpha channel is composited over white. Throws std::runtime_error naming the path when the
 // file is missing or not a PNG, and before allocating the image when its header claims more
 // pixels than its bytes can hold (zlib expands at most 1032:1) or than the memory budget allows
-// (host/core/memory_budget.h).
+// (host/model/memory_budget.h).
 Image read_png(const std::filesystem::path& path);
 // The same for a PNG in memory; `name` starts every message.
 Image decode_png(std::string_view bytes, const std::string& name);

@@ -11,6 +11,7 @@
 #include "cancellation.h"
 #include "font.h"
 #include "gpu_voxel_ops.h"
+#include "device_memory.h"
 #include "memory_budget.h"
 #include "png_io.h"
 #include "progress.h"

@@ -14,6 +14,7 @@
 #include "cpu_renderer.h"
 #include "diffdvr.h"
 #include "diffdvr_cpu.h"
+#include "gpu_voxel_ops.h"
 #include "render_image.h"
 #include "selftest_support.h"
 #include "volume.h"

@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "cancellation.h"
+#include "device_memory.h"
 #include "memory_budget.h"
 #include "solver_support.h"
 

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "cancellation.h"
+#include "device_memory.h"
 #include "memory_budget.h"
 #include "phase_timer.h"
 #include "solver_support.h"

@@ -1,5 +1,5 @@
 // `tfmatch optimize` on volumes larger than memory: both fields read from disk a slab of
-// z-slices at a time (host/core/volume_slabs.h), the normal equations assembled slab by slab on
+// z-slices at a time (host/model/volume_slabs.h), the normal equations assembled slab by slab on
 // the device (the same bits as from the whole fields: the assembly's sums are exact fixed-point
 // integers), then solved by a solver that works from the assembled system alone. Box-filtered
 // copies of both fields, small enough for the report's pictures, are made during the same read.

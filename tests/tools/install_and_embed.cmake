@@ -1,8 +1,13 @@
 # ctest `Package.InstallBuildAndRunEmbedExample`: installs this build into a temporary prefix,
 # checks that no installed library defines a global vk*/volk* symbol, builds
 # tools/examples/embed out of tree against the installed package (find_package(tfmatch)) and runs
-# it: the example adopts its own plain-loader Vulkan device and checks a GPU fit on the CPU.
+# it: the example adopts its own plain-loader Vulkan device and checks a GPU fit on the CPU. Then
+# builds tools/examples/read_volume, which links tfmatch::io alone, and checks that the GPU-free
+# layers keep it free of GPU code: no engine library or Vulkan loader on its link line, no engine
+# or Vulkan symbol in the program, no libvulkan among its shared libraries; it reads a NetCDF file
+# of ../shared/data when there is one (else says it skipped that).
 # Arguments: -DBUILD_DIR= -DSOURCE_DIR= -DWORK_DIR= -DGENERATOR= -DNM=
+
 file(REMOVE_RECURSE ${WORK_DIR})
 set(prefix ${WORK_DIR}/prefix)
 function(run)
@@ -61,5 +66,38 @@ run(${WORK_DIR}/example/embed_example)
 message(STATUS "${run_output}")
 if(NOT run_output MATCHES "OK")
   message(FATAL_ERROR "the example did not report OK")
+endif()
+
+run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/tools/examples/read_volume -B ${WORK_DIR}/read_volume -G ${GENERATOR}
+    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_BUILD_TYPE=Release)
+run(${CMAKE_COMMAND} --build ${WORK_DIR}/read_volume --verbose)
+string(REGEX MATCHALL "[^ \n]*(tfmatch_engine|tfmatch_kernels|tfmatch_shaders|libvulkan|-lvulkan)[^ \n]*" linked "${run_output}")
+if(linked)
+  list(JOIN linked " " text)
+  message(FATAL_ERROR "read_volume (tfmatch::io only) links GPU libraries: ${text}")
+endif()
+set(program ${WORK_DIR}/read_volume/read_volume)
+run(${NM} -C ${program})
+string(REGEX MATCHALL "[^\n]*(tfm::Context|tfm::Buffer|tfm_volk|vkCreateInstance|vkGetInstanceProcAddr)[^\n]*" symbols "${run_output}")
+if(symbols)
+  list(JOIN symbols "\n  " text)
+  message(FATAL_ERROR "read_volume (tfmatch::io only) contains GPU code:\n  ${text}")
+endif()
+find_program(LDD ldd)
+if(LDD)
+  run(${LDD} ${program})
+  if(run_output MATCHES "libvulkan")
+    message(FATAL_ERROR "read_volume (tfmatch::io only) loads libvulkan:\n${run_output}")
+  endif()
+endif()
+set(netcdf ${SOURCE_DIR}/../shared/data/cam_uvt/uvt.nc)
+if(EXISTS ${netcdf})
+  run(${program} ${netcdf}:U)
+  message(STATUS "${run_output}")
+  if(NOT run_output MATCHES "128 x 64 x 14.*OK")
+    message(FATAL_ERROR "read_volume did not read ${netcdf}")
+  endif()
+else()
+  message(STATUS "SKIPPED reading a NetCDF file with read_volume: ${netcdf} not found (no ../shared)")
 endif()
 file(REMOVE_RECURSE ${WORK_DIR})

@@ -32,7 +32,7 @@ constexpr std::chrono::duration<double> kExitSlack = 1s;
 constexpr std::chrono::duration<double> kStopBound = cli::kGrace;
 constexpr std::chrono::duration<double> kExitBound = cli::kGrace + cli::kTeardownGrace + kExitSlack;
 // What the program prints when checkpoints see the request (TFMATCH_TRACE_PHASES=1) and when the
-// watchdog has to act (host/core/cancellation.cpp, tools/cli/interrupts.cpp).
+// watchdog has to act (host/model/cancellation.cpp, tools/cli/interrupts.cpp).
 constexpr const char* kStoppingLine = "tfmatch: stopping at a checkpoint";
 constexpr const char* kWatchdogLine = "stopped without waiting";
 

@@ -44,7 +44,7 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// The first `voxels` voxels (x fastest) of the synthetic ensemble (host/core/synthetic_ensemble.h)
+// The first `voxels` voxels (x fastest) of the synthetic ensemble (host/model/synthetic_ensemble.h)
 // on the paper's grid, generated on just the z levels they need, and the series at its reference
 // point (the centre of its strongly dependent blob).
 struct BenchEnsemble {

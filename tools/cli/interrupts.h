@@ -1,5 +1,5 @@
 // SIGINT and SIGTERM for the command line. The first signal requests cancellation
-// (host/core/cancellation.h) and wakes a watchdog thread: the work stops at its next checkpoint
+// (host/model/cancellation.h) and wakes a watchdog thread: the work stops at its next checkpoint
 // and unwinds, which removes its temporary files and staged outputs (host/io/atomic_file.h), and
 // main() exits with 128 + the signal (130, 143). If the work has not stopped within kGrace (a
 // long GPU submission or library call has no checkpoint), or a second signal comes, the watchdog

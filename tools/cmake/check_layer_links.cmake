@@ -1,7 +1,9 @@
 # Links follow the layer rule of DESIGN.md as includes do (tools/cmake/check_layers.cmake): a
-# library of one layer links libraries of earlier layers only. Checked at configure time.
-set(tfm_layer_targets tfmatch_engine tfmatch_shaders tfmatch_kernels tfmatch_core tfmatch_solvers tfmatch_io
-    tfmatch_report tfmatch_viewer)
+# library of one layer links libraries of earlier layers only, and the GPU-free libraries (model,
+# reference, io) reach neither the engine, the kernels nor Vulkan, however indirectly. Checked at
+# configure time.
+set(tfm_layer_targets tfmatch_shaders tfmatch_model tfmatch_engine tfmatch_kernels tfmatch_reference tfmatch_io
+    tfmatch_selftest tfmatch_solvers tfmatch_report tfmatch_viewer)
 set(tfm_index 0)
 foreach(target ${tfm_layer_targets})
   set(tfm_rank_${target} ${tfm_index})
@@ -12,6 +14,39 @@ foreach(target ${tfm_layer_targets})
   foreach(dep ${deps})
     if(DEFINED tfm_rank_${dep} AND tfm_rank_${dep} GREATER tfm_rank_${target})
       message(FATAL_ERROR "layer rule broken: ${target} links ${dep}, a later layer (DESIGN.md)")
+    endif()
+  endforeach()
+endforeach()
+
+# Every library `target` links, directly or through others (link-only dependencies included).
+function(tfm_link_closure target out)
+  set(seen)
+  set(todo ${target})
+  while(todo)
+    list(POP_FRONT todo item)
+    string(REGEX REPLACE "^\\$<LINK_ONLY:(.*)>$" "\\1" item "${item}")
+    if(item IN_LIST seen OR NOT TARGET ${item})
+      continue()
+    endif()
+    list(APPEND seen ${item})
+    get_target_property(imported ${item} IMPORTED)
+    get_target_property(type ${item} TYPE)
+    if(NOT imported AND NOT type STREQUAL "INTERFACE_LIBRARY")
+      get_target_property(deps ${item} LINK_LIBRARIES)
+    else()
+      get_target_property(deps ${item} INTERFACE_LINK_LIBRARIES)
+    endif()
+    if(deps)
+      list(APPEND todo ${deps})
+    endif()
+  endwhile()
+  set(${out} ${seen} PARENT_SCOPE)
+endfunction()
+foreach(target tfmatch_model tfmatch_reference tfmatch_io)
+  tfm_link_closure(${target} closure)
+  foreach(gpu tfmatch_engine tfmatch_kernels tfmatch_shaders tfmatch_cuda Vulkan::Headers Vulkan::Vulkan)
+    if(gpu IN_LIST closure)
+      message(FATAL_ERROR "layer rule broken: ${target} is GPU-free but links ${gpu} (DESIGN.md)")
     endif()
   endforeach()
 endforeach()

@@ -1,15 +1,19 @@
 # The layer rule of DESIGN.md, checked on every configure (and by the ctest test `Layers`):
-# engine -> shaders -> kernels -> host/core -> host/reference -> host/solvers -> host/io ->
-# host/report -> host/viewer -> tools. A file may include headers of its own layer and of layers before it,
-# never one after it. Run as a script: cmake -DTFMATCH_SOURCE_DIR=<repo> -P check_layers.cmake
-# (exit code 1 and one line per offending include). cuda/ sits beside kernels: it may use
-# engine, shaders, kernels and host/core (field_mapping.h), and only host/solvers uses it.
+# shaders -> host/model -> engine -> kernels -> cuda -> host/reference -> host/io -> host/selftest
+# -> host/solvers -> host/report -> host/viewer -> tools. A file may include headers of its own
+# layer and of layers before it, never one after it. The shaders' layout headers are plain structs
+# shared with GLSL, and the model is the GPU-free data every part shares, so both sit below the
+# engine. The GPU-free layers (shaders' headers, host/model, host/reference, host/io) may include
+# only each other: file formats and CPU references build without Vulkan and the engine.
+# Run as a script: cmake -DTFMATCH_SOURCE_DIR=<repo> -P check_layers.cmake (exit code 1 and one
+# line per offending include). cuda/ may use engine, shaders, kernels and host/model, and only
+# host/solvers uses it.
 
 cmake_policy(SET CMP0057 NEW)
-set(layers engine shaders kernels cuda host/core host/reference host/selftest host/solvers host/io host/report host/viewer
-    tools)
-# cuda may include host/core's field_mapping.h (an inline mirror of the shader arithmetic).
-set(allowed_exceptions "cuda:host/core/field_mapping.h")
+set(layers shaders host/model engine kernels cuda host/reference host/io host/selftest host/solvers host/report
+    host/viewer tools)
+set(gpu_free_layers shaders host/model host/reference host/io)
+set(allowed_exceptions "")
 
 # Which layer owns each header name (basenames are unique across the tree; a duplicate is an
 # error too, because quoted includes resolve by name through the include path).
@@ -39,6 +43,12 @@ foreach(layer ${layers})
     if(source MATCHES "^tools/examples/")
       continue()
     endif()
+    if(layer IN_LIST gpu_free_layers)
+      file(STRINGS ${TFMATCH_SOURCE_DIR}/${source} gpu_includes REGEX "^[ \t]*#[ \t]*include[ \t]+<(vulkan|volk)")
+      foreach(line ${gpu_includes})
+        list(APPEND problems "${source} (${layer}, GPU-free) includes a Vulkan header: ${line}")
+      endforeach()
+    endif()
     file(STRINGS ${TFMATCH_SOURCE_DIR}/${source} includes REGEX "^[ \t]*#[ \t]*include[ \t]+\"[^\"]+\"")
     foreach(line ${includes})
       string(REGEX REPLACE "^[ \t]*#[ \t]*include[ \t]+\"([^\"]+)\".*$" "\\1" target "${line}")
@@ -50,6 +60,8 @@ foreach(layer ${layers})
         if(NOT "${layer}:${path_${name}}" IN_LIST allowed_exceptions)
           list(APPEND problems "${source} (${layer}) includes ${path_${name}} (${layer_of_${name}}, a later layer)")
         endif()
+      elseif(layer IN_LIST gpu_free_layers AND NOT layer_of_${name} IN_LIST gpu_free_layers)
+        list(APPEND problems "${source} (${layer}, GPU-free) includes ${path_${name}} (${layer_of_${name}}, a GPU layer)")
       endif()
     endforeach()
   endforeach()
@@ -57,6 +69,6 @@ endforeach()
 
 if(problems)
   list(JOIN problems "\n  " text)
-  message(FATAL_ERROR "layer rule broken (DESIGN.md: engine -> shaders -> kernels -> host -> tools):\n  ${text}")
+  message(FATAL_ERROR "layer rule broken (DESIGN.md; tools/cmake/check_layers.cmake):\n  ${text}")
 endif()
 message(STATUS "layers: every include points to the same or an earlier layer")

@@ -2,16 +2,17 @@
 # public headers in P/include/tfmatch (flat, so they find each other with quoted includes and an
 # embedder writes #include <tfmatch/context.h>), the `tfmatch` program in P/bin, and
 # P/lib/cmake/tfmatch/tfmatchConfig.cmake (+ version file) and P/lib/pkgconfig/tfmatch.pc.
-#   tfmatch::tfmatch  engine, shaders, kernels, host/core, host/reference, host/solvers:
+#   tfmatch::tfmatch  engine, shaders, kernels, host/model, host/reference, host/solvers:
 #                     Vulkan headers, Eigen and GLM only (volk is compiled in under private names)
-#   tfmatch::io       file formats (netCDF-C, ecCodes, expat, zlib)
+#   tfmatch::io       file formats (netCDF-C, ecCodes, expat, zlib) on host/model alone: no
+#                     Vulkan, no engine (a program that only reads files links no GPU code)
 #   tfmatch::report   images on disk, plots, metrics, report pages (libpng), with tfmatch::io
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
 set(tfm_install_include ${CMAKE_INSTALL_INCLUDEDIR}/tfmatch)
-set(tfm_layer_libraries tfmatch_engine tfmatch_shaders tfmatch_kernels tfmatch_core tfmatch_solvers tfmatch_io
-    tfmatch_report)
+set(tfm_layer_libraries tfmatch_model tfmatch_engine tfmatch_shaders tfmatch_kernels tfmatch_reference
+    tfmatch_selftest tfmatch_solvers tfmatch_io tfmatch_report)
 if(TFMATCH_CUDA)
   list(APPEND tfm_layer_libraries tfmatch_cuda)
 endif()
@@ -25,7 +26,7 @@ endforeach()
 # The umbrella targets users link.
 add_library(tfmatch_library INTERFACE)
 set_target_properties(tfmatch_library PROPERTIES EXPORT_NAME tfmatch)
-target_link_libraries(tfmatch_library INTERFACE tfmatch_solvers)
+target_link_libraries(tfmatch_library INTERFACE tfmatch_solvers tfmatch_selftest)
 # tfmatch_io and tfmatch_report export as tfmatch::io and tfmatch::report (their EXPORT_NAMEs).
 # The same names inside this build (tests, examples built in-tree).
 add_library(tfmatch::tfmatch ALIAS tfmatch_library)
@@ -41,7 +42,7 @@ install(TARGETS tfmatch RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 # Public headers: every header of the library layers except the private ones (named *_private.h
 # or listed in TFMATCH_PRIVATE_HEADERS by their layer).
 set(tfm_public_headers)
-foreach(dir engine shaders kernels host/core host/reference host/selftest host/solvers host/io host/report)
+foreach(dir engine shaders kernels host/model host/reference host/selftest host/solvers host/io host/report)
   file(GLOB headers ${CMAKE_SOURCE_DIR}/${dir}/*.h)
   list(APPEND tfm_public_headers ${headers})
 endforeach()
@@ -66,6 +67,7 @@ install(FILES ${CMAKE_BINARY_DIR}/tfmatchConfig.cmake ${CMAKE_BINARY_DIR}/tfmatc
 # The prefix is found from the .pc file's own place, so `cmake --install --prefix P` gives a
 # correct file for any P (CMAKE_INSTALL_PREFIX at configure time may be another directory).
 file(RELATIVE_PATH tfm_pc_up /prefix/${CMAKE_INSTALL_LIBDIR}/pkgconfig /prefix)
-set(tfm_pc_libs "-ltfmatch_solvers -ltfmatch_core -ltfmatch_kernels -ltfmatch_shaders -ltfmatch_engine")
+set(tfm_pc_libs
+    "-ltfmatch_selftest -ltfmatch_solvers -ltfmatch_reference -ltfmatch_kernels -ltfmatch_shaders -ltfmatch_engine -ltfmatch_model")
 configure_file(${CMAKE_SOURCE_DIR}/tools/cmake/tfmatch.pc.in ${CMAKE_BINARY_DIR}/tfmatch.pc @ONLY)
 install(FILES ${CMAKE_BINARY_DIR}/tfmatch.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)

@@ -1,4 +1,4 @@
-// Solvers stop on a cancellation request (host/core/cancellation.h): before any work when it is
+// Solvers stop on a cancellation request (host/model/cancellation.h): before any work when it is
 // already requested, and within the command line's grace (tools/cli/interrupts.h) when it comes
 // from another thread in the middle of a long run, with the Cancelled exception passing through
 // to the caller.

@@ -6,6 +6,7 @@
 
 #include "commands.h"
 #include "gpu_voxel_ops.h"
+#include "device_memory.h"
 #include "memory_budget.h"
 #include "residual_map.h"
 

@@ -1,13 +1,13 @@
 // Ensembles: one variable on one grid with a member axis (DESIGN.md "Ensembles and correlation
 // fields"), held member-major as the correlation kernels read them (kernels/correlation.h).
-// Files: host/io/ensemble_io.h; a synthetic one: host/core/synthetic_ensemble.h.
+// Files: host/io/ensemble_io.h; a synthetic one: host/model/synthetic_ensemble.h.
 #pragma once
 
 #include <cstdint>
 #include <string>
 #include <vector>
 
-#include "correlation.h"
+#include "correlation_measure.h"
 #include "volume.h"
 
 namespace tfm {

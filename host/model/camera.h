@@ -8,10 +8,8 @@
 
 #include <glm/glm.hpp>
 
-#include "device_field.h"
 #include "field_mapping.h"
 #include "image.h"
-#include "render_layout.h"
 #include "render_settings.h"
 
 namespace tfm {
@@ -82,12 +80,5 @@ std::optional<glm::dvec2> project_to_pixel(const CameraFrame& frame, const Volum
 // The twelve edges of the box rays march through ([-0.5, n - 0.5] per axis), projected and drawn
 // as thin grey lines: where the data ends, and which way is up, even where the TF is clear.
 void draw_box_outline(Image& image, const VolumeGeometry& geometry, const RenderSettings& settings);
-
-// The GPU records of a camera frame and of one render dispatch (shaders/render_layout.h).
-gpu::RenderView make_render_view(const CameraFrame& frame);
-// Throws std::runtime_error when the grid has 2^32 voxels or more (32-bit voxel indices).
-gpu::RenderPush make_render_push(const VolumeGeometry& geometry, const MarchConstants& march,
-                                 const FieldMapping& mapping, const DeviceField& field, uint32_t width,
-                                 uint32_t height, uint32_t view_count);
 
 }  // namespace tfm

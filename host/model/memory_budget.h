@@ -1,8 +1,8 @@
 // The process's memory budget (`--max-memory`; default: the memory available on the machine when
 // first asked). Every allocation whose size an input decides (decoded volumes, decompressed
-// streams, images, device buffers) is checked against it before it is made, so that a small
+// streams, images) is checked against it before it is made, so that a small
 // hostile file cannot make tfmatch allocate gigabytes, and a large real one fails with a message
-// instead of std::bad_alloc.
+// instead of std::bad_alloc. Device buffers: kernels/device_memory.h.
 #pragma once
 
 #include <cstdint>
@@ -12,8 +12,6 @@
 #include <string_view>
 
 namespace tfm {
-
-class Context;
 
 // What check_memory() throws; the message names what asked, the size, the budget and its source.
 class MemoryBudgetExceeded : public std::runtime_error {
@@ -36,11 +34,6 @@ MemoryBudget memory_budget();
 // plus `bytes` exceeds the budget. Cheap (one read of /proc/self/statm): call it right before
 // each large allocation.
 void check_memory(uint64_t bytes, const std::string& what);
-
-// For device buffers of `bytes` in all: throws std::runtime_error when they exceed the device's
-// largest memory heap, and checks them against the budget too where device memory is the host's
-// (CPU and integrated devices, lavapipe among them).
-void check_device_memory(const Context& ctx, uint64_t bytes, const std::string& what);
 
 // MemAvailable of /proc/meminfo, capped by the cgroup (v2 or v1) memory limit; 0 when unknown.
 uint64_t available_memory();

@@ -12,8 +12,6 @@
 
 #include <unistd.h>
 
-#include "context.h"
-
 namespace tfm {
 namespace {
 
@@ -95,17 +93,6 @@ void check_memory(uint64_t bytes, const std::string& what) {
   throw MemoryBudgetExceeded(what + ": needs " + format_bytes(bytes) + ", but the memory budget is " +
                              format_bytes(budget.bytes) + " (" + budget.source + ") and " + format_bytes(in_use) +
                              " are in use; raise it with --max-memory if the machine has the memory");
-}
-
-void check_device_memory(const Context& ctx, uint64_t bytes, const std::string& what) {
-  uint64_t largest_heap = 0;
-  const VkPhysicalDeviceMemoryProperties& mem = ctx.memory_properties();
-  for (uint32_t i = 0; i < mem.memoryHeapCount; ++i) largest_heap = std::max<uint64_t>(largest_heap, mem.memoryHeaps[i].size);
-  if (bytes > largest_heap)
-    throw std::runtime_error(what + ": needs " + format_bytes(bytes) + " of device memory, more than the largest memory heap of " +
-                             ctx.device_name() + " (" + format_bytes(largest_heap) + ")");
-  const VkPhysicalDeviceType type = ctx.properties().deviceType;
-  if (type == VK_PHYSICAL_DEVICE_TYPE_CPU || type == VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU) check_memory(bytes, what);
 }
 
 std::string format_bytes(uint64_t bytes) {

@@ -9,7 +9,6 @@
 #include <vector>
 
 #include "field_mapping.h"
-#include "gpu_voxel_ops.h"
 
 namespace tfm {
 
@@ -35,11 +34,5 @@ struct ColorStop {
 // N entries whose colours interpolate `stops` and whose opacity is alpha(t) clamped to [0, 1];
 // no range. Throws std::invalid_argument for fewer than 2 entries or stops.
 TransferFunction tf_from_color_stops(uint32_t n, std::span<const ColorStop> stops, const std::function<double(double)>& alpha);
-
-// Uploads the table as vec4 floats (kernels/gpu_voxel_ops.h upload_tf).
-inline Buffer upload_tf(Context& ctx, const TransferFunction& tf, const std::string& name) {
-  const std::vector<float> v = tf.as_floats();
-  return upload_tf(ctx, std::span<const float>(v), name);
-}
 
 }  // namespace tfm

@@ -9,6 +9,7 @@
 #include "cancellation.h"
 #include "commands.h"
 #include "gpu_voxel_ops.h"
+#include "device_memory.h"
 #include "memory_budget.h"
 
 namespace tfm {

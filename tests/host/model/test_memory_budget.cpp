@@ -1,5 +1,5 @@
-// The memory budget (host/core/memory_budget.h) and the cancellation flag
-// (host/core/cancellation.h): sizes as users write them, the check before an allocation and its
+// The memory budget (host/model/memory_budget.h) and the cancellation flag
+// (host/model/cancellation.h): sizes as users write them, the check before an allocation and its
 // message, what the machine reports, and Cancelled passing every std::exception handler.
 #include <gtest/gtest.h>
 

@@ -1,0 +1,23 @@
+// The device-memory check (kernels/device_memory.h).
+#include "device_memory.h"
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "context.h"
+#include "memory_budget.h"
+
+namespace tfm {
+
+void check_device_memory(const Context& ctx, uint64_t bytes, const std::string& what) {
+  uint64_t largest_heap = 0;
+  const VkPhysicalDeviceMemoryProperties& mem = ctx.memory_properties();
+  for (uint32_t i = 0; i < mem.memoryHeapCount; ++i) largest_heap = std::max<uint64_t>(largest_heap, mem.memoryHeaps[i].size);
+  if (bytes > largest_heap)
+    throw std::runtime_error(what + ": needs " + format_bytes(bytes) + " of device memory, more than the largest memory heap of " +
+                             ctx.device_name() + " (" + format_bytes(largest_heap) + ")");
+  const VkPhysicalDeviceType type = ctx.properties().deviceType;
+  if (type == VK_PHYSICAL_DEVICE_TYPE_CPU || type == VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU) check_memory(bytes, what);
+}
+
+}  // namespace tfm
