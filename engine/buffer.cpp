@@ -145,6 +145,24 @@ Buffer Buffer::import_host(Context& ctx, void* pointer, uint64_t bytes, const st
   return b;
 }
 
+Buffer Buffer::adopt(Context& ctx, VkBuffer buffer, uint64_t offset, uint64_t bytes, const std::string& what) {
+  if (buffer == VK_NULL_HANDLE) throw std::invalid_argument(what + ": no buffer (VK_NULL_HANDLE)");
+  if (bytes == 0) throw std::invalid_argument(what + ": an empty range");
+  const VkPhysicalDeviceLimits& limits = ctx.limits();
+  const uint64_t align = std::max<uint64_t>(limits.minStorageBufferOffsetAlignment, limits.minTexelBufferOffsetAlignment);
+  if (offset % align)
+    throw std::invalid_argument(what + ": offset " + std::to_string(offset) + " is not a multiple of " +
+                                std::to_string(align) + " (the device's storage/texel buffer offset alignment)");
+  Buffer b;
+  b.ctx_ = &ctx;
+  b.buffer_ = buffer;
+  b.offset_ = offset;
+  b.bytes_ = bytes;
+  b.tracked_ = false;
+  b.owned_ = false;
+  return b;
+}
+
 Buffer::~Buffer() { release(); }
 
 Buffer::Buffer(Buffer&& o) noexcept { *this = std::move(o); }
@@ -155,15 +173,21 @@ Buffer& Buffer::operator=(Buffer&& o) noexcept {
     ctx_ = std::exchange(o.ctx_, nullptr);
     buffer_ = std::exchange(o.buffer_, VK_NULL_HANDLE);
     memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
+    offset_ = std::exchange(o.offset_, 0);
     bytes_ = std::exchange(o.bytes_, 0);
     mapped_ = std::exchange(o.mapped_, nullptr);
     tracked_ = std::exchange(o.tracked_, true);
+    owned_ = std::exchange(o.owned_, true);
   }
   return *this;
 }
 
 void Buffer::release() {
   if (!ctx_) return;
+  if (!owned_) {
+    buffer_ = VK_NULL_HANDLE;
+    return;
+  }
   const auto& vk = ctx_->vk();
   if (mapped_) vk.vkUnmapMemory(ctx_->device(), memory_);
   if (buffer_) vk.vkDestroyBuffer(ctx_->device(), buffer_, nullptr);

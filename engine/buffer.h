@@ -33,6 +33,13 @@ class Buffer {
   // extension, a read-only mapping, no host-coherent type for it). Not counted in buffer_bytes():
   // it allocates nothing.
   static Buffer import_host(Context& ctx, void* pointer, uint64_t bytes, const std::string& debug_name);
+  // A view of `bytes` of a caller's device buffer from `offset` (an embedder's volume or TF
+  // already on the device): kernels bind that range and copies address it, nothing is allocated,
+  // and destroying the view leaves the caller's buffer alone. The buffer needs the usages the
+  // kernels read it with (storage and uniform texel buffer for fields; transfer dst for a TF
+  // written by record_tf_upload). Throws std::invalid_argument for a null buffer, no bytes, or an
+  // offset that is not a multiple of the device's storage- and texel-buffer offset alignments.
+  static Buffer adopt(Context& ctx, VkBuffer buffer, uint64_t offset, uint64_t bytes, const std::string& what);
   ~Buffer();
   Buffer(Buffer&& other) noexcept;
   Buffer& operator=(Buffer&& other) noexcept;
@@ -40,6 +47,9 @@ class Buffer {
   Buffer& operator=(const Buffer&) = delete;
 
   VkBuffer handle() const { return buffer_; }
+  // Where this buffer's bytes start in handle(): 0 except for an adopted range.
+  uint64_t offset() const { return offset_; }
+  bool adopted() const { return !owned_; }
   uint64_t size() const { return bytes_; }
   bool host_visible() const { return mapped_ != nullptr; }
   // Mapped pointer of an Upload/Readback buffer; null for Device buffers.
@@ -51,9 +61,11 @@ class Buffer {
   Context* ctx_ = nullptr;
   VkBuffer buffer_ = VK_NULL_HANDLE;
   VkDeviceMemory memory_ = VK_NULL_HANDLE;
+  uint64_t offset_ = 0;
   uint64_t bytes_ = 0;
   void* mapped_ = nullptr;
   bool tracked_ = true;  // counted in the context's buffer_bytes()
+  bool owned_ = true;    // false for an adopted range: the caller's buffer, not destroyed here
 };
 
 // Host memory upload() stages through, at most, and readback() at a time: bounded so that moving

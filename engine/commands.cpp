@@ -1,6 +1,7 @@
 // Command batches: one command buffer, fence, descriptor pools and timestamp queries each.
 #include "commands.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "buffer.h"
@@ -71,6 +72,10 @@ CommandBatch::CommandBatch(Context& ctx) : ctx_(ctx) {
   }
 }
 
+CommandBatch::CommandBatch(Context& ctx, VkCommandBuffer cmd) : ctx_(ctx), cmd_(cmd), external_(true) {
+  if (cmd == VK_NULL_HANDLE) throw std::invalid_argument("CommandBatch: no command buffer to record into");
+}
+
 CommandBatch::~CommandBatch() {
   const auto& vk = ctx_.vk();
   // A batch recorded but never submitted, or destroyed by an exception mid-wait, must not be
@@ -82,6 +87,7 @@ CommandBatch::~CommandBatch() {
   if (queries_) vk.vkDestroyQueryPool(ctx_.device(), queries_, nullptr);
   for (auto p : descriptor_pools_) vk.vkDestroyDescriptorPool(ctx_.device(), p, nullptr);
   for (auto v : buffer_views_) vk.vkDestroyBufferView(ctx_.device(), v, nullptr);
+  if (external_) return;  // the command buffer is the host's
   vk.vkDestroyFence(ctx_.device(), fence_, nullptr);
   vk.vkDestroyCommandPool(ctx_.device(), pool_, nullptr);
 }
@@ -168,7 +174,7 @@ void CommandBatch::dispatch(const ComputePipeline& pipeline, std::initializer_li
         VkBufferViewCreateInfo vi{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
         vi.buffer = buf->handle();
         vi.format = b.texel_format;
-        vi.offset = b.texel_offset;
+        vi.offset = buf->offset() + b.texel_offset;
         vi.range = range;
         VkBufferView view = VK_NULL_HANDLE;
         VK_CHECK(vk.vkCreateBufferView(ctx_.device(), &vi, nullptr, &view));
@@ -179,7 +185,7 @@ void CommandBatch::dispatch(const ComputePipeline& pipeline, std::initializer_li
       w.pTexelBufferView = list.data();
     } else {
       auto& list = infos.emplace_back();
-      for (const Buffer* buf : b.buffers) list.push_back({buf->handle(), 0, VK_WHOLE_SIZE});
+      for (const Buffer* buf : b.buffers) list.push_back({buf->handle(), buf->offset(), buf->size()});
       w.descriptorCount = static_cast<uint32_t>(list.size());
       w.pBufferInfo = list.data();
     }
@@ -203,17 +209,67 @@ void CommandBatch::barrier() {
   ctx_.vk().vkCmdPipelineBarrier(cmd_, stages, stages, 0, 1, &b, 0, nullptr, 0, nullptr);
 }
 
+void CommandBatch::barrier_to_host() {
+  VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+  b.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+  ctx_.vk().vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                 VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &b, 0, nullptr, 0, nullptr);
+}
+
 void CommandBatch::copy(const Buffer& src, uint64_t src_offset, const Buffer& dst, uint64_t dst_offset,
                         uint64_t bytes) {
-  VkBufferCopy region{src_offset, dst_offset, bytes};
+  VkBufferCopy region{src.offset() + src_offset, dst.offset() + dst_offset, bytes};
   ctx_.vk().vkCmdCopyBuffer(cmd_, src.handle(), dst.handle(), 1, &region);
 }
 
 void CommandBatch::fill(Buffer& dst, uint32_t value) {
-  ctx_.vk().vkCmdFillBuffer(cmd_, dst.handle(), 0, VK_WHOLE_SIZE, value);
+  ctx_.vk().vkCmdFillBuffer(cmd_, dst.handle(), dst.offset(), dst.adopted() ? dst.size() / 4 * 4 : VK_WHOLE_SIZE, value);
+}
+
+void CommandBatch::update(const Buffer& dst, uint64_t offset, const void* data, uint64_t bytes) {
+  constexpr uint64_t kPiece = 65536;  // vkCmdUpdateBuffer's limit per call
+  if (offset % 4 || bytes % 4 || offset + bytes > dst.size())
+    throw std::logic_error("CommandBatch::update: range [" + std::to_string(offset) + ", +" + std::to_string(bytes) +
+                           ") misaligned or outside the buffer");
+  const auto* bytes_in = static_cast<const uint8_t*>(data);
+  for (uint64_t done = 0; done < bytes; done += kPiece)
+    ctx_.vk().vkCmdUpdateBuffer(cmd_, dst.handle(), dst.offset() + offset + done, std::min(kPiece, bytes - done),
+                                bytes_in + done);
+}
+
+void CommandBatch::copy_to_image(const Buffer& src, VkImage image, uint32_t width, VkImageLayout old_layout,
+                                 VkImageLayout new_layout, VkPipelineStageFlags dst_stages, VkAccessFlags dst_access) {
+  const auto& vk = ctx_.vk();
+  VkMemoryBarrier staged{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  staged.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  staged.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+  VkImageMemoryBarrier to_dst{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER};
+  to_dst.srcAccessMask = 0;  // the old contents are overwritten: only the layout change waits
+  to_dst.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  to_dst.oldLayout = old_layout;
+  to_dst.newLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+  to_dst.srcQueueFamilyIndex = to_dst.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+  to_dst.image = image;
+  to_dst.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+  // The host's earlier reads of the image (any stage) finish before the layout changes.
+  vk.vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
+                          VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &staged, 0, nullptr, 1, &to_dst);
+  VkBufferImageCopy region{};
+  region.bufferOffset = src.offset();
+  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+  region.imageExtent = {width, 1, 1};
+  vk.vkCmdCopyBufferToImage(cmd_, src.handle(), image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+  VkImageMemoryBarrier to_use = to_dst;
+  to_use.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  to_use.dstAccessMask = dst_access;
+  to_use.oldLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+  to_use.newLayout = new_layout;
+  vk.vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_TRANSFER_BIT, dst_stages, 0, 0, nullptr, 0, nullptr, 1, &to_use);
 }
 
 uint32_t CommandBatch::timestamp() {
+  if (external_) throw std::logic_error("CommandBatch: no timestamps in a host's command buffer");
   if (!queries_) return query_count_++;
   if (query_count_ >= kMaxTimestamps) throw std::logic_error("too many timestamps in one batch");
   ctx_.vk().vkCmdWriteTimestamp(cmd_, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_, query_count_);
@@ -226,14 +282,11 @@ void CommandBatch::submit_and_wait() {
 }
 
 void CommandBatch::submit() {
+  if (external_) throw std::logic_error("CommandBatch: a host's command buffer is the host's to submit");
   if (submitted_) throw std::logic_error("CommandBatch submitted twice");
   const auto& vk = ctx_.vk();
   // Make every device write available to the host before the fence signals.
-  VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-  b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
-  b.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-  vk.vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
-                          VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &b, 0, nullptr, 0, nullptr);
+  barrier_to_host();
   VK_CHECK(vk.vkEndCommandBuffer(cmd_));
   VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
   submit.commandBufferCount = 1;
@@ -242,10 +295,12 @@ void CommandBatch::submit() {
     std::lock_guard lock(ctx_.queue_mutex());
     VK_CHECK(vk.vkQueueSubmit(ctx_.queue(), 1, &submit, fence_));
   }
+  ctx_.count_submission();
   submitted_ = true;
 }
 
 void CommandBatch::wait() {
+  if (external_) throw std::logic_error("CommandBatch: the host waits for its own command buffer");
   if (!submitted_) throw std::logic_error("CommandBatch waited for before it was submitted");
   if (waited_) return;
   // Device work waited for inside an upload or a readback counts as that transfer (nested scopes).

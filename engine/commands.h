@@ -39,6 +39,12 @@ struct Groups {
 class CommandBatch {
  public:
   explicit CommandBatch(Context& ctx);
+  // A batch that records into a host's command buffer `cmd` (in the recording state, from a pool
+  // of the context's queue family) instead of its own: the host submits it and waits for it, so
+  // submit(), wait() and timestamps are not available (std::logic_error). The batch owns the
+  // descriptor sets and buffer views its dispatches use: keep it until the host's wait for that
+  // submission has returned (destroying it earlier frees what the device may still read).
+  CommandBatch(Context& ctx, VkCommandBuffer cmd);
   ~CommandBatch();
   CommandBatch(const CommandBatch&) = delete;
   CommandBatch& operator=(const CommandBatch&) = delete;
@@ -55,8 +61,21 @@ class CommandBatch {
   }
   // Orders all earlier compute and transfer writes before later compute and transfer accesses.
   void barrier();
+  // Makes every earlier compute and transfer write visible to the host once the host's fence or
+  // semaphore wait for this work returns (what submit() records at the end of an own batch).
+  void barrier_to_host();
   void copy(const Buffer& src, uint64_t src_offset, const Buffer& dst, uint64_t dst_offset, uint64_t bytes);
   void fill(Buffer& dst, uint32_t value);
+  // Writes `bytes` (a multiple of 4) of host data into `dst` at `offset` (a multiple of 4) from
+  // within the command buffer (vkCmdUpdateBuffer, in pieces of at most 64 KiB): small tables, no
+  // staging memory to keep alive.
+  void update(const Buffer& dst, uint64_t offset, const void* data, uint64_t bytes);
+  // Copies `width` texels from the start of `src` into row 0 of mip level 0, layer 0 of `image`
+  // (a 1D or 2D colour image of `format`'s texel size), moving it from `old_layout` to
+  // TRANSFER_DST_OPTIMAL first and to `new_layout` after, where `dst_stages`/`dst_access` (the
+  // host's next use) wait for the copy. Earlier transfer writes to `src` are ordered before it.
+  void copy_to_image(const Buffer& src, VkImage image, uint32_t width, VkImageLayout old_layout,
+                     VkImageLayout new_layout, VkPipelineStageFlags dst_stages, VkAccessFlags dst_access);
   // Writes a GPU timestamp after all earlier work; returns its slot.
   uint32_t timestamp();
   // Submits, waits for completion (device writes then visible to the host) and resets nothing:
@@ -81,6 +100,7 @@ class CommandBatch {
   uint32_t query_count_ = 0;
   std::vector<uint64_t> query_results_;
   bool submitted_ = false, waited_ = false;
+  bool external_ = false;  // recording into a host's command buffer
 };
 
 }  // namespace tfm

@@ -155,6 +155,10 @@ class Context {
   uint64_t buffer_bytes() const { return buffer_bytes_.load(); }
   uint64_t peak_buffer_bytes() const { return peak_buffer_bytes_.load(); }
   void reset_peak_buffer_bytes() { peak_buffer_bytes_.store(buffer_bytes_.load()); }
+  // Queue submissions this context has made (CommandBatch::submit): none happen on the recording
+  // path, where the host submits (tests check that the count does not move there).
+  uint64_t submissions() const { return submissions_.load(); }
+  void count_submission() { submissions_.fetch_add(1); }
   void track_buffer_bytes(int64_t delta) {  // called by Buffer on allocation and release
     const uint64_t now = buffer_bytes_.fetch_add(uint64_t(delta)) + uint64_t(delta);
     uint64_t peak = peak_buffer_bytes_.load();
@@ -193,6 +197,7 @@ class Context {
   std::mutex messages_mutex_;
   std::vector<std::string> messages_;
   std::mutex queue_mutex_;
+  std::atomic<uint64_t> submissions_{0};
   std::atomic<uint64_t> buffer_bytes_{0}, peak_buffer_bytes_{0};
   std::unique_ptr<StagingBuffers> staging_;  // released before the device
   VkPipelineCache pipeline_cache_ = VK_NULL_HANDLE;

@@ -8,7 +8,9 @@
 
 namespace tfm {
 
-DeviceField::DeviceField(Context& ctx, uint64_t voxel_count, const std::string& name, uint64_t max_chunk_voxels)
+// The chunking alone (no buffers yet): both the owning constructor and adopt() start here.
+DeviceField::DeviceField(ChunkingOnly, Context& ctx, uint64_t voxel_count, uint64_t max_chunk_voxels,
+                         const std::string& name)
     : ctx_(&ctx), voxels_(voxel_count) {
   if (voxel_count == 0) throw std::invalid_argument("DeviceField '" + name + "': no voxels");
   // Chunks are whole multiples of 1024 voxels so chunk boundaries never split a workgroup's span.
@@ -18,11 +20,23 @@ DeviceField::DeviceField(Context& ctx, uint64_t voxel_count, const std::string& 
       (std::min<uint64_t>(ctx.max_buffer_bytes() / sizeof(float), ctx.limits().maxTexelBufferElements)) / 1024 * 1024;
   chunk_voxels_ = std::min(device_chunk, voxel_count);
   if (max_chunk_voxels) chunk_voxels_ = std::min(chunk_voxels_, max_chunk_voxels);
-  size_t count = static_cast<size_t>((voxel_count + chunk_voxels_ - 1) / chunk_voxels_);
-  chunks_.reserve(count);
-  for (size_t i = 0; i < count; ++i)
+  chunks_.reserve(planned_chunks());
+}
+
+DeviceField::DeviceField(Context& ctx, uint64_t voxel_count, const std::string& name, uint64_t max_chunk_voxels)
+    : DeviceField(ChunkingOnly{}, ctx, voxel_count, max_chunk_voxels, name) {
+  for (size_t i = 0; i < planned_chunks(); ++i)
     chunks_.emplace_back(ctx, chunk_size(i) * sizeof(float), MemoryUsage::Device,
                          name + " chunk " + std::to_string(i));
+}
+
+DeviceField DeviceField::adopt(Context& ctx, VkBuffer buffer, uint64_t offset, uint64_t voxel_count,
+                               const std::string& name, uint64_t max_chunk_voxels) {
+  DeviceField field(ChunkingOnly{}, ctx, voxel_count, max_chunk_voxels, name);
+  for (size_t i = 0; i < field.planned_chunks(); ++i)
+    field.chunks_.push_back(Buffer::adopt(ctx, buffer, offset + field.chunk_begin(i) * sizeof(float),
+                                          field.chunk_size(i) * sizeof(float), name + " chunk " + std::to_string(i)));
+  return field;
 }
 
 DeviceField::DeviceField(Context& ctx, std::span<const float> values, const std::string& name,

@@ -20,6 +20,12 @@ class DeviceField {
   DeviceField(Context& ctx, uint64_t voxel_count, const std::string& name, uint64_t max_chunk_voxels = 0);
   DeviceField(Context& ctx, std::span<const float> values, const std::string& name,
               uint64_t max_chunk_voxels = 0);
+  // A field already on the device in a caller's buffer: `voxel_count` float32 values from byte
+  // `offset` of `buffer`, chunked as the engine's own fields are, each chunk a view of the caller's
+  // range (Buffer::adopt; the same alignment rule). Nothing is copied or allocated, on the device or
+  // the host; the caller keeps the buffer alive, and unchanged while recorded work reads it.
+  static DeviceField adopt(Context& ctx, VkBuffer buffer, uint64_t offset, uint64_t voxel_count,
+                           const std::string& name, uint64_t max_chunk_voxels = 0);
 
   void upload(std::span<const float> values);
   uint64_t voxel_count() const { return voxels_; }
@@ -33,6 +39,10 @@ class DeviceField {
   std::vector<const Buffer*> chunk_array(size_t slots) const;
 
  private:
+  struct ChunkingOnly {};
+  // Sets the chunking and checks the size; makes no buffers.
+  DeviceField(ChunkingOnly, Context& ctx, uint64_t voxel_count, uint64_t max_chunk_voxels, const std::string& name);
+  size_t planned_chunks() const { return static_cast<size_t>((voxels_ + chunk_voxels_ - 1) / chunk_voxels_); }
   Context* ctx_;
   uint64_t voxels_ = 0;
   uint64_t chunk_voxels_ = 0;

@@ -33,7 +33,10 @@ class HostDevice {
   const std::vector<std::string>& messages() const { return messages_; }
 
   VkInstance instance() const { return instance_; }
+  VkPhysicalDevice physical() const { return physical_; }
   VkDevice device() const { return device_; }
+  VkQueue queue() const { return queue_; }
+  uint32_t queue_family() const { return family_; }
 
  private:
   static VKAPI_ATTR VkBool32 VKAPI_CALL on_message(VkDebugUtilsMessageSeverityFlagBitsEXT,

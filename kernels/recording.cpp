@@ -1,0 +1,153 @@
+// Recording the assembly and the TF upload into a host's command buffers (kernels/recording.h).
+#include "recording.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+#include <glm/gtc/packing.hpp>
+
+#include "commands.h"
+#include "context.h"
+#include "shared_layout.h"
+#include "voxel_pair.h"
+
+namespace tfm {
+
+namespace {
+
+void check_tf_table(std::span<const float> rgba, const char* what) {
+  if (rgba.size() % 4 || rgba.size() < 8)
+    throw std::invalid_argument(std::string(what) + ": a TF table needs N >= 2 RGBA entries (4N floats), got " +
+                                std::to_string(rgba.size()) + " floats");
+}
+
+}  // namespace
+
+NormalEquationsRecorder::NormalEquationsRecorder(Context& ctx, uint32_t tf_size, ReductionOptions options)
+    : ctx_(ctx), kernel_(std::make_unique<AssembleNormalEquationsKernel>(ctx, tf_size, options)) {
+  const uint64_t bytes = uint64_t(kernel_->slots()) * gpu::kFixedSlotBytes;
+  accum_ = Buffer(ctx, bytes, MemoryUsage::Device, "recorded normal-equation accumulators");
+  result_ = Buffer(ctx, bytes, MemoryUsage::Readback, "recorded normal-equation result");
+}
+
+NormalEquationsRecorder::~NormalEquationsRecorder() = default;
+
+uint32_t NormalEquationsRecorder::tf_size() const { return kernel_->tf_size(); }
+
+void NormalEquationsRecorder::record_assemble(VkCommandBuffer cmd, const DeviceField& ref, const DeviceField& opt,
+                                              const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                              std::span<const float> ref_tf_rgba) {
+  check_tf_table(ref_tf_rgba, "record_assemble");
+  if (ref_tf_rgba.size() / 4 != ref_map.tf_size)
+    throw std::invalid_argument("record_assemble: the reference TF has " + std::to_string(ref_tf_rgba.size() / 4) +
+                                " entries, its mapping " + std::to_string(ref_map.tf_size));
+  const uint64_t tf_bytes = ref_tf_rgba.size_bytes();
+  if (ref_tf_.size() < tf_bytes) ref_tf_ = Buffer(ctx_, tf_bytes, MemoryUsage::Device, "recorded reference TF");
+  // The new recording replaces the last one's descriptor sets: the host waited for it (header).
+  auto batch = std::make_unique<CommandBatch>(ctx_, cmd);
+  // Earlier uses of the recorder's memory in this command buffer (an earlier recording's copy of
+  // the result, its reads of the table) finish before they are overwritten.
+  batch->barrier();
+  batch->update(ref_tf_, 0, ref_tf_rgba.data(), tf_bytes);
+  batch->fill(accum_, 0u);
+  batch->barrier();
+  kernel_->record(*batch, ref, opt, ref_map, opt_map, ref_tf_, accum_);  // ends with a barrier
+  batch->copy(accum_, 0, result_, 0, accum_.size());
+  batch->barrier_to_host();
+  recording_ = std::move(batch);
+}
+
+std::vector<uint32_t> NormalEquationsRecorder::result_words() const {
+  if (!recording_) throw std::logic_error("NormalEquationsRecorder::result: nothing recorded yet");
+  std::vector<uint32_t> words(size_t(kernel_->slots()) * 2);
+  std::memcpy(words.data(), result_.mapped(), words.size() * sizeof(uint32_t));
+  return words;
+}
+
+NormalEquations NormalEquationsRecorder::result() const {
+  return NormalEquations::from_slots(kernel_->tf_size(), decode_fixed_point(result_words()), false);
+}
+
+std::vector<uint64_t> NormalEquationsRecorder::fixed_point_slots() const {
+  const std::vector<uint32_t> words = result_words();
+  std::vector<uint64_t> slots(words.size() / 2);
+  for (size_t k = 0; k < slots.size(); ++k) slots[k] = uint64_t(words[2 * k]) | uint64_t(words[2 * k + 1]) << 32;
+  return slots;
+}
+
+RecordedAccess NormalEquationsRecorder::access() {
+  return {VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+          VK_ACCESS_SHADER_READ_BIT, 0};
+}
+
+std::vector<uint8_t> encode_tf_texels(std::span<const float> rgba, VkFormat format) {
+  check_tf_table(rgba, "encode_tf_texels");
+  std::vector<uint8_t> out;
+  switch (format) {
+    case VK_FORMAT_R32G32B32A32_SFLOAT:
+      out.resize(rgba.size_bytes());
+      std::memcpy(out.data(), rgba.data(), out.size());
+      break;
+    case VK_FORMAT_R16G16B16A16_SFLOAT:
+      out.resize(rgba.size() * 2);
+      for (size_t i = 0; i < rgba.size(); ++i) {
+        const uint16_t h = glm::packHalf1x16(rgba[i]);
+        std::memcpy(out.data() + 2 * i, &h, 2);
+      }
+      break;
+    case VK_FORMAT_R8G8B8A8_UNORM:
+      out.resize(rgba.size());
+      for (size_t i = 0; i < rgba.size(); ++i)
+        out[i] = uint8_t(std::lround(std::clamp(rgba[i], 0.0f, 1.0f) * 255.0f));
+      break;
+    default:
+      throw std::invalid_argument("record_tf_upload: TF image format " + std::to_string(int(format)) +
+                                  " (supported: R32G32B32A32_SFLOAT, R16G16B16A16_SFLOAT, R8G8B8A8_UNORM)");
+  }
+  return out;
+}
+
+TfUploadRecorder::TfUploadRecorder(Context& ctx) : ctx_(ctx) {}
+TfUploadRecorder::~TfUploadRecorder() = default;
+
+void TfUploadRecorder::record_tf_upload(VkCommandBuffer cmd, std::span<const float> rgba, const TfBufferTarget& target) {
+  check_tf_table(rgba, "record_tf_upload");
+  const uint64_t bytes = rgba.size_bytes();
+  if (target.size != VK_WHOLE_SIZE && target.size < bytes)
+    throw std::invalid_argument("record_tf_upload: the table needs " + std::to_string(bytes) +
+                                " bytes, the target range holds " + std::to_string(target.size));
+  if (target.offset % 4) throw std::invalid_argument("record_tf_upload: the target offset is not a multiple of 4");
+  // A view of the host's range, for the command's bounds (an update needs no alignment beyond 4).
+  Buffer dst;
+  const VkPhysicalDeviceLimits& limits = ctx_.limits();
+  const uint64_t align = std::max<uint64_t>(limits.minStorageBufferOffsetAlignment, limits.minTexelBufferOffsetAlignment);
+  const uint64_t base = target.offset / align * align;
+  dst = Buffer::adopt(ctx_, target.buffer, base, target.offset - base + bytes, "record_tf_upload target");
+  auto batch = std::make_unique<CommandBatch>(ctx_, cmd);
+  batch->update(dst, target.offset - base, rgba.data(), bytes);
+  recording_ = std::move(batch);
+}
+
+void TfUploadRecorder::record_tf_upload(VkCommandBuffer cmd, std::span<const float> rgba, const TfImageTarget& target) {
+  if (target.image == VK_NULL_HANDLE) throw std::invalid_argument("record_tf_upload: no image (VK_NULL_HANDLE)");
+  const std::vector<uint8_t> texels = encode_tf_texels(rgba, target.format);
+  const uint64_t bytes = (texels.size() + 3) / 4 * 4;
+  if (staging_.size() < bytes) staging_ = Buffer(ctx_, bytes, MemoryUsage::Device, "recorded TF staging");
+  std::vector<uint8_t> padded(texels);
+  padded.resize(bytes, 0);
+  auto batch = std::make_unique<CommandBatch>(ctx_, cmd);
+  batch->barrier();  // an earlier copy out of the staging buffer in this command buffer finishes first
+  batch->update(staging_, 0, padded.data(), bytes);
+  batch->copy_to_image(staging_, target.image, uint32_t(rgba.size() / 4), target.old_layout, target.new_layout,
+                       target.dst_stages, target.dst_access);
+  recording_ = std::move(batch);
+}
+
+RecordedAccess TfUploadRecorder::access() {
+  return {VK_PIPELINE_STAGE_TRANSFER_BIT, 0, VK_ACCESS_TRANSFER_WRITE_BIT};
+}
+
+}  // namespace tfm

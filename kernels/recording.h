@@ -1,0 +1,127 @@
+// tfmatch's work recorded into a host's command buffers (DESIGN.md "Where the data lives"): a
+// renderer that already holds its volumes on the device re-fits a TF inside its own frame. The
+// queue stays the host's: nothing here submits or waits. Each record_* call states what it reads
+// and writes and in which pipeline stages (RecordedAccess); the host orders its own work against
+// that with its barriers or semaphores, submits the command buffer itself, and reads the small
+// result (O(N): M, Sᵀb, bᵀb) after its own fence or timeline-semaphore wait.
+//
+// The per-frame protocol (tools/examples/renderer and tests/engine/test_embedding_recording.cpp):
+//   frame k:   host barrier (its writes of the volumes -> compute-shader reads)
+//              recorder.record_assemble(cmd, ref, opt, maps, reference TF)
+//              host submits cmd with its fence
+//   frame k+1: host waits for that fence; eq = recorder.result(); x = solve_normal_equations(eq)
+//              uploader.record_tf_upload(cmd, x, the host's TF image or buffer), host samples it
+// A recorder keeps the descriptor sets of its last recording until the next one, so each
+// submission in flight needs its own recorder (one per frame in flight, as the host's command
+// buffers are); record again only after the host's wait for the previous recording returned.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include <vulkan/vulkan_core.h>
+
+#include "buffer.h"
+#include "device_field.h"
+#include "field_mapping.h"
+#include "normal_equations_system.h"
+#include "reduction.h"
+
+namespace tfm {
+
+class CommandBatch;
+class Context;
+class AssembleNormalEquationsKernel;
+
+// What a recorded operation does to memory the host shares with it.
+struct RecordedAccess {
+  VkPipelineStageFlags stages = 0;  // the stages its commands run in
+  VkAccessFlags reads = 0;          // how it reads the host's resources (volumes, TF) there
+  VkAccessFlags writes = 0;         // how it writes the host's resources there (0: only its own)
+};
+
+class NormalEquationsRecorder {
+ public:
+  // Creates the accumulators (device), the result's host-visible copy and the reference-TF table
+  // once; pipelines are made on the first recording. Throws as GpuNormalEquations does.
+  NormalEquationsRecorder(Context& ctx, uint32_t tf_size, ReductionOptions options = {});
+  ~NormalEquationsRecorder();
+  NormalEquationsRecorder(const NormalEquationsRecorder&) = delete;
+  NormalEquationsRecorder& operator=(const NormalEquationsRecorder&) = delete;
+
+  // Records into `cmd` (recording, from a pool of the context's queue family): the reference TF
+  // `ref_tf_rgba` (N_r RGBA entries as 4 N_r floats, written inside the command buffer into the
+  // recorder's own table), zeroed accumulators, the assembly of (ref, opt) with the same kernels
+  // and bits as GpuNormalEquations, and the copy of the result into host-visible memory with a
+  // barrier that makes it visible to the host after its wait. `ref` and `opt` may be the host's
+  // buffers (DeviceField::adopt). Reads them in the compute-shader stage (access()); the host's
+  // writes to them must be ordered before with its own barrier. Throws std::invalid_argument for
+  // sizes that do not match (fields, mappings, TF).
+  void record_assemble(VkCommandBuffer cmd, const DeviceField& ref, const DeviceField& opt,
+                       const FieldMapping& ref_map, const FieldMapping& opt_map, std::span<const float> ref_tf_rgba);
+  // The system of the last recording, once the host's wait for its submission returned (before
+  // that the numbers are undefined). std::logic_error before any recording.
+  NormalEquations result() const;
+  // Its exact totals (GpuNormalEquations::fixed_point_slots): equal bits prove equal systems.
+  std::vector<uint64_t> fixed_point_slots() const;
+  // record_assemble reads the host's fields in the compute-shader stage and writes only the
+  // recorder's own memory (transfer and compute stages, made visible to the host).
+  static RecordedAccess access();
+  uint32_t tf_size() const;
+
+ private:
+  std::vector<uint32_t> result_words() const;
+  Context& ctx_;
+  std::unique_ptr<AssembleNormalEquationsKernel> kernel_;
+  Buffer accum_, result_, ref_tf_;
+  std::unique_ptr<CommandBatch> recording_;  // the last recording's descriptor sets and views
+};
+
+// Where record_tf_upload writes a TF table: a host's buffer (N RGBA float32 entries from
+// `offset`), or row 0 of a host's 1D (or 2D) image of N texels in one of the formats below.
+struct TfBufferTarget {
+  VkBuffer buffer = VK_NULL_HANDLE;  // with VK_BUFFER_USAGE_TRANSFER_DST_BIT
+  uint64_t offset = 0;               // a multiple of 4
+  uint64_t size = VK_WHOLE_SIZE;     // of the host's range, to check the table fits
+};
+struct TfImageTarget {
+  VkImage image = VK_NULL_HANDLE;  // with VK_IMAGE_USAGE_TRANSFER_DST_BIT, width N, mip 0, layer 0 written
+  VkFormat format = VK_FORMAT_R32G32B32A32_SFLOAT;  // or R16G16B16A16_SFLOAT, R8G8B8A8_UNORM
+  VkImageLayout old_layout = VK_IMAGE_LAYOUT_UNDEFINED;                    // its layout before (contents dropped)
+  VkImageLayout new_layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;     // its layout after
+  VkPipelineStageFlags dst_stages = VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT;  // where the host reads it next
+  VkAccessFlags dst_access = VK_ACCESS_SHADER_READ_BIT;
+};
+
+class TfUploadRecorder {
+ public:
+  explicit TfUploadRecorder(Context& ctx);
+  ~TfUploadRecorder();
+  TfUploadRecorder(const TfUploadRecorder&) = delete;
+  TfUploadRecorder& operator=(const TfUploadRecorder&) = delete;
+
+  // Records the write of `rgba` (N entries as 4N floats in [0, 1], e.g. Solution::rgba) into the
+  // host's buffer, inside the command buffer (vkCmdUpdateBuffer: transfer stage, transfer write).
+  // The host orders its reads after it (a barrier from VK_PIPELINE_STAGE_TRANSFER_BIT).
+  void record_tf_upload(VkCommandBuffer cmd, std::span<const float> rgba, const TfBufferTarget& target);
+  // Records the write into the host's image: the table converted to the image's format on the
+  // host (float16 by glm::packHalf1x16; unorm8 round(255 x)), written into the recorder's staging
+  // buffer inside the command buffer, copied to the image with the layout changes and the barrier
+  // to `dst_stages`/`dst_access` recorded here. Keep the recorder until the host's wait returned.
+  // Throws std::invalid_argument for another format or fewer than 2 entries.
+  void record_tf_upload(VkCommandBuffer cmd, std::span<const float> rgba, const TfImageTarget& target);
+  static RecordedAccess access();
+
+ private:
+  Context& ctx_;
+  Buffer staging_;
+  std::unique_ptr<CommandBatch> recording_;
+};
+
+// The bytes a TF table has in `format` (R32G32B32A32_SFLOAT, R16G16B16A16_SFLOAT, R8G8B8A8_UNORM),
+// as record_tf_upload writes them: the CPU side of the conversion, for hosts and tests.
+std::vector<uint8_t> encode_tf_texels(std::span<const float> rgba, VkFormat format);
+
+}  // namespace tfm

@@ -1,0 +1,328 @@
+// A renderer-like host that keeps its volumes in its own device buffer and re-fits a TF inside its
+// own command buffers (kernels/recording.h): tfmatch reads the host's buffer in place, records
+// into the host's command buffer and never submits; the host submits, waits on its fence, reads
+// the O(N) result, solves and records the TF's upload into its own buffer and 1D images. The
+// validation layer with synchronization validation watches the host's command buffers.
+#include <vulkan/vulkan.h>  // the loader's prototypes first, as such a host includes them
+
+#include <cmath>
+#include <algorithm>
+#include <cstring>
+#include <memory>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "buffer.h"
+#include "context.h"
+#include "device_field.h"
+#include "gpu_voxel_ops.h"
+#include "host_device.h"
+#include "memory_budget.h"
+#include "normal_equations.h"
+#include "recording.h"
+
+namespace tfm {
+namespace {
+
+// The host's own objects, made and destroyed with the loader's functions.
+class Host {
+ public:
+  explicit Host(test::HostDevice& device) : d_(device) {
+    VkCommandPoolCreateInfo pi{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+    pi.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+    pi.queueFamilyIndex = d_.queue_family();
+    EXPECT_EQ(vkCreateCommandPool(d_.device(), &pi, nullptr, &pool_), VK_SUCCESS);
+    VkCommandBufferAllocateInfo ai{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+    ai.commandPool = pool_;
+    ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    ai.commandBufferCount = 1;
+    EXPECT_EQ(vkAllocateCommandBuffers(d_.device(), &ai, &cmd_), VK_SUCCESS);
+    VkFenceCreateInfo fi{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    EXPECT_EQ(vkCreateFence(d_.device(), &fi, nullptr, &fence_), VK_SUCCESS);
+  }
+  ~Host() {
+    vkDeviceWaitIdle(d_.device());
+    for (VkImage i : images_) vkDestroyImage(d_.device(), i, nullptr);
+    for (VkBuffer b : buffers_) vkDestroyBuffer(d_.device(), b, nullptr);
+    for (VkDeviceMemory m : memories_) vkFreeMemory(d_.device(), m, nullptr);
+    vkDestroyFence(d_.device(), fence_, nullptr);
+    vkDestroyCommandPool(d_.device(), pool_, nullptr);
+  }
+
+  // A host-visible buffer (the host fills and reads it through `mapped`).
+  VkBuffer buffer(uint64_t bytes, void** mapped) {
+    VkBufferCreateInfo bi{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+    bi.size = bytes;
+    bi.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT |
+               VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+    VkBuffer b = VK_NULL_HANDLE;
+    EXPECT_EQ(vkCreateBuffer(d_.device(), &bi, nullptr, &b), VK_SUCCESS);
+    buffers_.push_back(b);
+    VkMemoryRequirements req{};
+    vkGetBufferMemoryRequirements(d_.device(), b, &req);
+    VkDeviceMemory m = allocate(req, VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
+    EXPECT_EQ(vkBindBufferMemory(d_.device(), b, m, 0), VK_SUCCESS);
+    EXPECT_EQ(vkMapMemory(d_.device(), m, 0, VK_WHOLE_SIZE, 0, mapped), VK_SUCCESS);
+    return b;
+  }
+  // A 1D image of `width` texels of `format`, sampled by the host's shaders and written by copies.
+  VkImage image_1d(VkFormat format, uint32_t width) {
+    VkImageCreateInfo ii{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
+    ii.imageType = VK_IMAGE_TYPE_1D;
+    ii.format = format;
+    ii.extent = {width, 1, 1};
+    ii.mipLevels = 1;
+    ii.arrayLayers = 1;
+    ii.samples = VK_SAMPLE_COUNT_1_BIT;
+    ii.tiling = VK_IMAGE_TILING_OPTIMAL;
+    ii.usage = VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+    ii.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+    VkImage image = VK_NULL_HANDLE;
+    EXPECT_EQ(vkCreateImage(d_.device(), &ii, nullptr, &image), VK_SUCCESS);
+    images_.push_back(image);
+    VkMemoryRequirements req{};
+    vkGetImageMemoryRequirements(d_.device(), image, &req);
+    EXPECT_EQ(vkBindImageMemory(d_.device(), image, allocate(req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT), 0), VK_SUCCESS);
+    return image;
+  }
+
+  VkCommandBuffer begin() {
+    EXPECT_EQ(vkResetCommandBuffer(cmd_, 0), VK_SUCCESS);
+    VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+    bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    EXPECT_EQ(vkBeginCommandBuffer(cmd_, &bi), VK_SUCCESS);
+    return cmd_;
+  }
+  // Ends, submits on the host's queue with the host's fence, and waits.
+  void submit_and_wait() {
+    EXPECT_EQ(vkEndCommandBuffer(cmd_), VK_SUCCESS);
+    VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+    si.commandBufferCount = 1;
+    si.pCommandBuffers = &cmd_;
+    EXPECT_EQ(vkQueueSubmit(d_.queue(), 1, &si, fence_), VK_SUCCESS);
+    EXPECT_EQ(vkWaitForFences(d_.device(), 1, &fence_, VK_TRUE, UINT64_MAX), VK_SUCCESS);
+    EXPECT_EQ(vkResetFences(d_.device(), 1, &fence_), VK_SUCCESS);
+  }
+  // The host's own writes of its volume (copies, as a renderer streams data in) and the barrier
+  // that orders them before tfmatch's compute-shader reads (NormalEquationsRecorder::access()).
+  static void write_volume(VkCommandBuffer cmd, VkBuffer staging, VkBuffer volume, const std::vector<VkBufferCopy>& regions) {
+    vkCmdCopyBuffer(cmd, staging, volume, uint32_t(regions.size()), regions.data());
+    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    b.dstAccessMask = NormalEquationsRecorder::access().reads;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, NormalEquationsRecorder::access().stages, 0, 1, &b, 0,
+                         nullptr, 0, nullptr);
+  }
+  // Copies row 0 of `image` (in TRANSFER_SRC_OPTIMAL after tfmatch's upload) into `dst` and makes
+  // it visible to the host.
+  void read_image(VkCommandBuffer cmd, VkImage image, uint32_t width, VkBuffer dst) {
+    VkBufferImageCopy region{};
+    region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+    region.imageExtent = {width, 1, 1};
+    vkCmdCopyImageToBuffer(cmd, image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, dst, 1, &region);
+    host_barrier(cmd);
+  }
+  static void host_barrier(VkCommandBuffer cmd) {
+    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    b.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &b, 0, nullptr, 0,
+                         nullptr);
+  }
+
+ private:
+  VkDeviceMemory allocate(const VkMemoryRequirements& req, VkMemoryPropertyFlags wanted) {
+    VkPhysicalDeviceMemoryProperties props{};
+    vkGetPhysicalDeviceMemoryProperties(d_.physical(), &props);
+    uint32_t type = 0;
+    while (type < props.memoryTypeCount &&
+           !((req.memoryTypeBits >> type & 1u) && (props.memoryTypes[type].propertyFlags & wanted) == wanted))
+      ++type;
+    EXPECT_LT(type, props.memoryTypeCount);
+    VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+    ai.allocationSize = req.size;
+    ai.memoryTypeIndex = type;
+    VkDeviceMemory m = VK_NULL_HANDLE;
+    EXPECT_EQ(vkAllocateMemory(d_.device(), &ai, nullptr, &m), VK_SUCCESS);
+    memories_.push_back(m);
+    return m;
+  }
+  test::HostDevice& d_;
+  VkCommandPool pool_ = VK_NULL_HANDLE;
+  VkCommandBuffer cmd_ = VK_NULL_HANDLE;
+  VkFence fence_ = VK_NULL_HANDLE;
+  std::vector<VkBuffer> buffers_;
+  std::vector<VkImage> images_;
+  std::vector<VkDeviceMemory> memories_;
+};
+
+// Two fields with structure at every scale, NaN here and there (no data), awkward sizes.
+void make_fields(uint64_t voxels, std::vector<float>& ref, std::vector<float>& opt) {
+  ref.resize(voxels);
+  opt.resize(voxels);
+  for (uint64_t i = 0; i < voxels; ++i) {
+    const double s = double(i) / double(voxels);
+    ref[i] = float(0.5 + 0.45 * std::sin(37.0 * s) * std::cos(5.0 * s));
+    opt[i] = float(std::pow(double(ref[i]), 1.7) * 3.0 + 0.01 * std::sin(1000.0 * s));
+    if (i % 997 == 13) opt[i] = NAN;
+  }
+}
+
+TransferFunction reference_tf(double shift) {
+  TransferFunction tf;
+  for (int j = 0; j < 7; ++j) {
+    const double t = j / 6.0;
+    tf.rgba.push_back({t, std::fmod(t + shift, 1.0), 1.0 - t, 0.1 + 0.8 * t * t});
+  }
+  return tf;
+}
+
+TEST(EmbeddingRecording, AssemblyAndTfUploadRecordIntoTheHostsCommandBuffers) {
+  test::HostDevice device;
+  ASSERT_NO_FATAL_FAILURE(device.create());
+  {
+    auto ctx = Context::adopt(device.external());
+    Host host(device);
+    // The host's volume buffer holds both fields, the second at an offset that is not a chunk
+    // boundary's; small chunks (max_chunk_voxels) make each adopted field span several views.
+    const uint64_t voxels = 20000 + 37, chunk = 4096;
+    const uint64_t align = 256;  // a multiple of every device's storage/texel offset alignment (<= 256)
+    const uint64_t opt_offset = (voxels * 4 + align - 1) / align * align + align;
+    std::vector<float> ref, opt;
+    make_fields(voxels, ref, opt);
+    void* volume_map = nullptr;
+    void* staging_map = nullptr;
+    VkBuffer volume = host.buffer(opt_offset + voxels * 4, &volume_map);
+    VkBuffer staging = host.buffer(voxels * 4 * 2, &staging_map);
+    std::memcpy(staging_map, ref.data(), voxels * 4);
+    std::memcpy(static_cast<char*>(staging_map) + voxels * 4, opt.data(), voxels * 4);
+
+    const uint32_t n = 24;
+    const FieldMapping rm = make_mapping({0.05, 0.95}, 7), om = make_mapping({0.0, 2.6}, n);
+    DeviceField ref_field = DeviceField::adopt(*ctx, volume, 0, voxels, "host ref", chunk);
+    DeviceField opt_field = DeviceField::adopt(*ctx, volume, opt_offset, voxels, "host opt", chunk);
+    EXPECT_GT(ref_field.chunk_count(), 1u);
+    NormalEquationsRecorder recorder(*ctx, n);
+    TfUploadRecorder uploader(*ctx);
+
+    for (double shift : {0.0, 0.37}) {  // two frames, the reference TF edited in between
+      SCOPED_TRACE("reference TF shift " + std::to_string(shift));
+      const TransferFunction tf = reference_tf(shift);
+      const std::vector<float> tf_floats = tf.as_floats();
+      const uint64_t submissions = ctx->submissions();
+      VkCommandBuffer cmd = host.begin();
+      if (shift == 0.0)  // the host streams its volume in once
+        Host::write_volume(cmd, staging, volume, {{0, 0, voxels * 4}, {voxels * 4, opt_offset, voxels * 4}});
+      recorder.record_assemble(cmd, ref_field, opt_field, rm, om, tf_floats);
+      EXPECT_EQ(ctx->submissions(), submissions) << "record_assemble submitted work";
+      host.submit_and_wait();
+      const std::vector<uint64_t> recorded = recorder.fixed_point_slots();
+      const NormalEquations eq = recorder.result();
+      EXPECT_EQ(ctx->submissions(), submissions) << "reading the result submitted work";
+
+      // The same system from host arrays through tfmatch's own submissions: the same bits, for
+      // this chunking and the device's own.
+      for (uint64_t own_chunk : {chunk, uint64_t(0)}) {
+        DeviceField r(*ctx, ref, "ref", own_chunk), o(*ctx, opt, "opt", own_chunk);
+        Buffer tfb = upload_tf(*ctx, tf, "tf");
+        GpuNormalEquations blocking(*ctx, n);
+        blocking.add(r, o, rm, om, tfb);
+        EXPECT_EQ(recorded, blocking.fixed_point_slots()) << "chunk " << own_chunk;
+      }
+      EXPECT_EQ(eq.voxels, voxels - (voxels - 14) / 997 - 1);  // NaN voxels carry no equation
+
+      // Solve on the host; the next frame's command buffer writes the TF into the host's buffer
+      // and into 1D images of three formats.
+      const SolveResult solved = solve_normal_equations(eq);
+      const std::vector<float> fitted = solved.tf.as_floats();
+      void* tf_map = nullptr;
+      VkBuffer tf_buffer = host.buffer(64 + fitted.size() * 4, &tf_map);
+      struct Readback {
+        VkFormat format;
+        VkImage image;
+        VkBuffer buffer;
+        void* map;
+      };
+      std::vector<Readback> images;
+      for (VkFormat f : {VK_FORMAT_R32G32B32A32_SFLOAT, VK_FORMAT_R16G16B16A16_SFLOAT, VK_FORMAT_R8G8B8A8_UNORM}) {
+        Readback r{f, host.image_1d(f, n), VK_NULL_HANDLE, nullptr};
+        r.buffer = host.buffer(n * 16, &r.map);
+        images.push_back(r);
+      }
+      std::vector<std::unique_ptr<TfUploadRecorder>> image_uploaders;  // one per image: each keeps its staging
+      const uint64_t before_upload = ctx->submissions();
+      cmd = host.begin();
+      uploader.record_tf_upload(cmd, fitted, TfBufferTarget{tf_buffer, 64, fitted.size() * 4});
+      Host::host_barrier(cmd);
+      for (const Readback& r : images) {
+        TfImageTarget target;
+        target.image = r.image;
+        target.format = r.format;
+        target.new_layout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;  // the host copies it back to check
+        target.dst_stages = VK_PIPELINE_STAGE_TRANSFER_BIT;
+        target.dst_access = VK_ACCESS_TRANSFER_READ_BIT;
+        image_uploaders.push_back(std::make_unique<TfUploadRecorder>(*ctx));
+        image_uploaders.back()->record_tf_upload(cmd, fitted, target);
+        host.read_image(cmd, r.image, n, r.buffer);
+      }
+      EXPECT_EQ(ctx->submissions(), before_upload) << "record_tf_upload submitted work";
+      host.submit_and_wait();
+      EXPECT_EQ(0, std::memcmp(static_cast<char*>(tf_map) + 64, fitted.data(), fitted.size() * 4));
+      for (const Readback& r : images) {
+        const std::vector<uint8_t> expected = encode_tf_texels(fitted, r.format);
+        EXPECT_EQ(0, std::memcmp(r.map, expected.data(), expected.size())) << "format " << int(r.format);
+      }
+    }
+    // Host memory does not grow with the volume: a recording over 2 x 8 M voxels of the host's
+    // buffer (64 MiB) adds far less than one field to the process (pipelines exist by now).
+    const uint64_t big = 8u << 20;
+    void* big_map = nullptr;
+    VkBuffer big_volume = host.buffer(big * 8, &big_map);
+    std::memset(big_map, 0, big * 8);
+    for (uint64_t i = 0; i < 2 * big; i += 4096) static_cast<float*>(big_map)[i] = float(i % 7) / 6.0f;
+    DeviceField big_ref = DeviceField::adopt(*ctx, big_volume, 0, big, "big ref");
+    DeviceField big_opt = DeviceField::adopt(*ctx, big_volume, big * 4, big, "big opt");
+    const std::vector<float> tf_floats = reference_tf(0.0).as_floats();
+    const uint64_t before = resident_memory();
+    VkCommandBuffer cmd = host.begin();
+    recorder.record_assemble(cmd, big_ref, big_opt, rm, om, tf_floats);
+    host.submit_and_wait();
+    EXPECT_EQ(recorder.result().voxels, big);
+    const uint64_t grown = resident_memory() - std::min(before, resident_memory());
+    EXPECT_LT(grown, uint64_t(8) << 20) << "recording over a 32 MiB field grew host memory by " << grown << " bytes";
+  }
+  EXPECT_EQ(device.wait_idle(), VK_SUCCESS);
+  for (const auto& m : device.messages()) ADD_FAILURE() << "validation: " << m;
+}
+
+TEST(EmbeddingRecording, BadArgumentsAreClearErrors) {
+  test::HostDevice device;
+  ASSERT_NO_FATAL_FAILURE(device.create());
+  {
+    auto ctx = Context::adopt(device.external());
+    Host host(device);
+    void* map = nullptr;
+    VkBuffer volume = host.buffer(1 << 16, &map);
+    EXPECT_THROW(DeviceField::adopt(*ctx, VK_NULL_HANDLE, 0, 100, "f"), std::invalid_argument);
+    EXPECT_THROW(DeviceField::adopt(*ctx, volume, 4, 100, "f"), std::invalid_argument);  // misaligned
+    DeviceField f = DeviceField::adopt(*ctx, volume, 0, 1000, "f");
+    NormalEquationsRecorder recorder(*ctx, 8);
+    EXPECT_THROW(recorder.result(), std::logic_error);  // nothing recorded yet
+    const FieldMapping m = make_mapping({0, 1}, 8);
+    const std::vector<float> three_entries(12, 0.5f);
+    VkCommandBuffer cmd = host.begin();
+    EXPECT_THROW(recorder.record_assemble(cmd, f, f, m, m, three_entries), std::invalid_argument);  // 3 vs 8
+    TfUploadRecorder uploader(*ctx);
+    TfImageTarget bad;
+    bad.image = host.image_1d(VK_FORMAT_R8G8B8A8_UNORM, 3);
+    bad.format = VK_FORMAT_R8_UNORM;
+    EXPECT_THROW(uploader.record_tf_upload(cmd, three_entries, bad), std::invalid_argument);
+    EXPECT_THROW(uploader.record_tf_upload(cmd, three_entries, TfBufferTarget{volume, 0, 16}), std::invalid_argument);
+    host.submit_and_wait();  // nothing was recorded: an empty command buffer
+  }
+  for (const auto& m : device.messages()) ADD_FAILURE() << "validation: " << m;
+}
+
+}  // namespace
+}  // namespace tfm
