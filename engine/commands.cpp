@@ -76,6 +76,18 @@ CommandBatch::CommandBatch(Context& ctx, VkCommandBuffer cmd) : ctx_(ctx), cmd_(
   if (cmd == VK_NULL_HANDLE) throw std::invalid_argument("CommandBatch: no command buffer to record into");
 }
 
+void CommandBatch::restart(VkCommandBuffer cmd) {
+  if (!external_) throw std::logic_error("CommandBatch::restart: only a batch recording into a host's command buffer");
+  if (cmd == VK_NULL_HANDLE) throw std::invalid_argument("CommandBatch: no command buffer to record into");
+  const auto& vk = ctx_.vk();
+  for (auto v : buffer_views_) vk.vkDestroyBufferView(ctx_.device(), v, nullptr);
+  buffer_views_.clear();
+  // The pools are kept, reset: allocate_set fills them in order before it makes another.
+  for (auto p : descriptor_pools_) VK_CHECK(vk.vkResetDescriptorPool(ctx_.device(), p, 0));
+  current_pool_ = 0;
+  cmd_ = cmd;
+}
+
 CommandBatch::~CommandBatch() {
   const auto& vk = ctx_.vk();
   // A batch recorded but never submitted, or destroyed by an exception mid-wait, must not be
@@ -98,8 +110,8 @@ VkDescriptorSet CommandBatch::allocate_set(VkDescriptorSetLayout layout) {
   alloc.descriptorSetCount = 1;
   alloc.pSetLayouts = &layout;
   VkDescriptorSet set = VK_NULL_HANDLE;
-  if (!descriptor_pools_.empty()) {
-    alloc.descriptorPool = descriptor_pools_.back();
+  for (; current_pool_ < descriptor_pools_.size(); ++current_pool_) {
+    alloc.descriptorPool = descriptor_pools_[current_pool_];
     VkResult r = vk.vkAllocateDescriptorSets(ctx_.device(), &alloc, &set);
     if (r == VK_SUCCESS) return set;
     if (r != VK_ERROR_OUT_OF_POOL_MEMORY && r != VK_ERROR_FRAGMENTED_POOL)

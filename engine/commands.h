@@ -45,6 +45,10 @@ class CommandBatch {
   // descriptor sets and buffer views its dispatches use: keep it until the host's wait for that
   // submission has returned (destroying it earlier frees what the device may still read).
   CommandBatch(Context& ctx, VkCommandBuffer cmd);
+  // Starts recording into `cmd` again (a batch made with a host's command buffer only): the
+  // descriptor sets and buffer views of the last recording are released, their pools kept for
+  // reuse. The host's wait for the last recording must have returned.
+  void restart(VkCommandBuffer cmd);
   ~CommandBatch();
   CommandBatch(const CommandBatch&) = delete;
   CommandBatch& operator=(const CommandBatch&) = delete;
@@ -95,6 +99,7 @@ class CommandBatch {
   VkCommandBuffer cmd_ = VK_NULL_HANDLE;
   VkFence fence_ = VK_NULL_HANDLE;
   std::vector<VkDescriptorPool> descriptor_pools_;
+  size_t current_pool_ = 0;  // the pool allocate_set takes sets from; later ones are empty
   std::vector<VkBufferView> buffer_views_;  // of texel bindings, destroyed with the batch
   VkQueryPool queries_ = VK_NULL_HANDLE;
   uint32_t query_count_ = 0;

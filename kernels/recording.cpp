@@ -18,6 +18,16 @@ namespace tfm {
 
 namespace {
 
+// The recorder's batch, restarted on `cmd`: the last recording's descriptor pools are reused
+// (creating pools each frame cost lavapipe more than the assembly of a small field).
+CommandBatch& restart(std::unique_ptr<CommandBatch>& batch, Context& ctx, VkCommandBuffer cmd) {
+  if (batch)
+    batch->restart(cmd);
+  else
+    batch = std::make_unique<CommandBatch>(ctx, cmd);
+  return *batch;
+}
+
 void check_tf_table(std::span<const float> rgba, const char* what) {
   if (rgba.size() % 4 || rgba.size() < 8)
     throw std::invalid_argument(std::string(what) + ": a TF table needs N >= 2 RGBA entries (4N floats), got " +
@@ -47,21 +57,21 @@ void NormalEquationsRecorder::record_assemble(VkCommandBuffer cmd, const DeviceF
   const uint64_t tf_bytes = ref_tf_rgba.size_bytes();
   if (ref_tf_.size() < tf_bytes) ref_tf_ = Buffer(ctx_, tf_bytes, MemoryUsage::Device, "recorded reference TF");
   // The new recording replaces the last one's descriptor sets: the host waited for it (header).
-  auto batch = std::make_unique<CommandBatch>(ctx_, cmd);
-  // Earlier uses of the recorder's memory in this command buffer (an earlier recording's copy of
-  // the result, its reads of the table) finish before they are overwritten.
-  batch->barrier();
-  batch->update(ref_tf_, 0, ref_tf_rgba.data(), tf_bytes);
-  batch->fill(accum_, 0u);
-  batch->barrier();
-  kernel_->record(*batch, ref, opt, ref_map, opt_map, ref_tf_, accum_);  // ends with a barrier
-  batch->copy(accum_, 0, result_, 0, accum_.size());
-  batch->barrier_to_host();
-  recording_ = std::move(batch);
+  CommandBatch& batch = restart(recording_, ctx_, cmd);
+  // Earlier uses of the recorder's memory (an earlier recording's copy of the result, its reads
+  // of the table) finish before they are overwritten.
+  batch.barrier();
+  batch.update(ref_tf_, 0, ref_tf_rgba.data(), tf_bytes);
+  batch.fill(accum_, 0u);
+  batch.barrier();
+  kernel_->record(batch, ref, opt, ref_map, opt_map, ref_tf_, accum_);  // ends with a barrier
+  batch.copy(accum_, 0, result_, 0, accum_.size());
+  batch.barrier_to_host();
+  recorded_ = true;
 }
 
 std::vector<uint32_t> NormalEquationsRecorder::result_words() const {
-  if (!recording_) throw std::logic_error("NormalEquationsRecorder::result: nothing recorded yet");
+  if (!recorded_) throw std::logic_error("NormalEquationsRecorder::result: nothing recorded yet");
   std::vector<uint32_t> words(size_t(kernel_->slots()) * 2);
   std::memcpy(words.data(), result_.mapped(), words.size() * sizeof(uint32_t));
   return words;
@@ -126,9 +136,7 @@ void TfUploadRecorder::record_tf_upload(VkCommandBuffer cmd, std::span<const flo
   const uint64_t align = std::max<uint64_t>(limits.minStorageBufferOffsetAlignment, limits.minTexelBufferOffsetAlignment);
   const uint64_t base = target.offset / align * align;
   dst = Buffer::adopt(ctx_, target.buffer, base, target.offset - base + bytes, "record_tf_upload target");
-  auto batch = std::make_unique<CommandBatch>(ctx_, cmd);
-  batch->update(dst, target.offset - base, rgba.data(), bytes);
-  recording_ = std::move(batch);
+  restart(recording_, ctx_, cmd).update(dst, target.offset - base, rgba.data(), bytes);
 }
 
 void TfUploadRecorder::record_tf_upload(VkCommandBuffer cmd, std::span<const float> rgba, const TfImageTarget& target) {
@@ -138,12 +146,11 @@ void TfUploadRecorder::record_tf_upload(VkCommandBuffer cmd, std::span<const flo
   if (staging_.size() < bytes) staging_ = Buffer(ctx_, bytes, MemoryUsage::Device, "recorded TF staging");
   std::vector<uint8_t> padded(texels);
   padded.resize(bytes, 0);
-  auto batch = std::make_unique<CommandBatch>(ctx_, cmd);
-  batch->barrier();  // an earlier copy out of the staging buffer in this command buffer finishes first
-  batch->update(staging_, 0, padded.data(), bytes);
-  batch->copy_to_image(staging_, target.image, uint32_t(rgba.size() / 4), target.old_layout, target.new_layout,
-                       target.dst_stages, target.dst_access);
-  recording_ = std::move(batch);
+  CommandBatch& batch = restart(recording_, ctx_, cmd);
+  batch.barrier();  // an earlier copy out of the staging buffer finishes first
+  batch.update(staging_, 0, padded.data(), bytes);
+  batch.copy_to_image(staging_, target.image, uint32_t(rgba.size() / 4), target.old_layout, target.new_layout,
+                      target.dst_stages, target.dst_access);
 }
 
 RecordedAccess TfUploadRecorder::access() {

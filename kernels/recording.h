@@ -77,6 +77,7 @@ class NormalEquationsRecorder {
   std::unique_ptr<AssembleNormalEquationsKernel> kernel_;
   Buffer accum_, result_, ref_tf_;
   std::unique_ptr<CommandBatch> recording_;  // the last recording's descriptor sets and views
+  bool recorded_ = false;
 };
 
 // Where record_tf_upload writes a TF table: a host's buffer (N RGBA float32 entries from

@@ -2,7 +2,8 @@
 # checks that no installed library defines a global vk*/volk* symbol, builds
 # tools/examples/embed out of tree against the installed package (find_package(tfmatch)) and runs
 # it: the example adopts its own plain-loader Vulkan device and checks a GPU fit on the CPU. Then
-# builds tools/examples/read_volume, which links tfmatch::io alone, and checks that the GPU-free
+# builds and runs tools/examples/renderer (tfmatch's fit recorded into a renderer's own frames) and
+# tools/examples/read_volume, which links tfmatch::io alone, and checks that the GPU-free
 # layers keep it free of GPU code: no engine library or Vulkan loader on its link line, no engine
 # or Vulkan symbol in the program, no libvulkan among its shared libraries; it reads a NetCDF file
 # of ../shared/data when there is one (else says it skipped that).
@@ -66,6 +67,21 @@ run(${WORK_DIR}/example/embed_example)
 message(STATUS "${run_output}")
 if(NOT run_output MATCHES "OK")
   message(FATAL_ERROR "the example did not report OK")
+endif()
+
+# The renderer that records tfmatch's fit into its own frames (tools/examples/renderer), with the
+# validation layer and synchronization validation on where the layer is installed.
+run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/tools/examples/renderer -B ${WORK_DIR}/renderer -G ${GENERATOR}
+    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_BUILD_TYPE=Release)
+run(${CMAKE_COMMAND} --build ${WORK_DIR}/renderer)
+if(EXISTS /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json)
+  set(ENV{TFMATCH_VALIDATION} 1)
+endif()
+run(${WORK_DIR}/renderer/renderer_example)
+unset(ENV{TFMATCH_VALIDATION})
+message(STATUS "${run_output}")
+if(NOT run_output MATCHES "\nOK\n")
+  message(FATAL_ERROR "the renderer example did not report OK")
 endif()
 
 run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/tools/examples/read_volume -B ${WORK_DIR}/read_volume -G ${GENERATOR}
