@@ -1,7 +1,8 @@
 # The installable package: `cmake --install build --prefix P` puts the libraries in P/lib, the
-# public headers in P/include/tfmatch (flat, so they find each other with quoted includes and an
-# embedder writes #include <tfmatch/context.h>), the `tfmatch` program in P/bin, and
-# P/lib/cmake/tfmatch/tfmatchConfig.cmake (+ version file) and P/lib/pkgconfig/tfmatch.pc.
+# public headers in P/include/tfmatch/<layer>/ (engine, shaders, kernels, model, reference,
+# selftest, solvers, io, report, cuda: an embedder writes #include <tfmatch/engine/context.h>),
+# the `tfmatch` program in P/bin, and P/lib/cmake/tfmatch/tfmatchConfig.cmake (+ version file) and
+# P/lib/pkgconfig/tfmatch.pc.
 #   tfmatch::tfmatch  engine, shaders, kernels, host/model, host/reference, host/solvers:
 #                     Vulkan headers, Eigen and GLM only (volk is compiled in under private names)
 #   tfmatch::io       file formats (netCDF-C, ecCodes, expat, zlib) on host/model alone: no
@@ -16,11 +17,23 @@ set(tfm_layer_libraries tfmatch_model tfmatch_engine tfmatch_shaders tfmatch_ker
 if(TFMATCH_CUDA)
   list(APPEND tfm_layer_libraries tfmatch_cuda)
 endif()
+# Header folders: "<folder in the install>:<source folder>". The headers include each other by
+# name ("buffer.h", as in the tree), so every layer folder is on the targets' include path too;
+# embedders name the layer (<tfmatch/kernels/recording.h>).
+set(tfm_header_layers engine:engine shaders:shaders kernels:kernels model:host/model reference:host/reference
+    selftest:host/selftest solvers:host/solvers io:host/io report:host/report)
+if(TFMATCH_CUDA)
+  list(APPEND tfm_header_layers cuda:cuda)
+endif()
+set(tfm_install_include_dirs $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+foreach(entry ${tfm_header_layers})
+  string(REGEX REPLACE ":.*" "" folder ${entry})
+  list(APPEND tfm_install_include_dirs $<INSTALL_INTERFACE:${tfm_install_include}/${folder}>)
+endforeach()
 foreach(lib ${tfm_layer_libraries})
   string(REPLACE "tfmatch_" "" short ${lib})
   set_target_properties(${lib} PROPERTIES EXPORT_NAME ${short})
-  target_include_directories(${lib} INTERFACE $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>
-                                              $<INSTALL_INTERFACE:${tfm_install_include}>)
+  target_include_directories(${lib} INTERFACE ${tfm_install_include_dirs})
 endforeach()
 
 # The umbrella targets users link.
@@ -39,21 +52,24 @@ install(TARGETS ${tfm_layer_libraries} tfmatch_library
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
 install(TARGETS tfmatch RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 
-# Public headers: every header of the library layers except the private ones (named *_private.h
-# or listed in TFMATCH_PRIVATE_HEADERS by their layer).
-set(tfm_public_headers)
-foreach(dir engine shaders kernels host/model host/reference host/selftest host/solvers host/io host/report)
-  file(GLOB headers ${CMAKE_SOURCE_DIR}/${dir}/*.h)
-  list(APPEND tfm_public_headers ${headers})
+# Public headers: every header of the library layers but the internal ones, which stay in the
+# source tree: those named *_private.h or listed in TFMATCH_PRIVATE_HEADERS by their layer, and
+# the helpers shared by one layer's sources only (no public header includes them; the package
+# test compiles every installed header).
+set(tfm_internal_headers ${TFMATCH_PRIVATE_HEADERS} ${CMAKE_SOURCE_DIR}/host/selftest/selftest_support.h
+    ${CMAKE_SOURCE_DIR}/host/solvers/solver_support.h)
+set(tfm_pc_include_flags "-I\${includedir}")
+foreach(entry ${tfm_header_layers})
+  string(REGEX REPLACE ":.*" "" folder ${entry})
+  string(REGEX REPLACE "^[^:]*:" "" source ${entry})
+  file(GLOB headers ${CMAKE_SOURCE_DIR}/${source}/*.h)
+  list(FILTER headers EXCLUDE REGEX "_private\\.h$")
+  foreach(internal ${tfm_internal_headers})
+    list(REMOVE_ITEM headers ${internal})
+  endforeach()
+  install(FILES ${headers} DESTINATION ${tfm_install_include}/${folder})
+  string(APPEND tfm_pc_include_flags " -I\${includedir}/tfmatch/${folder}")
 endforeach()
-if(TFMATCH_CUDA)
-  list(APPEND tfm_public_headers ${CMAKE_SOURCE_DIR}/cuda/cuda_solvers.h)
-endif()
-list(FILTER tfm_public_headers EXCLUDE REGEX "_private\\.h$")
-foreach(private ${TFMATCH_PRIVATE_HEADERS})
-  list(REMOVE_ITEM tfm_public_headers ${private})
-endforeach()
-install(FILES ${tfm_public_headers} DESTINATION ${tfm_install_include})
 
 install(EXPORT tfmatchTargets NAMESPACE tfmatch:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/tfmatch)
 configure_package_config_file(${CMAKE_SOURCE_DIR}/tools/cmake/tfmatchConfig.cmake.in

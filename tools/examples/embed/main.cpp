@@ -8,12 +8,12 @@
 #include <cstdio>
 #include <vector>
 
-#include <tfmatch/context.h>
-#include <tfmatch/device_field.h>
-#include <tfmatch/field_mapping.h>
-#include <tfmatch/gpu_voxel_ops.h>
-#include <tfmatch/normal_equations.h>
-#include <tfmatch/transfer_function.h>
+#include <tfmatch/engine/context.h>
+#include <tfmatch/engine/device_field.h>
+#include <tfmatch/model/field_mapping.h>
+#include <tfmatch/kernels/gpu_voxel_ops.h>
+#include <tfmatch/solvers/normal_equations.h>
+#include <tfmatch/model/transfer_function.h>
 
 namespace {
 

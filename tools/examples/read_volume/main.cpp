@@ -4,8 +4,8 @@
 #include <cstdio>
 #include <exception>
 
-#include <tfmatch/field_mapping.h>
-#include <tfmatch/volume_io.h>
+#include <tfmatch/model/field_mapping.h>
+#include <tfmatch/io/volume_io.h>
 
 int main(int argc, char** argv) {
   if (argc < 2) {

@@ -25,13 +25,13 @@
 #include <string>
 #include <vector>
 
-#include <tfmatch/context.h>
-#include <tfmatch/device_field.h>
-#include <tfmatch/field_mapping.h>
-#include <tfmatch/normal_equations.h>
-#include <tfmatch/normal_equations_cpu.h>
-#include <tfmatch/recording.h>
-#include <tfmatch/transfer_function.h>
+#include <tfmatch/engine/context.h>
+#include <tfmatch/engine/device_field.h>
+#include <tfmatch/model/field_mapping.h>
+#include <tfmatch/solvers/normal_equations.h>
+#include <tfmatch/reference/normal_equations_cpu.h>
+#include <tfmatch/kernels/recording.h>
+#include <tfmatch/model/transfer_function.h>
 
 #include "march_spirv.h"
 
