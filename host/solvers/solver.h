@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <map>
 #include <memory>
@@ -189,8 +190,13 @@ class Solver {
   virtual SolverOutput solve(VoxelProblem& problem, const SolverArgs& args) const = 0;
 };
 
-// Every solver, in name order, built on first use by make_solvers() (solver_registry.cpp).
+// Every solver, in name order, built on first use by make_solvers() (solver_registry.cpp), with
+// those of optional components added before that (add_solvers).
 const std::vector<std::unique_ptr<Solver>>& solvers();
+// Adds the solvers `make` returns to the registry when it is built: how an optional component
+// (the CUDA solvers, host/solvers/cuda) joins without tfmatch::tfmatch linking it. Throws
+// std::logic_error once the registry has been built (call it first, as main() does).
+void add_solvers(std::function<std::vector<std::unique_ptr<Solver>>()> make);
 // The solver named `name`, or nullptr.
 const Solver* find_solver(std::string_view name);
 // The solver named `name`; throws std::runtime_error listing the available ones when unknown.

@@ -1,8 +1,10 @@
 // The registry: every solver tfmatch offers, listed here explicitly (no static registration: a
-// solver exists because it is in this list, whatever the linker keeps). Each factory is defined
-// in its solver_*.cpp.
+// solver exists because it is in this list, whatever the linker keeps), and those an optional
+// component adds by an explicit call (add_solvers: the CUDA solvers' register_cuda_solvers()).
+// Each factory is defined in its solver_*.cpp.
 #include <algorithm>
 #include <map>
+#include <mutex>
 #include <set>
 #include <stdexcept>
 
@@ -18,12 +20,18 @@ std::unique_ptr<Solver> make_gradient_descent_solver();
 std::unique_ptr<Solver> make_histogram_matching_solver();
 std::unique_ptr<Solver> make_normal_equations_solver();
 std::unique_ptr<Solver> make_qp_solver();
-#ifdef TFMATCH_HAVE_CUDA
-std::unique_ptr<Solver> make_cuda_cgls_solver();
-std::unique_ptr<Solver> make_cuda_normal_equations_solver();
-#endif
-
 namespace {
+
+// What add_solvers() registered, and whether the registry has been built.
+struct Extensions {
+  std::mutex mutex;
+  std::vector<std::function<std::vector<std::unique_ptr<Solver>>()>> makers;
+  bool built = false;
+};
+Extensions& extensions() {
+  static Extensions e;
+  return e;
+}
 
 std::vector<std::unique_ptr<Solver>> make_solvers() {
   std::vector<std::unique_ptr<Solver>> list;
@@ -35,10 +43,13 @@ std::vector<std::unique_ptr<Solver>> make_solvers() {
   list.push_back(make_histogram_matching_solver());
   list.push_back(make_normal_equations_solver());
   list.push_back(make_qp_solver());
-#ifdef TFMATCH_HAVE_CUDA
-  list.push_back(make_cuda_cgls_solver());
-  list.push_back(make_cuda_normal_equations_solver());
-#endif
+  {
+    Extensions& e = extensions();
+    std::lock_guard lock(e.mutex);
+    e.built = true;
+    for (const auto& make : e.makers)
+      for (auto& s : make()) list.push_back(std::move(s));
+  }
   std::sort(list.begin(), list.end(), [](const auto& a, const auto& b) { return a->name() < b->name(); });
   return list;
 }
@@ -61,6 +72,13 @@ void check_declarations(const std::vector<std::unique_ptr<Solver>>& list) {
 }
 
 }  // namespace
+
+void add_solvers(std::function<std::vector<std::unique_ptr<Solver>>()> make) {
+  Extensions& e = extensions();
+  std::lock_guard lock(e.mutex);
+  if (e.built) throw std::logic_error("add_solvers: the solver registry has already been built");
+  e.makers.push_back(std::move(make));
+}
 
 const std::vector<std::unique_ptr<Solver>>& solvers() {
   static const std::vector<std::unique_ptr<Solver>> list = [] {

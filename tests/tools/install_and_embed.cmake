@@ -75,6 +75,43 @@ run(${CMAKE_COMMAND} --build ${WORK_DIR}/all_headers/build)
 list(LENGTH installed_headers header_count)
 message(STATUS "${header_count} installed headers, by layer, compile together")
 
+# CUDA is the `cuda` component's alone: the main targets name no CUDA library. Where the package
+# has it, a program asking for the component gets the CUDA solvers in the registry.
+file(GLOB main_exports ${prefix}/lib*/cmake/tfmatch/tfmatchTargets*.cmake)
+foreach(export ${main_exports})
+  file(READ ${export} text)
+  if(text MATCHES "CUDA::|cudart|cusparse")
+    message(FATAL_ERROR "${export} names CUDA: tfmatch::tfmatch must not need it")
+  endif()
+endforeach()
+if(EXISTS ${prefix}/lib/cmake/tfmatch/tfmatchCudaTargets.cmake)
+  file(WRITE ${WORK_DIR}/cuda_component/main.cpp "#include <cstdio>
+#include <tfmatch/cuda/cuda_solver_registration.h>
+#include <tfmatch/solvers/solver.h>
+int main() {
+  tfm::register_cuda_solvers();
+  for (const auto& name : tfm::solver_names()) std::printf(\"%s\\n\", name.c_str());
+}
+")
+  file(WRITE ${WORK_DIR}/cuda_component/CMakeLists.txt "cmake_minimum_required(VERSION 3.20)
+project(tfmatch_cuda_component LANGUAGES CXX)
+set(CMAKE_CXX_STANDARD 20)
+find_package(tfmatch REQUIRED COMPONENTS cuda)
+add_executable(list_solvers main.cpp)
+target_link_libraries(list_solvers PRIVATE tfmatch::cuda)
+")
+  run(${CMAKE_COMMAND} -S ${WORK_DIR}/cuda_component -B ${WORK_DIR}/cuda_component/build -G ${GENERATOR}
+      -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_BUILD_TYPE=Release)
+  run(${CMAKE_COMMAND} --build ${WORK_DIR}/cuda_component/build)
+  run(${WORK_DIR}/cuda_component/build/list_solvers)
+  if(NOT run_output MATCHES "cuda-cgls" OR NOT run_output MATCHES "cuda-normal-equations")
+    message(FATAL_ERROR "the cuda component did not add the CUDA solvers:\n${run_output}")
+  endif()
+  message(STATUS "the cuda component adds the CUDA solvers to the registry")
+else()
+  message(STATUS "no cuda component in this package (built without TFMATCH_CUDA)")
+endif()
+
 # pkg-config (for builds without CMake) finds the headers and libraries where they were installed.
 find_program(PKG_CONFIG pkg-config)
 if(PKG_CONFIG)

@@ -12,6 +12,9 @@
 
 #include "cancellation.h"
 #include "cli.h"
+#ifdef TFMATCH_HAVE_CUDA
+#include "cuda_solver_registration.h"
+#endif
 #include "interrupts.h"
 #include "memory_budget.h"
 #include "phase_timer.h"
@@ -198,6 +201,9 @@ static std::string quoted_command_line(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   using namespace tfm::cli;
+#ifdef TFMATCH_HAVE_CUDA
+  tfm::register_cuda_solvers();  // before the options are made from the solver registry
+#endif
   install_interrupt_handlers();
   globals().command_line = quoted_command_line(argc, argv);
   CLI::App app{"tfmatch: optimize a transfer function so a second field's volume renderings match a reference's"};

@@ -8,14 +8,19 @@
 #   tfmatch::io       file formats (netCDF-C, ecCodes, expat, zlib) on host/model alone: no
 #                     Vulkan, no engine (a program that only reads files links no GPU code)
 #   tfmatch::report   images on disk, plots, metrics, report pages (libpng), with tfmatch::io
+#   tfmatch::cuda     the CUDA solvers (find_package(tfmatch COMPONENTS cuda); built with
+#                     TFMATCH_CUDA only): their own export set, so the rest needs no CUDA
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
 set(tfm_install_include ${CMAKE_INSTALL_INCLUDEDIR}/tfmatch)
 set(tfm_layer_libraries tfmatch_model tfmatch_engine tfmatch_shaders tfmatch_kernels tfmatch_reference
     tfmatch_selftest tfmatch_solvers tfmatch_io tfmatch_report)
+set(tfm_cuda_libraries)
 if(TFMATCH_CUDA)
-  list(APPEND tfm_layer_libraries tfmatch_cuda)
+  set(tfm_cuda_libraries tfmatch_cuda tfmatch_cuda_solvers)
+  set_target_properties(tfmatch_cuda PROPERTIES EXPORT_NAME cuda_kernels)
+  set_target_properties(tfmatch_cuda_solvers PROPERTIES EXPORT_NAME cuda)
 endif()
 # Header folders: "<folder in the install>:<source folder>". The headers include each other by
 # name ("buffer.h", as in the tree), so every layer folder is on the targets' include path too;
@@ -23,16 +28,22 @@ endif()
 set(tfm_header_layers engine:engine shaders:shaders kernels:kernels model:host/model reference:host/reference
     selftest:host/selftest solvers:host/solvers io:host/io report:host/report)
 if(TFMATCH_CUDA)
-  list(APPEND tfm_header_layers cuda:cuda)
+  list(APPEND tfm_header_layers cuda:cuda cuda:host/solvers/cuda)
 endif()
+set(tfm_header_folders ${tfm_header_layers})
+list(TRANSFORM tfm_header_folders REPLACE ":.*" "")
+list(REMOVE_DUPLICATES tfm_header_folders)
 set(tfm_install_include_dirs $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
-foreach(entry ${tfm_header_layers})
-  string(REGEX REPLACE ":.*" "" folder ${entry})
+set(tfm_pc_include_flags "-I\${includedir}")
+foreach(folder ${tfm_header_folders})
   list(APPEND tfm_install_include_dirs $<INSTALL_INTERFACE:${tfm_install_include}/${folder}>)
+  string(APPEND tfm_pc_include_flags " -I\${includedir}/tfmatch/${folder}")
 endforeach()
 foreach(lib ${tfm_layer_libraries})
   string(REPLACE "tfmatch_" "" short ${lib})
   set_target_properties(${lib} PROPERTIES EXPORT_NAME ${short})
+endforeach()
+foreach(lib ${tfm_layer_libraries} ${tfm_cuda_libraries})
   target_include_directories(${lib} INTERFACE ${tfm_install_include_dirs})
 endforeach()
 
@@ -50,6 +61,10 @@ install(TARGETS ${tfm_layer_libraries} tfmatch_library
         EXPORT tfmatchTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+if(TFMATCH_CUDA)
+  install(TARGETS ${tfm_cuda_libraries} EXPORT tfmatchCudaTargets ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  install(EXPORT tfmatchCudaTargets NAMESPACE tfmatch:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/tfmatch)
+endif()
 install(TARGETS tfmatch RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 
 # Public headers: every header of the library layers but the internal ones, which stay in the
@@ -58,7 +73,6 @@ install(TARGETS tfmatch RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 # test compiles every installed header).
 set(tfm_internal_headers ${TFMATCH_PRIVATE_HEADERS} ${CMAKE_SOURCE_DIR}/host/selftest/selftest_support.h
     ${CMAKE_SOURCE_DIR}/host/solvers/solver_support.h)
-set(tfm_pc_include_flags "-I\${includedir}")
 foreach(entry ${tfm_header_layers})
   string(REGEX REPLACE ":.*" "" folder ${entry})
   string(REGEX REPLACE "^[^:]*:" "" source ${entry})
@@ -68,7 +82,6 @@ foreach(entry ${tfm_header_layers})
     list(REMOVE_ITEM headers ${internal})
   endforeach()
   install(FILES ${headers} DESTINATION ${tfm_install_include}/${folder})
-  string(APPEND tfm_pc_include_flags " -I\${includedir}/tfmatch/${folder}")
 endforeach()
 
 install(EXPORT tfmatchTargets NAMESPACE tfmatch:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/tfmatch)

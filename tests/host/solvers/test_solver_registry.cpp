@@ -29,6 +29,13 @@ std::string error_of(const std::function<void()>& f) {
   return "(no error)";
 }
 
+// Optional components (the CUDA solvers) join before the registry is built, never after: the
+// command line's flags come from it once.
+TEST(SolverRegistry, ComponentsJoinOnlyBeforeTheRegistryIsBuilt) {
+  ASSERT_FALSE(solvers().empty());
+  EXPECT_THROW(add_solvers([] { return std::vector<std::unique_ptr<Solver>>{}; }), std::logic_error);
+}
+
 TEST(SolverRegistry, ListsEverySolverOnceInNameOrder) {
   std::vector<std::string> expected = {"cgls", "diffdvr", "eigen-cgls", "eigen-normal-equations", "gradient-descent",
                                        "histogram-matching", "normal-equations", "qp"};

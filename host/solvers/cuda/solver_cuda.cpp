@@ -2,7 +2,9 @@
 // (M and S^T b from the explicit CSR A with cuSPARSE SpGEMM/SpMV as the paper does, plus the
 // matrix-free CUDA kernel timed for comparison, then the host tridiagonal solve) and `cuda-cgls`
 // (Jacobi-preconditioned CGLS with cuSPARSE SpMV). Without a CUDA device they throw on use.
-#ifdef TFMATCH_HAVE_CUDA
+// Their own library (tfmatch_cuda_solvers, the package's `cuda` component), added to the registry
+// by register_cuda_solvers(): tfmatch::tfmatch itself needs no CUDA.
+#include "cuda_solver_registration.h"
 
 #include <algorithm>
 #include <cmath>
@@ -184,9 +186,13 @@ class CudaCglsSolver final : public Solver {
 
 }  // namespace
 
-std::unique_ptr<Solver> make_cuda_normal_equations_solver() { return std::make_unique<CudaNormalEquationsSolver>(); }
-std::unique_ptr<Solver> make_cuda_cgls_solver() { return std::make_unique<CudaCglsSolver>(); }
+void register_cuda_solvers() {
+  add_solvers([] {
+    std::vector<std::unique_ptr<Solver>> list;
+    list.push_back(std::make_unique<CudaNormalEquationsSolver>());
+    list.push_back(std::make_unique<CudaCglsSolver>());
+    return list;
+  });
+}
 
 }  // namespace tfm
-
-#endif  // TFMATCH_HAVE_CUDA
