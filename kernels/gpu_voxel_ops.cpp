@@ -84,17 +84,21 @@ std::vector<VoxelLoss> measure_voxel_losses(Context& ctx, const DeviceField& ref
   if (gpu_ms) *gpu_ms = batch.elapsed_ms(t0, t1);
   std::vector<uint32_t> words(losses * TFM_LOSS_SLOTS * TFM_FIXED_SLOT_WORDS);
   readback(ctx, accum, words.data(), words.size() * sizeof(uint32_t));
+  return decode_voxel_losses(words);
+}
+
+}  // namespace
+
+std::vector<VoxelLoss> decode_voxel_losses(const std::vector<uint32_t>& words) {
   const std::vector<double> s = decode_fixed_point(words);
-  std::vector<VoxelLoss> out(losses);
-  for (size_t l = 0; l < losses; ++l) {
+  std::vector<VoxelLoss> out(s.size() / TFM_LOSS_SLOTS);
+  for (size_t l = 0; l < out.size(); ++l) {
     const double* slots = s.data() + l * TFM_LOSS_SLOTS;
     for (int c = 0; c < 4; ++c) out[l].squared[c] = slots[c], out[l].absolute[c] = slots[4 + c];
     out[l].voxels = static_cast<uint64_t>(std::llround(slots[8]));
   }
   return out;
 }
-
-}  // namespace
 
 VoxelLoss voxel_loss_gpu(Context& ctx, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
                          const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, double* gpu_ms) {

@@ -52,6 +52,9 @@ struct VoxelLoss {
   double mae() const;
 };
 
+// The losses in VoxelLossKernel's accumulators (TFM_LOSS_SLOTS slots each) read back as words.
+std::vector<VoxelLoss> decode_voxel_losses(const std::vector<uint32_t>& words);
+
 // Voxel loss between T_r(F_r) and T_o(F_o) on the GPU.
 VoxelLoss voxel_loss_gpu(Context& ctx, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
                          const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf,

@@ -11,6 +11,7 @@
 
 #include "commands.h"
 #include "context.h"
+#include "residual_map.h"
 #include "shared_layout.h"
 #include "voxel_pair.h"
 
@@ -34,6 +35,20 @@ void check_tf_table(std::span<const float> rgba, const char* what) {
                                 std::to_string(rgba.size()) + " floats");
 }
 
+// Throws std::invalid_argument unless `rgba` is a table of the size `map` reads.
+void check_table_for(std::span<const float> rgba, const FieldMapping& map, const char* what) {
+  check_tf_table(rgba, what);
+  if (rgba.size() / 4 != map.tf_size)
+    throw std::invalid_argument(std::string(what) + ": a TF has " + std::to_string(rgba.size() / 4) +
+                                " entries, its mapping " + std::to_string(map.tf_size));
+}
+
+// Records the write of a TF table (checked by check_table_for) into `buffer`, grown when too small.
+void record_table(CommandBatch& batch, Context& ctx, Buffer& buffer, std::span<const float> rgba, const char* what) {
+  if (buffer.size() < rgba.size_bytes()) buffer = Buffer(ctx, rgba.size_bytes(), MemoryUsage::Device, what);
+  batch.update(buffer, 0, rgba.data(), rgba.size_bytes());
+}
+
 }  // namespace
 
 NormalEquationsRecorder::NormalEquationsRecorder(Context& ctx, uint32_t tf_size, ReductionOptions options)
@@ -50,18 +65,18 @@ uint32_t NormalEquationsRecorder::tf_size() const { return kernel_->tf_size(); }
 void NormalEquationsRecorder::record_assemble(VkCommandBuffer cmd, const DeviceField& ref, const DeviceField& opt,
                                               const FieldMapping& ref_map, const FieldMapping& opt_map,
                                               std::span<const float> ref_tf_rgba) {
-  check_tf_table(ref_tf_rgba, "record_assemble");
-  if (ref_tf_rgba.size() / 4 != ref_map.tf_size)
-    throw std::invalid_argument("record_assemble: the reference TF has " + std::to_string(ref_tf_rgba.size() / 4) +
-                                " entries, its mapping " + std::to_string(ref_map.tf_size));
-  const uint64_t tf_bytes = ref_tf_rgba.size_bytes();
-  if (ref_tf_.size() < tf_bytes) ref_tf_ = Buffer(ctx_, tf_bytes, MemoryUsage::Device, "recorded reference TF");
+  check_table_for(ref_tf_rgba, ref_map, "record_assemble: reference TF");
+  if (opt.voxel_count() != ref.voxel_count() || opt.chunk_voxels() != ref.chunk_voxels())
+    throw std::invalid_argument("record_assemble: the fields differ in size or chunking");
+  if (opt_map.tf_size != kernel_->tf_size())
+    throw std::invalid_argument("record_assemble: the second field's mapping has " + std::to_string(opt_map.tf_size) +
+                                " TF entries, the recorder " + std::to_string(kernel_->tf_size()));
   // The new recording replaces the last one's descriptor sets: the host waited for it (header).
   CommandBatch& batch = restart(recording_, ctx_, cmd);
   // Earlier uses of the recorder's memory (an earlier recording's copy of the result, its reads
   // of the table) finish before they are overwritten.
   batch.barrier();
-  batch.update(ref_tf_, 0, ref_tf_rgba.data(), tf_bytes);
+  record_table(batch, ctx_, ref_tf_, ref_tf_rgba, "recorded reference TF");
   batch.fill(accum_, 0u);
   batch.barrier();
   kernel_->record(batch, ref, opt, ref_map, opt_map, ref_tf_, accum_);  // ends with a barrier
@@ -91,6 +106,69 @@ std::vector<uint64_t> NormalEquationsRecorder::fixed_point_slots() const {
 RecordedAccess NormalEquationsRecorder::access() {
   return {VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
           VK_ACCESS_SHADER_READ_BIT, 0};
+}
+
+ResidualMapRecorder::ResidualMapRecorder(Context& ctx)
+    : ctx_(ctx), kernel_(std::make_unique<ResidualMapKernel>(ctx)) {}
+ResidualMapRecorder::~ResidualMapRecorder() = default;
+
+void ResidualMapRecorder::record_residual_map(VkCommandBuffer cmd, const DeviceField& ref, const DeviceField& opt,
+                                              const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                              std::span<const float> ref_tf_rgba, std::span<const float> opt_tf_rgba,
+                                              DeviceField& out) {
+  check_table_for(ref_tf_rgba, ref_map, "record_residual_map: reference TF");
+  check_table_for(opt_tf_rgba, opt_map, "record_residual_map: second TF");
+  if (out.voxel_count() != ref.voxel_count() || out.chunk_voxels() != ref.chunk_voxels())
+    throw std::invalid_argument("record_residual_map: the output field differs from the inputs in size or chunking");
+  CommandBatch& batch = restart(recording_, ctx_, cmd);
+  batch.barrier();  // earlier reads of the tables and writes of `out` finish first
+  record_table(batch, ctx_, ref_tf_, ref_tf_rgba, "recorded reference TF");
+  record_table(batch, ctx_, opt_tf_, opt_tf_rgba, "recorded second TF");
+  batch.barrier();
+  kernel_->record(batch, ref, opt, ref_map, opt_map, ref_tf_, opt_tf_, out);
+}
+
+RecordedAccess ResidualMapRecorder::access() {
+  return {VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_SHADER_READ_BIT,
+          VK_ACCESS_SHADER_WRITE_BIT};
+}
+
+VoxelLossRecorder::VoxelLossRecorder(Context& ctx) : ctx_(ctx), kernel_(std::make_unique<VoxelLossKernel>(ctx)) {
+  const uint64_t bytes = TFM_LOSS_SLOTS * gpu::kFixedSlotBytes;
+  accum_ = Buffer(ctx, bytes, MemoryUsage::Device, "recorded voxel-loss accumulators");
+  result_ = Buffer(ctx, bytes, MemoryUsage::Readback, "recorded voxel-loss result");
+}
+VoxelLossRecorder::~VoxelLossRecorder() = default;
+
+void VoxelLossRecorder::record_voxel_loss(VkCommandBuffer cmd, const DeviceField& ref, const DeviceField& opt,
+                                          const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                          std::span<const float> ref_tf_rgba, std::span<const float> opt_tf_rgba) {
+  check_table_for(ref_tf_rgba, ref_map, "record_voxel_loss: reference TF");
+  check_table_for(opt_tf_rgba, opt_map, "record_voxel_loss: second TF");
+  if (opt.voxel_count() != ref.voxel_count() || opt.chunk_voxels() != ref.chunk_voxels())
+    throw std::invalid_argument("record_voxel_loss: the fields differ in size or chunking");
+  CommandBatch& batch = restart(recording_, ctx_, cmd);
+  batch.barrier();
+  record_table(batch, ctx_, ref_tf_, ref_tf_rgba, "recorded reference TF");
+  record_table(batch, ctx_, opt_tf_, opt_tf_rgba, "recorded second TF");
+  batch.fill(accum_, 0u);
+  batch.barrier();
+  kernel_->record(batch, ref, opt, ref_map, opt_map, ref_tf_, opt_tf_, accum_);
+  batch.barrier();
+  batch.copy(accum_, 0, result_, 0, accum_.size());
+  batch.barrier_to_host();
+  recorded_ = true;
+}
+
+VoxelLoss VoxelLossRecorder::result() const {
+  if (!recorded_) throw std::logic_error("VoxelLossRecorder::result: nothing recorded yet");
+  std::vector<uint32_t> words(TFM_LOSS_SLOTS * TFM_FIXED_SLOT_WORDS);
+  std::memcpy(words.data(), result_.mapped(), words.size() * sizeof(uint32_t));
+  return decode_voxel_losses(words)[0];
+}
+
+RecordedAccess VoxelLossRecorder::access() {
+  return {VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_SHADER_READ_BIT, 0};
 }
 
 std::vector<uint8_t> encode_tf_texels(std::span<const float> rgba, VkFormat format) {

@@ -26,6 +26,7 @@
 #include "buffer.h"
 #include "device_field.h"
 #include "field_mapping.h"
+#include "gpu_voxel_ops.h"
 #include "normal_equations_system.h"
 #include "reduction.h"
 
@@ -34,6 +35,8 @@ namespace tfm {
 class CommandBatch;
 class Context;
 class AssembleNormalEquationsKernel;
+class ResidualMapKernel;
+class VoxelLossKernel;
 
 // What a recorded operation does to memory the host shares with it.
 struct RecordedAccess {
@@ -77,6 +80,58 @@ class NormalEquationsRecorder {
   std::unique_ptr<AssembleNormalEquationsKernel> kernel_;
   Buffer accum_, result_, ref_tf_;
   std::unique_ptr<CommandBatch> recording_;  // the last recording's descriptor sets and views
+  bool recorded_ = false;
+};
+
+// The residual map of DESIGN.md, per voxel || premul(T_r(F_r)) - premul(T_o(F_o)) ||_2, recorded
+// into a field the host can render as it renders its volumes (e.g. its own buffer through
+// DeviceField::adopt, chunked like the inputs).
+class ResidualMapRecorder {
+ public:
+  explicit ResidualMapRecorder(Context& ctx);
+  ~ResidualMapRecorder();
+  ResidualMapRecorder(const ResidualMapRecorder&) = delete;
+  ResidualMapRecorder& operator=(const ResidualMapRecorder&) = delete;
+
+  // Records the two TF tables (written inside the command buffer) and the map into `out`: the
+  // same kernel and bits as residual_map_gpu(). Throws std::invalid_argument when the fields
+  // differ in size or chunking, or a table does not match its mapping.
+  void record_residual_map(VkCommandBuffer cmd, const DeviceField& ref, const DeviceField& opt,
+                           const FieldMapping& ref_map, const FieldMapping& opt_map, std::span<const float> ref_tf_rgba,
+                           std::span<const float> opt_tf_rgba, DeviceField& out);
+  // Reads `ref` and `opt` and writes `out` in the compute-shader stage.
+  static RecordedAccess access();
+
+ private:
+  Context& ctx_;
+  std::unique_ptr<ResidualMapKernel> kernel_;
+  Buffer ref_tf_, opt_tf_;
+  std::unique_ptr<CommandBatch> recording_;
+};
+
+// The RGBA voxel loss of a TF pair (voxel_loss_gpu), recorded; the result read after the wait.
+class VoxelLossRecorder {
+ public:
+  explicit VoxelLossRecorder(Context& ctx);
+  ~VoxelLossRecorder();
+  VoxelLossRecorder(const VoxelLossRecorder&) = delete;
+  VoxelLossRecorder& operator=(const VoxelLossRecorder&) = delete;
+
+  // Records the tables, the loss pass (the same kernel and bits as voxel_loss_gpu) and the copy
+  // of its O(1) sums to host-visible memory with the barrier to the host.
+  void record_voxel_loss(VkCommandBuffer cmd, const DeviceField& ref, const DeviceField& opt,
+                         const FieldMapping& ref_map, const FieldMapping& opt_map, std::span<const float> ref_tf_rgba,
+                         std::span<const float> opt_tf_rgba);
+  // After the host's wait for the submission; std::logic_error before any recording.
+  VoxelLoss result() const;
+  // Reads the fields in the compute-shader stage; writes only its own memory.
+  static RecordedAccess access();
+
+ private:
+  Context& ctx_;
+  std::unique_ptr<VoxelLossKernel> kernel_;
+  Buffer ref_tf_, opt_tf_, accum_, result_;
+  std::unique_ptr<CommandBatch> recording_;
   bool recorded_ = false;
 };
 

@@ -21,6 +21,8 @@
 #include "memory_budget.h"
 #include "normal_equations.h"
 #include "recording.h"
+#include "residual.h"
+#include "volume.h"
 
 namespace tfm {
 namespace {
@@ -293,6 +295,60 @@ TEST(EmbeddingRecording, AssemblyAndTfUploadRecordIntoTheHostsCommandBuffers) {
     EXPECT_LT(grown, uint64_t(8) << 20) << "recording over a 32 MiB field grew host memory by " << grown << " bytes";
   }
   EXPECT_EQ(device.wait_idle(), VK_SUCCESS);
+  for (const auto& m : device.messages()) ADD_FAILURE() << "validation: " << m;
+}
+
+// The residual map into the host's own buffer and the voxel loss, recorded: the same bits as the
+// blocking calls on tfmatch's own copies of the fields.
+TEST(EmbeddingRecording, ResidualMapAndVoxelLossRecordIntoTheHostsCommandBuffers) {
+  test::HostDevice device;
+  ASSERT_NO_FATAL_FAILURE(device.create());
+  {
+    auto ctx = Context::adopt(device.external());
+    Host host(device);
+    const uint64_t voxels = 9000 + 3, chunk = 2048;
+    std::vector<float> ref, opt;
+    make_fields(voxels, ref, opt);
+    void* volume_map = nullptr;
+    void* residual_map_memory = nullptr;
+    VkBuffer volume = host.buffer(2 * voxels * 4 + 1024, &volume_map);
+    VkBuffer residual = host.buffer(voxels * 4, &residual_map_memory);
+    const uint64_t opt_offset = (voxels * 4 + 255) / 256 * 256;
+    std::memcpy(volume_map, ref.data(), voxels * 4);
+    std::memcpy(static_cast<char*>(volume_map) + opt_offset, opt.data(), voxels * 4);
+    DeviceField ref_field = DeviceField::adopt(*ctx, volume, 0, voxels, "host ref", chunk);
+    DeviceField opt_field = DeviceField::adopt(*ctx, volume, opt_offset, voxels, "host opt", chunk);
+    DeviceField out = DeviceField::adopt(*ctx, residual, 0, voxels, "host residual", chunk);
+    const TransferFunction ref_tf = reference_tf(0.2), opt_tf = reference_tf(0.6);
+    const FieldMapping rm = make_mapping({0.05, 0.95}, 7), om = make_mapping({0.0, 2.6}, 7);
+
+    ResidualMapRecorder residual_recorder(*ctx);
+    VoxelLossRecorder loss_recorder(*ctx);
+    const uint64_t submissions = ctx->submissions();
+    VkCommandBuffer cmd = host.begin();
+    residual_recorder.record_residual_map(cmd, ref_field, opt_field, rm, om, ref_tf.as_floats(), opt_tf.as_floats(), out);
+    loss_recorder.record_voxel_loss(cmd, ref_field, opt_field, rm, om, ref_tf.as_floats(), opt_tf.as_floats());
+    VkMemoryBarrier shader_to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    shader_to_host.srcAccessMask = ResidualMapRecorder::access().writes;
+    shader_to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &shader_to_host, 0,
+                         nullptr, 0, nullptr);
+    EXPECT_EQ(ctx->submissions(), submissions);
+    host.submit_and_wait();
+
+    DeviceField r(*ctx, ref, "ref", chunk), o(*ctx, opt, "opt", chunk);
+    Buffer rt = upload_tf(*ctx, ref_tf, "ref tf"), ot = upload_tf(*ctx, opt_tf, "opt tf");
+    Volume grid;
+    grid.dims = {voxels, 1, 1};
+    const Volume expected = residual_map_gpu(*ctx, grid, r, o, rm, om, rt, ot);
+    EXPECT_EQ(0, std::memcmp(residual_map_memory, expected.values.data(), voxels * 4));
+    const VoxelLoss blocking = voxel_loss_gpu(*ctx, r, o, rm, om, rt, ot);
+    const VoxelLoss recorded = loss_recorder.result();
+    EXPECT_EQ(recorded.squared, blocking.squared);
+    EXPECT_EQ(recorded.absolute, blocking.absolute);
+    EXPECT_EQ(recorded.voxels, blocking.voxels);
+    EXPECT_GT(recorded.mae(), 0.0);
+  }
   for (const auto& m : device.messages()) ADD_FAILURE() << "validation: " << m;
 }
 
