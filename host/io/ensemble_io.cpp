@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "memory_budget.h"
+#include "parameter_names.h"
 #include "volume_format_table.h"
 #include "volume_formats.h"
 
@@ -50,9 +51,9 @@ Ensemble load_ensemble(const std::string& spec, const VolumeOptions& defaults) {
   if (!format) throw std::runtime_error(unknown_volume_format_message(s.path));
   if (!format->has_members || !format->count_members)
     throw std::runtime_error(file + ": a " + format->title + " file has no member axis (ensembles come from " +
-                             volume_format_titles(&VolumeFormat::has_members) + " files, or one file per member with --members)");
+                             volume_format_titles(&VolumeFormat::has_members) + " files, or one file per member with " + parameter("members") + ")");
   if (s.options.member_index)
-    throw std::runtime_error(file + ": ',member=N' / --member picks one member; an ensemble uses them all");
+    throw std::runtime_error(file + ": ',member=N' / " + parameter("member") + " picks one member; an ensemble uses them all");
   const uint64_t count = format->count_members(s.path, s.options);
   if (count > std::numeric_limits<uint32_t>::max())
     throw std::runtime_error(file + ": " + std::to_string(count) + " members are more than tfmatch handles");

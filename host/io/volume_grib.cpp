@@ -32,6 +32,7 @@
 #include "cancellation.h"
 #include "memory_budget.h"
 #include "grid_orientation.h"
+#include "parameter_names.h"
 #include "volume_formats.h"
 #include "volume_info.h"
 #include "volume_io.h"
@@ -360,7 +361,7 @@ Selection select_messages(const GribSource& source, const VolumeOptions& options
   if (all_names.empty()) throw std::runtime_error(file + ": no GRIB messages (not a GRIB file?)");
   if (want.empty()) {
     if (all_names.size() != 1)
-      throw std::runtime_error(file + ": choose a parameter (file.grib2:SHORTNAME or --var): " + names_list());
+      throw std::runtime_error(file + ": choose a parameter (file.grib2:SHORTNAME or " + parameter("var") + "): " + names_list());
     want = *all_names.begin();
   }
   if (msgs.empty()) throw std::runtime_error(file + ": no parameter '" + want + "' (parameters: " + names_list() + ")");
@@ -510,9 +511,9 @@ FileInfo describe_grib(const GribSource& source) {
     } else {
       a.notes.push_back(same_grid ? "not a rectangular grid: cannot be loaded" : "messages on different grids: cannot be stacked");
     }
-    if (times.size() > 1) a.choices.push_back(std::to_string(times.size()) + " times (--time): " + time_text(*times.begin()) +
+    if (times.size() > 1) a.choices.push_back(std::to_string(times.size()) + " times (" + parameter("time") + "): " + time_text(*times.begin()) +
                                               " .. " + time_text(*times.rbegin()));
-    if (members.size() > 1) a.choices.push_back(std::to_string(members.size()) + " members (--member): number " +
+    if (members.size() > 1) a.choices.push_back(std::to_string(members.size()) + " members (" + parameter("member") + "): number " +
                                                 std::to_string(*members.begin()) + " .. " + std::to_string(*members.rbegin()));
     if (auto n = get_string(first.handle.get(), "name")) a.notes.push_back(*n);
     if (auto u = get_string(first.handle.get(), "units")) a.notes.push_back("units: " + *u);

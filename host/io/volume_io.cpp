@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "memory_budget.h"
+#include "parameter_names.h"
 #include "phase_timer.h"
 #include "volume.h"
 #include "volume_format_table.h"
@@ -66,16 +67,16 @@ const VolumeFormat& checked_format(const std::filesystem::path& path, const Volu
   // Options that only some formats understand are errors elsewhere, not silently ignored (index 0
   // is what --time/--member give by default, so it passes).
   if (!format->has_times && options.time_index && *options.time_index > 0)
-    throw std::runtime_error(path.string() + ": time selection (,time=N / --time) applies to " +
+    throw std::runtime_error(path.string() + ": time selection (,time=N / " + parameter("time") + ") applies to " +
                              volume_format_titles(&VolumeFormat::has_times) + " files only; a " + format->title +
                              " file has no time axis");
   if (!format->has_members && options.member_index && *options.member_index > 0)
-    throw std::runtime_error(path.string() + ": member selection (,member=N / --member) applies to " +
+    throw std::runtime_error(path.string() + ": member selection (,member=N / " + parameter("member") + ") applies to " +
                              volume_format_titles(&VolumeFormat::has_members) + " files only; a " + format->title +
                              " file has no member axis");
   if (!format->has_variables() && !format->has_components && !options.variable.empty())
     throw std::runtime_error(path.string() + ": a " + format->name + " file holds one array; remove ':" +
-                             options.variable + "' / --var");
+                             options.variable + "' / " + parameter("var"));
   return *format;
 }
 

@@ -38,6 +38,7 @@
 #include "grid_orientation.h"
 #include "netcdf_classic.h"
 #include "netcdf4_probe.h"
+#include "parameter_names.h"
 #include "volume_formats.h"
 #include "volume_info.h"
 #include "volume_io.h"
@@ -444,7 +445,7 @@ Selection select_variable(const NcFile& f, const VolumeOptions& options) {
   if (var.empty()) {
     auto candidates = volume_variables(f);
     if (candidates.size() != 1)
-      throw std::runtime_error(file + ": choose a variable (file.nc:VAR or --var): " +
+      throw std::runtime_error(file + ": choose a variable (file.nc:VAR or " + parameter("var") + "): " +
                                (candidates.empty() ? std::string("no variable has two or more spatial dimensions")
                                                    : "candidates are " + join(candidates)));
     var = candidates.front();
@@ -460,7 +461,7 @@ Selection select_variable(const NcFile& f, const VolumeOptions& options) {
   if (!options.member_dim.empty()) {
     auto it = std::find(L.dim_names.begin(), L.dim_names.end(), options.member_dim);
     if (it == L.dim_names.end())
-      throw std::runtime_error(file + ": variable " + var + " has no dimension '" + options.member_dim + "' (--member-dim); its shape is " +
+      throw std::runtime_error(file + ": variable " + var + " has no dimension '" + options.member_dim + "' (" + parameter("member-dim") + "); its shape is " +
                                L.shape());
     sel.member_axis = int(it - L.dim_names.begin());
   }
@@ -469,7 +470,8 @@ Selection select_variable(const NcFile& f, const VolumeOptions& options) {
     if (sel.member_axis >= 0)
       throw std::runtime_error(file + ": variable " + var + " has two leading dimensions besides time (" +
                                L.dim_names[sel.member_axis] + ", " + L.dim_names[a] +
-                               "); only one can be chosen with --member (name it with --member-dim)");
+                               "); only one can be chosen with " + parameter("member") + " (name it with " +
+                               parameter("member-dim") + ")");
     sel.member_axis = a;
   }
   return sel;
@@ -637,9 +639,9 @@ FileInfo describe_netcdf(const NcFile& f, const VolumeOptions& options) {
     orient_axes(axes, a.origin, orientation);
     a.orientation = orientation_lines(axes, a.origin, a.spacing, orientation);
     if (L.time_axis >= 0)
-      a.choices.push_back("time: " + L.dim_names[L.time_axis] + " = " + std::to_string(L.dim_sizes[L.time_axis]) + " (--time)");
+      a.choices.push_back("time: " + L.dim_names[L.time_axis] + " = " + std::to_string(L.dim_sizes[L.time_axis]) + " (" + parameter("time") + ")");
     for (int e : L.extra_axes)
-      a.choices.push_back("member: " + L.dim_names[e] + " = " + std::to_string(L.dim_sizes[e]) + " (--member)");
+      a.choices.push_back("member: " + L.dim_names[e] + " = " + std::to_string(L.dim_sizes[e]) + " (" + parameter("member") + ")");
     auto u = unpacker_of(f, L);
     a.notes.insert(a.notes.end(), u.notes.begin(), u.notes.end());
     // Every slab of every time and member counts towards the range.

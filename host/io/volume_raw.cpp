@@ -15,6 +15,7 @@
 #include "atomic_file.h"
 #include "cancellation.h"
 #include "memory_budget.h"
+#include "parameter_names.h"
 #include "volume.h"
 #include "volume_formats.h"
 #include "volume_info.h"
@@ -202,7 +203,7 @@ FileInfo describe_headerless(const std::filesystem::path& path, const std::strin
     if (edge * edge * edge == n) fits += (fits.empty() ? "" : ", ") + std::to_string(edge) + "^3 " + name;
   }
   info.notes.push_back(std::to_string(bytes) + " bytes" + (fits.empty() ? "" : "; cubes that fit: " + fits) +
-                       " (pass --dims X,Y,Z --type T, or name it name_XxYxZ_type.raw)");
+                       " (pass " + parameter("dims") + " X,Y,Z " + parameter("type") + " T, or name it name_XxYxZ_type.raw)");
   return info;
 }
 
@@ -267,9 +268,9 @@ static std::pair<std::array<uint64_t, 3>, ScalarType> raw_layout(const std::file
   }
   if (!dims)
     throw std::runtime_error(path.string() + ": raw file without dimensions: name it name_XxYxZ_type.raw "
-                             "or pass --dims X,Y,Z (and --type)");
+                             "or pass " + parameter("dims") + " X,Y,Z (and " + parameter("type") + ")");
   if (type == ScalarType::Unknown)
-    throw std::runtime_error(path.string() + ": raw file without element type: pass --type "
+    throw std::runtime_error(path.string() + ": raw file without element type: pass " + parameter("type") + " "
                              "(uint8, uint16, int16, float32, float64, ...)");
   return {*dims, type};
 }

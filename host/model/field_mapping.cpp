@@ -8,6 +8,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "parameter_names.h"
+
 namespace tfm {
 
 FiniteStats finite_stats(std::span<const float> values) {
@@ -130,9 +132,10 @@ std::string check_range_coverage(const RangeCoverage& c, const FiniteStats& s, c
      << "]); they all take the TF's end colours";
   if (f > kRangeErrorFraction) {
     if (!allow)
-      throw std::runtime_error(os.str() + ". The range does not fit this field: give its range (--ref-range, "
-                               "--field-range or --range) or pass --allow-out-of-range");
-    os << " (--allow-out-of-range)";
+      throw std::runtime_error(os.str() + ". The range does not fit this field: give its range (" +
+                               parameter("ref-range") + ", " + parameter("field-range") + " or " + parameter("range") +
+                               ") or pass " + parameter("allow-out-of-range"));
+    os << " (" << parameter("allow-out-of-range") << ")";
   }
   return os.str();
 }

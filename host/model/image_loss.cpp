@@ -3,12 +3,14 @@
 
 #include <stdexcept>
 
+#include "parameter_names.h"
+
 namespace tfm {
 
 ImageLoss parse_image_loss(const std::string& name) {
   if (name == "l2") return ImageLoss::L2;
   if (name == "l1") return ImageLoss::L1;
-  throw std::runtime_error("--loss: expected l2 or l1, got '" + name + "'");
+  throw std::runtime_error(parameter("loss") + ": expected l2 or l1, got '" + name + "'");
 }
 
 const char* image_loss_name(ImageLoss loss) { return loss == ImageLoss::L2 ? "l2" : "l1"; }

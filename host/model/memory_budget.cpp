@@ -12,6 +12,8 @@
 
 #include <unistd.h>
 
+#include "parameter_names.h"
+
 namespace tfm {
 namespace {
 
@@ -92,7 +94,7 @@ void check_memory(uint64_t bytes, const std::string& what) {
   if (bytes <= budget.bytes && in_use <= budget.bytes - bytes) return;
   throw MemoryBudgetExceeded(what + ": needs " + format_bytes(bytes) + ", but the memory budget is " +
                              format_bytes(budget.bytes) + " (" + budget.source + ") and " + format_bytes(in_use) +
-                             " are in use; raise it with --max-memory if the machine has the memory");
+                             " are in use; raise it with " + parameter("max-memory") + " if the machine has the memory");
 }
 
 std::string format_bytes(uint64_t bytes) {

@@ -7,6 +7,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "parameter_names.h"
+
 namespace tfm {
 
 Regularization absolute_regularization(const NormalEquations& eq, const SolveOptions& options) {
@@ -77,13 +79,14 @@ SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions
     if (result.dependent_entries > 0)
       os << ", and " << result.dependent_entries << " runs of entries are fixed by the data only up to one "
          << "combination each (their minimum-norm values were taken)";
-    os << "; --smooth fills them from their neighbours";
+    os << "; " << parameter("smooth") << " fills them from their neighbours";
     result.warnings.push_back(os.str());
   } else if (result.cond > options.cond_warning) {
     std::ostringstream os;
     os << "cond(M) = " << result.cond << " exceeds " << options.cond_warning
        << ": M carries ~1e-7 relative error from float32 data, so x may be wrong by cond*1e-7; "
-          "consider --solver cgls or --smooth";
+          "consider "
+       << parameter("solver") << " cgls or " << parameter("smooth");
     result.warnings.push_back(os.str());
   }
 
@@ -98,7 +101,7 @@ SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions
   if (result.clamped_values > 0) {
     std::ostringstream os;
     os << result.clamped_values << " TF components fell outside [0,1] and were clamped; "
-       << "--solver qp gives the exact box-constrained optimum";
+       << parameter("solver") << " qp gives the exact box-constrained optimum";
     result.warnings.push_back(os.str());
   }
   return result;

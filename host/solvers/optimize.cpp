@@ -10,13 +10,14 @@
 #include "cancellation.h"
 #include "device_memory.h"
 #include "memory_budget.h"
+#include "parameter_names.h"
 #include "solver_support.h"
 
 namespace tfm {
 
 OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   if (!req.ref || !req.field) throw std::invalid_argument("run_optimize: both fields are required");
-  if (req.tf_size < 2) throw std::runtime_error("--tf-size must be at least 2");
+  if (req.tf_size < 2) throw std::runtime_error(parameter("tf-size") + " must be at least 2");
   const Solver& solver = require_solver(req.solver);
   const SolverArgs args = parse_solver_args(solver, req.settings);
   require_same_grid(*req.ref, *req.field);

@@ -8,6 +8,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "parameter_names.h"
+
 namespace tfm {
 namespace {
 
@@ -150,7 +152,7 @@ std::string SolverOption::describe_default() const {
 
 OptionValue SolverOption::parse(const std::string& text, std::string_view solver) const {
   auto fail = [&]() -> OptionValue {
-    throw std::runtime_error("--" + name + " of solver " + std::string(solver) + ": expected " + describe_values() +
+    throw std::runtime_error(parameter(name) + " of solver " + std::string(solver) + ": expected " + describe_values() +
                              ", got '" + text + "'");
   };
   switch (type) {
@@ -264,7 +266,7 @@ void require_owner(const std::string& name, const std::vector<std::string>& owne
     return std::find(owners.begin(), owners.end(), c) != owners.end();
   });
   if (!applies)
-    throw std::runtime_error("--" + name + " applies to solver" + (owners.size() > 1 ? "s " : " ") +
+    throw std::runtime_error(parameter(name) + " applies to solver" + (owners.size() > 1 ? "s " : " ") +
                              join(owners, ", ", ", ") + ", not to " + join(chosen, ", ", ", "));
 }
 

@@ -12,6 +12,7 @@
 #include "cancellation.h"
 #include "cgls_vectors.h"
 #include "commands.h"
+#include "parameter_names.h"
 #include "solver_support.h"
 #include "sparse_ops.h"
 
@@ -149,8 +150,8 @@ class CglsSolver final : public Solver {
     out.details["smooth"] = args.solve.smooth;
     if (worst > o.tolerance) {
       std::ostringstream os;
-      os << "CGLS stopped at --max-iterations " << o.max_iterations << " with relative residual " << worst
-         << " above --tolerance " << o.tolerance;
+      os << "CGLS stopped at " << parameter("max-iterations") << " " << o.max_iterations << " with relative residual "
+         << worst << " above " << parameter("tolerance") << " " << o.tolerance;
       out.warnings.push_back(os.str());
     }
     return out;

@@ -10,6 +10,7 @@
 #include "adam.h"
 #include "cameras.h"
 #include "cancellation.h"
+#include "parameter_names.h"
 #include "progress.h"
 #include "solver_diffdvr.h"
 #include "solver_normal_equations.h"
@@ -176,7 +177,7 @@ class DiffDvrSolver final : public Solver {
     o.learning_rate = args.number("lr");
     // The weight of (N-1) sum of squared TF differences, added to the mean image loss.
     o.smooth = args.solve.smooth;
-    if (!(o.smooth >= 0) || !std::isfinite(o.smooth)) throw std::runtime_error("--smooth: expected a weight >= 0");
+    if (!(o.smooth >= 0) || !std::isfinite(o.smooth)) throw std::runtime_error(parameter("smooth") + ": expected a weight >= 0");
     o.render = args.render;
     o.render.width = o.render.height = uint32_t(args.integer("image-size"));
     const DiffDvrResult r = solve_diffdvr_gpu(p, o);

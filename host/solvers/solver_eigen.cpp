@@ -7,6 +7,7 @@
 
 #include "cgls_cpu.h"
 #include "eigen_baseline.h"
+#include "parameter_names.h"
 #include "solver_support.h"
 
 namespace tfm {
@@ -95,7 +96,7 @@ SolverOutput solve_with_eigen_cgls(VoxelProblem& p, const SolverArgs& args) {
   if (!r.converged) {
     std::ostringstream os;
     os << "eigen-cgls stopped after " << r.iterations << " iterations with relative residual " << r.relative_residual
-       << " above --tolerance " << o.tolerance;
+       << " above " << parameter("tolerance") << " " << o.tolerance;
     out.warnings.push_back(os.str());
   }
   return out;

@@ -8,6 +8,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "parameter_names.h"
 #include "solver.h"
 
 namespace tfm {
@@ -66,7 +67,7 @@ void check_declarations(const std::vector<std::unique_ptr<Solver>>& list) {
       if (!own.insert(o.name).second)
         throw std::logic_error("solver " + std::string(s->name()) + " declares --" + o.name + " twice");
       if (types.emplace(o.name, o.type).first->second != o.type)
-        throw std::logic_error("--" + o.name + " has different types in different solvers");
+        throw std::logic_error(parameter(o.name) + " has different types in different solvers");
     }
   }
 }

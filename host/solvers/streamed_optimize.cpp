@@ -11,6 +11,7 @@
 #include "cancellation.h"
 #include "device_memory.h"
 #include "memory_budget.h"
+#include "parameter_names.h"
 #include "phase_timer.h"
 #include "solver_support.h"
 
@@ -182,7 +183,7 @@ NormalEquations assemble_streamed(Context& ctx, VolumeSlabReader& ref, VolumeSla
 
 StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimizeRequest& req) {
   if (!req.ref || !req.field) throw std::invalid_argument("run_optimize_streamed: both fields are required");
-  if (req.tf_size < 2) throw std::runtime_error("--tf-size must be at least 2");
+  if (req.tf_size < 2) throw std::runtime_error(parameter("tf-size") + " must be at least 2");
   if (!solver_streams(req.solver))
     throw std::runtime_error("solver " + req.solver + " needs both fields in memory; the solvers that stream from "
                              "disk are normal-equations and qp (they work from the assembled system alone)");

@@ -17,6 +17,7 @@
 #endif
 #include "interrupts.h"
 #include "memory_budget.h"
+#include "parameter_names.h"
 #include "phase_timer.h"
 #include "pipeline_cache_file.h"
 #include "progress.h"
@@ -204,6 +205,8 @@ int main(int argc, char** argv) {
 #ifdef TFMATCH_HAVE_CUDA
   tfm::register_cuda_solvers();  // before the options are made from the solver registry
 #endif
+  // Library messages name parameters; this program's users read the flags they type.
+  tfm::set_parameter_style([](std::string_view name) { return "--" + std::string(name); });
   install_interrupt_handlers();
   globals().command_line = quoted_command_line(argc, argv);
   CLI::App app{"tfmatch: optimize a transfer function so a second field's volume renderings match a reference's"};

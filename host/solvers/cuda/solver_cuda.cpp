@@ -12,6 +12,7 @@
 
 #include "cuda_solvers.h"
 #include "eigen_baseline.h"
+#include "parameter_names.h"
 #include "solver_support.h"
 
 namespace tfm {
@@ -155,8 +156,8 @@ SolverOutput solve_with_cuda_cgls(VoxelProblem& p, const SolverArgs& args) {
   out.details["smooth"] = args.solve.smooth;
   if (worst > tolerance) {
     std::ostringstream os;
-    os << "cuda-cgls stopped at --max-iterations " << max_iterations << " with relative residual " << worst
-       << " above --tolerance " << tolerance;
+    os << "cuda-cgls stopped at " << parameter("max-iterations") << " " << max_iterations << " with relative residual "
+       << worst << " above " << parameter("tolerance") << " " << tolerance;
     out.warnings.push_back(os.str());
   }
   return out;
