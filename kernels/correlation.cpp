@@ -140,6 +140,7 @@ struct CorrelationKernel::Impl {
       PipelineDesc desc;
       desc.shader = p.shader;
       desc.binding_counts = gpu::to_vector(kBindingCounts);
+      desc.binding_kinds = texel_binding_kinds(desc.binding_counts.size(), {TFM_CORR_BINDING_ENSEMBLE});
       desc.push_constant_bytes = sizeof(gpu::CorrelationPush);
       desc.workgroup_size = p.workgroup;
       desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, p.workgroup},
@@ -173,8 +174,9 @@ struct CorrelationKernel::Impl {
 namespace {
 
 // Puts voxels [v0, v0 + n) of `ens` into `series` in the chunk layout of the strategy
-// (shaders/correlation_layout.h). Member-major chunks are the ensemble's own layout, member by
-// member: each member's run of n values goes up straight from the caller's array where it is
+// (shaders/correlation_layout.h). A member-major chunk of every voxel is the caller's array itself
+// and goes up in one transfer. Other member-major chunks go member by member: each member's run of
+// n values goes up straight from the caller's array where it is
 // large enough to be copied in place (buffer.h), else the runs are packed into `gathered` and go
 // up together (one transfer instead of M small ones). Voxel-major chunks are transposed on the
 // host into `gathered`.
@@ -182,6 +184,10 @@ void upload_chunk(Context& ctx, const EnsembleView& ens, uint64_t v0, uint32_t n
                   std::vector<float>& gathered, Buffer& series) {
   const uint32_t members = ens.member_count;
   const uint64_t run_bytes = uint64_t(n) * sizeof(float);
+  if (!voxel_major && n == ens.voxel_count) {  // the whole ensemble: already the chunk's layout
+    upload(ctx, series, ens.values, run_bytes * members);
+    return;
+  }
   if (!voxel_major && ctx.host_import() && run_bytes >= kHostImportMinBytes) {
     for (uint32_t m = 0; m < members; ++m)
       upload(ctx, series, ens.values + m * ens.voxel_count + v0, run_bytes, m * run_bytes);
@@ -257,8 +263,10 @@ std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span
   if (budget < fixed_bytes + voxel_bytes)
     throw std::invalid_argument(name + ": max_device_bytes = " + std::to_string(budget) + " is too small; one voxel of " +
                                 std::to_string(members) + " members needs " + std::to_string(fixed_bytes + voxel_bytes));
+  // A chunk's series are one texel view: at most maxTexelBufferElements values.
   const uint64_t chunk = std::min({(budget - fixed_bytes) / voxel_bytes,
-                                   ctx.max_buffer_bytes() / (uint64_t(members) * sizeof(float)), voxels});
+                                   ctx.max_buffer_bytes() / (uint64_t(members) * sizeof(float)),
+                                   uint64_t(limits.maxTexelBufferElements) / members, voxels});
 
   Buffer values = make_buffer<float>(ctx, ref.values, "correlation reference values");
   Buffer order = make_buffer<uint32_t>(ctx, ref.order, "correlation reference order");
@@ -279,7 +287,10 @@ std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span
     const uint64_t groups = plan.group_per_voxel ? n : (n + plan.workgroup - 1) / plan.workgroup;
     const uint64_t groups_x = std::min(groups, max_x);
     CommandBatch batch(ctx);
-    batch.dispatch(pipeline, {series, result, values, order, group, table}, push,
+    batch.dispatch(pipeline,
+                   {Binding::texels(series, VK_FORMAT_R32_SFLOAT, 0, uint64_t(n) * members * sizeof(float)), result,
+                    values, order, group, table},
+                   push,
                    {uint32_t(groups_x), uint32_t((groups + groups_x - 1) / groups_x)});
     batch.submit_and_wait();
     readback(ctx, result, out.data() + v0, uint64_t(n) * sizeof(float));

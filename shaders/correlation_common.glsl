@@ -33,7 +33,10 @@ layout(constant_id = TFM_CORR_SPEC_GROUP_PER_VOXEL) const bool GROUP_PER_VOXEL =
 layout(constant_id = TFM_CORR_SPEC_REGION_FLOATS) const uint REGION_FLOATS = 1u;
 layout(constant_id = TFM_CORR_SPEC_SHARED_FLOATS) const uint SHARED_FLOATS = 1u;
 
-layout(std430, binding = TFM_CORR_BINDING_ENSEMBLE) readonly buffer Ensemble { float ensemble[]; };
+// The chunk's series as float texels: a texel fetch is one vector gather on CPU devices, where a
+// storage-buffer load with a per-lane index is a loop over the SIMD lanes (lavapipe, pearson, 10
+// members x 1.76 M voxels: kernel 4x faster this way), and the texture path on GPUs.
+layout(binding = TFM_CORR_BINDING_ENSEMBLE) uniform samplerBuffer ensemble;
 layout(std430, binding = TFM_CORR_BINDING_OUT) writeonly buffer Out { float result[]; };
 layout(std430, binding = TFM_CORR_BINDING_REF_VALUES) readonly buffer RefValues { float ref_values[]; };
 layout(std430, binding = TFM_CORR_BINDING_REF_ORDER) readonly buffer RefOrder { uint ref_order[]; };
@@ -54,7 +57,7 @@ uint corr_region(uint r) {
 
 // Member m of voxel v in this chunk.
 float series_value(uint v, uint m) {
-  return GROUP_PER_VOXEL ? ensemble[v * pc.member_count + m] : ensemble[m * pc.voxel_count + v];
+  return texelFetch(ensemble, int(GROUP_PER_VOXEL ? v * pc.member_count + m : m * pc.voxel_count + v)).x;
 }
 
 // The per-member work of a voxel: every member in one invocation, or members lid, lid + T, ...
