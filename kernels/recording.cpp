@@ -11,6 +11,8 @@
 
 #include "commands.h"
 #include "context.h"
+#include "render.h"
+#include "render_image.h"
 #include "residual_map.h"
 #include "shared_layout.h"
 #include "voxel_pair.h"
@@ -129,6 +131,38 @@ void ResidualMapRecorder::record_residual_map(VkCommandBuffer cmd, const DeviceF
 }
 
 RecordedAccess ResidualMapRecorder::access() {
+  return {VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_SHADER_READ_BIT,
+          VK_ACCESS_SHADER_WRITE_BIT};
+}
+
+RenderRecorder::RenderRecorder(Context& ctx, const VolumeGeometry& geometry, uint32_t field_chunks)
+    : ctx_(ctx), geometry_(geometry), kernel_(std::make_unique<RenderImageKernel>(ctx, field_chunks)) {
+  views_ = Buffer(ctx, sizeof(gpu::RenderView), MemoryUsage::Device, "recorded render camera");
+}
+RenderRecorder::~RenderRecorder() = default;
+
+void RenderRecorder::record_render(VkCommandBuffer cmd, const DeviceField& field, const FieldMapping& mapping,
+                                   std::span<const float> tf_rgba, const RenderSettings& settings, Buffer& image) {
+  check_table_for(tf_rgba, mapping, "record_render: TF");
+  check_render_size(ctx_, settings);
+  const uint64_t pixels = uint64_t(settings.width) * settings.height;
+  if (image.size() < pixels * 16)
+    throw std::invalid_argument("record_render: the image buffer holds " + std::to_string(image.size()) +
+                                " bytes, a " + std::to_string(settings.width) + "x" + std::to_string(settings.height) +
+                                " image needs " + std::to_string(pixels * 16));
+  const MarchConstants march = march_constants(settings, geometry_);
+  const gpu::RenderView view = make_render_view(orbit_frame(settings.camera, geometry_, settings.width, settings.height));
+  const gpu::RenderPush push = make_render_push(geometry_, march, mapping, field, settings.width, settings.height, 1);
+  if (stop_.size() < pixels * 4) stop_ = Buffer(ctx_, pixels * 4, MemoryUsage::Device, "recorded render stop index");
+  CommandBatch& batch = restart(recording_, ctx_, cmd);
+  batch.barrier();  // an earlier recording's reads of the table and camera finish first
+  record_table(batch, ctx_, tf_, tf_rgba, "recorded render TF");
+  batch.update(views_, 0, &view, sizeof view);
+  batch.barrier();
+  kernel_->record(batch, field, tf_, views_, push, image, stop_, 0, settings.height);
+}
+
+RecordedAccess RenderRecorder::access() {
   return {VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_SHADER_READ_BIT,
           VK_ACCESS_SHADER_WRITE_BIT};
 }

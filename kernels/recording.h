@@ -24,6 +24,7 @@
 #include <vulkan/vulkan_core.h>
 
 #include "buffer.h"
+#include "camera.h"
 #include "device_field.h"
 #include "field_mapping.h"
 #include "gpu_voxel_ops.h"
@@ -35,6 +36,7 @@ namespace tfm {
 class CommandBatch;
 class Context;
 class AssembleNormalEquationsKernel;
+class RenderImageKernel;
 class ResidualMapKernel;
 class VoxelLossKernel;
 
@@ -106,6 +108,34 @@ class ResidualMapRecorder {
   Context& ctx_;
   std::unique_ptr<ResidualMapKernel> kernel_;
   Buffer ref_tf_, opt_tf_;
+  std::unique_ptr<CommandBatch> recording_;
+};
+
+// tfmatch's renderer (the one the optimizers and reports use: DESIGN.md's optical model, one
+// RenderSettings), recorded into the host's command buffer: the picture a host shows beside its
+// own, rendered exactly as tfmatch's images and DiffDVR see the field.
+class RenderRecorder {
+ public:
+  // For fields of `geometry` split into `field_chunks` chunks (a field's chunk_count()).
+  RenderRecorder(Context& ctx, const VolumeGeometry& geometry, uint32_t field_chunks);
+  ~RenderRecorder();
+  RenderRecorder(const RenderRecorder&) = delete;
+  RenderRecorder& operator=(const RenderRecorder&) = delete;
+
+  // Records the TF table, the camera and the ray march of `settings` (camera, image size, step,
+  // opacity scale, termination) into `image`: width x height premultiplied linear RGBA float
+  // pixels (16 bytes each, row 0 first), e.g. the host's buffer through Buffer::adopt. The same
+  // kernel and bits as GpuRenderer::render_colours. Throws as it does (settings, sizes).
+  void record_render(VkCommandBuffer cmd, const DeviceField& field, const FieldMapping& mapping,
+                     std::span<const float> tf_rgba, const RenderSettings& settings, Buffer& image);
+  // Reads the field in the compute-shader stage and writes `image` there (shader write).
+  static RecordedAccess access();
+
+ private:
+  Context& ctx_;
+  VolumeGeometry geometry_;
+  std::unique_ptr<RenderImageKernel> kernel_;
+  Buffer tf_, views_, stop_;
   std::unique_ptr<CommandBatch> recording_;
 };
 

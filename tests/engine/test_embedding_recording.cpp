@@ -21,6 +21,8 @@
 #include "memory_budget.h"
 #include "normal_equations.h"
 #include "recording.h"
+#include "render.h"
+#include "render_settings.h"
 #include "residual.h"
 #include "volume.h"
 
@@ -348,6 +350,58 @@ TEST(EmbeddingRecording, ResidualMapAndVoxelLossRecordIntoTheHostsCommandBuffers
     EXPECT_EQ(recorded.absolute, blocking.absolute);
     EXPECT_EQ(recorded.voxels, blocking.voxels);
     EXPECT_GT(recorded.mae(), 0.0);
+  }
+  for (const auto& m : device.messages()) ADD_FAILURE() << "validation: " << m;
+}
+
+// tfmatch's renderer recorded into the host's buffer: the pixels GpuRenderer::render_colours
+// gives, bit for bit, for a field in the host's buffer spanning several chunks.
+TEST(EmbeddingRecording, RenderRecordsIntoTheHostsImageBuffer) {
+  test::HostDevice device;
+  ASSERT_NO_FATAL_FAILURE(device.create());
+  {
+    auto ctx = Context::adopt(device.external());
+    Host host(device);
+    const std::array<uint64_t, 3> dims{23, 19, 17};
+    const uint64_t voxels = dims[0] * dims[1] * dims[2], chunk = 2048;
+    std::vector<float> values, unused;
+    make_fields(voxels, values, unused);
+    void* volume_map = nullptr;
+    void* image_map = nullptr;
+    VkBuffer volume = host.buffer(voxels * 4, &volume_map);
+    std::memcpy(volume_map, values.data(), voxels * 4);
+    RenderSettings s;
+    s.width = 45;
+    s.height = 37;
+    s.camera.azimuth_deg = 33.0;
+    s.camera.elevation_deg = 21.0;
+    VkBuffer image = host.buffer(uint64_t(s.width) * s.height * 16, &image_map);
+    DeviceField field = DeviceField::adopt(*ctx, volume, 0, voxels, "host volume", chunk);
+    Buffer image_view = Buffer::adopt(*ctx, image, 0, uint64_t(s.width) * s.height * 16, "host image");
+    const VolumeGeometry geometry = VolumeGeometry::from(dims, {1.0, 1.0, 1.0});
+    const TransferFunction tf = reference_tf(0.4);
+    const FieldMapping map = make_mapping({0.05, 0.95}, uint32_t(tf.size()));
+
+    RenderRecorder recorder(*ctx, geometry, uint32_t(field.chunk_count()));
+    const uint64_t submissions = ctx->submissions();
+    VkCommandBuffer cmd = host.begin();
+    recorder.record_render(cmd, field, map, tf.as_floats(), s, image_view);
+    VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    to_host.srcAccessMask = RenderRecorder::access().writes;
+    to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host, 0,
+                         nullptr, 0, nullptr);
+    EXPECT_EQ(ctx->submissions(), submissions);
+    host.submit_and_wait();
+
+    DeviceField own(*ctx, values, "own volume", chunk);
+    Buffer tf_buffer = upload_tf(*ctx, tf, "tf");
+    const RenderedImage expected = GpuRenderer(*ctx, own, geometry).render_colours(map, tf_buffer, s);
+    ASSERT_EQ(expected.rgba.size(), uint64_t(s.width) * s.height * 4);
+    EXPECT_EQ(0, std::memcmp(image_map, expected.rgba.data(), expected.rgba.size() * 4));
+    double alpha = 0.0;
+    for (size_t i = 3; i < expected.rgba.size(); i += 4) alpha += expected.rgba[i];
+    EXPECT_GT(alpha, 1.0);  // the picture is not empty
   }
   for (const auto& m : device.messages()) ADD_FAILURE() << "validation: " << m;
 }
