@@ -182,12 +182,30 @@ TransferFunction reference_tf(double shift) {
   return tf;
 }
 
-TEST(EmbeddingRecording, AssemblyAndTfUploadRecordIntoTheHostsCommandBuffers) {
-  test::HostDevice device;
-  ASSERT_NO_FATAL_FAILURE(device.create());
+// Each test is a host: its own device (validation with synchronization validation when
+// installed), lent to tfmatch, and its own objects; every validation message fails the test.
+class EmbeddingRecording : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_NO_FATAL_FAILURE(device_.create());
+    ctx_ = Context::adopt(device_.external());
+    host_ = std::make_unique<Host>(device_);
+  }
+  void TearDown() override {
+    host_.reset();
+    ctx_.reset();  // tfmatch lets go of the device before the host destroys it
+    EXPECT_EQ(device_.wait_idle(), VK_SUCCESS);
+    for (const auto& m : device_.messages()) ADD_FAILURE() << "validation: " << m;
+  }
+  test::HostDevice device_;
+  std::unique_ptr<Context> ctx_;
+  std::unique_ptr<Host> host_;
+};
+
+TEST_F(EmbeddingRecording, AssemblyAndTfUploadRecordIntoTheHostsCommandBuffers) {
+  Context& ctx = *ctx_;
+  Host& host = *host_;
   {
-    auto ctx = Context::adopt(device.external());
-    Host host(device);
     // The host's volume buffer holds both fields, the second at an offset that is not a chunk
     // boundary's; small chunks (max_chunk_voxels) make each adopted field span several views.
     const uint64_t voxels = 20000 + 37, chunk = 4096;
@@ -204,33 +222,33 @@ TEST(EmbeddingRecording, AssemblyAndTfUploadRecordIntoTheHostsCommandBuffers) {
 
     const uint32_t n = 24;
     const FieldMapping rm = make_mapping({0.05, 0.95}, 7), om = make_mapping({0.0, 2.6}, n);
-    DeviceField ref_field = DeviceField::adopt(*ctx, volume, 0, voxels, "host ref", chunk);
-    DeviceField opt_field = DeviceField::adopt(*ctx, volume, opt_offset, voxels, "host opt", chunk);
+    DeviceField ref_field = DeviceField::adopt(ctx, volume, 0, voxels, "host ref", chunk);
+    DeviceField opt_field = DeviceField::adopt(ctx, volume, opt_offset, voxels, "host opt", chunk);
     EXPECT_GT(ref_field.chunk_count(), 1u);
-    NormalEquationsRecorder recorder(*ctx, n);
-    TfUploadRecorder uploader(*ctx);
+    NormalEquationsRecorder recorder(ctx, n);
+    TfUploadRecorder uploader(ctx);
 
     for (double shift : {0.0, 0.37}) {  // two frames, the reference TF edited in between
       SCOPED_TRACE("reference TF shift " + std::to_string(shift));
       const TransferFunction tf = reference_tf(shift);
       const std::vector<float> tf_floats = tf.as_floats();
-      const uint64_t submissions = ctx->submissions();
+      const uint64_t submissions = ctx.submissions();
       VkCommandBuffer cmd = host.begin();
       if (shift == 0.0)  // the host streams its volume in once
         Host::write_volume(cmd, staging, volume, {{0, 0, voxels * 4}, {voxels * 4, opt_offset, voxels * 4}});
       recorder.record_assemble(cmd, ref_field, opt_field, rm, om, tf_floats);
-      EXPECT_EQ(ctx->submissions(), submissions) << "record_assemble submitted work";
+      EXPECT_EQ(ctx.submissions(), submissions) << "record_assemble submitted work";
       host.submit_and_wait();
       const std::vector<uint64_t> recorded = recorder.fixed_point_slots();
       const NormalEquations eq = recorder.result();
-      EXPECT_EQ(ctx->submissions(), submissions) << "reading the result submitted work";
+      EXPECT_EQ(ctx.submissions(), submissions) << "reading the result submitted work";
 
       // The same system from host arrays through tfmatch's own submissions: the same bits, for
       // this chunking and the device's own.
       for (uint64_t own_chunk : {chunk, uint64_t(0)}) {
-        DeviceField r(*ctx, ref, "ref", own_chunk), o(*ctx, opt, "opt", own_chunk);
-        Buffer tfb = upload_tf(*ctx, tf, "tf");
-        GpuNormalEquations blocking(*ctx, n);
+        DeviceField r(ctx, ref, "ref", own_chunk), o(ctx, opt, "opt", own_chunk);
+        Buffer tfb = upload_tf(ctx, tf, "tf");
+        GpuNormalEquations blocking(ctx, n);
         blocking.add(r, o, rm, om, tfb);
         EXPECT_EQ(recorded, blocking.fixed_point_slots()) << "chunk " << own_chunk;
       }
@@ -255,7 +273,7 @@ TEST(EmbeddingRecording, AssemblyAndTfUploadRecordIntoTheHostsCommandBuffers) {
         images.push_back(r);
       }
       std::vector<std::unique_ptr<TfUploadRecorder>> image_uploaders;  // one per image: each keeps its staging
-      const uint64_t before_upload = ctx->submissions();
+      const uint64_t before_upload = ctx.submissions();
       cmd = host.begin();
       uploader.record_tf_upload(cmd, fitted, TfBufferTarget{tf_buffer, 64, fitted.size() * 4});
       Host::host_barrier(cmd);
@@ -266,11 +284,11 @@ TEST(EmbeddingRecording, AssemblyAndTfUploadRecordIntoTheHostsCommandBuffers) {
         target.new_layout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;  // the host copies it back to check
         target.dst_stages = VK_PIPELINE_STAGE_TRANSFER_BIT;
         target.dst_access = VK_ACCESS_TRANSFER_READ_BIT;
-        image_uploaders.push_back(std::make_unique<TfUploadRecorder>(*ctx));
+        image_uploaders.push_back(std::make_unique<TfUploadRecorder>(ctx));
         image_uploaders.back()->record_tf_upload(cmd, fitted, target);
         host.read_image(cmd, r.image, n, r.buffer);
       }
-      EXPECT_EQ(ctx->submissions(), before_upload) << "record_tf_upload submitted work";
+      EXPECT_EQ(ctx.submissions(), before_upload) << "record_tf_upload submitted work";
       host.submit_and_wait();
       EXPECT_EQ(0, std::memcmp(static_cast<char*>(tf_map) + 64, fitted.data(), fitted.size() * 4));
       for (const Readback& r : images) {
@@ -285,8 +303,8 @@ TEST(EmbeddingRecording, AssemblyAndTfUploadRecordIntoTheHostsCommandBuffers) {
     VkBuffer big_volume = host.buffer(big * 8, &big_map);
     std::memset(big_map, 0, big * 8);
     for (uint64_t i = 0; i < 2 * big; i += 4096) static_cast<float*>(big_map)[i] = float(i % 7) / 6.0f;
-    DeviceField big_ref = DeviceField::adopt(*ctx, big_volume, 0, big, "big ref");
-    DeviceField big_opt = DeviceField::adopt(*ctx, big_volume, big * 4, big, "big opt");
+    DeviceField big_ref = DeviceField::adopt(ctx, big_volume, 0, big, "big ref");
+    DeviceField big_opt = DeviceField::adopt(ctx, big_volume, big * 4, big, "big opt");
     const std::vector<float> tf_floats = reference_tf(0.0).as_floats();
     const uint64_t before = resident_memory();
     VkCommandBuffer cmd = host.begin();
@@ -296,18 +314,14 @@ TEST(EmbeddingRecording, AssemblyAndTfUploadRecordIntoTheHostsCommandBuffers) {
     const uint64_t grown = resident_memory() - std::min(before, resident_memory());
     EXPECT_LT(grown, uint64_t(8) << 20) << "recording over a 32 MiB field grew host memory by " << grown << " bytes";
   }
-  EXPECT_EQ(device.wait_idle(), VK_SUCCESS);
-  for (const auto& m : device.messages()) ADD_FAILURE() << "validation: " << m;
 }
 
 // The residual map into the host's own buffer and the voxel loss, recorded: the same bits as the
 // blocking calls on tfmatch's own copies of the fields.
-TEST(EmbeddingRecording, ResidualMapAndVoxelLossRecordIntoTheHostsCommandBuffers) {
-  test::HostDevice device;
-  ASSERT_NO_FATAL_FAILURE(device.create());
+TEST_F(EmbeddingRecording, ResidualMapAndVoxelLossRecordIntoTheHostsCommandBuffers) {
+  Context& ctx = *ctx_;
+  Host& host = *host_;
   {
-    auto ctx = Context::adopt(device.external());
-    Host host(device);
     const uint64_t voxels = 9000 + 3, chunk = 2048;
     std::vector<float> ref, opt;
     make_fields(voxels, ref, opt);
@@ -318,15 +332,15 @@ TEST(EmbeddingRecording, ResidualMapAndVoxelLossRecordIntoTheHostsCommandBuffers
     const uint64_t opt_offset = (voxels * 4 + 255) / 256 * 256;
     std::memcpy(volume_map, ref.data(), voxels * 4);
     std::memcpy(static_cast<char*>(volume_map) + opt_offset, opt.data(), voxels * 4);
-    DeviceField ref_field = DeviceField::adopt(*ctx, volume, 0, voxels, "host ref", chunk);
-    DeviceField opt_field = DeviceField::adopt(*ctx, volume, opt_offset, voxels, "host opt", chunk);
-    DeviceField out = DeviceField::adopt(*ctx, residual, 0, voxels, "host residual", chunk);
+    DeviceField ref_field = DeviceField::adopt(ctx, volume, 0, voxels, "host ref", chunk);
+    DeviceField opt_field = DeviceField::adopt(ctx, volume, opt_offset, voxels, "host opt", chunk);
+    DeviceField out = DeviceField::adopt(ctx, residual, 0, voxels, "host residual", chunk);
     const TransferFunction ref_tf = reference_tf(0.2), opt_tf = reference_tf(0.6);
     const FieldMapping rm = make_mapping({0.05, 0.95}, 7), om = make_mapping({0.0, 2.6}, 7);
 
-    ResidualMapRecorder residual_recorder(*ctx);
-    VoxelLossRecorder loss_recorder(*ctx);
-    const uint64_t submissions = ctx->submissions();
+    ResidualMapRecorder residual_recorder(ctx);
+    VoxelLossRecorder loss_recorder(ctx);
+    const uint64_t submissions = ctx.submissions();
     VkCommandBuffer cmd = host.begin();
     residual_recorder.record_residual_map(cmd, ref_field, opt_field, rm, om, ref_tf.as_floats(), opt_tf.as_floats(), out);
     loss_recorder.record_voxel_loss(cmd, ref_field, opt_field, rm, om, ref_tf.as_floats(), opt_tf.as_floats());
@@ -335,33 +349,30 @@ TEST(EmbeddingRecording, ResidualMapAndVoxelLossRecordIntoTheHostsCommandBuffers
     shader_to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &shader_to_host, 0,
                          nullptr, 0, nullptr);
-    EXPECT_EQ(ctx->submissions(), submissions);
+    EXPECT_EQ(ctx.submissions(), submissions);
     host.submit_and_wait();
 
-    DeviceField r(*ctx, ref, "ref", chunk), o(*ctx, opt, "opt", chunk);
-    Buffer rt = upload_tf(*ctx, ref_tf, "ref tf"), ot = upload_tf(*ctx, opt_tf, "opt tf");
+    DeviceField r(ctx, ref, "ref", chunk), o(ctx, opt, "opt", chunk);
+    Buffer rt = upload_tf(ctx, ref_tf, "ref tf"), ot = upload_tf(ctx, opt_tf, "opt tf");
     Volume grid;
     grid.dims = {voxels, 1, 1};
-    const Volume expected = residual_map_gpu(*ctx, grid, r, o, rm, om, rt, ot);
+    const Volume expected = residual_map_gpu(ctx, grid, r, o, rm, om, rt, ot);
     EXPECT_EQ(0, std::memcmp(residual_map_memory, expected.values.data(), voxels * 4));
-    const VoxelLoss blocking = voxel_loss_gpu(*ctx, r, o, rm, om, rt, ot);
+    const VoxelLoss blocking = voxel_loss_gpu(ctx, r, o, rm, om, rt, ot);
     const VoxelLoss recorded = loss_recorder.result();
     EXPECT_EQ(recorded.squared, blocking.squared);
     EXPECT_EQ(recorded.absolute, blocking.absolute);
     EXPECT_EQ(recorded.voxels, blocking.voxels);
     EXPECT_GT(recorded.mae(), 0.0);
   }
-  for (const auto& m : device.messages()) ADD_FAILURE() << "validation: " << m;
 }
 
 // tfmatch's renderer recorded into the host's buffer: the pixels GpuRenderer::render_colours
 // gives, bit for bit, for a field in the host's buffer spanning several chunks.
-TEST(EmbeddingRecording, RenderRecordsIntoTheHostsImageBuffer) {
-  test::HostDevice device;
-  ASSERT_NO_FATAL_FAILURE(device.create());
+TEST_F(EmbeddingRecording, RenderRecordsIntoTheHostsImageBuffer) {
+  Context& ctx = *ctx_;
+  Host& host = *host_;
   {
-    auto ctx = Context::adopt(device.external());
-    Host host(device);
     const std::array<uint64_t, 3> dims{23, 19, 17};
     const uint64_t voxels = dims[0] * dims[1] * dims[2], chunk = 2048;
     std::vector<float> values, unused;
@@ -376,14 +387,14 @@ TEST(EmbeddingRecording, RenderRecordsIntoTheHostsImageBuffer) {
     s.camera.azimuth_deg = 33.0;
     s.camera.elevation_deg = 21.0;
     VkBuffer image = host.buffer(uint64_t(s.width) * s.height * 16, &image_map);
-    DeviceField field = DeviceField::adopt(*ctx, volume, 0, voxels, "host volume", chunk);
-    Buffer image_view = Buffer::adopt(*ctx, image, 0, uint64_t(s.width) * s.height * 16, "host image");
+    DeviceField field = DeviceField::adopt(ctx, volume, 0, voxels, "host volume", chunk);
+    Buffer image_view = Buffer::adopt(ctx, image, 0, uint64_t(s.width) * s.height * 16, "host image");
     const VolumeGeometry geometry = VolumeGeometry::from(dims, {1.0, 1.0, 1.0});
     const TransferFunction tf = reference_tf(0.4);
     const FieldMapping map = make_mapping({0.05, 0.95}, uint32_t(tf.size()));
 
-    RenderRecorder recorder(*ctx, geometry, uint32_t(field.chunk_count()));
-    const uint64_t submissions = ctx->submissions();
+    RenderRecorder recorder(ctx, geometry, uint32_t(field.chunk_count()));
+    const uint64_t submissions = ctx.submissions();
     VkCommandBuffer cmd = host.begin();
     recorder.record_render(cmd, field, map, tf.as_floats(), s, image_view);
     VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
@@ -391,39 +402,36 @@ TEST(EmbeddingRecording, RenderRecordsIntoTheHostsImageBuffer) {
     to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host, 0,
                          nullptr, 0, nullptr);
-    EXPECT_EQ(ctx->submissions(), submissions);
+    EXPECT_EQ(ctx.submissions(), submissions);
     host.submit_and_wait();
 
-    DeviceField own(*ctx, values, "own volume", chunk);
-    Buffer tf_buffer = upload_tf(*ctx, tf, "tf");
-    const RenderedImage expected = GpuRenderer(*ctx, own, geometry).render_colours(map, tf_buffer, s);
+    DeviceField own(ctx, values, "own volume", chunk);
+    Buffer tf_buffer = upload_tf(ctx, tf, "tf");
+    const RenderedImage expected = GpuRenderer(ctx, own, geometry).render_colours(map, tf_buffer, s);
     ASSERT_EQ(expected.rgba.size(), uint64_t(s.width) * s.height * 4);
     EXPECT_EQ(0, std::memcmp(image_map, expected.rgba.data(), expected.rgba.size() * 4));
     double alpha = 0.0;
     for (size_t i = 3; i < expected.rgba.size(); i += 4) alpha += expected.rgba[i];
     EXPECT_GT(alpha, 1.0);  // the picture is not empty
   }
-  for (const auto& m : device.messages()) ADD_FAILURE() << "validation: " << m;
 }
 
-TEST(EmbeddingRecording, BadArgumentsAreClearErrors) {
-  test::HostDevice device;
-  ASSERT_NO_FATAL_FAILURE(device.create());
+TEST_F(EmbeddingRecording, BadArgumentsAreClearErrors) {
+  Context& ctx = *ctx_;
+  Host& host = *host_;
   {
-    auto ctx = Context::adopt(device.external());
-    Host host(device);
     void* map = nullptr;
     VkBuffer volume = host.buffer(1 << 16, &map);
-    EXPECT_THROW(DeviceField::adopt(*ctx, VK_NULL_HANDLE, 0, 100, "f"), std::invalid_argument);
-    EXPECT_THROW(DeviceField::adopt(*ctx, volume, 4, 100, "f"), std::invalid_argument);  // misaligned
-    DeviceField f = DeviceField::adopt(*ctx, volume, 0, 1000, "f");
-    NormalEquationsRecorder recorder(*ctx, 8);
+    EXPECT_THROW(DeviceField::adopt(ctx, VK_NULL_HANDLE, 0, 100, "f"), std::invalid_argument);
+    EXPECT_THROW(DeviceField::adopt(ctx, volume, 4, 100, "f"), std::invalid_argument);  // misaligned
+    DeviceField f = DeviceField::adopt(ctx, volume, 0, 1000, "f");
+    NormalEquationsRecorder recorder(ctx, 8);
     EXPECT_THROW(recorder.result(), std::logic_error);  // nothing recorded yet
     const FieldMapping m = make_mapping({0, 1}, 8);
     const std::vector<float> three_entries(12, 0.5f);
     VkCommandBuffer cmd = host.begin();
     EXPECT_THROW(recorder.record_assemble(cmd, f, f, m, m, three_entries), std::invalid_argument);  // 3 vs 8
-    TfUploadRecorder uploader(*ctx);
+    TfUploadRecorder uploader(ctx);
     TfImageTarget bad;
     bad.image = host.image_1d(VK_FORMAT_R8G8B8A8_UNORM, 3);
     bad.format = VK_FORMAT_R8_UNORM;
@@ -431,7 +439,6 @@ TEST(EmbeddingRecording, BadArgumentsAreClearErrors) {
     EXPECT_THROW(uploader.record_tf_upload(cmd, three_entries, TfBufferTarget{volume, 0, 16}), std::invalid_argument);
     host.submit_and_wait();  // nothing was recorded: an empty command buffer
   }
-  for (const auto& m : device.messages()) ADD_FAILURE() << "validation: " << m;
 }
 
 }  // namespace

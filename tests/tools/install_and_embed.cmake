@@ -20,6 +20,14 @@ function(run)
   set(run_output "${out}" PARENT_SCOPE)
 endfunction()
 
+# Configures the project in `source` against the installed package and builds it in `build`
+# (extra arguments go to the build: --verbose prints the link lines); run_output: the build's output.
+function(build_against_package source build)
+  run(${CMAKE_COMMAND} -S ${source} -B ${build} -G ${GENERATOR} -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_BUILD_TYPE=Release)
+  run(${CMAKE_COMMAND} --build ${build} ${ARGN})
+  set(run_output "${run_output}" PARENT_SCOPE)
+endfunction()
+
 run(${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
 
 # No installed library may define a global Vulkan or volk entry point: a host that uses the
@@ -69,9 +77,7 @@ find_package(tfmatch REQUIRED)
 add_executable(all_headers all_headers.cpp)
 target_link_libraries(all_headers PRIVATE tfmatch::tfmatch tfmatch::io tfmatch::report)
 ")
-run(${CMAKE_COMMAND} -S ${WORK_DIR}/all_headers -B ${WORK_DIR}/all_headers/build -G ${GENERATOR}
-    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_BUILD_TYPE=Release)
-run(${CMAKE_COMMAND} --build ${WORK_DIR}/all_headers/build)
+build_against_package(${WORK_DIR}/all_headers ${WORK_DIR}/all_headers/build)
 list(LENGTH installed_headers header_count)
 message(STATUS "${header_count} installed headers, by layer, compile together")
 
@@ -100,9 +106,7 @@ find_package(tfmatch REQUIRED COMPONENTS cuda)
 add_executable(list_solvers main.cpp)
 target_link_libraries(list_solvers PRIVATE tfmatch::cuda)
 ")
-  run(${CMAKE_COMMAND} -S ${WORK_DIR}/cuda_component -B ${WORK_DIR}/cuda_component/build -G ${GENERATOR}
-      -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_BUILD_TYPE=Release)
-  run(${CMAKE_COMMAND} --build ${WORK_DIR}/cuda_component/build)
+  build_against_package(${WORK_DIR}/cuda_component ${WORK_DIR}/cuda_component/build)
   run(${WORK_DIR}/cuda_component/build/list_solvers)
   if(NOT run_output MATCHES "cuda-cgls" OR NOT run_output MATCHES "cuda-normal-equations")
     message(FATAL_ERROR "the cuda component did not add the CUDA solvers:\n${run_output}")
@@ -127,9 +131,7 @@ else()
   message(STATUS "pkg-config not installed: tfmatch.pc not checked")
 endif()
 
-run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/tools/examples/embed -B ${WORK_DIR}/example -G ${GENERATOR}
-    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_BUILD_TYPE=Release)
-run(${CMAKE_COMMAND} --build ${WORK_DIR}/example)
+build_against_package(${SOURCE_DIR}/tools/examples/embed ${WORK_DIR}/example)
 run(${WORK_DIR}/example/embed_example)
 message(STATUS "${run_output}")
 if(NOT run_output MATCHES "OK")
@@ -138,9 +140,7 @@ endif()
 
 # The renderer that records tfmatch's fit into its own frames (tools/examples/renderer), with the
 # validation layer and synchronization validation on where the layer is installed.
-run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/tools/examples/renderer -B ${WORK_DIR}/renderer -G ${GENERATOR}
-    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_BUILD_TYPE=Release)
-run(${CMAKE_COMMAND} --build ${WORK_DIR}/renderer)
+build_against_package(${SOURCE_DIR}/tools/examples/renderer ${WORK_DIR}/renderer)
 if(EXISTS /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json)
   set(ENV{TFMATCH_VALIDATION} 1)
 endif()
@@ -151,9 +151,7 @@ if(NOT run_output MATCHES "\nOK\n")
   message(FATAL_ERROR "the renderer example did not report OK")
 endif()
 
-run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/tools/examples/read_volume -B ${WORK_DIR}/read_volume -G ${GENERATOR}
-    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_BUILD_TYPE=Release)
-run(${CMAKE_COMMAND} --build ${WORK_DIR}/read_volume --verbose)
+build_against_package(${SOURCE_DIR}/tools/examples/read_volume ${WORK_DIR}/read_volume --verbose)
 string(REGEX MATCHALL "[^ \n]*(tfmatch_engine|tfmatch_kernels|tfmatch_shaders|libvulkan|-lvulkan)[^ \n]*" linked "${run_output}")
 if(linked)
   list(JOIN linked " " text)
