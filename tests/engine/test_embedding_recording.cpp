@@ -127,12 +127,13 @@ class Host {
     vkCmdCopyImageToBuffer(cmd, image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, dst, 1, &region);
     host_barrier(cmd);
   }
-  static void host_barrier(VkCommandBuffer cmd) {
+  // Makes earlier writes (transfers by default) visible to the host after its wait.
+  static void host_barrier(VkCommandBuffer cmd, VkPipelineStageFlags stages = VK_PIPELINE_STAGE_TRANSFER_BIT,
+                           VkAccessFlags writes = VK_ACCESS_TRANSFER_WRITE_BIT) {
     VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-    b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    b.srcAccessMask = writes;
     b.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &b, 0, nullptr, 0,
-                         nullptr);
+    vkCmdPipelineBarrier(cmd, stages, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &b, 0, nullptr, 0, nullptr);
   }
 
  private:
@@ -344,11 +345,7 @@ TEST_F(EmbeddingRecording, ResidualMapAndVoxelLossRecordIntoTheHostsCommandBuffe
     VkCommandBuffer cmd = host.begin();
     residual_recorder.record_residual_map(cmd, ref_field, opt_field, rm, om, ref_tf.as_floats(), opt_tf.as_floats(), out);
     loss_recorder.record_voxel_loss(cmd, ref_field, opt_field, rm, om, ref_tf.as_floats(), opt_tf.as_floats());
-    VkMemoryBarrier shader_to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-    shader_to_host.srcAccessMask = ResidualMapRecorder::access().writes;
-    shader_to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &shader_to_host, 0,
-                         nullptr, 0, nullptr);
+    Host::host_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, ResidualMapRecorder::access().writes);
     EXPECT_EQ(ctx.submissions(), submissions);
     host.submit_and_wait();
 
@@ -397,11 +394,7 @@ TEST_F(EmbeddingRecording, RenderRecordsIntoTheHostsImageBuffer) {
     const uint64_t submissions = ctx.submissions();
     VkCommandBuffer cmd = host.begin();
     recorder.record_render(cmd, field, map, tf.as_floats(), s, image_view);
-    VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-    to_host.srcAccessMask = RenderRecorder::access().writes;
-    to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host, 0,
-                         nullptr, 0, nullptr);
+    Host::host_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, RenderRecorder::access().writes);
     EXPECT_EQ(ctx.submissions(), submissions);
     host.submit_and_wait();
 
