@@ -55,9 +55,25 @@ void record_table(CommandBatch& batch, Context& ctx, Buffer& buffer, std::span<c
 
 NormalEquationsRecorder::NormalEquationsRecorder(Context& ctx, uint32_t tf_size, ReductionOptions options)
     : ctx_(ctx), kernel_(std::make_unique<AssembleNormalEquationsKernel>(ctx, tf_size, options)) {
-  const uint64_t bytes = uint64_t(kernel_->slots()) * gpu::kFixedSlotBytes;
+  const uint64_t bytes = scratch_bytes(tf_size);
   accum_ = Buffer(ctx, bytes, MemoryUsage::Device, "recorded normal-equation accumulators");
   result_ = Buffer(ctx, bytes, MemoryUsage::Readback, "recorded normal-equation result");
+  result_mapped_ = result_.mapped();
+}
+
+NormalEquationsRecorder::NormalEquationsRecorder(Context& ctx, uint32_t tf_size, const RecorderScratch& scratch,
+                                                 ReductionOptions options)
+    : ctx_(ctx), kernel_(std::make_unique<AssembleNormalEquationsKernel>(ctx, tf_size, options)) {
+  if (!scratch.result_mapped)
+    throw std::invalid_argument("NormalEquationsRecorder: the host's result range needs its mapping (result_mapped)");
+  const uint64_t bytes = scratch_bytes(tf_size);
+  accum_ = Buffer::adopt(ctx, scratch.accumulators, scratch.accumulators_offset, bytes, "host scratch: accumulators");
+  result_ = Buffer::adopt(ctx, scratch.result, scratch.result_offset, bytes, "host scratch: result");
+  result_mapped_ = scratch.result_mapped;
+}
+
+uint64_t NormalEquationsRecorder::scratch_bytes(uint32_t tf_size) {
+  return uint64_t(TFM_ASSEMBLE_SLOTS(tf_size)) * gpu::kFixedSlotBytes;
 }
 
 NormalEquationsRecorder::~NormalEquationsRecorder() = default;
@@ -90,7 +106,7 @@ void NormalEquationsRecorder::record_assemble(VkCommandBuffer cmd, const DeviceF
 std::vector<uint32_t> NormalEquationsRecorder::result_words() const {
   if (!recorded_) throw std::logic_error("NormalEquationsRecorder::result: nothing recorded yet");
   std::vector<uint32_t> words(size_t(kernel_->slots()) * 2);
-  std::memcpy(words.data(), result_.mapped(), words.size() * sizeof(uint32_t));
+  std::memcpy(words.data(), result_mapped_, words.size() * sizeof(uint32_t));
   return words;
 }
 

@@ -47,11 +47,30 @@ struct RecordedAccess {
   VkAccessFlags writes = 0;         // how it writes the host's resources there (0: only its own)
 };
 
+// Scratch memory a host lends a recorder instead of the recorder's own (a renderer that
+// sub-allocates everything from its own heaps): a device range for the accumulators and a
+// host-visible, host-coherent range, mapped by the host at `result_mapped`, for the result the
+// host reads after its wait. Sizes: NormalEquationsRecorder::scratch_bytes. Offsets must meet the
+// device's storage-buffer offset alignment; the buffers need storage and transfer usages.
+struct RecorderScratch {
+  VkBuffer accumulators = VK_NULL_HANDLE;
+  uint64_t accumulators_offset = 0;
+  VkBuffer result = VK_NULL_HANDLE;
+  uint64_t result_offset = 0;
+  const void* result_mapped = nullptr;  // the host's mapping of `result` at `result_offset`
+};
+
 class NormalEquationsRecorder {
  public:
   // Creates the accumulators (device), the result's host-visible copy and the reference-TF table
   // once; pipelines are made on the first recording. Throws as GpuNormalEquations does.
   NormalEquationsRecorder(Context& ctx, uint32_t tf_size, ReductionOptions options = {});
+  // The same in the host's scratch memory (the reference-TF table, O(N) bytes, stays the
+  // recorder's). Throws std::invalid_argument for a missing buffer or mapping or a misaligned
+  // offset.
+  NormalEquationsRecorder(Context& ctx, uint32_t tf_size, const RecorderScratch& scratch, ReductionOptions options = {});
+  // Bytes of each scratch range for `tf_size` entries: the accumulators and the result alike.
+  static uint64_t scratch_bytes(uint32_t tf_size);
   ~NormalEquationsRecorder();
   NormalEquationsRecorder(const NormalEquationsRecorder&) = delete;
   NormalEquationsRecorder& operator=(const NormalEquationsRecorder&) = delete;
@@ -81,6 +100,7 @@ class NormalEquationsRecorder {
   Context& ctx_;
   std::unique_ptr<AssembleNormalEquationsKernel> kernel_;
   Buffer accum_, result_, ref_tf_;
+  const void* result_mapped_ = nullptr;  // result_'s mapping: the recorder's or the host's
   std::unique_ptr<CommandBatch> recording_;  // the last recording's descriptor sets and views
   bool recorded_ = false;
 };

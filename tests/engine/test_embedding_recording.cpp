@@ -317,6 +317,42 @@ TEST_F(EmbeddingRecording, AssemblyAndTfUploadRecordIntoTheHostsCommandBuffers) 
   }
 }
 
+// The host lends the recorder its scratch memory (one buffer: accumulators, then the result at an
+// aligned offset): the same system as the recorder's own memory, read through the host's mapping.
+TEST_F(EmbeddingRecording, AssemblyInTheHostsScratchMemory) {
+  Context& ctx = *ctx_;
+  Host& host = *host_;
+  {
+    const uint64_t voxels = 5000 + 1;
+    std::vector<float> ref, opt;
+    make_fields(voxels, ref, opt);
+    void* map = nullptr;
+    const uint64_t opt_offset = (voxels * 4 + 255) / 256 * 256;
+    VkBuffer volume = host.buffer(opt_offset + voxels * 4, &map);
+    std::memcpy(map, ref.data(), voxels * 4);
+    std::memcpy(static_cast<char*>(map) + opt_offset, opt.data(), voxels * 4);
+    const DeviceField r = DeviceField::adopt(ctx, volume, 0, voxels, "host ref");
+    const DeviceField o = DeviceField::adopt(ctx, volume, opt_offset, voxels, "host opt");
+    const uint32_t n = 16;
+    const uint64_t bytes = NormalEquationsRecorder::scratch_bytes(n), result_offset = (bytes + 255) / 256 * 256;
+    void* scratch_map = nullptr;
+    VkBuffer scratch = host.buffer(result_offset + bytes, &scratch_map);
+    RecorderScratch lent{scratch, 0, scratch, result_offset, static_cast<char*>(scratch_map) + result_offset};
+    NormalEquationsRecorder in_host_memory(ctx, n, lent), in_own_memory(ctx, n);
+    const FieldMapping rm = make_mapping({0.05, 0.95}, 7), om = make_mapping({0.0, 2.6}, n);
+    const std::vector<float> tf = reference_tf(0.1).as_floats();
+    VkCommandBuffer cmd = host.begin();
+    in_host_memory.record_assemble(cmd, r, o, rm, om, tf);
+    in_own_memory.record_assemble(cmd, r, o, rm, om, tf);
+    host.submit_and_wait();
+    EXPECT_EQ(in_host_memory.fixed_point_slots(), in_own_memory.fixed_point_slots());
+    EXPECT_GT(in_host_memory.result().voxels, 0u);
+    RecorderScratch unmapped = lent;
+    unmapped.result_mapped = nullptr;
+    EXPECT_THROW(NormalEquationsRecorder(ctx, n, unmapped), std::invalid_argument);
+  }
+}
+
 // The residual map into the host's own buffer and the voxel loss, recorded: the same bits as the
 // blocking calls on tfmatch's own copies of the fields.
 TEST_F(EmbeddingRecording, ResidualMapAndVoxelLossRecordIntoTheHostsCommandBuffers) {
