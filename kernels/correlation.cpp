@@ -22,7 +22,7 @@
 
 namespace tfm {
 
-static_assert(sizeof(gpu::CorrelationPush) == 36, "CorrelationPush must match the GLSL std430 block");
+static_assert(sizeof(gpu::CorrelationPush) == 40, "CorrelationPush must match the GLSL std430 block");
 static_assert(kMaxCorrelationBins == TFM_CORR_MAX_BINS && kMaxCorrelationK == TFM_CORR_MAX_K);
 
 namespace {
@@ -131,11 +131,13 @@ double CorrelationKernel::error_bound(const CorrelationParams& params, uint32_t 
 struct CorrelationKernel::Impl {
   explicit Impl(Context& c) : ctx(c) {}
   Context& ctx;
-  // Pipelines by (shader, strategy, region size, coefficient), built on first use and kept.
-  std::map<std::tuple<std::string, bool, uint32_t, bool>, std::unique_ptr<ComputePipeline>> pipelines;
+  // Pipelines by (shader, strategy, region size, coefficient, layout), built on first use and kept.
+  std::map<std::tuple<std::string, bool, uint32_t, bool, bool>, std::unique_ptr<ComputePipeline>> pipelines;
 
-  const ComputePipeline& pipeline(const Plan& p) {
-    auto& slot = pipelines[{p.shader, p.group_per_voxel, p.region_floats, p.coefficient}];
+  // `member_major`: the series' layout (uploaded chunks: member-major unless one workgroup per
+  // voxel; device-resident ensembles: member-major).
+  const ComputePipeline& pipeline(const Plan& p, bool member_major) {
+    auto& slot = pipelines[{p.shader, p.group_per_voxel, p.region_floats, p.coefficient, member_major}];
     if (!slot) {
       PipelineDesc desc;
       desc.shader = p.shader;
@@ -147,7 +149,8 @@ struct CorrelationKernel::Impl {
                                         {TFM_CORR_SPEC_GROUP_PER_VOXEL, p.group_per_voxel ? 1u : 0u},
                                         {TFM_CORR_SPEC_REGION_FLOATS, p.region_floats},
                                         {TFM_CORR_SPEC_SHARED_FLOATS, p.shared_floats},
-                                        {TFM_CORR_SPEC_COEFFICIENT, p.coefficient ? 1u : 0u}});
+                                        {TFM_CORR_SPEC_COEFFICIENT, p.coefficient ? 1u : 0u},
+                                        {TFM_CORR_SPEC_MEMBER_MAJOR, member_major ? 1u : 0u}});
       desc.spirv = shader_spirv(desc.shader);
       slot = std::make_unique<ComputePipeline>(ctx, desc);
     }
@@ -208,6 +211,28 @@ namespace {
 
 constexpr uint64_t kDefaultDeviceBytes = 256ull << 20;
 
+// The region and histogram sizes are fixed by the member count; a device with less shared memory
+// or smaller workgroups than they need cannot run this measure at this size.
+void check_device_fits(const Context& ctx, const Plan& plan, const std::string& name, uint32_t members) {
+  const VkPhysicalDeviceLimits& limits = ctx.limits();
+  const std::string what = name + " with " + std::to_string(members) + " members needs ";
+  if (plan.shared_bytes > limits.maxComputeSharedMemorySize)
+    throw std::runtime_error(what + std::to_string(plan.shared_bytes) + " bytes of workgroup shared memory; the device has " +
+                             std::to_string(limits.maxComputeSharedMemorySize) + " (maxComputeSharedMemorySize)");
+  const uint32_t max_workgroup = std::min(limits.maxComputeWorkGroupInvocations, limits.maxComputeWorkGroupSize[0]);
+  if (plan.workgroup > max_workgroup)
+    throw std::runtime_error(what + "workgroups of " + std::to_string(plan.workgroup) + " invocations; the device allows " +
+                             std::to_string(max_workgroup) + " (maxComputeWorkGroupInvocations, maxComputeWorkGroupSize[0])");
+}
+
+// Groups for one voxel per workgroup or invocation, never more (shaders/correlation_common.glsl):
+// rows of at most maxComputeWorkGroupCount[0] groups (the limits guarantee 65535 rows).
+Groups correlation_groups(const Context& ctx, const Plan& plan, uint64_t voxels) {
+  const uint64_t groups = plan.group_per_voxel ? voxels : (voxels + plan.workgroup - 1) / plan.workgroup;
+  const uint64_t groups_x = std::min<uint64_t>(groups, ctx.limits().maxComputeWorkGroupCount[0]);
+  return {uint32_t(groups_x), uint32_t((groups + groups_x - 1) / groups_x)};
+}
+
 gpu::CorrelationPush make_push(const CorrelationReference& ref) {
   gpu::CorrelationPush push{};
   push.member_count = ref.members;
@@ -242,18 +267,9 @@ std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span
 
   Context& ctx = impl_->ctx;
   const Plan plan = make_plan(params.measure, members);
-  // The region and histogram sizes are fixed by the member count; a device with less shared
-  // memory than they need cannot run this measure at this size.
   const VkPhysicalDeviceLimits& limits = ctx.limits();
-  const std::string what = name + " with " + std::to_string(members) + " members needs ";
-  if (plan.shared_bytes > limits.maxComputeSharedMemorySize)
-    throw std::runtime_error(what + std::to_string(plan.shared_bytes) + " bytes of workgroup shared memory; the device has " +
-                             std::to_string(limits.maxComputeSharedMemorySize) + " (maxComputeSharedMemorySize)");
-  const uint32_t max_workgroup = std::min(limits.maxComputeWorkGroupInvocations, limits.maxComputeWorkGroupSize[0]);
-  if (plan.workgroup > max_workgroup)
-    throw std::runtime_error(what + "workgroups of " + std::to_string(plan.workgroup) + " invocations; the device allows " +
-                             std::to_string(max_workgroup) + " (maxComputeWorkGroupInvocations, maxComputeWorkGroupSize[0])");
-  const ComputePipeline& pipeline = impl_->pipeline(plan);
+  check_device_fits(ctx, plan, name, members);
+  const ComputePipeline& pipeline = impl_->pipeline(plan, !plan.group_per_voxel);
 
   // Device memory: the reference buffers, then per voxel its series twice (staging and device
   // copy) and its result twice (device and readback).
@@ -275,28 +291,77 @@ std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span
   Buffer& series = impl_->kept(impl_->series, chunk * members * sizeof(float), "correlation ensemble chunk");
   Buffer& result = impl_->kept(impl_->result, chunk * sizeof(float), "correlation result chunk");
   gpu::CorrelationPush push = make_push(ref);
-  const uint64_t max_x = ctx.limits().maxComputeWorkGroupCount[0];
   for (uint64_t v0 = 0; v0 < voxels; v0 += chunk) {
     const uint32_t n = uint32_t(std::min(chunk, voxels - v0));
     // Each transfer waits for its copies, so the chunk is on the device before the kernel reads it
     // (and the previous chunk's kernel, waited for below, has finished reading `series`).
     upload_chunk(ctx, ens, v0, n, plan.group_per_voxel, impl_->gathered, series);
     push.voxel_count = n;
-    // One voxel per workgroup or invocation, never more (shaders/correlation_common.glsl): rows
-    // of at most maxComputeWorkGroupCount[0] groups (the limits guarantee 65535 rows).
-    const uint64_t groups = plan.group_per_voxel ? n : (n + plan.workgroup - 1) / plan.workgroup;
-    const uint64_t groups_x = std::min(groups, max_x);
+    push.member_stride = n;  // of a member-major chunk (upload_chunk)
     CommandBatch batch(ctx);
     batch.dispatch(pipeline,
                    {Binding::texels(series, VK_FORMAT_R32_SFLOAT, 0, uint64_t(n) * members * sizeof(float)), result,
                     values, order, group, table},
-                   push,
-                   {uint32_t(groups_x), uint32_t((groups + groups_x - 1) / groups_x)});
+                   push, correlation_groups(ctx, plan, n));
     batch.submit_and_wait();
     readback(ctx, result, out.data() + v0, uint64_t(n) * sizeof(float));
     if (progress) progress(v0 + n, voxels);
   }
   return out;
+}
+
+void record_correlation_tables(CommandBatch& batch, Context& ctx, const CorrelationReference& ref,
+                               CorrelationTables& tables) {
+  auto write = [&](Buffer& buffer, const void* data, uint64_t bytes, const char* name) {
+    const uint64_t size = std::max<uint64_t>(bytes, 4);
+    if (buffer.size() < size) buffer = Buffer(ctx, size, MemoryUsage::Device, name);
+    if (bytes) batch.update(buffer, 0, data, bytes);
+  };
+  write(tables.values, ref.values.data(), ref.values.size() * sizeof(float), "correlation reference values");
+  write(tables.order, ref.order.data(), ref.order.size() * sizeof(uint32_t), "correlation reference order");
+  write(tables.group, ref.group.data(), ref.group.size() * sizeof(uint32_t), "correlation reference tie groups");
+  write(tables.table, ref.table.data(), ref.table.size() * sizeof(float), "correlation count table");
+}
+
+void CorrelationKernel::check_record(const Buffer& ensemble, uint64_t voxels, const CorrelationParams& params,
+                                     uint32_t members, const Buffer& out) const {
+  const std::string name = correlation_measure_name(params.measure);
+  const Context& ctx = impl_->ctx;
+  if (voxels == 0) throw std::invalid_argument(name + ": no voxels");
+  if (voxels > std::numeric_limits<uint32_t>::max())
+    throw std::invalid_argument(name + ": " + std::to_string(voxels) + " voxels; one recording takes at most 2^32 - 1");
+  if (ensemble.size() < uint64_t(members) * voxels * sizeof(float))
+    throw std::invalid_argument(name + ": the ensemble buffer holds " + std::to_string(ensemble.size()) + " bytes, " +
+                                std::to_string(members) + " members x " + std::to_string(voxels) + " voxels need " +
+                                std::to_string(uint64_t(members) * voxels * sizeof(float)));
+  if (out.size() < voxels * sizeof(float))
+    throw std::invalid_argument(name + ": the output buffer holds fewer than " + std::to_string(voxels) + " floats");
+  if (uint64_t(members) * voxels > ctx.limits().maxTexelBufferElements)
+    throw std::invalid_argument(name + ": " + std::to_string(uint64_t(members) * voxels) +
+                                " values exceed one texel view of this device (maxTexelBufferElements " +
+                                std::to_string(ctx.limits().maxTexelBufferElements) + "); compute() streams chunks");
+}
+
+void CorrelationKernel::record(CommandBatch& batch, const Buffer& ensemble, uint64_t voxels,
+                               const CorrelationReference& ref, const CorrelationTables& tables, Buffer& out) {
+  const std::string name = correlation_measure_name(ref.params.measure);
+  const uint32_t members = ref.members;
+  Context& ctx = impl_->ctx;
+  check_record(ensemble, voxels, ref.params, members, out);
+  if (ref.has_nan) {  // NaN at every voxel (kernels/correlation.h)
+    Buffer view = Buffer::adopt(ctx, out.handle(), out.offset(), voxels * sizeof(float), "correlation output");
+    batch.fill(view, 0x7fc00000u);
+    return;
+  }
+  const Plan plan = make_plan(ref.params.measure, members);
+  check_device_fits(ctx, plan, name, members);
+  gpu::CorrelationPush push = make_push(ref);
+  push.voxel_count = uint32_t(voxels);
+  push.member_stride = uint32_t(voxels);  // member-major whatever the strategy
+  batch.dispatch(impl_->pipeline(plan, true),
+                 {Binding::texels(ensemble, VK_FORMAT_R32_SFLOAT, 0, uint64_t(members) * voxels * sizeof(float)), out,
+                  tables.values, tables.order, tables.group, tables.table},
+                 push, correlation_groups(ctx, plan, voxels));
 }
 
 }  // namespace tfm

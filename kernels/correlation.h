@@ -21,9 +21,22 @@
 
 #include "correlation_measure.h"  // the measures, their parameters, EnsembleView
 
+#include "buffer.h"
+
 namespace tfm {
 
+class CommandBatch;
 class Context;
+struct CorrelationReference;
+
+// The reference series' tables on the device (values, order, tie groups, count table), as the
+// kernels read them; written by record_correlation_tables.
+struct CorrelationTables {
+  Buffer values, order, group, table;
+};
+// Records the writes of `ref`'s tables into `tables` (each grown when too small) inside `batch`.
+void record_correlation_tables(CommandBatch& batch, Context& ctx, const CorrelationReference& ref,
+                               CorrelationTables& tables);
 
 // Called after each chunk of voxels with (voxels done, voxels in all).
 using CorrelationProgress = std::function<void(uint64_t done, uint64_t total)>;
@@ -45,6 +58,20 @@ class CorrelationKernel {
   // memory this member count needs (the message names the limit).
   std::vector<float> compute(const EnsembleView& ens, std::span<const float> reference, const CorrelationParams& params,
                              const CorrelationProgress& progress = {}, uint64_t max_device_bytes = 0);
+
+  // Records the field of an ensemble already on the device: `ensemble` holds ref.members x
+  // `voxels` floats, member-major (member m's voxel v at m * voxels + v; an embedder's buffer
+  // through Buffer::adopt), `out` gets `voxels` floats. One dispatch, the same kernels and bits
+  // as compute(); a reference with NaN fills `out` with NaN. `tables` must hold `ref`'s tables
+  // (record_correlation_tables, earlier in the same batch). Throws std::invalid_argument when a
+  // buffer is too small or the ensemble exceeds one texel view (maxTexelBufferElements values),
+  // std::runtime_error as compute() does for device limits.
+  void record(CommandBatch& batch, const Buffer& ensemble, uint64_t voxels, const CorrelationReference& ref,
+              const CorrelationTables& tables, Buffer& out);
+  // record()'s checks of the buffers and sizes alone (std::invalid_argument), for callers that
+  // must refuse before they record anything.
+  void check_record(const Buffer& ensemble, uint64_t voxels, const CorrelationParams& params, uint32_t members,
+                    const Buffer& out) const;
 
   // Which strategy compute() uses for `member_count` (for messages and the benchmark), e.g.
   // "one invocation per voxel" or "one workgroup per voxel, shared-memory sort".

@@ -11,6 +11,7 @@
 
 #include "commands.h"
 #include "context.h"
+#include "correlation_reference.h"
 #include "render.h"
 #include "render_image.h"
 #include "residual_map.h"
@@ -181,6 +182,26 @@ void RenderRecorder::record_render(VkCommandBuffer cmd, const DeviceField& field
 RecordedAccess RenderRecorder::access() {
   return {VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_SHADER_READ_BIT,
           VK_ACCESS_SHADER_WRITE_BIT};
+}
+
+CorrelationRecorder::CorrelationRecorder(Context& ctx) : ctx_(ctx), kernel_(std::make_unique<CorrelationKernel>(ctx)) {}
+CorrelationRecorder::~CorrelationRecorder() = default;
+
+void CorrelationRecorder::record_correlation(VkCommandBuffer cmd, const Buffer& ensemble, uint64_t voxels,
+                                             std::span<const float> reference_series, const CorrelationParams& params,
+                                             Buffer& out) {
+  const CorrelationReference ref = prepare_correlation_reference(reference_series, params);  // checks params
+  kernel_->check_record(ensemble, voxels, params, ref.members, out);
+  CommandBatch& batch = restart(recording_, ctx_, cmd);
+  batch.barrier();  // an earlier recording's reads of the tables and writes of `out` finish first
+  record_correlation_tables(batch, ctx_, ref, tables_);
+  batch.barrier();
+  kernel_->record(batch, ensemble, voxels, ref, tables_, out);
+}
+
+RecordedAccess CorrelationRecorder::access() {
+  return {VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_SHADER_READ_BIT,
+          VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT};
 }
 
 VoxelLossRecorder::VoxelLossRecorder(Context& ctx) : ctx_(ctx), kernel_(std::make_unique<VoxelLossKernel>(ctx)) {

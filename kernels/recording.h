@@ -25,6 +25,7 @@
 
 #include "buffer.h"
 #include "camera.h"
+#include "correlation.h"
 #include "device_field.h"
 #include "field_mapping.h"
 #include "gpu_voxel_ops.h"
@@ -156,6 +157,33 @@ class RenderRecorder {
   VolumeGeometry geometry_;
   std::unique_ptr<RenderImageKernel> kernel_;
   Buffer tf_, views_, stop_;
+  std::unique_ptr<CommandBatch> recording_;
+};
+
+// A correlation field (kernels/correlation.h) of an ensemble already on the device, recorded: the
+// host's buffer of M x V floats, member-major (member m's voxel v at m * V + v).
+class CorrelationRecorder {
+ public:
+  explicit CorrelationRecorder(Context& ctx);
+  ~CorrelationRecorder();
+  CorrelationRecorder(const CorrelationRecorder&) = delete;
+  CorrelationRecorder& operator=(const CorrelationRecorder&) = delete;
+
+  // Records the reference's tables (prepared on the host from `reference_series`, the M values at
+  // the reference point, which the host has: nothing is read back) and the field of
+  // `params.measure` into `out` (`voxels` floats): the same kernels and bits as
+  // CorrelationKernel::compute on the same values. Throws std::invalid_argument for bad params,
+  // sizes, or an ensemble beyond one texel view (CorrelationKernel::record).
+  void record_correlation(VkCommandBuffer cmd, const Buffer& ensemble, uint64_t voxels,
+                          std::span<const float> reference_series, const CorrelationParams& params, Buffer& out);
+  // Reads the ensemble in the compute-shader stage and writes `out` there (shader write; a
+  // transfer write when the reference has NaN).
+  static RecordedAccess access();
+
+ private:
+  Context& ctx_;
+  std::unique_ptr<CorrelationKernel> kernel_;
+  CorrelationTables tables_;
   std::unique_ptr<CommandBatch> recording_;
 };
 

@@ -24,6 +24,7 @@ namespace tfm::gpu {
 #define TFM_CORR_SPEC_REGION_FLOATS 2    // floats of one shared-memory region (see below)
 #define TFM_CORR_SPEC_SHARED_FLOATS 3    // floats of all regions (regions * REGION_FLOATS, at least 1)
 #define TFM_CORR_SPEC_COEFFICIENT 4      // mi-kraskov: write sqrt(1 - exp(-2 max(MI, 0))) instead of MI
+#define TFM_CORR_SPEC_MEMBER_MAJOR 5     // 1: series member-major (stride member_stride); 0: voxel-major
 
 // Strategies (why: the header comment of shaders/correlation_common.glsl).
 // One invocation per voxel: the chunk is member-major (value of member m at voxel v at
@@ -65,6 +66,11 @@ TFM_PUSH_CONSTANTS(CorrelationPush) {
   float ref_norm;     // pearson: sum of squared centred x; spearman: sum of squared centred 2*rank
   uint ref_tied_pairs;  // kendall: pairs tied in x
   float mi_offset;    // mi-binned: ln M; mi-kraskov: digamma(k) + digamma(M)
+  // Member-major series (TFM_CORR_SPEC_MEMBER_MAJOR): member m of voxel v is texel
+  // m * member_stride + v of the view (an uploaded chunk has stride voxel_count, a device-resident
+  // ensemble its whole voxel count). Voxel-major (the uploaded layout of one workgroup per voxel):
+  // texel v * member_count + m, and the stride is unused.
+  uint member_stride;
 } TFM_PUSH_INSTANCE(pc);
 #endif
 

@@ -15,6 +15,7 @@
 
 #include "buffer.h"
 #include "context.h"
+#include "correlation.h"
 #include "device_field.h"
 #include "gpu_voxel_ops.h"
 #include "host_device.h"
@@ -401,6 +402,63 @@ TEST_F(EmbeddingRecording, ResidualMapAndVoxelLossRecordIntoTheHostsCommandBuffe
 }
 
 // tfmatch's renderer recorded into the host's buffer: the pixels GpuRenderer::render_colours
+// Correlation fields of an ensemble in the host's buffer (member-major), recorded: the bits of
+// CorrelationKernel::compute on the same values, for strategies of one invocation and of one
+// workgroup per voxel, and NaN everywhere for a reference series with NaN.
+TEST_F(EmbeddingRecording, CorrelationOfAnEnsembleInTheHostsBuffer) {
+  Context& ctx = *ctx_;
+  Host& host = *host_;
+  {
+    const uint64_t voxels = 3000 + 7;
+    struct Case {
+      CorrelationMeasure measure;
+      uint32_t members;
+    };
+    for (const Case& k : {Case{CorrelationMeasure::Pearson, 10}, Case{CorrelationMeasure::Spearman, 12},
+                          Case{CorrelationMeasure::Kendall, 40}, Case{CorrelationMeasure::MiBinned, 40},
+                          Case{CorrelationMeasure::MiKraskov, 9}}) {
+      CorrelationParams params;
+      params.measure = k.measure;
+      SCOPED_TRACE(std::string(correlation_measure_name(k.measure)) + ", " + std::to_string(k.members) + " members");
+      std::vector<float> values(uint64_t(k.members) * voxels);
+      for (uint32_t m = 0; m < k.members; ++m)
+        for (uint64_t v = 0; v < voxels; ++v)
+          values[m * voxels + v] = float(std::sin(0.37 * m + 0.011 * double(v)) + 0.3 * std::cos(1.7 * m * m + double(v % 13)));
+      void* ensemble_map = nullptr;
+      void* out_map = nullptr;
+      VkBuffer ensemble = host.buffer(values.size() * 4, &ensemble_map);
+      VkBuffer out = host.buffer(voxels * 4, &out_map);
+      std::memcpy(ensemble_map, values.data(), values.size() * 4);
+      Buffer ensemble_view = Buffer::adopt(ctx, ensemble, 0, values.size() * 4, "host ensemble");
+      Buffer out_view = Buffer::adopt(ctx, out, 0, voxels * 4, "host correlation field");
+      const EnsembleView view{values.data(), k.members, voxels};
+      const std::vector<float> reference = ensemble_series(view, 1234);
+
+      CorrelationRecorder recorder(ctx);
+      const uint64_t submissions = ctx.submissions();
+      VkCommandBuffer cmd = host.begin();
+      recorder.record_correlation(cmd, ensemble_view, voxels, reference, params, out_view);
+      Host::host_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT);
+      EXPECT_EQ(ctx.submissions(), submissions);
+      host.submit_and_wait();
+      const std::vector<float> expected = CorrelationKernel(ctx).compute(view, reference, params);
+      EXPECT_EQ(0, std::memcmp(out_map, expected.data(), voxels * 4));
+      if (k.measure == CorrelationMeasure::Pearson || k.measure == CorrelationMeasure::Spearman ||
+          k.measure == CorrelationMeasure::Kendall)
+        EXPECT_FLOAT_EQ(static_cast<const float*>(out_map)[1234], 1.0f);  // the reference point itself
+
+      std::vector<float> with_nan = reference;
+      with_nan[2] = NAN;
+      cmd = host.begin();
+      recorder.record_correlation(cmd, ensemble_view, voxels, with_nan, params, out_view);
+      Host::host_barrier(cmd);
+      host.submit_and_wait();
+      const float* field = static_cast<const float*>(out_map);
+      EXPECT_TRUE(std::all_of(field, field + voxels, [](float x) { return std::isnan(x); }));
+    }
+  }
+}
+
 // gives, bit for bit, for a field in the host's buffer spanning several chunks.
 TEST_F(EmbeddingRecording, RenderRecordsIntoTheHostsImageBuffer) {
   Context& ctx = *ctx_;
