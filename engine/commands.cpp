@@ -37,8 +37,14 @@ Binding Binding::texels(std::vector<const Buffer*> array, VkFormat format) {
 
 static uint32_t texel_bytes(VkFormat format) {
   switch (format) {
+    case VK_FORMAT_R8_UNORM: return 1;
+    case VK_FORMAT_R16_SFLOAT:
+    case VK_FORMAT_R16_UNORM: return 2;
+    case VK_FORMAT_R8G8B8A8_UNORM:
     case VK_FORMAT_R32_SFLOAT:
     case VK_FORMAT_R32_UINT: return 4;
+    case VK_FORMAT_R16G16B16A16_SFLOAT:
+    case VK_FORMAT_R16G16B16A16_UNORM:
     case VK_FORMAT_R32G32_SFLOAT:
     case VK_FORMAT_R32G32_UINT: return 8;
     case VK_FORMAT_R32G32B32A32_SFLOAT:

@@ -31,12 +31,54 @@ DeviceField::DeviceField(Context& ctx, uint64_t voxel_count, const std::string& 
 }
 
 DeviceField DeviceField::adopt(Context& ctx, VkBuffer buffer, uint64_t offset, uint64_t voxel_count,
-                               const std::string& name, uint64_t max_chunk_voxels) {
+                               const std::string& name, uint64_t max_chunk_voxels, FieldFormat format) {
   DeviceField field(ChunkingOnly{}, ctx, voxel_count, max_chunk_voxels, name);
+  field.format_ = format;
+  const uint64_t bytes = field_format_bytes(format);
   for (size_t i = 0; i < field.planned_chunks(); ++i)
-    field.chunks_.push_back(Buffer::adopt(ctx, buffer, offset + field.chunk_begin(i) * sizeof(float),
-                                          field.chunk_size(i) * sizeof(float), name + " chunk " + std::to_string(i)));
+    field.chunks_.push_back(Buffer::adopt(ctx, buffer, offset + field.chunk_begin(i) * bytes,
+                                          field.chunk_size(i) * bytes, name + " chunk " + std::to_string(i)));
   return field;
+}
+
+uint32_t field_format_bytes(FieldFormat format) {
+  switch (format) {
+    case FieldFormat::Float32: return 4;
+    case FieldFormat::Float16:
+    case FieldFormat::Unorm16: return 2;
+    case FieldFormat::Unorm8: return 1;
+  }
+  throw std::logic_error("unknown field format");
+}
+
+VkFormat voxel_texel_format(FieldFormat format) {
+  switch (format) {
+    case FieldFormat::Float32: return VK_FORMAT_R32_SFLOAT;
+    case FieldFormat::Float16: return VK_FORMAT_R16_SFLOAT;
+    case FieldFormat::Unorm16: return VK_FORMAT_R16_UNORM;
+    case FieldFormat::Unorm8: return VK_FORMAT_R8_UNORM;
+  }
+  throw std::logic_error("unknown field format");
+}
+
+VkFormat quad_texel_format(FieldFormat format) {
+  switch (format) {
+    case FieldFormat::Float32: return VK_FORMAT_R32G32B32A32_SFLOAT;
+    case FieldFormat::Float16: return VK_FORMAT_R16G16B16A16_SFLOAT;
+    case FieldFormat::Unorm16: return VK_FORMAT_R16G16B16A16_UNORM;
+    case FieldFormat::Unorm8: return VK_FORMAT_R8G8B8A8_UNORM;
+  }
+  throw std::logic_error("unknown field format");
+}
+
+const char* field_format_name(FieldFormat format) {
+  switch (format) {
+    case FieldFormat::Float32: return "float32";
+    case FieldFormat::Float16: return "float16";
+    case FieldFormat::Unorm16: return "unorm16";
+    case FieldFormat::Unorm8: return "unorm8";
+  }
+  return "unknown";
 }
 
 DeviceField::DeviceField(Context& ctx, std::span<const float> values, const std::string& name,
@@ -50,6 +92,9 @@ uint64_t DeviceField::chunk_size(size_t i) const {
 }
 
 void DeviceField::upload(std::span<const float> values) {
+  if (format_ != FieldFormat::Float32)
+    throw std::logic_error(std::string("DeviceField::upload: the field stores ") + field_format_name(format_) +
+                           ", not float32 (it is the caller's buffer: write it there)");
   if (values.size() != voxels_) throw std::invalid_argument("DeviceField::upload: size mismatch");
   for (size_t i = 0; i < chunks_.size(); ++i)
     tfm::upload(*ctx_, chunks_[i], values.data() + chunk_begin(i), chunk_size(i) * sizeof(float));

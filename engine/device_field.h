@@ -14,6 +14,16 @@ namespace tfm {
 
 class Context;
 
+// How a field's voxels are stored: what a texel fetch reads them as is the stored number (the
+// float, the float16, or a unorm's c / (2^b - 1)); a value mapping (model: ValueMapping) turns
+// stored numbers into field values. Fields tfmatch uploads are Float32; an embedder's buffer may
+// be any of these (DeviceField::adopt).
+enum class FieldFormat { Float32, Float16, Unorm16, Unorm8 };
+uint32_t field_format_bytes(FieldFormat format);
+VkFormat voxel_texel_format(FieldFormat format);  // one voxel a texel: R32_SFLOAT, R16_SFLOAT, R16_UNORM, R8_UNORM
+VkFormat quad_texel_format(FieldFormat format);   // four voxels a texel: the RGBA formats of the same
+const char* field_format_name(FieldFormat format);
+
 class DeviceField {
  public:
   // Voxels per chunk: the device limit, or `max_chunk_voxels` when smaller (tests force splits).
@@ -25,9 +35,12 @@ class DeviceField {
   // range (Buffer::adopt; the same alignment rule). Nothing is copied or allocated, on the device or
   // the host; the caller keeps the buffer alive, and unchanged while recorded work reads it.
   static DeviceField adopt(Context& ctx, VkBuffer buffer, uint64_t offset, uint64_t voxel_count,
-                           const std::string& name, uint64_t max_chunk_voxels = 0);
+                           const std::string& name, uint64_t max_chunk_voxels = 0,
+                           FieldFormat format = FieldFormat::Float32);
 
+  // Float32 fields only (std::logic_error otherwise).
   void upload(std::span<const float> values);
+  FieldFormat format() const { return format_; }
   uint64_t voxel_count() const { return voxels_; }
   uint64_t chunk_voxels() const { return chunk_voxels_; }  // every chunk but the last
   size_t chunk_count() const { return chunks_.size(); }
@@ -44,6 +57,7 @@ class DeviceField {
   DeviceField(ChunkingOnly, Context& ctx, uint64_t voxel_count, uint64_t max_chunk_voxels, const std::string& name);
   size_t planned_chunks() const { return static_cast<size_t>((voxels_ + chunk_voxels_ - 1) / chunk_voxels_); }
   Context* ctx_;
+  FieldFormat format_ = FieldFormat::Float32;
   uint64_t voxels_ = 0;
   uint64_t chunk_voxels_ = 0;
   std::vector<Buffer> chunks_;

@@ -43,7 +43,8 @@ const ComputePipeline& GdGradientKernel::pipeline(uint32_t ref_tf_size) const {
         reduction_.pipeline_desc("gd_gradient", gpu::to_vector(kGradientBindingCounts), sizeof(gpu::VoxelPairPush));
     const bool shared = reduction_.mode == ReductionMode::RunsShared;
     desc.binding_kinds =
-        texel_binding_kinds(desc.binding_counts.size(), {TFM_GD_BINDING_REF_QUADS, TFM_GD_BINDING_OPT_QUADS});
+        texel_binding_kinds(desc.binding_counts.size(), {TFM_GD_BINDING_REF_QUADS, TFM_GD_BINDING_OPT_QUADS,
+                                                          TFM_GD_BINDING_REF_FIELD, TFM_GD_BINDING_OPT_FIELD});
     desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, reduction_.workgroup_size},
                                       {TFM_GD_SPEC_MODE, reduction_.shader_mode()},
                                       {TFM_GD_SPEC_SHARED_SLOTS, shared ? TFM_TF_GRADIENT_SLOTS(tf_size_) : 1u},
@@ -68,14 +69,12 @@ void GdGradientKernel::record(CommandBatch& batch, const DeviceField& ref, const
   gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
   for (size_t c = 0; c < ref.chunk_count(); ++c) {
     push.voxel_count = static_cast<uint32_t>(ref.chunk_size(c));
-    // Chunks fit one texel view (DeviceField); one of fewer than 4 voxels has no quads and binds
-    // one float it never reads.
+    // Chunks fit one texel view (DeviceField): the whole chunk is one range.
     const uint64_t voxels = ref.chunk_size(c);
-    const VkFormat format = voxels >= 4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT;
-    const uint64_t bytes = voxels >= 4 ? voxels / 4 * 16 : 4;
+    const QuadRange whole{c, 0, voxels};
     batch.dispatch(pipe,
-                   {ref.chunk(c), opt.chunk(c), ref_tf, x, accum, Binding::texels(ref.chunk(c), format, 0, bytes),
-                    Binding::texels(opt.chunk(c), format, 0, bytes)},
+                   {voxel_texels(ref, c), voxel_texels(opt, c), ref_tf, x, accum, quad_texels(ref, whole),
+                    quad_texels(opt, whole)},
                    push, {reduction_.groups(ctx_, voxels)});
     // Successive chunks add into the same accumulators.
     batch.barrier();

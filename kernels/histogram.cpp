@@ -46,7 +46,7 @@ FieldHistogramKernel::FieldHistogramKernel(Context& ctx, uint32_t bins, Histogra
   PipelineDesc desc;
   desc.shader = "field_histogram";
   desc.binding_counts = gpu::to_vector(kBindingCounts);
-  desc.binding_kinds = texel_binding_kinds(desc.binding_counts.size(), {TFM_HIST_BINDING_QUADS});
+  desc.binding_kinds = texel_binding_kinds(desc.binding_counts.size(), {TFM_HIST_BINDING_QUADS, TFM_HIST_BINDING_FIELD});
   desc.push_constant_bytes = sizeof(gpu::HistogramPush);
   desc.workgroup_size = workgroup_size_;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_},
@@ -82,7 +82,7 @@ FieldHistogram FieldHistogramKernel::run(const DeviceField& field, double lo, do
       push.voxel_count = uint32_t(r.voxels);
       push.first_voxel = uint32_t(r.first);
       batch.dispatch(*pipeline_,
-                     {field.chunk(r.chunk), counts, Binding::texels(field.chunk(r.chunk), r.format, r.first * 4, r.bytes)},
+                     {voxel_texels(field, r.chunk), counts, quad_texels(field, r)},
                      push, {lane_groups(ctx_, workgroup_size_, r.voxels, lane_voxels_, TFM_HIST_COUNTERS(bins_))});
       batch.barrier();
       in_batch += r.voxels;

@@ -51,6 +51,8 @@ void FieldPairReadKernel::record(CommandBatch& batch, const DeviceField& ref, co
   if (ref.voxel_count() != opt.voxel_count() || ref.chunk_voxels() != opt.chunk_voxels())
     throw std::invalid_argument("field_pair_read: fields differ in size or chunking");
   if (result.size() < 2 * sizeof(uint32_t)) throw std::invalid_argument("field_pair_read: result buffer too small");
+  if (ref.format() != FieldFormat::Float32 || opt.format() != FieldFormat::Float32)
+    throw std::invalid_argument("field_pair_read: float32 fields only (the read bound of tfmatch's own uploads)");
   for (const QuadRange& r : quad_ranges(ref, range_quads_)) {  // the assembly's dispatches
     const gpu::ReadBoundPush push{static_cast<uint32_t>(r.voxels), static_cast<uint32_t>(r.first)};
     batch.dispatch(*pipeline_,

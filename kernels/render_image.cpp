@@ -18,7 +18,7 @@ std::vector<DescriptorKind> march_binding_kinds(size_t bindings, uint32_t field_
 }
 
 Binding march_field_binding(const DeviceField& field) {
-  return Binding::texels(field.chunk_array(TFM_RENDER_MAX_CHUNKS), VK_FORMAT_R32_SFLOAT);
+  return Binding::texels(field.chunk_array(TFM_RENDER_MAX_CHUNKS), voxel_texel_format(field.format()));
 }
 
 Binding march_tf_binding(const Buffer& tf, uint32_t tf_size) {

@@ -28,7 +28,8 @@ ResidualMapKernel::ResidualMapKernel(Context& ctx, uint64_t range_quads, uint32_
   desc.binding_counts = gpu::to_vector(kResidualBindingCounts);
   desc.binding_kinds = texel_binding_kinds(desc.binding_counts.size(),
                                            {TFM_RESIDUAL_BINDING_REF_TF, TFM_RESIDUAL_BINDING_OPT_TF,
-                                            TFM_RESIDUAL_BINDING_REF_QUADS, TFM_RESIDUAL_BINDING_OPT_QUADS});
+                                            TFM_RESIDUAL_BINDING_REF_QUADS, TFM_RESIDUAL_BINDING_OPT_QUADS,
+                                            TFM_RESIDUAL_BINDING_REF_FIELD, TFM_RESIDUAL_BINDING_OPT_FIELD});
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = workgroup_size_;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_}});
@@ -42,6 +43,7 @@ void ResidualMapKernel::record(CommandBatch& batch, const DeviceField& ref, cons
   for (const DeviceField* f : {&opt, static_cast<const DeviceField*>(&out)})
     if (f->voxel_count() != ref.voxel_count() || f->chunk_voxels() != ref.chunk_voxels())
       throw std::invalid_argument("residual map: fields differ in size or chunking");
+  if (out.format() != FieldFormat::Float32) throw std::invalid_argument("residual map: the output field must be float32");
   if (ref_tf.size() < uint64_t(ref_map.tf_size) * 16 || opt_tf.size() < uint64_t(opt_map.tf_size) * 16)
     throw std::invalid_argument("residual map: TF buffer smaller than its mapping's size");
   const Binding rtf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
@@ -52,9 +54,8 @@ void ResidualMapKernel::record(CommandBatch& batch, const DeviceField& ref, cons
     push.first_voxel = static_cast<uint32_t>(r.first);
     // Ranges write disjoint voxels: no barrier between them.
     batch.dispatch(*pipeline_,
-                   {ref.chunk(r.chunk), opt.chunk(r.chunk), rtf, otf, out.chunk(r.chunk),
-                    Binding::texels(ref.chunk(r.chunk), r.format, r.first * 4, r.bytes),
-                    Binding::texels(opt.chunk(r.chunk), r.format, r.first * 4, r.bytes), out.chunk(r.chunk)},
+                   {voxel_texels(ref, r.chunk), voxel_texels(opt, r.chunk), rtf, otf, out.chunk(r.chunk),
+                    quad_texels(ref, r), quad_texels(opt, r), out.chunk(r.chunk)},
                    push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
   }
 }

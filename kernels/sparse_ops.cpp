@@ -124,17 +124,22 @@ void SparsePrepareKernel::record(CommandBatch& batch, const DeviceField& ref, co
   push.opt_scale = opt_map.scale;
   const Binding tf = tf_texels(ref_tf, ref_map.tf_size);
   const uint64_t align = ctx_.limits().minTexelBufferOffsetAlignment;
+  if (ref.format() != opt.format())
+    throw std::invalid_argument("sparse prepare: both fields must store their voxels in one format");
+  const uint64_t voxel_bytes = field_format_bytes(ref.format());
   for (const QuadRange& r : quad_ranges(v.chunk_sizes(), range_quads_)) {
     // The fields' views start at the alignment at or below the range's first voxel.
-    const uint64_t first = v.field_offset(r.chunk) + r.first, view = first * 4 / align * align;
+    // Both fields store voxels in one format (checked above), `voxel_bytes` each.
+    const uint64_t first = v.field_offset(r.chunk) + r.first, view = first * voxel_bytes / align * align;
     push.voxel_count = static_cast<uint32_t>(r.voxels);
     push.first_voxel = static_cast<uint32_t>(r.first);
-    push.field_shift = static_cast<uint32_t>(first - view / 4);
-    const uint64_t bytes = (push.field_shift + r.voxels) * 4;
+    push.field_shift = static_cast<uint32_t>(first - view / voxel_bytes);
+    const uint64_t bytes = (push.field_shift + r.voxels) * voxel_bytes;
     const size_t f = v.field_chunk(r.chunk);
+    const VkFormat format = voxel_texel_format(ref.format());
     batch.dispatch(*pipeline_,
-                   {Binding::texels(ref.chunk(f), VK_FORMAT_R32_SFLOAT, view, bytes),
-                    Binding::texels(opt.chunk(f), VK_FORMAT_R32_SFLOAT, view, bytes), tf, v.coord(r.chunk),
+                   {Binding::texels(ref.chunk(f), format, view, bytes),
+                    Binding::texels(opt.chunk(f), format, view, bytes), tf, v.coord(r.chunk),
                     v.rgba(r.chunk), v.coord(r.chunk)},
                    push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
   }

@@ -79,10 +79,11 @@ uint64_t voxel_texel_range_quads(const Context& ctx, uint64_t requested, const c
 std::vector<QuadRange> quad_ranges(const DeviceField& field, uint64_t range_quads) {
   std::vector<uint64_t> sizes(field.chunk_count());
   for (size_t c = 0; c < sizes.size(); ++c) sizes[c] = field.chunk_size(c);
-  return quad_ranges(sizes, range_quads);
+  return quad_ranges(sizes, range_quads, field.format());
 }
 
-std::vector<QuadRange> quad_ranges(std::span<const uint64_t> chunk_voxels, uint64_t range_quads) {
+std::vector<QuadRange> quad_ranges(std::span<const uint64_t> chunk_voxels, uint64_t range_quads, FieldFormat format) {
+  const uint64_t voxel_bytes = field_format_bytes(format);
   std::vector<QuadRange> out;
   for (size_t c = 0; c < chunk_voxels.size(); ++c) {
     const uint64_t chunk = chunk_voxels[c];
@@ -91,12 +92,25 @@ std::vector<QuadRange> quad_ranges(std::span<const uint64_t> chunk_voxels, uint6
       r.chunk = c;
       r.first = first;
       r.voxels = std::min(4 * range_quads, chunk - first);
-      r.format = r.voxels >= 4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT;
-      r.bytes = r.voxels >= 4 ? r.voxels / 4 * 16 : 4;
+      r.format = r.voxels >= 4 ? quad_texel_format(format) : voxel_texel_format(format);
+      r.bytes = r.voxels >= 4 ? r.voxels / 4 * 4 * voxel_bytes : voxel_bytes;
       out.push_back(r);
     }
   }
   return out;
+}
+
+Binding quad_texels(const DeviceField& field, const QuadRange& r) {
+  const uint64_t voxel_bytes = field_format_bytes(field.format());
+  const bool quads = r.voxels >= 4;
+  return Binding::texels(field.chunk(r.chunk),
+                         quads ? quad_texel_format(field.format()) : voxel_texel_format(field.format()),
+                         r.first * voxel_bytes, quads ? r.voxels / 4 * 4 * voxel_bytes : voxel_bytes);
+}
+
+Binding voxel_texels(const DeviceField& field, size_t c) {
+  return Binding::texels(field.chunk(c), voxel_texel_format(field.format()), 0,
+                         field.chunk_size(c) * field_format_bytes(field.format()));
 }
 
 std::vector<double> decode_fixed_point(const std::vector<uint32_t>& words) {
@@ -151,7 +165,8 @@ const std::vector<std::unique_ptr<ComputePipeline>>& AssembleNormalEquationsKern
                                                  sizeof(gpu::VoxelPairPush));
     desc.binding_kinds = texel_binding_kinds(
         desc.binding_counts.size(),
-        {TFM_ASSEMBLE_BINDING_REF_TF, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS});
+        {TFM_ASSEMBLE_BINDING_REF_TF, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS,
+         TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD});
     desc.specialization = gpu::by_id(
         {{TFM_SPEC_WORKGROUP_X, reduction_.workgroup_size},
          {TFM_ASSEMBLE_SPEC_MODE, reduction_.shader_mode()},
@@ -192,9 +207,8 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
     push.first_voxel = static_cast<uint32_t>(r.first);
     for (const auto& pipe : passes) {
       batch.dispatch(*pipe,
-                     {ref.chunk(r.chunk), opt.chunk(r.chunk), tf, accum,
-                      Binding::texels(ref.chunk(r.chunk), r.format, r.first * 4, r.bytes),
-                      Binding::texels(opt.chunk(r.chunk), r.format, r.first * 4, r.bytes)},
+                     {voxel_texels(ref, r.chunk), voxel_texels(opt, r.chunk), tf, accum, quad_texels(ref, r),
+                      quad_texels(opt, r)},
                      push, {reduction_.groups(ctx_, r.voxels)});
       // Successive dispatches add into the same accumulators.
       batch.barrier();
@@ -217,7 +231,8 @@ const ComputePipeline& VoxelLossKernel::pipeline(bool with_before) const {
   desc.binding_counts = gpu::to_vector(kLossBindingCounts);
   desc.binding_kinds = texel_binding_kinds(desc.binding_counts.size(),
                                            {TFM_LOSS_BINDING_REF_TF, TFM_LOSS_BINDING_OPT_TF, TFM_LOSS_BINDING_REF_QUADS,
-                                            TFM_LOSS_BINDING_OPT_QUADS});
+                                            TFM_LOSS_BINDING_OPT_QUADS, TFM_LOSS_BINDING_REF_FIELD,
+                                            TFM_LOSS_BINDING_OPT_FIELD});
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = workgroup_size_;
   desc.specialization =
@@ -249,9 +264,8 @@ void VoxelLossKernel::record(CommandBatch& batch, const DeviceField& ref, const 
     push.voxel_count = static_cast<uint32_t>(r.voxels);
     push.first_voxel = static_cast<uint32_t>(r.first);
     batch.dispatch(pipe,
-                   {ref.chunk(r.chunk), opt.chunk(r.chunk), rtf, otf, accum,
-                    Binding::texels(ref.chunk(r.chunk), r.format, r.first * 4, r.bytes),
-                    Binding::texels(opt.chunk(r.chunk), r.format, r.first * 4, r.bytes)},
+                   {voxel_texels(ref, r.chunk), voxel_texels(opt, r.chunk), rtf, otf, accum, quad_texels(ref, r),
+                    quad_texels(opt, r)},
                    push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
     // Successive ranges add into the same accumulators.
     batch.barrier();

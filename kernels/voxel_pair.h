@@ -116,14 +116,22 @@ uint64_t voxel_texel_range_quads(const Context& ctx, uint64_t requested, const c
 struct QuadRange {
   size_t chunk = 0;
   uint64_t first = 0, voxels = 0;  // within the chunk
-  // The texel view over the range's quads, from byte first * 4; a range of fewer than 4 voxels
-  // has no quads, and its view is one float that is never read.
+  // The texel view over the range's quads, from byte first * (bytes a voxel); a range of fewer
+  // than 4 voxels has no quads, and its view is one voxel that is never read.
   VkFormat format = VK_FORMAT_R32G32B32A32_SFLOAT;
   uint64_t bytes = 0;
 };
-// The ranges of every chunk of `field`, in order; of chunks of the given sizes.
+// The ranges of every chunk of `field`, in order (views in the field's format); of chunks of the
+// given sizes and format.
 std::vector<QuadRange> quad_ranges(const DeviceField& field, uint64_t range_quads);
-std::vector<QuadRange> quad_ranges(std::span<const uint64_t> chunk_voxels, uint64_t range_quads);
+std::vector<QuadRange> quad_ranges(std::span<const uint64_t> chunk_voxels, uint64_t range_quads,
+                                   FieldFormat format = FieldFormat::Float32);
+// The view of range `r`'s quads of `field`, in the field's format (a range of fewer than 4 voxels:
+// one voxel, never read).
+Binding quad_texels(const DeviceField& field, const QuadRange& r);
+// The view of chunk `c` of `field` as one texel a voxel in its format (the kernels read a range's
+// last voxel_count % 4 voxels through it, by their index in the chunk).
+Binding voxel_texels(const DeviceField& field, size_t c);
 
 // Decodes `slots` 32.32 fixed-point accumulators read back as 2*slots uint32 words.
 std::vector<double> decode_fixed_point(const std::vector<uint32_t>& words);

@@ -64,9 +64,10 @@ layout(constant_id = TFM_ASSEMBLE_SPEC_TERM_COUNT) const uint TERM_COUNT = 11u;
 // lavapipe (measured), so pipelines without it compile the loop without it.
 layout(constant_id = TFM_ASSEMBLE_SPEC_WITH_BEFORE) const bool WITH_BEFORE = false;
 
-// The chunk's voxels as floats (for the dispatch's last voxel_count % 4) and its range as quads.
-layout(std430, binding = TFM_ASSEMBLE_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
-layout(std430, binding = TFM_ASSEMBLE_BINDING_OPT_FIELD) readonly buffer OptField { float opt_field[]; };
+// The chunk's voxels one a texel (for the dispatch's last voxel_count % 4) and its range as quads,
+// in the field's storage format (a float, a float16, a unorm: the texel fetch gives the float).
+layout(binding = TFM_ASSEMBLE_BINDING_REF_FIELD) uniform samplerBuffer ref_field;
+layout(binding = TFM_ASSEMBLE_BINDING_OPT_FIELD) uniform samplerBuffer opt_field;
 layout(binding = TFM_ASSEMBLE_BINDING_REF_QUADS) uniform samplerBuffer ref_quads;
 layout(binding = TFM_ASSEMBLE_BINDING_OPT_QUADS) uniform samplerBuffer opt_quads;
 layout(binding = TFM_ASSEMBLE_BINDING_REF_TF) uniform samplerBuffer ref_tf;
@@ -176,7 +177,7 @@ void main() {
   }
   if (gl_GlobalInvocationID.x == 0u)
     for (uint i = pc.first_voxel + 4u * quads; i < pc.first_voxel + pc.voxel_count; ++i)
-      take(ref_field[i], opt_field[i]);
+      take(texelFetch(ref_field, int(i)).x, texelFetch(opt_field, int(i)).x);
 
   if (MODE == TFM_REDUCE_PRIVATE) {
     for (uint j = 0u; j + 1u < n; ++j)

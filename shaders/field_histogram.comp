@@ -25,7 +25,7 @@ layout(constant_id = TFM_HIST_SPEC_SHARED_WORDS) const uint kSharedWords = 1u;
 layout(constant_id = TFM_HIST_SPEC_MODE) const uint MODE = TFM_HIST_MODE_GLOBAL;
 layout(constant_id = TFM_HIST_SPEC_PRIVATE_COUNTERS) const uint kPrivateCounters = 1u;
 
-layout(std430, binding = TFM_HIST_BINDING_FIELD) readonly buffer Field { float field[]; };
+layout(binding = TFM_HIST_BINDING_FIELD) uniform samplerBuffer field;  // one voxel a texel
 layout(std430, binding = TFM_HIST_BINDING_COUNTS) buffer Counts { uint counts[]; };
 layout(binding = TFM_HIST_BINDING_QUADS) uniform samplerBuffer quads_in;
 
@@ -62,7 +62,7 @@ void main() {
     count(v.x), count(v.y), count(v.z), count(v.w);
   }
   if (gl_GlobalInvocationID.x == 0u)
-    for (uint i = pc.first_voxel + 4u * quads; i < pc.first_voxel + pc.voxel_count; ++i) count(field[i]);
+    for (uint i = pc.first_voxel + 4u * quads; i < pc.first_voxel + pc.voxel_count; ++i) count(texelFetch(field, int(i)).x);
   if (MODE == TFM_HIST_MODE_PRIVATE) {
     for (uint k = 0u; k < n_counters; ++k)
       if (priv[k] != 0u) atomicAdd(counts[k], priv[k]);

@@ -30,9 +30,9 @@ layout(constant_id = TFM_GD_SPEC_LOSS_L1) const bool LOSS_L1 = false;
 // Reference TF entries copied into private memory (0: read the buffer).
 layout(constant_id = TFM_GD_SPEC_TF_CACHE) const uint TF_CACHE_ENTRIES = 0u;
 
-layout(std430, binding = TFM_GD_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
+layout(binding = TFM_GD_BINDING_REF_FIELD) uniform samplerBuffer ref_field;  // one voxel a texel
 layout(binding = TFM_GD_BINDING_REF_QUADS) uniform samplerBuffer ref_quads;
-layout(std430, binding = TFM_GD_BINDING_OPT_FIELD) readonly buffer OptField { float opt_field[]; };
+layout(binding = TFM_GD_BINDING_OPT_FIELD) uniform samplerBuffer opt_field;
 layout(binding = TFM_GD_BINDING_OPT_QUADS) uniform samplerBuffer opt_quads;
 layout(std430, binding = TFM_GD_BINDING_REF_TF) readonly buffer RefTf { vec4 ref_tf[]; };
 layout(std430, binding = TFM_GD_BINDING_X) readonly buffer X { vec4 x[]; };
@@ -79,7 +79,7 @@ void main() {
     take(rv.w, ov.w);
   }
   if (gl_GlobalInvocationID.x == 0u)
-    for (uint i = 4u * quads; i < pc.voxel_count; ++i) take(ref_field[i], opt_field[i]);
+    for (uint i = 4u * quads; i < pc.voxel_count; ++i) take(texelFetch(ref_field, int(i)).x, texelFetch(opt_field, int(i)).x);
   pair_end(n);
   for (uint c = 0u; c < 4u; ++c) TFM_ADD_GLOBAL(TFM_GD_LOSS_SLOT(n) + c, loss[c])
 

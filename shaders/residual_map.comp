@@ -14,8 +14,8 @@
 
 layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 
-layout(std430, binding = TFM_RESIDUAL_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
-layout(std430, binding = TFM_RESIDUAL_BINDING_OPT_FIELD) readonly buffer OptField { float opt_field[]; };
+layout(binding = TFM_RESIDUAL_BINDING_REF_FIELD) uniform samplerBuffer ref_field;  // one voxel a texel
+layout(binding = TFM_RESIDUAL_BINDING_OPT_FIELD) uniform samplerBuffer opt_field;
 layout(binding = TFM_RESIDUAL_BINDING_REF_QUADS) uniform samplerBuffer ref_quads;
 layout(binding = TFM_RESIDUAL_BINDING_OPT_QUADS) uniform samplerBuffer opt_quads;
 layout(binding = TFM_RESIDUAL_BINDING_REF_TF) uniform samplerBuffer ref_tf;
@@ -56,5 +56,5 @@ void main() {
   }
   if (gl_GlobalInvocationID.x == 0u)
     for (uint i = pc.first_voxel + 4u * quads; i < pc.first_voxel + pc.voxel_count; ++i)
-      residual[i] = residual_of(ref_field[i], opt_field[i]);
+      residual[i] = residual_of(texelFetch(ref_field, int(i)).x, texelFetch(opt_field, int(i)).x);
 }

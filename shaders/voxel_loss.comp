@@ -25,8 +25,8 @@
 layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 layout(constant_id = TFM_LOSS_SPEC_WITH_BEFORE) const bool WITH_BEFORE = false;
 
-layout(std430, binding = TFM_LOSS_BINDING_REF_FIELD) readonly buffer RefField { float ref_field[]; };
-layout(std430, binding = TFM_LOSS_BINDING_OPT_FIELD) readonly buffer OptField { float opt_field[]; };
+layout(binding = TFM_LOSS_BINDING_REF_FIELD) uniform samplerBuffer ref_field;  // one voxel a texel
+layout(binding = TFM_LOSS_BINDING_OPT_FIELD) uniform samplerBuffer opt_field;
 layout(binding = TFM_LOSS_BINDING_REF_QUADS) uniform samplerBuffer ref_quads;
 layout(binding = TFM_LOSS_BINDING_OPT_QUADS) uniform samplerBuffer opt_quads;
 layout(binding = TFM_LOSS_BINDING_REF_TF) uniform samplerBuffer ref_tf;
@@ -77,7 +77,7 @@ void main() {
   }
   if (gl_GlobalInvocationID.x == 0u)
     for (uint i = pc.first_voxel + 4u * quads; i < pc.first_voxel + pc.voxel_count; ++i)
-      take(ref_field[i], opt_field[i]);
+      take(texelFetch(ref_field, int(i)).x, texelFetch(opt_field, int(i)).x);
 
   for (uint k = 0u; k < SLOTS; ++k) FX_ATOMIC_ADD(s_acc, k, acc[k])  // skips zeros
   FX_SHARED_FLUSH(s_acc, SLOTS, accum)

@@ -156,4 +156,11 @@ FieldMapping make_mapping(const FieldRange& range, uint32_t tf_size) {
   return m;
 }
 
+FieldMapping make_mapping(const FieldRange& range, uint32_t tf_size, const ValueMapping& stored) {
+  if (!std::isfinite(stored.scale) || !(stored.scale > 0.0) || !std::isfinite(stored.offset))
+    throw std::invalid_argument("value mapping: scale must be finite and > 0, offset finite");
+  return make_mapping(FieldRange{(range.lo - stored.offset) / stored.scale, (range.hi - stored.offset) / stored.scale},
+                      tf_size);
+}
+
 }  // namespace tfm

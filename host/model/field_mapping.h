@@ -67,6 +67,18 @@ std::string check_range_coverage(const RangeCoverage& coverage, const FiniteStat
 
 FieldMapping make_mapping(const FieldRange& range, uint32_t tf_size);
 
+// How stored numbers become field values, for a field kept in other units (an embedder's unorm16
+// or float16 volume, read in place): value = scale * stored + offset, `stored` being what the
+// kernels read (the float, the float16, or a unorm's c / (2^b - 1)).
+struct ValueMapping {
+  double scale = 1.0;
+  double offset = 0.0;
+};
+// The mapping of stored numbers onto the TF of a field whose values `range` maps: the same TF
+// coordinates as make_mapping(range, tf_size) gives the values, up to float rounding. Throws
+// std::invalid_argument unless scale is finite and > 0, and as make_mapping otherwise.
+FieldMapping make_mapping(const FieldRange& range, uint32_t tf_size, const ValueMapping& stored);
+
 // Bit-identical CPU mirror of tf_coordinate() in shaders/tf_common.glsl. Returns false for NaN.
 inline bool tf_coordinate(float v, const FieldMapping& m, uint32_t& j, float& w) {
   if (std::isnan(v)) return false;

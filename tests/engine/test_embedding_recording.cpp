@@ -11,11 +11,13 @@
 #include <memory>
 #include <vector>
 
+#include <glm/gtc/packing.hpp>
 #include <gtest/gtest.h>
 
 #include "buffer.h"
 #include "context.h"
 #include "correlation.h"
+#include "histogram.h"
 #include "device_field.h"
 #include "gpu_voxel_ops.h"
 #include "host_device.h"
@@ -455,6 +457,79 @@ TEST_F(EmbeddingRecording, CorrelationOfAnEnsembleInTheHostsBuffer) {
       host.submit_and_wait();
       const float* field = static_cast<const float*>(out_map);
       EXPECT_TRUE(std::all_of(field, field + voxels, [](float x) { return std::isnan(x); }));
+    }
+  }
+}
+
+// Fields stored as float16, unorm16 and unorm8 in the host's buffer, read in place: every kernel
+// sees the floats a texel fetch gives, so the assembly, the voxel loss, the residual map, the
+// histogram and the rendering equal those of float32 arrays holding the same values, bit for bit.
+// float16 converts exactly; a unorm c converts to c / (2^b - 1) within Vulkan's precision, which
+// devices meet either as the rounded quotient or as c times the rounded reciprocal (lavapipe): the
+// test finds which from the assembly and holds every kernel to it.
+TEST_F(EmbeddingRecording, FieldsInHalfAndUnormFormatsEqualTheirFloatValues) {
+  Context& ctx = *ctx_;
+  Host& host = *host_;
+  {
+    const std::array<uint64_t, 3> dims{21, 17, 13};
+    const uint64_t voxels = dims[0] * dims[1] * dims[2], chunk = 2048;
+    std::vector<float> ref, opt;
+    make_fields(voxels, ref, opt);
+    for (FieldFormat format : {FieldFormat::Float16, FieldFormat::Unorm16, FieldFormat::Unorm8}) {
+      SCOPED_TRACE(field_format_name(format));
+      // The second field stored in `format` (values in [0, 1] for the unorm formats), and the
+      // floats it stands for under each conversion.
+      const double unorm_max = format == FieldFormat::Unorm16 ? 65535.0 : 255.0;
+      std::vector<uint8_t> stored(voxels * field_format_bytes(format));
+      std::vector<float> quotient(voxels), reciprocal(voxels);
+      for (uint64_t v = 0; v < voxels; ++v) {
+        const float x = std::isnan(opt[v]) ? 0.5f : std::clamp(opt[v] / 2.6f, 0.0f, 1.0f);
+        uint32_t code = 0;
+        if (format == FieldFormat::Float16) {
+          const uint16_t h = glm::packHalf1x16(std::isnan(opt[v]) ? NAN : opt[v]);
+          std::memcpy(stored.data() + 2 * v, &h, 2);
+          quotient[v] = reciprocal[v] = glm::unpackHalf1x16(h);
+          continue;
+        }
+        code = uint32_t(std::lround(x * unorm_max));
+        std::memcpy(stored.data() + v * field_format_bytes(format), &code, field_format_bytes(format));
+        quotient[v] = float(double(code) / unorm_max);
+        reciprocal[v] = float(code) * float(1.0 / unorm_max);
+      }
+      void* map = nullptr;
+      VkBuffer buffer = host.buffer(stored.size() + 4, &map);
+      std::memcpy(map, stored.data(), stored.size());
+      const DeviceField in_place = DeviceField::adopt(ctx, buffer, 0, voxels, "host field", chunk, format);
+      const DeviceField r(ctx, ref, "ref", chunk);
+      const TransferFunction ref_tf = reference_tf(0.3), opt_tf = reference_tf(0.7);
+      const FieldMapping rm = make_mapping({0.05, 0.95}, 7);
+      const FieldMapping om = make_mapping(format == FieldFormat::Float16 ? FieldRange{0.0, 2.6} : FieldRange{0.0, 1.0}, 7);
+      Buffer rt = upload_tf(ctx, ref_tf, "ref tf"), ot = upload_tf(ctx, opt_tf, "opt tf");
+      auto slots = [&](const DeviceField& field) {
+        GpuNormalEquations eq(ctx, 7);
+        eq.add(r, field, rm, om, rt);
+        return eq.fixed_point_slots();
+      };
+      const std::vector<uint64_t> in_place_slots = slots(in_place);
+      const DeviceField by_quotient(ctx, quotient, "floats (quotient)", chunk);
+      const bool is_quotient = in_place_slots == slots(by_quotient);
+      const DeviceField floats(ctx, is_quotient ? quotient : reciprocal, "floats", chunk);
+      EXPECT_EQ(in_place_slots, slots(floats)) << "assembly: neither conversion of the unorm codes";
+      const VoxelLoss la = voxel_loss_gpu(ctx, r, in_place, rm, om, rt, ot), lb = voxel_loss_gpu(ctx, r, floats, rm, om, rt, ot);
+      EXPECT_EQ(la.squared, lb.squared) << "voxel loss";
+      EXPECT_EQ(la.absolute, lb.absolute) << "voxel loss";
+      Volume grid;
+      grid.dims = dims;
+      EXPECT_EQ(residual_map_gpu(ctx, grid, r, in_place, rm, om, rt, ot).values,
+                residual_map_gpu(ctx, grid, r, floats, rm, om, rt, ot).values) << "residual map";
+      FieldHistogramKernel histogram(ctx, 32);
+      EXPECT_EQ(histogram.run(in_place, 0.0, 1.0).bins, histogram.run(floats, 0.0, 1.0).bins) << "histogram";
+      RenderSettings s;
+      s.width = 31;
+      s.height = 29;
+      const VolumeGeometry geometry = VolumeGeometry::from(dims, {1.0, 1.0, 1.0});
+      EXPECT_EQ(GpuRenderer(ctx, in_place, geometry).render_colours(om, ot, s).rgba,
+                GpuRenderer(ctx, floats, geometry).render_colours(om, ot, s).rgba) << "rendering";
     }
   }
 }

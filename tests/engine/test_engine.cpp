@@ -117,7 +117,7 @@ TEST_F(EngineTest, DispatchChecksBindingsPushAndGroupLimits) {
   desc.shader = "voxel_loss";
   desc.spirv = shader_spirv(desc.shader);
   desc.binding_counts = {1, 1, 1, 1, 1, 1, 1};
-  desc.binding_kinds = {DescriptorKind::StorageBuffer,      DescriptorKind::StorageBuffer,
+  desc.binding_kinds = {DescriptorKind::UniformTexelBuffer, DescriptorKind::UniformTexelBuffer,
                         DescriptorKind::UniformTexelBuffer, DescriptorKind::UniformTexelBuffer,
                         DescriptorKind::StorageBuffer,      DescriptorKind::UniformTexelBuffer,
                         DescriptorKind::UniformTexelBuffer};
@@ -130,9 +130,9 @@ TEST_F(EngineTest, DispatchChecksBindingsPushAndGroupLimits) {
   gpu::VoxelPairPush push{};
   {
     CommandBatch batch(ctx());
-    EXPECT_THROW(batch.dispatch(pipe, {b, b, t, t, b, t}, push, {1}), std::logic_error);
-    EXPECT_THROW(batch.dispatch(pipe, {b, b, t, t, b, t, t}, &push, 4, {1}), std::logic_error);
-    EXPECT_THROW(batch.dispatch(pipe, {b, b, t, t, b, t, t}, push, {ctx().limits().maxComputeWorkGroupCount[0] + 1u}),
+    EXPECT_THROW(batch.dispatch(pipe, {t, t, t, t, b, t}, push, {1}), std::logic_error);
+    EXPECT_THROW(batch.dispatch(pipe, {t, t, t, t, b, t, t}, &push, 4, {1}), std::logic_error);
+    EXPECT_THROW(batch.dispatch(pipe, {t, t, t, t, b, t, t}, push, {ctx().limits().maxComputeWorkGroupCount[0] + 1u}),
                  std::runtime_error);
   }
   PipelineDesc too_big = desc;
@@ -150,7 +150,7 @@ TEST_F(EngineTest, TexelBindingsCheckKindAlignmentAndRange) {
   desc.shader = "assemble_normal_equations";
   desc.spirv = shader_spirv(desc.shader);
   desc.binding_counts = {1, 1, 1, 1, 1, 1};
-  desc.binding_kinds = {DescriptorKind::StorageBuffer,      DescriptorKind::StorageBuffer,
+  desc.binding_kinds = {DescriptorKind::UniformTexelBuffer, DescriptorKind::UniformTexelBuffer,
                         DescriptorKind::UniformTexelBuffer, DescriptorKind::StorageBuffer,
                         DescriptorKind::UniformTexelBuffer, DescriptorKind::UniformTexelBuffer};
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
@@ -160,6 +160,7 @@ TEST_F(EngineTest, TexelBindingsCheckKindAlignmentAndRange) {
   desc.workgroup_size = TFM_VOXEL_WORKGROUP;
   ComputePipeline pipe(ctx(), desc);
   EXPECT_EQ(pipe.binding_kind(2), DescriptorKind::UniformTexelBuffer);
+  EXPECT_EQ(pipe.binding_kind(3), DescriptorKind::StorageBuffer);
   EXPECT_EQ(pipe.binding_kind(9), DescriptorKind::StorageBuffer);
   const uint64_t align = ctx().limits().minTexelBufferOffsetAlignment;
   Buffer b(ctx(), 4 * align + 64, MemoryUsage::Device, "b");
@@ -168,17 +169,17 @@ TEST_F(EngineTest, TexelBindingsCheckKindAlignmentAndRange) {
   gpu::VoxelPairPush push{};
   push.opt_tf_size = push.ref_tf_size = 2;  // no voxels: only zero sums, which touch nothing
   CommandBatch batch(ctx());
-  EXPECT_THROW(batch.dispatch(pipe, {b, b, b, b, t, t}, push, {1}), std::logic_error);  // storage as texels
-  EXPECT_THROW(batch.dispatch(pipe, {b, b, t, t, t, t}, push, {1}), std::logic_error);  // texels as storage
+  EXPECT_THROW(batch.dispatch(pipe, {t, t, b, b, t, t}, push, {1}), std::logic_error);  // storage as texels
+  EXPECT_THROW(batch.dispatch(pipe, {t, t, t, t, t, t}, push, {1}), std::logic_error);  // texels as storage
   if (align > 1)
-    EXPECT_THROW(batch.dispatch(pipe, {b, b, t, b, Binding::texels(b, rgba, align / 2, 64), t}, push, {1}),
+    EXPECT_THROW(batch.dispatch(pipe, {t, t, t, b, Binding::texels(b, rgba, align / 2, 64), t}, push, {1}),
                  std::logic_error);
-  EXPECT_THROW(batch.dispatch(pipe, {b, b, t, b, Binding::texels(b, rgba, 4 * align, 128), t}, push, {1}),
+  EXPECT_THROW(batch.dispatch(pipe, {t, t, t, b, Binding::texels(b, rgba, 4 * align, 128), t}, push, {1}),
                std::logic_error);  // past the end
-  EXPECT_THROW(batch.dispatch(pipe, {b, b, t, b, Binding::texels(b, rgba, 0, 40), t}, push, {1}),
+  EXPECT_THROW(batch.dispatch(pipe, {t, t, t, b, Binding::texels(b, rgba, 0, 40), t}, push, {1}),
                std::logic_error);  // not whole texels
   // A valid set: nothing to read (voxel_count 0), views made and freed with the batch.
-  batch.dispatch(pipe, {b, b, t, b, Binding::texels(b, rgba, align, 64), t}, push, {1});
+  batch.dispatch(pipe, {t, t, t, b, Binding::texels(b, rgba, align, 64), t}, push, {1});
   batch.submit_and_wait();
 }
 

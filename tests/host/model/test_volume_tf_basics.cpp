@@ -227,3 +227,28 @@ TEST(FieldMapping, RangeCoverageWarnsAbove5AndFailsAbove95Percent) {
 
 }  // namespace
 }  // namespace tfm
+
+namespace tfm {
+namespace {
+
+// A field kept in other units (a unorm16 volume of kelvin: value = 60 stored + 240) maps onto the
+// TF as its values do: the same entry and weight, up to float rounding, across the range.
+TEST(ValueMapping, StoredNumbersMapOntoTheTfAsTheirValues) {
+  const FieldRange kelvin{250.0, 290.0};
+  const ValueMapping stored{60.0, 240.0};
+  const FieldMapping by_value = make_mapping(kelvin, 64), by_stored = make_mapping(kelvin, 64, stored);
+  for (uint32_t c = 0; c <= 65535; c += 97) {
+    const float n = float(c) / 65535.0f;
+    const float value = float(60.0 * n + 240.0);
+    uint32_t j1 = 0, j2 = 0;
+    float w1 = 0, w2 = 0;
+    ASSERT_TRUE(tf_coordinate(value, by_value, j1, w1));
+    ASSERT_TRUE(tf_coordinate(n, by_stored, j2, w2));
+    EXPECT_NEAR(double(j1) + w1, double(j2) + w2, 2e-4) << "code " << c;
+  }
+  EXPECT_THROW(make_mapping(kelvin, 64, ValueMapping{0.0, 1.0}), std::invalid_argument);
+  EXPECT_THROW(make_mapping(kelvin, 64, ValueMapping{-1.0, 1.0}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace tfm
