@@ -1,6 +1,7 @@
 // A headless Vulkan renderer that re-fits a transfer function every frame with tfmatch, inside its
 // own command buffers. It owns everything: instance, device, queue, two volumes in its device
-// buffers (a reference field and the same structure in other units), the TF buffers its renderer
+// buffers (a reference field as float32, and the same structure in kelvin stored as unorm16
+// codes, value = 240 K + 60 K * c / 65535, as renderers keep large volumes), the TF buffers its renderer
 // reads, two frames in flight (command buffer and fence each). Every 8 frames the reference TF
 // changes, as when a user edits it; each frame records the renderer's two views and tfmatch's
 // assembly of the second field's TF (NormalEquationsRecorder, reading the volumes in place); when
@@ -48,6 +49,7 @@ struct Push {
   uint32_t nx, ny, nz, tf_size;
   float lo, scale, extinction;
   uint32_t size;
+  uint32_t unorm16;  // the volume holds unorm16 codes (two a word), else floats
 };
 
 std::vector<std::string> g_messages;
@@ -198,7 +200,7 @@ void memory_barrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stages, VkAcce
 
 // The reference field: smooth blobs in [0, 1]. The second field: the same structure in other
 // units through a monotone nonlinear map, so one TF explains it and the fit can match exactly.
-void make_fields(std::vector<float>& ref, std::vector<float>& opt) {
+void make_fields(std::vector<float>& ref, std::vector<uint16_t>& opt) {
   ref.resize(kVoxels);
   opt.resize(kVoxels);
   const std::array<std::array<double, 4>, 3> blobs{{{0.3, 0.4, 0.5, 0.18}, {0.7, 0.6, 0.4, 0.14}, {0.5, 0.25, 0.7, 0.1}}};
@@ -213,7 +215,7 @@ void make_fields(std::vector<float>& ref, std::vector<float>& opt) {
         }
         const uint64_t i = (uint64_t(z) * kNy + y) * kNx + x;
         ref[i] = float(std::min(v, 1.0));
-        opt[i] = float(240.0 + 60.0 * std::pow(double(ref[i]), 1.6));  // kelvin, say
+        opt[i] = uint16_t(std::lround(65535.0 * std::pow(double(ref[i]), 1.6)));  // 240 + 60 c / 65535 K
       }
 }
 
@@ -258,15 +260,16 @@ int main() {
 
     // The application's resources: volumes in device memory (read by its renderer and, in place,
     // by tfmatch), TF buffers its renderer reads (tfmatch writes the fitted one), two images.
-    std::vector<float> ref, opt;
+    std::vector<float> ref;
+    std::vector<uint16_t> opt;
     make_fields(ref, opt);
     const VkBufferUsageFlags volume_usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT |
                                             VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     const VkBuffer ref_volume = app.buffer(kVoxels * 4, volume_usage, false).buffer;
-    const VkBuffer opt_volume = app.buffer(kVoxels * 4, volume_usage, false).buffer;
-    const MemoryBuffer staging = app.buffer(kVoxels * 8, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+    const VkBuffer opt_volume = app.buffer(kVoxels * 2, volume_usage, false).buffer;  // unorm16
+    const MemoryBuffer staging = app.buffer(kVoxels * 6, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
     std::memcpy(staging.mapped, ref.data(), kVoxels * 4);
-    std::memcpy(static_cast<char*>(staging.mapped) + kVoxels * 4, opt.data(), kVoxels * 4);
+    std::memcpy(static_cast<char*>(staging.mapped) + kVoxels * 4, opt.data(), kVoxels * 2);
     const VkBufferUsageFlags tf_usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     const VkBuffer ref_tf_buffer = app.buffer(kRefEntries * 16, tf_usage, false).buffer;
     const MemoryBuffer fit_tf_buffer = app.buffer(kFitEntries * 16, tf_usage, true);
@@ -380,7 +383,7 @@ int main() {
     vkWaitForFences(app.device, 1, &fences[0], VK_TRUE, UINT64_MAX);
     vkResetFences(app.device, 1, &fences[0]);
     begin(cmds[0]);
-    const VkBufferCopy first{0, 0, kVoxels * 4}, second{kVoxels * 4, 0, kVoxels * 4};
+    const VkBufferCopy first{0, 0, kVoxels * 4}, second{kVoxels * 4, 0, kVoxels * 2};
     vkCmdCopyBuffer(cmds[0], staging.buffer, ref_volume, 1, &first);
     vkCmdCopyBuffer(cmds[0], staging.buffer, opt_volume, 1, &second);
     memory_barrier(cmds[0], VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
@@ -390,10 +393,12 @@ int main() {
 
     // The fields as tfmatch sees them: views of the application's buffers, no copy.
     const tfm::DeviceField ref_field = tfm::DeviceField::adopt(*ctx, ref_volume, 0, kVoxels, "reference volume");
-    const tfm::DeviceField opt_field = tfm::DeviceField::adopt(*ctx, opt_volume, 0, kVoxels, "second volume");
-    const tfm::FieldRange ref_range{0.0, 1.0}, opt_range{240.0, 300.0};
+    const tfm::DeviceField opt_field =
+        tfm::DeviceField::adopt(*ctx, opt_volume, 0, kVoxels, "second volume", 0, tfm::FieldFormat::Unorm16);
+    const tfm::FieldRange ref_range{0.0, 1.0}, opt_range{240.0, 300.0};  // kelvin
+    const tfm::ValueMapping kelvin{60.0, 240.0};                          // of the unorm16 codes
     const tfm::FieldMapping ref_map = tfm::make_mapping(ref_range, kRefEntries);
-    const tfm::FieldMapping opt_map = tfm::make_mapping(opt_range, kFitEntries);
+    const tfm::FieldMapping opt_map = tfm::make_mapping(opt_range, kFitEntries, kelvin);
     tfm::SolveOptions solve;
     solve.smooth = 1e-4;  // entries no voxel reaches follow their neighbours
 
@@ -441,8 +446,8 @@ int main() {
         memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
                        VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT);
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
-        const Push pushes[2] = {{kNx, kNy, kNz, kRefEntries, ref_map.lo, ref_map.scale, kExtinction, kImage},
-                                {kNx, kNy, kNz, kFitEntries, opt_map.lo, opt_map.scale, kExtinction, kImage}};
+        const Push pushes[2] = {{kNx, kNy, kNz, kRefEntries, ref_map.lo, ref_map.scale, kExtinction, kImage, 0},
+                                {kNx, kNy, kNz, kFitEntries, opt_map.lo, opt_map.scale, kExtinction, kImage, 1}};
         for (int v = 0; v < 2; ++v) {
           vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &sets[v], 0, nullptr);
           vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(Push), &pushes[v]);
@@ -468,7 +473,7 @@ int main() {
     const int frames = 48;
     const double plain_ms = run(frames, false);
     const double refit_ms = run(frames, true);
-    std::printf("%d frames of 2 views %ux%u of %ux%ux%u voxels on %s (%s-bit atomics for tfmatch):\n", frames, kImage,
+    std::printf("%d frames of 2 views %ux%u of %ux%ux%u voxels (float32; unorm16 read in place) on %s (%s-bit atomics for tfmatch):\n", frames, kImage,
                 kImage, kNx, kNy, kNz, ctx->device_name().c_str(), app.int64_atomics ? "64" : "32");
     std::printf("  without re-fit: %.2f ms a frame\n  with the TF re-fit recorded into each frame: %.2f ms a frame\n",
                 plain_ms, refit_ms);
@@ -498,7 +503,12 @@ int main() {
       status = 1;
     }
     // The same fit on the CPU: double-precision assembly (tfmatch's reference) and the same solve.
-    const tfm::NormalEquations cpu = tfm::assemble_normal_equations_cpu(ref, opt, ref_map, opt_map, last_fit_reference);
+    // The CPU sees the codes as the stored numbers c / 65535 (the device may round them
+    // differently by an ulp: within the check's bound).
+    std::vector<float> opt_stored(kVoxels);
+    for (uint64_t i = 0; i < kVoxels; ++i) opt_stored[i] = float(opt[i]) / 65535.0f;
+    const tfm::NormalEquations cpu =
+        tfm::assemble_normal_equations_cpu(ref, opt_stored, ref_map, opt_map, last_fit_reference);
     const std::vector<float> cpu_fit = tfm::solve_normal_equations(cpu, solve).tf.as_floats();
     double worst = 0.0;
     for (size_t i = 0; i < cpu_fit.size(); ++i) worst = std::max(worst, double(std::abs(cpu_fit[i] - last_fit[i])));
