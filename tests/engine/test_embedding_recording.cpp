@@ -15,11 +15,13 @@
 #include <gtest/gtest.h>
 
 #include "buffer.h"
+#include "commands.h"
 #include "context.h"
 #include "correlation.h"
 #include "histogram.h"
 #include "device_field.h"
 #include "gpu_voxel_ops.h"
+#include "gradient_descent.h"
 #include "host_device.h"
 #include "memory_budget.h"
 #include "normal_equations.h"
@@ -27,6 +29,7 @@
 #include "render.h"
 #include "render_settings.h"
 #include "residual.h"
+#include "sparse_ops.h"
 #include "volume.h"
 
 namespace tfm {
@@ -530,6 +533,29 @@ TEST_F(EmbeddingRecording, FieldsInHalfAndUnormFormatsEqualTheirFloatValues) {
       const VolumeGeometry geometry = VolumeGeometry::from(dims, {1.0, 1.0, 1.0});
       EXPECT_EQ(GpuRenderer(ctx, in_place, geometry).render_colours(om, ot, s).rgba,
                 GpuRenderer(ctx, floats, geometry).render_colours(om, ot, s).rgba) << "rendering";
+      // Gradient descent's gradient pass and CGLS's prepare pass (both fields in the format).
+      GdGradientKernel gd(ctx, 7, false);
+      auto gradient = [&](const DeviceField& field) {
+        Buffer accum(ctx, gd_accumulator_bytes(7), MemoryUsage::Device, "gd accumulators");
+        CommandBatch batch(ctx);
+        batch.fill(accum, 0u);
+        batch.barrier();
+        gd.record(batch, r, field, rm, om, rt, ot, accum);
+        batch.submit_and_wait();
+        std::vector<uint32_t> words(accum.size() / 4);
+        readback(ctx, accum, words.data(), accum.size());
+        return words;
+      };
+      EXPECT_EQ(gradient(in_place), gradient(floats)) << "gradient descent";
+      SparsePrepareKernel prepare(ctx);
+      auto prepared = [&](const DeviceField& field) {
+        VoxelVectors vectors(ctx, field, field);
+        CommandBatch batch(ctx);
+        prepare.record(batch, field, field, om, om, ot, vectors);
+        batch.submit_and_wait();
+        return std::make_pair(vectors.read_coords(ctx), vectors.read_rgba(ctx));
+      };
+      EXPECT_EQ(prepared(in_place), prepared(floats)) << "CGLS prepare";
     }
   }
 }
