@@ -17,6 +17,7 @@
 #include "view_page.h"
 #include "view_server.h"
 #include "view_session.h"
+#include "view_server_fixture.h"
 #include "vk_test_env.h"
 // After Eigen (through the project headers): OpenSSL's headers, which httplib.h includes, define
 // macros that break Eigen's product kernels when they come first.
@@ -27,35 +28,10 @@ namespace {
 
 using test::GpuTest;
 
-ViewConfig small_config() {
-  ViewConfig c;
-  c.ref_tf = demo_transfer_function(16);
-  c.tf_size = 16;
-  c.render.width = 40;
-  c.render.height = 32;
-  return c;
-}
+using test::small_view_config;
 
-class ViewServerTest : public GpuTest {
+class ViewServerTest : public test::ViewServerFixture {
  protected:
-  void SetUp() override {
-    ref_ = synthetic_reference(13, 11, 9);  // awkward sizes: no axis a multiple of a workgroup
-    field_ = synthetic_remapped(ref_);
-    session_ = std::make_unique<ViewSession>(ctx(), ref_, field_, small_config());
-    server_ = std::make_unique<ViewServer>(*session_, ViewServerOptions{});
-    server_->start();
-    client_ = std::make_unique<httplib::Client>("127.0.0.1", server_->port());
-    client_->set_read_timeout(120);
-  }
-  void TearDown() override {
-    server_.reset();
-    session_.reset();
-    GpuTest::TearDown();
-  }
-  std::string with_token(const std::string& path) const {
-    return path + (path.find('?') == std::string::npos ? "?" : "&") + "token=" + server_->token();
-  }
-  httplib::Result get(const std::string& path) { return client_->Get(with_token(path)); }
   httplib::Result post(const std::string& path, const nlohmann::json& body) {
     return client_->Post(with_token(path), body.dump(), "application/json");
   }
@@ -70,11 +46,6 @@ class ViewServerTest : public GpuTest {
     for (int i = 0; i < 6000 && session_->job_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
     session_->wait_for_job();
   }
-
-  Volume ref_, field_;
-  std::unique_ptr<ViewSession> session_;
-  std::unique_ptr<ViewServer> server_;
-  std::unique_ptr<httplib::Client> client_;
 };
 
 TEST_F(ViewServerTest, EveryRequestNeedsTheToken) {
@@ -132,7 +103,7 @@ TEST_F(ViewServerTest, RenderEqualsTheRendererForTheSameCamera) {
   ASSERT_EQ(r->status, 200) << r->body;
   EXPECT_EQ(r->get_header_value("Content-Type"), "image/png");
   const Image served = decode_png(r->body, "served");
-  RenderSettings s = small_config().render;
+  RenderSettings s = small_view_config().render;
   s.camera = {47.5, -12.0, 3.5, 35.0};
   s.width = 37;
   s.height = 29;
@@ -445,7 +416,7 @@ TEST_F(GpuTest, ViewEnsembleNewReferencePointRecomputesTheFields) {
   e.params.measure = CorrelationMeasure::MiCoefficient;
   e.versus = CorrelationMeasure::Pearson;
   e.point = synthetic_ensemble_reference(e.ensemble);
-  ViewConfig config = small_config();
+  ViewConfig config = small_view_config();
   config.ref_tf = correlation_transfer_function(16);
   ViewSession session(ctx(), std::move(e), config);
   ViewServer server(session, ViewServerOptions{});
@@ -489,7 +460,7 @@ TEST_F(GpuTest, ViewEnsembleWithTwoMembersIsRefused) {
   e.ensemble.values.assign(2 * 64, 1.0f);
   e.ensemble.values[70] = 2.0f;
   try {
-    ViewSession session(ctx(), std::move(e), small_config());
+    ViewSession session(ctx(), std::move(e), small_view_config());
     ADD_FAILURE() << "a 2-member ensemble was accepted";
   } catch (const std::runtime_error& err) {
     EXPECT_NE(std::string(err.what()).find("two.nc:t: 2 member(s); a correlation over members needs at least 3"),

@@ -6,44 +6,12 @@
 #include <map>
 
 #include "png_io.h"
-#include "synthetic.h"
-#include "view_server.h"
-#include "view_session.h"
-#include "vk_test_env.h"
-// After Eigen (through the project headers): see test_view_server.cpp.
-#include <httplib.h>
+#include "view_server_fixture.h"
 
 namespace tfm {
 namespace {
 
-using test::GpuTest;
-
-class ViewServerFramesTest : public GpuTest {
- protected:
-  void SetUp() override {
-    ViewConfig c;
-    c.ref_tf = demo_transfer_function(16);
-    c.tf_size = 16;
-    c.render.width = 40;
-    c.render.height = 32;
-    const Volume ref = synthetic_reference(13, 11, 9);
-    session_ = std::make_unique<ViewSession>(ctx(), ref, synthetic_remapped(ref), c);
-    server_ = std::make_unique<ViewServer>(*session_, ViewServerOptions{});
-    server_->start();
-    client_ = std::make_unique<httplib::Client>("127.0.0.1", server_->port());
-    client_->set_read_timeout(120);
-  }
-  void TearDown() override {
-    server_.reset();
-    session_.reset();
-    GpuTest::TearDown();
-  }
-  httplib::Result get(const std::string& path) { return client_->Get(path + "&token=" + server_->token()); }
-
-  std::unique_ptr<ViewSession> session_;
-  std::unique_ptr<ViewServer> server_;
-  std::unique_ptr<httplib::Client> client_;
-};
+using ViewServerFramesTest = test::ViewServerFixture;
 
 // Server-Timing: "name;dur=ms, ..." as a map.
 std::map<std::string, double> server_timing(const std::string& header) {
