@@ -13,7 +13,7 @@
 
 namespace tfm {
 
-static_assert(sizeof(gpu::PreparePush) == 36, "PreparePush must match the GLSL std430 block");
+static_assert(sizeof(gpu::PreparePush) == 40, "PreparePush must match the GLSL std430 block");
 static_assert(sizeof(gpu::SparsePush) == 12, "SparsePush must match the GLSL std430 block");
 static_assert(sizeof(gpu::CglsState) == 112, "CglsState must match the GLSL std430 struct");
 
@@ -124,22 +124,23 @@ void SparsePrepareKernel::record(CommandBatch& batch, const DeviceField& ref, co
   push.opt_scale = opt_map.scale;
   const Binding tf = tf_texels(ref_tf, ref_map.tf_size);
   const uint64_t align = ctx_.limits().minTexelBufferOffsetAlignment;
-  if (ref.format() != opt.format())
-    throw std::invalid_argument("sparse prepare: both fields must store their voxels in one format");
-  const uint64_t voxel_bytes = field_format_bytes(ref.format());
   for (const QuadRange& r : quad_ranges(v.chunk_sizes(), range_quads_)) {
     // The fields' views start at the alignment at or below the range's first voxel.
-    // Both fields store voxels in one format (checked above), `voxel_bytes` each.
-    const uint64_t first = v.field_offset(r.chunk) + r.first, view = first * voxel_bytes / align * align;
+    const uint64_t first = v.field_offset(r.chunk) + r.first;
+    const size_t f = v.field_chunk(r.chunk);
+    // Each field's view in its own format, from the alignment at or below the range's first voxel.
+    auto view_of = [&](const DeviceField& field, uint32_t& shift) {
+      const uint64_t voxel_bytes = field_format_bytes(field.format());
+      const uint64_t offset = first * voxel_bytes / align * align;
+      shift = static_cast<uint32_t>(first - offset / voxel_bytes);
+      return Binding::texels(field.chunk(f), voxel_texel_format(field.format()), offset,
+                             (shift + r.voxels) * voxel_bytes);
+    };
     push.voxel_count = static_cast<uint32_t>(r.voxels);
     push.first_voxel = static_cast<uint32_t>(r.first);
-    push.field_shift = static_cast<uint32_t>(first - view / voxel_bytes);
-    const uint64_t bytes = (push.field_shift + r.voxels) * voxel_bytes;
-    const size_t f = v.field_chunk(r.chunk);
-    const VkFormat format = voxel_texel_format(ref.format());
+    const Binding ref_view = view_of(ref, push.field_shift), opt_view = view_of(opt, push.opt_field_shift);
     batch.dispatch(*pipeline_,
-                   {Binding::texels(ref.chunk(f), format, view, bytes),
-                    Binding::texels(opt.chunk(f), format, view, bytes), tf, v.coord(r.chunk),
+                   {ref_view, opt_view, tf, v.coord(r.chunk),
                     v.rgba(r.chunk), v.coord(r.chunk)},
                    push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
   }

@@ -38,7 +38,7 @@ struct uvec4 { uint x, y, z, w; };
 #if defined(__cplusplus) || defined(TFM_WANT_PREPARE_PUSH)
 TFM_PUSH_CONSTANTS(PreparePush) {
   uint voxel_count;   // voxels in this range of a chunk of the voxel vectors
-  uint field_shift;   // texel of the range's first voxel in the bound field views
+  uint field_shift;   // texel of the range's first voxel in the bound reference-field view
   uint first_voxel;   // the range's first voxel in its chunk (a multiple of 4)
   uint opt_tf_size;
   uint ref_tf_size;
@@ -46,6 +46,8 @@ TFM_PUSH_CONSTANTS(PreparePush) {
   float ref_scale;
   float opt_lo;
   float opt_scale;
+  uint opt_field_shift;  // the same in the second field's view (the fields may store voxels in
+                         // different formats, so their views start at different texels)
 } TFM_PUSH_INSTANCE(pc);
 #endif
 

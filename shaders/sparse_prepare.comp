@@ -3,9 +3,9 @@
 // b = T_r(F_r), the reference colour clamped to [0,1] (0 where there is no data), as the initial
 // residual of x = 0. Layout as in residual_map.comp: lanes on consecutive quads of voxels
 // (quad_segments.glsl), each writing its quad's four coordinates as one vec4; the reference TF is
-// read as texels, and so are both fields, one R32F texel per voxel: a chunk of the vectors may
-// start anywhere in a field chunk, so the views start at the device's texel alignment below the
-// range and `field_shift` texels before it. Invocation 0 does the range's last count % 4 voxels.
+// read as texels, and so are both fields, one texel of their format per voxel: a chunk of the
+// vectors may start anywhere in a field chunk, so each view starts at the device's texel alignment
+// below the range, `field_shift` (`opt_field_shift`) texels before it. Invocation 0 does the range's last count % 4 voxels.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_basic : require
@@ -26,11 +26,12 @@ layout(std430, binding = TFM_PREPARE_BINDING_RGBA) writeonly buffer Rgba { vec4 
 
 // Voxel k of the range: its coordinate, and b (written to the RGBA vector).
 float take(uint k) {
-  const int t = int(pc.field_shift + k);
   uint jr, jo;
   float wr, wo;
-  const bool has_ref = tf_coordinate(texelFetch(ref_field, t).x, pc.ref_lo, pc.ref_scale, pc.ref_tf_size, jr, wr);
-  const bool has_opt = tf_coordinate(texelFetch(opt_field, t).x, pc.opt_lo, pc.opt_scale, pc.opt_tf_size, jo, wo);
+  const bool has_ref =
+      tf_coordinate(texelFetch(ref_field, int(pc.field_shift + k)).x, pc.ref_lo, pc.ref_scale, pc.ref_tf_size, jr, wr);
+  const bool has_opt = tf_coordinate(texelFetch(opt_field, int(pc.opt_field_shift + k)).x, pc.opt_lo, pc.opt_scale,
+                                     pc.opt_tf_size, jo, wo);
   const bool ok = has_ref && has_opt;
   // Without data j = 0 and w = 0: the values are valid and replaced (no branch).
   const vec4 b = clamp((1.0 - wr) * texelFetch(ref_tf, int(jr)) + wr * texelFetch(ref_tf, int(jr + 1u)), 0.0, 1.0);

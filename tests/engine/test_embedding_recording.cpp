@@ -533,7 +533,8 @@ TEST_F(EmbeddingRecording, FieldsInHalfAndUnormFormatsEqualTheirFloatValues) {
       const VolumeGeometry geometry = VolumeGeometry::from(dims, {1.0, 1.0, 1.0});
       EXPECT_EQ(GpuRenderer(ctx, in_place, geometry).render_colours(om, ot, s).rgba,
                 GpuRenderer(ctx, floats, geometry).render_colours(om, ot, s).rgba) << "rendering";
-      // Gradient descent's gradient pass and CGLS's prepare pass (both fields in the format).
+      // Gradient descent's gradient pass and CGLS's prepare pass (the reference in float32, the
+      // second field in the format; and both in the format).
       GdGradientKernel gd(ctx, 7, false);
       auto gradient = [&](const DeviceField& field) {
         Buffer accum(ctx, gd_accumulator_bytes(7), MemoryUsage::Device, "gd accumulators");
@@ -548,14 +549,16 @@ TEST_F(EmbeddingRecording, FieldsInHalfAndUnormFormatsEqualTheirFloatValues) {
       };
       EXPECT_EQ(gradient(in_place), gradient(floats)) << "gradient descent";
       SparsePrepareKernel prepare(ctx);
-      auto prepared = [&](const DeviceField& field) {
-        VoxelVectors vectors(ctx, field, field);
+      auto prepared = [&](const DeviceField& first, const DeviceField& second, const FieldMapping& first_map,
+                          const Buffer& first_tf) {
+        VoxelVectors vectors(ctx, first, second, 1000);  // vector chunks inside field chunks: shifted views
         CommandBatch batch(ctx);
-        prepare.record(batch, field, field, om, om, ot, vectors);
+        prepare.record(batch, first, second, first_map, om, first_tf, vectors);
         batch.submit_and_wait();
         return std::make_pair(vectors.read_coords(ctx), vectors.read_rgba(ctx));
       };
-      EXPECT_EQ(prepared(in_place), prepared(floats)) << "CGLS prepare";
+      EXPECT_EQ(prepared(r, in_place, rm, rt), prepared(r, floats, rm, rt)) << "CGLS prepare, mixed formats";
+      EXPECT_EQ(prepared(in_place, in_place, om, ot), prepared(floats, floats, om, ot)) << "CGLS prepare";
     }
   }
 }
