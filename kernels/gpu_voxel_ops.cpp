@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "voxel_loss.h"
 
 namespace tfm {
 

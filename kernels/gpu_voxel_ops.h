@@ -11,7 +11,7 @@
 #include "device_field.h"
 #include "normal_equations_system.h"
 #include "transfer_function.h"
-#include "voxel_pair.h"
+#include "assemble_normal_equations.h"
 
 namespace tfm {
 

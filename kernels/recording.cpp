@@ -9,6 +9,7 @@
 
 #include <glm/gtc/packing.hpp>
 
+#include "assemble_normal_equations.h"
 #include "commands.h"
 #include "context.h"
 #include "correlation_reference.h"
@@ -16,7 +17,7 @@
 #include "render_image.h"
 #include "residual_map.h"
 #include "shared_layout.h"
-#include "voxel_pair.h"
+#include "voxel_loss.h"
 
 namespace tfm {
 

@@ -1,5 +1,7 @@
-// The two voxel-pair kernels (normal-equation assembly and voxel loss): small wrappers that
-// create the pipeline and record one dispatch per field chunk.
+// What the voxel-pair kernels share (assemble_normal_equations.h, voxel_loss.h, residual_map.h,
+// histogram.h, gradient_descent.h, sparse_ops.h): their push block, how their lanes and
+// workgroups cover a range of voxels, the ranges and texel views of a field's chunks, and the
+// decoding of 32.32 fixed-point accumulators.
 #pragma once
 
 #include <array>
@@ -20,71 +22,6 @@ namespace tfm {
 class Context;
 
 gpu::VoxelPairPush make_voxel_pair_push(const FieldMapping& ref, const FieldMapping& opt);
-
-// Adds M, S^T b, b^T b and the voxel count of (ref, opt) to a 32.32 fixed-point accumulator
-// buffer of TFM_ASSEMBLE_SLOTS(N) slots (8 bytes each, low word first). The result is
-// bit-identical for every mode, atomic width, chunking and workgroup count. Throws
-// std::invalid_argument for fewer than 2 entries, std::runtime_error when a forced mode or
-// width is not available on the device (shared memory too small, no 64-bit atomics).
-class AssembleNormalEquationsKernel {
- public:
-  AssembleNormalEquationsKernel(Context& ctx, uint32_t tf_size, ReductionOptions options = {});
-  ~AssembleNormalEquationsKernel();
-  uint32_t tf_size() const { return tf_size_; }
-  uint32_t slots() const;
-  ReductionMode mode() const { return reduction_.mode; }
-  bool int64_atomics() const { return reduction_.int64; }
-  // Records one dispatch per chunk, texel range and term pass (barriers between them). With
-  // `before_map` (the second field mapped onto the reference TF's entries: tf_size of ref_map)
-  // the kernel also adds the loss before optimization to slots [6N+4, 6N+8) (shared_layout.h).
-  void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
-              const FieldMapping& opt_map, const Buffer& ref_tf, Buffer& accum,
-              const FieldMapping* before_map = nullptr) const;
-
-  // Which of the 11 bin terms one pass adds (shaders/assemble_normal_equations.comp).
-  struct TermPass {
-    uint32_t first = 0, count = 11;
-  };
-  const std::vector<TermPass>& passes() const { return passes_; }
-
- private:
-  Context& ctx_;
-  uint32_t tf_size_;
-  Reduction reduction_;
-  std::vector<TermPass> passes_;
-  uint64_t range_quads_;
-  // One per pass, without and with the before loss, each compiled when first recorded.
-  const std::vector<std::unique_ptr<ComputePipeline>>& pipelines(bool with_before) const;
-  mutable std::array<std::vector<std::unique_ptr<ComputePipeline>>, 2> pipelines_;
-};
-
-// The term passes of the assembly: all 11 terms at once, or in Private mode as many per pass as
-// keep a lane's histogram (terms x TF entries) within `slots` (the device's
-// private_limit(ctx, kPrivateHistogramSlots)).
-std::vector<AssembleNormalEquationsKernel::TermPass> assemble_term_passes(ReductionMode mode, uint32_t tf_size,
-                                                                          uint32_t slots = kPrivateHistogramSlots);
-
-// Adds per-channel sums of squared and absolute colour differences and the voxel count to a
-// TFM_LOSS_SLOTS-slot fixed-point accumulator; with `before_map` (the second field mapped onto
-// the reference TF's entries) also the loss before optimization, in the same pass, to slots
-// TFM_LOSS_SLOTS.. 2 TFM_LOSS_SLOTS - 1. Dispatches per range of at most `range_quads` quads
-// (texel_range_quads) in workgroups of lane_workgroup_size(ctx, workgroup_size). Every choice
-// gives the same bits (tests force splits and sizes).
-class VoxelLossKernel {
- public:
-  explicit VoxelLossKernel(Context& ctx, uint64_t range_quads = 0, uint32_t workgroup_size = 0);
-  ~VoxelLossKernel();
-  void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
-              const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, Buffer& accum,
-              const FieldMapping* before_map = nullptr) const;
-
- private:
-  const ComputePipeline& pipeline(bool with_before) const;  // compiled on first use
-  Context& ctx_;
-  uint64_t range_quads_;
-  uint32_t workgroup_size_;
-  mutable std::array<std::unique_ptr<ComputePipeline>, 2> pipelines_;
-};
 
 // Workgroups for a 1-D voxel kernel over `voxels` (each invocation loops over ~32 voxels).
 uint32_t voxel_groups(const Context& ctx, uint64_t voxels);
@@ -132,6 +69,10 @@ Binding quad_texels(const DeviceField& field, const QuadRange& r);
 // The view of chunk `c` of `field` as one texel a voxel in its format (the kernels read a range's
 // last voxel_count % 4 voxels through it, by their index in the chunk).
 Binding voxel_texels(const DeviceField& field, size_t c);
+
+// Throws std::invalid_argument (naming `kernel`) unless the two fields have the same voxel count
+// and chunking.
+void check_voxel_pair(const DeviceField& ref, const DeviceField& opt, const char* kernel);
 
 // Decodes `slots` 32.32 fixed-point accumulators read back as 2*slots uint32 words.
 std::vector<double> decode_fixed_point(const std::vector<uint32_t>& words);

@@ -15,6 +15,7 @@
 #include "render_layout.h"
 #include "residual_map.h"
 #include "selftest_support.h"
+#include "voxel_loss.h"
 
 namespace tfm::selftest {
 namespace {

@@ -15,6 +15,7 @@
 #include "normal_equations.h"
 #include "test_data.h"
 #include "vk_test_env.h"
+#include "voxel_loss.h"
 
 namespace tfm {
 namespace {

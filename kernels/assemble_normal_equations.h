@@ -1,0 +1,65 @@
+// Wrapper of shaders/assemble_normal_equations.comp: the deterministic assembly of M, S^T b and
+// b^T b (DESIGN.md), its pipelines per term pass, and one dispatch per range of a field chunk.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "buffer.h"
+#include "commands.h"
+#include "device_field.h"
+#include "field_mapping.h"
+#include "pipeline.h"
+#include "reduction.h"
+#include "voxel_pair.h"
+
+namespace tfm {
+
+class Context;
+
+// Adds M, S^T b, b^T b and the voxel count of (ref, opt) to a 32.32 fixed-point accumulator
+// buffer of TFM_ASSEMBLE_SLOTS(N) slots (8 bytes each, low word first). The result is
+// bit-identical for every mode, atomic width, chunking and workgroup count. Throws
+// std::invalid_argument for fewer than 2 entries, std::runtime_error when a forced mode or
+// width is not available on the device (shared memory too small, no 64-bit atomics).
+class AssembleNormalEquationsKernel {
+ public:
+  AssembleNormalEquationsKernel(Context& ctx, uint32_t tf_size, ReductionOptions options = {});
+  ~AssembleNormalEquationsKernel();
+  uint32_t tf_size() const { return tf_size_; }
+  uint32_t slots() const;
+  ReductionMode mode() const { return reduction_.mode; }
+  bool int64_atomics() const { return reduction_.int64; }
+  // Records one dispatch per chunk, texel range and term pass (barriers between them). With
+  // `before_map` (the second field mapped onto the reference TF's entries: tf_size of ref_map)
+  // the kernel also adds the loss before optimization to slots [6N+4, 6N+8) (shared_layout.h).
+  void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
+              const FieldMapping& opt_map, const Buffer& ref_tf, Buffer& accum,
+              const FieldMapping* before_map = nullptr) const;
+
+  // Which of the 11 bin terms one pass adds (shaders/assemble_normal_equations.comp).
+  struct TermPass {
+    uint32_t first = 0, count = 11;
+  };
+  const std::vector<TermPass>& passes() const { return passes_; }
+
+ private:
+  Context& ctx_;
+  uint32_t tf_size_;
+  Reduction reduction_;
+  std::vector<TermPass> passes_;
+  uint64_t range_quads_;
+  // One per pass, without and with the before loss, each compiled when first recorded.
+  const std::vector<std::unique_ptr<ComputePipeline>>& pipelines(bool with_before) const;
+  mutable std::array<std::vector<std::unique_ptr<ComputePipeline>>, 2> pipelines_;
+};
+
+// The term passes of the assembly: all 11 terms at once, or in Private mode as many per pass as
+// keep a lane's histogram (terms x TF entries) within `slots` (the device's
+// private_limit(ctx, kPrivateHistogramSlots)).
+std::vector<AssembleNormalEquationsKernel::TermPass> assemble_term_passes(ReductionMode mode, uint32_t tf_size,
+                                                                          uint32_t slots = kPrivateHistogramSlots);
+
+}  // namespace tfm
