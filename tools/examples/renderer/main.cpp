@@ -490,11 +490,34 @@ int main() {
         last_fit_reference = slot.assembled_tf;
         slot.assembled = false;
       }
+    // The same frame records tfmatch's residual maps of the second field (what its TF cannot
+    // explain, DESIGN.md) into the renderer's buffers, under the grey ramp and under the fit: a
+    // renderer shows such a field as a third volume.
+    const VkBufferUsageFlags field_usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT;
+    const MemoryBuffer residual_before = app.buffer(kVoxels * 4, field_usage, true);
+    const MemoryBuffer residual_after = app.buffer(kVoxels * 4, field_usage, true);
+    tfm::DeviceField residual_before_field =
+        tfm::DeviceField::adopt(*ctx, residual_before.buffer, 0, kVoxels, "residual, grey ramp");
+    tfm::DeviceField residual_after_field =
+        tfm::DeviceField::adopt(*ctx, residual_after.buffer, 0, kVoxels, "residual, fit");
+    std::vector<float> grey_ramp(kFitEntries * 4);
+    for (uint32_t j = 0; j < kFitEntries; ++j) {
+      const float t = j / float(kFitEntries - 1);
+      grey_ramp[4 * j] = grey_ramp[4 * j + 1] = grey_ramp[4 * j + 2] = t;
+      grey_ramp[4 * j + 3] = 0.5f * t;
+    }
+    tfm::ResidualMapRecorder residual_recorder_before(*ctx), residual_recorder_after(*ctx);
+    const std::vector<float> last_reference_floats = last_fit_reference.as_floats();
     vkResetFences(app.device, 1, &fences[0]);
     begin(cmds[0]);
     memory_barrier(cmds[0], VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, VK_PIPELINE_STAGE_TRANSFER_BIT, 0);
     slots[0].uploader->record_tf_upload(cmds[0], last_fit, tfm::TfBufferTarget{fit_tf_buffer.buffer, 0, kFitEntries * 16});
-    memory_barrier(cmds[0], VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
+    residual_recorder_before.record_residual_map(cmds[0], ref_field, opt_field, ref_map, opt_map, last_reference_floats,
+                                                 grey_ramp, residual_before_field);
+    residual_recorder_after.record_residual_map(cmds[0], ref_field, opt_field, ref_map, opt_map, last_reference_floats,
+                                                last_fit, residual_after_field);
+    memory_barrier(cmds[0], VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                   VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
                    VK_ACCESS_HOST_READ_BIT);
     submit(cmds[0], fences[0]);
     vkWaitForFences(app.device, 1, &fences[0], VK_TRUE, UINT64_MAX);
@@ -515,6 +538,19 @@ int main() {
     std::printf("  last fit against the CPU's: max |difference| %.2e over %u entries\n", worst, kFitEntries);
     if (!(worst <= 1e-4)) {
       std::printf("FAILED: the GPU fit differs from the CPU fit\n");
+      status = 1;
+    }
+    auto mean_of = [](const MemoryBuffer& b) {
+      const float* v = static_cast<const float*>(b.mapped);
+      double sum = 0.0;
+      for (uint64_t i = 0; i < kVoxels; ++i) sum += v[i];
+      return sum / double(kVoxels);
+    };
+    const double residual_grey = mean_of(residual_before), residual_fit = mean_of(residual_after);
+    std::printf("  residual map (tfmatch, into the renderer's buffers): mean %.4f (grey ramp) -> %.4f (fitted TF)\n",
+                residual_grey, residual_fit);
+    if (!(residual_fit < 0.1 * residual_grey)) {
+      std::printf("FAILED: the fitted TF leaves a residual a single TF should explain\n");
       status = 1;
     }
     const double difference_after = image_difference(static_cast<const uint32_t*>(ref_image.mapped),
