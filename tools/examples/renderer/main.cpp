@@ -100,7 +100,8 @@ struct App {
     if (vkCreateInstance(&info, nullptr, &instance) != VK_SUCCESS) return false;
     if (validation) {
       VkDebugUtilsMessengerCreateInfoEXT mi{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
-      mi.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+      mi.messageSeverity =
+          VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
       mi.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT;
       mi.pfnUserCallback = &on_message;
       auto create_messenger = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
@@ -131,7 +132,8 @@ struct App {
     VkPhysicalDeviceVulkan12Features features12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
     VkPhysicalDeviceFeatures2 available{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &features12};
     vkGetPhysicalDeviceFeatures2(physical, &available);
-    int64_atomics = available.features.shaderInt64 && features12.shaderBufferInt64Atomics && features12.shaderSharedInt64Atomics;
+    int64_atomics = available.features.shaderInt64 && features12.shaderBufferInt64Atomics &&
+                    features12.shaderSharedInt64Atomics;
     VkPhysicalDeviceVulkan12Features enable12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
     VkPhysicalDeviceFeatures2 enable{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &enable12};
     enable.features.shaderInt64 = enable12.shaderBufferInt64Atomics = enable12.shaderSharedInt64Atomics = int64_atomics;
@@ -155,8 +157,9 @@ struct App {
     if (vkCreateBuffer(device, &info, nullptr, &b.buffer) != VK_SUCCESS) std::abort();
     VkMemoryRequirements req{};
     vkGetBufferMemoryRequirements(device, b.buffer, &req);
-    const VkMemoryPropertyFlags want = host_visible ? VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT
-                                                   : VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT;
+    const VkMemoryPropertyFlags want =
+        host_visible ? VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT
+                     : VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT;
     uint32_t type = 0;
     while (type < memory_properties.memoryTypeCount &&
            !((req.memoryTypeBits >> type & 1u) && (memory_properties.memoryTypes[type].propertyFlags & want) == want))
@@ -203,14 +206,16 @@ void memory_barrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stages, VkAcce
 void make_fields(std::vector<float>& ref, std::vector<uint16_t>& opt) {
   ref.resize(kVoxels);
   opt.resize(kVoxels);
-  const std::array<std::array<double, 4>, 3> blobs{{{0.3, 0.4, 0.5, 0.18}, {0.7, 0.6, 0.4, 0.14}, {0.5, 0.25, 0.7, 0.1}}};
+  const std::array<std::array<double, 4>, 3> blobs{
+      {{0.3, 0.4, 0.5, 0.18}, {0.7, 0.6, 0.4, 0.14}, {0.5, 0.25, 0.7, 0.1}}};  // centre, width
   for (uint32_t z = 0; z < kNz; ++z)
     for (uint32_t y = 0; y < kNy; ++y)
       for (uint32_t x = 0; x < kNx; ++x) {
         const double p[3] = {(x + 0.5) / kNx, (y + 0.5) / kNy, (z + 0.5) / kNz};
         double v = 0.0;
         for (const auto& b : blobs) {
-          const double d2 = (p[0] - b[0]) * (p[0] - b[0]) + (p[1] - b[1]) * (p[1] - b[1]) + (p[2] - b[2]) * (p[2] - b[2]);
+          double d2 = 0.0;
+          for (int a = 0; a < 3; ++a) d2 += (p[a] - b[a]) * (p[a] - b[a]);
           v += std::exp(-d2 / (2 * b[3] * b[3]));
         }
         const uint64_t i = (uint64_t(z) * kNy + y) * kNx + x;
@@ -305,7 +310,8 @@ int main() {
     VkPipelineLayout layout = VK_NULL_HANDLE;
     vkCreatePipelineLayout(app.device, &pli, nullptr, &layout);
     VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-    ci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO, nullptr, 0, VK_SHADER_STAGE_COMPUTE_BIT, module, "main", nullptr};
+    ci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO, nullptr, 0, VK_SHADER_STAGE_COMPUTE_BIT, module,
+                "main", nullptr};
     ci.layout = layout;
     VkPipeline pipeline = VK_NULL_HANDLE;
     vkCreateComputePipelines(app.device, VK_NULL_HANDLE, 1, &ci, nullptr, &pipeline);
@@ -473,8 +479,9 @@ int main() {
     const int frames = 48;
     const double plain_ms = run(frames, false);
     const double refit_ms = run(frames, true);
-    std::printf("%d frames of 2 views %ux%u of %ux%ux%u voxels (float32; unorm16 read in place) on %s (%s-bit atomics for tfmatch):\n", frames, kImage,
-                kImage, kNx, kNy, kNz, ctx->device_name().c_str(), app.int64_atomics ? "64" : "32");
+    std::printf("%d frames of 2 views %ux%u of %ux%ux%u voxels (float32; unorm16 read in place) on %s "
+                "(%s-bit atomics for tfmatch):\n",
+                frames, kImage, kImage, kNx, kNy, kNz, ctx->device_name().c_str(), app.int64_atomics ? "64" : "32");
     std::printf("  without re-fit: %.2f ms a frame\n  with the TF re-fit recorded into each frame: %.2f ms a frame\n",
                 plain_ms, refit_ms);
     if (ctx->submissions() != submissions_before) {
