@@ -280,25 +280,21 @@ void TfUploadRecorder::record_tf_upload(VkCommandBuffer cmd, std::span<const flo
     throw std::invalid_argument("record_tf_upload: the table needs " + std::to_string(bytes) +
                                 " bytes, the target range holds " + std::to_string(target.size));
   if (target.offset % 4) throw std::invalid_argument("record_tf_upload: the target offset is not a multiple of 4");
-  // A view of the host's range, for the command's bounds (an update needs no alignment beyond 4).
-  Buffer dst;
-  const VkPhysicalDeviceLimits& limits = ctx_.limits();
-  const uint64_t align = std::max<uint64_t>(limits.minStorageBufferOffsetAlignment, limits.minTexelBufferOffsetAlignment);
-  const uint64_t base = target.offset / align * align;
-  dst = Buffer::adopt(ctx_, target.buffer, base, target.offset - base + bytes, "record_tf_upload target");
-  restart(recording_, ctx_, cmd).update(dst, target.offset - base, rgba.data(), bytes);
+  // A view of the host's buffer from its start (always aligned) to the table's end: an update
+  // needs no alignment beyond 4, which update() checks.
+  const Buffer dst = Buffer::adopt(ctx_, target.buffer, 0, target.offset + bytes, "record_tf_upload target");
+  restart(recording_, ctx_, cmd).update(dst, target.offset, rgba.data(), bytes);
 }
 
 void TfUploadRecorder::record_tf_upload(VkCommandBuffer cmd, std::span<const float> rgba, const TfImageTarget& target) {
   if (target.image == VK_NULL_HANDLE) throw std::invalid_argument("record_tf_upload: no image (VK_NULL_HANDLE)");
-  const std::vector<uint8_t> texels = encode_tf_texels(rgba, target.format);
-  const uint64_t bytes = (texels.size() + 3) / 4 * 4;
+  std::vector<uint8_t> texels = encode_tf_texels(rgba, target.format);
+  texels.resize((texels.size() + 3) / 4 * 4, 0);  // update() writes whole words
+  const uint64_t bytes = texels.size();
   if (staging_.size() < bytes) staging_ = Buffer(ctx_, bytes, MemoryUsage::Device, "recorded TF staging");
-  std::vector<uint8_t> padded(texels);
-  padded.resize(bytes, 0);
   CommandBatch& batch = restart(recording_, ctx_, cmd);
   batch.barrier();  // an earlier copy out of the staging buffer finishes first
-  batch.update(staging_, 0, padded.data(), bytes);
+  batch.update(staging_, 0, texels.data(), bytes);
   batch.copy_to_image(staging_, target.image, uint32_t(rgba.size() / 4), target.old_layout, target.new_layout,
                       target.dst_stages, target.dst_access);
 }
