@@ -286,6 +286,51 @@ void CommandBatch::copy_to_image(const Buffer& src, VkImage image, uint32_t widt
   vk.vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_TRANSFER_BIT, dst_stages, 0, 0, nullptr, 0, nullptr, 1, &to_use);
 }
 
+void CommandBatch::copy_from_image(VkImage image, VkExtent3D extent, VkImageLayout layout,
+                                   VkPipelineStageFlags src_stages, VkAccessFlags src_access,
+                                   VkPipelineStageFlags dst_stages, VkAccessFlags dst_access, const Buffer& dst,
+                                   uint64_t dst_offset) {
+  const auto& vk = ctx_.vk();
+  const bool transition = layout != VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL && layout != VK_IMAGE_LAYOUT_GENERAL;
+  const VkImageLayout copy_layout = transition ? VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL : layout;
+  const VkPipelineStageFlags host_before =
+      src_stages ? src_stages : VkPipelineStageFlags(VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
+  const VkPipelineStageFlags host_after =
+      dst_stages ? dst_stages : VkPipelineStageFlags(VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
+  // Earlier reads and writes of `dst` (the kernels that read the last copy, the last copy) finish
+  // before this copy writes it.
+  VkMemoryBarrier before{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  before.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  before.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  VkImageMemoryBarrier to_src{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER};
+  to_src.srcAccessMask = src_access;
+  to_src.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+  to_src.oldLayout = layout;
+  to_src.newLayout = copy_layout;
+  to_src.srcQueueFamilyIndex = to_src.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+  to_src.image = image;
+  to_src.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+  vk.vkCmdPipelineBarrier(cmd_, host_before | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                          VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &before, 0, nullptr, 1, &to_src);
+  VkBufferImageCopy region{};
+  region.bufferOffset = dst.offset() + dst_offset;
+  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+  region.imageExtent = extent;
+  vk.vkCmdCopyImageToBuffer(cmd_, image, copy_layout, dst.handle(), 1, &region);
+  // The copy is visible to the kernels that read the field; the image goes back to the host's
+  // layout before the host's next use of it.
+  VkMemoryBarrier after{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  after.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  after.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+  VkImageMemoryBarrier back = to_src;
+  back.srcAccessMask = 0;  // the copy only read it
+  back.dstAccessMask = dst_access;
+  back.oldLayout = copy_layout;
+  back.newLayout = layout;
+  vk.vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | host_after, 0, 1,
+                          &after, 0, nullptr, transition ? 1 : 0, &back);
+}
+
 uint32_t CommandBatch::timestamp() {
   if (external_) throw std::logic_error("CommandBatch: no timestamps in a host's command buffer");
   if (!queries_) return query_count_++;

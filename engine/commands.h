@@ -80,6 +80,16 @@ class CommandBatch {
   // host's next use) wait for the copy. Earlier transfer writes to `src` are ordered before it.
   void copy_to_image(const Buffer& src, VkImage image, uint32_t width, VkImageLayout old_layout,
                      VkImageLayout new_layout, VkPipelineStageFlags dst_stages, VkAccessFlags dst_access);
+  // Copies the whole of mip level 0, layer 0 of the 3D (or 2D) colour image `image` (`extent`
+  // texels, x fastest, tightly packed) into `dst` from `dst_offset` (a multiple of the texel size).
+  // The image is in `layout` and usable as a transfer source; unless that is TRANSFER_SRC_OPTIMAL
+  // or GENERAL it moves to TRANSFER_SRC_OPTIMAL for the copy and back after. The host's earlier
+  // accesses `src_stages`/`src_access` (its writes of the image) are ordered before the copy, and
+  // its next use `dst_stages`/`dst_access` after it; earlier compute and transfer accesses of
+  // `dst` finish first, and the copy is made visible to compute-shader reads.
+  void copy_from_image(VkImage image, VkExtent3D extent, VkImageLayout layout, VkPipelineStageFlags src_stages,
+                       VkAccessFlags src_access, VkPipelineStageFlags dst_stages, VkAccessFlags dst_access,
+                       const Buffer& dst, uint64_t dst_offset);
   // Writes a GPU timestamp after all earlier work; returns its slot.
   uint32_t timestamp();
   // Submits, waits for completion (device writes then visible to the host) and resets nothing:

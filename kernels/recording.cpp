@@ -299,6 +299,75 @@ void TfUploadRecorder::record_tf_upload(VkCommandBuffer cmd, std::span<const flo
                       target.dst_stages, target.dst_access);
 }
 
+FieldFormat field_format_of(VkFormat format, const char* what) {
+  switch (format) {
+    case VK_FORMAT_R32_SFLOAT: return FieldFormat::Float32;
+    case VK_FORMAT_R16_SFLOAT: return FieldFormat::Float16;
+    case VK_FORMAT_R16_UNORM: return FieldFormat::Unorm16;
+    case VK_FORMAT_R8_UNORM: return FieldFormat::Unorm8;
+    default:
+      throw std::invalid_argument(std::string(what) + ": image format " + std::to_string(int(format)) +
+                                  " is not a field format (R32_SFLOAT, R16_SFLOAT, R16_UNORM or R8_UNORM)");
+  }
+}
+
+namespace {
+
+uint64_t extent_voxels(VkExtent3D extent, const std::string& name) {
+  const uint64_t voxels = uint64_t(extent.width) * extent.height * extent.depth;
+  if (voxels == 0)
+    throw std::invalid_argument("ImageFieldRecorder '" + name + "': empty extent " + std::to_string(extent.width) + "x" +
+                                std::to_string(extent.height) + "x" + std::to_string(extent.depth));
+  return voxels;
+}
+
+}  // namespace
+
+uint64_t ImageFieldRecorder::bytes_needed(VkExtent3D extent, VkFormat format) {
+  return uint64_t(extent.width) * extent.height * extent.depth *
+         field_format_bytes(field_format_of(format, "ImageFieldRecorder"));
+}
+
+ImageFieldRecorder::ImageFieldRecorder(Context& ctx, VkExtent3D extent, VkFormat format, const std::string& name,
+                                       uint64_t max_chunk_voxels)
+    : ctx_(ctx),
+      extent_(extent),
+      format_(field_format_of(format, "ImageFieldRecorder")),
+      own_(ctx, std::max<uint64_t>(4, (extent_voxels(extent, name) * field_format_bytes(format_) + 3) / 4 * 4),
+           MemoryUsage::Device, name + " (copy of the host's image)"),
+      field_(DeviceField::adopt(ctx, own_.handle(), own_.offset(), extent_voxels(extent, name), name, max_chunk_voxels,
+                                format_)) {}
+
+ImageFieldRecorder::ImageFieldRecorder(Context& ctx, VkExtent3D extent, VkFormat format, const std::string& name,
+                                       VkBuffer buffer, uint64_t offset, uint64_t max_chunk_voxels)
+    : ctx_(ctx),
+      extent_(extent),
+      format_(field_format_of(format, "ImageFieldRecorder")),
+      field_(DeviceField::adopt(ctx, buffer, offset, extent_voxels(extent, name), name, max_chunk_voxels, format_)) {}
+
+ImageFieldRecorder::~ImageFieldRecorder() = default;
+
+void ImageFieldRecorder::record_copy(VkCommandBuffer cmd, const ImageFieldSource& source) {
+  if (source.image == VK_NULL_HANDLE) throw std::invalid_argument("record_copy: no image (VK_NULL_HANDLE)");
+  if (field_format_of(source.format, "record_copy") != format_ || source.extent.width != extent_.width ||
+      source.extent.height != extent_.height || source.extent.depth != extent_.depth)
+    throw std::invalid_argument("record_copy: the image is " + std::to_string(source.extent.width) + "x" +
+                                std::to_string(source.extent.height) + "x" + std::to_string(source.extent.depth) + " " +
+                                field_format_name(field_format_of(source.format, "record_copy")) +
+                                ", the recorder's field " + std::to_string(extent_.width) + "x" +
+                                std::to_string(extent_.height) + "x" + std::to_string(extent_.depth) + " " +
+                                field_format_name(format_));
+  CommandBatch& batch = restart(recording_, ctx_, cmd);
+  // The chunks are views of one range of one buffer: the copy writes it from the first chunk's start.
+  const Buffer& first = field_.chunk(0);
+  batch.copy_from_image(source.image, source.extent, source.layout, source.src_stages, source.src_access,
+                        source.dst_stages, source.dst_access, first, 0);
+}
+
+RecordedAccess ImageFieldRecorder::access() {
+  return {VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_READ_BIT, 0};
+}
+
 RecordedAccess TfUploadRecorder::access() {
   return {VK_PIPELINE_STAGE_TRANSFER_BIT, 0, VK_ACCESS_TRANSFER_WRITE_BIT};
 }

@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 #include <vulkan/vulkan_core.h>
@@ -157,6 +158,69 @@ class RenderRecorder {
   VolumeGeometry geometry_;
   std::unique_ptr<RenderImageKernel> kernel_;
   Buffer tf_, views_, stop_;
+  std::unique_ptr<CommandBatch> recording_;
+};
+
+// A host's volume held as a 3D image (R32_SFLOAT, R16_SFLOAT, R16_UNORM, R8_UNORM: DeviceField's
+// formats), described for ImageFieldRecorder. Its texel (x, y, z) is voxel (z ny + y) nx + x.
+struct ImageFieldSource {
+  VkImage image = VK_NULL_HANDLE;  // 3D, mip 0 and layer 0 used, with VK_IMAGE_USAGE_TRANSFER_SRC_BIT
+  VkFormat format = VK_FORMAT_R32_SFLOAT;
+  VkExtent3D extent{0, 0, 0};
+  VkImageLayout layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;  // its layout, before and after
+  // The host's last writes of the image, ordered before the copy (e.g. its upload: transfer stage,
+  // transfer write), and its next use after it (e.g. its renderer's shader reads).
+  VkPipelineStageFlags src_stages = VK_PIPELINE_STAGE_TRANSFER_BIT;
+  VkAccessFlags src_access = VK_ACCESS_TRANSFER_WRITE_BIT;
+  VkPipelineStageFlags dst_stages = VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT;
+  VkAccessFlags dst_access = VK_ACCESS_SHADER_READ_BIT;
+};
+
+// The FieldFormat of an image format ImageFieldSource accepts; std::invalid_argument naming
+// `what` for any other.
+FieldFormat field_format_of(VkFormat format, const char* what);
+
+// A host's 3D image as a field every recorder above reads (assembly, voxel loss, residual map,
+// rendering; as a member of a correlation ensemble). tfmatch's voxel kernels read fields as texel
+// buffers, four voxels a texel (DESIGN.md: a texel fetch is a vector gather on CPU devices and a
+// cached load on GPUs), which an image cannot be viewed as; so record_copy() copies the image on
+// the device (vkCmdCopyImageToBuffer, the stored texels unchanged: the same bits as the host's
+// values in a buffer) into the recorder's buffer, or the host's, of the image's size in its own
+// format (2 bytes a voxel for R16). Nothing goes through the host. The cost is that device memory
+// and one device-local copy per recording (on lavapipe: tests/engine/test_embedding_recording.cpp
+// measures it beside the assembly).
+class ImageFieldRecorder {
+ public:
+  // The field's buffer is the recorder's (created once). Throws std::invalid_argument for a
+  // format DeviceField lacks or an empty extent.
+  ImageFieldRecorder(Context& ctx, VkExtent3D extent, VkFormat format, const std::string& name,
+                     uint64_t max_chunk_voxels = 0);
+  // The field's buffer is the host's: `bytes_needed(extent, format)` bytes of `buffer` from
+  // `offset` (a multiple of the device's texel-buffer offset alignment, as DeviceField::adopt
+  // requires), with transfer-destination and uniform-texel-buffer usages.
+  ImageFieldRecorder(Context& ctx, VkExtent3D extent, VkFormat format, const std::string& name, VkBuffer buffer,
+                     uint64_t offset, uint64_t max_chunk_voxels = 0);
+  static uint64_t bytes_needed(VkExtent3D extent, VkFormat format);
+  ~ImageFieldRecorder();
+  ImageFieldRecorder(const ImageFieldRecorder&) = delete;
+  ImageFieldRecorder& operator=(const ImageFieldRecorder&) = delete;
+
+  // Records the copy of `source` (its extent and format those of the constructor, else
+  // std::invalid_argument) into the field, with the layout changes and barriers its description
+  // states, made visible to compute-shader reads: record any recorder's work on field() after it
+  // in the same command buffer (or a later one).
+  void record_copy(VkCommandBuffer cmd, const ImageFieldSource& source);
+  // The field the copies land in: pass it to the recorders. Valid as long as the recorder lives.
+  const DeviceField& field() const { return field_; }
+  // Reads the host's image in the transfer stage; writes only the field's buffer there.
+  static RecordedAccess access();
+
+ private:
+  Context& ctx_;
+  VkExtent3D extent_;
+  FieldFormat format_;
+  Buffer own_;  // the field's memory when it is the recorder's
+  DeviceField field_;
   std::unique_ptr<CommandBatch> recording_;
 };
 

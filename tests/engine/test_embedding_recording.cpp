@@ -97,6 +97,52 @@ class Host {
     return image;
   }
 
+  // A 3D volume image of `format`, filled with `texels` (x fastest) by the host's own copy in
+  // `cmd` and left in SHADER_READ_ONLY_OPTIMAL for its compute shaders, as a renderer keeps the
+  // volumes it samples. `staging` must stay alive until the host's wait.
+  VkImage volume_image(VkCommandBuffer cmd, VkFormat format, VkExtent3D extent, const std::vector<uint8_t>& texels,
+                       VkBuffer& staging) {
+    VkImageCreateInfo ii{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
+    ii.imageType = VK_IMAGE_TYPE_3D;
+    ii.format = format;
+    ii.extent = extent;
+    ii.mipLevels = 1;
+    ii.arrayLayers = 1;
+    ii.samples = VK_SAMPLE_COUNT_1_BIT;
+    ii.tiling = VK_IMAGE_TILING_OPTIMAL;
+    ii.usage = VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+    ii.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+    VkImage image = VK_NULL_HANDLE;
+    EXPECT_EQ(vkCreateImage(d_.device(), &ii, nullptr, &image), VK_SUCCESS);
+    images_.push_back(image);
+    VkMemoryRequirements req{};
+    vkGetImageMemoryRequirements(d_.device(), image, &req);
+    EXPECT_EQ(vkBindImageMemory(d_.device(), image, allocate(req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT), 0), VK_SUCCESS);
+    void* map = nullptr;
+    staging = buffer(texels.size() + 4, &map);
+    std::memcpy(map, texels.data(), texels.size());
+    VkImageMemoryBarrier b{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER};
+    b.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    b.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+    b.newLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+    b.srcQueueFamilyIndex = b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    b.image = image;
+    b.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0,
+                         nullptr, 1, &b);
+    VkBufferImageCopy region{};
+    region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+    region.imageExtent = extent;
+    vkCmdCopyBufferToImage(cmd, staging, image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+    b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+    b.oldLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+    b.newLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 0, nullptr, 0,
+                         nullptr, 1, &b);
+    return image;
+  }
+
   VkCommandBuffer begin() {
     EXPECT_EQ(vkResetCommandBuffer(cmd_, 0), VK_SUCCESS);
     VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
@@ -563,6 +609,148 @@ TEST_F(EmbeddingRecording, FieldsInHalfAndUnormFormatsEqualTheirFloatValues) {
   }
 }
 
+// The host's volumes as 3D images in every field format (R32_SFLOAT, R16_SFLOAT, R16_UNORM,
+// R8_UNORM): ImageFieldRecorder copies each on the device into a field, and the assembly, the voxel
+// loss, the residual map and the rendering recorded after it in the same command buffer give the
+// bits of the same stored values in a buffer (DeviceField::adopt), on an awkward extent split into
+// chunks, twice (the recorders restarted on the next frame). Members of an ensemble copied from
+// R32F images into the host's member-major buffer give the correlation field of those values.
+TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
+  Context& ctx = *ctx_;
+  Host& host = *host_;
+  {
+    const VkExtent3D extent{21, 17, 13};
+    const std::array<uint64_t, 3> dims{21, 17, 13};
+    const uint64_t voxels = dims[0] * dims[1] * dims[2], chunk = 2048;
+    std::vector<float> ref, opt;
+    make_fields(voxels, ref, opt);
+    const DeviceField r(ctx, ref, "ref", chunk);
+    const TransferFunction ref_tf = reference_tf(0.3), opt_tf = reference_tf(0.7);
+    const std::vector<float> ref_floats = ref_tf.as_floats(), opt_floats = opt_tf.as_floats();
+    const FieldMapping rm = make_mapping({0.05, 0.95}, 7);
+    Buffer rt = upload_tf(ctx, ref_tf, "ref tf"), ot = upload_tf(ctx, opt_tf, "opt tf");
+    RenderSettings s;
+    s.width = 31;
+    s.height = 29;
+    const VolumeGeometry geometry = VolumeGeometry::from(dims, {1.0, 1.0, 1.0});
+    for (VkFormat vk_format : {VK_FORMAT_R32_SFLOAT, VK_FORMAT_R16_SFLOAT, VK_FORMAT_R16_UNORM, VK_FORMAT_R8_UNORM}) {
+      const FieldFormat format = field_format_of(vk_format, "test");
+      SCOPED_TRACE(field_format_name(format));
+      // The second field's stored texels: floats, halves, or unorm codes of values in [0, 1].
+      const uint32_t bytes = field_format_bytes(format);
+      std::vector<uint8_t> stored(voxels * bytes);
+      for (uint64_t v = 0; v < voxels; ++v) {
+        if (format == FieldFormat::Float32) {
+          std::memcpy(stored.data() + 4 * v, &opt[v], 4);
+        } else if (format == FieldFormat::Float16) {
+          const uint16_t h = glm::packHalf1x16(opt[v]);
+          std::memcpy(stored.data() + 2 * v, &h, 2);
+        } else {
+          const double unorm_max = format == FieldFormat::Unorm16 ? 65535.0 : 255.0;
+          const float x = std::isnan(opt[v]) ? 0.5f : std::clamp(opt[v] / 2.6f, 0.0f, 1.0f);
+          const uint32_t code = uint32_t(std::lround(x * unorm_max));
+          std::memcpy(stored.data() + v * bytes, &code, bytes);
+        }
+      }
+      const bool unorm = format == FieldFormat::Unorm16 || format == FieldFormat::Unorm8;
+      const FieldMapping om = make_mapping(unorm ? FieldRange{0.0, 1.0} : FieldRange{0.0, 2.6}, 7);
+      void* map = nullptr;
+      VkBuffer buffer = host.buffer(stored.size() + 4, &map);
+      std::memcpy(map, stored.data(), stored.size());
+      const DeviceField in_buffer = DeviceField::adopt(ctx, buffer, 0, voxels, "host buffer", chunk, format);
+      void* residual_map = nullptr;
+      void* picture_map = nullptr;
+      VkBuffer residual = host.buffer(voxels * 4, &residual_map);
+      VkBuffer picture = host.buffer(uint64_t(s.width) * s.height * 16, &picture_map);
+      DeviceField residual_field = DeviceField::adopt(ctx, residual, 0, voxels, "host residual", chunk);
+      Buffer picture_view = Buffer::adopt(ctx, picture, 0, uint64_t(s.width) * s.height * 16, "host picture");
+
+      ImageFieldRecorder copier(ctx, extent, vk_format, "second volume", chunk);
+      ASSERT_EQ(copier.field().chunk_count(), in_buffer.chunk_count());
+      NormalEquationsRecorder assembly(ctx, 7);
+      VoxelLossRecorder loss(ctx);
+      ResidualMapRecorder residual_recorder(ctx);
+      RenderRecorder render(ctx, geometry, uint32_t(copier.field().chunk_count()));
+      VkBuffer staging = VK_NULL_HANDLE;
+      VkImage image = VK_NULL_HANDLE;
+      for (int frame = 0; frame < 2; ++frame) {
+        SCOPED_TRACE("frame " + std::to_string(frame));
+        const uint64_t submissions = ctx.submissions();
+        VkCommandBuffer cmd = host.begin();
+        if (frame == 0) image = host.volume_image(cmd, vk_format, extent, stored, staging);
+        ImageFieldSource source;
+        source.image = image;
+        source.format = vk_format;
+        source.extent = extent;
+        copier.record_copy(cmd, source);
+        assembly.record_assemble(cmd, r, copier.field(), rm, om, ref_floats);
+        loss.record_voxel_loss(cmd, r, copier.field(), rm, om, ref_floats, opt_floats);
+        residual_recorder.record_residual_map(cmd, r, copier.field(), rm, om, ref_floats, opt_floats, residual_field);
+        render.record_render(cmd, copier.field(), om, opt_floats, s, picture_view);
+        Host::host_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                           VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT);
+        EXPECT_EQ(ctx.submissions(), submissions) << "recording submitted work";
+        host.submit_and_wait();
+
+        GpuNormalEquations eq(ctx, 7);
+        eq.add(r, in_buffer, rm, om, rt);
+        EXPECT_EQ(assembly.fixed_point_slots(), eq.fixed_point_slots()) << "assembly";
+        const VoxelLoss expected_loss = voxel_loss_gpu(ctx, r, in_buffer, rm, om, rt, ot), got_loss = loss.result();
+        EXPECT_EQ(got_loss.squared, expected_loss.squared) << "voxel loss";
+        EXPECT_EQ(got_loss.absolute, expected_loss.absolute) << "voxel loss";
+        EXPECT_GT(got_loss.voxels, voxels / 2);
+        Volume grid;
+        grid.dims = dims;
+        const std::vector<float> expected_residual = residual_map_gpu(ctx, grid, r, in_buffer, rm, om, rt, ot).values;
+        EXPECT_EQ(0, std::memcmp(residual_map, expected_residual.data(), voxels * 4)) << "residual map";
+        const RenderedImage expected_picture = GpuRenderer(ctx, in_buffer, geometry).render_colours(om, ot, s);
+        EXPECT_EQ(0, std::memcmp(picture_map, expected_picture.rgba.data(), expected_picture.rgba.size() * 4))
+            << "rendering";
+      }
+    }
+
+    // An ensemble of R32F member images copied into the host's member-major buffer (member m at
+    // m V floats: V a multiple of 64 so every member starts at an aligned offset).
+    const VkExtent3D member_extent{17, 8, 8};
+    const uint64_t member_voxels = 17 * 8 * 8;
+    const uint32_t members = 9;
+    std::vector<float> values(members * member_voxels);
+    for (uint32_t m = 0; m < members; ++m)
+      for (uint64_t v = 0; v < member_voxels; ++v)
+        values[m * member_voxels + v] = float(std::sin(0.37 * m + 0.011 * double(v)) + 0.3 * std::cos(1.7 * m * m + double(v % 13)));
+    void* ensemble_map = nullptr;
+    void* out_map = nullptr;
+    VkBuffer ensemble = host.buffer(values.size() * 4, &ensemble_map);
+    VkBuffer out = host.buffer(member_voxels * 4, &out_map);
+    std::vector<std::unique_ptr<ImageFieldRecorder>> copiers;
+    std::vector<VkBuffer> stagings(members);
+    VkCommandBuffer cmd = host.begin();
+    for (uint32_t m = 0; m < members; ++m) {
+      std::vector<uint8_t> texels(member_voxels * 4);
+      std::memcpy(texels.data(), values.data() + m * member_voxels, texels.size());
+      ImageFieldSource source;
+      source.image = host.volume_image(cmd, VK_FORMAT_R32_SFLOAT, member_extent, texels, stagings[m]);
+      source.extent = member_extent;
+      copiers.push_back(std::make_unique<ImageFieldRecorder>(ctx, member_extent, VK_FORMAT_R32_SFLOAT, "member", ensemble,
+                                                             m * member_voxels * 4));
+      copiers.back()->record_copy(cmd, source);
+    }
+    const EnsembleView view{values.data(), members, member_voxels};
+    const std::vector<float> reference = ensemble_series(view, 77);
+    CorrelationParams params;
+    CorrelationRecorder correlation(ctx);
+    Buffer ensemble_view = Buffer::adopt(ctx, ensemble, 0, values.size() * 4, "host ensemble");
+    Buffer out_view = Buffer::adopt(ctx, out, 0, member_voxels * 4, "host correlation field");
+    correlation.record_correlation(cmd, ensemble_view, member_voxels, reference, params, out_view);
+    Host::host_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                       VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT);
+    host.submit_and_wait();
+    EXPECT_EQ(0, std::memcmp(ensemble_map, values.data(), values.size() * 4)) << "the members' copies";
+    const std::vector<float> expected = CorrelationKernel(ctx).compute(view, reference, params);
+    EXPECT_EQ(0, std::memcmp(out_map, expected.data(), member_voxels * 4)) << "correlation";
+  }
+}
+
 // gives, bit for bit, for a field in the host's buffer spanning several chunks.
 TEST_F(EmbeddingRecording, RenderRecordsIntoTheHostsImageBuffer) {
   Context& ctx = *ctx_;
@@ -628,6 +816,21 @@ TEST_F(EmbeddingRecording, BadArgumentsAreClearErrors) {
     bad.format = VK_FORMAT_R8_UNORM;
     EXPECT_THROW(uploader.record_tf_upload(cmd, three_entries, bad), std::invalid_argument);
     EXPECT_THROW(uploader.record_tf_upload(cmd, three_entries, TfBufferTarget{volume, 0, 16}), std::invalid_argument);
+    // Images: a format no field has, an empty extent, a misaligned host range, and a source whose
+    // extent or format differs from the recorder's.
+    EXPECT_THROW(ImageFieldRecorder(ctx, {4, 4, 4}, VK_FORMAT_R8G8B8A8_UNORM, "v"), std::invalid_argument);
+    EXPECT_THROW(ImageFieldRecorder(ctx, {4, 0, 4}, VK_FORMAT_R32_SFLOAT, "v"), std::invalid_argument);
+    EXPECT_THROW(ImageFieldRecorder(ctx, {4, 4, 4}, VK_FORMAT_R32_SFLOAT, "v", volume, 4), std::invalid_argument);
+    ImageFieldRecorder copier(ctx, {4, 4, 4}, VK_FORMAT_R16_UNORM, "v");
+    ImageFieldSource source;
+    EXPECT_THROW(copier.record_copy(cmd, source), std::invalid_argument);  // no image
+    source.image = bad.image;
+    source.format = VK_FORMAT_R16_UNORM;
+    source.extent = {4, 4, 5};
+    EXPECT_THROW(copier.record_copy(cmd, source), std::invalid_argument);
+    source.extent = {4, 4, 4};
+    source.format = VK_FORMAT_R16_SFLOAT;
+    EXPECT_THROW(copier.record_copy(cmd, source), std::invalid_argument);
     host.submit_and_wait();  // nothing was recorded: an empty command buffer
   }
 }
