@@ -208,7 +208,9 @@ class ImageFieldRecorder {
   // Records the copy of `source` (its extent and format those of the constructor, else
   // std::invalid_argument) into the field, with the layout changes and barriers its description
   // states, made visible to compute-shader reads: record any recorder's work on field() after it
-  // in the same command buffer (or a later one).
+  // in the same command buffer (or a later one). A copy keeps no descriptors, so unlike the other
+  // recorders one ImageFieldRecorder serves every frame in flight (its barriers order a copy after
+  // the reads of the last one: submission order on the one queue).
   void record_copy(VkCommandBuffer cmd, const ImageFieldSource& source);
   // The field the copies land in: pass it to the recorders. Valid as long as the recorder lives.
   const DeviceField& field() const { return field_; }
