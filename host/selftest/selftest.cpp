@@ -167,6 +167,21 @@ SelftestReport run_selftest(Context& ctx, const SelftestOptions& options, const 
   return report;
 }
 
+std::vector<SelftestCaseEntry> selftest_cases() {
+  std::vector<SelftestCaseEntry> out;
+  for (const CaseSpec& spec : all_cases()) out.push_back({spec.kernel, spec.wrapper, spec.name, spec.quick});
+  return out;
+}
+
+SelftestCase run_selftest_case(Context& ctx, size_t index, double perturbation) {
+  const CaseList& cases = all_cases();
+  if (index >= cases.size())
+    throw std::out_of_range("selftest: no case " + std::to_string(index) + " (the table has " +
+                            std::to_string(cases.size()) + ")");
+  (void)ctx.take_validation_messages();  // earlier messages are not this case's doing
+  return run_case(ctx, cases[index], perturbation);
+}
+
 void print_selftest_table(std::ostream& out, const SelftestReport& report) {
   struct Row {
     std::string kernel, name, error, bound, time, result;

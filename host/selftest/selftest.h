@@ -68,6 +68,17 @@ std::vector<std::string> selftest_kernels();
 SelftestReport run_selftest(Context& ctx, const SelftestOptions& options = {},
                             const SelftestProgress& progress = nullptr);
 
+// The case table itself, for the GoogleTest suite, which runs every case (quick or not) as one
+// test (tests/kernels/test_kernel_cases.cpp): a case is written once, here, for both. Each entry's
+// kernel, wrapper, name and whether it is quick; run_selftest_case runs entry `index` as
+// run_selftest runs it (device limits, skips, bounds, validation messages and exceptions).
+struct SelftestCaseEntry {
+  std::string kernel, wrapper, name;
+  bool quick = true;
+};
+std::vector<SelftestCaseEntry> selftest_cases();
+SelftestCase run_selftest_case(Context& ctx, size_t index, double perturbation = 0.0);
+
 // The report as a device line, an aligned table (kernel, case, max error, bound, time, result:
 // "pass", "FAIL: <first failing element>" or "skipped: needs ...") and a summary line.
 void print_selftest_table(std::ostream& out, const SelftestReport& report);

@@ -14,6 +14,7 @@
 #include "read_bound.h"
 #include "render_layout.h"
 #include "residual_map.h"
+#include "residual_map_cpu.h"
 #include "selftest_support.h"
 #include "voxel_loss.h"
 
@@ -113,10 +114,9 @@ void voxel_loss(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels
   if (before) expect(g.before, rf, before_map, true);
 }
 
-// Reference residual || premul(T_r(F_r)) - premul(T_o(F_o)) ||_2. Bound (tests/
-// test_residual_map.cpp): float interpolation and premultiplication of values in [0,1] (a few
-// roundings of 2^-24 each) and a float sqrt of a sum <= 4 stay below 1e-6. Voxels without data
-// are exactly 0.
+// The residual map against residual_map_cpu. Bound: float interpolation and premultiplication
+// of values in [0,1] (a few roundings of 2^-24 each) and a float sqrt of a sum <= 4 stay below
+// 1e-6. Voxels without data are exactly 0.
 void residual(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels) {
   const uint32_t n = 64;
   const FieldPair p = random_pair(voxels, 31u + uint32_t(voxels), {20.0, 25.0}, n);
@@ -132,18 +132,13 @@ void residual(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels) 
   std::vector<float> g(voxels);
   for (size_t c = 0; c < out.chunk_count(); ++c)
     readback(ctx, out.chunk(c), g.data() + out.chunk_begin(c), out.chunk_size(c) * sizeof(float));
-  const std::vector<float> rf = ref_tf.as_floats(), of = opt_tf.as_floats();
+  const std::vector<double> expected =
+      residual_map_cpu(p.ref, p.opt, ref_tf.as_floats(), ref_map, opt_tf.as_floats(), opt_map);
   for (size_t i = 0; i < voxels; ++i) {
-    double b[4], v[4];
-    if (!classify(rf, ref_map, p.ref[i], b) || !classify(of, opt_map, p.opt[i], v)) {
+    if (std::isnan(p.ref[i]) || std::isnan(p.opt[i]))
       check.equal("voxel without data", i, g[i], 0.0);
-      continue;
-    }
-    const double pb[4] = {b[0] * b[3], b[1] * b[3], b[2] * b[3], b[3]};
-    const double pv[4] = {v[0] * v[3], v[1] * v[3], v[2] * v[3], v[3]};
-    double s = 0.0;
-    for (int ch = 0; ch < 4; ++ch) s += (pb[ch] - pv[ch]) * (pb[ch] - pv[ch]);
-    check.near("voxel", i, g[i], std::sqrt(s), 1e-6);
+    else
+      check.near("voxel", i, g[i], expected[i], 1e-6);
   }
 }
 
@@ -169,13 +164,17 @@ void histogram(Context& ctx, Check& check, size_t voxels, uint32_t bins, Histogr
 }
 
 // The bench's read bound: the sums of both fields' value bits are integers, equal to the
-// reference's exactly (every voxel read once).
-void read_bound(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels) {
+// reference's exactly (every voxel read once), NaN and infinities among the values; `voxels` 0
+// means four of the device's segments plus one (quad_segments.glsl); dispatches of `range_quads`
+// quads (0: the device's) start inside chunks.
+void read_bound(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels, uint64_t range_quads) {
+  if (voxels == 0) voxels = 4 * size_t(ctx.subgroup_size()) * TFM_REDUCE_SEGMENT_STEPS + 1;
   std::vector<float> ref = random_floats(voxels, 17u + uint32_t(voxels), -3.0f, 3.0f);
   std::vector<float> opt = random_floats(voxels, 29u + uint32_t(voxels), 0.0f, 100.0f);
   for (size_t i = 5; i < voxels; i += 13) ref[i] = NAN;
+  for (size_t i = 9; i < voxels; i += 31) opt[i] = INFINITY;
   const DeviceField dref(ctx, ref, "selftest ref", chunk_voxels), dopt(ctx, opt, "selftest opt", chunk_voxels);
-  const std::array<uint32_t, 2> g = FieldPairReadKernel(ctx).run(dref, dopt);
+  const std::array<uint32_t, 2> g = FieldPairReadKernel(ctx, range_quads).run(dref, dopt);
   const std::array<uint32_t, 2> c = field_pair_bit_sums(ref, opt);
   check.equal("first field's bit sum", 0, double(g[0]), double(c[0]));
   check.equal("second field's bit sum", 1, double(g[1]), double(c[1]));
@@ -236,7 +235,9 @@ void add_voxel_cases(CaseList& cases) {
   };
   add_residual(1, 0, true);
   add_residual(13, 0, true);
+  add_residual(127, 0, true);
   add_residual(TFM_VOXEL_WORKGROUP + 1, 0, true);
+  add_residual(70001, 0, false);
   add_residual(5000, 1024, true);
   add_residual(100003, 0, false);
   add_residual(100003, 16384, false);
@@ -258,14 +259,18 @@ void add_voxel_cases(CaseList& cases) {
   add_histogram(100003, 4096, H::Shared, 16384, false);
   add_histogram(100003, 4096, H::Private, 16384, false);
 
-  auto add_read = [&](size_t voxels, uint64_t chunk, bool quick) {
-    std::string name = voxels_name(voxels) + (chunk ? ", chunks of " + std::to_string(chunk) : "");
+  auto add_read = [&](size_t voxels, uint64_t chunk, uint64_t range_quads, bool quick) {
+    std::string name = voxels ? voxels_name(voxels) : "4 segments + 1 voxel";
+    if (chunk) name += ", chunks of " + std::to_string(chunk);
+    if (range_quads) name += ", ranges of " + std::to_string(range_quads) + " quads";
     cases.push_back({"field_pair_read", "FieldPairReadKernel", name, quick, TFM_VOXEL_WORKGROUP,
-                     [=](Context& ctx, Check& check) { read_bound(ctx, check, voxels, chunk); }});
+                     [=](Context& ctx, Check& check) { read_bound(ctx, check, voxels, chunk, range_quads); }});
   };
-  add_read(1, 0, true);
-  add_read(4 * past_group + 3, 1024, true);
-  add_read(100003, 0, false);
+  for (size_t voxels : {size_t(1), size_t(3), size_t(4), size_t(5), 4 * past_group - 1, size_t(0), size_t(70001)})
+    for (uint64_t chunk : {uint64_t(0), uint64_t(1024)})
+      for (uint64_t range_quads : {uint64_t(0), uint64_t(64)}) add_read(voxels, chunk, range_quads, voxels < 70001);
+  add_read(4 * past_group + 3, 1024, 0, true);
+  add_read(100003, 0, 0, false);
 }
 
 }  // namespace tfm::selftest
