@@ -118,4 +118,23 @@ NormalEquations assemble_normal_equations_cpu(std::span<const float> ref, std::s
   return eq;
 }
 
+std::array<double, 4> before_loss_cpu(std::span<const float> ref, std::span<const float> opt,
+                                      const FieldMapping& ref_map, const FieldMapping& before_map,
+                                      const TransferFunction& ref_tf) {
+  if (ref.size() != opt.size()) throw std::invalid_argument("before_loss_cpu: fields differ in size");
+  const std::vector<float> r = ref_tf.as_floats();
+  std::array<double, 4> sum{};
+  for (size_t i = 0; i < ref.size(); ++i) {
+    uint32_t jr, jb;
+    float wr, wb;
+    if (!tf_coordinate(ref[i], ref_map, jr, wr) || !tf_coordinate(opt[i], before_map, jb, wb)) continue;
+    for (int c = 0; c < 4; ++c) {
+      const double b = std::clamp((1.0 - wr) * r[4 * jr + c] + double(wr) * r[4 * (jr + 1) + c], 0.0, 1.0);
+      const double v = (1.0 - wb) * r[4 * jb + c] + double(wb) * r[4 * (jb + 1) + c];
+      sum[c] += (v - b) * (v - b);
+    }
+  }
+  return sum;
+}
+
 }  // namespace tfm

@@ -1,6 +1,8 @@
 // Double-precision CPU reference of the GPU normal-equation assembly (assemble_normal_equations.comp).
 #pragma once
 
+#include <array>
+
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -25,6 +27,12 @@ std::vector<uint64_t> assemble_normal_equations_fixed_point(std::span<const floa
                                                             const FieldMapping& ref_map, const FieldMapping& opt_map,
                                                             const TransferFunction& ref_tf,
                                                             const FieldMapping* before_map = nullptr);
+// The loss before optimization the assembly sums alongside (its before slots), in double: per
+// channel the sum over voxels with data in both fields of (T_r(F_o through `before_map`) - b)^2,
+// b = T_r(F_r) clamped to [0, 1], both at the float32 TF coordinates.
+std::array<double, 4> before_loss_cpu(std::span<const float> ref, std::span<const float> opt,
+                                      const FieldMapping& ref_map, const FieldMapping& before_map,
+                                      const TransferFunction& ref_tf);
 // The same double-precision sums with `threads` threads (0: all cores), each over a contiguous
 // part of the voxels into its own system, added at the end: the plain multi-threaded CPU loop
 // `tfmatch bench` measures the GPU assembly against. Agrees with the one-thread reference to

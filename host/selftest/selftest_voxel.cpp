@@ -10,6 +10,7 @@
 #include "gpu_voxel_ops.h"
 #include "histogram.h"
 #include "histogram_cpu.h"
+#include "assemble_normal_equations.h"
 #include "normal_equations_cpu.h"
 #include "read_bound.h"
 #include "render_layout.h"
@@ -29,13 +30,16 @@ struct AssembleCase {
   ReductionMode mode = ReductionMode::Auto;
   AtomicWidth atomics = AtomicWidth::Auto;
   uint64_t chunk_voxels = 0;    // field chunks (0: one)
+  uint32_t range_quads = 0;     // texel ranges of the chunks (0: the device's)
 };
 
-// Bounds (tests/test_assembly.cpp): every term the kernel adds is non-negative, so per entry
-// |device - reference| <= (float rounding of at most 4 operations per term, 4 * 2^-24 relative)
-// * entry + (fixed-point truncation, < 2^-32 per term) * terms; 1e-6 relative covers the first
-// with margin, the second is the absolute part. The voxel count is exact, and so is every
-// fixed-point slot: the device must form the same integer totals as the CPU's exact emulation.
+// Bounds: every term the kernel adds is non-negative, so per entry |device - reference| <= (float
+// rounding of at most 4 operations per term, 4 * 2^-24 relative) * entry + (fixed-point
+// truncation, < 2^-32 per term) * terms; 1e-6 relative covers the first with margin, the second
+// is the absolute part. The voxel count is exact, and so is every fixed-point slot: the device must
+// form the same integer totals as the CPU's exact emulation. Every case also sums the loss before
+// optimization (the second field on the reference TF's 17 entries), so it is checked on every
+// path, chunking and range: within 1e-6 relative plus 2^-31 per voxel of before_loss_cpu.
 void assemble(Context& ctx, Check& check, const AssembleCase& c) {
   const std::string missing =
       reduction_unavailable(ctx, {c.mode, c.atomics}, c.tf_size, uint64_t(TFM_ASSEMBLE_SLOTS(c.tf_size)) * 8,
@@ -44,11 +48,19 @@ void assemble(Context& ctx, Check& check, const AssembleCase& c) {
   const FieldPair p = random_pair(c.voxels, 1234u + uint32_t(c.voxels), kOptRange, c.tf_size);
   const TransferFunction ref_tf = random_tf(17, 99);
   const FieldMapping ref_map = make_mapping({0.0, 1.0}, 17), opt_map = make_mapping(kOptRange, c.tf_size);
+  const FieldMapping before_map = make_mapping(kOptRange, 17);
   DeviceField ref(ctx, p.ref, "selftest reference", c.chunk_voxels), opt(ctx, p.opt, "selftest field", c.chunk_voxels);
   if (c.chunk_voxels) check.require(ref.chunk_count() > 1, "the field is not split into chunks");
   Buffer tf = upload_tf(ctx, ref_tf, "selftest reference TF");
-  GpuNormalEquations gpu(ctx, c.tf_size, {c.mode, c.atomics});
-  gpu.add(ref, opt, ref_map, opt_map, tf);
+  GpuNormalEquations gpu(ctx, c.tf_size, {c.mode, c.atomics, 0, c.range_quads});
+  if (c.mode != ReductionMode::Auto) check.require(gpu.kernel().mode() == c.mode, "the kernel chose another path");
+  if (c.atomics != AtomicWidth::Auto)
+    check.require(gpu.kernel().int64_atomics() == (c.atomics == AtomicWidth::Bits64), "the kernel chose other atomics");
+  const uint32_t private_slots = private_limit(ctx, kPrivateHistogramSlots);
+  if (c.mode == ReductionMode::Private && c.tf_size > private_slots / 11)
+    check.require(assemble_term_passes(c.mode, c.tf_size, private_slots).size() > 1,
+                  "a histogram beyond the private budget is not split into term passes");
+  gpu.add(ref, opt, ref_map, opt_map, tf, &before_map);
   const NormalEquations g = gpu.result();
   const NormalEquations r = assemble_normal_equations_cpu(p.ref, p.opt, ref_map, opt_map, ref_tf);
   check.equal("voxel count", 0, double(g.voxels), double(r.voxels));
@@ -61,15 +73,25 @@ void assemble(Context& ctx, Check& check, const AssembleCase& c) {
   for (Eigen::Index j = 0; j < r.rhs.rows(); ++j)
     for (int ch = 0; ch < 4; ++ch) near("S^T b (4j+c)", size_t(4 * j + ch), g.rhs(j, ch), r.rhs(j, ch));
   for (int ch = 0; ch < 4; ++ch) near("b^T b channel", size_t(ch), g.btb[ch], r.btb[ch]);
-  const std::vector<uint64_t> exact = assemble_normal_equations_fixed_point(p.ref, p.opt, ref_map, opt_map, ref_tf);
+  const std::vector<uint64_t> exact =
+      assemble_normal_equations_fixed_point(p.ref, p.opt, ref_map, opt_map, ref_tf, &before_map);
   const std::vector<uint64_t> device = gpu.fixed_point_slots();
-  for (size_t k = 0; k < exact.size(); ++k)
+  check.require(device.size() == exact.size(), "the device returned another number of slots");
+  for (size_t k = 0; k < exact.size() && k < device.size(); ++k)
     check.equal("fixed-point slot (units of 2^-32)", k, double(int64_t(device[k] - exact[k])), 0.0);
+  check.require(g.before.has_value(), "the assembly returned no loss before optimization");
+  if (g.before) {
+    const std::array<double, 4> want = before_loss_cpu(p.ref, p.opt, ref_map, before_map, ref_tf);
+    for (int ch = 0; ch < 4; ++ch)
+      check.near("loss before, channel", size_t(ch), (*g.before)[ch], want[ch],
+                 1e-6 * want[ch] + double(g.voxels) * std::ldexp(1.0, -31));
+  }
 }
 
 std::string assemble_name(const AssembleCase& c) {
   std::string s = voxels_name(c.voxels) + ", N=" + std::to_string(c.tf_size) + reduction_name({c.mode, c.atomics});
   if (c.chunk_voxels) s += ", chunks of " + std::to_string(c.chunk_voxels);
+  if (c.range_quads) s += ", ranges of " + std::to_string(c.range_quads) + " quads";
   return s;
 }
 
@@ -189,28 +211,41 @@ void add_voxel_cases(CaseList& cases) {
   };
   const size_t past_group = TFM_VOXEL_WORKGROUP + 1;
   using M = ReductionMode;
+  using W = AtomicWidth;
   for (const ReductionOptions& path : reduction_paths()) {
     add_assemble({5003, 64, path.mode, path.atomics, 1024}, true);
     add_assemble({past_group, 3, path.mode, path.atomics}, false);
+    add_assemble({8193, 3, path.mode, path.atomics}, false);
     add_assemble({100003, 701, path.mode, path.atomics}, false);
+    if (path.mode != M::RunsShared) add_assemble({20000, 701, path.mode, path.atomics}, false);
   }
+  // The automatic choice on awkward sizes and TF sizes on both sides of the shared-memory and
+  // private-histogram limits (682 and 1024 entries on lavapipe).
   add_assemble({1, 64}, true);
   add_assemble({13, 64}, true);
   add_assemble({past_group, 2}, true);
+  add_assemble({8193, 3}, true);
+  add_assemble({20000, 700}, false);
+  add_assemble({20000, 701}, false);
   // 6N+4 slots of 8 bytes: 192 KiB for N = 4096, beyond every device's shared memory, so the
   // automatic choice is the private or the global path.
   add_assemble({20000, 4096}, true);
+  for (W width : {W::Bits32, W::Bits64}) add_assemble({20000, 4096, M::RunsGlobal, width}, false);
   // 72 KiB of shared slots for N = 1500: run where a device has them, else skipped saying so.
   add_assemble({20000, 1500, M::RunsShared}, true);
   add_assemble({100003, 256}, false);
   // Private histograms in term passes on every device: one pass on a CPU, three within a GPU's
   // smaller private budget (reduction.h).
-  add_assemble({100003, 300, M::Private, AtomicWidth::Bits64}, false);
+  add_assemble({100003, 300, M::Private, W::Bits64}, false);
+  add_assemble({20000, 2048, M::Private, W::Bits64}, false);
   // The largest private histogram in one pass on a CPU device, over enough voxels for two
   // workgroups (the budget's edge: lavapipe returned wrong sums silently for histograms 3.8x this
   // size once two workgroups ran at once); in passes within a GPU's budget.
-  add_assemble({300007, 1024, M::Private, AtomicWidth::Bits64}, false);
-  add_assemble({100003, 64, M::Auto, AtomicWidth::Auto, 16384}, false);
+  add_assemble({300007, 1024, M::Private, W::Bits64}, false);
+  add_assemble({100003, 64, M::Auto, W::Auto, 16384}, false);
+  // Chunks split into texel ranges of 64 quads, the last ones short.
+  add_assemble({5003, 64, M::Auto, W::Auto, 1027, 64}, true);
+  add_assemble({259, 16, M::Auto, W::Auto, 0, 64}, true);
 
   auto add_loss = [&](size_t voxels, uint64_t chunk, bool quick, bool before = false) {
     std::string name = voxels_name(voxels) + (chunk ? ", chunks of " + std::to_string(chunk) : "") +

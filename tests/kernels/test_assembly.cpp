@@ -1,6 +1,8 @@
-// Normal-equation assembly kernel against the double-precision CPU reference and the exact CPU
-// emulation of its fixed-point sums: awkward sizes, NaNs, every mode and atomic width, split
-// fields, determinism across paths and workgroup counts, and a 10^8-voxel accuracy case.
+// Normal-equation assembly beyond its case table (host/selftest/selftest_voxel.cpp, run by
+// test_kernel_cases.cpp: awkward sizes, NaNs, every mode and atomic width, split fields and
+// ranges against the double reference, the exact fixed-point emulation and the loss before):
+// an all-NaN field, the before loss only when asked, determinism across runs, paths and
+// workgroup counts, term passes, unavailable paths, the losses, and a 10^8-voxel accuracy case.
 #include <cmath>
 #include <algorithm>
 #include <array>
@@ -41,136 +43,12 @@ Pair random_pair(size_t n, uint32_t seed, uint32_t tf_size) {
 
 using test::random_tf;
 
-// Every term the kernel adds is non-negative, so per entry |GPU - CPU| <= (float rounding of at
-// most 4 operations per term, 4 * 2^-24 relative) * entry + (fixed-point truncation, < 2^-32
-// per term) * terms. 1e-6 relative covers the first with margin; the second is the absolute term.
-void expect_close(const NormalEquations& gpu, const NormalEquations& cpu, uint64_t terms) {
-  const double abs_tol = double(terms) * std::ldexp(1.0, -32) + 1e-12;
-  auto check = [&](double g, double c, const char* what, size_t j) {
-    ASSERT_LE(std::abs(g - c), 1e-6 * std::abs(c) + abs_tol) << what << "[" << j << "]: gpu " << g << " cpu " << c;
-  };
-  ASSERT_EQ(gpu.voxels, cpu.voxels);
-  for (size_t j = 0; j < cpu.diag.size(); ++j) check(gpu.diag[j], cpu.diag[j], "diag", j);
-  for (size_t j = 0; j < cpu.off.size(); ++j) check(gpu.off[j], cpu.off[j], "off", j);
-  for (Eigen::Index j = 0; j < cpu.rhs.rows(); ++j)
-    for (int c = 0; c < 4; ++c) check(gpu.rhs(j, c), cpu.rhs(j, c), "rhs", size_t(j * 4 + c));
-  for (int c = 0; c < 4; ++c) check(gpu.btb[c], cpu.btb[c], "btb", c);
-}
-
-struct Case {
-  size_t voxels;
-  uint32_t tf_size;
-  ReductionMode mode = ReductionMode::Auto;
-  AtomicWidth atomics = AtomicWidth::Auto;
-  uint64_t chunk_voxels = 0;  // 0: no forced split
-  uint32_t range_quads = 0;    // 0: no forced split of chunks into texel ranges
-};
-
-bool available(Context& ctx, const Case& c) {
-  if (c.atomics == AtomicWidth::Bits64 && !ctx.int64_atomics()) return false;
-  if (c.mode == ReductionMode::Private &&
-      (!ctx.int64_atomics() || c.tf_size > private_limit(ctx, kAssemblePrivateMaxBins)))
-    return false;
-  const uint64_t shared_bytes = uint64_t(TFM_ASSEMBLE_SLOTS(c.tf_size)) * 8;
-  return c.mode != ReductionMode::RunsShared || shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
-}
-
 // Every slot equals the CPU's exact emulation of the kernel's integer sums (bit for bit).
 void expect_exact(const std::vector<uint64_t>& gpu, const std::vector<uint64_t>& exact) {
   ASSERT_EQ(gpu.size(), exact.size());
   for (size_t k = 0; k < exact.size(); ++k)
     ASSERT_EQ(gpu[k], exact[k]) << "fixed-point slot " << k << " (units of 2^-32)";
 }
-
-// The loss before optimization in double: the second field through `before_map` on the reference
-// TF against b, per channel, over the voxels with data in both fields.
-std::array<double, 4> direct_before_loss(const Pair& p, const FieldMapping& ref_map, const FieldMapping& before_map,
-                                         const TransferFunction& ref_tf) {
-  const std::vector<float> r = ref_tf.as_floats();
-  std::array<double, 4> sum{};
-  for (size_t i = 0; i < p.ref.size(); ++i) {
-    uint32_t jr, jb;
-    float wr, wb;
-    if (!tf_coordinate(p.ref[i], ref_map, jr, wr) || !tf_coordinate(p.opt[i], before_map, jb, wb)) continue;
-    for (int c = 0; c < 4; ++c) {
-      const double b = std::clamp((1.0 - wr) * r[4 * jr + c] + double(wr) * r[4 * (jr + 1) + c], 0.0, 1.0);
-      const double v = (1.0 - wb) * r[4 * jb + c] + double(wb) * r[4 * (jb + 1) + c];
-      sum[c] += (v - b) * (v - b);
-    }
-  }
-  return sum;
-}
-
-class AssemblyVsCpu : public test::GpuTest, public ::testing::WithParamInterface<Case> {};
-
-TEST_P(AssemblyVsCpu, MatchesDoubleReferenceAndExactSums) {
-  const Case c = GetParam();
-  if (!available(ctx(), c))
-    GTEST_SKIP() << "the device lacks 64-bit atomics, or the shared or private memory for this path";
-  Pair p = random_pair(c.voxels, 1234u + uint32_t(c.voxels), c.tf_size);
-  TransferFunction ref_tf = random_tf(17, 99);
-  FieldMapping ref_map = make_mapping({0.0, 1.0}, 17);
-  FieldMapping opt_map = make_mapping({3.0, 8.0}, c.tf_size);
-  DeviceField ref(ctx(), p.ref, "ref", c.chunk_voxels), opt(ctx(), p.opt, "opt", c.chunk_voxels);
-  if (c.chunk_voxels) ASSERT_GT(ref.chunk_count(), 1u);
-  if (c.mode == ReductionMode::Private && c.tf_size > private_limit(ctx(), kPrivateHistogramSlots) / 11)
-    EXPECT_GT(assemble_term_passes(c.mode, c.tf_size, private_limit(ctx(), kPrivateHistogramSlots)).size(), 1u);
-  Buffer tf = upload_tf(ctx(), ref_tf, "ref tf");
-  GpuNormalEquations gpu(ctx(), c.tf_size, {c.mode, c.atomics, 0, c.range_quads});
-  if (c.mode != ReductionMode::Auto) EXPECT_EQ(gpu.kernel().mode(), c.mode);
-  if (c.atomics != AtomicWidth::Auto) EXPECT_EQ(gpu.kernel().int64_atomics(), c.atomics == AtomicWidth::Bits64);
-  // Every case also sums the loss before optimization (the second field on the reference TF's
-  // 17 entries), so it is checked on every path, chunking and range.
-  const FieldMapping before_map = make_mapping({3.0, 8.0}, 17);
-  gpu.add(ref, opt, ref_map, opt_map, tf, &before_map);
-  NormalEquations cpu = assemble_normal_equations_cpu(p.ref, p.opt, ref_map, opt_map, ref_tf);
-  const NormalEquations got = gpu.result();
-  expect_close(got, cpu, c.voxels);
-  expect_exact(gpu.fixed_point_slots(),
-               assemble_normal_equations_fixed_point(p.ref, p.opt, ref_map, opt_map, ref_tf, &before_map));
-  ASSERT_TRUE(got.before.has_value());
-  const std::array<double, 4> want = direct_before_loss(p, ref_map, before_map, ref_tf);
-  for (int c = 0; c < 4; ++c)
-    EXPECT_NEAR((*got.before)[c], want[c], 1e-6 * want[c] + double(got.voxels) * std::ldexp(1.0, -31)) << "channel " << c;
-}
-
-std::vector<Case> assembly_cases() {
-  using M = ReductionMode;
-  using W = AtomicWidth;
-  // The automatic choice on awkward sizes and TF sizes on both sides of the shared-memory and
-  // private-histogram limits (682 and 1024 entries on lavapipe), then every forced path.
-  std::vector<Case> cases = {{1, 64},           {13, 64},          {257, 2},           {8193, 3},
-                             {20000, 700},      {20000, 701},      {20000, 4096},      {100003, 64, M::Auto, W::Auto, 16384},
-                             // chunks split into texel ranges of 64 quads, the last ones short
-                             {5003, 64, M::Auto, W::Auto, 1027, 64}, {259, 16, M::Auto, W::Auto, 0, 64}};
-  for (M mode : {M::RunsShared, M::RunsGlobal, M::Private})
-    for (W width : {W::Bits32, W::Bits64}) {
-      if (mode == M::Private && width == W::Bits32) continue;  // a 64-bit path only
-      cases.push_back({5003, 64, mode, width, 1024});
-      cases.push_back({8193, 3, mode, width});
-      if (mode != M::RunsShared) cases.push_back({20000, 701, mode, width});
-    }
-  // The largest private histogram in one pass (all 11 terms of kPrivateHistogramSlots / 11
-  // entries), over enough voxels for two workgroups: lavapipe returned wrong sums silently for
-  // histograms 3.8x this size once two workgroups ran at once (reduction.h). Beyond it the terms
-  // in passes (4096 entries: the automatic choice above, on CPU devices).
-  cases.push_back({300007, 1024, M::Private, W::Bits64});
-  cases.push_back({20000, 2048, M::Private, W::Bits64});
-  for (W width : {W::Bits32, W::Bits64}) cases.push_back({20000, 4096, M::RunsGlobal, width});
-  return cases;
-}
-
-std::string case_name(const ::testing::TestParamInfo<Case>& info) {
-  const Case& c = info.param;
-  const char* modes[] = {"auto", "runs_shared", "runs_global", "private"};
-  std::string name = "v" + std::to_string(c.voxels) + "_n" + std::to_string(c.tf_size) + "_" + modes[int(c.mode)];
-  if (c.atomics != AtomicWidth::Auto) name += c.atomics == AtomicWidth::Bits64 ? "_int64" : "_int32";
-  if (c.chunk_voxels) name += "_chunks" + std::to_string(c.chunk_voxels);
-  if (c.range_quads) name += "_ranges" + std::to_string(c.range_quads);
-  return name;
-}
-
-INSTANTIATE_TEST_SUITE_P(Sizes, AssemblyVsCpu, ::testing::ValuesIn(assembly_cases()), case_name);
 
 using AssemblyTest = test::GpuTest;
 
@@ -204,7 +82,7 @@ TEST_F(AssemblyTest, BeforeLossOnlyWhenAskedAndNeverMixed) {
   // Same TF size: the before loss is the system's own loss of the reference TF, equal to the
   // direct sum (om maps the field onto the reference TF's 9 entries).
   const VoxelLoss before = voxel_loss_before(eq, ref_tf.as_floats());
-  const std::array<double, 4> want = direct_before_loss(p, rm, om, ref_tf);
+  const std::array<double, 4> want = before_loss_cpu(p.ref, p.opt, rm, om, ref_tf);
   // x^T M x - 2 x^T S^T b + b^T b cancels: terms of up to ~4 per voxel, 1e-6 relative each.
   for (int c = 0; c < 4; ++c) EXPECT_NEAR(before.squared[c], want[c], 4e-6 * double(eq.voxels)) << "channel " << c;
   EXPECT_THROW(gpu.add(ref, opt, rm, om, tf, &om), std::invalid_argument);
