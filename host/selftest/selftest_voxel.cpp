@@ -165,10 +165,14 @@ void residual(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels) 
 }
 
 // Counts are integers: every counter equals the reference's exactly (values binned with the
-// shader's float32 arithmetic, histogram_counter()).
+// shader's float32 arithmetic, histogram_counter()), and every value is counted once. Values in
+// [-0.5, 10.5] around the range [0, 10], NaN every 11th, the range's ends exactly every 23rd and
+// 29th.
 void histogram(Context& ctx, Check& check, size_t voxels, uint32_t bins, HistogramMode mode, uint64_t chunk_voxels) {
   std::vector<float> values = random_floats(voxels, 91u + uint32_t(voxels) + bins, -0.5f, 10.5f);
   for (size_t i = 3; i < voxels; i += 11) values[i] = NAN;
+  for (size_t i = 7; i < voxels; i += 23) values[i] = 10.0f;
+  for (size_t i = 4; i < voxels; i += 29) values[i] = 0.0f;
   std::unique_ptr<FieldHistogramKernel> made;
   try {
     made = std::make_unique<FieldHistogramKernel>(ctx, bins, mode);
@@ -176,12 +180,14 @@ void histogram(Context& ctx, Check& check, size_t voxels, uint32_t bins, Histogr
     return check.skip(std::string("needs ") + e.what());
   }
   const FieldHistogramKernel& kernel = *made;
+  check.require(kernel.mode() == mode, "the kernel chose another path");
   DeviceField field(ctx, values, "selftest field", chunk_voxels);
   const FieldHistogram g = kernel.run(field, 0.0, 10.0);
   const FieldHistogram c = field_histogram_cpu(values, 0.0, 10.0, bins);
   check.equal("values below", 0, double(g.below), double(c.below));
   check.equal("values above", 0, double(g.above), double(c.above));
   check.equal("NaN values", 0, double(g.nan), double(c.nan));
+  check.equal("values counted", 0, double(g.finite() + g.nan), double(voxels));
   for (uint32_t k = 0; k < bins; ++k) check.equal("bin", k, double(g.bins[k]), double(c.bins[k]));
 }
 
@@ -285,6 +291,9 @@ void add_voxel_cases(CaseList& cases) {
     cases.push_back({"field_histogram", "FieldHistogramKernel", name, quick, TFM_VOXEL_WORKGROUP,
                      [=](Context& ctx, Check& check) { histogram(ctx, check, voxels, bins, mode, chunk); }});
   };
+  for (size_t voxels : {size_t(1), size_t(13), past_group, size_t(70001)})
+    for (uint32_t bins : {1u, 7u, 100u, 4096u})
+      for (H mode : {H::Private, H::Shared, H::Global}) add_histogram(voxels, bins, mode, 0, voxels < 70001);
   add_histogram(1, 16, H::Shared, 0, true);
   add_histogram(13, 7, H::Global, 0, true);
   add_histogram(13, 7, H::Private, 0, true);

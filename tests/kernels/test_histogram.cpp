@@ -1,7 +1,8 @@
-// Field-histogram kernel against its CPU reference: awkward sizes (1, 13, one past a workgroup,
-// 70001), NaN and out-of-range values, the private, shared-memory and global paths, fields split
-// into several buffers and ranges, bin counts from 1 to 65536; and the reference's binning against
-// an independent double-precision computation away from bin edges.
+// Field-histogram kernel beyond its case table (host/selftest/selftest_voxel.cpp, run by
+// test_kernel_cases.cpp: awkward sizes, NaN, values outside and on the range's ends, every path,
+// 1 to 65536 bins, against field_histogram_cpu): the same counts whatever the chunking, private
+// counts over long lanes, bad bins and ranges, and the reference's binning against an independent
+// double-precision computation away from bin edges.
 #include <cmath>
 #include <random>
 #include <vector>
@@ -31,28 +32,6 @@ void expect_equal(const FieldHistogram& gpu, const FieldHistogram& cpu) {
 }
 
 class Histogram : public test::GpuTest {};
-
-TEST_F(Histogram, MatchesCpuReferenceOnAwkwardSizesEveryPath) {
-  for (size_t n : {size_t(1), size_t(13), size_t(TFM_VOXEL_WORKGROUP + 1), size_t(70001)}) {
-    for (uint32_t bins : {1u, 7u, 100u, 4096u}) {
-      for (HistogramMode mode : {HistogramMode::Private, HistogramMode::Shared, HistogramMode::Global}) {
-        SCOPED_TRACE(testing::Message() << n << " voxels, " << bins << " bins, mode " << int(mode));
-        const std::vector<float> values = awkward_values(n, uint32_t(n + bins));
-        if (mode == HistogramMode::Private && TFM_HIST_COUNTERS(bins) > private_limit(ctx(), kPrivateHistogramCounters)) {
-          EXPECT_THROW(FieldHistogramKernel(ctx(), bins, mode), std::invalid_argument);  // a GPU's smaller budget
-          continue;
-        }
-        FieldHistogramKernel kernel(ctx(), bins, mode);
-        EXPECT_EQ(kernel.mode(), mode);
-        DeviceField field(ctx(), values, "histogram test field");
-        const FieldHistogram gpu = kernel.run(field, 0.0, 10.0);
-        const FieldHistogram cpu = field_histogram_cpu(values, 0.0, 10.0, bins);
-        expect_equal(gpu, cpu);
-        EXPECT_EQ(gpu.finite() + gpu.nan, n);
-      }
-    }
-  }
-}
 
 TEST_F(Histogram, SameCountsWhateverTheChunkingAndBeyondSharedMemory) {
   const std::vector<float> values = awkward_values(50000, 3);
