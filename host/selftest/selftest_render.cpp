@@ -60,6 +60,9 @@ struct Scene {
   std::vector<OrbitCamera> cameras;  // rendered in one dispatch (one view each)
   uint64_t chunk_voxels = 0;         // field chunks (0: one)
   uint32_t bands = 1;                // row bands, one dispatch each
+  // Share of the pixels whose rays must reach the termination opacity (0.99) in the reference:
+  // a scene that claims to exercise early termination must.
+  double min_stopped = 0.0;
 };
 
 RenderSettings settings(uint32_t width, uint32_t height, double opacity_scale, double step_voxels = 0.37) {
@@ -157,6 +160,14 @@ void compare_images(Check& check, const Scene& s, const DeviceImages& g, Output 
 }
 
 void render(Context& ctx, Check& check, const Scene& s) {
+  if (s.min_stopped > 0.0) {
+    size_t stopped = 0, total = 0;
+    for (size_t v = 0; v < s.cameras.size(); ++v) {
+      const CpuRender r = render_cpu(s.volume, s.tf, s.range, posed(s, v));
+      for (size_t p = 0; p < r.stop.size(); ++p, ++total) stopped += r.rgba[4 * p + 3] >= 0.99;
+    }
+    check.require(double(stopped) > s.min_stopped * double(total), "the scene does not exercise early termination");
+  }
   DeviceScene d(ctx, s);
   const RenderImageKernel kernel(ctx, uint32_t(d.field.chunk_count()));
   compare_images(check, s, d.render(ctx, kernel, s.bands), Output::Image);
@@ -299,18 +310,19 @@ void add_render_cases(CaseList& cases) {
     s.tf = random_tf(17, 2);
     s.range = {0.1, 0.9};
     s.settings = settings(13, 9, 6.0);  // 9 rows: one past the 8x8 tile
-    s.cameras = cameras({{30, 20}, {0, 90}, {123, -90}, {90, 0}});
+    // Oblique views, axis-aligned views (rays parallel to grid planes), and both poles.
+    s.cameras = cameras({{30, 20}, {0, 90}, {123, -90}, {200, -35}, {0, 0}, {90, 0}, {-45, 60}});
     s.bands = 2;
-    quick_scenes.emplace_back("13x7x5 grid, spacing 1:2:0.5, 13x9 image, 4 views incl. both poles, 2 row bands", s);
+    quick_scenes.emplace_back("13x7x5 grid, spacing 1:2:0.5, 13x9 image, 7 views incl. both poles, 2 row bands", s);
   }
   {
     Scene s;  // 3 buffers of 500 voxels: trilinear corners of one sample fall into different chunks
     s.volume = wavy_volume({13, 11, 9}, {1.0, 1.0, 1.0}, 3, 29);
     s.tf = random_tf(8, 4);
     s.settings = settings(17, 16, 6.0);
-    s.cameras = cameras({{30, 20}, {0, 0}});
+    s.cameras = cameras({{30, 20}, {0, 90}, {0, 0}});
     s.chunk_voxels = 500;
-    quick_scenes.emplace_back("NaNs, field in 3 chunks, 17x16 image, 2 views", s);
+    quick_scenes.emplace_back("NaNs, field in 3 chunks, 17x16 image, 3 views", s);
   }
   {
     Scene s;  // opaque: most rays stop at opacity 0.99 well before leaving the box
@@ -319,6 +331,7 @@ void add_render_cases(CaseList& cases) {
     for (auto& e : s.tf.rgba) e[3] = 0.5 + 0.5 * e[3];
     s.settings = settings(15, 15, 60.0);
     s.cameras = cameras({{30, 20}});
+    s.min_stopped = 0.25;
     quick_scenes.emplace_back("early termination, 16^3 grid, 15x15 image", s);
   }
   {
@@ -328,6 +341,11 @@ void add_render_cases(CaseList& cases) {
     s.settings = settings(9, 9, 20.0);
     s.cameras = cameras({{30, 20}});
     quick_scenes.emplace_back("1x1x1 grid, 9x9 image", s);
+    s.volume = wavy_volume({1, 9, 4}, {1.0, 1.0, 1.0}, 9);
+    s.settings = settings(8, 9, 20.0);
+    s.cameras = cameras({{90, 10}});
+    quick_scenes.emplace_back("1x9x4 grid, 8x9 image", s);
+    s.cameras = cameras({{30, 20}});
     s.volume = wavy_volume({6, 5, 4}, {1.0, 1.0, 1.0}, 10);
     s.settings = settings(1, 1, 20.0);
     quick_scenes.emplace_back("6x5x4 grid, 1x1 image", s);
