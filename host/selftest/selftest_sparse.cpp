@@ -178,8 +178,10 @@ void scatter(Context& ctx, Check& check, const SparseCase& c, const ReductionOpt
 // The CGLS residual update r -= alpha (S p) before s = S^T r: r is a float update of values
 // below ~3 (a few ulps: 2e-6); each slot then sums terms within 2e-6 plus one float product
 // (3e-6 per term), as tests/test_solver_kernels.cpp bounds it.
-void scatter_update(Context& ctx, Check& check, const SparseCase& c) {
+void scatter_update(Context& ctx, Check& check, const SparseCase& c, const ReductionOptions& path) {
   const uint32_t n = 9;
+  const std::string missing = reduction_unavailable(ctx, path, n, signed_accumulator_bytes(n));
+  if (!missing.empty()) return check.skip(missing);
   Problem p(ctx, c.voxels, n, 51, c.field_chunk, c.vector_chunk);
   p.prepare(ctx);
   const std::vector<float> b = p.vectors->read_rgba(ctx);
@@ -190,7 +192,7 @@ void scatter_update(Context& ctx, Check& check, const SparseCase& c) {
   st.running = {1, 1, 1, 1};
   Buffer state = make_buffer<gpu::CglsState>(ctx, std::span<const gpu::CglsState>(&st, 1), "selftest CGLS state");
   Buffer accum(ctx, signed_accumulator_bytes(n), MemoryUsage::Device, "selftest S^T r");
-  const SparseScatterKernel kernel(ctx, n, true);
+  const SparseScatterKernel kernel(ctx, n, true, path);
   CommandBatch batch(ctx);
   batch.fill(accum, 0u);
   // The zeroed accumulators before the scatter adds to them.
@@ -205,7 +207,10 @@ void scatter_update(Context& ctx, Check& check, const SparseCase& c) {
     uint32_t j;
     float w;
     double bb[4];
-    if (!p.voxel(i, j, w, bb)) continue;
+    if (!p.voxel(i, j, w, bb)) {  // a voxel without data keeps its residual
+      for (int ch = 0; ch < 4; ++ch) check.equal("r without data (4i+c)", 4 * i + ch, r[4 * i + ch], b[4 * i + ch]);
+      continue;
+    }
     for (int ch = 0; ch < 4; ++ch) {
       const double sp = (1.0 - double(w)) * dir[4 * j + ch] + double(w) * dir[4 * (j + 1) + ch];
       const double ri = b[4 * i + ch] - alpha[ch] * sp;
@@ -311,7 +316,11 @@ void add_sparse_cases(CaseList& cases) {
   const size_t past_group = TFM_VOXEL_WORKGROUP + 1;
   // One past the span of one subgroup's segment on a 32-wide subgroup (4 voxels a quad).
   const size_t past_span = size_t(32) * TFM_REDUCE_SEGMENT_STEPS * 4 + 1;
-  const SparseCase quick_sizes[] = {{1}, {13}, {past_group}, {past_span}, {1000, 300, 100}};
+  // Also one past a workgroup's 64-voxel-per-invocation span, and a size off every quad and
+  // segment, in small chunks.
+  const size_t past_lanes = size_t(TFM_VOXEL_WORKGROUP) * 64 + 1;
+  const SparseCase quick_sizes[] = {{1},        {13},       {127, 100, 50},         {past_group}, {past_span},
+                                    {1000, 300, 100}, {past_lanes, 200, 40}};
   const SparseCase full_sizes[] = {{100003}, {100003, 32768, 8192}};
   auto add_all = [&](const char* kernel, const char* wrapper, const std::string& suffix, auto body) {
     for (const SparseCase& c : quick_sizes)
@@ -330,13 +339,19 @@ void add_sparse_cases(CaseList& cases) {
   add_all("sparse_scatter", "SparseScatterKernel", "",
           [](Context& ctx, Check& check, const SparseCase& c) { scatter(ctx, check, c, {}); });
   for (const ReductionOptions& path : reduction_paths())
-    for (const SparseCase& c : {SparseCase{1000, 300, 100}, SparseCase{100003}})
+    for (const SparseCase& c : {SparseCase{1}, SparseCase{13}, SparseCase{127, 300, 100}, SparseCase{past_group, 300, 100},
+                                SparseCase{1000, 300, 100}, SparseCase{past_lanes, 300, 100}, SparseCase{100003}})
       cases.push_back({"sparse_scatter", "SparseScatterKernel", sparse_name(c) + reduction_name(path),
                        c.voxels < 10000, TFM_VOXEL_WORKGROUP,
                        [c, path](Context& ctx, Check& check) { scatter(ctx, check, c, path); }});
-  for (const SparseCase& c : {SparseCase{past_group, 0, 64}, SparseCase{1000, 300, 100}})
-    cases.push_back({"sparse_scatter", "SparseScatterKernel", sparse_name(c) + ", CGLS residual update", true,
-                     TFM_VOXEL_WORKGROUP, [c](Context& ctx, Check& check) { scatter_update(ctx, check, c); }});
+  auto add_update = [&](const SparseCase& c, const ReductionOptions& path) {
+    cases.push_back({"sparse_scatter", "SparseScatterKernel",
+                     sparse_name(c) + ", CGLS residual update" + reduction_name(path), true, TFM_VOXEL_WORKGROUP,
+                     [c, path](Context& ctx, Check& check) { scatter_update(ctx, check, c, path); }});
+  };
+  add_update({past_group, 0, 64}, {});
+  add_update({1000, 300, 100}, {});
+  for (const ReductionOptions& path : reduction_paths()) add_update({past_group, 0, 64}, path);
 
   auto add_cgls = [&](const CglsCase& c, bool quick) {
     std::string name = voxels_name(c.voxels) + ", N=" + std::to_string(c.tf_size) + ", regularized solve";

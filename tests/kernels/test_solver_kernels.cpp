@@ -1,7 +1,8 @@
-// The matrix-free solver kernels against double-precision CPU references: sparse_prepare
-// (coordinates, b), sparse_gather (S x, ||S x||^2) and sparse_scatter (S^T r, plain and with the
-// CGLS residual update) on awkward sizes with NaNs, split chunks, every reduction mode and atomic
-// width, and bit-identical results across runs, paths, range splits and workgroup counts and sizes.
+// The matrix-free solver kernels beyond their case table (host/selftest/selftest_sparse.cpp, run
+// by test_kernel_cases.cpp: sparse_prepare, sparse_gather and sparse_scatter, plain and with the
+// CGLS residual update, against double references on awkward sizes with NaNs, split chunks,
+// every reduction mode and atomic width): bit-identical results across runs, paths, range splits
+// and workgroup counts and sizes, and a scaled gather that does nothing once every channel stopped.
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -85,71 +86,6 @@ class SolverKernels : public test::GpuTest {
   std::unique_ptr<VoxelVectors> vectors_;
 };
 
-// Sizes: 1, 13, 127, one past a workgroup, one past a workgroup's 64-voxel-per-invocation span.
-const size_t kSizes[] = {1, 13, 127, TFM_VOXEL_WORKGROUP + 1, TFM_VOXEL_WORKGROUP * 64 + 1};
-
-TEST_F(SolverKernels, PrepareMatchesCpuCoordinatesAndColours) {
-  for (size_t voxels : kSizes) {
-    SCOPED_TRACE("voxels " + std::to_string(voxels));
-    const Case c = make_case(voxels, 7, 11);
-    run_prepare(c, voxels > 100 ? 100 : 0, voxels > 100 ? 50 : 0);
-    const std::vector<float> coords = vectors_->read_coords(ctx());
-    const std::vector<float> rgba = vectors_->read_rgba(ctx());
-    for (size_t i = 0; i < voxels; ++i) {
-      uint32_t j;
-      float w;
-      double b[4];
-      if (!reference_voxel(c, i, j, w, b)) {
-        ASSERT_EQ(coords[i], float(TFM_NO_DATA)) << "voxel " << i;
-        continue;
-      }
-      // The coordinate is exactly j + w: the kernel splits it back bit-identically.
-      ASSERT_EQ(coords[i], float(j) + w) << "voxel " << i;
-      // b: two float products and a sum, < 3 * 2^-24 relative; 1e-6 absolute covers it for b <= 1.
-      for (int ch = 0; ch < 4; ++ch) ASSERT_NEAR(rgba[4 * i + ch], b[ch], 1e-6) << "voxel " << i << " channel " << ch;
-    }
-  }
-}
-
-TEST_F(SolverKernels, GatherMatchesCpuProductAndNorm) {
-  const uint32_t n = 7;
-  for (size_t voxels : kSizes) {
-    SCOPED_TRACE("voxels " + std::to_string(voxels));
-    const Case c = make_case(voxels, n, 21);
-    run_prepare(c, voxels > 100 ? 200 : 0, voxels > 100 ? 40 : 0);
-    const std::vector<float> x = random_vec4s(n, 5, -0.5f, 1.5f);
-    Buffer xb = make_buffer<float>(ctx(), x, "x");
-    Buffer norm(ctx(), TFM_GATHER_NORM_SLOTS * 8, MemoryUsage::Device, "norm");
-    fill(ctx(), norm, 0u);
-    SparseGatherKernel gather(ctx(), true, true);
-    CommandBatch batch(ctx());
-    gather.record(batch, *vectors_, n, xb, norm);
-    batch.submit_and_wait();
-    const std::vector<float> q = vectors_->read_rgba(ctx());
-    std::vector<uint32_t> words(TFM_GATHER_NORM_SLOTS * 2);
-    readback(ctx(), norm, words.data(), words.size() * 4);
-    const std::vector<double> norm2 = decode_fixed_point(words);
-    double ref_norm2[4] = {0, 0, 0, 0};
-    for (size_t i = 0; i < voxels; ++i) {
-      uint32_t j;
-      float w;
-      double b[4];
-      const bool has = reference_voxel(c, i, j, w, b);
-      for (int ch = 0; ch < 4; ++ch) {
-        const double expected = has ? (1.0 - double(w)) * x[4 * j + ch] + double(w) * x[4 * (j + 1) + ch] : 0.0;
-        // Two float products and a sum of values below 1.5: a few ulps, < 1e-6.
-        ASSERT_NEAR(q[4 * i + ch], expected, 1e-6) << "voxel " << i << " channel " << ch;
-        ref_norm2[ch] += expected * expected;
-      }
-    }
-    for (int ch = 0; ch < 4; ++ch) {
-      // Per voxel: q^2 rounded in float (q within 1e-6 of exact, |q| < 1.5: < 4e-6) and truncated
-      // to 2^-32 when converted to fixed point.
-      ASSERT_NEAR(norm2[ch], ref_norm2[ch], double(voxels) * (4e-6 + std::ldexp(1.0, -32))) << "channel " << ch;
-    }
-  }
-}
-
 // Every mode and atomic width the device can run (64-bit only where it has them; shared only
 // where 4N slots fit).
 std::vector<ReductionOptions> reduction_paths(const Context& ctx, uint32_t n) {
@@ -181,46 +117,6 @@ std::vector<double> scatter_once(Context& ctx, VoxelVectors& v, uint32_t n, Redu
   std::vector<uint32_t> words(signed_accumulator_bytes(n) / 4);
   readback(ctx, accum, words.data(), words.size() * 4);
   return decode_signed_fixed_point(words);
-}
-
-TEST_F(SolverKernels, ScatterMatchesCpuTransposeProduct) {
-  const uint32_t n = 9;
-  for (const ReductionOptions& path : reduction_paths(ctx(), n)) {
-    for (size_t voxels : kSizes) {
-      SCOPED_TRACE("voxels " + std::to_string(voxels) + ", " + path_name(path));
-      const Case c = make_case(voxels, n, 31);
-      run_prepare(c, voxels > 100 ? 300 : 0, voxels > 100 ? 100 : 0);
-      // Signed residuals: both accumulators of every slot are exercised.
-      const std::vector<float> r = random_vec4s(voxels, 8, -1.0f, 1.0f);
-      for (size_t ch = 0; ch < vectors_->chunk_count(); ++ch)
-        upload(ctx(), vectors_->rgba(ch), r.data() + 4 * vectors_->chunk_begin(ch), vectors_->chunk_size(ch) * 16);
-      const std::vector<double> s = scatter_once(ctx(), *vectors_, n, path);
-      std::vector<double> expected(4 * n, 0.0), magnitude(4 * n, 0.0);
-      std::vector<uint64_t> terms(4 * n, 0);
-      for (size_t i = 0; i < voxels; ++i) {
-        uint32_t j;
-        float w;
-        double b[4];
-        if (!reference_voxel(c, i, j, w, b)) continue;
-        for (int ch = 0; ch < 4; ++ch) {
-          const double lo = (1.0 - double(w)) * r[4 * i + ch], hi = double(w) * r[4 * i + ch];
-          expected[4 * j + ch] += lo;
-          expected[4 * (j + 1) + ch] += hi;
-          magnitude[4 * j + ch] += std::abs(lo);
-          magnitude[4 * (j + 1) + ch] += std::abs(hi);
-          ++terms[4 * j + ch];
-          ++terms[4 * (j + 1) + ch];
-        }
-      }
-      for (size_t k = 0; k < expected.size(); ++k) {
-        // Each term: one float product (2^-24 relative), truncated to 2^-32 on its own; the
-        // fixed-point total is exact. So |error| <= magnitude 2^-24 + terms 2^-32; 2^-22 leaves
-        // room for w and 1 - w (one more rounding each).
-        const double tol = magnitude[k] * std::ldexp(1.0, -22) + double(terms[k]) * std::ldexp(1.0, -32) + 1e-12;
-        ASSERT_NEAR(s[k], expected[k], tol) << "slot " << k << " (entry " << k / 4 << ", channel " << k % 4 << ")";
-      }
-    }
-  }
 }
 
 TEST_F(SolverKernels, ScatterIsBitIdenticalAcrossRunsAndPaths) {
@@ -305,8 +201,8 @@ TEST_F(SolverKernels, SameBitsForEveryRangeSplitWorkgroupSizeAndChunking) {
         EXPECT_EQ(b.scatter, base.scatter);
       }
   // The base run against the CPU: coordinates exactly, b and q within a few float roundings,
-  // ||q||^2 and S^T b within the bounds of GatherMatchesCpuProductAndNorm and
-  // ScatterMatchesCpuTransposeProduct.
+  // ||q||^2 and S^T b within the bounds of the table's gather and scatter cases
+  // (host/selftest/selftest_sparse.cpp).
   double norm2[4] = {0, 0, 0, 0};
   std::vector<double> stb(4 * n, 0.0), magnitude(4 * n, 0.0);
   uint64_t counted = 0;
@@ -370,55 +266,6 @@ TEST_F(SolverKernels, ScaledGatherDoesNothingOnceEveryChannelStopped) {
     const bool untouched = vectors_->read_rgba(ctx()) == b;
     EXPECT_EQ(untouched, running == 0);
     EXPECT_EQ(std::all_of(w.begin(), w.end(), [](uint32_t v) { return v == 0; }), running == 0);
-  }
-}
-
-TEST_F(SolverKernels, ScatterUpdateAppliesResidualStep) {
-  const uint32_t n = 5;
-  const size_t voxels = TFM_VOXEL_WORKGROUP + 1;
-  const Case c = make_case(voxels, n, 51);
-  const std::vector<float> p = random_vec4s(n, 10, -1.0f, 1.0f);
-  Buffer pb = make_buffer<float>(ctx(), p, "p");
-  gpu::CglsState st{};
-  st.alpha = {0.5f, -0.25f, 2.0f, 0.0f};
-  st.running = {1, 1, 1, 1};
-  Buffer state = make_buffer<gpu::CglsState>(ctx(), std::span<const gpu::CglsState>(&st, 1), "state");
-  Buffer accum(ctx(), signed_accumulator_bytes(n), MemoryUsage::Device, "accum");
-  for (const ReductionOptions& path : reduction_paths(ctx(), n)) {
-    SCOPED_TRACE(path_name(path));
-    run_prepare(c, 0, 64);  // b as the residual, again for each path
-    const std::vector<float> b = vectors_->read_rgba(ctx());
-    SparseScatterKernel scatter(ctx(), n, true, path);
-    CommandBatch batch(ctx());
-    batch.fill(accum, 0u);
-    batch.barrier();
-    scatter.record_update(batch, *vectors_, pb, state, accum);
-    batch.submit_and_wait();
-    const std::vector<float> r = vectors_->read_rgba(ctx());
-    std::vector<uint32_t> words(signed_accumulator_bytes(n) / 4);
-    readback(ctx(), accum, words.data(), words.size() * 4);
-    const std::vector<double> s = decode_signed_fixed_point(words);
-    const double alpha[4] = {0.5, -0.25, 2.0, 0.0};
-    std::vector<double> expected(4 * n, 0.0);
-    for (size_t i = 0; i < voxels; ++i) {
-      uint32_t j;
-      float w;
-      double bb[4];
-      if (!reference_voxel(c, i, j, w, bb)) {
-        for (int ch = 0; ch < 4; ++ch) ASSERT_EQ(r[4 * i + ch], b[4 * i + ch]) << "voxel without data " << i;
-        continue;
-      }
-      for (int ch = 0; ch < 4; ++ch) {
-        const double sp = (1.0 - double(w)) * p[4 * j + ch] + double(w) * p[4 * (j + 1) + ch];
-        const double ri = b[4 * i + ch] - alpha[ch] * sp;
-        // Float update of values below ~3: a few ulps.
-        ASSERT_NEAR(r[4 * i + ch], ri, 2e-6) << "voxel " << i << " channel " << ch;
-        expected[4 * j + ch] += (1.0 - double(w)) * ri;
-        expected[4 * (j + 1) + ch] += double(w) * ri;
-      }
-    }
-    // 257 voxels, each term within 2e-6 (r) plus a float product: 257 * 3e-6 bounds the sum.
-    for (size_t k = 0; k < expected.size(); ++k) ASSERT_NEAR(s[k], expected[k], 257 * 3e-6) << "slot " << k;
   }
 }
 
