@@ -2,6 +2,7 @@
 // _mi_binned, _mi_kraskov): every measure on both strategies (one invocation per voxel at
 // M <= 32, one workgroup per voxel above), with ties, a NaN member, a constant voxel, the
 // reference voxel itself and fields split into chunks, against the double-precision references.
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -19,17 +20,29 @@ struct CorrelationCase {
   uint64_t voxels;
   uint64_t max_device_bytes = 0;  // small: several chunks
   bool bin_edges = false;         // bin_edge_ensemble, against the CPU peer's float binning
+  // The voxel whose series is the reference: 0 is the ensemble's reference series; 2 a series
+  // rounded to multiples of 1/4, so the reference has many ties (kendall's x tie groups, repeated
+  // Kraskov points).
+  uint64_t reference_voxel = 0;
 };
 
+bool is_mutual_information(const CorrelationParams& p) {
+  return p.measure == CorrelationMeasure::MiBinned || p.measure == CorrelationMeasure::MiKraskov ||
+         p.measure == CorrelationMeasure::MiCoefficient;
+}
+
 // Bound: CorrelationKernel::error_bound (the test data make every comparison exact in float).
-// NaN results must be NaN on both sides.
-void correlation(Context& ctx, Check& check, const CorrelationCase& c) {
+// NaN results must be NaN on both sides. The data reach the conventions, which the field must
+// follow: NaN at the voxel with a NaN member (5), NaN (or 0 for mutual information) at the
+// constant voxel (7), 1 at the reference voxel for pearson, spearman and kendall.
+void correlation(Context& ctx, Check& check, CorrelationCase c) {
+  c.params.k = std::min(c.params.k, c.members - 1);  // k < M
   if (const uint64_t bytes = CorrelationKernel::shared_memory_bytes(c.params, c.members); !fits_shared_memory(ctx, bytes))
     return check.skip(needs_shared_memory(ctx, bytes));
   const uint32_t seed = 7u * c.members + uint32_t(c.voxels);
   const CorrelationEnsemble e =
       c.bin_edges ? bin_edge_ensemble(c.members, c.voxels) : correlation_test_ensemble(c.members, c.voxels, seed);
-  const std::vector<float> reference = e.reference();
+  const std::vector<float> reference = ensemble_series(e.view(), c.reference_voxel);
   CorrelationKernel kernel(ctx);
   uint32_t chunks = 0;
   const std::vector<float> g =
@@ -51,6 +64,14 @@ void correlation(Context& ctx, Check& check, const CorrelationCase& c) {
     else
       check.near("voxel", v, g[v], r[v], bound);
   }
+  if (!c.bin_edges && c.voxels > 7) {
+    check.require(std::isnan(g[5]), "the voxel with a NaN member is not NaN");
+    check.require(is_mutual_information(c.params) ? g[7] == 0.0f : std::isnan(g[7]),
+                  "the constant voxel does not follow the convention");
+  }
+  if (c.params.measure == CorrelationMeasure::Pearson || c.params.measure == CorrelationMeasure::Spearman ||
+      c.params.measure == CorrelationMeasure::Kendall)
+    check.near("the reference voxel itself", c.reference_voxel, g[c.reference_voxel], 1.0, bound);
 }
 
 std::string correlation_name(const CorrelationCase& c) {
@@ -60,6 +81,7 @@ std::string correlation_name(const CorrelationCase& c) {
   if (c.params.measure == CorrelationMeasure::MiCoefficient) s += ", coefficient, k=" + std::to_string(c.params.k);
   if (c.max_device_bytes) s += ", chunks";
   if (c.bin_edges) s += ", values within 4 ulp of bin edges";
+  if (c.reference_voxel) s += ", reference with ties (voxel " + std::to_string(c.reference_voxel) + ")";
   return s;
 }
 
@@ -77,10 +99,11 @@ void add_correlation_cases(CaseList& cases) {
       {"correlation_mi_binned", {M::MiBinned, 8}},
       {"correlation_mi_kraskov", {M::MiKraskov, 16, 3}},
       {"correlation_mi_kraskov", {M::MiCoefficient, 16, 4}},
+      {"correlation_mi_kraskov", {M::MiCoefficient, 16, 2}},
   };
   for (const auto& m : measures) {
-    auto add = [&](uint32_t members, uint64_t voxels, uint64_t max_bytes, bool quick) {
-      const CorrelationCase c{m.params, members, voxels, max_bytes};
+    auto add = [&](uint32_t members, uint64_t voxels, uint64_t max_bytes, bool quick, uint64_t reference_voxel = 0) {
+      const CorrelationCase c{m.params, members, voxels, max_bytes, false, reference_voxel};
       cases.push_back({m.shader, "CorrelationKernel", correlation_name(c), quick,
                        CorrelationKernel::workgroup_size(m.params, members),
                        [c](Context& ctx, Check& check) { correlation(ctx, check, c); }});
@@ -91,6 +114,15 @@ void add_correlation_cases(CaseList& cases) {
     add(100, 9, 0, true);
     add(33, 13, 0, false);
     add(1000, 9, 0, false);
+    add(1000, 9, 0, false, 2);
+    // Awkward member counts around one subgroup and either strategy, on 1 voxel and one past a
+    // workgroup of voxels, the latter also with a tied reference.
+    const uint64_t past_workgroup = TFM_CORR_INVOCATION_WORKGROUP + 1;
+    for (uint32_t members : {3u, 4u, 31u, 32u, 33u}) {
+      add(members, 1, 0, true);
+      add(members, past_workgroup, 0, true);
+      add(members, past_workgroup, 0, true, 2);
+    }
   }
   // mi-binned on values within 4 ulp of its bin edges, on both strategies: every device must bin
   // them as the CPU peer does (a division-decided binning did not on NVIDIA's driver 580).

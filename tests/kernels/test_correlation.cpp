@@ -1,8 +1,9 @@
-// The correlation kernels (kernels/correlation.h) against the double-precision references of
-// host/reference/correlation_cpu.h on awkward sizes (M = 3, 4, 31, 32, 33, 1000; grids of 1 voxel
-// and one past a workgroup; ties, a NaN member, a constant voxel, the reference voxel itself),
-// against values computed by scipy and scikit-learn, bit-identical results across runs and
-// chunkings, the device-memory budget, progress and input errors.
+// The correlation kernels (kernels/correlation.h) beyond their case table (host/selftest/
+// selftest_correlation.cpp, run by test_kernel_cases.cpp: M = 3, 4, 31, 32, 33, 100, 1000 on
+// 1 voxel, one past a workgroup and chunks, ties, a NaN member, a constant voxel, the reference
+// voxel itself, against the double references): a two-valued reference, values computed by scipy
+// and scikit-learn, bit-identical results across runs and chunkings, the device-memory budget,
+// progress and input errors.
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -58,45 +59,6 @@ void expect_field_near(const std::vector<float>& device, const std::vector<T>& e
     else
       ASSERT_NEAR(device[v], expected[v], bound) << "voxel " << v;
   }
-}
-
-// Every voxel within CorrelationKernel::error_bound of the reference (the test ensemble makes each
-// comparison of member values exact in float); NaN exactly where the reference is NaN.
-// `reference_voxel` 0 is the ensemble's reference series; 2 is a series rounded to multiples of
-// 1/4, so the reference has many ties (kendall's x tie groups, repeated Kraskov points).
-void expect_matches_reference(Context& ctx, CorrelationParams params, uint32_t members, uint64_t voxels,
-                              uint64_t reference_voxel = 0) {
-  params.k = std::min(params.k, members - 1);  // k < M
-  SCOPED_TRACE("M = " + std::to_string(members) + ", " + std::to_string(voxels) + " voxels, k = " +
-               std::to_string(params.k) + ", reference voxel " + std::to_string(reference_voxel) + ", " +
-               CorrelationKernel::strategy(params, members));
-  const CorrelationEnsemble e = correlation_test_ensemble(members, voxels, 11u * members + uint32_t(voxels));
-  const std::vector<float> reference = ensemble_series(e.view(), reference_voxel);
-  CorrelationKernel kernel(ctx);
-  const std::vector<float> g = kernel.compute(e.view(), reference, params);
-  const std::vector<double> r = correlation_field_reference(e.view(), reference, params);
-  const double bound = CorrelationKernel::error_bound(params, members);
-  expect_field_near(g, r, bound);
-  // The test data reach the conventions: the reference voxel, a NaN member, a constant series.
-  if (voxels > 7) {
-    EXPECT_TRUE(std::isnan(g[5]));
-    if (is_mutual_information(params)) EXPECT_EQ(g[7], 0.0f); else EXPECT_TRUE(std::isnan(g[7]));
-  }
-  if (params.measure == CorrelationMeasure::Pearson || params.measure == CorrelationMeasure::Spearman ||
-      params.measure == CorrelationMeasure::Kendall)
-    EXPECT_NEAR(g[reference_voxel], 1.0, bound);
-}
-
-TEST_P(CorrelationGpu, MatchesReferenceOnAwkwardSizes) {
-  const CorrelationParams params = GetParam();
-  const uint64_t past_workgroup = TFM_CORR_INVOCATION_WORKGROUP + 1;
-  for (uint32_t members : {3u, 4u, 31u, 32u, 33u}) {
-    expect_matches_reference(ctx(), params, members, 1);
-    expect_matches_reference(ctx(), params, members, past_workgroup);
-    expect_matches_reference(ctx(), params, members, past_workgroup, 2);
-  }
-  expect_matches_reference(ctx(), params, 1000, 9);
-  expect_matches_reference(ctx(), params, 1000, 9, 2);
 }
 
 // A reference with two values, 500 members each: two huge x tie groups for kendall, and for
