@@ -48,11 +48,18 @@ std::vector<uint64_t> GpuNormalEquations::fixed_point_slots() const {
   return slots;
 }
 
-NormalEquations GpuNormalEquations::result() const {
-  std::vector<uint32_t> words(size_t(kernel_.slots()) * 2);
-  readback(ctx_, accum_, words.data(), words.size() * sizeof(uint32_t));
-  std::vector<double> slots = decode_fixed_point(words);
-  return NormalEquations::from_slots(kernel_.tf_size(), slots, with_before_);
+NormalEquations GpuNormalEquations::result() const { return decode(fixed_point_slots(), with_before_); }
+
+NormalEquations GpuNormalEquations::decode(std::span<const uint64_t> slots, bool with_before) const {
+  if (slots.size() != kernel_.slots())
+    throw std::invalid_argument("GpuNormalEquations::decode: " + std::to_string(slots.size()) + " slots, the kernel has " +
+                                std::to_string(kernel_.slots()));
+  std::vector<uint32_t> words(slots.size() * 2);  // low word first, as the device holds them
+  for (size_t k = 0; k < slots.size(); ++k) {
+    words[2 * k] = uint32_t(slots[k]);
+    words[2 * k + 1] = uint32_t(slots[k] >> 32);
+  }
+  return NormalEquations::from_slots(kernel_.tf_size(), decode_fixed_point(words), with_before);
 }
 
 double VoxelLoss::rmse() const {

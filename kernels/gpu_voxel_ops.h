@@ -32,6 +32,11 @@ class GpuNormalEquations {
   // The exact totals: TFM_ASSEMBLE_SLOTS(N) unsigned 32.32 fixed-point numbers (integer value
   // = total * 2^32, modulo 2^64).
   std::vector<uint64_t> fixed_point_slots() const;
+  // The system such totals stand for, with the loss before optimization when `with_before` (the
+  // assembly summed it: add() was given a before mapping). result() is decode(fixed_point_slots())
+  // of its own adds; the totals of several processes added as integers give the bits of one
+  // process's assembly.
+  NormalEquations decode(std::span<const uint64_t> slots, bool with_before) const;
   const AssembleNormalEquationsKernel& kernel() const { return kernel_; }
 
  private:

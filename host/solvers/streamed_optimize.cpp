@@ -7,6 +7,7 @@
 #include <future>
 #include <span>
 #include <stdexcept>
+#include <tuple>
 
 #include "cancellation.h"
 #include "device_memory.h"
@@ -18,15 +19,17 @@
 namespace tfm {
 namespace {
 
-// Calls fn(z0, nz, ref values, field values) for each slab of `slab_slices` z-slices of both fields,
-// in z order. The next slab is read on another thread while fn works on this one (two host
-// buffers per field), so the disk and the device overlap; a read's error or cancellation reaches
-// the caller from the slab it belongs to.
+// Calls fn(z0, nz, ref values, field values) for each slab of `slab_slices` z-slices of both fields
+// within the z-slices [z_first, z_end) (all when z_end is 0), in z order. The next slab is read on
+// another thread while fn works on this one (two host buffers per field), so the disk and the
+// device overlap; a read's error or cancellation reaches the caller from the slab it belongs to.
 template <class Fn>
-void for_each_slab_pair(VolumeSlabReader& ref, VolumeSlabReader& field, uint64_t slab_slices, Fn fn) {
-  const uint64_t s = ref.slice_voxels(), nz = ref.grid().dims[2];
-  const uint64_t capacity = std::min(slab_slices, nz) * s;
-  const int buffers = nz > slab_slices ? 2 : 1;
+void for_each_slab_pair(VolumeSlabReader& ref, VolumeSlabReader& field, uint64_t slab_slices, Fn fn,
+                        uint64_t z_first = 0, uint64_t z_end = 0) {
+  const uint64_t s = ref.slice_voxels(), nz = z_end ? z_end : ref.grid().dims[2];
+  if (z_first >= nz) return;  // a rank beyond the slices
+  const uint64_t capacity = std::min(slab_slices, nz - z_first) * s;
+  const int buffers = nz - z_first > slab_slices ? 2 : 1;
   check_memory(2 * uint64_t(buffers) * capacity * sizeof(float),
                "streaming " + ref.grid().name + " and " + field.grid().name + " (" + std::to_string(capacity) +
                    " voxels per slab)");
@@ -40,10 +43,10 @@ void for_each_slab_pair(VolumeSlabReader& ref, VolumeSlabReader& field, uint64_t
   checkpoint("stream");
   {
     PhaseScope timing(Phase::Read);
-    read(0, 0);
+    read(z_first, 0);
   }
   int slot = 0;
-  for (uint64_t z0 = 0; z0 < nz; z0 += slab_slices, slot ^= 1) {
+  for (uint64_t z0 = z_first; z0 < nz; z0 += slab_slices, slot ^= 1) {
     const uint64_t n = std::min(slab_slices, nz - z0);
     std::future<void> next;  // its destructor waits for the read, also when fn throws
     if (z0 + slab_slices < nz)
@@ -127,6 +130,14 @@ class BoxFilter {
           if (std::isfinite(row[x])) sums_[base + x / k_] += row[x], ++counts_[base + x / k_];
       }
   }
+  // Adds the sums and counts of every rank's boxes: with ranks on whole boxes of z-slices each
+  // box's sums come from one rank, so the others add exact zeros.
+  void reduce(Ranks& ranks) {
+    ranks.sum(std::span<double>(sums_));
+    std::vector<uint64_t> counts(counts_.begin(), counts_.end());
+    ranks.sum(std::span<uint64_t>(counts));
+    for (size_t i = 0; i < counts.size(); ++i) counts_[i] = uint32_t(counts[i]);
+  }
   Volume finish() {
     out_.values.resize(sums_.size());
     for (size_t i = 0; i < sums_.size(); ++i) out_.values[i] = counts_[i] ? float(sums_[i] / counts_[i]) : NAN;
@@ -147,6 +158,22 @@ class BoxFilter {
 struct FieldMeasures {
   FiniteStats ref, field;
   RangeCoverage ref_coverage, field_coverage;
+  // The measures of all ranks' slices together.
+  void reduce(Ranks& ranks) {
+    if (ranks.size() == 1) return;
+    std::array<double, 2> lo{ref.finite ? ref.lo : INFINITY, field.finite ? field.lo : INFINITY};
+    std::array<double, 2> hi{ref.finite ? ref.hi : -INFINITY, field.finite ? field.hi : -INFINITY};
+    std::array<uint64_t, 10> counts{ref.finite,         ref.nan,           field.finite,          field.nan,
+                                    ref_coverage.finite, ref_coverage.below, ref_coverage.above,   field_coverage.finite,
+                                    field_coverage.below, field_coverage.above};
+    ranks.min(lo);
+    ranks.max(hi);
+    ranks.sum(std::span<uint64_t>(counts));
+    ref = {counts[0] ? lo[0] : 0.0, counts[0] ? hi[0] : 0.0, counts[0], counts[1]};
+    field = {counts[2] ? lo[1] : 0.0, counts[2] ? hi[1] : 0.0, counts[2], counts[3]};
+    ref_coverage = {counts[4], counts[5], counts[6]};
+    field_coverage = {counts[7], counts[8], counts[9]};
+  }
   void add(std::span<const float> r, std::span<const float> f, const FieldRange* ref_user, const FieldRange* field_user) {
     ref = merge(ref, finite_stats(r));
     field = merge(field, finite_stats(f));
@@ -210,7 +237,23 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
     slab_voxels = std::clamp<uint64_t>(left / 4 / 24, uint64_t(1) << 16, kDefaultSlabVoxels);
   }
   s.slab_slices = std::clamp<uint64_t>(slab_voxels / ref.slice_voxels(), 1, grid.dims[2]);
-  s.slabs = (grid.dims[2] + s.slab_slices - 1) / s.slab_slices;
+
+  Ranks& ranks = req.ranks ? *req.ranks : single_rank();
+  // This rank's work, then the agreement: a failure on any rank stops every rank (ranks.h).
+  auto on_every_rank = [&](auto&& work) {
+    std::exception_ptr failed;
+    try {
+      work();
+    } catch (...) {
+      failed = std::current_exception();
+    }
+    ranks.agree(failed);
+  };
+  // Ranks take whole preview boxes of z-slices, so each box's sums come from one rank.
+  if (req.preview_voxels) s.preview_factor = box_factor(grid.dims, req.preview_voxels);
+  std::tie(s.first_slice, s.end_slice) =
+      rank_slices(grid.dims[2], ranks.rank(), ranks.size(), req.preview_voxels ? s.preview_factor : 1);
+  s.slabs = (s.end_slice - s.first_slice + s.slab_slices - 1) / s.slab_slices;
 
   const FieldRange* ref_user = req.ref_range ? &*req.ref_range : (req.ref_tf.range ? &*req.ref_tf.range : nullptr);
   const FieldRange* field_user = req.field_range ? &*req.field_range : nullptr;
@@ -222,9 +265,15 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
   s.passes = range_pass ? 2 : 1;
   auto t0 = std::chrono::steady_clock::now();
   if (range_pass) {
-    for_each_slab_pair(ref, field, s.slab_slices, [&](uint64_t, uint64_t, std::span<const float> r, std::span<const float> f) {
-      measures.add(r, f, ref_user, field_user);
+    on_every_rank([&] {
+      for_each_slab_pair(
+          ref, field, s.slab_slices,
+          [&](uint64_t, uint64_t, std::span<const float> r, std::span<const float> f) {
+            measures.add(r, f, ref_user, field_user);
+          },
+          s.first_slice, s.end_slice);
     });
+    measures.reduce(ranks);
     out.phases.push_back({"range pass", ms_since(t0), -1.0});
   }
   out.ref_range = resolve_range(measures.ref, ref_user, ref.grid().name);
@@ -246,31 +295,46 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
   // The assembly pass: the system for the optimized TF's size (with the loss before when the
   // reference TF has another size) and the downsampled copies.
   t0 = std::chrono::steady_clock::now();
-  Buffer ref_tf_buffer = upload_tf(ctx, req.ref_tf, "reference TF");
+  Buffer ref_tf_buffer;
   const FieldMapping ref_map = make_mapping(out.ref_range, static_cast<uint32_t>(req.ref_tf.size()));
   const FieldMapping opt_map = make_mapping(out.field_range, req.tf_size);
   const FieldMapping opt_with_ref_tf = make_mapping(out.field_range, static_cast<uint32_t>(req.ref_tf.size()));
   const FieldMapping* before_map = opt_with_ref_tf.tf_size != opt_map.tf_size ? &opt_with_ref_tf : nullptr;
-  GpuNormalEquations gpu(ctx, opt_map.tf_size);
+  std::optional<GpuNormalEquations> gpu;
   std::optional<BoxFilter> ref_box, field_box;
-  if (req.preview_voxels) {
-    s.preview_factor = box_factor(grid.dims, req.preview_voxels);
-    ref_box.emplace(ref.grid(), s.preview_factor);
-    field_box.emplace(field.grid(), s.preview_factor);
-  }
-  SlabUploader device(ctx, s.slab_slices * ref.slice_voxels(), req.max_chunk_voxels);
   double gpu_ms = 0.0;
-  for_each_slab_pair(ref, field, s.slab_slices, [&](uint64_t z0, uint64_t nz, std::span<const float> r, std::span<const float> f) {
-    if (!range_pass) measures.add(r, f, ref_user, field_user);
-    const auto& d = device.upload(r, f);
-    const double ms = gpu.add(d.first, d.second, ref_map, opt_map, ref_tf_buffer, before_map);
-    gpu_ms = ms >= 0 && gpu_ms >= 0 ? gpu_ms + ms : -1.0;
-    if (ref_box) ref_box->add(z0, nz, r), field_box->add(z0, nz, f);
+  on_every_rank([&] {
+    ref_tf_buffer = upload_tf(ctx, req.ref_tf, "reference TF");
+    gpu.emplace(ctx, opt_map.tf_size);
+    if (req.preview_voxels) {
+      ref_box.emplace(ref.grid(), s.preview_factor);
+      field_box.emplace(field.grid(), s.preview_factor);
+    }
+    SlabUploader device(ctx, s.slab_slices * ref.slice_voxels(), req.max_chunk_voxels);
+    for_each_slab_pair(
+        ref, field, s.slab_slices,
+        [&](uint64_t z0, uint64_t nz, std::span<const float> r, std::span<const float> f) {
+          if (!range_pass) measures.add(r, f, ref_user, field_user);
+          const auto& d = device.upload(r, f);
+          const double ms = gpu->add(d.first, d.second, ref_map, opt_map, ref_tf_buffer, before_map);
+          gpu_ms = ms >= 0 && gpu_ms >= 0 ? gpu_ms + ms : -1.0;
+          if (ref_box) ref_box->add(z0, nz, r), field_box->add(z0, nz, f);
+        },
+        s.first_slice, s.end_slice);
   });
   out.phases.push_back({"read+assemble", ms_since(t0), gpu_ms});
-  if (!range_pass) check_coverage();
-  if (ref_box) s.ref_preview = ref_box->finish(), s.field_preview = field_box->finish();
-  const NormalEquations eq = gpu.result();
+  // Every rank's integer words added: the same bits as one process's (exact sums).
+  std::vector<uint64_t> slots = gpu->fixed_point_slots();
+  ranks.sum(std::span<uint64_t>(slots));
+  if (!range_pass) {
+    measures.reduce(ranks);
+    check_coverage();
+  }
+  if (ref_box) {
+    if (ranks.size() > 1) ref_box->reduce(ranks), field_box->reduce(ranks);
+    s.ref_preview = ref_box->finish(), s.field_preview = field_box->finish();
+  }
+  const NormalEquations eq = gpu->decode(slots, before_map != nullptr);
   if (eq.voxels == 0) throw std::runtime_error("no voxel has data in both " + ref.grid().name + " and " + field.grid().name);
 
   // The solver sees the assembled system; the device fields it could read are placeholders

@@ -15,6 +15,7 @@
 #include "context.h"
 #include "gpu_voxel_ops.h"
 #include "optimize.h"
+#include "ranks.h"
 #include "volume_slabs.h"
 
 namespace tfm {
@@ -39,6 +40,12 @@ struct StreamedOptimizeRequest {
   uint64_t max_chunk_voxels = 0;  // device chunks (tests force splits); 0: device limit
   // Voxels of each downsampled copy (ref_preview, field_preview); 0: none made.
   uint64_t preview_voxels = 0;
+  // The ranks the run is split over (host/model/ranks.h; null: this process alone). Each reads
+  // and assembles its own contiguous range of z-slices (whole preview boxes); the range pass's
+  // min/max and counts, the assembly's integer words and the previews' box sums are reduced over
+  // ranks, so every rank ends with the same result, bit for bit that of one process. Call it on
+  // every rank; a rank's failure makes every rank throw RankFailure.
+  Ranks* ranks = nullptr;
 };
 
 inline constexpr uint64_t kDefaultSlabVoxels = uint64_t(1) << 24;     // 16 Mi voxels: 64 MiB per field
@@ -52,7 +59,8 @@ struct StreamedOptimizeResult {
   uint64_t preview_factor = 1;
   uint32_t passes = 1;         // reads of both files: 2 when a range came from the data
   uint64_t slab_slices = 0;    // z-slices per slab
-  uint64_t slabs = 0;          // slabs per pass
+  uint64_t slabs = 0;          // slabs per pass (this rank's)
+  uint64_t first_slice = 0, end_slice = 0;  // this rank's z-slices [first, end)
   bool streamed = true;        // false when a reader held its volume in memory (not a streaming format)
 };
 
