@@ -11,6 +11,7 @@
 
 #include "context.h"
 #include "field_mapping.h"
+#include "ranks.h"
 
 namespace tfm::cli {
 
@@ -20,6 +21,9 @@ struct GlobalOptions {
   bool validation = false;
   bool quiet = false;
   std::string command_line;  // as typed, shell-quoted where needed: what a report records
+  // The ranks of an MPI job when a launcher started this process (host/mpi), else this process
+  // alone (docs/mpi.md). Only rank 0 prints and writes.
+  Ranks* ranks = &single_rank();
 };
 GlobalOptions& globals();
 
@@ -41,6 +45,15 @@ enum ExitCode : int {
   // 128 + signal (130 SIGINT, 143 SIGTERM): interrupted; nothing written
 };
 std::string exit_code_help();
+
+// What a failed run prints after "tfmatch: " and the exit code it means (main's handler, and
+// what a failing MPI rank tells the others).
+struct Failure {
+  std::string message;
+  int exit_code = kExitError;
+  bool interrupted = false;  // printed on a line of its own
+};
+Failure describe_failure(std::exception_ptr failure);
 
 // Runs `check` (a check of flag values made outside CLI11, such as the solver-flag checks of
 // host/solvers) and turns what it throws into a usage error (exit code 2).

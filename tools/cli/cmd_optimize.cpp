@@ -48,16 +48,21 @@ struct Streams {
   std::unique_ptr<VolumeSlabReader> ref, field;
 };
 std::optional<Streams> open_streams(const OptimizeArgs& a) {
+  // Under MPI the ranks split the slabs: streaming is how optimize runs there (docs/mpi.md).
+  const bool distributed = globals().ranks->size() > 1;
+  if (distributed && a.stream == "off")
+    throw CLI::ValidationError("--stream", "under MPI (" + std::to_string(globals().ranks->size()) +
+                                               " ranks) optimize reads both fields slab by slab: --stream on or auto");
   if (a.stream == "off") return std::nullopt;
   if (!solver_streams(a.solver)) {
-    if (a.stream == "on")
+    if (a.stream == "on" || distributed)
       throw CLI::ValidationError("--stream", "solver " + a.solver + " needs both fields in memory; the solvers that "
                                  "stream from disk are normal-equations and qp");
     return std::nullopt;
   }
   const VolumeOptions vo = a.in.volume.options();
   Streams s;
-  if (a.stream == "on") {
+  if (a.stream == "on" || distributed) {
     s = {open_volume_slabs(a.in.ref, vo), open_volume_slabs(a.in.field, vo)};
   } else {
     // auto: a file the slab readers refuse is left to the whole load, which says what is wrong.
@@ -111,17 +116,25 @@ int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const So
   req.allow_out_of_range = loaded.allow_out_of_range;
   req.solver = a.solver;
   req.settings = settings;
+  req.ranks = globals().ranks;
   if (!a.report.empty()) req.preview_voxels = kDefaultPreviewVoxels;
   // Markers and the slice point name voxels of the whole grid: resolved there, then scaled.
   const std::vector<GridIndex> markers = resolve_markers(streams.ref->grid(), a.markers);
   const std::optional<GridIndex> slice_point = resolve_slice_point(streams.ref->grid(), a.slice_point);
   StreamedOptimizeResult s = run_optimize_streamed(ctx, req);
+  // Every rank holds the same result; rank 0 reports and writes it (docs/mpi.md).
+  const int ranks = globals().ranks->size();
+  if (globals().ranks->rank() != 0) return 0;
   const OptimizeResult& result = s.result;
   const auto& d = streams.ref->grid().dims;
   const std::string how = std::string(s.streamed ? "streamed from disk" : "read slab by slab (a field loaded whole)") +
                           " in " + std::to_string(s.slabs) + (s.slabs == 1 ? " slab of " : " slabs of ") +
                           std::to_string(s.slab_slices) + " z-slices, " + std::to_string(s.passes) + (s.passes == 1 ? " pass" : " passes") +
-                          " over the files";
+                          " over the files" +
+                          (ranks > 1 ? " (rank 0's share: z-slices " + std::to_string(s.first_slice) + "–" +
+                                           std::to_string(s.end_slice) + " of " + std::to_string(d[2]) + ", " +
+                                           std::to_string(ranks) + " MPI ranks)"
+                                     : "");
   if (!globals().quiet) {
     result.print_summary(std::cout);
     std::cout << "  " << how << "\n";
@@ -131,6 +144,7 @@ int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const So
                                 {"passes", s.passes},
                                 {"slabs", s.slabs},
                                 {"slab_slices", s.slab_slices}};
+  if (ranks > 1) stream_json["mpi_ranks"] = ranks;
   nlohmann::json j = to_json(result);
   j["stream"] = stream_json;
   json.write(j);

@@ -1,7 +1,9 @@
 // The `tfmatch` program: parses the command line and runs the chosen subcommand.
 #include <algorithm>
 #include <cctype>
+#include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <exception>
 #include <filesystem>
 #include <iostream>
@@ -17,6 +19,9 @@
 #endif
 #include "interrupts.h"
 #include "memory_budget.h"
+#ifdef TFMATCH_HAVE_MPI
+#include "mpi_ranks.h"
+#endif
 #include "parameter_names.h"
 #include "phase_timer.h"
 #include "pipeline_cache_file.h"
@@ -75,7 +80,19 @@ void check_usage(const std::function<void()>& check) {
 
 std::shared_ptr<Context> make_context(bool validation_when_installed) {
   ContextOptions options;
-  const std::string& d = globals().device;
+  std::string d = globals().device;
+  const Ranks& ranks = *globals().ranks;
+  if (ranks.size() > 1) {
+    // Under MPI a list of devices is one per node-local rank (cycled); without --device each
+    // rank takes the node's devices in turn.
+    std::vector<std::string> list;
+    for (std::stringstream ss(d); std::getline(ss, d, ',');) list.push_back(d);
+    if (!list.empty()) {
+      d = list[size_t(ranks.local_rank()) % list.size()];
+    } else if (const size_t count = enumerate_devices().size(); count > 0) {
+      d = std::to_string(size_t(ranks.local_rank()) % count);
+    }
+  }
   if (!d.empty()) {
     if (std::all_of(d.begin(), d.end(), ::isdigit)) options.device_index = std::stoul(d);
     else options.device_name = d;
@@ -200,6 +217,34 @@ static std::string quoted_command_line(int argc, char** argv) {
 
 }  // namespace tfm::cli
 
+namespace tfm::cli {
+
+// What a failed run prints after "tfmatch: " and its exit code (exit_code_help()).
+Failure describe_failure(std::exception_ptr failure) {
+  try {
+    std::rethrow_exception(failure);
+  } catch (const tfm::Cancelled& c) {
+    // Unwinding has removed the temporary files and staged outputs: nothing was written.
+    return {"interrupted (" + std::string(signal_name(c.signal())) + "): stopped; no output written", 128 + c.signal(),
+            true};
+  } catch (const tfm::RankFailure& e) {
+    return {e.what(), e.exit_code()};
+  } catch (const tfm::VulkanError& e) {
+    return {std::string("Vulkan error: ") + e.what(), kExitVulkan};
+  } catch (const std::bad_alloc&) {
+    // Allocations an input decides are checked against the budget first; this is what slipped by.
+    return {"error: out of memory (the memory budget is " + tfm::format_bytes(tfm::memory_budget().bytes) +
+                "; see --max-memory)",
+            kExitError};
+  } catch (const std::exception& e) {
+    return {std::string("error: ") + e.what(), kExitError};
+  } catch (...) {
+    return {"error: unknown failure", kExitError};
+  }
+}
+
+}  // namespace tfm::cli
+
 int main(int argc, char** argv) {
   using namespace tfm::cli;
 #ifdef TFMATCH_HAVE_CUDA
@@ -209,6 +254,28 @@ int main(int argc, char** argv) {
   tfm::set_parameter_style([](std::string_view name) { return "--" + std::string(name); });
   install_interrupt_handlers();
   globals().command_line = quoted_command_line(argc, argv);
+#ifdef TFMATCH_HAVE_MPI
+  // Started by mpirun/srun: this process is one rank of a job (docs/mpi.md). Ranks other than 0
+  // print nothing: rank 0 reports for the job, the failing rank's message included.
+  std::unique_ptr<tfm::MpiRanks> mpi;
+  if (tfm::MpiRanks::launched()) {
+    try {
+      mpi = std::make_unique<tfm::MpiRanks>(argc, argv, [](std::exception_ptr e) {
+        const Failure f = describe_failure(e);
+        return tfm::MpiRanks::Failure{f.message, f.exit_code};
+      });
+    } catch (const std::exception& e) {
+      std::cerr << "tfmatch: error: " << e.what() << "\n";
+      return kExitError;
+    }
+    globals().ranks = mpi.get();
+    if (mpi->rank() != 0) {
+      std::fflush(nullptr);
+      if (!std::freopen("/dev/null", "w", stdout) || !std::freopen("/dev/null", "w", stderr)) return kExitError;
+      tfm::set_progress_enabled(false);
+    }
+  }
+#endif
   CLI::App app{"tfmatch: optimize a transfer function so a second field's volume renderings match a reference's"};
   app.require_subcommand(1);
   // Global flags are accepted after the subcommand too (`tfmatch info big.nrrd --max-memory 1G`).
@@ -238,26 +305,49 @@ int main(int argc, char** argv) {
   auto& commands = registered_commands();
   std::sort(commands.begin(), commands.end(), [](auto& a, auto& b) { return a.first < b.first; });
   for (auto& [order, setup] : commands) setup(app);
+  // Under MPI only the streamed optimize is split over ranks; every other command runs in one
+  // process (docs/mpi.md).
+  if (globals().ranks->size() > 1)
+    for (CLI::App* sub : app.get_subcommands({}))
+      if (sub->get_name() != "optimize")
+        sub->preparse_callback([name = sub->get_name()](size_t) {
+          throw CLI::ValidationError(name, "runs in one process: under MPI (" + std::to_string(globals().ranks->size()) +
+                                               " ranks) only `optimize --stream on` is split over ranks (docs/mpi.md)");
+        });
+  std::exception_ptr failure;
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     // --help and --version are "errors" of CLI11 that exit 0; every other one is a usage error.
+    // Every rank parses the same command line, so every rank ends here alike.
     return app.exit(e) == 0 ? kExitOk : kExitUsage;
-  } catch (const tfm::Cancelled& c) {
-    // Unwinding has removed the temporary files and staged outputs: nothing was written.
-    std::cerr << "\ntfmatch: interrupted (" << signal_name(c.signal()) << "): stopped; no output written\n";
-    return 128 + c.signal();
-  } catch (const tfm::VulkanError& e) {
-    std::cerr << "tfmatch: Vulkan error: " << e.what() << "\n";
-    return kExitVulkan;
-  } catch (const std::bad_alloc&) {
-    // Allocations an input decides are checked against the budget first; this is what slipped by.
-    std::cerr << "tfmatch: error: out of memory (the memory budget is " << tfm::format_bytes(tfm::memory_budget().bytes)
-              << "; see --max-memory)\n";
-    return kExitError;
-  } catch (const std::exception& e) {
-    std::cerr << "tfmatch: error: " << e.what() << "\n";
-    return kExitError;
+  } catch (...) {
+    failure = std::current_exception();
+  }
+  tfm::Ranks& ranks = *globals().ranks;
+  if (&ranks != &tfm::single_rank()) {
+    // A job's ranks end together: a failure on any rank is every rank's (ranks.h), and only rank
+    // 0 reports it.
+    try {
+      if (failure) {
+        try {
+          std::rethrow_exception(failure);
+        } catch (const tfm::RankFailure&) {
+          throw;  // already agreed: no further collective
+        } catch (...) {
+          ranks.agree(failure);
+        }
+      } else {
+        ranks.agree(nullptr);
+      }
+    } catch (const tfm::RankFailure& f) {
+      if (ranks.rank() == 0) std::cerr << "tfmatch: " << f.what() << "\n";
+      return f.exit_code();
+    }
+  } else if (failure) {
+    const Failure f = describe_failure(failure);
+    std::cerr << (f.interrupted ? "\n" : "") << "tfmatch: " << f.message << "\n";
+    return f.exit_code;
   }
   if (validation_failed()) return kExitValidation;
   return exit_code();

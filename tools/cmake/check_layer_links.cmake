@@ -1,15 +1,18 @@
 # Links follow the layer rule of DESIGN.md as includes do (tools/cmake/check_layers.cmake): a
 # library of one layer links libraries of earlier layers only, and the GPU-free libraries (model,
-# reference, io) reach neither the engine, the kernels nor Vulkan, however indirectly. Checked at
+# reference, io, mpi) reach neither the engine, the kernels nor Vulkan, however indirectly. Checked at
 # configure time.
 set(tfm_layer_targets tfmatch_shaders tfmatch_model tfmatch_engine tfmatch_kernels tfmatch_reference tfmatch_io
-    tfmatch_selftest tfmatch_solvers tfmatch_report tfmatch_viewer)
+    tfmatch_mpi tfmatch_selftest tfmatch_solvers tfmatch_report tfmatch_viewer)
 set(tfm_index 0)
 foreach(target ${tfm_layer_targets})
   set(tfm_rank_${target} ${tfm_index})
   math(EXPR tfm_index "${tfm_index} + 1")
 endforeach()
 foreach(target ${tfm_layer_targets})
+  if(NOT TARGET ${target})
+    continue()  # tfmatch_mpi without TFMATCH_MPI
+  endif()
   get_target_property(deps ${target} LINK_LIBRARIES)
   foreach(dep ${deps})
     if(DEFINED tfm_rank_${dep} AND tfm_rank_${dep} GREATER tfm_rank_${target})
@@ -42,7 +45,10 @@ function(tfm_link_closure target out)
   endwhile()
   set(${out} ${seen} PARENT_SCOPE)
 endfunction()
-foreach(target tfmatch_model tfmatch_reference tfmatch_io)
+foreach(target tfmatch_model tfmatch_reference tfmatch_io tfmatch_mpi)
+  if(NOT TARGET ${target})
+    continue()  # tfmatch_mpi without TFMATCH_MPI
+  endif()
   tfm_link_closure(${target} closure)
   foreach(gpu tfmatch_engine tfmatch_kernels tfmatch_shaders tfmatch_cuda Vulkan::Headers Vulkan::Vulkan)
     if(gpu IN_LIST closure)

@@ -1,18 +1,19 @@
 # The layer rule of DESIGN.md, checked on every configure (and by the ctest test `Layers`):
-# shaders -> host/model -> engine -> kernels -> cuda -> host/reference -> host/io -> host/selftest
-# -> host/solvers -> host/report -> host/viewer -> tools. A file may include headers of its own
-# layer and of layers before it, never one after it. The shaders' layout headers are plain structs
-# shared with GLSL, and the model is the GPU-free data every part shares, so both sit below the
-# engine. The GPU-free layers (shaders' headers, host/model, host/reference, host/io) may include
-# only each other: file formats and CPU references build without Vulkan and the engine.
+# shaders -> host/model -> engine -> kernels -> cuda -> host/reference -> host/io -> host/mpi ->
+# host/selftest -> host/solvers -> host/report -> host/viewer -> tools. A file may include headers
+# of its own layer and of layers before it, never one after it. The shaders' layout headers are
+# plain structs shared with GLSL, and the model is the GPU-free data every part shares, so both sit
+# below the engine. The GPU-free layers (shaders' headers, host/model, host/reference, host/io,
+# host/mpi) may include only each other: file formats, CPU references and the MPI ranks build
+# without Vulkan and the engine.
 # Run as a script: cmake -DTFMATCH_SOURCE_DIR=<repo> -P check_layers.cmake (exit code 1 and one
 # line per offending include). cuda/ may use engine, shaders, kernels and host/model, and only
 # host/solvers uses it.
 
 cmake_policy(SET CMP0057 NEW)
-set(layers shaders host/model engine kernels cuda host/reference host/io host/selftest host/solvers host/report
-    host/viewer tools)
-set(gpu_free_layers shaders host/model host/reference host/io)
+set(layers shaders host/model engine kernels cuda host/reference host/io host/mpi host/selftest host/solvers
+    host/report host/viewer tools)
+set(gpu_free_layers shaders host/model host/reference host/io host/mpi)
 set(allowed_exceptions "")
 
 # Which layer owns each header name (basenames are unique across the tree; a duplicate is an

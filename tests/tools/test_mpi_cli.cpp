@@ -1,0 +1,126 @@
+// `mpirun -n R tfmatch optimize --stream on` as a user runs it (docs/mpi.md): the TF file is
+// byte-identical for R = 1, 2, 3, 4 and to a run without a launcher; a rank that fails (rank 1
+// given a device that does not exist) stops every rank with its message, a non-zero exit and no
+// output; commands that do not split over ranks say so. Skipped, saying why, where tfmatch was
+// built without MPI.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+#include "cli_runner.h"
+#include "slab_test_files.h"
+
+namespace tfm {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+#ifdef TFMATCH_MPIEXEC
+// `mpirun --oversubscribe -n R tfmatch ARGS` (OpenMPI's launcher; ranks may outnumber the cores),
+// stdout and stderr together, within 5 minutes.
+test::CliResult run_mpi(int ranks, const std::string& args) {
+  // OpenMPI refuses to start as root unless told; CI machines run tests as root.
+  setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
+  setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
+  const std::string cmd = "timeout 300 " + std::string(TFMATCH_MPIEXEC) + " --oversubscribe -n " + std::to_string(ranks) +
+                          " " + TFMATCH_CLI_PATH + " " + args + " 2>&1";
+  test::CliResult r;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (!pipe) return r;
+  char buffer[4096];
+  for (size_t n; (n = fread(buffer, 1, sizeof buffer, pipe)) > 0;) r.output.append(buffer, n);
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+#endif
+
+class MpiCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+#ifndef TFMATCH_MPIEXEC
+    GTEST_SKIP() << "tfmatch was built without MPI (TFMATCH_MPI off: no MPI implementation was found; "
+                    "Debian: libopenmpi-dev openmpi-bin)";
+#endif
+    const Volume ref = slab_test::test_field({37, 29, 23}, 0), field = slab_test::test_field({37, 29, 23}, 6);
+    ref_file = slab_test::write_raw(dir.path(), "ref", ref).string();
+    field_file = slab_test::write_raw(dir.path(), "field", field).string();
+  }
+  std::string args(const std::string& out, const std::string& stream = "on") const {
+    return "optimize --ref " + ref_file + " --field " + field_file + " --ref-tf viridis --tf-size 24 --stream " + stream +
+           " --out " + (dir / out).string();
+  }
+  formats_test::TempDir dir;
+  std::string ref_file, field_file;
+};
+
+TEST_F(MpiCli, TfBytesAreTheSameForEveryRankCount) {
+#ifdef TFMATCH_MPIEXEC
+  const auto plain = test::run_cli(args("plain.json"));
+  ASSERT_EQ(plain.exit_code, 0) << plain.output;
+  const std::string expected = read_text(dir / "plain.json");
+  ASSERT_FALSE(expected.empty());
+  for (int ranks : {1, 2, 3, 4}) {
+    SCOPED_TRACE(std::to_string(ranks) + " ranks");
+    const std::string out = "ranks" + std::to_string(ranks) + ".json";
+    const auto r = run_mpi(ranks, args(out) + " --json " + (dir / ("summary" + std::to_string(ranks) + ".json")).string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_EQ(read_text(dir / out), expected);
+    // Rank 0 alone reports: one summary, naming the ranks when there are several.
+    size_t wrote = 0;
+    for (size_t at = r.output.find("wrote "); at != std::string::npos; at = r.output.find("wrote ", at + 1)) ++wrote;
+    EXPECT_EQ(wrote, 1u) << r.output;
+    if (ranks > 1) {
+      EXPECT_NE(r.output.find(std::to_string(ranks) + " MPI ranks"), std::string::npos) << r.output;
+      EXPECT_NE(read_text(dir / ("summary" + std::to_string(ranks) + ".json")).find("\"mpi_ranks\": " + std::to_string(ranks)),
+                std::string::npos);
+    }
+  }
+#endif
+}
+
+TEST_F(MpiCli, AFailingRankStopsEveryRankAndNothingIsWritten) {
+#ifdef TFMATCH_MPIEXEC
+  // Rank 1 takes the second device of the list, which does not exist.
+  const auto r = run_mpi(2, "--device 0,9 " + args("failed.json") + " --report " + (dir / "report").string());
+  EXPECT_NE(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("tfmatch: rank 1: error: device index 9 out of range"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "failed.json"));
+  EXPECT_FALSE(fs::exists(dir / "report"));
+  // A bad file fails on every rank: reported once, by rank 0.
+  const auto missing = run_mpi(3, "optimize --ref " + (dir / "none_4x4x4_float32.raw").string() + " --field " + field_file +
+                                      " --ref-tf viridis --stream on --out " + (dir / "x.json").string());
+  EXPECT_EQ(missing.exit_code, 1) << missing.output;
+  size_t reports = 0;
+  for (size_t at = missing.output.find("tfmatch: "); at != std::string::npos; at = missing.output.find("tfmatch: ", at + 1))
+    ++reports;
+  EXPECT_EQ(reports, 1u) << missing.output;
+  EXPECT_NE(missing.output.find("none_4x4x4_float32.raw"), std::string::npos) << missing.output;
+#endif
+}
+
+TEST_F(MpiCli, CommandsThatDoNotSplitSaySo) {
+#ifdef TFMATCH_MPIEXEC
+  const auto r = run_mpi(2, "render --ref " + ref_file + " --out " + (dir / "r.png").string());
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("only `optimize --stream on` is split over ranks"), std::string::npos) << r.output;
+  const auto off = run_mpi(2, args("off.json", "off"));
+  EXPECT_EQ(off.exit_code, 2) << off.output;
+  EXPECT_NE(off.output.find("--stream on or auto"), std::string::npos) << off.output;
+  EXPECT_FALSE(fs::exists(dir / "off.json"));
+#endif
+}
+
+}  // namespace
+}  // namespace tfm
