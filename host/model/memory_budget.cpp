@@ -10,6 +10,7 @@
 #include <mutex>
 #include <sstream>
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include "parameter_names.h"
@@ -54,6 +55,12 @@ uint64_t resident_memory() {
   const int got = std::fscanf(f, "%llu %llu", &size, &resident);
   std::fclose(f);
   return got == 2 ? resident * uint64_t(::sysconf(_SC_PAGESIZE)) : 0;
+}
+
+uint64_t peak_resident_memory() {
+  rusage usage{};
+  if (::getrusage(RUSAGE_SELF, &usage) != 0) return 0;
+  return uint64_t(usage.ru_maxrss) * 1024;  // KiB on Linux
 }
 
 uint64_t available_memory() {

@@ -39,6 +39,8 @@ void check_memory(uint64_t bytes, const std::string& what);
 uint64_t available_memory();
 // This process's resident set size now; 0 when unknown.
 uint64_t resident_memory();
+// The most this process has held resident so far (getrusage's ru_maxrss); 0 when unknown.
+uint64_t peak_resident_memory();
 
 // "1.5 GiB", "12 MiB", "512 bytes".
 std::string format_bytes(uint64_t bytes);

@@ -5,10 +5,6 @@
 // instead (both fields loaded, then uploaded), the same ratio to a read. The files' page-cache pages are dropped before
 // each measurement, so both read from the disk. The files live in a staged directory that is
 // removed afterwards, also on an error or an interrupt.
-#include <fcntl.h>
-#include <signal.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -18,11 +14,11 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
-#include <thread>
 
 #include <nlohmann/json.hpp>
 
 #include "atomic_file.h"
+#include "bench_files.h"
 #include "cancellation.h"
 #include "cli.h"
 #include "memory_budget.h"
@@ -43,113 +39,6 @@ struct BenchArgs {
   std::string json;
 };
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-// A grid of about `voxels` voxels, x = y = 1.25 z.
-std::array<uint64_t, 3> bench_grid(uint64_t voxels) {
-  const uint64_t xy = std::max<uint64_t>(1, uint64_t(std::llround(std::cbrt(double(voxels) / 0.8))));
-  const uint64_t z = std::max<uint64_t>(1, uint64_t(std::llround(double(voxels) / double(xy * xy))));
-  return {xy, xy, z};
-}
-
-// Writes the two fields z-slice by z-slice: ref = smooth waves in x, y and z; field a monotone
-// remap of it, so the fit is meaningful.
-void write_fields(const fs::path& ref_path, const fs::path& field_path, std::array<uint64_t, 3> d) {
-  std::vector<float> wx(d[0]), wy(d[1]), slice_ref(d[0] * d[1]), slice_field(d[0] * d[1]);
-  for (uint64_t x = 0; x < d[0]; ++x) wx[x] = float(std::sin(0.02 * double(x)));
-  for (uint64_t y = 0; y < d[1]; ++y) wy[y] = float(std::cos(0.013 * double(y)));
-  std::ofstream ref(ref_path, std::ios::binary), field(field_path, std::ios::binary);
-  if (!ref || !field) throw std::runtime_error(ref_path.parent_path().string() + ": cannot create the benchmark files");
-  for (uint64_t z = 0; z < d[2]; ++z) {
-    checkpoint("write");
-    const float wz = float(0.5 * std::sin(0.05 * double(z)));
-    for (uint64_t y = 0; y < d[1]; ++y)
-      for (uint64_t x = 0; x < d[0]; ++x) {
-        const float v = wx[x] + wy[y] + wz;
-        slice_ref[y * d[0] + x] = v;
-        slice_field[y * d[0] + x] = 10.0f + 3.0f * v + 0.5f * v * v * v;
-      }
-    ref.write(reinterpret_cast<const char*>(slice_ref.data()), std::streamsize(slice_ref.size() * sizeof(float)));
-    field.write(reinterpret_cast<const char*>(slice_field.data()), std::streamsize(slice_field.size() * sizeof(float)));
-    if (!ref || !field) throw std::runtime_error(ref_path.parent_path().string() + ": writing the benchmark files failed (disk full?)");
-  }
-}
-
-// Flushes a file and drops its pages from the page cache, so the next read comes from the disk.
-void drop_cached_pages(const fs::path& p) {
-  const int fd = ::open(p.c_str(), O_RDONLY);
-  if (fd < 0) return;
-  ::fdatasync(fd);
-  ::posix_fadvise(fd, 0, 0, POSIX_FADV_DONTNEED);
-  ::close(fd);
-}
-
-// Reads every byte of the files once (64 MiB at a time); returns the seconds taken.
-double read_files(const std::vector<fs::path>& files) {
-  const auto t0 = std::chrono::steady_clock::now();
-  std::vector<char> buffer(size_t(64) << 20);
-  for (const fs::path& p : files) {
-    const int fd = ::open(p.c_str(), O_RDONLY);
-    if (fd < 0) throw std::runtime_error(p.string() + ": cannot open");
-    ssize_t n;
-    while ((n = ::read(fd, buffer.data(), buffer.size())) > 0) checkpoint("read");
-    ::close(fd);
-    if (n < 0) throw std::runtime_error(p.string() + ": read failed");
-  }
-  return seconds_since(t0);
-}
-
-struct ChildRun {
-  int exit_code = -1;
-  double seconds = 0.0;
-  uint64_t peak_rss_bytes = 0;
-};
-
-// Runs this program with `args` (output to `log`), waiting for it; an interrupt ends it too.
-ChildRun run_self(const std::vector<std::string>& args, const fs::path& log) {
-  std::vector<char*> argv;
-  std::string self = fs::read_symlink("/proc/self/exe").string();
-  argv.push_back(self.data());
-  std::vector<std::string> copy = args;
-  for (std::string& a : copy) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  const auto t0 = std::chrono::steady_clock::now();
-  const pid_t pid = fork();
-  if (pid < 0) throw std::runtime_error("bench-stream: fork failed");
-  if (pid == 0) {
-    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (fd >= 0) ::dup2(fd, 1), ::dup2(fd, 2);
-    ::execv(argv[0], argv.data());
-    _exit(127);
-  }
-  ChildRun r;
-  int status = 0;
-  rusage usage{};
-  while (true) {
-    const pid_t w = ::wait4(pid, &status, WNOHANG, &usage);
-    if (w == pid) break;
-    if (w < 0) throw std::runtime_error("bench-stream: wait4 failed");
-    if (cancel_requested()) {
-      ::kill(pid, SIGTERM);
-      ::wait4(pid, &status, 0, &usage);
-      check_cancelled();
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  r.seconds = seconds_since(t0);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  r.peak_rss_bytes = uint64_t(usage.ru_maxrss) * 1024;  // KiB on Linux
-  return r;
-}
-
-std::string gib(uint64_t bytes) {
-  std::ostringstream os;
-  os << std::fixed << std::setprecision(2) << double(bytes) / double(uint64_t(1) << 30) << " GiB";
-  return os.str();
-}
-
 int run(const BenchArgs& a) {
   const JsonOutput json(a.json);
   FilePlan().output(json.file(), "--json").check();
@@ -165,16 +54,12 @@ int run(const BenchArgs& a) {
                              std::to_string(largest) + "-voxel files need " + format_bytes(needed) +
                              " (two float32 files); pass --dir on a larger disk or smaller --voxels");
   nlohmann::json rows = nlohmann::json::array();
-  double load[3] = {0, 0, 0};
+  const std::array<double, 3> load = load_average();
   {
     OutputBatch scratch;  // never committed: its staged directory and everything in it go at the end
     const fs::path work = scratch.directory(base / ("tfmatch-bench-stream-" + std::to_string(::getpid())));
     std::ofstream(work / "tf.json") << R"({"rgba": [[0,0,0,0],[0.2,0.3,1,0.3],[1,1,0.2,0.6],[1,0.2,0.1,1]]})";
 
-    if (std::FILE* f = std::fopen("/proc/loadavg", "r")) {
-      if (std::fscanf(f, "%lf %lf %lf", &load[0], &load[1], &load[2]) != 3) load[0] = load[1] = load[2] = -1;
-      std::fclose(f);
-    }
     std::cout << "tfmatch bench-stream: optimize --stream " << a.stream << " (--solver " << a.solver
               << (a.stream == "on" ? ", ranges from the data: 2 passes)" : ", both fields loaded whole, ranges from the data)")
               << (a.report ? ", with --report (512x512)" : "") << " in " << base.string() << "; " << format_bytes(free_bytes) << " free; load average " << load[0] << " "
@@ -189,7 +74,7 @@ int run(const BenchArgs& a) {
       const std::string stem = std::to_string(d[0]) + "x" + std::to_string(d[1]) + "x" + std::to_string(d[2]) + "_float32.raw";
       const fs::path ref = work / ("ref_" + stem), field = work / ("field_" + stem);
       auto t0 = std::chrono::steady_clock::now();
-      write_fields(ref, field, d);
+      write_bench_fields(ref, field, d);
       drop_cached_pages(ref);
       drop_cached_pages(field);
       const double write_s = seconds_since(t0);
@@ -202,7 +87,8 @@ int run(const BenchArgs& a) {
       if (a.report) args.insert(args.end(), {"--report", (work / "report").string(), "--width", "512", "--height", "512"});
       if (memory_budget().source.rfind("--max-memory", 0) == 0)
         args.insert(args.begin(), {"--max-memory", std::to_string(memory_budget().bytes)});
-      const ChildRun r = run_self(args, work / "optimize.log");
+      args.insert(args.begin(), self_path());
+      const ChildRun r = run_child(args, work / "optimize.log", "bench-stream");
       if (r.exit_code != 0) {
         std::ifstream log(work / "optimize.log");
         std::cerr << log.rdbuf();

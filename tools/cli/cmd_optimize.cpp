@@ -122,9 +122,17 @@ int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const So
   const std::vector<GridIndex> markers = resolve_markers(streams.ref->grid(), a.markers);
   const std::optional<GridIndex> slice_point = resolve_slice_point(streams.ref->grid(), a.slice_point);
   StreamedOptimizeResult s = run_optimize_streamed(ctx, req);
-  // Every rank holds the same result; rank 0 reports and writes it (docs/mpi.md).
-  const int ranks = globals().ranks->size();
-  if (globals().ranks->rank() != 0) return 0;
+  // Every rank holds the same result; rank 0 reports and writes it (docs/mpi.md), with each
+  // rank's peak memory (each fills its own entry; the maximum over ranks collects them).
+  Ranks& job = *globals().ranks;
+  const int ranks = job.size();
+  std::vector<double> rank_peaks(size_t(ranks), 0.0);
+  if (ranks > 1) {
+    job.agree(nullptr);
+    rank_peaks[size_t(job.rank())] = double(peak_resident_memory());
+    job.max(rank_peaks);
+  }
+  if (job.rank() != 0) return 0;
   const OptimizeResult& result = s.result;
   const auto& d = streams.ref->grid().dims;
   const std::string how = std::string(s.streamed ? "streamed from disk" : "read slab by slab (a field loaded whole)") +
@@ -144,7 +152,10 @@ int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const So
                                 {"passes", s.passes},
                                 {"slabs", s.slabs},
                                 {"slab_slices", s.slab_slices}};
-  if (ranks > 1) stream_json["mpi_ranks"] = ranks;
+  if (ranks > 1) {
+    stream_json["mpi_ranks"] = ranks;
+    stream_json["mpi_peak_rss_bytes"] = std::vector<uint64_t>(rank_peaks.begin(), rank_peaks.end());
+  }
   nlohmann::json j = to_json(result);
   j["stream"] = stream_json;
   json.write(j);
