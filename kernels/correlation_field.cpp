@@ -1,11 +1,13 @@
 // Correlation fields of reference points: the kernel once or twice, then difference and magnitude.
 #include "correlation_field.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
 #include "cancellation.h"
+#include "memory_budget.h"
 
 namespace tfm {
 
@@ -56,6 +58,78 @@ std::vector<float> correlation_field(Context& ctx, const EnsembleView& ens, cons
   }
   if (r.absolute)
     for (float& v : out) v = std::abs(v);
+  return out;
+}
+
+uint64_t correlation_slab_slices(uint32_t members, uint64_t slice_voxels, uint64_t bytes) {
+  const uint64_t per_slice = std::max<uint64_t>(1, uint64_t(members) * slice_voxels * sizeof(float));
+  return std::max<uint64_t>(1, bytes / per_slice);
+}
+
+std::vector<float> correlation_field_streamed(Context& ctx, std::span<VolumeSlabReader* const> members,
+                                              const CorrelationRequest& r, uint64_t slab_slices, uint64_t first_slice,
+                                              uint64_t end_slice, const CorrelationProgress& progress) {
+  if (members.empty()) throw std::invalid_argument("correlation_field_streamed: no members");
+  const uint32_t m_count = static_cast<uint32_t>(members.size());
+  validate_correlation_params(r.params, m_count);
+  const Volume& grid = members.front()->grid();
+  for (VolumeSlabReader* m : members)
+    if (m->grid().dims != grid.dims) throw std::invalid_argument("correlation_field_streamed: members on different grids");
+  const uint64_t slice = members.front()->slice_voxels(), nz = grid.dims[2];
+  if (end_slice == 0) end_slice = nz;
+  if (first_slice > end_slice || end_slice > nz) throw std::invalid_argument("correlation_field_streamed: slices out of range");
+  slab_slices = std::max<uint64_t>(1, slab_slices);
+  // Reads z-slices [z0, z0 + n) of every member into `buffer`, member-major.
+  auto read_members = [&](uint64_t z0, uint64_t n, std::vector<float>& buffer) {
+    buffer.resize(size_t(m_count) * n * slice);
+    for (uint32_t m = 0; m < m_count; ++m) {
+      checkpoint("correlate");
+      members[m]->read_slices(z0, n, buffer.data() + size_t(m) * n * slice);
+    }
+    return EnsembleView{buffer.data(), m_count, n * slice};
+  };
+  // The reference series, from the slices holding the points, checked as correlation_field() does.
+  std::vector<float> buffer;
+  auto series_of = [&](uint64_t point) {
+    if (point >= grid.voxel_count())
+      throw std::invalid_argument("reference voxel " + std::to_string(point) + " is outside the ensemble's " +
+                                  std::to_string(grid.voxel_count()) + " voxels");
+    const EnsembleView one = read_members(point / slice, 1, buffer);
+    check_reference_point(one, point % slice, r.params.measure);
+    return ensemble_series(one, point % slice);
+  };
+  const std::vector<float> first_series = series_of(r.point);
+  std::vector<float> second_series;
+  if (r.point2) second_series = series_of(*r.point2);
+
+  const uint64_t slabs_voxels = (end_slice - first_slice) * slice;
+  check_memory(uint64_t(m_count) * std::min(slab_slices, std::max<uint64_t>(1, end_slice - first_slice)) * slice *
+                       sizeof(float) + slabs_voxels * sizeof(float),
+               grid.name + ": a slab of " + std::to_string(slab_slices) + " z-slices of " + std::to_string(m_count) +
+                   " members and the correlation field");
+  std::vector<float> out(slabs_voxels);
+  CorrelationKernel kernel(ctx);
+  const uint64_t passes = r.point2 ? 2 : 1;
+  for (uint64_t z0 = first_slice; z0 < end_slice; z0 += slab_slices) {
+    const uint64_t n = std::min(slab_slices, end_slice - z0);
+    const EnsembleView slab = read_members(z0, n, buffer);
+    const uint64_t at = (z0 - first_slice) * slice;
+    // Voxels done of all passes over all slabs: the earlier slabs' passes, this slab's earlier pass.
+    auto slab_progress = [&](uint64_t pass) -> CorrelationProgress {
+      return [&, pass](uint64_t done, uint64_t) {
+        checkpoint("correlate");
+        if (progress) progress(passes * at + pass * n * slice + done, passes * slabs_voxels);
+      };
+    };
+    std::vector<float> part = kernel.compute(slab, first_series, r.params, slab_progress(0), r.max_device_bytes);
+    if (r.point2) {
+      const std::vector<float> second = kernel.compute(slab, second_series, r.params, slab_progress(1), r.max_device_bytes);
+      for (size_t i = 0; i < part.size(); ++i) part[i] -= second[i];
+    }
+    if (r.absolute)
+      for (float& v : part) v = std::abs(v);
+    std::copy(part.begin(), part.end(), out.begin() + std::ptrdiff_t(at));
+  }
   return out;
 }
 

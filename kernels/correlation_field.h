@@ -5,11 +5,13 @@
 
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "context.h"
 #include "correlation.h"
 #include "ensemble.h"
+#include "volume_slabs.h"
 
 namespace tfm {
 
@@ -27,6 +29,21 @@ struct CorrelationRequest {
 // `progress` sees voxels done of all voxels (twice the grid with point2).
 std::vector<float> correlation_field(Context& ctx, const EnsembleView& ens, const CorrelationRequest& request,
                                      const CorrelationProgress& progress = {});
+
+// The same field from members read a slab of z-slices at a time (each member a VolumeSlabReader,
+// all on one grid), for the z-slices [first_slice, end_slice) only (a rank's share; end_slice 0:
+// all): the reference points' series come from their own slices first, then each slab of all
+// members is read member-major and its voxels computed. Every voxel's value depends on its series
+// and the reference series alone, so the result is correlation_field()'s bits for those voxels.
+// Host memory: the members' slab (members x slab_slices x slice voxels floats, checked against
+// the memory budget) and the result. Throws as correlation_field() does and as the readers do.
+std::vector<float> correlation_field_streamed(Context& ctx, std::span<VolumeSlabReader* const> members,
+                                              const CorrelationRequest& request, uint64_t slab_slices,
+                                              uint64_t first_slice = 0, uint64_t end_slice = 0,
+                                              const CorrelationProgress& progress = {});
+// Slices per slab for `members` members of `slice_voxels` voxels within `bytes` of host memory
+// (at least 1).
+uint64_t correlation_slab_slices(uint32_t members, uint64_t slice_voxels, uint64_t bytes);
 
 // Throws std::runtime_error "<ensemble>: N member(s); a correlation over members needs at least
 // 3" for an ensemble too small for any measure.

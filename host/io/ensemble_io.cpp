@@ -3,6 +3,7 @@
 #include "ensemble_io.h"
 
 #include <glob.h>
+#include <sys/resource.h>
 
 #include <algorithm>
 #include <limits>
@@ -72,6 +73,80 @@ Ensemble load_ensemble_members(const std::vector<std::string>& specs, const Volu
   Ensemble e;
   for (const auto& spec : specs) add_member(e, load_volume(spec, options), specs.size());
   if (!specs.empty()) e.grid.name = specs.front() + " .. " + specs.back();
+  return e;
+}
+
+namespace {
+
+// Every member open at once: one file descriptor each (more for NetCDF-4). The soft limit (often
+// 1024) is raised to the hard one, which Linux sets far higher.
+void raise_open_file_limit() {
+  rlimit limit{};
+  if (::getrlimit(RLIMIT_NOFILE, &limit) == 0 && limit.rlim_cur < limit.rlim_max) {
+    limit.rlim_cur = limit.rlim_max;
+    ::setrlimit(RLIMIT_NOFILE, &limit);
+  }
+}
+
+void add_reader(EnsembleSlabs& e, std::unique_ptr<VolumeSlabReader> reader, const std::string& name) {
+  if (!e.members.empty() && reader->grid().dims != e.grid().dims)
+    throw std::runtime_error("ensemble members are on different grids: " + e.member_names.front() + " is " +
+                             grid_text(e.grid()) + ", " + name + " is " + grid_text(reader->grid()));
+  e.members.push_back(std::move(reader));
+  e.member_names.push_back(name);
+}
+
+}  // namespace
+
+bool EnsembleSlabs::streams() const {
+  for (const auto& m : members)
+    if (!m->streams()) return false;
+  return true;
+}
+
+// The member reader of `spec`, or nullptr when only streaming readers are wanted and it cannot stream.
+static std::unique_ptr<VolumeSlabReader> open_member(const std::string& spec, const VolumeOptions& options, bool streaming_only) {
+  return streaming_only ? open_volume_slabs(spec, options) : open_volume_slabs_or_load(spec, options);
+}
+
+EnsembleSlabs open_ensemble_slabs(const std::string& spec, const VolumeOptions& defaults, bool streaming_only) {
+  const VolumeSpec s = parse_volume_spec(spec, defaults);
+  const std::string file = s.path.string();
+  if (!std::filesystem::exists(s.path)) throw std::runtime_error(file + ": no such file");
+  const VolumeFormat* format = find_volume_format(s.path);
+  if (!format) throw std::runtime_error(unknown_volume_format_message(s.path));
+  if (!format->has_members || !format->count_members)
+    throw std::runtime_error(file + ": a " + format->title + " file has no member axis (ensembles come from " +
+                             volume_format_titles(&VolumeFormat::has_members) + " files, or one file per member with " + parameter("members") + ")");
+  if (s.options.member_index)
+    throw std::runtime_error(file + ": ',member=N' / " + parameter("member") + " picks one member; an ensemble uses them all");
+  const uint64_t count = format->count_members(s.path, s.options);
+  if (count > std::numeric_limits<uint32_t>::max())
+    throw std::runtime_error(file + ": " + std::to_string(count) + " members are more than tfmatch handles");
+  raise_open_file_limit();
+  EnsembleSlabs e;
+  for (uint64_t m = 0; m < count; ++m) {
+    VolumeOptions o = s.options;
+    o.member_index = m;
+    std::unique_ptr<VolumeSlabReader> reader = open_member(file, o, streaming_only);
+    if (!reader) return {};
+    add_reader(e, std::move(reader), file + " member " + std::to_string(m));
+  }
+  e.name = file + (s.options.variable.empty() ? "" : ":" + s.options.variable);
+  return e;
+}
+
+EnsembleSlabs open_ensemble_member_slabs(const std::vector<std::string>& specs, const VolumeOptions& options,
+                                         bool streaming_only) {
+  if (specs.size() > std::numeric_limits<uint32_t>::max()) throw std::runtime_error("too many member files");
+  raise_open_file_limit();
+  EnsembleSlabs e;
+  for (const auto& spec : specs) {
+    std::unique_ptr<VolumeSlabReader> reader = open_member(spec, options, streaming_only);
+    if (!reader) return {};
+    add_reader(e, std::move(reader), spec);
+  }
+  if (!specs.empty()) e.name = specs.front() + " .. " + specs.back();
   return e;
 }
 

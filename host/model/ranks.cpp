@@ -19,6 +19,7 @@ class SingleRank final : public Ranks {
   void min(std::span<double>) override {}
   void max(std::span<double>) override {}
   void sum(std::span<double>) override {}
+  std::vector<float> gather(std::span<const float> values) override { return {values.begin(), values.end()}; }
 };
 
 }  // namespace

@@ -17,6 +17,7 @@
 #include <stdexcept>
 #include <string>
 #include <utility>
+#include <vector>
 
 namespace tfm {
 
@@ -51,6 +52,8 @@ class Ranks {
   // Sums of doubles. Not associative in general: callers pass values to which at most one rank
   // contributes a nonzero (x + 0 = x exactly), so the result is that rank's bits.
   virtual void sum(std::span<double> values) = 0;
+  // Every rank's values one after the other in rank order, on rank 0 (empty on the others).
+  virtual std::vector<float> gather(std::span<const float> values) = 0;
 };
 
 // This process alone: rank 0 of 1; collectives leave the values as they are.

@@ -96,6 +96,25 @@ void MpiRanks::sum(std::span<double> values) {
         "MPI_Allreduce");
 }
 
+std::vector<float> MpiRanks::gather(std::span<const float> values) {
+  // Counts first, then the values (MPI_Gatherv counts are ints: at most 2^31 - 1 floats a rank).
+  if (values.size() > size_t(INT_MAX)) throw std::runtime_error("MPI: a rank's part exceeds 2^31 values");
+  const int mine = int(values.size());
+  std::vector<int> counts(rank_ == 0 ? size_t(size_) : 0), offsets;
+  check(MPI_Gather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD), "MPI_Gather");
+  std::vector<float> all;
+  if (rank_ == 0) {
+    size_t total = 0;
+    for (int c : counts) offsets.push_back(int(total)), total += size_t(c);
+    if (total > size_t(INT_MAX)) throw std::runtime_error("MPI: the gathered field exceeds 2^31 values");
+    all.resize(total);
+  }
+  check(MPI_Gatherv(values.data(), mine, MPI_FLOAT, all.data(), counts.data(), offsets.data(), MPI_FLOAT, 0,
+                    MPI_COMM_WORLD),
+        "MPI_Gatherv");
+  return all;
+}
+
 void MpiRanks::abort(int exit_code) {
   MPI_Abort(MPI_COMM_WORLD, exit_code);
   std::_Exit(exit_code);

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -16,6 +17,7 @@
 
 #include "correlation.h"
 #include "correlation_cpu.h"
+#include "correlation_field.h"
 #include "correlation_expected.h"
 #include "correlation_layout.h"
 #include "selftest_support.h"
@@ -151,6 +153,48 @@ TEST_F(CorrelationKernelGpu, StaysWithinTheDeviceBudgetAndReportsProgress) {
   ASSERT_GT(done.size(), 10u);
   for (size_t i = 1; i < done.size(); ++i) EXPECT_GT(done[i], done[i - 1]);
   EXPECT_EQ(done.back(), 1000u);
+}
+
+// The field from members read slab by slab (correlation_field_streamed), for any slab size and any
+// share of the z-slices (a rank's), is the whole ensemble's field bit for bit there, also for the
+// difference of two points and its magnitude; a reference point without data is refused as by
+// correlation_field().
+TEST_F(CorrelationKernelGpu, StreamedSlabsGiveTheWholeEnsemblesBits) {
+  const std::array<uint64_t, 3> dims{7, 5, 6};
+  const uint32_t members = 9;
+  const CorrelationEnsemble e = correlation_test_ensemble(members, 7 * 5 * 6, 21);
+  std::vector<std::unique_ptr<VolumeSlabReader>> owned;
+  std::vector<VolumeSlabReader*> readers;
+  for (uint32_t m = 0; m < members; ++m) {
+    Volume v;
+    v.dims = dims;
+    v.values.assign(e.values.begin() + std::ptrdiff_t(m * e.voxels), e.values.begin() + std::ptrdiff_t((m + 1) * e.voxels));
+    owned.push_back(slabs_in_memory(std::move(v)));
+    readers.push_back(owned.back().get());
+  }
+  for (const CorrelationParams& params : kMeasures) {
+    SCOPED_TRACE(correlation_measure_name(params.measure));
+    for (const bool difference : {false, true}) {
+      CorrelationRequest r;
+      r.params = params;
+      r.point = 2;  // a series with ties
+      if (difference) r.point2 = 100, r.absolute = true;
+      const std::vector<float> whole = correlation_field(ctx(), e.view(), r);
+      for (uint64_t slab : {1u, 2u, 6u})
+        for (auto [first, end] : {std::pair<uint64_t, uint64_t>{0, 6}, {2, 5}, {5, 6}}) {
+          SCOPED_TRACE("slabs of " + std::to_string(slab) + ", slices " + std::to_string(first) + ".." + std::to_string(end) +
+                       (difference ? ", |difference|" : ""));
+          const std::vector<float> part = correlation_field_streamed(ctx(), readers, r, slab, first, end);
+          ASSERT_EQ(part.size(), (end - first) * 35);
+          EXPECT_EQ(0, std::memcmp(part.data(), whole.data() + first * 35, part.size() * sizeof(float)));
+        }
+    }
+  }
+  CorrelationRequest no_data;
+  no_data.point = 5;  // a member is NaN there
+  EXPECT_THROW(correlation_field_streamed(ctx(), readers, no_data, 2), std::invalid_argument);
+  no_data.point = 7 * 5 * 6;  // past the grid
+  EXPECT_THROW(correlation_field_streamed(ctx(), readers, no_data, 2), std::invalid_argument);
 }
 
 // A NaN in the reference series: NaN everywhere, without touching the device.

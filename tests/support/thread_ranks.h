@@ -72,6 +72,18 @@ class ThreadRanks final : public Ranks {
     reduce(shared_->doubles, values, [](double a, double b) { return a + b; });
   }
 
+  std::vector<float> gather(std::span<const float> values) override {
+    std::vector<double> mine(values.begin(), values.end());
+    shared_->doubles[size_t(rank_)] = mine;
+    shared_->barrier.arrive_and_wait();
+    std::vector<float> all;
+    if (rank_ == 0)
+      for (int r = 0; r < size(); ++r)
+        for (double v : shared_->doubles[size_t(r)]) all.push_back(float(v));
+    shared_->barrier.arrive_and_wait();
+    return all;
+  }
+
   // Runs body(ranks) on R threads, one ThreadRanks each, and waits for all.
   static void run(int ranks, const std::function<void(ThreadRanks&)>& body) {
     auto shared = std::make_shared<Shared>(ranks);

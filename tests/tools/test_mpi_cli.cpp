@@ -1,5 +1,6 @@
-// `mpirun -n R tfmatch optimize --stream on` as a user runs it (docs/mpi.md): the TF file is
-// byte-identical for R = 1, 2, 3, 4 and to a run without a launcher; a rank that fails (rank 1
+// `mpirun -n R tfmatch optimize --stream on` and `correlate` as a user runs them (docs/mpi.md): the
+// TF file and the correlation field are byte-identical for R = 1, 2, 3, 4 and to a run without a
+// launcher; a rank that fails (rank 1
 // given a device that does not exist) stops every rank with its message, a non-zero exit and no
 // output; commands that do not split over ranks say so. Skipped, saying why, where tfmatch was
 // built without MPI.
@@ -90,6 +91,29 @@ TEST_F(MpiCli, TfBytesAreTheSameForEveryRankCount) {
 #endif
 }
 
+// correlate: each rank its z-slices of every member, gathered on rank 0: the same field bytes as
+// one process loading the members whole, for 1 to 4 ranks.
+TEST_F(MpiCli, CorrelationFieldBytesAreTheSameForEveryRankCount) {
+#ifdef TFMATCH_MPIEXEC
+  std::string members;
+  for (int m = 0; m < 7; ++m)
+    members += " " + slab_test::write_raw(dir.path(), "member" + std::to_string(m), slab_test::test_field({37, 29, 23}, m))
+                         .string();
+  const std::string args = "correlate --members" + members + " --point 4,5,6 --measure spearman --out ";
+  const auto plain = test::run_cli(args + (dir / "plain.raw").string() + " --stream off");
+  ASSERT_EQ(plain.exit_code, 0) << plain.output;
+  const std::string expected = read_text(dir / "plain.raw");
+  ASSERT_EQ(expected.size(), 37u * 29 * 23 * 4);
+  for (int ranks : {1, 2, 3, 4}) {
+    SCOPED_TRACE(std::to_string(ranks) + " ranks");
+    const std::string out = "ranks" + std::to_string(ranks) + ".raw";
+    const auto r = run_mpi(ranks, args + (dir / out).string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_EQ(read_text(dir / out), expected);
+  }
+#endif
+}
+
 TEST_F(MpiCli, AFailingRankStopsEveryRankAndNothingIsWritten) {
 #ifdef TFMATCH_MPIEXEC
   // Rank 1 takes the second device of the list, which does not exist.
@@ -114,7 +138,8 @@ TEST_F(MpiCli, CommandsThatDoNotSplitSaySo) {
 #ifdef TFMATCH_MPIEXEC
   const auto r = run_mpi(2, "render --ref " + ref_file + " --out " + (dir / "r.png").string());
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_NE(r.output.find("only `optimize --stream on` is split over ranks"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("only `optimize --stream on` and `correlate` are split over ranks"), std::string::npos)
+      << r.output;
   const auto off = run_mpi(2, args("off.json", "off"));
   EXPECT_EQ(off.exit_code, 2) << off.output;
   EXPECT_NE(off.output.find("--stream on or auto"), std::string::npos) << off.output;

@@ -9,6 +9,8 @@
 #include "atomic_file.h"
 #include "cli.h"
 #include "correlation_field.h"
+#include "memory_budget.h"
+#include "ranks.h"
 #include "ensemble_io.h"
 #include "grid_point.h"
 #include "input_options.h"
@@ -28,12 +30,128 @@ struct CorrelateArgs {
   uint32_t bins = 16, k = 3;
   bool absolute = false;
   std::string member_dim;
+  std::string stream = "auto";  // read the members slab by slab (docs/ensembles.md, docs/mpi.md)
   VolumeFlags volume_flags;  // raw layout, --var, --time
 };
 
 std::string field_name(const CorrelateArgs& a) {
   std::string n = a.measure + (a.point2.empty() ? "" : "_difference");
   return a.absolute ? "abs_" + n : n;
+}
+
+// Writes the field (VTI or raw), the JSON summary and the printed summary; `extra` joins the JSON.
+void write_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch& outputs, const Volume& field,
+                 const Volume& grid, const std::string& source, uint32_t members, const CorrelationParams& params,
+                 const GridIndex& p1, const std::optional<GridIndex>& p2, const std::string& device, double load_s,
+                 double compute_s, const nlohmann::json& extra) {
+  const bool vti = has_extension(a.out, ".vti");
+  if (vti) write_vti(a.out, field, field.name);
+  else write_raw_float32(a.out, field);
+
+  uint64_t nan = 0;
+  double lo = INFINITY, hi = -INFINITY;
+  for (float v : field.values) {
+    if (std::isnan(v)) ++nan;
+    else lo = std::min(lo, double(v)), hi = std::max(hi, double(v));
+  }
+  nlohmann::json j = {{"ensemble", source},
+                      {"members", members},
+                      {"grid", grid.dims},
+                      {"measure", correlation_measure_name(params.measure)},
+                      {"strategy", CorrelationKernel::strategy(params, members)},
+                      {"point", p1},
+                      {"point_description", describe_grid_point(grid, p1)},
+                      {"absolute", a.absolute},
+                      {"nan_voxels", nan},
+                      {"min", nan == field.voxel_count() ? nlohmann::json() : nlohmann::json(lo)},
+                      {"max", nan == field.voxel_count() ? nlohmann::json() : nlohmann::json(hi)},
+                      {"out", a.out},
+                      {"device", device},
+                      {"seconds", {{"load", load_s}, {"compute", compute_s}}}};
+  if (params.measure == CorrelationMeasure::MiBinned) j["bins"] = params.bins;
+  if (params.measure == CorrelationMeasure::MiKraskov || params.measure == CorrelationMeasure::MiCoefficient) j["k"] = params.k;
+  if (p2) j["point2"] = *p2, j["point2_description"] = describe_grid_point(grid, *p2);
+  for (const auto& [key, value] : extra.items()) j[key] = value;
+  json.write(j);
+  outputs.commit();
+  if (!globals().quiet) {
+    const auto& d = grid.dims;
+    std::cout << "ensemble " << source << ": " << members << " members on " << d[0] << "x" << d[1] << "x" << d[2]
+              << "\n  reference point " << describe_grid_point(grid, p1) << "\n";
+    if (p2) std::cout << "  minus point     " << describe_grid_point(grid, *p2) << "\n";
+    std::cout << "  " << correlation_measure_name(params.measure) << " (" << CorrelationKernel::strategy(params, members)
+              << ") on " << device << " in " << compute_s << " s";
+    if (nan < field.voxel_count()) std::cout << ": range [" << lo << ", " << hi << "]";
+    if (nan > 0) std::cout << ", " << nan << " voxels NaN (no data in some member)";
+    std::cout << "\n  wrote " << a.out << (vti ? " (VTK ImageData, the source's origin and spacing)" : " (float32 little-endian, x fastest)")
+              << "\n";
+  }
+}
+
+// The field from members read slab by slab (correlation_field_streamed): each rank of an MPI job
+// its own z-slices (docs/mpi.md), gathered on rank 0, which writes it.
+int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const JsonOutput& json, OutputBatch& outputs,
+                 StartingContext& starting, EnsembleSlabs& slabs, std::chrono::steady_clock::time_point t0) {
+  const Volume& grid = slabs.grid();
+  const std::string& source = slabs.name;
+  const uint32_t members = static_cast<uint32_t>(slabs.members.size());
+  if (members < 3)
+    throw std::runtime_error(source + ": " + std::to_string(members) +
+                             " member(s); a correlation over members needs at least 3");
+  try {
+    validate_correlation_params(params, members);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(source + ": " + e.what());
+  }
+  CorrelationRequest request;
+  request.params = params;
+  request.absolute = a.absolute;
+  const GridIndex p1 = resolve_grid_point(grid, a.point, "--point");
+  request.point = linear_index(grid, p1);
+  std::optional<GridIndex> p2;
+  if (!a.point2.empty()) {
+    p2 = resolve_grid_point(grid, a.point2, "--point2");
+    request.point2 = linear_index(grid, *p2);
+  }
+  const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  auto ctx = starting.get();
+  Ranks& ranks = *globals().ranks;
+  const auto [first, end] = rank_slices(grid.dims[2], ranks.rank(), ranks.size());
+  const uint64_t slice = grid.dims[0] * grid.dims[1];
+  // A slab of every member within a quarter of what the budget leaves.
+  const uint64_t held = resident_memory(), budget = memory_budget().bytes;
+  const uint64_t slab = std::min(std::max<uint64_t>(1, end - first),
+                                 correlation_slab_slices(members, slice, (budget > held ? budget - held : 0) / 4));
+  std::vector<VolumeSlabReader*> readers;
+  for (const auto& m : slabs.members) readers.push_back(m.get());
+  const auto t1 = std::chrono::steady_clock::now();
+  std::vector<float> part;
+  std::exception_ptr failed;
+  try {
+    Progress progress(std::string(correlation_measure_name(params.measure)) + " over " + std::to_string(members) +
+                          " members, slab by slab",
+                      (end - first) * slice * (p2 ? 2 : 1));
+    part = correlation_field_streamed(*ctx, readers, request, slab, first, end,
+                                      [&](uint64_t done, uint64_t) { progress.update(done); });
+  } catch (const std::invalid_argument& e) {  // a reference point that cannot be one
+    failed = std::make_exception_ptr(std::runtime_error(source + ": " + e.what()));
+  } catch (...) {
+    failed = std::current_exception();
+  }
+  ranks.agree(failed);  // every rank computed its share, or every rank stops here
+  std::vector<float> all = ranks.gather(part);
+  const double compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  if (ranks.rank() != 0) return 0;
+  Volume field = empty_like(grid);
+  field.name = field_name(a);
+  field.values = std::move(all);
+  nlohmann::json stream = {{"streamed", slabs.streams()},
+                           {"slab_slices", slab},
+                           {"slabs", (end - first + slab - 1) / slab}};
+  if (ranks.size() > 1) stream["mpi_ranks"] = ranks.size();
+  write_field(a, json, outputs, field, grid, source, members, params, p1, p2, ctx->device_name(), load_s, compute_s,
+              {{"stream", stream}});
+  return 0;
 }
 
 int run(const CorrelateArgs& a) {
@@ -60,8 +178,28 @@ int run(const CorrelateArgs& a) {
 
   VolumeOptions vo = a.volume_flags.options();
   vo.member_dim = a.member_dim;
+  const bool distributed = globals().ranks->size() > 1;
+  if (distributed && a.stream == "off")
+    throw CLI::ValidationError("--stream", "under MPI (" + std::to_string(globals().ranks->size()) +
+                                               " ranks) correlate reads the members slab by slab: --stream on or auto");
   StartingContext starting;  // the device starts while the members are read
   const auto t0 = std::chrono::steady_clock::now();
+  if (a.stream != "off") {
+    // Slab by slab: asked for, under MPI, or (auto) when the members would take over a quarter of
+    // the memory budget and every member's format streams.
+    const bool must = a.stream == "on" || distributed;
+    EnsembleSlabs slabs = a.ensemble.empty() ? open_ensemble_member_slabs(member_files, vo, !must)
+                                             : open_ensemble_slabs(a.ensemble, vo, !must);
+    if (!slabs.members.empty()) {
+      const uint64_t bytes = uint64_t(slabs.members.size()) * slabs.grid().voxel_count() * sizeof(float);
+      if (must || bytes > memory_budget().bytes / 4) {
+        if (!must && !globals().quiet)
+          std::cerr << "tfmatch: reading the members slab by slab (" << format_bytes(bytes) << " as float32; memory budget "
+                    << format_bytes(memory_budget().bytes) << ", " << memory_budget().source << ")\n";
+        return run_streamed(a, params, json, outputs, starting, slabs, t0);
+      }
+    }
+  }
   const Ensemble ens = a.ensemble.empty() ? load_ensemble_members(member_files, vo) : load_ensemble(a.ensemble, vo);
   const std::string source = ens.grid.name;
   check_correlation_members(ens);
@@ -101,47 +239,8 @@ int run(const CorrelateArgs& a) {
   }
   const double compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
 
-  const bool vti = has_extension(a.out, ".vti");
-  if (vti) write_vti(a.out, field, field.name);
-  else write_raw_float32(a.out, field);
-
-  uint64_t nan = 0;
-  double lo = INFINITY, hi = -INFINITY;
-  for (float v : field.values) {
-    if (std::isnan(v)) ++nan;
-    else lo = std::min(lo, double(v)), hi = std::max(hi, double(v));
-  }
-  nlohmann::json j = {{"ensemble", source},
-                      {"members", ens.member_count},
-                      {"grid", ens.grid.dims},
-                      {"measure", correlation_measure_name(params.measure)},
-                      {"strategy", CorrelationKernel::strategy(params, ens.member_count)},
-                      {"point", p1},
-                      {"point_description", describe_grid_point(ens.grid, p1)},
-                      {"absolute", a.absolute},
-                      {"nan_voxels", nan},
-                      {"min", nan == field.voxel_count() ? nlohmann::json() : nlohmann::json(lo)},
-                      {"max", nan == field.voxel_count() ? nlohmann::json() : nlohmann::json(hi)},
-                      {"out", a.out},
-                      {"device", ctx->device_name()},
-                      {"seconds", {{"load", load_s}, {"compute", compute_s}}}};
-  if (params.measure == CorrelationMeasure::MiBinned) j["bins"] = params.bins;
-  if (params.measure == CorrelationMeasure::MiKraskov || params.measure == CorrelationMeasure::MiCoefficient) j["k"] = params.k;
-  if (p2) j["point2"] = *p2, j["point2_description"] = describe_grid_point(ens.grid, *p2);
-  json.write(j);
-  outputs.commit();
-  if (!globals().quiet) {
-    const auto& d = ens.grid.dims;
-    std::cout << "ensemble " << source << ": " << ens.member_count << " members on " << d[0] << "x" << d[1] << "x" << d[2]
-              << "\n  reference point " << describe_grid_point(ens.grid, p1) << "\n";
-    if (p2) std::cout << "  minus point     " << describe_grid_point(ens.grid, *p2) << "\n";
-    std::cout << "  " << correlation_measure_name(params.measure) << " (" << CorrelationKernel::strategy(params, ens.member_count)
-              << ") on " << ctx->device_name() << " in " << compute_s << " s";
-    if (nan < field.voxel_count()) std::cout << ": range [" << lo << ", " << hi << "]";
-    if (nan > 0) std::cout << ", " << nan << " voxels NaN (no data in some member)";
-    std::cout << "\n  wrote " << a.out << (vti ? " (VTK ImageData, the source's origin and spacing)" : " (float32 little-endian, x fastest)")
-              << "\n";
-  }
+  write_field(a, json, outputs, field, ens.grid, source, ens.member_count, params, p1, p2, ctx->device_name(), load_s,
+              compute_s, {});
   return 0;
 }
 
@@ -172,6 +271,10 @@ CommandRegistration reg(23, [](CLI::App& app) {
       ->required()->check(output_format(field_format()));
   add_json_option(sub, args->json, "what was computed");
   sub->add_option("--member-dim", args->member_dim, "NetCDF: the name of the member dimension");
+  sub->add_option("--stream", args->stream, "Read the members slab by slab of z-slices, so memory does not grow with "
+                  "the ensemble: on, off, or auto (when the members would take over a quarter of the memory budget "
+                  "and every member's format streams; always under MPI)")
+      ->check(CLI::IsMember({"auto", "on", "off"}))->capture_default_str();
   add_volume_flags(sub, args->volume_flags, FieldSelectors::VarTime);
   sub->callback([args] { exit_code() = run(*args); });
 });

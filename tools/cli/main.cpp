@@ -305,14 +305,14 @@ int main(int argc, char** argv) {
   auto& commands = registered_commands();
   std::sort(commands.begin(), commands.end(), [](auto& a, auto& b) { return a.first < b.first; });
   for (auto& [order, setup] : commands) setup(app);
-  // Under MPI only the streamed optimize is split over ranks; every other command runs in one
-  // process (docs/mpi.md).
+  // Under MPI only the streamed optimize and correlate are split over ranks; every other command
+  // runs in one process (docs/mpi.md).
   if (globals().ranks->size() > 1)
     for (CLI::App* sub : app.get_subcommands({}))
-      if (sub->get_name() != "optimize")
+      if (sub->get_name() != "optimize" && sub->get_name() != "correlate")
         sub->preparse_callback([name = sub->get_name()](size_t) {
           throw CLI::ValidationError(name, "runs in one process: under MPI (" + std::to_string(globals().ranks->size()) +
-                                               " ranks) only `optimize --stream on` is split over ranks (docs/mpi.md)");
+                                               " ranks) only `optimize --stream on` and `correlate` are split over ranks (docs/mpi.md)");
         });
   std::exception_ptr failure;
   try {
