@@ -582,7 +582,10 @@ std::string vti_bytes(const std::vector<std::pair<std::string, const Volume*>>& 
     fd << "    </FieldData>\n";
   }
   std::ostringstream xml;
-  const std::string extent = "0 " + std::to_string(d[0] - 1) + " 0 " + std::to_string(d[1] - 1) + " 0 " + std::to_string(d[2] - 1);
+  const auto& o = options.extent_offset;
+  std::string extent;
+  for (int k = 0; k < 3; ++k)
+    extent += (k ? " " : "") + std::to_string(o[size_t(k)]) + " " + std::to_string(o[size_t(k)] + d[size_t(k)] - 1);
   xml << "<?xml version=\"1.0\"?>\n<VTKFile type=\"ImageData\" version=\"1.0\" byte_order=\"LittleEndian\" "
          "header_type=\"UInt64\""
       << (options.compress ? " compressor=\"vtkZLibDataCompressor\"" : "") << ">\n"
@@ -649,6 +652,33 @@ void write_vti(const std::filesystem::path& path, const std::vector<std::pair<st
 void write_vti(const std::filesystem::path& path, const Volume& volume, const std::string& array_name,
                const VtiWriteOptions& options) {
   write_vti(path, {{array_name, &volume}}, options);
+}
+
+void write_pvti(const std::filesystem::path& path, const Volume& whole, const std::string& array_name,
+                const std::vector<PvtiPiece>& pieces) {
+  const auto& d = whole.dims;
+  auto extent = [&](uint64_t z0, uint64_t z1) {
+    return "0 " + std::to_string(d[0] - 1) + " 0 " + std::to_string(d[1] - 1) + " " + std::to_string(z0) + " " +
+           std::to_string(z1);
+  };
+  std::ostringstream xml;
+  xml << "<?xml version=\"1.0\"?>\n<VTKFile type=\"PImageData\" version=\"1.0\" byte_order=\"LittleEndian\" "
+         "header_type=\"UInt64\">\n"
+      << "  <PImageData WholeExtent=\"" << extent(0, d[2] - 1) << "\" GhostLevel=\"0\" Origin=\""
+      << format_double(whole.origin[0]) << " " << format_double(whole.origin[1]) << " " << format_double(whole.origin[2])
+      << "\" Spacing=\"" << format_double(whole.spacing[0]) << " " << format_double(whole.spacing[1]) << " "
+      << format_double(whole.spacing[2]) << "\">\n"
+      << "    <PPointData Scalars=\"" << xml_escape(array_name) << "\">\n"
+      << "      <PDataArray type=\"Float32\" Name=\"" << xml_escape(array_name) << "\" NumberOfComponents=\"1\"/>\n"
+      << "    </PPointData>\n";
+  for (const PvtiPiece& p : pieces) {
+    if (p.z_last < p.z_first || p.z_last >= d[2])
+      throw std::invalid_argument(path.string() + ": a piece's slices " + std::to_string(p.z_first) + ".." +
+                                  std::to_string(p.z_last) + " are outside the grid's " + std::to_string(d[2]));
+    xml << "    <Piece Extent=\"" << extent(p.z_first, p.z_last) << "\" Source=\"" << xml_escape(p.source) << "\"/>\n";
+  }
+  xml << "  </PImageData>\n</VTKFile>\n";
+  write_file_atomically(path, xml.str());
 }
 
 }  // namespace tfm

@@ -2,6 +2,8 @@
 // load_volume() (host/volume_vti.cpp).
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <utility>
@@ -14,6 +16,9 @@ namespace tfm {
 
 struct VtiWriteOptions {
   bool compress = true;  // zlib (vtkZLibDataCompressor, 32 KiB blocks), else raw
+  // The index of the volume's first voxel in a larger grid whose origin the volume carries: a piece
+  // of parallel image data (write_pvti) says its extent in the whole grid's indices.
+  std::array<uint64_t, 3> extent_offset{0, 0, 0};
 };
 
 // Writes the volumes as Float32 point-data arrays of one ImageData (appended raw data, UInt64
@@ -27,5 +32,17 @@ std::string vti_bytes(const std::vector<std::pair<std::string, const Volume*>>& 
                       const VtiWriteOptions& options = {});
 void write_vti(const std::filesystem::path& path, const Volume& volume, const std::string& array_name,
                const VtiWriteOptions& options = {});
+
+// ParaView's parallel image data: a .pvti file naming the pieces (.vti files written by
+// write_vti with their extent_offset, e.g. one per MPI rank) that together cover `whole` (its
+// dims, origin and spacing; no values), one Float32 point array `array_name`. Each piece is z-slices
+// [z_first, z_last] (inclusive; neighbouring pieces share a slice, so no cell is missing) and its
+// `source` is relative to the .pvti's directory. Written atomically.
+struct PvtiPiece {
+  uint64_t z_first = 0, z_last = 0;
+  std::string source;
+};
+void write_pvti(const std::filesystem::path& path, const Volume& whole, const std::string& array_name,
+                const std::vector<PvtiPiece>& pieces);
 
 }  // namespace tfm

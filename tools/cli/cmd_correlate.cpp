@@ -1,8 +1,11 @@
 // `tfmatch correlate`: the correlation field of an ensemble for a reference point (or the
 // difference of two points' fields), written as a field that `optimize`, `render` and `residual`
 // read like any other.
+#include <array>
 #include <chrono>
+#include <filesystem>
 #include <iostream>
+#include <span>
 
 #include <nlohmann/json.hpp>
 
@@ -34,26 +37,43 @@ struct CorrelateArgs {
   VolumeFlags volume_flags;  // raw layout, --var, --time
 };
 
+// .vti, .raw, or ParaView's parallel image data: a .pvti and a .vti piece per MPI rank.
+const OutputFormat& correlation_output_format() {
+  static const OutputFormat f{{".vti", ".raw", ".pvti"},
+                              "field (.vti VTK ImageData, .raw float32, or .pvti ParaView parallel image data)"};
+  return f;
+}
+
 std::string field_name(const CorrelateArgs& a) {
   std::string n = a.measure + (a.point2.empty() ? "" : "_difference");
   return a.absolute ? "abs_" + n : n;
 }
 
-// Writes the field (VTI or raw), the JSON summary and the printed summary; `extra` joins the JSON.
-void write_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch& outputs, const Volume& field,
-                 const Volume& grid, const std::string& source, uint32_t members, const CorrelationParams& params,
-                 const GridIndex& p1, const std::optional<GridIndex>& p2, const std::string& device, double load_s,
-                 double compute_s, const nlohmann::json& extra) {
-  const bool vti = has_extension(a.out, ".vti");
-  if (vti) write_vti(a.out, field, field.name);
-  else write_raw_float32(a.out, field);
-
-  uint64_t nan = 0;
+// What the summary says of a field's values.
+struct FieldStats {
+  uint64_t voxels = 0, nan = 0;
   double lo = INFINITY, hi = -INFINITY;
-  for (float v : field.values) {
-    if (std::isnan(v)) ++nan;
-    else lo = std::min(lo, double(v)), hi = std::max(hi, double(v));
+  void add(std::span<const float> values) {
+    voxels += values.size();
+    for (float v : values) {
+      if (std::isnan(v)) ++nan;
+      else lo = std::min(lo, double(v)), hi = std::max(hi, double(v));
+    }
   }
+};
+
+// The JSON summary and the printed summary of a field written to a.out; `extra` joins the JSON.
+void summarize_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch& outputs, const FieldStats& stats,
+                     const Volume& grid, const std::string& source, uint32_t members, const CorrelationParams& params,
+                     const GridIndex& p1, const std::optional<GridIndex>& p2, const std::string& device, double load_s,
+                     double compute_s, const nlohmann::json& extra) {
+  const bool vti = has_extension(a.out, ".vti"), pvti = has_extension(a.out, ".pvti");
+  const uint64_t nan = stats.nan;
+  const double lo = stats.lo, hi = stats.hi;
+  struct {
+    uint64_t voxel_count() const { return voxels; }
+    uint64_t voxels;
+  } field{stats.voxels};
   nlohmann::json j = {{"ensemble", source},
                       {"members", members},
                       {"grid", grid.dims},
@@ -83,13 +103,98 @@ void write_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch& ou
               << ") on " << device << " in " << compute_s << " s";
     if (nan < field.voxel_count()) std::cout << ": range [" << lo << ", " << hi << "]";
     if (nan > 0) std::cout << ", " << nan << " voxels NaN (no data in some member)";
-    std::cout << "\n  wrote " << a.out << (vti ? " (VTK ImageData, the source's origin and spacing)" : " (float32 little-endian, x fastest)")
+    std::cout << "\n  wrote " << a.out
+              << (pvti  ? " (ParaView parallel image data: one .vti piece per rank, the source's origin and spacing)"
+                  : vti ? " (VTK ImageData, the source's origin and spacing)"
+                        : " (float32 little-endian, x fastest)")
               << "\n";
   }
 }
 
 // The field from members read slab by slab (correlation_field_streamed): each rank of an MPI job
 // its own z-slices (docs/mpi.md), gathered on rank 0, which writes it.
+// The pieces of a .pvti: <dir>/<stem>/<stem>_<rank>.vti beside <dir>/<stem>.pvti.
+std::string piece_source(const std::filesystem::path& out, int rank) {
+  const std::string stem = out.stem().string();
+  return stem + "/" + stem + "_" + std::to_string(rank) + ".vti";
+}
+
+// ParaView's parallel image data (write_pvti): every rank writes its piece, z-slices [first, end)
+// and the next rank's first slice (`values` holds them: slices [first, computed_end)), then rank 0
+// the .pvti naming every rank's piece. Collective (ranks.h). The files are staged in `outputs`:
+// the other ranks commit their piece once every rank has written, rank 0 everything with the
+// summary; a failure anywhere leaves none of them (and rank 0 removes the pieces' directory).
+void write_pieces(const CorrelateArgs& a, std::span<const float> values, const Volume& grid, const std::string& name,
+                  Ranks& ranks, OutputBatch& outputs, uint64_t first, uint64_t end, uint64_t computed_end) {
+  namespace fs = std::filesystem;
+  const fs::path out = a.out;
+  const fs::path dir = out.parent_path() / out.stem();
+  struct EmptyDirectory {  // rank 0's: removed again unless the pieces were written
+    fs::path path;
+    bool keep = false;
+    ~EmptyDirectory() {
+      std::error_code ec;
+      if (!keep && !path.empty()) fs::remove(path, ec);  // only when empty
+    }
+  } made;
+  std::exception_ptr failed;
+  if (ranks.rank() == 0) {
+    try {
+      if (!fs::exists(dir)) made.path = dir;
+      fs::create_directories(dir);
+    } catch (...) {
+      failed = std::current_exception();
+    }
+  }
+  ranks.agree(failed);
+  try {
+    if (first < end) {
+      Volume piece = empty_like(grid);
+      piece.dims[2] = computed_end - first;
+      piece.values.assign(values.begin(), values.end());
+      VtiWriteOptions options;
+      options.extent_offset = {0, 0, first};
+      write_vti(out.parent_path() / piece_source(out, ranks.rank()), piece, name, options);
+    }
+  } catch (...) {
+    failed = std::current_exception();
+  }
+  ranks.agree(failed);
+  if (ranks.rank() == 0) {
+    try {
+      std::vector<PvtiPiece> pieces;
+      const uint64_t nz = grid.dims[2];
+      for (int r = 0; r < ranks.size(); ++r) {
+        const auto [f, e] = rank_slices(nz, r, ranks.size());
+        if (f < e) pieces.push_back({f, std::min(e, nz - 1), piece_source(out, r)});
+      }
+      write_pvti(out, grid, name, pieces);
+    } catch (...) {
+      failed = std::current_exception();
+    }
+  }
+  ranks.agree(failed);
+  made.keep = true;
+  if (ranks.rank() != 0) outputs.commit();
+}
+
+// Writes the whole field (VTI, raw, or a one-piece .pvti) and summarizes it.
+void write_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch& outputs, const Volume& field,
+                 const Volume& grid, const std::string& source, uint32_t members, const CorrelationParams& params,
+                 const GridIndex& p1, const std::optional<GridIndex>& p2, const std::string& device, double load_s,
+                 double compute_s, const nlohmann::json& extra) {
+  if (has_extension(a.out, ".pvti")) {
+    write_pieces(a, field.values, grid, field.name, single_rank(), outputs, 0, grid.dims[2], grid.dims[2]);
+  } else if (has_extension(a.out, ".vti")) {
+    write_vti(a.out, field, field.name);
+  } else {
+    write_raw_float32(a.out, field);
+  }
+  FieldStats stats;
+  stats.add(field.values);
+  summarize_field(a, json, outputs, stats, grid, source, members, params, p1, p2, device, load_s, compute_s, extra);
+}
+
 int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const JsonOutput& json, OutputBatch& outputs,
                  StartingContext& starting, EnsembleSlabs& slabs, std::chrono::steady_clock::time_point t0) {
   const Volume& grid = slabs.grid();
@@ -124,14 +229,17 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
                                  correlation_slab_slices(members, slice, (budget > held ? budget - held : 0) / 4));
   std::vector<VolumeSlabReader*> readers;
   for (const auto& m : slabs.members) readers.push_back(m.get());
+  // A .pvti piece also holds the next piece's first slice: neighbouring pieces share a slice.
+  const bool pvti = has_extension(a.out, ".pvti");
+  const uint64_t computed_end = pvti && first < end ? std::min(end + 1, grid.dims[2]) : end;
   const auto t1 = std::chrono::steady_clock::now();
   std::vector<float> part;
   std::exception_ptr failed;
   try {
     Progress progress(std::string(correlation_measure_name(params.measure)) + " over " + std::to_string(members) +
                           " members, slab by slab",
-                      (end - first) * slice * (p2 ? 2 : 1));
-    part = correlation_field_streamed(*ctx, readers, request, slab, first, end,
+                      (computed_end - first) * slice * (p2 ? 2 : 1));
+    part = correlation_field_streamed(*ctx, readers, request, slab, first, computed_end,
                                       [&](uint64_t done, uint64_t) { progress.update(done); });
   } catch (const std::invalid_argument& e) {  // a reference point that cannot be one
     failed = std::make_exception_ptr(std::runtime_error(source + ": " + e.what()));
@@ -139,16 +247,36 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
     failed = std::current_exception();
   }
   ranks.agree(failed);  // every rank computed its share, or every rank stops here
+  nlohmann::json stream = {{"streamed", slabs.streams()},
+                           {"slab_slices", slab},
+                           {"slabs", (end - first + slab - 1) / slab}};
+  if (ranks.size() > 1) stream["mpi_ranks"] = ranks.size();
+  if (pvti) {
+    // Each rank writes its piece; the summary's numbers are reduced over the ranks' own slices.
+    write_pieces(a, part, grid, field_name(a), ranks, outputs, first, end, computed_end);
+    FieldStats stats;
+    stats.add(std::span<const float>(part.data(), (end - first) * slice));
+    std::array<uint64_t, 2> counts{stats.voxels, stats.nan};
+    std::array<double, 1> lo{stats.lo}, hi{stats.hi};
+    ranks.agree(nullptr);
+    ranks.sum(std::span<uint64_t>(counts));
+    ranks.min(lo);
+    ranks.max(hi);
+    stats = {counts[0], counts[1], lo[0], hi[0]};
+    const double compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+    if (ranks.rank() == 0) {
+      stream["pieces"] = ranks.size();
+      summarize_field(a, json, outputs, stats, grid, source, members, params, p1, p2, ctx->device_name(), load_s,
+                      compute_s, {{"stream", stream}});
+    }
+    return 0;
+  }
   std::vector<float> all = ranks.gather(part);
   const double compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   if (ranks.rank() != 0) return 0;
   Volume field = empty_like(grid);
   field.name = field_name(a);
   field.values = std::move(all);
-  nlohmann::json stream = {{"streamed", slabs.streams()},
-                           {"slab_slices", slab},
-                           {"slabs", (end - first + slab - 1) / slab}};
-  if (ranks.size() > 1) stream["mpi_ranks"] = ranks.size();
   write_field(a, json, outputs, field, grid, source, members, params, p1, p2, ctx->device_name(), load_s, compute_s,
               {{"stream", stream}});
   return 0;
@@ -267,8 +395,9 @@ CommandRegistration reg(23, [](CLI::App& app) {
   sub->add_option("--k", args->k, "mi-kraskov, mi-coefficient: neighbours of the KSG estimator (1 .. members-1)")
       ->check(CLI::PositiveNumber)->capture_default_str();
   sub->add_flag("--abs", args->absolute, "Write the magnitude |result| (after the difference with --point2)");
-  sub->add_option("--out", args->out, "Output field: .vti (origin and spacing kept) or .raw (float32), same grid")
-      ->required()->check(output_format(field_format()));
+  sub->add_option("--out", args->out, "Output field: .vti (origin and spacing kept), .raw (float32), or .pvti (ParaView "
+                  "parallel image data: the .pvti and a directory of .vti pieces, one per MPI rank), same grid")
+      ->required()->check(output_format(correlation_output_format()));
   add_json_option(sub, args->json, "what was computed");
   sub->add_option("--member-dim", args->member_dim, "NetCDF: the name of the member dimension");
   sub->add_option("--stream", args->stream, "Read the members slab by slab of z-slices, so memory does not grow with "
