@@ -68,7 +68,8 @@ uint64_t correlation_slab_slices(uint32_t members, uint64_t slice_voxels, uint64
 
 std::vector<float> correlation_field_streamed(Context& ctx, std::span<VolumeSlabReader* const> members,
                                               const CorrelationRequest& r, uint64_t slab_slices, uint64_t first_slice,
-                                              uint64_t end_slice, const CorrelationProgress& progress) {
+                                              uint64_t end_slice, const CorrelationProgress& progress,
+                                              const std::function<void(uint64_t)>& after_slab) {
   if (members.empty()) throw std::invalid_argument("correlation_field_streamed: no members");
   const uint32_t m_count = static_cast<uint32_t>(members.size());
   validate_correlation_params(r.params, m_count);
@@ -129,6 +130,7 @@ std::vector<float> correlation_field_streamed(Context& ctx, std::span<VolumeSlab
     if (r.absolute)
       for (float& v : part) v = std::abs(v);
     std::copy(part.begin(), part.end(), out.begin() + std::ptrdiff_t(at));
+    if (after_slab) after_slab(at + n * slice);
   }
   return out;
 }

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <span>
 #include <vector>
@@ -37,10 +38,13 @@ std::vector<float> correlation_field(Context& ctx, const EnsembleView& ens, cons
 // and the reference series alone, so the result is correlation_field()'s bits for those voxels.
 // Host memory: the members' slab (members x slab_slices x slice voxels floats, checked against
 // the memory budget) and the result. Throws as correlation_field() does and as the readers do.
+// `after_slab(voxels done)` runs after each slab (an MPI job's ranks meet there to combine their
+// progress: docs/mpi.md).
 std::vector<float> correlation_field_streamed(Context& ctx, std::span<VolumeSlabReader* const> members,
                                               const CorrelationRequest& request, uint64_t slab_slices,
                                               uint64_t first_slice = 0, uint64_t end_slice = 0,
-                                              const CorrelationProgress& progress = {});
+                                              const CorrelationProgress& progress = {},
+                                              const std::function<void(uint64_t)>& after_slab = {});
 // Slices per slab for `members` members of `slice_voxels` voxels within `bytes` of host memory
 // (at least 1).
 uint64_t correlation_slab_slices(uint32_t members, uint64_t slice_voxels, uint64_t bytes);

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <iterator>
 
+#include <netcdf.h>
 #include <nlohmann/json.hpp>
 
 #include "cli_runner.h"
@@ -133,6 +134,37 @@ TEST_F(CorrelateCli, SlabBySlabGivesTheLoadedField) {
     std::ifstream(dir / "on.json") >> j;
     EXPECT_TRUE(j.contains("stream")) << j.dump();
   }
+}
+
+// A NetCDF variable with a member dimension, read slab by slab (each member through its own
+// reader): the field of the members loaded whole, bit for bit.
+TEST(CorrelateStreamed, NetcdfMemberDimensionGivesTheLoadedField) {
+  TempDir dir;
+  const std::string file = dir / "ens.nc";
+  const size_t members = 6, lev = 9, lat = 7, lon = 11;
+  int nc = -1, dm, dz, dy, dx, var;
+  ASSERT_EQ(nc_create(file.c_str(), NC_CLOBBER, &nc), NC_NOERR);
+  ASSERT_EQ(nc_def_dim(nc, "member", members, &dm), NC_NOERR);
+  ASSERT_EQ(nc_def_dim(nc, "lev", lev, &dz), NC_NOERR);
+  ASSERT_EQ(nc_def_dim(nc, "lat", lat, &dy), NC_NOERR);
+  ASSERT_EQ(nc_def_dim(nc, "lon", lon, &dx), NC_NOERR);
+  const int dims[4] = {dm, dz, dy, dx};
+  ASSERT_EQ(nc_def_var(nc, "T", NC_FLOAT, 4, dims, &var), NC_NOERR);
+  ASSERT_EQ(nc_enddef(nc), NC_NOERR);
+  std::vector<float> values(members * lev * lat * lon);
+  for (size_t i = 0; i < values.size(); ++i)
+    values[i] = float(std::sin(0.37 * double(i % 693)) * std::cos(0.9 * double(i / 693)) + 0.01 * double(i % 17));
+  ASSERT_EQ(nc_put_var_float(nc, var, values.data()), NC_NOERR);
+  ASSERT_EQ(nc_close(nc), NC_NOERR);
+  const std::string args = "correlate --ensemble " + file + ":T --point 4,3,2 --measure mi-kraskov --out ";
+  const auto on = run_cli(args + dir / "on.raw --stream on --slab-slices 2");
+  ASSERT_EQ(on.exit_code, 0) << on.output;
+  const auto off = run_cli(args + dir / "off.raw --stream off");
+  ASSERT_EQ(off.exit_code, 0) << off.output;
+  std::ifstream a(dir / "on.raw", std::ios::binary), b(dir / "off.raw", std::ios::binary);
+  const std::string bytes_on((std::istreambuf_iterator<char>(a)), {}), bytes_off((std::istreambuf_iterator<char>(b)), {});
+  EXPECT_EQ(bytes_on.size(), lev * lat * lon * sizeof(float));
+  EXPECT_EQ(bytes_on, bytes_off);
 }
 
 // An ensemble larger than --max-memory (48 members of 128x128x80: 252 MB) is correlated within it,

@@ -111,6 +111,16 @@ TEST_F(MpiCli, CorrelationFieldBytesAreTheSameForEveryRankCount) {
     ASSERT_EQ(r.exit_code, 0) << r.output;
     EXPECT_EQ(read_text(dir / out), expected);
   }
+  // Slabs of 2 slices: ranks with 8, 8 and 7 slices (.pvti: 9, 9, 7) meet after each slab to add up
+  // their progress, the ones with fewer slabs as often as the others.
+  for (const char* ext : {".raw", ".pvti"}) {
+    SCOPED_TRACE(ext);
+    const std::string out = std::string("slabs") + ext;
+    const auto r = run_mpi(3, args + (dir / out).string() + " --slab-slices 2 --json " + (dir / "slabs.json").string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(read_text(dir / "slabs.json").find("\"slab_slices\": 2"), std::string::npos) << read_text(dir / "slabs.json");
+    if (std::string(ext) == ".raw") EXPECT_EQ(read_text(dir / out), expected);
+  }
 #endif
 }
 

@@ -34,6 +34,7 @@ struct CorrelateArgs {
   bool absolute = false;
   std::string member_dim;
   std::string stream = "auto";  // read the members slab by slab (docs/ensembles.md, docs/mpi.md)
+  uint64_t slab_slices = 0;     // z-slices per slab (0: from the memory budget)
   VolumeFlags volume_flags;  // raw layout, --var, --time
 };
 
@@ -223,24 +224,59 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
   Ranks& ranks = *globals().ranks;
   const auto [first, end] = rank_slices(grid.dims[2], ranks.rank(), ranks.size());
   const uint64_t slice = grid.dims[0] * grid.dims[1];
-  // A slab of every member within a quarter of what the budget leaves.
+  // A slab of every member within a quarter of what the budget leaves (under MPI the smallest
+  // rank's, so that the ranks move in step).
   const uint64_t held = resident_memory(), budget = memory_budget().bytes;
-  const uint64_t slab = std::min(std::max<uint64_t>(1, end - first),
-                                 correlation_slab_slices(members, slice, (budget > held ? budget - held : 0) / 4));
-  std::vector<VolumeSlabReader*> readers;
-  for (const auto& m : slabs.members) readers.push_back(m.get());
+  uint64_t slab = a.slab_slices ? a.slab_slices
+                                : correlation_slab_slices(members, slice, (budget > held ? budget - held : 0) / 4);
+  if (ranks.size() > 1) {
+    ranks.agree(nullptr);  // every rank has its device (a rank that failed to start stops them all here)
+    std::array<double, 1> smallest{double(slab)};
+    ranks.min(smallest);
+    slab = uint64_t(smallest[0]);
+  }
   // A .pvti piece also holds the next piece's first slice: neighbouring pieces share a slice.
   const bool pvti = has_extension(a.out, ".pvti");
   const uint64_t computed_end = pvti && first < end ? std::min(end + 1, grid.dims[2]) : end;
+  // The job's progress on rank 0: after each slab the ranks add up their voxels done; a rank with
+  // fewer slabs meets the others as often (steps: the most slabs any rank has).
+  uint64_t steps = 0, my_steps = 0, my_done = 0, job_voxels = 0;
+  for (int r = 0; r < ranks.size(); ++r) {
+    const auto [f, e] = rank_slices(grid.dims[2], r, ranks.size());
+    const uint64_t n = pvti && f < e ? std::min(e + 1, grid.dims[2]) - f : e - f;
+    steps = std::max(steps, (n + slab - 1) / slab);
+    job_voxels += n * slice;
+  }
+  slab = std::min(std::max<uint64_t>(1, computed_end - first), slab);  // the same slabs, as said in the summary
+  const uint64_t passes = p2 ? 2 : 1;
+  Progress progress(std::string(correlation_measure_name(params.measure)) + " over " + std::to_string(members) +
+                        " members, slab by slab" + (ranks.size() > 1 ? ", " + std::to_string(ranks.size()) + " ranks" : ""),
+                    job_voxels * passes);
+  auto meet = [&] {
+    ++my_steps;
+    ranks.agree(nullptr);
+    std::array<uint64_t, 1> done{my_done * passes};
+    ranks.sum(std::span<uint64_t>(done));
+    if (ranks.rank() == 0) progress.update(done[0]);
+  };
+  std::vector<VolumeSlabReader*> readers;
+  for (const auto& m : slabs.members) readers.push_back(m.get());
   const auto t1 = std::chrono::steady_clock::now();
   std::vector<float> part;
   std::exception_ptr failed;
   try {
-    Progress progress(std::string(correlation_measure_name(params.measure)) + " over " + std::to_string(members) +
-                          " members, slab by slab",
-                      (computed_end - first) * slice * (p2 ? 2 : 1));
-    part = correlation_field_streamed(*ctx, readers, request, slab, first, computed_end,
-                                      [&](uint64_t done, uint64_t) { progress.update(done); });
+    CorrelationProgress within_slab;
+    if (ranks.size() == 1) within_slab = [&](uint64_t done, uint64_t) { progress.update(done); };
+    std::function<void(uint64_t)> after_slab;
+    if (ranks.size() > 1)
+      after_slab = [&](uint64_t done) {
+        my_done = done;
+        meet();
+      };
+    part = correlation_field_streamed(*ctx, readers, request, slab, first, computed_end, within_slab, after_slab);
+    while (my_steps < steps) meet();  // the others' remaining slabs
+  } catch (const RankFailure&) {
+    throw;  // another rank failed: agreed already
   } catch (const std::invalid_argument& e) {  // a reference point that cannot be one
     failed = std::make_exception_ptr(std::runtime_error(source + ": " + e.what()));
   } catch (...) {
@@ -249,7 +285,7 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
   ranks.agree(failed);  // every rank computed its share, or every rank stops here
   nlohmann::json stream = {{"streamed", slabs.streams()},
                            {"slab_slices", slab},
-                           {"slabs", (end - first + slab - 1) / slab}};
+                           {"slabs", (computed_end - first + slab - 1) / slab}};
   if (ranks.size() > 1) stream["mpi_ranks"] = ranks.size();
   if (pvti) {
     // Each rank writes its piece; the summary's numbers are reduced over the ranks' own slices.
@@ -404,6 +440,9 @@ CommandRegistration reg(23, [](CLI::App& app) {
                   "the ensemble: on, off, or auto (when the members would take over a quarter of the memory budget "
                   "and every member's format streams; always under MPI)")
       ->check(CLI::IsMember({"auto", "on", "off"}))->capture_default_str();
+  sub->add_option("--slab-slices", args->slab_slices, "Slab by slab: z-slices per slab (default: as many as a quarter of "
+                  "the memory budget left holds for every member)")
+      ->check(CLI::PositiveNumber);
   add_volume_flags(sub, args->volume_flags, FieldSelectors::VarTime);
   sub->callback([args] { exit_code() = run(*args); });
 });
