@@ -42,9 +42,15 @@ void add_member(Ensemble& e, Volume&& v, uint64_t expected_members) {
   ++e.member_count;
 }
 
-}  // namespace
-
-Ensemble load_ensemble(const std::string& spec, const VolumeOptions& defaults) {
+// The file, options and member count of an ensemble `spec` names along its member axis; throws
+// "<file>: ..." when it has none, or names one member.
+struct MemberAxis {
+  std::string file;
+  VolumeOptions options;
+  uint64_t count = 0;
+  std::string name() const { return file + (options.variable.empty() ? "" : ":" + options.variable); }
+};
+MemberAxis member_axis(const std::string& spec, const VolumeOptions& defaults) {
   const VolumeSpec s = parse_volume_spec(spec, defaults);
   const std::string file = s.path.string();
   if (!std::filesystem::exists(s.path)) throw std::runtime_error(file + ": no such file");
@@ -58,13 +64,20 @@ Ensemble load_ensemble(const std::string& spec, const VolumeOptions& defaults) {
   const uint64_t count = format->count_members(s.path, s.options);
   if (count > std::numeric_limits<uint32_t>::max())
     throw std::runtime_error(file + ": " + std::to_string(count) + " members are more than tfmatch handles");
+  return {file, s.options, count};
+}
+
+}  // namespace
+
+Ensemble load_ensemble(const std::string& spec, const VolumeOptions& defaults) {
+  const MemberAxis axis = member_axis(spec, defaults);
   Ensemble e;
-  for (uint64_t m = 0; m < count; ++m) {
-    VolumeOptions o = s.options;
+  for (uint64_t m = 0; m < axis.count; ++m) {
+    VolumeOptions o = axis.options;
     o.member_index = m;
-    add_member(e, load_volume(file, o), count);
+    add_member(e, load_volume(axis.file, o), axis.count);
   }
-  e.grid.name = file + (s.options.variable.empty() ? "" : ":" + s.options.variable);
+  e.grid.name = axis.name();
   return e;
 }
 
@@ -110,29 +123,17 @@ static std::unique_ptr<VolumeSlabReader> open_member(const std::string& spec, co
 }
 
 EnsembleSlabs open_ensemble_slabs(const std::string& spec, const VolumeOptions& defaults, bool streaming_only) {
-  const VolumeSpec s = parse_volume_spec(spec, defaults);
-  const std::string file = s.path.string();
-  if (!std::filesystem::exists(s.path)) throw std::runtime_error(file + ": no such file");
-  const VolumeFormat* format = find_volume_format(s.path);
-  if (!format) throw std::runtime_error(unknown_volume_format_message(s.path));
-  if (!format->has_members || !format->count_members)
-    throw std::runtime_error(file + ": a " + format->title + " file has no member axis (ensembles come from " +
-                             volume_format_titles(&VolumeFormat::has_members) + " files, or one file per member with " + parameter("members") + ")");
-  if (s.options.member_index)
-    throw std::runtime_error(file + ": ',member=N' / " + parameter("member") + " picks one member; an ensemble uses them all");
-  const uint64_t count = format->count_members(s.path, s.options);
-  if (count > std::numeric_limits<uint32_t>::max())
-    throw std::runtime_error(file + ": " + std::to_string(count) + " members are more than tfmatch handles");
+  const MemberAxis axis = member_axis(spec, defaults);
   raise_open_file_limit();
   EnsembleSlabs e;
-  for (uint64_t m = 0; m < count; ++m) {
-    VolumeOptions o = s.options;
+  for (uint64_t m = 0; m < axis.count; ++m) {
+    VolumeOptions o = axis.options;
     o.member_index = m;
-    std::unique_ptr<VolumeSlabReader> reader = open_member(file, o, streaming_only);
+    std::unique_ptr<VolumeSlabReader> reader = open_member(axis.file, o, streaming_only);
     if (!reader) return {};
-    add_reader(e, std::move(reader), file + " member " + std::to_string(m));
+    add_reader(e, std::move(reader), axis.file + " member " + std::to_string(m));
   }
-  e.name = file + (s.options.variable.empty() ? "" : ":" + s.options.variable);
+  e.name = axis.name();
   return e;
 }
 

@@ -7,10 +7,7 @@
 
 namespace tfm {
 
-namespace {
-
-// T(v) at the shader's coordinate, interpolated in double and clamped; false without data.
-bool colour_at(std::span<const float> tf, const FieldMapping& map, float v, double out[4]) {
+bool tf_colour_cpu(std::span<const float> tf, const FieldMapping& map, float v, double out[4]) {
   uint32_t j;
   float w;
   if (!tf_coordinate(v, map, j, w)) return false;
@@ -18,8 +15,6 @@ bool colour_at(std::span<const float> tf, const FieldMapping& map, float v, doub
     out[c] = std::clamp((1.0 - double(w)) * tf[4 * j + c] + double(w) * tf[4 * (j + 1) + c], 0.0, 1.0);
   return true;
 }
-
-}  // namespace
 
 std::vector<double> residual_map_cpu(std::span<const float> ref, std::span<const float> opt,
                                      std::span<const float> ref_tf, const FieldMapping& ref_map,
@@ -30,7 +25,7 @@ std::vector<double> residual_map_cpu(std::span<const float> ref, std::span<const
   std::vector<double> out(ref.size(), 0.0);
   for (size_t i = 0; i < ref.size(); ++i) {
     double b[4], v[4];
-    if (!colour_at(ref_tf, ref_map, ref[i], b) || !colour_at(opt_tf, opt_map, opt[i], v)) continue;
+    if (!tf_colour_cpu(ref_tf, ref_map, ref[i], b) || !tf_colour_cpu(opt_tf, opt_map, opt[i], v)) continue;
     const double pb[4] = {b[0] * b[3], b[1] * b[3], b[2] * b[3], b[3]};
     const double pv[4] = {v[0] * v[3], v[1] * v[3], v[2] * v[3], v[3]};
     double s = 0.0;

@@ -11,6 +11,11 @@
 
 namespace tfm {
 
+// T(v): the RGBA colour of table `tf` (4 floats an entry) at value `v` through `map`, at the
+// shaders' float32 coordinate (tf_coordinate), interpolated in double and clamped to [0, 1];
+// false where `v` has no data (NaN). The CPU references' TF lookup.
+bool tf_colour_cpu(std::span<const float> tf, const FieldMapping& map, float v, double out[4]);
+
 // `ref_tf` and `opt_tf` are RGBA tables (4 floats an entry) of the sizes their mappings read.
 std::vector<double> residual_map_cpu(std::span<const float> ref, std::span<const float> opt,
                                      std::span<const float> ref_tf, const FieldMapping& ref_map,

@@ -7,6 +7,8 @@
 #include <random>
 #include <sstream>
 
+#include "residual_map_cpu.h"
+
 namespace tfm::selftest {
 
 void Check::near(const char* what, uint64_t index, double device, double reference, double bound) {
@@ -107,12 +109,7 @@ CorrelationEnsemble bin_edge_ensemble(uint32_t members, uint64_t voxels) {
 }
 
 bool classify(const std::vector<float>& tf, const FieldMapping& map, float v, double out[4]) {
-  uint32_t j;
-  float w;
-  if (!tf_coordinate(v, map, j, w)) return false;
-  for (int c = 0; c < 4; ++c)
-    out[c] = std::clamp((1.0 - double(w)) * tf[4 * j + c] + double(w) * tf[4 * (j + 1) + c], 0.0, 1.0);
-  return true;
+  return tf_colour_cpu(tf, map, v, out);
 }
 
 std::vector<uint32_t> read_words(Context& ctx, const Buffer& buffer, size_t words) {

@@ -77,33 +77,12 @@ class Host {
     return b;
   }
   // A 1D image of `width` texels of `format`, sampled by the host's shaders and written by copies.
-  VkImage image_1d(VkFormat format, uint32_t width) {
+  VkImage image_1d(VkFormat format, uint32_t width) { return image(VK_IMAGE_TYPE_1D, format, {width, 1, 1}); }
+  // An image of `type`, sampled by the host's shaders and written and read by copies, in
+  // device-local memory.
+  VkImage image(VkImageType type, VkFormat format, VkExtent3D extent) {
     VkImageCreateInfo ii{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
-    ii.imageType = VK_IMAGE_TYPE_1D;
-    ii.format = format;
-    ii.extent = {width, 1, 1};
-    ii.mipLevels = 1;
-    ii.arrayLayers = 1;
-    ii.samples = VK_SAMPLE_COUNT_1_BIT;
-    ii.tiling = VK_IMAGE_TILING_OPTIMAL;
-    ii.usage = VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
-    ii.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-    VkImage image = VK_NULL_HANDLE;
-    EXPECT_EQ(vkCreateImage(d_.device(), &ii, nullptr, &image), VK_SUCCESS);
-    images_.push_back(image);
-    VkMemoryRequirements req{};
-    vkGetImageMemoryRequirements(d_.device(), image, &req);
-    EXPECT_EQ(vkBindImageMemory(d_.device(), image, allocate(req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT), 0), VK_SUCCESS);
-    return image;
-  }
-
-  // A 3D volume image of `format`, filled with `texels` (x fastest) by the host's own copy in
-  // `cmd` and left in SHADER_READ_ONLY_OPTIMAL for its compute shaders, as a renderer keeps the
-  // volumes it samples. `staging` must stay alive until the host's wait.
-  VkImage volume_image(VkCommandBuffer cmd, VkFormat format, VkExtent3D extent, const std::vector<uint8_t>& texels,
-                       VkBuffer& staging) {
-    VkImageCreateInfo ii{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
-    ii.imageType = VK_IMAGE_TYPE_3D;
+    ii.imageType = type;
     ii.format = format;
     ii.extent = extent;
     ii.mipLevels = 1;
@@ -112,12 +91,21 @@ class Host {
     ii.tiling = VK_IMAGE_TILING_OPTIMAL;
     ii.usage = VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
     ii.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-    VkImage image = VK_NULL_HANDLE;
-    EXPECT_EQ(vkCreateImage(d_.device(), &ii, nullptr, &image), VK_SUCCESS);
-    images_.push_back(image);
+    VkImage made = VK_NULL_HANDLE;
+    EXPECT_EQ(vkCreateImage(d_.device(), &ii, nullptr, &made), VK_SUCCESS);
+    images_.push_back(made);
     VkMemoryRequirements req{};
-    vkGetImageMemoryRequirements(d_.device(), image, &req);
-    EXPECT_EQ(vkBindImageMemory(d_.device(), image, allocate(req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT), 0), VK_SUCCESS);
+    vkGetImageMemoryRequirements(d_.device(), made, &req);
+    EXPECT_EQ(vkBindImageMemory(d_.device(), made, allocate(req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT), 0), VK_SUCCESS);
+    return made;
+  }
+
+  // A 3D volume image of `format`, filled with `texels` (x fastest) by the host's own copy in
+  // `cmd` and left in SHADER_READ_ONLY_OPTIMAL for its compute shaders, as a renderer keeps the
+  // volumes it samples. `staging` must stay alive until the host's wait.
+  VkImage volume_image(VkCommandBuffer cmd, VkFormat format, VkExtent3D extent, const std::vector<uint8_t>& texels,
+                       VkBuffer& staging) {
+    const VkImage made = image(VK_IMAGE_TYPE_3D, format, extent);
     void* map = nullptr;
     staging = buffer(texels.size() + 4, &map);
     std::memcpy(map, texels.data(), texels.size());
@@ -126,21 +114,21 @@ class Host {
     b.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
     b.newLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
     b.srcQueueFamilyIndex = b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-    b.image = image;
+    b.image = made;
     b.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0,
                          nullptr, 1, &b);
     VkBufferImageCopy region{};
     region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
     region.imageExtent = extent;
-    vkCmdCopyBufferToImage(cmd, staging, image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+    vkCmdCopyBufferToImage(cmd, staging, made, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
     b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
     b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
     b.oldLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
     b.newLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 0, nullptr, 0,
                          nullptr, 1, &b);
-    return image;
+    return made;
   }
 
   VkCommandBuffer begin() {
