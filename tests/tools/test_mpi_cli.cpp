@@ -5,14 +5,20 @@
 // output; commands that do not split over ranks say so. Skipped, saying why, where tfmatch was
 // built without MPI.
 #include <gtest/gtest.h>
+#include <signal.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
+#include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "cli_runner.h"
 #include "slab_test_files.h"
@@ -174,6 +180,51 @@ TEST_F(MpiCli, AFailingRankStopsEveryRankAndNothingIsWritten) {
     ++reports;
   EXPECT_EQ(reports, 1u) << missing.output;
   EXPECT_NE(missing.output.find("none_4x4x4_float32.raw"), std::string::npos) << missing.output;
+#endif
+}
+
+// SIGINT to mpirun (Ctrl-C): OpenMPI passes a SIGTERM on to every rank, which stop as one process
+// does: a non-zero exit within seconds and no output (a mi-kraskov field of 64 members of
+// 64x64x40 in slabs of one slice takes about 5 s on two lavapipe ranks; the signal comes at 1.5 s).
+TEST_F(MpiCli, AnInterruptStopsEveryRankAndWritesNothing) {
+#ifdef TFMATCH_MPIEXEC
+  std::vector<float> values(64 * 64 * 40);
+  std::string members;
+  for (int m = 0; m < 64; ++m) {
+    for (size_t i = 0; i < values.size(); ++i) values[i] = float(std::sin(0.0137 * double(i) * (m + 1)) + 0.001 * double(i % 97));
+    const fs::path path = dir.path() / ("s" + std::to_string(100 + m) + "_64x64x40_float32.raw");
+    std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(values.data()),
+                                                std::streamsize(values.size() * sizeof(float)));
+    members += " " + path.string();
+  }
+  setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
+  setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
+  const fs::path out = dir.path() / "interrupted.pvti", log = dir.path() / "log.txt";
+  const std::string cmd = "exec " + std::string(TFMATCH_MPIEXEC) + " --oversubscribe -n 2 " + TFMATCH_CLI_PATH +
+                          " correlate --members" + members + " --point 5,6,7 --measure mi-kraskov --slab-slices 1 --out " +
+                          out.string() + " > " + log.string() + " 2>&1";
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  kill(pid, SIGINT);
+  int status = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  while (waitpid(pid, &status, WNOHANG) == 0) {
+    if (std::chrono::steady_clock::now() - t0 > std::chrono::seconds(60)) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      FAIL() << "the job did not stop within 60 s of SIGINT:\n" << read_text(log);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(20));
+  EXPECT_FALSE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << read_text(log);
+  EXPECT_FALSE(fs::exists(out)) << read_text(log);
+  EXPECT_FALSE(fs::exists(dir.path() / "interrupted")) << "the pieces' directory";
 #endif
 }
 
