@@ -53,6 +53,18 @@ void record_table(CommandBatch& batch, Context& ctx, Buffer& buffer, std::span<c
   batch.update(buffer, 0, rgba.data(), rgba.size_bytes());
 }
 
+// The host's scratch ranges of `bytes` each as the recorder's accumulators and result; returns
+// the host's mapping of the result. Throws std::invalid_argument naming `who` for a missing
+// mapping (and as Buffer::adopt does).
+const void* adopt_scratch(Context& ctx, const RecorderScratch& scratch, uint64_t bytes, const char* who, Buffer& accum,
+                          Buffer& result) {
+  if (!scratch.result_mapped)
+    throw std::invalid_argument(std::string(who) + ": the host's result range needs its mapping (result_mapped)");
+  accum = Buffer::adopt(ctx, scratch.accumulators, scratch.accumulators_offset, bytes, "host scratch: accumulators");
+  result = Buffer::adopt(ctx, scratch.result, scratch.result_offset, bytes, "host scratch: result");
+  return scratch.result_mapped;
+}
+
 }  // namespace
 
 NormalEquationsRecorder::NormalEquationsRecorder(Context& ctx, uint32_t tf_size, ReductionOptions options)
@@ -66,12 +78,7 @@ NormalEquationsRecorder::NormalEquationsRecorder(Context& ctx, uint32_t tf_size,
 NormalEquationsRecorder::NormalEquationsRecorder(Context& ctx, uint32_t tf_size, const RecorderScratch& scratch,
                                                  ReductionOptions options)
     : ctx_(ctx), kernel_(std::make_unique<AssembleNormalEquationsKernel>(ctx, tf_size, options)) {
-  if (!scratch.result_mapped)
-    throw std::invalid_argument("NormalEquationsRecorder: the host's result range needs its mapping (result_mapped)");
-  const uint64_t bytes = scratch_bytes(tf_size);
-  accum_ = Buffer::adopt(ctx, scratch.accumulators, scratch.accumulators_offset, bytes, "host scratch: accumulators");
-  result_ = Buffer::adopt(ctx, scratch.result, scratch.result_offset, bytes, "host scratch: result");
-  result_mapped_ = scratch.result_mapped;
+  result_mapped_ = adopt_scratch(ctx, scratch, scratch_bytes(tf_size), "NormalEquationsRecorder", accum_, result_);
 }
 
 uint64_t NormalEquationsRecorder::scratch_bytes(uint32_t tf_size) {
@@ -206,10 +213,17 @@ RecordedAccess CorrelationRecorder::access() {
 }
 
 VoxelLossRecorder::VoxelLossRecorder(Context& ctx) : ctx_(ctx), kernel_(std::make_unique<VoxelLossKernel>(ctx)) {
-  const uint64_t bytes = TFM_LOSS_SLOTS * gpu::kFixedSlotBytes;
-  accum_ = Buffer(ctx, bytes, MemoryUsage::Device, "recorded voxel-loss accumulators");
-  result_ = Buffer(ctx, bytes, MemoryUsage::Readback, "recorded voxel-loss result");
+  accum_ = Buffer(ctx, scratch_bytes(), MemoryUsage::Device, "recorded voxel-loss accumulators");
+  result_ = Buffer(ctx, scratch_bytes(), MemoryUsage::Readback, "recorded voxel-loss result");
+  result_mapped_ = result_.mapped();
 }
+
+VoxelLossRecorder::VoxelLossRecorder(Context& ctx, const RecorderScratch& scratch)
+    : ctx_(ctx), kernel_(std::make_unique<VoxelLossKernel>(ctx)) {
+  result_mapped_ = adopt_scratch(ctx, scratch, scratch_bytes(), "VoxelLossRecorder", accum_, result_);
+}
+
+uint64_t VoxelLossRecorder::scratch_bytes() { return TFM_LOSS_SLOTS * gpu::kFixedSlotBytes; }
 VoxelLossRecorder::~VoxelLossRecorder() = default;
 
 void VoxelLossRecorder::record_voxel_loss(VkCommandBuffer cmd, const DeviceField& ref, const DeviceField& opt,
@@ -235,7 +249,7 @@ void VoxelLossRecorder::record_voxel_loss(VkCommandBuffer cmd, const DeviceField
 VoxelLoss VoxelLossRecorder::result() const {
   if (!recorded_) throw std::logic_error("VoxelLossRecorder::result: nothing recorded yet");
   std::vector<uint32_t> words(TFM_LOSS_SLOTS * TFM_FIXED_SLOT_WORDS);
-  std::memcpy(words.data(), result_.mapped(), words.size() * sizeof(uint32_t));
+  std::memcpy(words.data(), result_mapped_, words.size() * sizeof(uint32_t));
   return decode_voxel_losses(words)[0];
 }
 

@@ -52,7 +52,8 @@ struct RecordedAccess {
 // Scratch memory a host lends a recorder instead of the recorder's own (a renderer that
 // sub-allocates everything from its own heaps): a device range for the accumulators and a
 // host-visible, host-coherent range, mapped by the host at `result_mapped`, for the result the
-// host reads after its wait. Sizes: NormalEquationsRecorder::scratch_bytes. Offsets must meet the
+// host reads after its wait. Sizes: NormalEquationsRecorder::scratch_bytes,
+// VoxelLossRecorder::scratch_bytes. Offsets must meet the
 // device's storage-buffer offset alignment; the buffers need storage and transfer usages.
 struct RecorderScratch {
   VkBuffer accumulators = VK_NULL_HANDLE;
@@ -257,6 +258,11 @@ class CorrelationRecorder {
 class VoxelLossRecorder {
  public:
   explicit VoxelLossRecorder(Context& ctx);
+  // The same in the host's scratch memory (RecorderScratch: the accumulators and the result,
+  // scratch_bytes() each; the two TF tables, O(N), stay the recorder's). Throws
+  // std::invalid_argument as NormalEquationsRecorder's does.
+  VoxelLossRecorder(Context& ctx, const RecorderScratch& scratch);
+  static uint64_t scratch_bytes();
   ~VoxelLossRecorder();
   VoxelLossRecorder(const VoxelLossRecorder&) = delete;
   VoxelLossRecorder& operator=(const VoxelLossRecorder&) = delete;
@@ -275,6 +281,7 @@ class VoxelLossRecorder {
   Context& ctx_;
   std::unique_ptr<VoxelLossKernel> kernel_;
   Buffer ref_tf_, opt_tf_, accum_, result_;
+  const void* result_mapped_ = nullptr;  // result_'s mapping: the recorder's or the host's
   std::unique_ptr<CommandBatch> recording_;
   bool recorded_ = false;
 };

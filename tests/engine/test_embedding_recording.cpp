@@ -357,8 +357,9 @@ TEST_F(EmbeddingRecording, AssemblyAndTfUploadRecordIntoTheHostsCommandBuffers) 
   }
 }
 
-// The host lends the recorder its scratch memory (one buffer: accumulators, then the result at an
-// aligned offset): the same system as the recorder's own memory, read through the host's mapping.
+// The host lends the recorders its scratch memory (one buffer: accumulators, then the result at an
+// aligned offset): the same system and the same voxel loss as in the recorders' own memory, read
+// through the host's mapping.
 TEST_F(EmbeddingRecording, AssemblyInTheHostsScratchMemory) {
   Context& ctx = *ctx_;
   Host& host = *host_;
@@ -390,6 +391,21 @@ TEST_F(EmbeddingRecording, AssemblyInTheHostsScratchMemory) {
     RecorderScratch unmapped = lent;
     unmapped.result_mapped = nullptr;
     EXPECT_THROW(NormalEquationsRecorder(ctx, n, unmapped), std::invalid_argument);
+    // The voxel loss in the same scratch buffer (its ranges are smaller).
+    ASSERT_LE(VoxelLossRecorder::scratch_bytes(), bytes);
+    VoxelLossRecorder loss_in_host_memory(ctx, lent), loss_in_own_memory(ctx);
+    const std::vector<float> second_tf = reference_tf(0.6).as_floats();
+    const FieldMapping om7 = make_mapping({0.0, 2.6}, 7);
+    cmd = host.begin();
+    loss_in_host_memory.record_voxel_loss(cmd, r, o, rm, om7, tf, second_tf);
+    loss_in_own_memory.record_voxel_loss(cmd, r, o, rm, om7, tf, second_tf);
+    host.submit_and_wait();
+    const VoxelLoss a = loss_in_host_memory.result(), b = loss_in_own_memory.result();
+    EXPECT_EQ(a.squared, b.squared);
+    EXPECT_EQ(a.absolute, b.absolute);
+    EXPECT_EQ(a.voxels, b.voxels);
+    EXPECT_GT(a.voxels, 0u);
+    EXPECT_THROW(VoxelLossRecorder(ctx, unmapped), std::invalid_argument);
   }
 }
 
