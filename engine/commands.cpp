@@ -21,6 +21,13 @@ constexpr uint32_t kDescriptorsPerPool = 1024;
 Binding::Binding(const Buffer& b) : buffers{&b} {}
 Binding::Binding(std::vector<const Buffer*> array) : buffers(std::move(array)) {}
 
+Binding Binding::image(VkImageView view, VkImageLayout layout) {
+  Binding b(std::vector<const Buffer*>{});
+  b.image_view = view;
+  b.image_layout = layout;
+  return b;
+}
+
 Binding Binding::texels(const Buffer& b, VkFormat format, uint64_t offset, uint64_t range) {
   Binding binding(b);
   binding.texel_format = format;
@@ -124,7 +131,8 @@ VkDescriptorSet CommandBatch::allocate_set(VkDescriptorSetLayout layout) {
       throw_vk_error("vkAllocateDescriptorSets", r, __FILE__, __LINE__);
   }
   const VkDescriptorPoolSize sizes[] = {{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kDescriptorsPerPool},
-                                       {VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, kDescriptorsPerPool}};
+                                       {VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, kDescriptorsPerPool},
+                                       {VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE, kDescriptorsPerPool}};
   VkDescriptorPoolCreateInfo info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   info.maxSets = kSetsPerPool;
   info.poolSizeCount = 2;
@@ -156,12 +164,30 @@ void CommandBatch::dispatch(const ComputePipeline& pipeline, std::initializer_li
   VkDescriptorSet set = allocate_set(pipeline.set_layout());
   std::vector<std::vector<VkDescriptorBufferInfo>> infos;
   std::vector<std::vector<VkBufferView>> views;
+  std::vector<VkDescriptorImageInfo> images;
   std::vector<VkWriteDescriptorSet> writes;
   infos.reserve(bindings.size());
   views.reserve(bindings.size());
+  images.reserve(bindings.size());
   uint32_t index = 0;
   for (const Binding& b : bindings) {
     const std::string where = desc.shader + ": binding " + std::to_string(index);
+    const bool image = pipeline.binding_kind(index) == DescriptorKind::SampledImage;
+    if (image != (b.image_view != VK_NULL_HANDLE))
+      throw std::logic_error(where + (image ? " is a sampled image: bind it with Binding::image" : " is not an image"));
+    if (image) {
+      if (desc.binding_counts[index] != 1) throw std::logic_error(where + ": image arrays are not supported");
+      images.push_back({VK_NULL_HANDLE, b.image_view, b.image_layout});
+      VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+      w.dstSet = set;
+      w.dstBinding = index;
+      w.descriptorType = VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE;
+      w.descriptorCount = 1;
+      w.pImageInfo = &images.back();
+      writes.push_back(w);
+      ++index;
+      continue;
+    }
     if (b.buffers.size() != desc.binding_counts[index])
       throw std::logic_error(where + " needs " + std::to_string(desc.binding_counts[index]) + " buffers");
     for (const Buffer* buf : b.buffers)

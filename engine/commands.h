@@ -27,7 +27,11 @@ struct Binding {
   static Binding texels(const Buffer& b, VkFormat format, uint64_t offset = 0, uint64_t range = VK_WHOLE_SIZE);
   // An array binding of texel buffers: each whole buffer seen as texels of `format`.
   static Binding texels(std::vector<const Buffer*> array, VkFormat format);
+  // A sampled image (a host's view, in `layout` while the work runs), read without a sampler.
+  static Binding image(VkImageView view, VkImageLayout layout);
   std::vector<const Buffer*> buffers;
+  VkImageView image_view = VK_NULL_HANDLE;  // set for image bindings
+  VkImageLayout image_layout = VK_IMAGE_LAYOUT_UNDEFINED;
   VkFormat texel_format = VK_FORMAT_UNDEFINED;  // set for texel bindings
   uint64_t texel_offset = 0, texel_range = VK_WHOLE_SIZE;
 };

@@ -14,8 +14,12 @@
 namespace tfm {
 
 VkDescriptorType descriptor_type(DescriptorKind kind) {
-  return kind == DescriptorKind::UniformTexelBuffer ? VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER
-                                                    : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  switch (kind) {
+    case DescriptorKind::UniformTexelBuffer: return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
+    case DescriptorKind::SampledImage: return VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE;
+    case DescriptorKind::StorageBuffer: break;
+  }
+  return VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
 }
 
 std::vector<DescriptorKind> texel_binding_kinds(size_t count, std::initializer_list<uint32_t> texels) {

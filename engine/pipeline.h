@@ -18,7 +18,8 @@ class Context;
 // on CPU devices (lavapipe) a texel fetch is a vector gather where a storage-buffer load with a
 // per-invocation index is a loop over the SIMD lanes, so the voxel-streaming kernels read their
 // fields and TFs as texel buffers.
-enum class DescriptorKind : uint8_t { StorageBuffer, UniformTexelBuffer };
+// A sampled image is read by texel fetch without a sampler (a host's 3D volume, recording path).
+enum class DescriptorKind : uint8_t { StorageBuffer, UniformTexelBuffer, SampledImage };
 VkDescriptorType descriptor_type(DescriptorKind kind);
 // Kinds of `count` bindings: uniform texel buffers at the bindings `texels` names, storage buffers
 // elsewhere (PipelineDesc::binding_kinds). Throws std::out_of_range for a binding past `count`.

@@ -47,16 +47,34 @@ AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint3
   // Pipelines are compiled on first use: a kernel records either variant (pipelines()).
 }
 
-const std::vector<std::unique_ptr<ComputePipeline>>& AssembleNormalEquationsKernel::pipelines(bool with_before) const {
-  std::vector<std::unique_ptr<ComputePipeline>>& out = pipelines_[with_before ? 1 : 0];
-  if (!out.empty()) return out;
+const AssembleNormalEquationsKernel::Pipelines& AssembleNormalEquationsKernel::pipelines(bool with_before) const {
+  Pipelines& out = pipelines_[with_before ? 1 : 0];
+  if (out.empty()) out = make_pipelines(with_before, nullptr);
+  return out;
+}
+
+const AssembleNormalEquationsKernel::Pipelines& AssembleNormalEquationsKernel::image_pipelines(bool with_before, uint32_t nx,
+                                                                                             uint32_t ny) const {
+  Pipelines& out = image_pipelines_[{with_before, nx, ny}];
+  const VkExtent3D extent{nx, ny, 1};
+  if (out.empty()) out = make_pipelines(with_before, &extent);
+  return out;
+}
+
+AssembleNormalEquationsKernel::Pipelines AssembleNormalEquationsKernel::make_pipelines(bool with_before,
+                                                                                      const VkExtent3D* image) const {
+  Pipelines out;
   for (const TermPass& pass : passes_) {
-    PipelineDesc desc = reduction_.pipeline_desc("assemble_normal_equations", gpu::to_vector(kAssembleBindingCounts),
-                                                 sizeof(gpu::VoxelPairPush));
+    PipelineDesc desc = reduction_.pipeline_desc(image ? "assemble_normal_equations_image" : "assemble_normal_equations",
+                                                 gpu::to_vector(kAssembleBindingCounts), sizeof(gpu::VoxelPairPush));
     desc.binding_kinds = texel_binding_kinds(
         desc.binding_counts.size(),
         {TFM_ASSEMBLE_BINDING_REF_TF, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS,
          TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD});
+    if (image)
+      for (uint32_t b : {TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS, TFM_ASSEMBLE_BINDING_REF_FIELD,
+                         TFM_ASSEMBLE_BINDING_OPT_FIELD})
+        desc.binding_kinds[b] = DescriptorKind::SampledImage;
     desc.specialization = gpu::by_id(
         {{TFM_SPEC_WORKGROUP_X, reduction_.workgroup_size},
          {TFM_ASSEMBLE_SPEC_MODE, reduction_.shader_mode()},
@@ -64,7 +82,9 @@ const std::vector<std::unique_ptr<ComputePipeline>>& AssembleNormalEquationsKern
          {TFM_ASSEMBLE_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size_ : 0u},
          {TFM_ASSEMBLE_SPEC_TERM_FIRST, pass.first},
          {TFM_ASSEMBLE_SPEC_TERM_COUNT, pass.count},
-         {TFM_ASSEMBLE_SPEC_WITH_BEFORE, with_before ? 1u : 0u}});
+         {TFM_ASSEMBLE_SPEC_WITH_BEFORE, with_before ? 1u : 0u},
+         {TFM_ASSEMBLE_SPEC_IMAGE_NX, image ? image->width : 1u},
+         {TFM_ASSEMBLE_SPEC_IMAGE_NY, image ? image->height : 1u}});
     out.push_back(std::make_unique<ComputePipeline>(ctx_, desc));
   }
   return out;
@@ -74,16 +94,14 @@ AssembleNormalEquationsKernel::~AssembleNormalEquationsKernel() = default;
 
 uint32_t AssembleNormalEquationsKernel::slots() const { return TFM_ASSEMBLE_SLOTS(tf_size_); }
 
-void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
-                                           const FieldMapping& ref_map, const FieldMapping& opt_map,
-                                           const Buffer& ref_tf, Buffer& accum, const FieldMapping* before_map) const {
-  check_voxel_pair(ref, opt, "assemble");
+gpu::VoxelPairPush AssembleNormalEquationsKernel::push_for(const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                                           const Buffer& ref_tf, Buffer& accum,
+                                                           const FieldMapping* before_map) const {
   if (opt_map.tf_size != tf_size_) throw std::invalid_argument("assemble: mapping TF size differs from kernel's");
   if (accum.size() < slots() * gpu::kFixedSlotBytes)
     throw std::invalid_argument("assemble: accumulator buffer too small");
   if (ref_tf.size() < uint64_t(ref_map.tf_size) * 16)
     throw std::invalid_argument("assemble: reference TF buffer holds fewer entries than its mapping");
-  const Binding tf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
   gpu::VoxelPairPush push = make_voxel_pair_push(ref_map, opt_map);
   if (before_map) {
     if (before_map->tf_size != ref_map.tf_size)
@@ -91,6 +109,15 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
     push.before_lo = before_map->lo;
     push.before_scale = before_map->scale;
   }
+  return push;
+}
+
+void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
+                                           const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                           const Buffer& ref_tf, Buffer& accum, const FieldMapping* before_map) const {
+  check_voxel_pair(ref, opt, "assemble");
+  gpu::VoxelPairPush push = push_for(ref_map, opt_map, ref_tf, accum, before_map);
+  const Binding tf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
   const auto& passes = pipelines(before_map != nullptr);
   for (const QuadRange& r : quad_ranges(ref, range_quads_)) {  // one dispatch per range and pass
     push.voxel_count = static_cast<uint32_t>(r.voxels);
@@ -101,6 +128,31 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
                       quad_texels(opt, r)},
                      push, {reduction_.groups(ctx_, r.voxels)});
       // Successive dispatches add into the same accumulators.
+      batch.barrier();
+    }
+  }
+}
+
+void AssembleNormalEquationsKernel::record(CommandBatch& batch, const ImageFieldView& ref, const ImageFieldView& opt,
+                                           const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                           const Buffer& ref_tf, Buffer& accum, const FieldMapping* before_map) const {
+  if (ref.view == VK_NULL_HANDLE || opt.view == VK_NULL_HANDLE)
+    throw std::invalid_argument("assemble: an image field without a view (VK_NULL_HANDLE)");
+  const VkExtent3D& e = ref.extent;
+  if (e.width != opt.extent.width || e.height != opt.extent.height || e.depth != opt.extent.depth)
+    throw std::invalid_argument("assemble: the two images differ in extent");
+  const uint64_t voxels = uint64_t(e.width) * e.height * e.depth;
+  if (voxels == 0 || voxels > UINT32_MAX)
+    throw std::invalid_argument("assemble: an image of " + std::to_string(voxels) + " voxels (1 to 2^32 - 1 are read in place)");
+  gpu::VoxelPairPush push = push_for(ref_map, opt_map, ref_tf, accum, before_map);
+  const Binding tf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
+  const Binding r_image = Binding::image(ref.view, ref.layout), o_image = Binding::image(opt.view, opt.layout);
+  const auto& passes = image_pipelines(before_map != nullptr, e.width, e.height);
+  for (const QuadRange& r : quad_ranges(std::span<const uint64_t>(&voxels, 1), range_quads_)) {
+    push.voxel_count = static_cast<uint32_t>(r.voxels);
+    push.first_voxel = static_cast<uint32_t>(r.first);
+    for (const auto& pipe : passes) {
+      batch.dispatch(*pipe, {r_image, o_image, tf, accum, r_image, o_image}, push, {reduction_.groups(ctx_, r.voxels)});
       batch.barrier();
     }
   }

@@ -4,7 +4,9 @@
 
 #include <array>
 #include <cstdint>
+#include <map>
 #include <memory>
+#include <tuple>
 #include <vector>
 
 #include "buffer.h"
@@ -18,6 +20,15 @@
 namespace tfm {
 
 class Context;
+
+// A host's 3D image read in place by the assembly (recording path): a 3D view of mip 0, layer 0
+// in R32_SFLOAT, R16_SFLOAT, R16_UNORM or R8_UNORM (a texel fetch gives the float the buffer
+// formats give), the layout it is in while the work runs, its extent (at most 2^32 voxels).
+struct ImageFieldView {
+  VkImageView view = VK_NULL_HANDLE;
+  VkImageLayout layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+  VkExtent3D extent{0, 0, 0};
+};
 
 // Adds M, S^T b, b^T b and the voxel count of (ref, opt) to a 32.32 fixed-point accumulator
 // buffer of TFM_ASSEMBLE_SLOTS(N) slots (8 bytes each, low word first). The result is
@@ -39,6 +50,13 @@ class AssembleNormalEquationsKernel {
               const FieldMapping& opt_map, const Buffer& ref_tf, Buffer& accum,
               const FieldMapping* before_map = nullptr) const;
 
+  // The same for two images of one extent read in place (the shader's TFM_FIELD_IMAGE variant,
+  // voxel i at texel (i % nx, i / nx % ny, i / (nx ny))): the same bits as the same values in
+  // buffers. Throws std::invalid_argument for missing views or differing or empty extents.
+  void record(CommandBatch& batch, const ImageFieldView& ref, const ImageFieldView& opt, const FieldMapping& ref_map,
+              const FieldMapping& opt_map, const Buffer& ref_tf, Buffer& accum,
+              const FieldMapping* before_map = nullptr) const;
+
   // Which of the 11 bin terms one pass adds (shaders/assemble_normal_equations.comp).
   struct TermPass {
     uint32_t first = 0, count = 11;
@@ -51,9 +69,16 @@ class AssembleNormalEquationsKernel {
   Reduction reduction_;
   std::vector<TermPass> passes_;
   uint64_t range_quads_;
-  // One per pass, without and with the before loss, each compiled when first recorded.
-  const std::vector<std::unique_ptr<ComputePipeline>>& pipelines(bool with_before) const;
-  mutable std::array<std::vector<std::unique_ptr<ComputePipeline>>, 2> pipelines_;
+  // One per pass, without and with the before loss, each compiled when first recorded; for
+  // images also per x and y size (specialization constants).
+  using Pipelines = std::vector<std::unique_ptr<ComputePipeline>>;
+  const Pipelines& pipelines(bool with_before) const;
+  const Pipelines& image_pipelines(bool with_before, uint32_t nx, uint32_t ny) const;
+  Pipelines make_pipelines(bool with_before, const VkExtent3D* image) const;
+  gpu::VoxelPairPush push_for(const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
+                              Buffer& accum, const FieldMapping* before_map) const;
+  mutable std::array<Pipelines, 2> pipelines_;
+  mutable std::map<std::tuple<bool, uint32_t, uint32_t>, Pipelines> image_pipelines_;
 };
 
 // The term passes of the assembly: all 11 terms at once, or in Private mode as many per pass as

@@ -92,9 +92,23 @@ uint32_t NormalEquationsRecorder::tf_size() const { return kernel_->tf_size(); }
 void NormalEquationsRecorder::record_assemble(VkCommandBuffer cmd, const DeviceField& ref, const DeviceField& opt,
                                               const FieldMapping& ref_map, const FieldMapping& opt_map,
                                               std::span<const float> ref_tf_rgba) {
-  check_table_for(ref_tf_rgba, ref_map, "record_assemble: reference TF");
   if (opt.voxel_count() != ref.voxel_count() || opt.chunk_voxels() != ref.chunk_voxels())
     throw std::invalid_argument("record_assemble: the fields differ in size or chunking");
+  record_with(cmd, opt_map, ref_map, ref_tf_rgba,
+              [&](CommandBatch& batch) { kernel_->record(batch, ref, opt, ref_map, opt_map, ref_tf_, accum_); });
+}
+
+void NormalEquationsRecorder::record_assemble(VkCommandBuffer cmd, const ImageFieldView& ref, const ImageFieldView& opt,
+                                              const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                              std::span<const float> ref_tf_rgba) {
+  record_with(cmd, opt_map, ref_map, ref_tf_rgba,
+              [&](CommandBatch& batch) { kernel_->record(batch, ref, opt, ref_map, opt_map, ref_tf_, accum_); });
+}
+
+void NormalEquationsRecorder::record_with(VkCommandBuffer cmd, const FieldMapping& opt_map, const FieldMapping& ref_map,
+                                          std::span<const float> ref_tf_rgba,
+                                          const std::function<void(CommandBatch&)>& assemble) {
+  check_table_for(ref_tf_rgba, ref_map, "record_assemble: reference TF");
   if (opt_map.tf_size != kernel_->tf_size())
     throw std::invalid_argument("record_assemble: the second field's mapping has " + std::to_string(opt_map.tf_size) +
                                 " TF entries, the recorder " + std::to_string(kernel_->tf_size()));
@@ -106,7 +120,7 @@ void NormalEquationsRecorder::record_assemble(VkCommandBuffer cmd, const DeviceF
   record_table(batch, ctx_, ref_tf_, ref_tf_rgba, "recorded reference TF");
   batch.fill(accum_, 0u);
   batch.barrier();
-  kernel_->record(batch, ref, opt, ref_map, opt_map, ref_tf_, accum_);  // ends with a barrier
+  assemble(batch);  // ends with a barrier
   batch.copy(accum_, 0, result_, 0, accum_.size());
   batch.barrier_to_host();
   recorded_ = true;

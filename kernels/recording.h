@@ -17,6 +17,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <string>
@@ -24,6 +25,7 @@
 
 #include <vulkan/vulkan_core.h>
 
+#include "assemble_normal_equations.h"
 #include "buffer.h"
 #include "camera.h"
 #include "correlation.h"
@@ -37,7 +39,6 @@ namespace tfm {
 
 class CommandBatch;
 class Context;
-class AssembleNormalEquationsKernel;
 class RenderImageKernel;
 class ResidualMapKernel;
 class VoxelLossKernel;
@@ -88,6 +89,12 @@ class NormalEquationsRecorder {
   // sizes that do not match (fields, mappings, TF).
   void record_assemble(VkCommandBuffer cmd, const DeviceField& ref, const DeviceField& opt,
                        const FieldMapping& ref_map, const FieldMapping& opt_map, std::span<const float> ref_tf_rgba);
+  // The same reading two of the host's 3D images in place (assemble_normal_equations.h's
+  // ImageFieldView: no copy, no memory of the volume's size): the same bits as the same values in
+  // buffers. The images must be in their stated layouts (SHADER_READ_ONLY_OPTIMAL or GENERAL),
+  // with VK_IMAGE_USAGE_SAMPLED_BIT, the host's writes ordered before compute-shader reads.
+  void record_assemble(VkCommandBuffer cmd, const ImageFieldView& ref, const ImageFieldView& opt,
+                       const FieldMapping& ref_map, const FieldMapping& opt_map, std::span<const float> ref_tf_rgba);
   // The system of the last recording, once the host's wait for its submission returned (before
   // that the numbers are undefined). std::logic_error before any recording.
   NormalEquations result() const;
@@ -100,6 +107,8 @@ class NormalEquationsRecorder {
 
  private:
   std::vector<uint32_t> result_words() const;
+  void record_with(VkCommandBuffer cmd, const FieldMapping& opt_map, const FieldMapping& ref_map,
+                   std::span<const float> ref_tf_rgba, const std::function<void(CommandBatch&)>& assemble);
   Context& ctx_;
   std::unique_ptr<AssembleNormalEquationsKernel> kernel_;
   Buffer accum_, result_, ref_tf_;
@@ -182,7 +191,8 @@ struct ImageFieldSource {
 FieldFormat field_format_of(VkFormat format, const char* what);
 
 // A host's 3D image as a field every recorder above reads (assembly, voxel loss, residual map,
-// rendering; as a member of a correlation ensemble). tfmatch's voxel kernels read fields as texel
+// rendering; as a member of a correlation ensemble; the assembly also reads images in place,
+// record_assemble with ImageFieldView). tfmatch's voxel kernels read fields as texel
 // buffers, four voxels a texel (DESIGN.md: a texel fetch is a vector gather on CPU devices and a
 // cached load on GPUs), which an image cannot be viewed as; so record_copy() copies the image on
 // the device (vkCmdCopyImageToBuffer, the stored texels unchanged: the same bits as the host's

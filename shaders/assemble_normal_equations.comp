@@ -64,12 +64,37 @@ layout(constant_id = TFM_ASSEMBLE_SPEC_TERM_COUNT) const uint TERM_COUNT = 11u;
 // lavapipe (measured), so pipelines without it compile the loop without it.
 layout(constant_id = TFM_ASSEMBLE_SPEC_WITH_BEFORE) const bool WITH_BEFORE = false;
 
+#ifdef TFM_FIELD_IMAGE
+// Both fields are a host's 3D images (R32F, R16F, R16 or R8 unorm), read by texel fetch without a
+// sampler: voxel i of the volume is texel (i % NX, i / NX % NY, i / (NX NY)); a dispatch's range
+// starts at voxel first_voxel, and the quad bindings hold the same images.
+#extension GL_EXT_samplerless_texture_functions : require
+layout(constant_id = TFM_ASSEMBLE_SPEC_IMAGE_NX) const uint IMAGE_NX = 1u;
+layout(constant_id = TFM_ASSEMBLE_SPEC_IMAGE_NY) const uint IMAGE_NY = 1u;
+layout(binding = TFM_ASSEMBLE_BINDING_REF_FIELD) uniform texture3D ref_image;
+layout(binding = TFM_ASSEMBLE_BINDING_OPT_FIELD) uniform texture3D opt_image;
+ivec3 texel_of(uint i) { return ivec3(i % IMAGE_NX, (i / IMAGE_NX) % IMAGE_NY, i / (IMAGE_NX * IMAGE_NY)); }
+#define REF_VOXEL(i) texelFetch(ref_image, texel_of(i), 0).x
+#define OPT_VOXEL(i) texelFetch(opt_image, texel_of(i), 0).x
+#define FIELD_QUAD(image, q)                                                                          \
+  vec4(texelFetch(image, texel_of(pc.first_voxel + 4u * (q)), 0).x,                                     \
+       texelFetch(image, texel_of(pc.first_voxel + 4u * (q) + 1u), 0).x,                                \
+       texelFetch(image, texel_of(pc.first_voxel + 4u * (q) + 2u), 0).x,                                \
+       texelFetch(image, texel_of(pc.first_voxel + 4u * (q) + 3u), 0).x)
+#define REF_QUAD(q) FIELD_QUAD(ref_image, q)
+#define OPT_QUAD(q) FIELD_QUAD(opt_image, q)
+#else
 // The chunk's voxels one a texel (for the dispatch's last voxel_count % 4) and its range as quads,
 // in the field's storage format (a float, a float16, a unorm: the texel fetch gives the float).
 layout(binding = TFM_ASSEMBLE_BINDING_REF_FIELD) uniform samplerBuffer ref_field;
 layout(binding = TFM_ASSEMBLE_BINDING_OPT_FIELD) uniform samplerBuffer opt_field;
 layout(binding = TFM_ASSEMBLE_BINDING_REF_QUADS) uniform samplerBuffer ref_quads;
 layout(binding = TFM_ASSEMBLE_BINDING_OPT_QUADS) uniform samplerBuffer opt_quads;
+#define REF_VOXEL(i) texelFetch(ref_field, int(i)).x
+#define OPT_VOXEL(i) texelFetch(opt_field, int(i)).x
+#define REF_QUAD(q) texelFetch(ref_quads, int(q))
+#define OPT_QUAD(q) texelFetch(opt_quads, int(q))
+#endif
 layout(binding = TFM_ASSEMBLE_BINDING_REF_TF) uniform samplerBuffer ref_tf;
 
 TFM_DECLARE_ACCUMULATORS(TFM_ASSEMBLE_BINDING_ACCUM)
@@ -168,8 +193,8 @@ void main() {
   // Lanes on consecutive quads, each subgroup through its own segments (quad_segments.glsl).
   const uint quads = pc.voxel_count / 4u;
   TFM_FOR_EACH_QUAD(q, quads) {
-    const vec4 r = texelFetch(ref_quads, int(q));
-    const vec4 o = texelFetch(opt_quads, int(q));
+    const vec4 r = REF_QUAD(q);
+    const vec4 o = OPT_QUAD(q);
     take(r.x, o.x);
     take(r.y, o.y);
     take(r.z, o.z);
@@ -177,7 +202,7 @@ void main() {
   }
   if (gl_GlobalInvocationID.x == 0u)
     for (uint i = pc.first_voxel + 4u * quads; i < pc.first_voxel + pc.voxel_count; ++i)
-      take(texelFetch(ref_field, int(i)).x, texelFetch(opt_field, int(i)).x);
+      take(REF_VOXEL(i), OPT_VOXEL(i));
 
   if (MODE == TFM_REDUCE_PRIVATE) {
     for (uint j = 0u; j + 1u < n; ++j)

@@ -112,6 +112,10 @@ inline std::vector<uint> by_id(std::initializer_list<std::pair<uint, uint>> valu
 #define TFM_ASSEMBLE_SPEC_TERM_FIRST 4    // first of the 11 bin terms a dispatch adds (PRIVATE passes)
 #define TFM_ASSEMBLE_SPEC_TERM_COUNT 5    // how many of them (11 but in PRIVATE passes)
 #define TFM_ASSEMBLE_SPEC_WITH_BEFORE 6   // 1: also sum the before loss (push: before_lo, before_scale)
+// The variant that reads both fields from 3D images (TFM_FIELD_IMAGE): their x and y sizes, to
+// turn a voxel index into a texel (every field binding then holds a sampled image).
+#define TFM_ASSEMBLE_SPEC_IMAGE_NX 7
+#define TFM_ASSEMBLE_SPEC_IMAGE_NY 8
 
 // Push constants of the kernels that map a pair of fields (reference, optimized) through TFs:
 // assemble_normal_equations and voxel_loss. A shader opts in with TFM_WANT_VOXEL_PAIR_PUSH

@@ -53,6 +53,7 @@ class Host {
   }
   ~Host() {
     vkDeviceWaitIdle(d_.device());
+    for (VkImageView v : views_) vkDestroyImageView(d_.device(), v, nullptr);
     for (VkImage i : images_) vkDestroyImage(d_.device(), i, nullptr);
     for (VkBuffer b : buffers_) vkDestroyBuffer(d_.device(), b, nullptr);
     for (VkDeviceMemory m : memories_) vkFreeMemory(d_.device(), m, nullptr);
@@ -98,6 +99,19 @@ class Host {
     vkGetImageMemoryRequirements(d_.device(), made, &req);
     EXPECT_EQ(vkBindImageMemory(d_.device(), made, allocate(req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT), 0), VK_SUCCESS);
     return made;
+  }
+
+  // A view of all of `image` (3D, mip 0, layer 0), destroyed with the host.
+  VkImageView view_3d(VkImage image, VkFormat format) {
+    VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
+    vi.image = image;
+    vi.viewType = VK_IMAGE_VIEW_TYPE_3D;
+    vi.format = format;
+    vi.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    VkImageView view = VK_NULL_HANDLE;
+    EXPECT_EQ(vkCreateImageView(d_.device(), &vi, nullptr, &view), VK_SUCCESS);
+    views_.push_back(view);
+    return view;
   }
 
   // A 3D volume image of `format`, filled with `texels` (x fastest) by the host's own copy in
@@ -199,6 +213,7 @@ class Host {
   VkFence fence_ = VK_NULL_HANDLE;
   std::vector<VkBuffer> buffers_;
   std::vector<VkImage> images_;
+  std::vector<VkImageView> views_;
   std::vector<VkDeviceMemory> memories_;
 };
 
@@ -617,7 +632,8 @@ TEST_F(EmbeddingRecording, FieldsInHalfAndUnormFormatsEqualTheirFloatValues) {
 // R8_UNORM): ImageFieldRecorder copies each on the device into a field, and the assembly, the voxel
 // loss, the residual map and the rendering recorded after it in the same command buffer give the
 // bits of the same stored values in a buffer (DeviceField::adopt), on an awkward extent split into
-// chunks, twice (the recorders restarted on the next frame). Members of an ensemble copied from
+// chunks, twice (the recorders restarted on the next frame); so does the assembly reading both
+// images in place (ImageFieldView, no copy). Members of an ensemble copied from
 // R32F images into the host's member-major buffer give the correlation field of those values.
 TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
   Context& ctx = *ctx_;
@@ -672,6 +688,13 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
       ImageFieldRecorder copier(ctx, extent, vk_format, "second volume", chunk);
       ASSERT_EQ(copier.field().chunk_count(), in_buffer.chunk_count());
       NormalEquationsRecorder assembly(ctx, 7);
+      ReductionOptions ranges;  // dispatches of 64 quads: ranges that start inside the image
+      ranges.range_quads = 64;
+      NormalEquationsRecorder in_place(ctx, 7, ranges);
+      VkImage ref_image = VK_NULL_HANDLE;
+      VkBuffer ref_staging = VK_NULL_HANDLE;
+      std::vector<uint8_t> ref_texels(voxels * 4);
+      std::memcpy(ref_texels.data(), ref.data(), ref_texels.size());
       VoxelLossRecorder loss(ctx);
       ResidualMapRecorder residual_recorder(ctx);
       RenderRecorder render(ctx, geometry, uint32_t(copier.field().chunk_count()));
@@ -681,7 +704,10 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
         SCOPED_TRACE("frame " + std::to_string(frame));
         const uint64_t submissions = ctx.submissions();
         VkCommandBuffer cmd = host.begin();
-        if (frame == 0) image = host.volume_image(cmd, vk_format, extent, stored, staging);
+        if (frame == 0) {
+          image = host.volume_image(cmd, vk_format, extent, stored, staging);
+          ref_image = host.volume_image(cmd, VK_FORMAT_R32_SFLOAT, extent, ref_texels, ref_staging);
+        }
         ImageFieldSource source;
         source.image = image;
         source.format = vk_format;
@@ -691,6 +717,11 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
         loss.record_voxel_loss(cmd, r, copier.field(), rm, om, ref_floats, opt_floats);
         residual_recorder.record_residual_map(cmd, r, copier.field(), rm, om, ref_floats, opt_floats, residual_field);
         render.record_render(cmd, copier.field(), om, opt_floats, s, picture_view);
+        // The assembly reading both images in place (no copy).
+        const ImageFieldView ref_view{host.view_3d(ref_image, VK_FORMAT_R32_SFLOAT), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+                                      extent};
+        const ImageFieldView opt_view{host.view_3d(image, vk_format), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, extent};
+        in_place.record_assemble(cmd, ref_view, opt_view, rm, om, ref_floats);
         Host::host_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                            VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT);
         EXPECT_EQ(ctx.submissions(), submissions) << "recording submitted work";
@@ -699,6 +730,7 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
         GpuNormalEquations eq(ctx, 7);
         eq.add(r, in_buffer, rm, om, rt);
         EXPECT_EQ(assembly.fixed_point_slots(), eq.fixed_point_slots()) << "assembly";
+        EXPECT_EQ(in_place.fixed_point_slots(), eq.fixed_point_slots()) << "assembly reading the images in place";
         const VoxelLoss expected_loss = voxel_loss_gpu(ctx, r, in_buffer, rm, om, rt, ot), got_loss = loss.result();
         EXPECT_EQ(got_loss.squared, expected_loss.squared) << "voxel loss";
         EXPECT_EQ(got_loss.absolute, expected_loss.absolute) << "voxel loss";
@@ -835,6 +867,8 @@ TEST_F(EmbeddingRecording, BadArgumentsAreClearErrors) {
     source.extent = {4, 4, 4};
     source.format = VK_FORMAT_R16_SFLOAT;
     EXPECT_THROW(copier.record_copy(cmd, source), std::invalid_argument);
+    const ImageFieldView no_view{VK_NULL_HANDLE, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, {4, 4, 4}};
+    EXPECT_THROW(recorder.record_assemble(cmd, no_view, no_view, m, m, std::vector<float>(32, 0.5f)), std::invalid_argument);
     host.submit_and_wait();  // nothing was recorded: an empty command buffer
   }
 }
