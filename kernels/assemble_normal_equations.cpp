@@ -136,14 +136,8 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
 void AssembleNormalEquationsKernel::record(CommandBatch& batch, const ImageFieldView& ref, const ImageFieldView& opt,
                                            const FieldMapping& ref_map, const FieldMapping& opt_map,
                                            const Buffer& ref_tf, Buffer& accum, const FieldMapping* before_map) const {
-  if (ref.view == VK_NULL_HANDLE || opt.view == VK_NULL_HANDLE)
-    throw std::invalid_argument("assemble: an image field without a view (VK_NULL_HANDLE)");
+  const uint64_t voxels = check_image_pair(ref, opt, "assemble");
   const VkExtent3D& e = ref.extent;
-  if (e.width != opt.extent.width || e.height != opt.extent.height || e.depth != opt.extent.depth)
-    throw std::invalid_argument("assemble: the two images differ in extent");
-  const uint64_t voxels = uint64_t(e.width) * e.height * e.depth;
-  if (voxels == 0 || voxels > UINT32_MAX)
-    throw std::invalid_argument("assemble: an image of " + std::to_string(voxels) + " voxels (1 to 2^32 - 1 are read in place)");
   gpu::VoxelPairPush push = push_for(ref_map, opt_map, ref_tf, accum, before_map);
   const Binding tf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
   const Binding r_image = Binding::image(ref.view, ref.layout), o_image = Binding::image(opt.view, opt.layout);

@@ -21,15 +21,6 @@ namespace tfm {
 
 class Context;
 
-// A host's 3D image read in place by the assembly (recording path): a 3D view of mip 0, layer 0
-// in R32_SFLOAT, R16_SFLOAT, R16_UNORM or R8_UNORM (a texel fetch gives the float the buffer
-// formats give), the layout it is in while the work runs, its extent (at most 2^32 voxels).
-struct ImageFieldView {
-  VkImageView view = VK_NULL_HANDLE;
-  VkImageLayout layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
-  VkExtent3D extent{0, 0, 0};
-};
-
 // Adds M, S^T b, b^T b and the voxel count of (ref, opt) to a 32.32 fixed-point accumulator
 // buffer of TFM_ASSEMBLE_SLOTS(N) slots (8 bytes each, low word first). The result is
 // bit-identical for every mode, atomic width, chunking and workgroup count. Throws

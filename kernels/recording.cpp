@@ -169,6 +169,20 @@ void ResidualMapRecorder::record_residual_map(VkCommandBuffer cmd, const DeviceF
   kernel_->record(batch, ref, opt, ref_map, opt_map, ref_tf_, opt_tf_, out);
 }
 
+void ResidualMapRecorder::record_residual_map(VkCommandBuffer cmd, const ImageFieldView& ref, const ImageFieldView& opt,
+                                              const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                              std::span<const float> ref_tf_rgba, std::span<const float> opt_tf_rgba,
+                                              DeviceField& out) {
+  check_table_for(ref_tf_rgba, ref_map, "record_residual_map: reference TF");
+  check_table_for(opt_tf_rgba, opt_map, "record_residual_map: second TF");
+  CommandBatch& batch = restart(recording_, ctx_, cmd);
+  batch.barrier();  // earlier reads of the tables and writes of `out` finish first
+  record_table(batch, ctx_, ref_tf_, ref_tf_rgba, "recorded reference TF");
+  record_table(batch, ctx_, opt_tf_, opt_tf_rgba, "recorded second TF");
+  batch.barrier();
+  kernel_->record(batch, ref, opt, ref_map, opt_map, ref_tf_, opt_tf_, out);
+}
+
 RecordedAccess ResidualMapRecorder::access() {
   return {VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_SHADER_READ_BIT,
           VK_ACCESS_SHADER_WRITE_BIT};

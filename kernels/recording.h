@@ -133,6 +133,11 @@ class ResidualMapRecorder {
   void record_residual_map(VkCommandBuffer cmd, const DeviceField& ref, const DeviceField& opt,
                            const FieldMapping& ref_map, const FieldMapping& opt_map, std::span<const float> ref_tf_rgba,
                            std::span<const float> opt_tf_rgba, DeviceField& out);
+  // The same from two of the host's 3D images read in place (ImageFieldView), into `out` holding
+  // the volume's voxels in one chunk (a renderer's residual volume): the same bits as from buffers.
+  void record_residual_map(VkCommandBuffer cmd, const ImageFieldView& ref, const ImageFieldView& opt,
+                           const FieldMapping& ref_map, const FieldMapping& opt_map, std::span<const float> ref_tf_rgba,
+                           std::span<const float> opt_tf_rgba, DeviceField& out);
   // Reads `ref` and `opt` and writes `out` in the compute-shader stage.
   static RecordedAccess access();
 

@@ -2,12 +2,15 @@
 // into a device field chunked like the inputs (NaN in either input gives 0).
 #pragma once
 
+#include <map>
 #include <memory>
+#include <utility>
 
 #include "buffer.h"
 #include "commands.h"
 #include "device_field.h"
 #include "pipeline.h"
+#include "voxel_pair.h"
 #include "shared_layout.h"
 
 namespace tfm {
@@ -23,12 +26,21 @@ class ResidualMapKernel {
   // std::invalid_argument when the three fields differ in size or chunking.
   void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
               const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, DeviceField& out) const;
+  // The same from two of a host's 3D images read in place (voxel_pair.h's ImageFieldView) into
+  // `out`, a float32 field of the volume's voxels in one chunk: the same bits as from buffers.
+  // Throws std::invalid_argument for image views that do not match or an output of another size
+  // or of several chunks.
+  void record(CommandBatch& batch, const ImageFieldView& ref, const ImageFieldView& opt, const FieldMapping& ref_map,
+              const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, DeviceField& out) const;
 
  private:
+  PipelineDesc pipeline_desc(const VkExtent3D* image) const;
   Context& ctx_;
   uint64_t range_quads_;
   uint32_t workgroup_size_;
   std::unique_ptr<ComputePipeline> pipeline_;
+  // The image variant per x and y size (specialization constants), made when first recorded.
+  mutable std::map<std::pair<uint32_t, uint32_t>, std::unique_ptr<ComputePipeline>> image_pipelines_;
 };
 
 }  // namespace tfm

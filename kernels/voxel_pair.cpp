@@ -110,6 +110,19 @@ std::vector<double> decode_fixed_point(const std::vector<uint32_t>& words) {
 }
 
 
+uint64_t check_image_pair(const ImageFieldView& ref, const ImageFieldView& opt, const char* kernel) {
+  if (ref.view == VK_NULL_HANDLE || opt.view == VK_NULL_HANDLE)
+    throw std::invalid_argument(std::string(kernel) + ": an image field without a view (VK_NULL_HANDLE)");
+  const VkExtent3D& e = ref.extent;
+  if (e.width != opt.extent.width || e.height != opt.extent.height || e.depth != opt.extent.depth)
+    throw std::invalid_argument(std::string(kernel) + ": the two images differ in extent");
+  const uint64_t voxels = uint64_t(e.width) * e.height * e.depth;
+  if (voxels == 0 || voxels > UINT32_MAX)
+    throw std::invalid_argument(std::string(kernel) + ": an image of " + std::to_string(voxels) +
+                                " voxels (1 to 2^32 - 1 are read in place)");
+  return voxels;
+}
+
 void check_voxel_pair(const DeviceField& ref, const DeviceField& opt, const char* kernel) {
   if (ref.voxel_count() != opt.voxel_count() || ref.chunk_voxels() != opt.chunk_voxels())
     throw std::invalid_argument(std::string(kernel) + ": fields differ in size or chunking");

@@ -70,6 +70,20 @@ Binding quad_texels(const DeviceField& field, const QuadRange& r);
 // last voxel_count % 4 voxels through it, by their index in the chunk).
 Binding voxel_texels(const DeviceField& field, size_t c);
 
+// A host's 3D image read in place by the assembly and the residual map (recording path): a 3D
+// view of mip 0, layer 0
+// in R32_SFLOAT, R16_SFLOAT, R16_UNORM or R8_UNORM (a texel fetch gives the float the buffer
+// formats give), the layout it is in while the work runs, its extent (at most 2^32 voxels).
+struct ImageFieldView {
+  VkImageView view = VK_NULL_HANDLE;
+  VkImageLayout layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+  VkExtent3D extent{0, 0, 0};
+};
+
+// Throws std::invalid_argument (naming `kernel`) unless both images have views and one extent of
+// 1 to 2^32 - 1 voxels; returns the voxel count.
+uint64_t check_image_pair(const ImageFieldView& ref, const ImageFieldView& opt, const char* kernel);
+
 // Throws std::invalid_argument (naming `kernel`) unless the two fields have the same voxel count
 // and chunking.
 void check_voxel_pair(const DeviceField& ref, const DeviceField& opt, const char* kernel);

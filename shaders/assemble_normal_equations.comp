@@ -65,24 +65,17 @@ layout(constant_id = TFM_ASSEMBLE_SPEC_TERM_COUNT) const uint TERM_COUNT = 11u;
 layout(constant_id = TFM_ASSEMBLE_SPEC_WITH_BEFORE) const bool WITH_BEFORE = false;
 
 #ifdef TFM_FIELD_IMAGE
-// Both fields are a host's 3D images (R32F, R16F, R16 or R8 unorm), read by texel fetch without a
-// sampler: voxel i of the volume is texel (i % NX, i / NX % NY, i / (NX NY)); a dispatch's range
-// starts at voxel first_voxel, and the quad bindings hold the same images.
-#extension GL_EXT_samplerless_texture_functions : require
+// Both fields are a host's 3D images (field_image.glsl); a dispatch's range starts at voxel
+// first_voxel, and the quad bindings hold the same images.
 layout(constant_id = TFM_ASSEMBLE_SPEC_IMAGE_NX) const uint IMAGE_NX = 1u;
 layout(constant_id = TFM_ASSEMBLE_SPEC_IMAGE_NY) const uint IMAGE_NY = 1u;
+#include "field_image.glsl"
 layout(binding = TFM_ASSEMBLE_BINDING_REF_FIELD) uniform texture3D ref_image;
 layout(binding = TFM_ASSEMBLE_BINDING_OPT_FIELD) uniform texture3D opt_image;
-ivec3 texel_of(uint i) { return ivec3(i % IMAGE_NX, (i / IMAGE_NX) % IMAGE_NY, i / (IMAGE_NX * IMAGE_NY)); }
-#define REF_VOXEL(i) texelFetch(ref_image, texel_of(i), 0).x
-#define OPT_VOXEL(i) texelFetch(opt_image, texel_of(i), 0).x
-#define FIELD_QUAD(image, q)                                                                          \
-  vec4(texelFetch(image, texel_of(pc.first_voxel + 4u * (q)), 0).x,                                     \
-       texelFetch(image, texel_of(pc.first_voxel + 4u * (q) + 1u), 0).x,                                \
-       texelFetch(image, texel_of(pc.first_voxel + 4u * (q) + 2u), 0).x,                                \
-       texelFetch(image, texel_of(pc.first_voxel + 4u * (q) + 3u), 0).x)
-#define REF_QUAD(q) FIELD_QUAD(ref_image, q)
-#define OPT_QUAD(q) FIELD_QUAD(opt_image, q)
+#define REF_VOXEL(i) IMAGE_VOXEL(ref_image, i)
+#define OPT_VOXEL(i) IMAGE_VOXEL(opt_image, i)
+#define REF_QUAD(q) IMAGE_QUAD(ref_image, pc.first_voxel + 4u * (q))
+#define OPT_QUAD(q) IMAGE_QUAD(opt_image, pc.first_voxel + 4u * (q))
 #else
 // The chunk's voxels one a texel (for the dispatch's last voxel_count % 4) and its range as quads,
 // in the field's storage format (a float, a float16, a unorm: the texel fetch gives the float).

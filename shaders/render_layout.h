@@ -119,6 +119,10 @@ TFM_PUSH_CONSTANTS(RenderPush) {
 #define TFM_RESIDUAL_BINDING_REF_QUADS 5
 #define TFM_RESIDUAL_BINDING_OPT_QUADS 6
 #define TFM_RESIDUAL_BINDING_OUT_QUADS 7
+// The variant that reads both fields from 3D images (TFM_FIELD_IMAGE, field_image.glsl): their x
+// and y sizes (every field binding then holds a sampled image).
+#define TFM_RESIDUAL_SPEC_IMAGE_NX 1
+#define TFM_RESIDUAL_SPEC_IMAGE_NY 2
 
 #ifdef __cplusplus
 }  // namespace tfm::gpu

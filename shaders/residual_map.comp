@@ -14,10 +14,27 @@
 
 layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 
+#ifdef TFM_FIELD_IMAGE
+// Both fields are a host's 3D images (field_image.glsl) and the output one chunk of the volume.
+layout(constant_id = TFM_RESIDUAL_SPEC_IMAGE_NX) const uint IMAGE_NX = 1u;
+layout(constant_id = TFM_RESIDUAL_SPEC_IMAGE_NY) const uint IMAGE_NY = 1u;
+#include "field_image.glsl"
+layout(binding = TFM_RESIDUAL_BINDING_REF_FIELD) uniform texture3D ref_image;
+layout(binding = TFM_RESIDUAL_BINDING_OPT_FIELD) uniform texture3D opt_image;
+#define REF_VOXEL(i) IMAGE_VOXEL(ref_image, i)
+#define OPT_VOXEL(i) IMAGE_VOXEL(opt_image, i)
+#define REF_QUAD(q) IMAGE_QUAD(ref_image, pc.first_voxel + 4u * (q))
+#define OPT_QUAD(q) IMAGE_QUAD(opt_image, pc.first_voxel + 4u * (q))
+#else
 layout(binding = TFM_RESIDUAL_BINDING_REF_FIELD) uniform samplerBuffer ref_field;  // one voxel a texel
 layout(binding = TFM_RESIDUAL_BINDING_OPT_FIELD) uniform samplerBuffer opt_field;
 layout(binding = TFM_RESIDUAL_BINDING_REF_QUADS) uniform samplerBuffer ref_quads;
 layout(binding = TFM_RESIDUAL_BINDING_OPT_QUADS) uniform samplerBuffer opt_quads;
+#define REF_VOXEL(i) texelFetch(ref_field, int(i)).x
+#define OPT_VOXEL(i) texelFetch(opt_field, int(i)).x
+#define REF_QUAD(q) texelFetch(ref_quads, int(q))
+#define OPT_QUAD(q) texelFetch(opt_quads, int(q))
+#endif
 layout(binding = TFM_RESIDUAL_BINDING_REF_TF) uniform samplerBuffer ref_tf;
 layout(binding = TFM_RESIDUAL_BINDING_OPT_TF) uniform samplerBuffer opt_tf;
 // The output chunk twice: floats for the tail, quads (from first_voxel / 4) for the rest.
@@ -49,12 +66,12 @@ void main() {
   const uint quads = pc.voxel_count / 4u;
   const uint first_quad = pc.first_voxel / 4u;  // first_voxel is a multiple of 4 (a range start)
   TFM_FOR_EACH_QUAD(q, quads) {
-    const vec4 r = texelFetch(ref_quads, int(q));
-    const vec4 o = texelFetch(opt_quads, int(q));
+    const vec4 r = REF_QUAD(q);
+    const vec4 o = OPT_QUAD(q);
     residual_quads[first_quad + q] =
         vec4(residual_of(r.x, o.x), residual_of(r.y, o.y), residual_of(r.z, o.z), residual_of(r.w, o.w));
   }
   if (gl_GlobalInvocationID.x == 0u)
     for (uint i = pc.first_voxel + 4u * quads; i < pc.first_voxel + pc.voxel_count; ++i)
-      residual[i] = residual_of(texelFetch(ref_field, int(i)).x, texelFetch(opt_field, int(i)).x);
+      residual[i] = residual_of(REF_VOXEL(i), OPT_VOXEL(i));
 }

@@ -632,8 +632,8 @@ TEST_F(EmbeddingRecording, FieldsInHalfAndUnormFormatsEqualTheirFloatValues) {
 // R8_UNORM): ImageFieldRecorder copies each on the device into a field, and the assembly, the voxel
 // loss, the residual map and the rendering recorded after it in the same command buffer give the
 // bits of the same stored values in a buffer (DeviceField::adopt), on an awkward extent split into
-// chunks, twice (the recorders restarted on the next frame); so does the assembly reading both
-// images in place (ImageFieldView, no copy). Members of an ensemble copied from
+// chunks, twice (the recorders restarted on the next frame); so do the assembly and the residual
+// map reading both images in place (ImageFieldView, no copy). Members of an ensemble copied from
 // R32F images into the host's member-major buffer give the correlation field of those values.
 TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
   Context& ctx = *ctx_;
@@ -691,6 +691,10 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
       ReductionOptions ranges;  // dispatches of 64 quads: ranges that start inside the image
       ranges.range_quads = 64;
       NormalEquationsRecorder in_place(ctx, 7, ranges);
+      ResidualMapRecorder residual_in_place(ctx);
+      void* residual2_map = nullptr;
+      VkBuffer residual2 = host.buffer(voxels * 4, &residual2_map);
+      DeviceField residual2_field = DeviceField::adopt(ctx, residual2, 0, voxels, "host residual, images in place");
       VkImage ref_image = VK_NULL_HANDLE;
       VkBuffer ref_staging = VK_NULL_HANDLE;
       std::vector<uint8_t> ref_texels(voxels * 4);
@@ -722,6 +726,7 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
                                       extent};
         const ImageFieldView opt_view{host.view_3d(image, vk_format), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, extent};
         in_place.record_assemble(cmd, ref_view, opt_view, rm, om, ref_floats);
+        residual_in_place.record_residual_map(cmd, ref_view, opt_view, rm, om, ref_floats, opt_floats, residual2_field);
         Host::host_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                            VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT);
         EXPECT_EQ(ctx.submissions(), submissions) << "recording submitted work";
@@ -739,6 +744,7 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
         grid.dims = dims;
         const std::vector<float> expected_residual = residual_map_gpu(ctx, grid, r, in_buffer, rm, om, rt, ot).values;
         EXPECT_EQ(0, std::memcmp(residual_map, expected_residual.data(), voxels * 4)) << "residual map";
+        EXPECT_EQ(0, std::memcmp(residual2_map, expected_residual.data(), voxels * 4)) << "residual map, images in place";
         const RenderedImage expected_picture = GpuRenderer(ctx, in_buffer, geometry).render_colours(om, ot, s);
         EXPECT_EQ(0, std::memcmp(picture_map, expected_picture.rgba.data(), expected_picture.rgba.size() * 4))
             << "rendering";
@@ -869,6 +875,10 @@ TEST_F(EmbeddingRecording, BadArgumentsAreClearErrors) {
     EXPECT_THROW(copier.record_copy(cmd, source), std::invalid_argument);
     const ImageFieldView no_view{VK_NULL_HANDLE, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, {4, 4, 4}};
     EXPECT_THROW(recorder.record_assemble(cmd, no_view, no_view, m, m, std::vector<float>(32, 0.5f)), std::invalid_argument);
+    ResidualMapRecorder residual(ctx);
+    EXPECT_THROW(residual.record_residual_map(cmd, no_view, no_view, m, m, std::vector<float>(32, 0.5f),
+                                              std::vector<float>(32, 0.5f), f),
+                 std::invalid_argument);
     host.submit_and_wait();  // nothing was recorded: an empty command buffer
   }
 }

@@ -6,9 +6,10 @@
 // changes, as when a user edits it; each frame records the renderer's two views and tfmatch's
 // assembly of the second field's TF (NormalEquationsRecorder), which reads the two images in place;
 // when that frame's fence has signalled, the host solves the small system and records the new TF
-// into the buffer the renderer samples (TfUploadRecorder). tfmatch never submits. For what reads
-// fields only (the residual maps of the last frame), tfmatch copies the images on the device into
-// fields (ImageFieldRecorder); a third timing makes those copies every frame and assembles on them.
+// into the buffer the renderer samples (TfUploadRecorder). tfmatch never submits. Its last frame
+// records tfmatch's residual maps, also reading the images in place. A third timing shows the
+// other way in: tfmatch's device copies of the images (ImageFieldRecorder), made every frame, as
+// the kernels that read only fields need.
 //
 // Prints frame times without and with the re-fit, checks the last fit against the same fit
 // computed on the CPU and the TF buffer against the fit, and compares the two renderings before
@@ -623,10 +624,12 @@ int main() {
     begin(cmds[0]);
     memory_barrier(cmds[0], VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, VK_PIPELINE_STAGE_TRANSFER_BIT, 0);
     slots[0].uploader->record_tf_upload(cmds[0], last_fit, tfm::TfBufferTarget{fit_tf_buffer.buffer, 0, kFitEntries * 16});
-    residual_recorder_before.record_residual_map(cmds[0], ref_field, opt_field, ref_map, opt_map, last_reference_floats,
-                                                 grey_ramp, residual_before_field);
-    residual_recorder_after.record_residual_map(cmds[0], ref_field, opt_field, ref_map, opt_map, last_reference_floats,
-                                                last_fit, residual_after_field);
+    const tfm::ImageFieldView ref_in_place{ref_volume.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, extent};
+    const tfm::ImageFieldView opt_in_place{opt_volume.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, extent};
+    residual_recorder_before.record_residual_map(cmds[0], ref_in_place, opt_in_place, ref_map, opt_map,
+                                                 last_reference_floats, grey_ramp, residual_before_field);
+    residual_recorder_after.record_residual_map(cmds[0], ref_in_place, opt_in_place, ref_map, opt_map,
+                                                last_reference_floats, last_fit, residual_after_field);
     memory_barrier(cmds[0], VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
                    VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
                    VK_ACCESS_HOST_READ_BIT);
