@@ -153,6 +153,18 @@ ResidualMapRecorder::ResidualMapRecorder(Context& ctx)
     : ctx_(ctx), kernel_(std::make_unique<ResidualMapKernel>(ctx)) {}
 ResidualMapRecorder::~ResidualMapRecorder() = default;
 
+// Both TF tables and the map, the fields in buffers or images (ResidualMapKernel::record checks them).
+template <class Field>
+void record_residual(CommandBatch& batch, Context& ctx, ResidualMapKernel& kernel, Buffer& ref_tf, Buffer& opt_tf,
+                     const Field& ref, const Field& opt, const FieldMapping& ref_map, const FieldMapping& opt_map,
+                     std::span<const float> ref_tf_rgba, std::span<const float> opt_tf_rgba, DeviceField& out) {
+  batch.barrier();  // earlier reads of the tables and writes of `out` finish first
+  record_table(batch, ctx, ref_tf, ref_tf_rgba, "recorded reference TF");
+  record_table(batch, ctx, opt_tf, opt_tf_rgba, "recorded second TF");
+  batch.barrier();
+  kernel.record(batch, ref, opt, ref_map, opt_map, ref_tf, opt_tf, out);
+}
+
 void ResidualMapRecorder::record_residual_map(VkCommandBuffer cmd, const DeviceField& ref, const DeviceField& opt,
                                               const FieldMapping& ref_map, const FieldMapping& opt_map,
                                               std::span<const float> ref_tf_rgba, std::span<const float> opt_tf_rgba,
@@ -161,12 +173,8 @@ void ResidualMapRecorder::record_residual_map(VkCommandBuffer cmd, const DeviceF
   check_table_for(opt_tf_rgba, opt_map, "record_residual_map: second TF");
   if (out.voxel_count() != ref.voxel_count() || out.chunk_voxels() != ref.chunk_voxels())
     throw std::invalid_argument("record_residual_map: the output field differs from the inputs in size or chunking");
-  CommandBatch& batch = restart(recording_, ctx_, cmd);
-  batch.barrier();  // earlier reads of the tables and writes of `out` finish first
-  record_table(batch, ctx_, ref_tf_, ref_tf_rgba, "recorded reference TF");
-  record_table(batch, ctx_, opt_tf_, opt_tf_rgba, "recorded second TF");
-  batch.barrier();
-  kernel_->record(batch, ref, opt, ref_map, opt_map, ref_tf_, opt_tf_, out);
+  record_residual(restart(recording_, ctx_, cmd), ctx_, *kernel_, ref_tf_, opt_tf_, ref, opt, ref_map, opt_map,
+                  ref_tf_rgba, opt_tf_rgba, out);
 }
 
 void ResidualMapRecorder::record_residual_map(VkCommandBuffer cmd, const ImageFieldView& ref, const ImageFieldView& opt,
@@ -175,12 +183,8 @@ void ResidualMapRecorder::record_residual_map(VkCommandBuffer cmd, const ImageFi
                                               DeviceField& out) {
   check_table_for(ref_tf_rgba, ref_map, "record_residual_map: reference TF");
   check_table_for(opt_tf_rgba, opt_map, "record_residual_map: second TF");
-  CommandBatch& batch = restart(recording_, ctx_, cmd);
-  batch.barrier();  // earlier reads of the tables and writes of `out` finish first
-  record_table(batch, ctx_, ref_tf_, ref_tf_rgba, "recorded reference TF");
-  record_table(batch, ctx_, opt_tf_, opt_tf_rgba, "recorded second TF");
-  batch.barrier();
-  kernel_->record(batch, ref, opt, ref_map, opt_map, ref_tf_, opt_tf_, out);
+  record_residual(restart(recording_, ctx_, cmd), ctx_, *kernel_, ref_tf_, opt_tf_, ref, opt, ref_map, opt_map,
+                  ref_tf_rgba, opt_tf_rgba, out);
 }
 
 RecordedAccess ResidualMapRecorder::access() {
