@@ -76,11 +76,16 @@ StoredPipelineCache read_pipeline_cache(const fs::path& file) {
     out.data.clear();
     return out;
   };
-  const uintmax_t size = fs::file_size(file, ec);
-  if (ec) return ignored(ec.message());
+  // The size of the file this stream opened: a writer renames a new file into place (never
+  // rewrites one), so the open file stays whole while another takes its name; asking the path
+  // for the size first could see the next file's.
+  std::ifstream in(file, std::ios::binary | std::ios::ate);
+  if (!in) return ignored("cannot be read");
+  const std::streamoff end = in.tellg();
+  const uintmax_t size = end < 0 ? 0 : uintmax_t(end);
   if (size < kHeaderBytes || size > kHeaderBytes + kMaxDataBytes)
     return ignored("its size (" + std::to_string(size) + " bytes) is not that of a tfmatch pipeline cache");
-  std::ifstream in(file, std::ios::binary);
+  in.seekg(0);
   std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   if (!in && !in.eof()) return ignored("cannot be read");
   if (bytes.size() != size) return ignored("changed while it was read");
