@@ -261,10 +261,23 @@ VoxelLossRecorder::~VoxelLossRecorder() = default;
 void VoxelLossRecorder::record_voxel_loss(VkCommandBuffer cmd, const DeviceField& ref, const DeviceField& opt,
                                           const FieldMapping& ref_map, const FieldMapping& opt_map,
                                           std::span<const float> ref_tf_rgba, std::span<const float> opt_tf_rgba) {
-  check_table_for(ref_tf_rgba, ref_map, "record_voxel_loss: reference TF");
-  check_table_for(opt_tf_rgba, opt_map, "record_voxel_loss: second TF");
   if (opt.voxel_count() != ref.voxel_count() || opt.chunk_voxels() != ref.chunk_voxels())
     throw std::invalid_argument("record_voxel_loss: the fields differ in size or chunking");
+  record_loss(cmd, ref, opt, ref_map, opt_map, ref_tf_rgba, opt_tf_rgba);
+}
+
+void VoxelLossRecorder::record_voxel_loss(VkCommandBuffer cmd, const ImageFieldView& ref, const ImageFieldView& opt,
+                                          const FieldMapping& ref_map, const FieldMapping& opt_map,
+                                          std::span<const float> ref_tf_rgba, std::span<const float> opt_tf_rgba) {
+  record_loss(cmd, ref, opt, ref_map, opt_map, ref_tf_rgba, opt_tf_rgba);
+}
+
+template <class Field>
+void VoxelLossRecorder::record_loss(VkCommandBuffer cmd, const Field& ref, const Field& opt, const FieldMapping& ref_map,
+                                    const FieldMapping& opt_map, std::span<const float> ref_tf_rgba,
+                                    std::span<const float> opt_tf_rgba) {
+  check_table_for(ref_tf_rgba, ref_map, "record_voxel_loss: reference TF");
+  check_table_for(opt_tf_rgba, opt_map, "record_voxel_loss: second TF");
   CommandBatch& batch = restart(recording_, ctx_, cmd);
   batch.barrier();
   record_table(batch, ctx_, ref_tf_, ref_tf_rgba, "recorded reference TF");

@@ -287,6 +287,10 @@ class VoxelLossRecorder {
   void record_voxel_loss(VkCommandBuffer cmd, const DeviceField& ref, const DeviceField& opt,
                          const FieldMapping& ref_map, const FieldMapping& opt_map, std::span<const float> ref_tf_rgba,
                          std::span<const float> opt_tf_rgba);
+  // The same from two of the host's 3D images read in place (ImageFieldView).
+  void record_voxel_loss(VkCommandBuffer cmd, const ImageFieldView& ref, const ImageFieldView& opt,
+                         const FieldMapping& ref_map, const FieldMapping& opt_map, std::span<const float> ref_tf_rgba,
+                         std::span<const float> opt_tf_rgba);
   // After the host's wait for the submission; std::logic_error before any recording.
   VoxelLoss result() const;
   // Reads the fields in the compute-shader stage; writes only its own memory.
@@ -299,6 +303,9 @@ class VoxelLossRecorder {
   const void* result_mapped_ = nullptr;  // result_'s mapping: the recorder's or the host's
   std::unique_ptr<CommandBatch> recording_;
   bool recorded_ = false;
+  template <class Field>
+  void record_loss(VkCommandBuffer cmd, const Field& ref, const Field& opt, const FieldMapping& ref_map,
+                   const FieldMapping& opt_map, std::span<const float> ref_tf_rgba, std::span<const float> opt_tf_rgba);
 };
 
 // Where record_tf_upload writes a TF table: a host's buffer (N RGBA float32 entries from

@@ -3,7 +3,9 @@
 
 #include <array>
 #include <cstdint>
+#include <map>
 #include <memory>
+#include <tuple>
 #include <vector>
 
 #include "buffer.h"
@@ -31,13 +33,22 @@ class VoxelLossKernel {
   void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
               const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, Buffer& accum,
               const FieldMapping* before_map = nullptr) const;
+  // The same from two of a host's 3D images read in place (voxel_pair.h's ImageFieldView): the
+  // same bits as from buffers.
+  void record(CommandBatch& batch, const ImageFieldView& ref, const ImageFieldView& opt, const FieldMapping& ref_map,
+              const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, Buffer& accum,
+              const FieldMapping* before_map = nullptr) const;
 
  private:
-  const ComputePipeline& pipeline(bool with_before) const;  // compiled on first use
+  // Compiled on first use; for images per x and y size (specialization constants).
+  const ComputePipeline& pipeline(bool with_before, const VkExtent3D* image = nullptr) const;
+  // The push block (checked sizes and mappings) of either record().
+  gpu::VoxelPairPush push_for(const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
+                              const Buffer& opt_tf, const Buffer& accum, const FieldMapping* before_map) const;
   Context& ctx_;
   uint64_t range_quads_;
   uint32_t workgroup_size_;
-  mutable std::array<std::unique_ptr<ComputePipeline>, 2> pipelines_;
+  mutable std::map<std::tuple<bool, uint32_t, uint32_t>, std::unique_ptr<ComputePipeline>> pipelines_;
 };
 
 }  // namespace tfm

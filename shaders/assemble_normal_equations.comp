@@ -64,30 +64,13 @@ layout(constant_id = TFM_ASSEMBLE_SPEC_TERM_COUNT) const uint TERM_COUNT = 11u;
 // lavapipe (measured), so pipelines without it compile the loop without it.
 layout(constant_id = TFM_ASSEMBLE_SPEC_WITH_BEFORE) const bool WITH_BEFORE = false;
 
-#ifdef TFM_FIELD_IMAGE
-// Both fields are a host's 3D images (field_image.glsl); a dispatch's range starts at voxel
-// first_voxel, and the quad bindings hold the same images.
-layout(constant_id = TFM_ASSEMBLE_SPEC_IMAGE_NX) const uint IMAGE_NX = 1u;
-layout(constant_id = TFM_ASSEMBLE_SPEC_IMAGE_NY) const uint IMAGE_NY = 1u;
-#include "field_image.glsl"
-layout(binding = TFM_ASSEMBLE_BINDING_REF_FIELD) uniform texture3D ref_image;
-layout(binding = TFM_ASSEMBLE_BINDING_OPT_FIELD) uniform texture3D opt_image;
-#define REF_VOXEL(i) IMAGE_VOXEL(ref_image, i)
-#define OPT_VOXEL(i) IMAGE_VOXEL(opt_image, i)
-#define REF_QUAD(q) IMAGE_QUAD(ref_image, pc.first_voxel + 4u * (q))
-#define OPT_QUAD(q) IMAGE_QUAD(opt_image, pc.first_voxel + 4u * (q))
-#else
-// The chunk's voxels one a texel (for the dispatch's last voxel_count % 4) and its range as quads,
-// in the field's storage format (a float, a float16, a unorm: the texel fetch gives the float).
-layout(binding = TFM_ASSEMBLE_BINDING_REF_FIELD) uniform samplerBuffer ref_field;
-layout(binding = TFM_ASSEMBLE_BINDING_OPT_FIELD) uniform samplerBuffer opt_field;
-layout(binding = TFM_ASSEMBLE_BINDING_REF_QUADS) uniform samplerBuffer ref_quads;
-layout(binding = TFM_ASSEMBLE_BINDING_OPT_QUADS) uniform samplerBuffer opt_quads;
-#define REF_VOXEL(i) texelFetch(ref_field, int(i)).x
-#define OPT_VOXEL(i) texelFetch(opt_field, int(i)).x
-#define REF_QUAD(q) texelFetch(ref_quads, int(q))
-#define OPT_QUAD(q) texelFetch(opt_quads, int(q))
-#endif
+#define TFM_FIELDS_REF TFM_ASSEMBLE_BINDING_REF_FIELD
+#define TFM_FIELDS_OPT TFM_ASSEMBLE_BINDING_OPT_FIELD
+#define TFM_FIELDS_REF_QUADS TFM_ASSEMBLE_BINDING_REF_QUADS
+#define TFM_FIELDS_OPT_QUADS TFM_ASSEMBLE_BINDING_OPT_QUADS
+#define TFM_FIELDS_SPEC_NX TFM_ASSEMBLE_SPEC_IMAGE_NX
+#define TFM_FIELDS_SPEC_NY TFM_ASSEMBLE_SPEC_IMAGE_NY
+#include "voxel_pair_fields.glsl"
 layout(binding = TFM_ASSEMBLE_BINDING_REF_TF) uniform samplerBuffer ref_tf;
 
 TFM_DECLARE_ACCUMULATORS(TFM_ASSEMBLE_BINDING_ACCUM)

@@ -14,27 +14,13 @@
 
 layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 
-#ifdef TFM_FIELD_IMAGE
-// Both fields are a host's 3D images (field_image.glsl) and the output one chunk of the volume.
-layout(constant_id = TFM_RESIDUAL_SPEC_IMAGE_NX) const uint IMAGE_NX = 1u;
-layout(constant_id = TFM_RESIDUAL_SPEC_IMAGE_NY) const uint IMAGE_NY = 1u;
-#include "field_image.glsl"
-layout(binding = TFM_RESIDUAL_BINDING_REF_FIELD) uniform texture3D ref_image;
-layout(binding = TFM_RESIDUAL_BINDING_OPT_FIELD) uniform texture3D opt_image;
-#define REF_VOXEL(i) IMAGE_VOXEL(ref_image, i)
-#define OPT_VOXEL(i) IMAGE_VOXEL(opt_image, i)
-#define REF_QUAD(q) IMAGE_QUAD(ref_image, pc.first_voxel + 4u * (q))
-#define OPT_QUAD(q) IMAGE_QUAD(opt_image, pc.first_voxel + 4u * (q))
-#else
-layout(binding = TFM_RESIDUAL_BINDING_REF_FIELD) uniform samplerBuffer ref_field;  // one voxel a texel
-layout(binding = TFM_RESIDUAL_BINDING_OPT_FIELD) uniform samplerBuffer opt_field;
-layout(binding = TFM_RESIDUAL_BINDING_REF_QUADS) uniform samplerBuffer ref_quads;
-layout(binding = TFM_RESIDUAL_BINDING_OPT_QUADS) uniform samplerBuffer opt_quads;
-#define REF_VOXEL(i) texelFetch(ref_field, int(i)).x
-#define OPT_VOXEL(i) texelFetch(opt_field, int(i)).x
-#define REF_QUAD(q) texelFetch(ref_quads, int(q))
-#define OPT_QUAD(q) texelFetch(opt_quads, int(q))
-#endif
+#define TFM_FIELDS_REF TFM_RESIDUAL_BINDING_REF_FIELD
+#define TFM_FIELDS_OPT TFM_RESIDUAL_BINDING_OPT_FIELD
+#define TFM_FIELDS_REF_QUADS TFM_RESIDUAL_BINDING_REF_QUADS
+#define TFM_FIELDS_OPT_QUADS TFM_RESIDUAL_BINDING_OPT_QUADS
+#define TFM_FIELDS_SPEC_NX TFM_RESIDUAL_SPEC_IMAGE_NX
+#define TFM_FIELDS_SPEC_NY TFM_RESIDUAL_SPEC_IMAGE_NY
+#include "voxel_pair_fields.glsl"
 layout(binding = TFM_RESIDUAL_BINDING_REF_TF) uniform samplerBuffer ref_tf;
 layout(binding = TFM_RESIDUAL_BINDING_OPT_TF) uniform samplerBuffer opt_tf;
 // The output chunk twice: floats for the tail, quads (from first_voxel / 4) for the rest.

@@ -151,6 +151,8 @@ TFM_PUSH_CONSTANTS(VoxelPairPush) {
 #define TFM_LOSS_SLOTS 9u
 // Specialization: workgroup size (TFM_SPEC_WORKGROUP_X), then this.
 #define TFM_LOSS_SPEC_WITH_BEFORE 1  // 1: also the before loss (push: before_lo, before_scale)
+#define TFM_LOSS_SPEC_IMAGE_NX 2     // TFM_FIELD_IMAGE variant: the images' x and y sizes
+#define TFM_LOSS_SPEC_IMAGE_NY 3
 
 #ifdef __cplusplus
 // How a field maps to TF coordinates in float32, as tf_coordinate() of tf_common.glsl computes it:

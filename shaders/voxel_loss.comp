@@ -25,10 +25,13 @@
 layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 layout(constant_id = TFM_LOSS_SPEC_WITH_BEFORE) const bool WITH_BEFORE = false;
 
-layout(binding = TFM_LOSS_BINDING_REF_FIELD) uniform samplerBuffer ref_field;  // one voxel a texel
-layout(binding = TFM_LOSS_BINDING_OPT_FIELD) uniform samplerBuffer opt_field;
-layout(binding = TFM_LOSS_BINDING_REF_QUADS) uniform samplerBuffer ref_quads;
-layout(binding = TFM_LOSS_BINDING_OPT_QUADS) uniform samplerBuffer opt_quads;
+#define TFM_FIELDS_REF TFM_LOSS_BINDING_REF_FIELD
+#define TFM_FIELDS_OPT TFM_LOSS_BINDING_OPT_FIELD
+#define TFM_FIELDS_REF_QUADS TFM_LOSS_BINDING_REF_QUADS
+#define TFM_FIELDS_OPT_QUADS TFM_LOSS_BINDING_OPT_QUADS
+#define TFM_FIELDS_SPEC_NX TFM_LOSS_SPEC_IMAGE_NX
+#define TFM_FIELDS_SPEC_NY TFM_LOSS_SPEC_IMAGE_NY
+#include "voxel_pair_fields.glsl"
 layout(binding = TFM_LOSS_BINDING_REF_TF) uniform samplerBuffer ref_tf;
 layout(binding = TFM_LOSS_BINDING_OPT_TF) uniform samplerBuffer opt_tf;
 layout(std430, binding = TFM_LOSS_BINDING_ACCUM) buffer Accum { uint accum[]; };
@@ -68,8 +71,8 @@ void main() {
 
   const uint quads = pc.voxel_count / 4u;
   TFM_FOR_EACH_QUAD(q, quads) {
-    const vec4 r = texelFetch(ref_quads, int(q));
-    const vec4 o = texelFetch(opt_quads, int(q));
+    const vec4 r = REF_QUAD(q);
+    const vec4 o = OPT_QUAD(q);
     take(r.x, o.x);
     take(r.y, o.y);
     take(r.z, o.z);
@@ -77,7 +80,7 @@ void main() {
   }
   if (gl_GlobalInvocationID.x == 0u)
     for (uint i = pc.first_voxel + 4u * quads; i < pc.first_voxel + pc.voxel_count; ++i)
-      take(texelFetch(ref_field, int(i)).x, texelFetch(opt_field, int(i)).x);
+      take(REF_VOXEL(i), OPT_VOXEL(i));
 
   for (uint k = 0u; k < SLOTS; ++k) FX_ATOMIC_ADD(s_acc, k, acc[k])  // skips zeros
   FX_SHARED_FLUSH(s_acc, SLOTS, accum)

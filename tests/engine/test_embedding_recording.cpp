@@ -632,8 +632,8 @@ TEST_F(EmbeddingRecording, FieldsInHalfAndUnormFormatsEqualTheirFloatValues) {
 // R8_UNORM): ImageFieldRecorder copies each on the device into a field, and the assembly, the voxel
 // loss, the residual map and the rendering recorded after it in the same command buffer give the
 // bits of the same stored values in a buffer (DeviceField::adopt), on an awkward extent split into
-// chunks, twice (the recorders restarted on the next frame); so do the assembly and the residual
-// map reading both images in place (ImageFieldView, no copy). Members of an ensemble copied from
+// chunks, twice (the recorders restarted on the next frame); so do the assembly, the voxel loss and
+// the residual map reading both images in place (ImageFieldView, no copy). Members of an ensemble copied from
 // R32F images into the host's member-major buffer give the correlation field of those values.
 TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
   Context& ctx = *ctx_;
@@ -692,6 +692,7 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
       ranges.range_quads = 64;
       NormalEquationsRecorder in_place(ctx, 7, ranges);
       ResidualMapRecorder residual_in_place(ctx);
+      VoxelLossRecorder loss_in_place(ctx);
       void* residual2_map = nullptr;
       VkBuffer residual2 = host.buffer(voxels * 4, &residual2_map);
       DeviceField residual2_field = DeviceField::adopt(ctx, residual2, 0, voxels, "host residual, images in place");
@@ -727,6 +728,7 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
         const ImageFieldView opt_view{host.view_3d(image, vk_format), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, extent};
         in_place.record_assemble(cmd, ref_view, opt_view, rm, om, ref_floats);
         residual_in_place.record_residual_map(cmd, ref_view, opt_view, rm, om, ref_floats, opt_floats, residual2_field);
+        loss_in_place.record_voxel_loss(cmd, ref_view, opt_view, rm, om, ref_floats, opt_floats);
         Host::host_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                            VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT);
         EXPECT_EQ(ctx.submissions(), submissions) << "recording submitted work";
@@ -740,6 +742,10 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
         EXPECT_EQ(got_loss.squared, expected_loss.squared) << "voxel loss";
         EXPECT_EQ(got_loss.absolute, expected_loss.absolute) << "voxel loss";
         EXPECT_GT(got_loss.voxels, voxels / 2);
+        const VoxelLoss in_place_loss = loss_in_place.result();
+        EXPECT_EQ(in_place_loss.squared, expected_loss.squared) << "voxel loss, images in place";
+        EXPECT_EQ(in_place_loss.absolute, expected_loss.absolute) << "voxel loss, images in place";
+        EXPECT_EQ(in_place_loss.voxels, expected_loss.voxels);
         Volume grid;
         grid.dims = dims;
         const std::vector<float> expected_residual = residual_map_gpu(ctx, grid, r, in_buffer, rm, om, rt, ot).values;
