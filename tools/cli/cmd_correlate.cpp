@@ -69,12 +69,8 @@ void summarize_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch
                      const GridIndex& p1, const std::optional<GridIndex>& p2, const std::string& device, double load_s,
                      double compute_s, const nlohmann::json& extra) {
   const bool vti = has_extension(a.out, ".vti"), pvti = has_extension(a.out, ".pvti");
-  const uint64_t nan = stats.nan;
+  const uint64_t nan = stats.nan, voxels = stats.voxels;
   const double lo = stats.lo, hi = stats.hi;
-  struct {
-    uint64_t voxel_count() const { return voxels; }
-    uint64_t voxels;
-  } field{stats.voxels};
   nlohmann::json j = {{"ensemble", source},
                       {"members", members},
                       {"grid", grid.dims},
@@ -84,8 +80,8 @@ void summarize_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch
                       {"point_description", describe_grid_point(grid, p1)},
                       {"absolute", a.absolute},
                       {"nan_voxels", nan},
-                      {"min", nan == field.voxel_count() ? nlohmann::json() : nlohmann::json(lo)},
-                      {"max", nan == field.voxel_count() ? nlohmann::json() : nlohmann::json(hi)},
+                      {"min", nan == voxels ? nlohmann::json() : nlohmann::json(lo)},
+                      {"max", nan == voxels ? nlohmann::json() : nlohmann::json(hi)},
                       {"out", a.out},
                       {"device", device},
                       {"seconds", {{"load", load_s}, {"compute", compute_s}}}};
@@ -102,7 +98,7 @@ void summarize_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch
     if (p2) std::cout << "  minus point     " << describe_grid_point(grid, *p2) << "\n";
     std::cout << "  " << correlation_measure_name(params.measure) << " (" << CorrelationKernel::strategy(params, members)
               << ") on " << device << " in " << compute_s << " s";
-    if (nan < field.voxel_count()) std::cout << ": range [" << lo << ", " << hi << "]";
+    if (nan < voxels) std::cout << ": range [" << lo << ", " << hi << "]";
     if (nan > 0) std::cout << ", " << nan << " voxels NaN (no data in some member)";
     std::cout << "\n  wrote " << a.out
               << (pvti  ? " (ParaView parallel image data: one .vti piece per rank, the source's origin and spacing)"
