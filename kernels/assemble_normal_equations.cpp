@@ -72,9 +72,8 @@ AssembleNormalEquationsKernel::Pipelines AssembleNormalEquationsKernel::make_pip
         {TFM_ASSEMBLE_BINDING_REF_TF, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS,
          TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD});
     if (image)
-      for (uint32_t b : {TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS, TFM_ASSEMBLE_BINDING_REF_FIELD,
-                         TFM_ASSEMBLE_BINDING_OPT_FIELD})
-        desc.binding_kinds[b] = DescriptorKind::SampledImage;
+      bind_fields_as_images(desc, {TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD,
+                                 TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS});
     desc.specialization = gpu::by_id(
         {{TFM_SPEC_WORKGROUP_X, reduction_.workgroup_size},
          {TFM_ASSEMBLE_SPEC_MODE, reduction_.shader_mode()},

@@ -35,9 +35,8 @@ const ComputePipeline& VoxelLossKernel::pipeline(bool with_before, const VkExten
                                             TFM_LOSS_BINDING_OPT_QUADS, TFM_LOSS_BINDING_REF_FIELD,
                                             TFM_LOSS_BINDING_OPT_FIELD});
   if (image)
-    for (uint32_t b : {TFM_LOSS_BINDING_REF_QUADS, TFM_LOSS_BINDING_OPT_QUADS, TFM_LOSS_BINDING_REF_FIELD,
-                       TFM_LOSS_BINDING_OPT_FIELD})
-      desc.binding_kinds[b] = DescriptorKind::SampledImage;
+    bind_fields_as_images(desc, {TFM_LOSS_BINDING_REF_FIELD, TFM_LOSS_BINDING_OPT_FIELD,
+                               TFM_LOSS_BINDING_REF_QUADS, TFM_LOSS_BINDING_OPT_QUADS});
   desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
   desc.workgroup_size = workgroup_size_;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_},

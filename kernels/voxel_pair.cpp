@@ -110,6 +110,10 @@ std::vector<double> decode_fixed_point(const std::vector<uint32_t>& words) {
 }
 
 
+void bind_fields_as_images(PipelineDesc& desc, std::initializer_list<uint32_t> field_bindings) {
+  for (uint32_t b : field_bindings) desc.binding_kinds.at(b) = DescriptorKind::SampledImage;
+}
+
 uint64_t check_image_pair(const ImageFieldView& ref, const ImageFieldView& opt, const char* kernel) {
   if (ref.view == VK_NULL_HANDLE || opt.view == VK_NULL_HANDLE)
     throw std::invalid_argument(std::string(kernel) + ": an image field without a view (VK_NULL_HANDLE)");

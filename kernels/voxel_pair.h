@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdint>
+#include <initializer_list>
 #include <span>
 #include <vector>
 #include <memory>
@@ -79,6 +80,10 @@ struct ImageFieldView {
   VkImageLayout layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
   VkExtent3D extent{0, 0, 0};
 };
+
+// The TFM_FIELD_IMAGE variant of a voxel-pair kernel: its four field bindings (the voxels and
+// the quads of both fields) hold sampled images.
+void bind_fields_as_images(PipelineDesc& desc, std::initializer_list<uint32_t> field_bindings);
 
 // Throws std::invalid_argument (naming `kernel`) unless both images have views and one extent of
 // 1 to 2^32 - 1 voxels; returns the voxel count.
