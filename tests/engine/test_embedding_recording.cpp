@@ -799,6 +799,7 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
   }
 }
 
+// tfmatch's renderer recorded into the host's image buffer: the picture GpuRenderer::render_colours
 // gives, bit for bit, for a field in the host's buffer spanning several chunks.
 TEST_F(EmbeddingRecording, RenderRecordsIntoTheHostsImageBuffer) {
   Context& ctx = *ctx_;
