@@ -115,9 +115,4 @@ std::vector<float> MpiRanks::gather(std::span<const float> values) {
   return all;
 }
 
-void MpiRanks::abort(int exit_code) {
-  MPI_Abort(MPI_COMM_WORLD, exit_code);
-  std::_Exit(exit_code);
-}
-
 }  // namespace tfm

@@ -38,9 +38,6 @@ class MpiRanks final : public Ranks {
   void max(std::span<double> values) override;
   void sum(std::span<double> values) override;
   std::vector<float> gather(std::span<const float> values) override;
-  // Ends every rank of the job at once (MPI_Abort), for what agree() cannot reach: a signal
-  // while a rank waits in a collective.
-  [[noreturn]] void abort(int exit_code);
 
  private:
   Describe describe_;
