@@ -200,6 +200,19 @@ RenderRecorder::~RenderRecorder() = default;
 
 void RenderRecorder::record_render(VkCommandBuffer cmd, const DeviceField& field, const FieldMapping& mapping,
                                    std::span<const float> tf_rgba, const RenderSettings& settings, Buffer& image) {
+  record_picture(cmd, *kernel_, field, mapping, tf_rgba, settings, image);
+}
+
+void RenderRecorder::record_render(VkCommandBuffer cmd, const ImageFieldView& field, const FieldMapping& mapping,
+                                   std::span<const float> tf_rgba, const RenderSettings& settings, Buffer& image) {
+  if (!image_kernel_) image_kernel_ = std::make_unique<RenderImageKernel>(ctx_, RenderImageKernel::ImageField{});
+  record_picture(cmd, *image_kernel_, field, mapping, tf_rgba, settings, image);
+}
+
+template <class Field>
+void RenderRecorder::record_picture(VkCommandBuffer cmd, const RenderImageKernel& kernel, const Field& field,
+                                    const FieldMapping& mapping, std::span<const float> tf_rgba,
+                                    const RenderSettings& settings, Buffer& image) {
   check_table_for(tf_rgba, mapping, "record_render: TF");
   check_render_size(ctx_, settings);
   const uint64_t pixels = uint64_t(settings.width) * settings.height;
@@ -216,7 +229,7 @@ void RenderRecorder::record_render(VkCommandBuffer cmd, const DeviceField& field
   record_table(batch, ctx_, tf_, tf_rgba, "recorded render TF");
   batch.update(views_, 0, &view, sizeof view);
   batch.barrier();
-  kernel_->record(batch, field, tf_, views_, push, image, stop_, 0, settings.height);
+  kernel.record(batch, field, tf_, views_, push, image, stop_, 0, settings.height);
 }
 
 RecordedAccess RenderRecorder::access() {

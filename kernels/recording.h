@@ -165,15 +165,23 @@ class RenderRecorder {
   // kernel and bits as GpuRenderer::render_colours. Throws as it does (settings, sizes).
   void record_render(VkCommandBuffer cmd, const DeviceField& field, const FieldMapping& mapping,
                      std::span<const float> tf_rgba, const RenderSettings& settings, Buffer& image);
+  // The same from the host's 3D image read in place (ImageFieldView; its extent the geometry's
+  // grid): no copy, the same samples and bits as the same values in a field's buffers.
+  void record_render(VkCommandBuffer cmd, const ImageFieldView& field, const FieldMapping& mapping,
+                     std::span<const float> tf_rgba, const RenderSettings& settings, Buffer& image);
   // Reads the field in the compute-shader stage and writes `image` there (shader write).
   static RecordedAccess access();
 
  private:
   Context& ctx_;
   VolumeGeometry geometry_;
-  std::unique_ptr<RenderImageKernel> kernel_;
+  std::unique_ptr<RenderImageKernel> kernel_, image_kernel_;  // the image variant when first used
   Buffer tf_, views_, stop_;
   std::unique_ptr<CommandBatch> recording_;
+  template <class Field>
+  void record_picture(VkCommandBuffer cmd, const RenderImageKernel& kernel, const Field& field,
+                      const FieldMapping& mapping, std::span<const float> tf_rgba, const RenderSettings& settings,
+                      Buffer& image);
 };
 
 // A host's volume held as a 3D image (R32_SFLOAT, R16_SFLOAT, R16_UNORM, R8_UNORM: DeviceField's
@@ -196,8 +204,8 @@ struct ImageFieldSource {
 FieldFormat field_format_of(VkFormat format, const char* what);
 
 // A host's 3D image as a field every recorder above reads (assembly, voxel loss, residual map,
-// rendering; as a member of a correlation ensemble; the assembly also reads images in place,
-// record_assemble with ImageFieldView). tfmatch's voxel kernels read fields as texel
+// rendering; as a member of a correlation ensemble; the assembly, voxel loss, residual map and
+// rendering also read images in place, their record_* with ImageFieldView). tfmatch's voxel kernels read fields as texel
 // buffers, four voxels a texel (DESIGN.md: a texel fetch is a vector gather on CPU devices and a
 // cached load on GPUs), which an image cannot be viewed as; so record_copy() copies the image on
 // the device (vkCmdCopyImageToBuffer, the stored texels unchanged: the same bits as the host's

@@ -42,10 +42,41 @@ RenderImageKernel::RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
 
+RenderImageKernel::RenderImageKernel(Context& ctx, ImageField) : ctx_(ctx), chunks_(1), image_field_(true) {
+  PipelineDesc desc;
+  desc.shader = "render_image_image";
+  desc.binding_counts = gpu::to_vector(gpu::kRenderBindingCounts);
+  desc.binding_counts.at(TFM_RENDER_BINDING_FIELD) = 1;
+  desc.binding_kinds = march_binding_kinds(desc.binding_counts.size(), TFM_RENDER_BINDING_FIELD, TFM_RENDER_BINDING_TF);
+  bind_fields_as_images(desc, {TFM_RENDER_BINDING_FIELD});
+  desc.push_constant_bytes = sizeof(gpu::RenderPush);
+  desc.workgroup_size = TFM_RENDER_TILE * TFM_RENDER_TILE;
+  desc.specialization = gpu::render_specialization(1, TFM_RENDER_MODE_FORWARD);
+  desc.spirv = shader_spirv(desc.shader);
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+}
+
 void RenderImageKernel::record(CommandBatch& batch, const DeviceField& field, const Buffer& tf, const Buffer& views,
                                gpu::RenderPush push, Buffer& image, Buffer& stop, uint32_t row_begin,
                                uint32_t row_count) const {
+  if (image_field_) throw std::invalid_argument("render: this pipeline reads a 3D image, not a field's buffers");
   if (field.chunk_count() != chunks_) throw std::invalid_argument("render: field chunk count differs from pipeline's");
+  record_with(batch, march_field_binding(field), tf, views, push, image, stop, row_begin, row_count);
+}
+
+void RenderImageKernel::record(CommandBatch& batch, const ImageFieldView& field, const Buffer& tf, const Buffer& views,
+                               gpu::RenderPush push, Buffer& image, Buffer& stop, uint32_t row_begin,
+                               uint32_t row_count) const {
+  if (!image_field_) throw std::invalid_argument("render: this pipeline reads a field's buffers, not a 3D image");
+  if (field.view == VK_NULL_HANDLE) throw std::invalid_argument("render: an image field without a view (VK_NULL_HANDLE)");
+  if (field.extent.width != push.dim_x || field.extent.height != push.dim_y || field.extent.depth != push.dim_z)
+    throw std::invalid_argument("render: the image's extent differs from the grid");
+  record_with(batch, Binding::image(field.view, field.layout), tf, views, push, image, stop, row_begin, row_count);
+}
+
+void RenderImageKernel::record_with(CommandBatch& batch, const Binding& field, const Buffer& tf, const Buffer& views,
+                                    gpu::RenderPush push, Buffer& image, Buffer& stop, uint32_t row_begin,
+                                    uint32_t row_count) const {
   const uint64_t pixels = uint64_t(push.width) * push.height * push.view_count;
   if (image.size() < pixels * 16 || stop.size() < pixels * 4)
     throw std::invalid_argument("render: output buffers too small for the image");
@@ -58,8 +89,7 @@ void RenderImageKernel::record(CommandBatch& batch, const DeviceField& field, co
   const Groups groups{(push.width + TFM_RENDER_TILE - 1) / TFM_RENDER_TILE,
                       (row_count + TFM_RENDER_TILE - 1) / TFM_RENDER_TILE, push.view_count};
   // Buffers in the binding order of gpu::kRenderBindingCounts.
-  batch.dispatch(*pipeline_, {march_field_binding(field), march_tf_binding(tf, push.tf_size), views, image, stop}, push,
-                 groups);
+  batch.dispatch(*pipeline_, {field, march_tf_binding(tf, push.tf_size), views, image, stop}, push, groups);
 }
 
 gpu::RenderView make_render_view(const CameraFrame& f) {
@@ -74,12 +104,14 @@ gpu::RenderView make_render_view(const CameraFrame& f) {
   return v;
 }
 
-gpu::RenderPush make_render_push(const VolumeGeometry& g, const MarchConstants& m, const FieldMapping& map,
-                                 const DeviceField& field, uint32_t width, uint32_t height, uint32_t view_count) {
+// The push block for a field of `field_voxels` voxels in chunks of `chunk_voxels`.
+static gpu::RenderPush render_push(const VolumeGeometry& g, const MarchConstants& m, const FieldMapping& map,
+                                   uint64_t field_voxels, uint64_t chunk_voxels, uint32_t width, uint32_t height,
+                                   uint32_t view_count) {
   const uint64_t voxels = g.dims[0] * g.dims[1] * g.dims[2];
   if (voxels >= (uint64_t(1) << 32))
     throw std::runtime_error("render: grids of 2^32 voxels or more are not supported (32-bit voxel indices)");
-  if (field.voxel_count() != voxels) throw std::invalid_argument("render: field size differs from the grid");
+  if (field_voxels != voxels) throw std::invalid_argument("render: field size differs from the grid");
   gpu::RenderPush p{};
   p.width = width;
   p.height = height;
@@ -88,7 +120,7 @@ gpu::RenderPush make_render_push(const VolumeGeometry& g, const MarchConstants& 
   p.dim_x = uint32_t(g.dims[0]);
   p.dim_y = uint32_t(g.dims[1]);
   p.dim_z = uint32_t(g.dims[2]);
-  p.chunk_voxels = uint32_t(field.chunk_voxels());
+  p.chunk_voxels = uint32_t(chunk_voxels);
   p.tf_size = map.tf_size;
   p.tf_lo = map.lo;
   p.tf_scale = map.scale;
@@ -100,6 +132,19 @@ gpu::RenderPush make_render_push(const VolumeGeometry& g, const MarchConstants& 
   p.inv_axis_y = float(1.0 / g.axis_scale.y);
   p.inv_axis_z = float(1.0 / g.axis_scale.z);
   return p;
+}
+
+gpu::RenderPush make_render_push(const VolumeGeometry& g, const MarchConstants& m, const FieldMapping& map,
+                                 const DeviceField& field, uint32_t width, uint32_t height, uint32_t view_count) {
+  return render_push(g, m, map, field.voxel_count(), field.chunk_voxels(), width, height, view_count);
+}
+
+gpu::RenderPush make_render_push(const VolumeGeometry& g, const MarchConstants& m, const FieldMapping& map,
+                                 const ImageFieldView& field, uint32_t width, uint32_t height, uint32_t view_count) {
+  if (field.extent.width != g.dims[0] || field.extent.height != g.dims[1] || field.extent.depth != g.dims[2])
+    throw std::invalid_argument("render: the image's extent differs from the grid");
+  const uint64_t voxels = g.dims[0] * g.dims[1] * g.dims[2];
+  return render_push(g, m, map, voxels, voxels, width, height, view_count);
 }
 
 }  // namespace tfm

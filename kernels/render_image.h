@@ -13,6 +13,7 @@
 #include "device_field.h"
 #include "pipeline.h"
 #include "render_layout.h"
+#include "voxel_pair.h"
 
 namespace tfm {
 
@@ -30,17 +31,27 @@ class RenderImageKernel {
   // `field_chunks`: chunks of the fields this pipeline renders (1..TFM_RENDER_MAX_CHUNKS);
   // `mode`: TFM_RENDER_MODE_FORWARD, or TFM_RENDER_MODE_INVERSE_CHECK (tests).
   RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32_t mode = TFM_RENDER_MODE_FORWARD);
+  // The TFM_FIELD_IMAGE variant (forward mode): the field is a host's 3D image read in place
+  // (record with an ImageFieldView), sampled with the same trilinear weights and bits.
+  struct ImageField {};
+  RenderImageKernel(Context& ctx, ImageField);
   uint32_t field_chunks() const { return chunks_; }
   // Records one dispatch over rows [row_begin, row_begin + row_count) of every view. `image`
   // holds width*height*views vec4, `stop` as many uints. Throws std::invalid_argument when the
   // field's chunk count or a buffer size does not fit.
   void record(CommandBatch& batch, const DeviceField& field, const Buffer& tf, const Buffer& views,
               gpu::RenderPush push, Buffer& image, Buffer& stop, uint32_t row_begin, uint32_t row_count) const;
+  // The same from the image variant: `field`'s extent is the push block's grid.
+  void record(CommandBatch& batch, const ImageFieldView& field, const Buffer& tf, const Buffer& views,
+              gpu::RenderPush push, Buffer& image, Buffer& stop, uint32_t row_begin, uint32_t row_count) const;
 
  private:
   Context& ctx_;
   uint32_t chunks_;
+  bool image_field_ = false;
   std::unique_ptr<ComputePipeline> pipeline_;
+  void record_with(CommandBatch& batch, const Binding& field, const Buffer& tf, const Buffer& views,
+                   gpu::RenderPush push, Buffer& image, Buffer& stop, uint32_t row_begin, uint32_t row_count) const;
 };
 
 // The GPU records of a camera frame and of one render dispatch (shaders/render_layout.h).
@@ -48,6 +59,10 @@ gpu::RenderView make_render_view(const CameraFrame& frame);
 // Throws std::runtime_error when the grid has 2^32 voxels or more (32-bit voxel indices).
 gpu::RenderPush make_render_push(const VolumeGeometry& geometry, const MarchConstants& march,
                                  const FieldMapping& mapping, const DeviceField& field, uint32_t width,
+                                 uint32_t height, uint32_t view_count);
+// The same for a field held in a 3D image (std::invalid_argument unless its extent is the grid).
+gpu::RenderPush make_render_push(const VolumeGeometry& geometry, const MarchConstants& march,
+                                 const FieldMapping& mapping, const ImageFieldView& field, uint32_t width,
                                  uint32_t height, uint32_t view_count);
 
 }  // namespace tfm

@@ -21,7 +21,8 @@
 // The including shader defines TFM_WANT_RENDER_PUSH before including render_layout.h (for the
 // push block `rp`) and declares, before including this file:
 //   layout(constant_id = TFM_RENDER_SPEC_CHUNKS) const uint FIELD_CHUNKS;
-//   texel-buffer array `field_chunks[TFM_RENDER_MAX_CHUNKS]` (R32F views of the chunks)
+//   texel-buffer array `field_chunks[TFM_RENDER_MAX_CHUNKS]` (R32F views of the chunks), or in
+//   the TFM_FIELD_IMAGE variant the 3D image `field_image`
 //   texel buffer `tf_table` (RGBA32F entries)
 // Texel buffers, not storage buffers: on CPU devices (lavapipe) a texel fetch is one vector gather
 // where a storage-buffer load with a per-lane index loops over the SIMD lanes (see
@@ -132,6 +133,11 @@ vec3 sample_position(Ray ray, uint k, float dt) {
   return ray.entry + ((float(k) + 0.5) * dt) * ray.dir;
 }
 
+#ifdef TFM_FIELD_IMAGE
+#extension GL_EXT_samplerless_texture_functions : require
+// Voxel (x, y, z) of the host's 3D image, fetched without a sampler.
+float field_voxel(uvec3 at, MarchParams mp) { return texelFetch(field_image, ivec3(at), 0).x; }
+#else
 // One voxel of a chunked field. Every descriptor index is a constant (indexing an array of texel
 // buffers with a variable, even a uniform one, needs a device feature); chunks the
 // specialization does not have fold away, and with one chunk it is a plain fetch.
@@ -150,6 +156,12 @@ float fetch_voxel(uint i, uint chunk_voxels) {
   return value;
 }
 
+// Voxel (x, y, z) of the chunked field.
+float field_voxel(uvec3 at, MarchParams mp) {
+  return fetch_voxel(at.z * (mp.dims.x * mp.dims.y) + at.y * mp.dims.x + at.x, mp.chunk_voxels);
+}
+#endif
+
 // Trilinear interpolation between voxel centres (at integer index coordinates), clamped to the
 // edge voxels. Returns false when any of the 8 corners is NaN: such samples are empty.
 bool sample_field(vec3 p, MarchParams mp, out float value) {
@@ -159,16 +171,14 @@ bool sample_field(vec3 p, MarchParams mp, out float value) {
   const vec3 w = q - f;
   const uvec3 i0 = uvec3(f);
   const uvec3 i1 = min(i0 + 1u, mp.dims - 1u);
-  const uint nx = mp.dims.x, nxy = mp.dims.x * mp.dims.y;
-  const uint z0 = i0.z * nxy, z1 = i1.z * nxy, y0 = i0.y * nx, y1 = i1.y * nx;
-  const float c000 = fetch_voxel(z0 + y0 + i0.x, mp.chunk_voxels);
-  const float c100 = fetch_voxel(z0 + y0 + i1.x, mp.chunk_voxels);
-  const float c010 = fetch_voxel(z0 + y1 + i0.x, mp.chunk_voxels);
-  const float c110 = fetch_voxel(z0 + y1 + i1.x, mp.chunk_voxels);
-  const float c001 = fetch_voxel(z1 + y0 + i0.x, mp.chunk_voxels);
-  const float c101 = fetch_voxel(z1 + y0 + i1.x, mp.chunk_voxels);
-  const float c011 = fetch_voxel(z1 + y1 + i0.x, mp.chunk_voxels);
-  const float c111 = fetch_voxel(z1 + y1 + i1.x, mp.chunk_voxels);
+  const float c000 = field_voxel(uvec3(i0.x, i0.y, i0.z), mp);
+  const float c100 = field_voxel(uvec3(i1.x, i0.y, i0.z), mp);
+  const float c010 = field_voxel(uvec3(i0.x, i1.y, i0.z), mp);
+  const float c110 = field_voxel(uvec3(i1.x, i1.y, i0.z), mp);
+  const float c001 = field_voxel(uvec3(i0.x, i0.y, i1.z), mp);
+  const float c101 = field_voxel(uvec3(i1.x, i0.y, i1.z), mp);
+  const float c011 = field_voxel(uvec3(i0.x, i1.y, i1.z), mp);
+  const float c111 = field_voxel(uvec3(i1.x, i1.y, i1.z), mp);
   value = 0.0;
   if (isnan(c000) || isnan(c100) || isnan(c010) || isnan(c110) || isnan(c001) || isnan(c101) ||
       isnan(c011) || isnan(c111))

@@ -58,10 +58,18 @@ TFM_RENDER_STRUCT(RenderView) {
 };
 
 #ifndef __cplusplus
-// The bindings shaders/raymarch.glsl expects (declare before including it).
+// The bindings shaders/raymarch.glsl expects (declare before including it): the field's chunks
+// as texel buffers, or in the TFM_FIELD_IMAGE variant (the recording path reading a host's 3D
+// image in place) one sampled 3D image whose texel (x, y, z) is voxel (x, y, z); and the TF.
+#ifdef TFM_FIELD_IMAGE
+#define TFM_DECLARE_RAYMARCH_FIELD(field_binding) layout(binding = field_binding) uniform texture3D field_image;
+#else
+#define TFM_DECLARE_RAYMARCH_FIELD(field_binding) \
+  layout(binding = field_binding) uniform samplerBuffer field_chunks[TFM_RENDER_MAX_CHUNKS];
+#endif
 #define TFM_DECLARE_RAYMARCH_BINDINGS(field_binding, tf_binding)                                 \
   layout(constant_id = TFM_RENDER_SPEC_CHUNKS) const uint FIELD_CHUNKS = 1u;                     \
-  layout(binding = field_binding) uniform samplerBuffer field_chunks[TFM_RENDER_MAX_CHUNKS];     \
+  TFM_DECLARE_RAYMARCH_FIELD(field_binding)                                                      \
   layout(binding = tf_binding) uniform samplerBuffer tf_table;
 #endif
 

@@ -703,6 +703,10 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
       VoxelLossRecorder loss(ctx);
       ResidualMapRecorder residual_recorder(ctx);
       RenderRecorder render(ctx, geometry, uint32_t(copier.field().chunk_count()));
+      RenderRecorder render_in_place(ctx, geometry, 1);
+      void* picture2_map = nullptr;
+      VkBuffer picture2 = host.buffer(uint64_t(s.width) * s.height * 16, &picture2_map);
+      Buffer picture2_view = Buffer::adopt(ctx, picture2, 0, uint64_t(s.width) * s.height * 16, "host picture, in place");
       VkBuffer staging = VK_NULL_HANDLE;
       VkImage image = VK_NULL_HANDLE;
       for (int frame = 0; frame < 2; ++frame) {
@@ -729,6 +733,7 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
         in_place.record_assemble(cmd, ref_view, opt_view, rm, om, ref_floats);
         residual_in_place.record_residual_map(cmd, ref_view, opt_view, rm, om, ref_floats, opt_floats, residual2_field);
         loss_in_place.record_voxel_loss(cmd, ref_view, opt_view, rm, om, ref_floats, opt_floats);
+        render_in_place.record_render(cmd, opt_view, om, opt_floats, s, picture2_view);
         Host::host_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                            VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT);
         EXPECT_EQ(ctx.submissions(), submissions) << "recording submitted work";
@@ -754,6 +759,8 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
         const RenderedImage expected_picture = GpuRenderer(ctx, in_buffer, geometry).render_colours(om, ot, s);
         EXPECT_EQ(0, std::memcmp(picture_map, expected_picture.rgba.data(), expected_picture.rgba.size() * 4))
             << "rendering";
+        EXPECT_EQ(0, std::memcmp(picture2_map, expected_picture.rgba.data(), expected_picture.rgba.size() * 4))
+            << "rendering the image in place";
       }
     }
 
