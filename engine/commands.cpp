@@ -145,7 +145,7 @@ VkDescriptorSet CommandBatch::allocate_set(VkDescriptorSetLayout layout) {
   return set;
 }
 
-void CommandBatch::dispatch(const ComputePipeline& pipeline, std::initializer_list<Binding> bindings,
+void CommandBatch::dispatch(const ComputePipeline& pipeline, std::span<const Binding> bindings,
                             const void* push, uint32_t push_bytes, Groups groups) {
   const PipelineDesc& desc = pipeline.desc();
   if (bindings.size() != desc.binding_counts.size())

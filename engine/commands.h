@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <initializer_list>
+#include <span>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -59,13 +60,21 @@ class CommandBatch {
 
   // Records a dispatch. Throws std::logic_error when the bindings or push-constant size do not
   // match the pipeline, std::runtime_error when the group count exceeds the device's limits.
-  void dispatch(const ComputePipeline& pipeline, std::initializer_list<Binding> bindings,
+  void dispatch(const ComputePipeline& pipeline, std::span<const Binding> bindings,
                 const void* push, uint32_t push_bytes, Groups groups);
+  void dispatch(const ComputePipeline& pipeline, std::initializer_list<Binding> bindings, const void* push,
+                uint32_t push_bytes, Groups groups) {
+    dispatch(pipeline, std::span<const Binding>(bindings.begin(), bindings.size()), push, push_bytes, groups);
+  }
   template <class Push>
-  void dispatch(const ComputePipeline& pipeline, std::initializer_list<Binding> bindings,
-                const Push& push, Groups groups) {
+  void dispatch(const ComputePipeline& pipeline, std::span<const Binding> bindings, const Push& push, Groups groups) {
     static_assert(std::is_trivially_copyable_v<Push>);
     dispatch(pipeline, bindings, &push, sizeof(Push), groups);
+  }
+  template <class Push>
+  void dispatch(const ComputePipeline& pipeline, std::initializer_list<Binding> bindings, const Push& push,
+                Groups groups) {
+    dispatch(pipeline, std::span<const Binding>(bindings.begin(), bindings.size()), push, groups);
   }
   // Orders all earlier compute and transfer writes before later compute and transfer accesses.
   void barrier();
