@@ -14,6 +14,11 @@ namespace {
 constexpr auto kAssembleBindingCounts =
     gpu::binding_counts({TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD, TFM_ASSEMBLE_BINDING_REF_TF,
                          TFM_ASSEMBLE_BINDING_ACCUM, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS});
+// The weighted variant's: the same, then the weights' voxels and quads.
+constexpr auto kWeightedBindingCounts =
+    gpu::binding_counts({TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD, TFM_ASSEMBLE_BINDING_REF_TF,
+                         TFM_ASSEMBLE_BINDING_ACCUM, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS,
+                         TFM_ASSEMBLE_BINDING_WEIGHTS, TFM_ASSEMBLE_BINDING_WEIGHT_QUADS});
 }  // namespace
 
 namespace {
@@ -47,9 +52,10 @@ AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint3
   // Pipelines are compiled on first use: a kernel records either variant (pipelines()).
 }
 
-const AssembleNormalEquationsKernel::Pipelines& AssembleNormalEquationsKernel::pipelines(bool with_before) const {
-  Pipelines& out = pipelines_[with_before ? 1 : 0];
-  if (out.empty()) out = make_pipelines(with_before, nullptr);
+const AssembleNormalEquationsKernel::Pipelines& AssembleNormalEquationsKernel::pipelines(bool with_before,
+                                                                                        bool weighted) const {
+  Pipelines& out = pipelines_[(with_before ? 1 : 0) + (weighted ? 2 : 0)];
+  if (out.empty()) out = make_pipelines(with_before, nullptr, weighted);
   return out;
 }
 
@@ -57,20 +63,28 @@ const AssembleNormalEquationsKernel::Pipelines& AssembleNormalEquationsKernel::i
                                                                                              uint32_t ny) const {
   Pipelines& out = image_pipelines_[{with_before, nx, ny}];
   const VkExtent3D extent{nx, ny, 1};
-  if (out.empty()) out = make_pipelines(with_before, &extent);
+  if (out.empty()) out = make_pipelines(with_before, &extent, false);
   return out;
 }
 
 AssembleNormalEquationsKernel::Pipelines AssembleNormalEquationsKernel::make_pipelines(bool with_before,
-                                                                                      const VkExtent3D* image) const {
+                                                                                      const VkExtent3D* image,
+                                                                                      bool weighted) const {
   Pipelines out;
+  const char* shader = image      ? "assemble_normal_equations_image"
+                       : weighted ? "assemble_normal_equations_weighted"
+                                  : "assemble_normal_equations";
   for (const TermPass& pass : passes_) {
-    PipelineDesc desc = reduction_.pipeline_desc(image ? "assemble_normal_equations_image" : "assemble_normal_equations",
-                                                 gpu::to_vector(kAssembleBindingCounts), sizeof(gpu::VoxelPairPush));
+    PipelineDesc desc = reduction_.pipeline_desc(
+        shader, weighted ? gpu::to_vector(kWeightedBindingCounts) : gpu::to_vector(kAssembleBindingCounts),
+        sizeof(gpu::VoxelPairPush));
     desc.binding_kinds = texel_binding_kinds(
         desc.binding_counts.size(),
         {TFM_ASSEMBLE_BINDING_REF_TF, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS,
          TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD});
+    if (weighted)
+      for (uint32_t b : {TFM_ASSEMBLE_BINDING_WEIGHTS, TFM_ASSEMBLE_BINDING_WEIGHT_QUADS})
+        desc.binding_kinds.at(b) = DescriptorKind::UniformTexelBuffer;
     if (image)
       bind_fields_as_images(desc, {TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD,
                                  TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS});
@@ -113,19 +127,28 @@ gpu::VoxelPairPush AssembleNormalEquationsKernel::push_for(const FieldMapping& r
 
 void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
                                            const FieldMapping& ref_map, const FieldMapping& opt_map,
-                                           const Buffer& ref_tf, Buffer& accum, const FieldMapping* before_map) const {
+                                           const Buffer& ref_tf, Buffer& accum, const FieldMapping* before_map,
+                                           const DeviceField* weights) const {
   check_voxel_pair(ref, opt, "assemble");
+  if (weights) {
+    check_voxel_pair(ref, *weights, "assemble (weights)");
+    if (weights->format() != FieldFormat::Float32)
+      throw std::invalid_argument("assemble: the weights must be a float32 field");
+  }
   gpu::VoxelPairPush push = push_for(ref_map, opt_map, ref_tf, accum, before_map);
   const Binding tf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
-  const auto& passes = pipelines(before_map != nullptr);
+  const auto& passes = pipelines(before_map != nullptr, weights != nullptr);
   for (const QuadRange& r : quad_ranges(ref, range_quads_)) {  // one dispatch per range and pass
     push.voxel_count = static_cast<uint32_t>(r.voxels);
     push.first_voxel = static_cast<uint32_t>(r.first);
+    std::vector<Binding> bindings{voxel_texels(ref, r.chunk), voxel_texels(opt, r.chunk), tf, accum,
+                                  quad_texels(ref, r), quad_texels(opt, r)};
+    if (weights) {
+      bindings.push_back(voxel_texels(*weights, r.chunk));
+      bindings.push_back(quad_texels(*weights, r));
+    }
     for (const auto& pipe : passes) {
-      batch.dispatch(*pipe,
-                     {voxel_texels(ref, r.chunk), voxel_texels(opt, r.chunk), tf, accum, quad_texels(ref, r),
-                      quad_texels(opt, r)},
-                     push, {reduction_.groups(ctx_, r.voxels)});
+      batch.dispatch(*pipe, bindings, push, {reduction_.groups(ctx_, r.voxels)});
       // Successive dispatches add into the same accumulators.
       batch.barrier();
     }

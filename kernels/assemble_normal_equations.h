@@ -37,9 +37,12 @@ class AssembleNormalEquationsKernel {
   // Records one dispatch per chunk, texel range and term pass (barriers between them). With
   // `before_map` (the second field mapped onto the reference TF's entries: tf_size of ref_map)
   // the kernel also adds the loss before optimization to slots [6N+4, 6N+8) (shared_layout.h).
+  // With `weights` (a float32 field of the same size and chunking, values in [0, 1]) every term
+  // of voxel i is multiplied by weights[i], rounded once to float (the weighted least squares of
+  // visibility weights, kernels/visibility_weights.h); the voxel count stays a count.
   void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
               const FieldMapping& opt_map, const Buffer& ref_tf, Buffer& accum,
-              const FieldMapping* before_map = nullptr) const;
+              const FieldMapping* before_map = nullptr, const DeviceField* weights = nullptr) const;
 
   // The same for two images of one extent read in place (the shader's TFM_FIELD_IMAGE variant,
   // voxel i at texel (i % nx, i / nx % ny, i / (nx ny))): the same bits as the same values in
@@ -60,15 +63,15 @@ class AssembleNormalEquationsKernel {
   Reduction reduction_;
   std::vector<TermPass> passes_;
   uint64_t range_quads_;
-  // One per pass, without and with the before loss, each compiled when first recorded; for
+  // One per pass, without and with the before loss and weights, each compiled when first recorded; for
   // images also per x and y size (specialization constants).
   using Pipelines = std::vector<std::unique_ptr<ComputePipeline>>;
-  const Pipelines& pipelines(bool with_before) const;
+  const Pipelines& pipelines(bool with_before, bool weighted) const;
   const Pipelines& image_pipelines(bool with_before, uint32_t nx, uint32_t ny) const;
-  Pipelines make_pipelines(bool with_before, const VkExtent3D* image) const;
+  Pipelines make_pipelines(bool with_before, const VkExtent3D* image, bool weighted) const;
   gpu::VoxelPairPush push_for(const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
                               Buffer& accum, const FieldMapping* before_map) const;
-  mutable std::array<Pipelines, 2> pipelines_;
+  mutable std::array<Pipelines, 4> pipelines_;  // [with_before + 2 weighted]
   mutable std::map<std::tuple<bool, uint32_t, uint32_t>, Pipelines> image_pipelines_;
 };
 

@@ -25,13 +25,14 @@ void GpuNormalEquations::reset() {
 }
 
 double GpuNormalEquations::add(const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
-                               const FieldMapping& opt_map, const Buffer& ref_tf, const FieldMapping* before_map) {
+                               const FieldMapping& opt_map, const Buffer& ref_tf, const FieldMapping* before_map,
+                               const DeviceField* weights) {
   if (adds_ > 0 && with_before_ != (before_map != nullptr))
     throw std::invalid_argument("GpuNormalEquations::add: every part of one system must (or must not) carry the "
                                 "before loss");
   CommandBatch batch(ctx_);
   uint32_t t0 = batch.timestamp();
-  kernel_.record(batch, ref, opt, ref_map, opt_map, ref_tf, accum_, before_map);
+  kernel_.record(batch, ref, opt, ref_map, opt_map, ref_tf, accum_, before_map, weights);
   ++adds_;
   with_before_ = before_map != nullptr;
   uint32_t t1 = batch.timestamp();

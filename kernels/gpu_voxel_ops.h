@@ -25,9 +25,12 @@ class GpuNormalEquations {
   // Adds the voxels of (ref, opt); returns the GPU time in ms (-1 without timestamps). With
   // `before_map` (the second field mapped onto the reference TF's entries) the system also
   // carries the voxel loss before optimization (NormalEquations::before); every add() of one
-  // accumulation must then pass it (std::invalid_argument otherwise).
+  // accumulation must then pass it (std::invalid_argument otherwise). With `weights` (a float32
+  // field like `ref`, values in [0, 1]) the system is the weighted one, sum_i w_i (s_i x - b_i)^2
+  // (AssembleNormalEquationsKernel::record).
   double add(const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
-             const FieldMapping& opt_map, const Buffer& ref_tf, const FieldMapping* before_map = nullptr);
+             const FieldMapping& opt_map, const Buffer& ref_tf, const FieldMapping* before_map = nullptr,
+             const DeviceField* weights = nullptr);
   NormalEquations result() const;
   // The exact totals: TFM_ASSEMBLE_SLOTS(N) unsigned 32.32 fixed-point numbers (integer value
   // = total * 2^32, modulo 2^64).

@@ -2,6 +2,11 @@
 // (DESIGN.md) for one chunk of voxels, adding into 32.32 fixed-point accumulators. b is the
 // reference colour T_r(F_r), evaluated here and never stored as a volume. NaN voxels are skipped.
 //
+// Weights (the TFM_WEIGHTED variant): voxel i's terms are s_i times the terms above, s_i a float
+// in [0, 1] read from a third field (visibility weights: kernels/visibility_weights.h, multiples
+// of 2^-16), each product rounded once to float (`precise`), so the terms are still floats in
+// [0, 1] and the sums exact; the voxel count stays a count.
+//
 // Exactness. Every term a voxel adds (15 of them: (1-w)^2, w^2, (1-w)w, (1-w)b_c, w b_c, b_c^2,
 // and with WITH_BEFORE the 4 squares of the loss before optimization, (T_r(F_o) - b)_c^2)
 // is a float in [0, 1], converted on its own to the 64-bit integer floor(term 2^32), and every
@@ -72,6 +77,21 @@ layout(constant_id = TFM_ASSEMBLE_SPEC_WITH_BEFORE) const bool WITH_BEFORE = fal
 #define TFM_FIELDS_SPEC_NY TFM_ASSEMBLE_SPEC_IMAGE_NY
 #include "voxel_pair_fields.glsl"
 layout(binding = TFM_ASSEMBLE_BINDING_REF_TF) uniform samplerBuffer ref_tf;
+#ifdef TFM_WEIGHTED
+layout(binding = TFM_ASSEMBLE_BINDING_WEIGHTS) uniform samplerBuffer weight_field;
+layout(binding = TFM_ASSEMBLE_BINDING_WEIGHT_QUADS) uniform samplerBuffer weight_quads;
+#define WEIGHT_VOXEL(i) texelFetch(weight_field, int(i)).x
+#define WEIGHT_QUAD(q) texelFetch(weight_quads, int(q))
+// s t, rounded once.
+float weighted(float s, float t) {
+  precise float st = s * t;
+  return st;
+}
+#else
+#define WEIGHT_VOXEL(i) 1.0
+#define WEIGHT_QUAD(q) vec4(1.0)
+#define weighted(s, t) (t)
+#endif
 
 TFM_DECLARE_ACCUMULATORS(TFM_ASSEMBLE_BINDING_ACCUM)
 void add_global(uint k, Fx v) TFM_ADD_GLOBAL(k, v)
@@ -107,7 +127,7 @@ void flush_run() {
   }
 }
 
-void take(float ref_value, float opt_value) {
+void take(float ref_value, float opt_value, float s) {
   const uint n = pc.opt_tf_size;
   uint jr, jo;
   float wr, wo;
@@ -121,7 +141,7 @@ void take(float ref_value, float opt_value) {
   const float w = ok ? wo : 0.0;
   const float u = ok ? 1.0 - wo : 0.0;
   if (TERM_FIRST == 0u) {
-    for (uint c = 0u; c < 4u; ++c) fx_sum(btb[c], fx_term(b[c] * b[c]));
+    for (uint c = 0u; c < 4u; ++c) fx_sum(btb[c], fx_term(weighted(s, b[c] * b[c])));
     voxels += ok ? 1u : 0u;
     // The loss before optimization: the second field shown with the reference TF (its own
     // mapping onto the reference TF's entries), against b. Four sums in registers, no bins.
@@ -131,12 +151,12 @@ void take(float ref_value, float opt_value) {
       tf_coordinate(opt_value, pc.before_lo, pc.before_scale, pc.ref_tf_size, jb, wb);
       precise vec4 d = (1.0 - wb) * texelFetch(ref_tf, int(jb)) + wb * texelFetch(ref_tf, int(jb + 1u));
       d = ok ? d - b : vec4(0.0);
-      for (uint c = 0u; c < 4u; ++c) fx_sum(before[c], fx_term(d[c] * d[c]));
+      for (uint c = 0u; c < 4u; ++c) fx_sum(before[c], fx_term(weighted(s, d[c] * d[c])));
     }
   }
   // The terms are listed out (no arrays, no loops): every index below is a constant, and terms
   // outside the pass are constant zeros the compiler drops.
-#define TFM_TERM(i, value) const Fx t##i = in_pass(uint(i)) ? fx_term(value) : FX_ZERO
+#define TFM_TERM(i, value) const Fx t##i = in_pass(uint(i)) ? fx_term(weighted(s, value)) : FX_ZERO
   TFM_TERM(0, u * u); TFM_TERM(1, w * w); TFM_TERM(2, u * w);
   TFM_TERM(3, u * b.x); TFM_TERM(4, u * b.y); TFM_TERM(5, u * b.z); TFM_TERM(6, u * b.w);
   TFM_TERM(7, w * b.x); TFM_TERM(8, w * b.y); TFM_TERM(9, w * b.z); TFM_TERM(10, w * b.w);
@@ -171,14 +191,15 @@ void main() {
   TFM_FOR_EACH_QUAD(q, quads) {
     const vec4 r = REF_QUAD(q);
     const vec4 o = OPT_QUAD(q);
-    take(r.x, o.x);
-    take(r.y, o.y);
-    take(r.z, o.z);
-    take(r.w, o.w);
+    const vec4 s = WEIGHT_QUAD(q);
+    take(r.x, o.x, s.x);
+    take(r.y, o.y, s.y);
+    take(r.z, o.z, s.z);
+    take(r.w, o.w, s.w);
   }
   if (gl_GlobalInvocationID.x == 0u)
     for (uint i = pc.first_voxel + 4u * quads; i < pc.first_voxel + pc.voxel_count; ++i)
-      take(REF_VOXEL(i), OPT_VOXEL(i));
+      take(REF_VOXEL(i), OPT_VOXEL(i), WEIGHT_VOXEL(i));
 
   if (MODE == TFM_REDUCE_PRIVATE) {
     for (uint j = 0u; j + 1u < n; ++j)

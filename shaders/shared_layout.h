@@ -104,6 +104,10 @@ inline std::vector<uint> by_id(std::initializer_list<std::pair<uint, uint>> valu
 #define TFM_ASSEMBLE_BINDING_ACCUM 3
 #define TFM_ASSEMBLE_BINDING_REF_QUADS 4
 #define TFM_ASSEMBLE_BINDING_OPT_QUADS 5
+// The TFM_WEIGHTED variant (visibility-weighted least squares): per-voxel weights as a third
+// field, one voxel a texel and the range's quads as RGBA texels, multiplying every term.
+#define TFM_ASSEMBLE_BINDING_WEIGHTS 6
+#define TFM_ASSEMBLE_BINDING_WEIGHT_QUADS 7
 #define TFM_ASSEMBLE_SLOTS(n) (6u * (n) + 8u)
 // Specialization: workgroup size (TFM_SPEC_WORKGROUP_X), then these.
 #define TFM_ASSEMBLE_SPEC_MODE 1          // TFM_REDUCE_RUNS_SHARED, _RUNS_GLOBAL or _PRIVATE

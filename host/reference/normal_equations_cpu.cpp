@@ -70,19 +70,24 @@ NormalEquations assemble_normal_equations_cpu_threaded(std::span<const float> re
 std::vector<uint64_t> assemble_normal_equations_fixed_point(std::span<const float> ref, std::span<const float> opt,
                                                             const FieldMapping& ref_map, const FieldMapping& opt_map,
                                                             const TransferFunction& ref_tf,
-                                                            const FieldMapping* before_map) {
-  if (ref.size() != opt.size()) throw std::invalid_argument("assemble_normal_equations_fixed_point: size mismatch");
+                                                            const FieldMapping* before_map,
+                                                            std::span<const float> weights) {
+  if (ref.size() != opt.size() || (!weights.empty() && weights.size() != ref.size()))
+    throw std::invalid_argument("assemble_normal_equations_fixed_point: size mismatch");
   if (ref_tf.size() != ref_map.tf_size || (before_map && before_map->tf_size != ref_map.tf_size))
     throw std::invalid_argument("assemble_normal_equations_fixed_point: TF size does not match the mapping");
   const uint32_t n = opt_map.tf_size, stb = 2 * n - 1;
   const std::vector<float> tf = ref_tf.as_floats();
   // floor(c 2^32) of a float c in [0, 1]: c 2^32 is exact in float, the conversion truncates.
-  auto fx = [](float c) { return static_cast<uint64_t>(c * 4294967296.0f); };
+  auto fixed = [](float c) { return static_cast<uint64_t>(c * 4294967296.0f); };
   std::vector<uint64_t> slots(6 * n + 8, 0);  // TFM_ASSEMBLE_SLOTS(n)
   for (size_t i = 0; i < ref.size(); ++i) {
     uint32_t jr, jo;
     float wr, wo;
     if (!tf_coordinate(ref[i], ref_map, jr, wr) || !tf_coordinate(opt[i], opt_map, jo, wo)) continue;
+    // A weighted term: the weight times the float term, rounded once (the kernel's `weighted`).
+    const float s = weights.empty() ? 1.0f : weights[i];
+    auto fx = [&](float term) { return fixed(s * term); };
     const float u = 1.0f - wo;
     slots[jo] += fx(u * u);
     slots[jo + 1] += fx(wo * wo);

@@ -21,12 +21,14 @@ NormalEquations assemble_normal_equations_cpu(std::span<const float> ref, std::s
 // The exact totals of the GPU assembly: per voxel the same float32 terms (including b clamped
 // to [0, 1]), each converted to floor(term 2^32) and summed modulo 2^64, in the slot layout of
 // TFM_ASSEMBLE_SLOTS(N). Every mode, atomic width and chunking of the kernel must give these
-// bits exactly; with `before_map`, the before-loss slots too. Throws std::invalid_argument when
-// the sizes or TF sizes do not match.
+// bits exactly; with `before_map`, the before-loss slots too; with `weights` (one per voxel, in
+// [0, 1]) the weighted assembly's, each term times its voxel's weight rounded once to float.
+// Throws std::invalid_argument when the sizes or TF sizes do not match.
 std::vector<uint64_t> assemble_normal_equations_fixed_point(std::span<const float> ref, std::span<const float> opt,
                                                             const FieldMapping& ref_map, const FieldMapping& opt_map,
                                                             const TransferFunction& ref_tf,
-                                                            const FieldMapping* before_map = nullptr);
+                                                            const FieldMapping* before_map = nullptr,
+                                                            std::span<const float> weights = {});
 // The loss before optimization the assembly sums alongside (its before slots), in double: per
 // channel the sum over voxels with data in both fields of (T_r(F_o through `before_map`) - b)^2,
 // b = T_r(F_r) clamped to [0, 1], both at the float32 TF coordinates.
