@@ -13,13 +13,14 @@
 // below 1 guarantees (T >= (1 - threshold) * tau_min when the ray stops). So a backward pass
 // re-marches k = k_stop-1 .. 0 from the final (C, T) without storing per-sample data.
 //
-// Every marching kernel takes the renderer's push block and cameras, and marches through
+// Every pixel-marching kernel takes the renderer's push block and cameras, and marches through
 //   march_params_from_push(), view_ray()  the rays of RenderPush `rp` and a RenderView
 //   invocation_pixel(), pixel_index()     which pixel of which view an invocation handles
-// so renderer, DiffDVR forward and backward pass trace the same rays with the same constants.
+// so renderer, DiffDVR forward and backward pass trace the same rays with the same constants
+// (those define TFM_WANT_RENDER_PUSH before including render_layout.h, for the push block `rp`;
+// a kernel without it, such as visibility_weights.comp, fills MarchParams itself).
 //
-// The including shader defines TFM_WANT_RENDER_PUSH before including render_layout.h (for the
-// push block `rp`) and declares, before including this file:
+// The including shader declares, before including this file:
 //   layout(constant_id = TFM_RENDER_SPEC_CHUNKS) const uint FIELD_CHUNKS;
 //   texel-buffer array `field_chunks[TFM_RENDER_MAX_CHUNKS]` (R32F views of the chunks), or in
 //   the TFM_FIELD_IMAGE variant the 3D image `field_image`
@@ -30,10 +31,6 @@
 // (TFM_DECLARE_RAYMARCH_BINDINGS of render_layout.h declares exactly these.)
 #ifndef TFMATCH_RAYMARCH_GLSL
 #define TFMATCH_RAYMARCH_GLSL
-
-#ifndef TFM_WANT_RENDER_PUSH
-#error "raymarch.glsl marches with the render push block: define TFM_WANT_RENDER_PUSH first"
-#endif
 
 #include "tf_common.glsl"
 
@@ -89,6 +86,7 @@ bool setup_ray(vec3 eye, vec3 forward, vec3 right, vec3 up, float tan_half_fov, 
   return ray.steps > 0u;
 }
 
+#ifdef TFM_WANT_RENDER_PUSH
 // The marching constants of the render push block (make_render_push fills it on the host).
 MarchParams march_params_from_push() {
   MarchParams mp;
@@ -128,6 +126,7 @@ bool invocation_pixel(out uvec2 pixel, out uint view) {
 
 // Index of a pixel of a view in the per-pixel buffers (image, state, stop, target).
 uint pixel_index(uvec2 pixel, uint view) { return (view * rp.height + pixel.y) * rp.width + pixel.x; }
+#endif  // TFM_WANT_RENDER_PUSH
 
 vec3 sample_position(Ray ray, uint k, float dt) {
   return ray.entry + ((float(k) + 0.5) * dt) * ray.dir;

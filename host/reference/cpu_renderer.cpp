@@ -6,10 +6,8 @@
 #include <stdexcept>
 
 namespace tfm {
-namespace {
 
-// TF of DESIGN.md in double: x = clamp((v - lo) / (hi - lo), 0, 1) (N - 1).
-Rgba classify(const TransferFunction& tf, const FieldRange& range, double v) {
+Rgba classify_cpu(const TransferFunction& tf, const FieldRange& range, double v) {
   const size_t n = tf.size();
   const double x = std::clamp((v - range.lo) / (range.hi - range.lo), 0.0, 1.0) * double(n - 1);
   const size_t j = std::min<size_t>(static_cast<size_t>(std::floor(x)), n - 2);
@@ -19,7 +17,6 @@ Rgba classify(const TransferFunction& tf, const FieldRange& range, double v) {
   return c;
 }
 
-// Whether moving p by +-eps along an axis changes the NaN status of its sample.
 bool nan_status_ambiguous(const Volume& vol, const glm::dvec3& p, double eps) {
   double v;
   const bool base = sample_trilinear(vol, p, v);
@@ -31,8 +28,6 @@ bool nan_status_ambiguous(const Volume& vol, const glm::dvec3& p, double eps) {
     }
   return false;
 }
-
-}  // namespace
 
 bool sample_trilinear(const Volume& vol, const glm::dvec3& p, double& value) {
   value = 0.0;
@@ -90,7 +85,7 @@ CpuRender render_cpu(const Volume& vol, const TransferFunction& tf, const FieldR
         double value;
         if (has_nan && nan_status_ambiguous(vol, p, tol)) ambiguous = true;
         if (sample_trilinear(vol, p, value)) {
-          const Rgba c = classify(tf, range, value);
+          const Rgba c = classify_cpu(tf, range, value);
           const double tau = std::exp(-std::min(c[3] * march.depth_per_alpha, kMaxSampleOpticalDepth));
           for (int ch = 0; ch < 3; ++ch) color[ch] += transmittance * (1.0 - tau) * c[ch];
           transmittance *= tau;

@@ -40,8 +40,15 @@ struct CpuRender {
 CpuRender render_cpu(const Volume& volume, const TransferFunction& tf, const FieldRange& range,
                      const RenderSettings& settings, const CpuRenderOptions& options = {});
 
+// The TF of DESIGN.md in double, each channel clamped to [0, 1]: x = clamp((v - lo) / (hi - lo),
+// 0, 1) (N - 1), linear between entries floor(x) and floor(x) + 1.
+Rgba classify_cpu(const TransferFunction& tf, const FieldRange& range, double v);
+
 // Trilinear sample at index-space point p (clamped to the edge voxels); false when any corner
 // is NaN.
 bool sample_trilinear(const Volume& volume, const glm::dvec3& p, double& value);
+// Whether moving p by +-eps along an axis changes whether its sample is empty (a NaN corner):
+// where a float marcher may legitimately decide otherwise.
+bool nan_status_ambiguous(const Volume& volume, const glm::dvec3& p, double eps);
 
 }  // namespace tfm

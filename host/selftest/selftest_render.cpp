@@ -1,6 +1,6 @@
 // Self-test cases of the ray-marching kernels against the double-precision CPU references:
 // render_image (forward, several views per dispatch, row bands, and its inverse-check mode),
-// diffdvr_forward (final state C, T) and diffdvr_backward (loss and TF gradient vs the CPU reverse
+// diffdvr_forward (final state C, T), visibility_weights (per voxel) and diffdvr_backward (loss and TF gradient vs the CPU reverse
 // mode of host/reference/diffdvr_cpu.h, l2 and l1, shared-memory and global paths).
 #include <algorithm>
 #include <array>
@@ -17,6 +17,8 @@
 #include "gpu_voxel_ops.h"
 #include "render_image.h"
 #include "selftest_support.h"
+#include "visibility_weights.h"
+#include "visibility_weights_cpu.h"
 #include "volume.h"
 
 namespace tfm::selftest {
@@ -194,6 +196,32 @@ void inverse_check(Context& ctx, Check& check, const Scene& s) {
     for (size_t p = 0; p < r.stop.size(); ++p) max_opacity = std::max(max_opacity, r.rgba[4 * p + 3]);
   }
   check.require(max_opacity > 0.99, "no ray reached the termination opacity");
+}
+
+// The visibility weights of the scene's field and TF over its cameras (the optical model of its
+// settings) against the double reference. The bound: the quantization to multiples of 2^-16
+// (2^-17) plus float marching against double (lavapipe: 7.7e-6 in all).
+void visibility(Context& ctx, Check& check, const Scene& s) {
+  DeviceScene d(ctx, s);
+  const VisibilityWeightsKernel kernel(ctx, uint32_t(d.field.chunk_count()));
+  const VisibilityWeights gpu = kernel.compute(d.field, d.geometry, make_mapping(s.range, uint32_t(s.tf.size())), d.tf,
+                                               s.settings, s.cameras);
+  const CpuVisibilityWeights cpu = visibility_weights_cpu(s.volume, s.tf, s.range, s.settings, s.cameras, true);
+  check.near("largest sum of transmittances", 0, gpu.max_sum, cpu.max_sum, 1e-4 * cpu.max_sum);
+  size_t ambiguous = 0;
+  for (size_t c = 0; c < gpu.weights.chunk_count(); ++c) {
+    std::vector<float> w(gpu.weights.chunk_size(c));
+    readback(ctx, gpu.weights.chunk(c), w.data(), w.size() * 4);
+    for (size_t i = 0; i < w.size(); ++i) {
+      const size_t voxel = gpu.weights.chunk_begin(c) + i;
+      if (cpu.ambiguous[voxel]) {
+        ++ambiguous;  // a sample on the edge of a NaN cell: float and double may both be right
+        continue;
+      }
+      check.near("weight (voxel)", voxel, w[i], cpu.weights[voxel], 1e-4);
+    }
+  }
+  check.require(ambiguous * 2 < cpu.weights.size(), "half of the voxels ambiguous: the scene tests little");
 }
 
 struct GradientScene {
@@ -377,6 +405,12 @@ void add_render_cases(CaseList& cases) {
   for (bool quick : {true, false})
     for (const auto& [name, scene] : quick ? quick_scenes : full_scenes)
       add("diffdvr_forward", "DiffDvrForwardKernel", name, quick, render_tile, render_buffers, forward, scene);
+  // visibility_weights: the same fields, TFs and cameras (one weight a voxel; the image size
+  // gives the frustum's aspect).
+  for (bool quick : {true, false})
+    for (const auto& [name, scene] : quick ? quick_scenes : full_scenes)
+      add("visibility_weights", "VisibilityWeightsKernel", name, quick, Workgroup(64), TFM_RENDER_MAX_CHUNKS + 3,
+          visibility, scene);
 
   // ---- diffdvr_backward ----
   const Workgroup backward_tile(TFM_DIFFDVR_BACKWARD_TILE, TFM_DIFFDVR_BACKWARD_TILE);
