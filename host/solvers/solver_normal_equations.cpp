@@ -27,18 +27,22 @@ class NormalEquationsSolver final : public Solver {
   }
   SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true, true}; }
 
+  std::vector<SolverOption> options() const override { return weight_options(); }
+
   SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
-    NormalEquationsGpuResult r = solve_normal_equations_gpu(p, args.solve);
     SolverOutput out;
-    out.tf = r.solve.tf;
-    out.phases = std::move(r.phases);
-    out.warnings = r.solve.warnings;
-    out.details["factorization"] = r.solve.factorization;
-    out.details["cond"] = cond_detail(r.solve.cond);
-    out.details["lambda_min"] = r.solve.lambda_min;
-    out.details["lambda_max"] = r.solve.lambda_max;
-    out.details["unreferenced_entries"] = r.solve.unreferenced_entries;
-    out.details["clamped_values"] = r.solve.clamped_values;
+    const NormalEquations eq = solved_system(p, args, out);
+    const auto t0 = std::chrono::steady_clock::now();
+    const SolveResult r = solve_normal_equations(eq, args.solve);
+    out.phases.push_back({"solve", ms_since(t0), -1.0});
+    out.tf = r.tf;
+    out.warnings = r.warnings;
+    out.details["factorization"] = r.factorization;
+    out.details["cond"] = cond_detail(r.cond);
+    out.details["lambda_min"] = r.lambda_min;
+    out.details["lambda_max"] = r.lambda_max;
+    out.details["unreferenced_entries"] = r.unreferenced_entries;
+    out.details["clamped_values"] = r.clamped_values;
     out.details["ridge"] = args.solve.ridge;
     out.details["smooth"] = args.solve.smooth;
     return out;

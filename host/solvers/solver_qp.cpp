@@ -17,9 +17,11 @@ class QpSolver final : public Solver {
   }
   SolverConstraints constraints() const override { return {BoxHandling::Enforced, true, true}; }
 
+  std::vector<SolverOption> options() const override { return weight_options(); }
+
   SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
     SolverOutput out;
-    const NormalEquations& eq = assembled_system(p, &out.phases);
+    const NormalEquations eq = solved_system(p, args, out);
 
     const auto t0 = std::chrono::steady_clock::now();
     BoxQpResult r = solve_box_constrained(eq, args.solve);

@@ -3,9 +3,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
+#include "cameras.h"
 #include "gpu_voxel_ops.h"
+#include "visibility_weights.h"
 
 namespace tfm {
 
@@ -37,6 +40,42 @@ JacobiSetup jacobi_setup(VoxelProblem& p, const SolveOptions& options) {
   js.inv_diag.resize(js.eq.n);
   for (uint32_t j = 0; j < js.eq.n; ++j) js.inv_diag[j] = h.diag[j] > 0.0 ? float(1.0 / h.diag[j]) : 0.0f;
   return js;
+}
+
+std::vector<SolverOption> weight_options() {
+  return {SolverOption::choice("weights", "none", {"none", "visibility"},
+                               "voxel weights: none, or how much the reference renderings over the cameras see each "
+                               "voxel (transmittance to the eye, summed over cameras)"),
+          SolverOption::integer("weight-views", 8, 1, 1024, "cameras of --weights visibility"),
+          SolverOption::choice("cameras", "fibonacci", {"random", "fibonacci"},
+                               "cameras of --weights visibility: evenly spread (Fibonacci sphere) or seeded random"),
+          SolverOption::integer("seed", 1, 0, std::numeric_limits<uint64_t>::max(),
+                                "seed of --weights visibility's random cameras")};
+}
+
+NormalEquations solved_system(VoxelProblem& p, const SolverArgs& args, SolverOutput& out) {
+  out.details["weights"] = args.text("weights");
+  if (args.text("weights") == "none") return assembled_system(p, &out.phases);
+  auto t0 = std::chrono::steady_clock::now();
+  const uint32_t views = uint32_t(args.integer("weight-views"));
+  std::vector<OrbitCamera> cameras;
+  if (args.text("cameras") == "fibonacci") {
+    cameras = fibonacci_cameras(views, args.render.camera);
+  } else {
+    RandomCameras random(args.integer("seed"), args.render.camera);
+    cameras = random.next(views);
+  }
+  const VolumeGeometry geometry = VolumeGeometry::from(p.ref_volume.dims, p.ref_volume.spacing, args.render.z_scale);
+  const VisibilityWeightsKernel kernel(p.ctx, uint32_t(p.ref.chunk_count()));
+  const VisibilityWeights w = kernel.compute(p.ref, geometry, p.ref_map, p.ref_tf_buffer, args.render, cameras);
+  out.phases.push_back({"visibility weights", ms_since(t0), w.gpu_ms});
+  out.details["weight_views"] = views;
+  out.details["weight_max_transmittance_sum"] = w.max_sum;
+  t0 = std::chrono::steady_clock::now();
+  GpuNormalEquations gpu(p.ctx, p.opt_map.tf_size);
+  const double gpu_ms = gpu.add(p.ref, p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer, nullptr, &w.weights);
+  out.phases.push_back({"assemble (weighted)", ms_since(t0), gpu_ms});
+  return gpu.result();
 }
 
 std::vector<SolverOption> cgls_stop_options() {

@@ -34,6 +34,17 @@ struct JacobiSetup {
 };
 JacobiSetup jacobi_setup(VoxelProblem& problem, const SolveOptions& options);
 
+// --weights none|visibility and the cameras of the visibility weights (--weight-views,
+// --cameras, --seed): the options of the solvers that solve the assembled system (normal-equations, qp).
+std::vector<SolverOption> weight_options();
+
+// The system a solver of weight_options() solves: assembled_system(p) for --weights none; for
+// --weights visibility the weighted one (kernels/visibility_weights.h: weights from the
+// reference rendered over the cameras, each voxel's terms times its weight), assembled apart so
+// that p.system — the voxel losses run_optimize reports — stays the unweighted one. Appends the
+// phases it ran to out.phases and its numbers to out.details.
+NormalEquations solved_system(VoxelProblem& p, const SolverArgs& args, SolverOutput& out);
+
 // --tolerance and --max-iterations of the CGLS solvers (cgls, eigen-cgls, cuda-cgls).
 std::vector<SolverOption> cgls_stop_options();
 

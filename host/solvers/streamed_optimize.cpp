@@ -216,6 +216,10 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
                              "disk are normal-equations and qp (they work from the assembled system alone)");
   const Solver& solver = require_solver(req.solver);
   const SolverArgs args = parse_solver_args(solver, req.settings);
+  if (args.has("weights") && args.text("weights") != "none")
+    throw std::runtime_error(parameter("weights") + " " + args.text("weights") +
+                             " renders the whole reference field on the device: it does not stream from disk "
+                             "(the fields must fit in memory, " + parameter("stream") + " off)");
   VolumeSlabReader& ref = *req.ref;
   VolumeSlabReader& field = *req.field;
   require_same_grid(ref.grid(), field.grid());

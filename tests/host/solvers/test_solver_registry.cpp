@@ -235,9 +235,9 @@ TEST(SolverOptionsCli, InapplicableFlagsAreErrorsAndHelpListsTheSolvers) {
   EXPECT_NE(r.output.find("--max-iterations of solver cgls: expected an integer in [1, 1000000000], got '0'"),
             std::string::npos)
       << r.output;
-  r = test::run_cli("demo --out " + dir / "demo" + " --solver qp --cameras fibonacci");
+  r = test::run_cli("demo --out " + dir / "demo" + " --solver qp --view-pool 4");
   EXPECT_NE(r.exit_code, 0);
-  EXPECT_NE(r.output.find("--cameras applies to solver diffdvr, not to qp"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("--view-pool applies to solver diffdvr, not to qp"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "demo")) << "the flags are checked before any work";
   r = test::run_cli("solvers --synthetic --size 8x8x4 --solvers normal-equations --tolerance 1e-3");
   EXPECT_NE(r.exit_code, 0);

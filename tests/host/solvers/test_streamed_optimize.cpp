@@ -253,6 +253,10 @@ TEST_F(StreamedOptimizeTest, OnlySystemSolversStreamAndGridsMustMatch) {
   auto c = slabs_in_memory(constant);
   req.field = c.get();
   formats_test::expect_error([&] { run_optimize_streamed(ctx(), req); }, {"constant"});
+  // Visibility weights render the whole reference: they do not stream.
+  req.field = a.get();
+  req.settings.extra["weights"] = "visibility";
+  formats_test::expect_error([&] { run_optimize_streamed(ctx(), req); }, {"weights visibility", "does not stream"});
   EXPECT_TRUE(solver_streams("normal-equations"));
   EXPECT_FALSE(solver_streams("diffdvr"));
 }
