@@ -13,7 +13,7 @@
 
 namespace tfm {
 
-static_assert(sizeof(gpu::PreparePush) == 40, "PreparePush must match the GLSL std430 block");
+static_assert(sizeof(gpu::PreparePush) == 44, "PreparePush must match the GLSL std430 block");
 static_assert(sizeof(gpu::SparsePush) == 12, "SparsePush must match the GLSL std430 block");
 static_assert(sizeof(gpu::CglsState) == 112, "CglsState must match the GLSL std430 struct");
 
@@ -32,13 +32,45 @@ constexpr auto kScatterBindingCounts =
                          TFM_SCATTER_BINDING_STATE, TFM_SCATTER_BINDING_ACCUM, TFM_SCATTER_BINDING_COORD_QUADS,
                          TFM_SCATTER_BINDING_RESIDUAL_TEXELS});
 
+// The TFM_WEIGHTED variants: the same bindings, then the weights and row scales.
+constexpr auto kWeightedPrepareBindingCounts =
+    gpu::binding_counts({TFM_PREPARE_BINDING_REF_FIELD, TFM_PREPARE_BINDING_OPT_FIELD, TFM_PREPARE_BINDING_REF_TF,
+                         TFM_PREPARE_BINDING_COORD, TFM_PREPARE_BINDING_RGBA, TFM_PREPARE_BINDING_COORD_QUADS,
+                         TFM_PREPARE_BINDING_WEIGHTS, TFM_PREPARE_BINDING_SCALE});
+constexpr auto kWeightedGatherBindingCounts =
+    gpu::binding_counts({TFM_GATHER_BINDING_COORD, TFM_GATHER_BINDING_X, TFM_GATHER_BINDING_OUT,
+                         TFM_GATHER_BINDING_NORM, TFM_GATHER_BINDING_STATE, TFM_GATHER_BINDING_COORD_QUADS,
+                         TFM_GATHER_BINDING_SCALE});
+constexpr auto kWeightedScatterBindingCounts =
+    gpu::binding_counts({TFM_SCATTER_BINDING_COORD, TFM_SCATTER_BINDING_RESIDUAL, TFM_SCATTER_BINDING_P,
+                         TFM_SCATTER_BINDING_STATE, TFM_SCATTER_BINDING_ACCUM, TFM_SCATTER_BINDING_COORD_QUADS,
+                         TFM_SCATTER_BINDING_RESIDUAL_TEXELS, TFM_SCATTER_BINDING_SCALE});
+
+// The pipeline of `desc`, its weighted variant when `weighted` (shader "<name>_weighted", where
+// `weighted_counts` are its bindings).
+template <size_t N>
+std::unique_ptr<ComputePipeline> variant(Context& ctx, PipelineDesc desc, bool weighted,
+                                         const std::array<uint32_t, N>& weighted_counts) {
+  if (weighted) {
+    desc.shader = std::string(desc.shader).insert(desc.shader.find("_int64") == std::string::npos
+                                                      ? desc.shader.size()
+                                                      : desc.shader.find("_int64"),
+                                                  "_weighted");
+    desc.binding_counts = gpu::to_vector(weighted_counts);
+    desc.binding_kinds.resize(desc.binding_counts.size(), DescriptorKind::StorageBuffer);
+  }
+  desc.spirv = shader_spirv(desc.shader);
+  return std::make_unique<ComputePipeline>(ctx, desc);
+}
+
 // A TF-sized vector (N RGBA entries) as texels.
 Binding tf_texels(const Buffer& b, uint32_t n) {
   return Binding::texels(b, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(n) * kRgbaBytes);
 }
 }  // namespace
 
-VoxelVectors::VoxelVectors(Context& ctx, const DeviceField& ref, const DeviceField& opt, uint64_t max_chunk_voxels)
+VoxelVectors::VoxelVectors(Context& ctx, const DeviceField& ref, const DeviceField& opt, uint64_t max_chunk_voxels,
+                           bool weighted)
     : voxels_(ref.voxel_count()), field_chunk_voxels_(ref.chunk_voxels()) {
   if (ref.voxel_count() != opt.voxel_count() || ref.chunk_voxels() != opt.chunk_voxels())
     throw std::invalid_argument("voxel vectors: fields differ in size or chunking");
@@ -67,7 +99,15 @@ VoxelVectors::VoxelVectors(Context& ctx, const DeviceField& ref, const DeviceFie
     coord_.emplace_back(ctx, chunk_size(c) * sizeof(float), MemoryUsage::Device,
                         "voxel coordinates chunk " + std::to_string(c));
     rgba_.emplace_back(ctx, chunk_size(c) * kRgbaBytes, MemoryUsage::Device, "voxel RGBA chunk " + std::to_string(c));
+    if (weighted)
+      scale_.emplace_back(ctx, chunk_size(c) * sizeof(float), MemoryUsage::Device,
+                          "voxel row scales chunk " + std::to_string(c));
   }
+}
+
+const Buffer& VoxelVectors::scale(size_t c) const {
+  if (!weighted()) throw std::logic_error("voxel vectors: unweighted vectors have no row scales");
+  return scale_[c];
 }
 
 uint64_t VoxelVectors::chunk_size(size_t c) const { return std::min(chunk_voxels_, voxels_ - chunk_begin(c)); }
@@ -104,15 +144,28 @@ SparsePrepareKernel::SparsePrepareKernel(Context& ctx, uint64_t range_quads, uin
   desc.push_constant_bytes = sizeof(gpu::PreparePush);
   desc.workgroup_size = workgroup_size_;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_}});
-  desc.spirv = shader_spirv(desc.shader);
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+  pipeline_ = variant(ctx, desc, false, kWeightedPrepareBindingCounts);
+  desc.binding_kinds.resize(kWeightedPrepareBindingCounts.size(), DescriptorKind::StorageBuffer);
+  desc.binding_kinds[TFM_PREPARE_BINDING_WEIGHTS] = DescriptorKind::UniformTexelBuffer;
+  desc_ = desc;
+}
+
+const ComputePipeline& SparsePrepareKernel::pipeline(bool weighted) const {
+  if (!weighted) return *pipeline_;
+  if (!weighted_) weighted_ = variant(ctx_, desc_, true, kWeightedPrepareBindingCounts);
+  return *weighted_;
 }
 
 void SparsePrepareKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
                                  const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
-                                 VoxelVectors& v) const {
+                                 VoxelVectors& v, const DeviceField* weights) const {
   if (ref.voxel_count() != v.voxel_count() || opt.voxel_count() != v.voxel_count())
     throw std::invalid_argument("sparse_prepare: fields and voxel vectors differ in size");
+  if ((weights != nullptr) != v.weighted())
+    throw std::invalid_argument("sparse_prepare: weights go with weighted voxel vectors, and only with them");
+  if (weights && (weights->voxel_count() != ref.voxel_count() || weights->chunk_voxels() != ref.chunk_voxels() ||
+                  weights->format() != FieldFormat::Float32))
+    throw std::invalid_argument("sparse_prepare: the weights must be a float32 field chunked as the fields");
   if (ref_tf.size() < uint64_t(ref_map.tf_size) * kRgbaBytes)
     throw std::invalid_argument("sparse_prepare: TF buffer smaller than its mapping's size");
   gpu::PreparePush push{};
@@ -139,10 +192,12 @@ void SparsePrepareKernel::record(CommandBatch& batch, const DeviceField& ref, co
     push.voxel_count = static_cast<uint32_t>(r.voxels);
     push.first_voxel = static_cast<uint32_t>(r.first);
     const Binding ref_view = view_of(ref, push.field_shift), opt_view = view_of(opt, push.opt_field_shift);
-    batch.dispatch(*pipeline_,
-                   {ref_view, opt_view, tf, v.coord(r.chunk),
-                    v.rgba(r.chunk), v.coord(r.chunk)},
-                   push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
+    std::vector<Binding> bindings{ref_view, opt_view, tf, v.coord(r.chunk), v.rgba(r.chunk), v.coord(r.chunk)};
+    if (weights) {
+      bindings.push_back(view_of(*weights, push.weight_field_shift));
+      bindings.push_back(v.scale(r.chunk));
+    }
+    batch.dispatch(pipeline(weights != nullptr), bindings, push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
   }
 }
 
@@ -164,8 +219,14 @@ SparseGatherKernel::SparseGatherKernel(Context& ctx, bool write_out, bool accumu
                                     {TFM_GATHER_SPEC_WRITE_OUT, write_out ? 1u : 0u},
                                     {TFM_GATHER_SPEC_ACCUMULATE_NORM, accumulate_norm ? 1u : 0u},
                                     {TFM_GATHER_SPEC_NORM_SCALED, scaled ? 1u : 0u}});
-  desc.spirv = shader_spirv(desc.shader);
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+  pipeline_ = variant(ctx, desc, false, kWeightedGatherBindingCounts);
+  desc_ = desc;
+}
+
+const ComputePipeline& SparseGatherKernel::pipeline(bool weighted) const {
+  if (!weighted) return *pipeline_;
+  if (!weighted_) weighted_ = variant(ctx_, desc_, true, kWeightedGatherBindingCounts);
+  return *weighted_;
 }
 
 void SparseGatherKernel::record(CommandBatch& batch, VoxelVectors& v, uint32_t tf_size, const Buffer& x,
@@ -182,10 +243,10 @@ void SparseGatherKernel::record(CommandBatch& batch, VoxelVectors& v, uint32_t t
   for (const QuadRange& r : quad_ranges(v.chunk_sizes(), range_quads_)) {
     push.voxel_count = static_cast<uint32_t>(r.voxels);
     push.first_voxel = static_cast<uint32_t>(r.first);
-    batch.dispatch(*pipeline_,
-                   {v.coord(r.chunk), xt, v.rgba(r.chunk), norm_accum, st,
-                    Binding::texels(v.coord(r.chunk), r.format, r.first * 4, r.bytes)},
-                   push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
+    std::vector<Binding> bindings{v.coord(r.chunk), xt, v.rgba(r.chunk), norm_accum, st,
+                                  Binding::texels(v.coord(r.chunk), r.format, r.first * 4, r.bytes)};
+    if (v.weighted()) bindings.push_back(v.scale(r.chunk));
+    batch.dispatch(pipeline(v.weighted()), bindings, push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
     // Successive ranges add into the same accumulators.
     batch.barrier();
   }
@@ -224,7 +285,14 @@ SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool up
                                     {TFM_SCATTER_SPEC_SHARED_SLOTS, shared ? TFM_TF_GRADIENT_SLOTS(tf_size) : 1u},
                                     {TFM_SCATTER_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size : 0u},
                                     {TFM_SCATTER_SPEC_UPDATE_RESIDUAL, update_residual ? 1u : 0u}});
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+  pipeline_ = variant(ctx, desc, false, kWeightedScatterBindingCounts);
+  desc_ = desc;
+}
+
+const ComputePipeline& SparseScatterKernel::pipeline(bool weighted) const {
+  if (!weighted) return *pipeline_;
+  if (!weighted_) weighted_ = variant(ctx_, desc_, true, kWeightedScatterBindingCounts);
+  return *weighted_;
 }
 
 void SparseScatterKernel::record(CommandBatch& batch, VoxelVectors& v, Buffer& accum) const {
@@ -249,12 +317,12 @@ void SparseScatterKernel::record_ranges(CommandBatch& batch, VoxelVectors& v, co
   for (const QuadRange& r : quad_ranges(v.chunk_sizes(), range_quads_)) {
     push.voxel_count = static_cast<uint32_t>(r.voxels);
     push.first_voxel = static_cast<uint32_t>(r.first);
-    batch.dispatch(*pipeline_,
-                   {v.coord(r.chunk), v.rgba(r.chunk), pt, state, accum,
-                    Binding::texels(v.coord(r.chunk), r.format, r.first * 4, r.bytes),
-                    Binding::texels(v.rgba(r.chunk), VK_FORMAT_R32G32B32A32_SFLOAT, r.first * kRgbaBytes,
-                                    r.voxels * kRgbaBytes)},
-                   push, {reduction_.groups(ctx_, r.voxels)});
+    std::vector<Binding> bindings{v.coord(r.chunk), v.rgba(r.chunk), pt, state, accum,
+                                  Binding::texels(v.coord(r.chunk), r.format, r.first * 4, r.bytes),
+                                  Binding::texels(v.rgba(r.chunk), VK_FORMAT_R32G32B32A32_SFLOAT,
+                                                  r.first * kRgbaBytes, r.voxels * kRgbaBytes)};
+    if (v.weighted()) bindings.push_back(v.scale(r.chunk));
+    batch.dispatch(pipeline(v.weighted()), bindings, push, {reduction_.groups(ctx_, r.voxels)});
     // Successive ranges add into the same accumulators.
     batch.barrier();
   }

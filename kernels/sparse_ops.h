@@ -26,7 +26,12 @@ class VoxelVectors {
   // `max_chunk_voxels` (0: device limit) forces smaller chunks in tests. Throws
   // std::invalid_argument when the fields differ in size or chunking, std::runtime_error when no
   // chunk size fits the device (the message says how large the fields and the limit are).
-  VoxelVectors(Context& ctx, const DeviceField& ref, const DeviceField& opt, uint64_t max_chunk_voxels = 0);
+  // `weighted`: also a row scale per voxel (sqrt of its weight), which sparse_prepare writes from a
+  // weights field and the gather and scatter multiply each voxel's row by (weighted least squares).
+  VoxelVectors(Context& ctx, const DeviceField& ref, const DeviceField& opt, uint64_t max_chunk_voxels = 0,
+               bool weighted = false);
+  bool weighted() const { return !scale_.empty(); }
+  const Buffer& scale(size_t c) const;  // std::logic_error for unweighted vectors
 
   uint64_t voxel_count() const { return voxels_; }
   uint64_t chunk_voxels() const { return chunk_voxels_; }
@@ -51,6 +56,7 @@ class VoxelVectors {
   uint64_t field_chunk_voxels_ = 0;
   std::vector<Buffer> coord_;
   std::vector<Buffer> rgba_;
+  std::vector<Buffer> scale_;
 };
 
 // Writes coordinates and b = clamp(T_r(F_r), 0, 1) of every voxel (TFM_NO_DATA / 0 where either
@@ -59,17 +65,23 @@ class VoxelVectors {
 class SparsePrepareKernel {
  public:
   explicit SparsePrepareKernel(Context& ctx, uint64_t range_quads = 0, uint32_t workgroup_size = 0);
+  // With `weights` (weighted vectors only: a float32 field chunked as the fields) b and the rows
+  // are scaled by sqrt(weight): the vectors of the weighted least-squares problem.
   void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
-              const FieldMapping& opt_map, const Buffer& ref_tf, VoxelVectors& vectors) const;
+              const FieldMapping& opt_map, const Buffer& ref_tf, VoxelVectors& vectors,
+              const DeviceField* weights = nullptr) const;
 
  private:
   Context& ctx_;
   uint64_t range_quads_;
   uint32_t workgroup_size_;
   std::unique_ptr<ComputePipeline> pipeline_;
+  PipelineDesc desc_;
+  mutable std::unique_ptr<ComputePipeline> weighted_;  // built when weighted vectors first come
+  const ComputePipeline& pipeline(bool weighted) const;
 };
 
-// q = S x (x: N RGBA entries). With `write_out` stores q in the vectors' RGBA chunks; with
+// q = S x (x: N RGBA entries; weighted vectors: each row times its voxel's scale). With `write_out` stores q in the vectors' RGBA chunks; with
 // `accumulate_norm` adds ||q_c||^2 to TFM_GATHER_NORM_SLOTS unsigned 32.32 slots, of q / p_scale
 // (from a CGLS state buffer) when `scaled` — and then does nothing once every channel of that
 // state has stopped. Dispatches per range of at most `range_quads` quads (texel_range_quads) in
@@ -89,10 +101,13 @@ class SparseGatherKernel {
   uint64_t range_quads_;
   uint32_t workgroup_size_;
   std::unique_ptr<ComputePipeline> pipeline_;
+  PipelineDesc desc_;
+  mutable std::unique_ptr<ComputePipeline> weighted_;  // built when weighted vectors first come
+  const ComputePipeline& pipeline(bool weighted) const;
   Buffer dummy_state_;
 };
 
-// s += S^T r, r = the vectors' RGBA chunks, into 4N signed slots (TFM_FIXED_SLOT_WORDS words each:
+// s += S^T r (weighted vectors: each row times its voxel's scale), r = the vectors' RGBA chunks, into 4N signed slots (TFM_FIXED_SLOT_WORDS words each:
 // signed_accumulator_bytes(N)). With `update_residual` first r -= alpha (S p), alpha from the
 // CGLS state. Dispatches per range of at most `range_quads` quads (voxel_texel_range_quads: r is
 // read as a texel per voxel). The same bits for every
@@ -119,6 +134,9 @@ class SparseScatterKernel {
   uint64_t range_quads_;
   Reduction reduction_;
   std::unique_ptr<ComputePipeline> pipeline_;
+  PipelineDesc desc_;
+  mutable std::unique_ptr<ComputePipeline> weighted_;  // built when weighted vectors first come
+  const ComputePipeline& pipeline(bool weighted) const;
   Buffer dummy_p_, dummy_state_;
 };
 

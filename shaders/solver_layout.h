@@ -34,6 +34,11 @@ struct uvec4 { uint x, y, z, w; };
 #define TFM_PREPARE_BINDING_COORD 3
 #define TFM_PREPARE_BINDING_RGBA 4
 #define TFM_PREPARE_BINDING_COORD_QUADS 5
+// The TFM_WEIGHTED variants of prepare, gather and scatter (weighted CGLS, --weights): each
+// voxel's row and b scaled by sqrt(weight). Prepare reads the weights field (a texel view, from
+// weight_field_shift) and writes each voxel's scale; gather and scatter read the scales.
+#define TFM_PREPARE_BINDING_WEIGHTS 6
+#define TFM_PREPARE_BINDING_SCALE 7
 
 #if defined(__cplusplus) || defined(TFM_WANT_PREPARE_PUSH)
 TFM_PUSH_CONSTANTS(PreparePush) {
@@ -48,6 +53,7 @@ TFM_PUSH_CONSTANTS(PreparePush) {
   float opt_scale;
   uint opt_field_shift;  // the same in the second field's view (the fields may store voxels in
                          // different formats, so their views start at different texels)
+  uint weight_field_shift;  // the same in the weights' view (TFM_WEIGHTED)
 } TFM_PUSH_INSTANCE(pc);
 #endif
 
@@ -65,6 +71,7 @@ TFM_PUSH_CONSTANTS(PreparePush) {
 #define TFM_GATHER_BINDING_STATE 4
 #define TFM_GATHER_BINDING_COORD_QUADS 5  // the range's coordinates as RGBA32F texels
 #define TFM_GATHER_NORM_SLOTS 4u
+#define TFM_GATHER_BINDING_SCALE 6        // TFM_WEIGHTED: each voxel's row scale, float
 
 // ---- sparse_scatter.comp: s += S^T r (signed slots), optionally after r -= alpha (S p) ----------
 // Accumulators: TFM_TF_GRADIENT_SLOTS(N) signed slots. Specialization: workgroup size
@@ -80,6 +87,7 @@ TFM_PUSH_CONSTANTS(PreparePush) {
 #define TFM_SCATTER_BINDING_ACCUM 4
 #define TFM_SCATTER_BINDING_COORD_QUADS 5       // the range's coordinates as RGBA32F texels
 #define TFM_SCATTER_BINDING_RESIDUAL_TEXELS 6   // the range's r, one RGBA32F texel per voxel
+#define TFM_SCATTER_BINDING_SCALE 7             // TFM_WEIGHTED: each voxel's row scale, float
 
 // Push constants of sparse_gather and sparse_scatter: one range of a chunk of the voxel vectors.
 // p (scatter) and x (gather) are bound as N RGBA32F texels.

@@ -3,7 +3,8 @@
 // channel to unsigned 32.32 accumulators (every term converted on its own and summed as an
 // integer: the same bits for every workgroup size, range split and chunking), optionally of q
 // scaled by the CGLS state's p_scale; then it does nothing once every CGLS channel has stopped.
-// Voxels without data give q = 0. Layout as in residual_map.comp: lanes on consecutive quads of
+// Voxels without data give q = 0. The TFM_WEIGHTED variant scales each row by the voxel's scale
+// (sqrt of its weight, written by sparse_prepare). Layout as in residual_map.comp: lanes on consecutive quads of
 // coordinates (quad_segments.glsl) read as texels, x read as texels (lavapipe turns a storage
 // load with a per-lane index into a loop over the SIMD lanes), each lane's sums in registers,
 // added to the workgroup's and then the global slots once; invocation 0 does the range's last
@@ -29,6 +30,12 @@ layout(binding = TFM_GATHER_BINDING_X) uniform samplerBuffer x;
 layout(std430, binding = TFM_GATHER_BINDING_OUT) writeonly buffer Out { vec4 q_out[]; };
 layout(std430, binding = TFM_GATHER_BINDING_NORM) buffer Norm { uint norm_accum[]; };
 layout(std430, binding = TFM_GATHER_BINDING_STATE) readonly buffer State { CglsState state; };
+#ifdef TFM_WEIGHTED
+layout(std430, binding = TFM_GATHER_BINDING_SCALE) readonly buffer Scale { float scale[]; };
+#define ROW_SCALE(i) scale[i]
+#else
+#define ROW_SCALE(i) 1.0
+#endif
 
 shared uint s_norm[2u * TFM_GATHER_NORM_SLOTS];
 
@@ -40,7 +47,7 @@ void take(uint i, float c) {
   float w;
   // Without data j = 0 and w = 0 (split_coordinate): the product is replaced by 0, no branch.
   const bool ok = split_coordinate(c, pc.tf_size, j, w);
-  const vec4 q = ok ? (1.0 - w) * texelFetch(x, int(j)) + w * texelFetch(x, int(j + 1u)) : vec4(0.0);
+  const vec4 q = ok ? ROW_SCALE(i) * ((1.0 - w) * texelFetch(x, int(j)) + w * texelFetch(x, int(j + 1u))) : vec4(0.0);
   if (WRITE_OUT) q_out[i] = q;
   if (ACCUMULATE_NORM) {
     const vec4 qs = q * inv_scale;

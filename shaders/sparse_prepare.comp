@@ -23,6 +23,11 @@ layout(binding = TFM_PREPARE_BINDING_REF_TF) uniform samplerBuffer ref_tf;
 layout(std430, binding = TFM_PREPARE_BINDING_COORD) writeonly buffer Coord { float coord[]; };
 layout(std430, binding = TFM_PREPARE_BINDING_COORD_QUADS) writeonly buffer CoordQuads { vec4 coord_quads[]; };
 layout(std430, binding = TFM_PREPARE_BINDING_RGBA) writeonly buffer Rgba { vec4 rgba[]; };
+#ifdef TFM_WEIGHTED
+// Weighted least squares: row i and b_i times sqrt(weight_i), the scale kept for gather and scatter.
+layout(binding = TFM_PREPARE_BINDING_WEIGHTS) uniform samplerBuffer weight_field;
+layout(std430, binding = TFM_PREPARE_BINDING_SCALE) writeonly buffer Scale { float scale[]; };
+#endif
 
 // Voxel k of the range: its coordinate, and b (written to the RGBA vector).
 float take(uint k) {
@@ -35,7 +40,13 @@ float take(uint k) {
   const bool ok = has_ref && has_opt;
   // Without data j = 0 and w = 0: the values are valid and replaced (no branch).
   const vec4 b = clamp((1.0 - wr) * texelFetch(ref_tf, int(jr)) + wr * texelFetch(ref_tf, int(jr + 1u)), 0.0, 1.0);
+#ifdef TFM_WEIGHTED
+  const float row_scale = ok ? sqrt(texelFetch(weight_field, int(pc.weight_field_shift + k)).x) : 0.0;
+  scale[pc.first_voxel + k] = row_scale;
+  rgba[pc.first_voxel + k] = row_scale * b;
+#else
   rgba[pc.first_voxel + k] = ok ? b : vec4(0.0);
+#endif
   // x = j + w exactly: w = x - floor(x) (or x - (n-2) at the top node) was exact in float.
   precise float x = float(jo) + wo;
   return ok ? x : TFM_NO_DATA;

@@ -2,7 +2,8 @@
 // entry j+1, per channel, into signed 32.32 fixed-point slots, reduced as tf_pair_reduce.glsl
 // describes (every term converted on its own and summed as an integer: the same bits for every
 // mode, atomic width, chunking, range split and workgroup count). With UPDATE_RESIDUAL it first
-// applies the CGLS residual update r -= alpha (S p) and stores r. Lanes take consecutive quads of
+// applies the CGLS residual update r -= alpha (S p) and stores r. The TFM_WEIGHTED variant scales
+// each row of S by the voxel's scale (sqrt of its weight, written by sparse_prepare). Lanes take consecutive quads of
 // voxels in their subgroup's segment, as in assemble_normal_equations.comp; coordinates, r and p
 // are read as texels (the coordinates as RGBA32F quads, r one texel per voxel), r is written
 // through a storage buffer; invocation 0 does the range's last count % 4 voxels.
@@ -36,6 +37,12 @@ layout(std430, binding = TFM_SCATTER_BINDING_RESIDUAL) writeonly buffer Residual
 layout(binding = TFM_SCATTER_BINDING_P) uniform samplerBuffer p;
 layout(std430, binding = TFM_SCATTER_BINDING_STATE) readonly buffer State { CglsState state; };
 TFM_DECLARE_ACCUMULATORS(TFM_SCATTER_BINDING_ACCUM)
+#ifdef TFM_WEIGHTED
+layout(std430, binding = TFM_SCATTER_BINDING_SCALE) readonly buffer Scale { float scale[]; };
+#define ROW_SCALE(k) scale[pc.first_voxel + (k)]
+#else
+#define ROW_SCALE(k) 1.0
+#endif
 
 #include "tf_pair_reduce.glsl"
 
@@ -47,12 +54,13 @@ void take(uint k, float x) {
   float w;
   const bool ok = split_coordinate(x, pc.tf_size, j, w);
   vec4 ri = texelFetch(r_in, int(k));
+  const float row_scale = ROW_SCALE(k);
   if (UPDATE_RESIDUAL && ok) {
-    ri -= alpha * ((1.0 - w) * texelFetch(p, int(j)) + w * texelFetch(p, int(j + 1u)));
+    ri -= alpha * (row_scale * ((1.0 - w) * texelFetch(p, int(j)) + w * texelFetch(p, int(j + 1u))));
     r[pc.first_voxel + k] = ri;
   }
   // Without data w = 0 and j = 0 (split_coordinate), and the terms must be 0.
-  const vec4 rs = ok ? ri : vec4(0.0);
+  const vec4 rs = ok ? row_scale * ri : vec4(0.0);
   pair_add(ok, j, (1.0 - w) * rs, w * rs);
 }
 

@@ -40,8 +40,10 @@ CglsGpuResult solve_cgls_gpu(VoxelProblem& p, const CglsGpuOptions& options) {
 
   CglsGpuResult out;
   auto t0 = std::chrono::steady_clock::now();
-  JacobiSetup js = jacobi_setup(p, options.regularization);
-  VoxelVectors vectors(ctx, p.ref, p.opt, options.max_chunk_voxels);
+  if ((options.weights == nullptr) != (options.weighted_system == nullptr))
+    throw std::invalid_argument("solve_cgls_gpu: weights and their weighted system go together");
+  JacobiSetup js = jacobi_setup(p, options.regularization, options.weighted_system);
+  VoxelVectors vectors(ctx, p.ref, p.opt, options.max_chunk_voxels, options.weights != nullptr);
   Buffer inv_diag = make_buffer<float>(ctx, js.inv_diag, "CGLS inverse diagonal");
   Buffer s_accum(ctx, signed_accumulator_bytes(n), MemoryUsage::Device, "CGLS S^T r accumulators");
   Buffer delta_accum(ctx, TFM_GATHER_NORM_SLOTS * 8, MemoryUsage::Device, "CGLS ||S p||^2 accumulators");
@@ -60,7 +62,7 @@ CglsGpuResult solve_cgls_gpu(VoxelProblem& p, const CglsGpuOptions& options) {
   {
     CommandBatch batch(ctx);
     const uint32_t a = batch.timestamp();
-    prepare.record(batch, p.ref, p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer, vectors);
+    prepare.record(batch, p.ref, p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer, vectors, options.weights);
     batch.fill(s_accum, 0u);
     // Coordinates, b and zeroed accumulators are written before the scatter reads them.
     batch.barrier();
@@ -127,17 +129,28 @@ class CglsSolver final : public Solver {
     return "matrix-free Jacobi-preconditioned CGLS on the GPU, four channels at once";
   }
   SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true}; }
-  std::vector<SolverOption> options() const override { return cgls_stop_options(); }
+  std::vector<SolverOption> options() const override {
+    std::vector<SolverOption> all = cgls_stop_options();
+    for (SolverOption& o : weight_options()) all.push_back(std::move(o));
+    return all;
+  }
 
   SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
+    SolverOutput out;
     CglsGpuOptions o;
     o.tolerance = args.number("tolerance");
     o.max_iterations = uint32_t(args.integer("max-iterations"));
     o.regularization = args.solve;
+    const std::optional<VisibilityWeights> weights = requested_weights(p, args, out);
+    std::optional<NormalEquations> system;
+    if (weights) {
+      system = weighted_system(p, weights->weights, out);
+      o.weights = &weights->weights;
+      o.weighted_system = &*system;
+    }
     const CglsGpuResult r = solve_cgls_gpu(p, o);
-    SolverOutput out;
     out.tf = r.tf;
-    out.phases = r.phases;
+    out.phases.insert(out.phases.end(), r.phases.begin(), r.phases.end());
     const double worst = r.worst_relative_residual();
     out.details["iterations"] = r.max_iterations();
     out.details["iterations_per_channel"] = std::vector<uint32_t>(r.iterations.begin(), r.iterations.end());

@@ -17,6 +17,11 @@ struct CglsGpuOptions {
   uint32_t max_iterations = 1000;  // >= 1
   SolveOptions regularization;     // ridge and smooth (relative weights); factorization unused
   uint64_t max_chunk_voxels = 0;   // voxel vectors in blocks of at most this many voxels; 0: device limit
+  // Weighted least squares (--weights): per-voxel weights (a float32 field chunked as the problem's
+  // fields) and their weighted system (weighted_system(), for the Jacobi preconditioner and the
+  // regularization's scale). Both or neither.
+  const DeviceField* weights = nullptr;
+  const NormalEquations* weighted_system = nullptr;
 };
 
 struct CglsGpuResult {

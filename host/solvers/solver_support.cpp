@@ -8,7 +8,6 @@
 
 #include "cameras.h"
 #include "gpu_voxel_ops.h"
-#include "visibility_weights.h"
 
 namespace tfm {
 
@@ -28,10 +27,10 @@ const NormalEquations& assembled_system(VoxelProblem& p, std::vector<PhaseTime>*
   return *p.system;
 }
 
-JacobiSetup jacobi_setup(VoxelProblem& p, const SolveOptions& options) {
+JacobiSetup jacobi_setup(VoxelProblem& p, const SolveOptions& options, const NormalEquations* system) {
   JacobiSetup js;
   std::vector<PhaseTime> assembled;
-  js.eq = assembled_system(p, &assembled);
+  js.eq = system ? *system : assembled_system(p, &assembled);
   js.gpu_ms = assembled.empty() ? 0.0 : assembled[0].gpu_ms;
   if (js.eq.voxels == 0) throw std::runtime_error("no voxel has data in both fields (all NaN?): nothing to fit");
   if (options.ridge < 0 || options.smooth < 0) throw std::invalid_argument("regularization weights must be >= 0");
@@ -53,10 +52,10 @@ std::vector<SolverOption> weight_options() {
                                 "seed of --weights visibility's random cameras")};
 }
 
-NormalEquations solved_system(VoxelProblem& p, const SolverArgs& args, SolverOutput& out) {
+std::optional<VisibilityWeights> requested_weights(VoxelProblem& p, const SolverArgs& args, SolverOutput& out) {
   out.details["weights"] = args.text("weights");
-  if (args.text("weights") == "none") return assembled_system(p, &out.phases);
-  auto t0 = std::chrono::steady_clock::now();
+  if (args.text("weights") == "none") return std::nullopt;
+  const auto t0 = std::chrono::steady_clock::now();
   const uint32_t views = uint32_t(args.integer("weight-views"));
   std::vector<OrbitCamera> cameras;
   if (args.text("cameras") == "fibonacci") {
@@ -67,15 +66,24 @@ NormalEquations solved_system(VoxelProblem& p, const SolverArgs& args, SolverOut
   }
   const VolumeGeometry geometry = VolumeGeometry::from(p.ref_volume.dims, p.ref_volume.spacing, args.render.z_scale);
   const VisibilityWeightsKernel kernel(p.ctx, uint32_t(p.ref.chunk_count()));
-  const VisibilityWeights w = kernel.compute(p.ref, geometry, p.ref_map, p.ref_tf_buffer, args.render, cameras);
+  VisibilityWeights w = kernel.compute(p.ref, geometry, p.ref_map, p.ref_tf_buffer, args.render, cameras);
   out.phases.push_back({"visibility weights", ms_since(t0), w.gpu_ms});
   out.details["weight_views"] = views;
   out.details["weight_max_transmittance_sum"] = w.max_sum;
-  t0 = std::chrono::steady_clock::now();
+  return w;
+}
+
+NormalEquations weighted_system(VoxelProblem& p, const DeviceField& weights, SolverOutput& out) {
+  const auto t0 = std::chrono::steady_clock::now();
   GpuNormalEquations gpu(p.ctx, p.opt_map.tf_size);
-  const double gpu_ms = gpu.add(p.ref, p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer, nullptr, &w.weights);
+  const double gpu_ms = gpu.add(p.ref, p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer, nullptr, &weights);
   out.phases.push_back({"assemble (weighted)", ms_since(t0), gpu_ms});
   return gpu.result();
+}
+
+NormalEquations solved_system(VoxelProblem& p, const SolverArgs& args, SolverOutput& out) {
+  const std::optional<VisibilityWeights> w = requested_weights(p, args, out);
+  return w ? weighted_system(p, w->weights, out) : assembled_system(p, &out.phases);
 }
 
 std::vector<SolverOption> cgls_stop_options() {

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,7 @@
 #include "normal_equations.h"
 #include "solver.h"
 #include "transfer_function.h"
+#include "visibility_weights.h"
 
 namespace tfm {
 
@@ -32,17 +34,25 @@ struct JacobiSetup {
   std::vector<float> inv_diag;
   double gpu_ms = -1.0;
 };
-JacobiSetup jacobi_setup(VoxelProblem& problem, const SolveOptions& options);
+// With `system` (e.g. a weighted one) that system instead of the problem's own.
+JacobiSetup jacobi_setup(VoxelProblem& problem, const SolveOptions& options, const NormalEquations* system = nullptr);
 
 // --weights none|visibility and the cameras of the visibility weights (--weight-views,
 // --cameras, --seed): the options of the solvers that solve the assembled system (normal-equations, qp).
 std::vector<SolverOption> weight_options();
 
-// The system a solver of weight_options() solves: assembled_system(p) for --weights none; for
-// --weights visibility the weighted one (kernels/visibility_weights.h: weights from the
-// reference rendered over the cameras, each voxel's terms times its weight), assembled apart so
-// that p.system — the voxel losses run_optimize reports — stays the unweighted one. Appends the
-// phases it ran to out.phases and its numbers to out.details.
+// The voxel weights weight_options() ask for: none for --weights none; for --weights visibility
+// those of kernels/visibility_weights.h (the reference rendered over the cameras). Appends the
+// phase to out.phases and its numbers (and the choice) to out.details.
+std::optional<VisibilityWeights> requested_weights(VoxelProblem& p, const SolverArgs& args, SolverOutput& out);
+
+// The system sum_i w_i (s_i x - b_i)^2 of the problem with `weights`, assembled apart so that
+// p.system — the voxel losses run_optimize reports — stays the unweighted one ("assemble
+// (weighted)" phase).
+NormalEquations weighted_system(VoxelProblem& p, const DeviceField& weights, SolverOutput& out);
+
+// The system a solver of weight_options() solves: assembled_system(p) for --weights none, else
+// weighted_system() with the requested weights.
 NormalEquations solved_system(VoxelProblem& p, const SolverArgs& args, SolverOutput& out);
 
 // --tolerance and --max-iterations of the CGLS solvers (cgls, eigen-cgls, cuda-cgls).

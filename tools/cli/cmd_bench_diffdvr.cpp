@@ -195,6 +195,7 @@ nlohmann::json bench_cube(Context& ctx, const BenchArgs& a) {
   if (find_solver("cgls")) runs.push_back({"cgls", "cgls", {}});
   runs.push_back({"normal-equations, visibility weights", "normal-equations", {{"weights", "visibility"}}});
   runs.push_back({"qp, visibility weights", "qp", {{"weights", "visibility"}}});
+  if (find_solver("cgls")) runs.push_back({"cgls, visibility weights", "cgls", {{"weights", "visibility"}}});
   const std::map<std::string, std::string> dd = {{"iterations", std::to_string(a.iterations)},
                                                  {"views-per-iteration", std::to_string(a.views)},
                                                  {"image-size", std::to_string(a.cube_image)}};

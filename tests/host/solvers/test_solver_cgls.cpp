@@ -49,6 +49,34 @@ TEST_F(SolverCgls, MediumProblemWithNaNsAndSplitChunks) {
   EXPECT_TRUE(test::all_finite_in_box(out.tf));
 }
 
+// Weighted least squares (--weights): the weighted prepare, gather and scatter passes over voxel
+// vectors in blocks of a split field reach the solution of the weighted system (its exact
+// assembly, kernels/assemble_normal_equations.h, solved directly).
+TEST_F(SolverCgls, WeightedMatchesTheWeightedNormalEquations) {
+  test::SolverProblem p = test::make_solver_problem(60001, 48, 40, 0.1, 0.9, 6, 0.3, 17);
+  p.upload(ctx(), 20480);
+  std::mt19937 rng(8);
+  std::vector<float> w(p.ref_volume.values.size());
+  for (size_t i = 0; i < w.size(); ++i) w[i] = i % 9 == 4 ? 0.0f : float(rng() % 65537) / 65536.0f;
+  const DeviceField weights(ctx(), w, "weights", 20480);
+  VoxelProblem problem = p.problem(ctx());
+  GpuNormalEquations gpu(ctx(), 48);
+  gpu.add(*p.ref, *p.opt, p.ref_map, p.opt_map, *p.ref_tf_buffer, nullptr, &weights);
+  const NormalEquations weighted = gpu.result();
+  CglsGpuOptions o;
+  o.max_chunk_voxels = 5000;
+  o.weights = &weights;
+  o.weighted_system = &weighted;
+  const CglsGpuResult out = solve_cgls_gpu(problem, o);
+  EXPECT_GT(out.voxel_chunks, 3u);
+  const SolveResult exact = solve_normal_equations(weighted);
+  EXPECT_LT(test::max_difference(out.tf, exact.tf), kCglsTolerance);
+  const SolveResult plain = solve_normal_equations(p.cpu_equations());
+  EXPECT_GT(test::max_difference(exact.tf, plain.tf), 10 * kCglsTolerance) << "the weights should matter";
+  o.weighted_system = nullptr;
+  EXPECT_THROW(solve_cgls_gpu(problem, o), std::invalid_argument);
+}
+
 TEST_F(SolverCgls, LargeTfUsesGlobalAccumulatorsAndSeveralVectorBlocks) {
   // N = 1200: more entries than the vector kernel's 256 invocations, and signed slots (38 KB)
   // beyond lavapipe's 32 KB of shared memory, so the scatter adds straight to memory.
