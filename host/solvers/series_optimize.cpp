@@ -1,0 +1,176 @@
+// run_optimize_series(): many fields against one reference (series_optimize.h).
+#include "series_optimize.h"
+
+#include <algorithm>
+#include <chrono>
+#include <stdexcept>
+
+#include "cancellation.h"
+#include "device_memory.h"
+#include "parameter_names.h"
+#include "solver_support.h"
+
+namespace tfm {
+
+namespace {
+
+// `total` += `part` per channel: the losses of several fields' voxels together.
+void add_loss(VoxelLoss& total, const VoxelLoss& part) {
+  for (int c = 0; c < 4; ++c) {
+    total.squared[size_t(c)] += part.squared[size_t(c)];
+    total.absolute[size_t(c)] += part.absolute[size_t(c)];
+  }
+  total.voxels += part.voxels;
+}
+
+Volume load_checked(const SeriesRequest& req, size_t i) {
+  Volume v = req.load_field(i);
+  try {
+    require_same_grid(*req.ref, v);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error("field " + std::to_string(i + 1) + " of " + std::to_string(req.field_count) + " (" +
+                             v.name + "): " + e.what() + " (every field is fitted against the one reference)");
+  }
+  return v;
+}
+
+SeriesResult per_field(Context& ctx, const SeriesRequest& req) {
+  SeriesResult out;
+  out.solver = req.solver;
+  out.device = ctx.device_name();
+  for (size_t i = 0; i < req.field_count; ++i) {
+    checkpoint("series");
+    const Volume field = load_checked(req, i);
+    OptimizeRequest r;
+    r.ref = req.ref;
+    r.field = &field;
+    r.ref_tf = req.ref_tf;
+    r.ref_range = req.ref_range;
+    r.field_range = req.field_range;
+    r.tf_size = req.tf_size;
+    r.solver = req.solver;
+    r.settings = req.settings;
+    r.max_chunk_voxels = req.max_chunk_voxels;
+    r.allow_out_of_range = req.allow_out_of_range;
+    const OptimizeResult one = run_optimize(ctx, r);
+    out.ref_range = one.ref_range;
+    out.fields.push_back({field.name, one.field_range, one.tf, one.before, one.after, one.warnings});
+    add_loss(out.before, one.before);
+    add_loss(out.after, one.after);
+  }
+  return out;
+}
+
+SeriesResult shared(Context& ctx, const SeriesRequest& req) {
+  if (!solver_fits_shared(req.solver))
+    throw std::runtime_error("solver " + req.solver + " fits one field at a time; one TF shared by all fields is "
+                             "fitted from their summed system by normal-equations or qp");
+  const Solver& solver = require_solver(req.solver);
+  const SolverArgs args = parse_solver_args(solver, req.settings);
+  if (args.has("weights") && args.text("weights") != "none")
+    throw std::runtime_error(parameter("weights") + " " + args.text("weights") +
+                             " weights one field's voxels; a shared TF is fitted without weights");
+  SeriesResult out;
+  out.shared_tf = true;
+  out.solver = req.solver;
+  out.device = ctx.device_name();
+  const FieldRange* ref_user = req.ref_range ? &*req.ref_range : (req.ref_tf.range ? &*req.ref_tf.range : nullptr);
+  out.ref_range = resolve_range(req.ref->values, ref_user, req.ref->name);
+  std::vector<std::string> warnings;
+  if (ref_user) {
+    const std::string source = req.ref_range ? "the given reference range" : "the reference TF file's range";
+    std::string w = check_range_coverage(req.ref->values, out.ref_range, req.ref->name, source, req.allow_out_of_range);
+    if (!w.empty()) warnings.push_back(std::move(w));
+  }
+
+  // The one range every field maps through: given, or the union of the fields' own.
+  auto t0 = std::chrono::steady_clock::now();
+  FieldRange range{0.0, 0.0};
+  if (req.field_range) {
+    range = *req.field_range;
+  } else {
+    for (size_t i = 0; i < req.field_count; ++i) {
+      checkpoint("series");
+      const Volume field = load_checked(req, i);
+      const FieldRange r = resolve_range(field.values, nullptr, field.name);
+      range = i == 0 ? r : FieldRange{std::min(range.lo, r.lo), std::max(range.hi, r.hi)};
+    }
+    out.phases.push_back({"ranges", ms_since(t0), -1.0});
+  }
+
+  // Each field's system, and their exact sum.
+  t0 = std::chrono::steady_clock::now();
+  check_device_memory(ctx, 2 * req.ref->values.size() * sizeof(float), "the reference and one field");
+  const DeviceField ref(ctx, req.ref->values, "reference field", req.max_chunk_voxels);
+  const Buffer ref_tf_buffer = upload_tf(ctx, req.ref_tf, "reference TF");
+  const FieldMapping ref_map = make_mapping(out.ref_range, uint32_t(req.ref_tf.size()));
+  const FieldMapping opt_map = make_mapping(range, req.tf_size);
+  const FieldMapping before_map = make_mapping(range, uint32_t(req.ref_tf.size()));
+  const FieldMapping* before = before_map.tf_size != opt_map.tf_size ? &before_map : nullptr;
+  GpuNormalEquations gpu(ctx, req.tf_size);
+  std::vector<uint64_t> total;
+  std::vector<NormalEquations> systems;
+  for (size_t i = 0; i < req.field_count; ++i) {
+    checkpoint("series");
+    const Volume field = load_checked(req, i);
+    SeriesFieldResult fr;
+    fr.name = field.name;
+    fr.field_range = range;
+    if (req.field_range) {
+      std::string w = check_range_coverage(field.values, range, field.name, "the given field range",
+                                           req.allow_out_of_range);
+      if (!w.empty()) fr.warnings.push_back(std::move(w));
+    }
+    const DeviceField opt(ctx, field.values, "series field", req.max_chunk_voxels);
+    gpu.reset();
+    gpu.add(ref, opt, ref_map, opt_map, ref_tf_buffer, before);
+    const std::vector<uint64_t> slots = gpu.fixed_point_slots();
+    if (total.empty()) total.assign(slots.size(), 0);
+    for (size_t k = 0; k < slots.size(); ++k) total[k] += slots[k];  // modulo 2^64, as on the device
+    systems.push_back(gpu.decode(slots, before != nullptr));
+    if (systems.back().voxels == 0)
+      throw std::runtime_error("no voxel has data in both " + req.ref->name + " and " + field.name);
+    out.fields.push_back(std::move(fr));
+  }
+  out.phases.push_back({"assemble", ms_since(t0), -1.0});
+
+  // The summed system, solved by the solver as streamed fits are: it reads only the system.
+  const float nothing = 0.0f;
+  const DeviceField ref_placeholder(ctx, std::span<const float>(&nothing, 1), "reference (series)");
+  const DeviceField opt_placeholder(ctx, std::span<const float>(&nothing, 1), "fields (series)");
+  VoxelProblem problem{ctx,      *req.ref, *req.ref,    ref_placeholder, opt_placeholder,
+                       ref_map,  opt_map,  req.ref_tf, ref_tf_buffer,   req.ref_tf.resampled(req.tf_size)};
+  problem.system = gpu.decode(total, before != nullptr);
+  checkpoint("solve");
+  SolverOutput solved = solver.solve(problem, args);
+  for (auto& p : solved.phases) out.phases.push_back(p);
+  warnings.insert(warnings.end(), solved.warnings.begin(), solved.warnings.end());
+  out.details = solved.details;
+  out.tf = solved.tf;
+  out.tf.range = range;
+
+  const std::vector<float> ref_rgba = req.ref_tf.as_floats(), tf_rgba = out.tf.as_floats();
+  for (size_t i = 0; i < systems.size(); ++i) {
+    SeriesFieldResult& fr = out.fields[i];
+    fr.tf = out.tf;
+    fr.before = voxel_loss_before(systems[i], ref_rgba);
+    fr.after = voxel_loss_from_system(systems[i], tf_rgba);
+    add_loss(out.before, fr.before);
+    add_loss(out.after, fr.after);
+  }
+  out.warnings = std::move(warnings);
+  return out;
+}
+
+}  // namespace
+
+bool solver_fits_shared(std::string_view solver) { return solver == "normal-equations" || solver == "qp"; }
+
+SeriesResult run_optimize_series(Context& ctx, const SeriesRequest& req) {
+  if (!req.ref) throw std::invalid_argument("run_optimize_series: the reference is required");
+  if (req.field_count == 0 || !req.load_field) throw std::runtime_error("no fields to fit");
+  if (req.tf_size < 2) throw std::runtime_error(parameter("tf-size") + " must be at least 2");
+  return req.shared_tf ? shared(ctx, req) : per_field(ctx, req);
+}
+
+}  // namespace tfm

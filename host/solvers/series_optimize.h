@@ -1,0 +1,70 @@
+// Many fields against one reference (`tfmatch optimize` with several --field): time steps of a
+// simulation or members of an ensemble, each fitted against the one reference and its TF — one TF
+// per field — or, with a shared TF, one TF fitted to all of them jointly. The fields are loaded
+// one at a time, so memory holds the reference and one field.
+//
+// The shared fit minimizes the sum over fields of each field's voxel least squares: the systems
+// of the fields are assembled one by one and their exact 32.32 totals added as integers, so the
+// summed system has the bits one assembly over all voxels would have, whatever the order or
+// count of fields; it is solved once (normal-equations or qp, which work from the system alone).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "optimize.h"
+
+namespace tfm {
+
+struct SeriesRequest {
+  const Volume* ref = nullptr;
+  TransferFunction ref_tf;
+  std::optional<FieldRange> ref_range;    // default: the TF file's range, then the finite min/max
+  // Per-field fits: each field's range (default its finite min/max). Shared fit: the one range
+  // all fields map through (default the union of their finite min/max: one pass over the fields).
+  std::optional<FieldRange> field_range;
+  uint32_t tf_size = 64;
+  std::string solver = "normal-equations";
+  SolverSettings settings;
+  bool shared_tf = false;
+  bool allow_out_of_range = false;
+  uint64_t max_chunk_voxels = 0;          // 0: device limit
+  // The fields: `field_count` of them, field i loaded by load_field(i) when needed (on the grid
+  // of `ref`, else the run stops naming it). Called once per field, twice for a shared fit
+  // without a field range.
+  size_t field_count = 0;
+  std::function<Volume(size_t index)> load_field;
+};
+
+struct SeriesFieldResult {
+  std::string name;                       // the loaded volume's name
+  FieldRange field_range;                 // its own range (per-field fits) or the shared one
+  TransferFunction tf;                    // its TF (per-field fits; the shared TF otherwise)
+  VoxelLoss before, after;                // with the reference TF / with its fitted TF
+  std::vector<std::string> warnings;
+};
+
+struct SeriesResult {
+  std::vector<SeriesFieldResult> fields;  // in the order given
+  bool shared_tf = false;
+  TransferFunction tf;                    // the shared TF (shared fit only)
+  FieldRange ref_range;
+  std::string solver, device;
+  std::vector<std::string> warnings;      // the shared fit's: ranges, the solver's
+  std::vector<PhaseTime> phases;          // the shared fit's (per-field fits: none)
+  Details details;                        // the shared fit's solver details
+  VoxelLoss before, after;                // over all fields' voxels together
+};
+
+// Throws std::runtime_error for unusable input (no fields, grids that differ from the reference,
+// naming the field; a shared fit with a solver that needs the fields themselves, or with voxel
+// weights; the errors of run_optimize).
+SeriesResult run_optimize_series(Context& ctx, const SeriesRequest& request);
+
+// The solvers a shared fit can use (they work from the summed system alone).
+bool solver_fits_shared(std::string_view solver);
+
+}  // namespace tfm
