@@ -89,7 +89,8 @@ bool has_suffix(const std::string& s, const std::string& suffix) {
 }
 
 // The files a command line says it writes: values of the output options of each `tfmatch`
-// command in it, and the last file name of convert-tf / convert-volume.
+// command in it (for optimize with several fields, the first indexed TF and the series table),
+// and the last file name of convert-tf / convert-volume.
 std::vector<std::string> declared_outputs(const std::string& command) {
   static const std::vector<std::string> options{"--out", "--report", "--json", "--image", "-o"};
   const std::vector<std::string> w = shell_words(command);
@@ -99,8 +100,25 @@ std::vector<std::string> declared_outputs(const std::string& command) {
     size_t end = i + 1;
     while (end < w.size() && w[end] != "&&" && w[end] != "||" && w[end] != ";" && w[end] != "|") ++end;
     const std::string sub = i + 1 < end ? w[i + 1] : "";
+    // optimize with several fields writes --out with an index per field (t.json -> t_000.json, ...)
+    // unless --shared-tf, and the series table <stem>_series.csv either way.
+    size_t fields = 0;
+    bool shared = false;
+    for (size_t k = i + 1; k < end; ++k) {
+      if (w[k] == "--field" && k + 1 < end)
+        fields += w[k + 1].find("..") != std::string::npos || w[k + 1].find_first_of("*?[") != std::string::npos ? 2 : 1;
+      shared = shared || w[k] == "--shared-tf";
+    }
+    const bool series = sub == "optimize" && fields > 1;
     std::string converted;
     for (size_t k = i + 1; k < end; ++k) {
+      if (series && w[k] == "--out" && k + 1 < end) {
+        const std::string& o = w[k + 1];
+        const size_t dot = o.rfind('.'), stem_end = o.find('.', o.rfind('/') == std::string::npos ? 0 : o.rfind('/'));
+        out.push_back(shared ? o : o.substr(0, dot) + "_000" + o.substr(dot));
+        out.push_back(o.substr(0, stem_end) + "_series.csv");
+        continue;
+      }
       for (const std::string& o : options) {
         if (w[k] == o && k + 1 < end && w[k + 1] != "-") out.push_back(w[k + 1]);
         if (w[k].rfind(o + "=", 0) == 0 && w[k].size() > o.size() + 1 && w[k].substr(o.size() + 1) != "-")

@@ -1,7 +1,10 @@
 // `tfmatch optimize`: fit a TF for a second field to a reference field and its TF.
+#include <filesystem>
+#include <iomanip>
 #include <iostream>
 #include <map>
 #include <optional>
+#include <sstream>
 
 #include "atomic_file.h"
 #include "cli.h"
@@ -13,6 +16,7 @@
 #include "render.h"
 #include "render_options.h"
 #include "report.h"
+#include "series_optimize.h"
 #include "loss_plot.h"
 #include "result_json.h"
 #include "memory_budget.h"
@@ -27,6 +31,8 @@ namespace {
 
 struct OptimizeArgs {
   InputArgs in;                               // --ref, --ref-tf, --field, ranges, selectors, --tf-size
+  std::vector<std::string> fields;            // every --field, expanded (in.field: the one of a single fit)
+  bool shared_tf = false;                     // several fields: one TF for all
   std::string out, json;
   std::string solver = "normal-equations";
   double ridge = 0.0, smooth = 0.0;
@@ -196,6 +202,136 @@ int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const So
   return 0;
 }
 
+// The TF file of field `index` of `count`: --out with "_<index>" before its extension
+// (qvapor.json -> qvapor_007.json), zero-padded to the widest index (at least 3 digits).
+std::string indexed_path(const std::string& out, size_t index, size_t count) {
+  const std::filesystem::path p(out);
+  std::string name = p.filename().string();
+  const std::string paraview = ".paraview.json";
+  const size_t ext = name.size() >= paraview.size() && name.ends_with(paraview) ? name.size() - paraview.size()
+                                                                                : name.rfind('.');
+  const std::string digits = std::to_string(count - 1);
+  std::string number = std::to_string(index);
+  number.insert(0, std::max<size_t>(3, digits.size()) - number.size(), '0');
+  name.insert(ext == std::string::npos ? name.size() : ext, "_" + number);
+  return (p.parent_path() / name).string();
+}
+
+// The series table beside --out: <stem>_series.csv.
+std::string series_table_path(const std::string& out) {
+  const std::filesystem::path p(out);
+  std::string name = p.filename().string();
+  const size_t dot = name.find('.');
+  return (p.parent_path() / (name.substr(0, dot) + "_series.csv")).string();
+}
+
+// `optimize` with several fields (series_optimize.h): one TF per field (--out with an index per
+// field) or one shared TF (--out), and the table of voxel RMSE before and after per field.
+int run_series(const OptimizeArgs& a, const SolverSettings& settings, const JsonOutput& json) {
+  const size_t count = a.fields.size();
+  if (!a.report.empty())
+    throw CLI::ValidationError("--report", "the report of several fields is not built yet (issue #32): run one "
+                               "field with --report, or read the series table");
+  if (a.stream == "on")
+    throw CLI::ValidationError("--stream", "several fields are read one at a time, each whole: --stream off or auto");
+  if (globals().ranks->size() > 1)
+    throw CLI::ValidationError("--field", "several fields under MPI: not supported (each rank would fit them all)");
+  if (a.shared_tf && !solver_fits_shared(a.solver))
+    throw CLI::ValidationError("--shared-tf", "one TF for all fields is fitted from their summed system by "
+                               "normal-equations or qp, not " + a.solver);
+  FilePlan plan;
+  plan.input_spec(a.in.ref, "--ref").input_spec(a.in.ref_tf, "--ref-tf");
+  for (size_t i = 0; i < count; ++i) plan.input_spec(a.fields[i], "--field " + std::to_string(i + 1));
+  std::vector<std::string> tf_files;
+  if (a.shared_tf) {
+    tf_files.push_back(a.out);
+  } else {
+    for (size_t i = 0; i < count; ++i) tf_files.push_back(indexed_path(a.out, i, count));
+  }
+  for (const std::string& f : tf_files) plan.output(f, "--out");
+  const std::string table = series_table_path(a.out);
+  plan.output(table, "--out (series table)").output(json.file(), "--json").check();
+
+  StartingContext starting;
+  OutputBatch outputs;
+  const VolumeOptions vo = a.in.volume.options();
+  const Volume ref = load_volume(a.in.ref, vo);
+  OptimizeRequest loaded;
+  load_tf_and_ranges(a.in, loaded);
+  SeriesRequest req;
+  req.ref = &ref;
+  req.ref_tf = loaded.ref_tf;
+  req.ref_range = loaded.ref_range;
+  req.field_range = loaded.field_range;
+  req.tf_size = loaded.tf_size;
+  req.allow_out_of_range = loaded.allow_out_of_range;
+  req.solver = a.solver;
+  req.settings = settings;
+  RenderSettings render = a.render;  // image-based solvers render with the grid's defaults
+  apply_grid_defaults(render, ref.dims, ref.spacing, a.render_chosen);
+  req.settings.render = render;
+  req.shared_tf = a.shared_tf;
+  req.field_count = count;
+  Progress progress("fields", count);
+  size_t loads = 0;
+  req.load_field = [&](size_t i) {
+    Volume v = load_volume(a.fields[i], vo);
+    progress.update(++loads);
+    return v;
+  };
+  auto ctx = starting.get();
+  const SeriesResult s = run_optimize_series(*ctx, req);
+  progress.finish();
+
+  for (size_t i = 0; i < tf_files.size(); ++i) write_transfer_function(tf_files[i], a.shared_tf ? s.tf : s.fields[i].tf);
+  std::ostringstream csv;
+  csv << "index,field,tf_file,field_lo,field_hi,voxels,rmse_before,rmse_after\n";
+  nlohmann::json rows = nlohmann::json::array();
+  for (size_t i = 0; i < count; ++i) {
+    const SeriesFieldResult& f = s.fields[i];
+    const std::string& tf_file = tf_files[a.shared_tf ? 0 : i];
+    csv << i << ",\"" << a.fields[i] << "\",\"" << tf_file << "\"," << std::setprecision(9) << f.field_range.lo << ","
+        << f.field_range.hi << "," << f.after.voxels << "," << f.before.rmse() << "," << f.after.rmse() << "\n";
+    rows.push_back({{"index", i},
+                    {"field", a.fields[i]},
+                    {"name", f.name},
+                    {"tf_file", tf_file},
+                    {"field_range", {f.field_range.lo, f.field_range.hi}},
+                    {"voxels", f.after.voxels},
+                    {"rmse_before", f.before.rmse()},
+                    {"rmse_after", f.after.rmse()},
+                    {"warnings", f.warnings}});
+  }
+  write_file_atomically(table, csv.str());
+  nlohmann::json j = {{"solver", s.solver},
+                      {"device", s.device},
+                      {"shared_tf", s.shared_tf},
+                      {"ref_range", {s.ref_range.lo, s.ref_range.hi}},
+                      {"fields", rows},
+                      {"rmse_before", s.before.rmse()},
+                      {"rmse_after", s.after.rmse()},
+                      {"series_table", table},
+                      {"warnings", s.warnings}};
+  if (s.shared_tf) j["details"] = to_json(s.details);
+  json.write(j);
+  outputs.commit();
+  if (!globals().quiet) {
+    std::cout << "tfmatch optimize: " << count << " fields against " << ref.name << " on " << s.device << ", solver "
+              << s.solver << (s.shared_tf ? ", one shared TF" : ", one TF per field") << "\n"
+              << "  field                                     voxel RMSE: reference TF -> optimized\n";
+    for (size_t i = 0; i < count; ++i)
+      std::cout << "  " << std::left << std::setw(40) << std::filesystem::path(a.fields[i]).filename().string() << std::right << std::fixed << std::setprecision(5)
+                << std::setw(10) << s.fields[i].before.rmse() << " -> " << s.fields[i].after.rmse() << std::defaultfloat
+                << "\n";
+    for (const std::string& w : s.warnings) std::cout << "  warning: " << w << "\n";
+    for (const SeriesFieldResult& f : s.fields)
+      for (const std::string& w : f.warnings) std::cout << "  warning (" << f.name << "): " << w << "\n";
+    std::cout << "  wrote " << (a.shared_tf ? a.out : tf_files.front() + " .. " + tf_files.back()) << ", " << table
+              << (json.file().empty() ? "" : " and " + a.json) << "\n";
+  }
+  return 0;
+}
+
 int run(const OptimizeArgs& a) {
   const JsonOutput json(a.json);  // first: with '-', stdout holds only the JSON
   SolverSettings settings;
@@ -206,6 +342,8 @@ int run(const OptimizeArgs& a) {
   settings.solve.factorization = a.factorization == "ldlt" ? Factorization::LDLT : Factorization::Auto;
   // Bad or misapplied solver flags fail before loading, as usage errors.
   check_usage([&] { parse_solver_args(require_solver(a.solver), settings); });
+  if (a.fields.size() > 1) return run_series(a, settings, json);
+  if (a.shared_tf) throw CLI::ValidationError("--shared-tf", "one TF shared by several fields: give several --field");
   // Every file checked before any work: no output replaces an input or another output.
   FilePlan()
       .input_spec(a.in.ref, "--ref")
@@ -279,6 +417,14 @@ CommandRegistration reg(10, [](CLI::App& app) {
   auto args = std::make_shared<OptimizeArgs>();
   auto* sub = app.add_subcommand("optimize", "Optimize a transfer function for FIELD to match REF rendered with REF-TF");
   add_input_options(sub, args->in, /*required=*/true);
+  // --field takes several fields here: one TF each, or one shared TF.
+  sub->remove_option(sub->get_option("--field"));
+  sub->add_option("--field", args->fields, "Field whose transfer function is optimized; several (repeat --field, "
+                  "FILE:VAR,time=A..B or member=A..B, or a quoted pattern 'dir/*.vti'): one TF each, written to --out "
+                  "with an index (tf_000.json, ...), or one for all with --shared-tf; a table <out>_series.csv")
+      ->required();
+  sub->add_flag("--shared-tf", args->shared_tf, "Several fields: fit one TF to all of them together (normal-equations, "
+                "qp), written to --out");
   sub->add_option("--out", args->out, "Optimized transfer function (.json, .xml or .paraview.json)")->required()
       ->check(output_format(transfer_function_format()));
   sub->add_option("--solver", args->solver, "Solver: " + solver_name_list() + " (described below)")
@@ -307,6 +453,8 @@ CommandRegistration reg(10, [](CLI::App& app) {
   sub->footer(solver_descriptions());
   sub->callback([args, sub] {
     args->render_chosen = render_choices(*sub);
+    args->fields = expand_field_specs(args->fields, "--field");
+    args->in.field = args->fields.front();
     exit_code() = run(*args);
   });
 });

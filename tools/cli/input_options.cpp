@@ -1,7 +1,11 @@
 // Input flags of the TF-fitting subcommands and their loading.
 #include "input_options.h"
 
+#include <glob.h>
+
+#include <charconv>
 #include <iostream>
+#include <optional>
 #include <tuple>
 
 #include "cli.h"
@@ -98,6 +102,89 @@ std::string absolute_tf_spec(const std::string& spec, const std::filesystem::pat
   return builtin && !std::filesystem::exists(std::filesystem::absolute(base) / spec) ? spec : absolute_spec(spec, base);
 }
 }  // namespace
+
+namespace {
+
+// The files `pattern` matches, in name order. glob(3): the POSIX matcher of shell patterns, which
+// the standard library lacks.
+std::vector<std::string> glob_files(const std::string& pattern) {
+  glob_t g{};
+  const int rc = ::glob(pattern.c_str(), 0, nullptr, &g);
+  std::vector<std::string> out;
+  if (rc == 0)
+    for (size_t i = 0; i < g.gl_pathc; ++i) out.emplace_back(g.gl_pathv[i]);
+  globfree(&g);
+  return out;
+}
+
+// "key=A..B" as (key, A, B), or nothing when `part` is not a range.
+std::optional<std::tuple<std::string, uint64_t, uint64_t>> selection_range(const std::string& part,
+                                                                          const std::string& spec,
+                                                                          const std::string& flag) {
+  const size_t eq = part.find('='), dots = part.find("..");
+  if (eq == std::string::npos || dots == std::string::npos) return std::nullopt;
+  const std::string key = part.substr(0, eq), lo = part.substr(eq + 1, dots - eq - 1), hi = part.substr(dots + 2);
+  auto number = [&](const std::string& text) {
+    uint64_t n = 0;
+    auto [p, ec] = std::from_chars(text.data(), text.data() + text.size(), n);
+    if (text.empty() || ec != std::errc() || p != text.data() + text.size())
+      throw CLI::ValidationError(flag, spec + ": bad range '" + part + "' (expected time=A..B or member=A..B)");
+    return n;
+  };
+  if (key != "time" && key != "member")
+    throw CLI::ValidationError(flag, spec + ": a range selects times or members ('" + part + "')");
+  const uint64_t a = number(lo), b = number(hi);
+  if (b < a) throw CLI::ValidationError(flag, spec + ": empty range '" + part + "' (" + hi + " < " + lo + ")");
+  if (b - a >= 100000) throw CLI::ValidationError(flag, spec + ": range '" + part + "' names over 100000 fields");
+  return std::tuple{key, a, b};
+}
+
+}  // namespace
+
+std::vector<std::string> expand_field_specs(const std::vector<std::string>& specs, const std::string& flag) {
+  std::vector<std::string> out;
+  for (const std::string& spec : specs) {
+    std::string path = spec, selection;
+    if (!std::filesystem::exists(spec)) {
+      const size_t colon = spec.rfind(':');
+      if (colon != std::string::npos && colon > 0) path = spec.substr(0, colon), selection = spec.substr(colon + 1);
+    }
+    std::vector<std::string> paths{path};
+    if (path.find_first_of("*?[") != std::string::npos && !std::filesystem::exists(path)) {
+      paths = glob_files(path);
+      if (paths.empty()) throw CLI::ValidationError(flag, "'" + path + "' matches no file");
+    }
+    // The selection's parts, one of which may be a range.
+    std::vector<std::string> parts;
+    for (size_t start = 0; !selection.empty() && start <= selection.size();) {
+      const size_t comma = selection.find(',', start);
+      parts.push_back(selection.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
+    size_t range_part = parts.size();
+    std::tuple<std::string, uint64_t, uint64_t> range{"", 0, 0};
+    for (size_t k = 0; k < parts.size(); ++k)
+      if (auto r = selection_range(parts[k], spec, flag)) {
+        if (range_part != parts.size()) throw CLI::ValidationError(flag, spec + ": one range per field spec");
+        range_part = k;
+        range = *r;
+      }
+    for (const std::string& p : paths) {
+      if (range_part == parts.size()) {
+        out.push_back(selection.empty() ? p : p + ":" + selection);
+        continue;
+      }
+      for (uint64_t n = std::get<1>(range); n <= std::get<2>(range); ++n) {
+        std::string sel;
+        for (size_t k = 0; k < parts.size(); ++k)
+          sel += (k ? "," : "") + (k == range_part ? std::get<0>(range) + "=" + std::to_string(n) : parts[k]);
+        out.push_back(p + ":" + sel);
+      }
+    }
+  }
+  return out;
+}
 
 nlohmann::json input_args_json(const InputArgs& a) {
   const std::filesystem::path cwd = std::filesystem::current_path();

@@ -63,6 +63,13 @@ void load_tf_and_ranges(const InputArgs& args, OptimizeRequest& out);
 nlohmann::json input_args_json(const InputArgs& args);
 InputArgs input_args_from_json(const nlohmann::json& j, const std::filesystem::path& base);
 
+// The fields that several --field values name, in order: each as given; a selection range
+// ",time=A..B" or ",member=A..B" (inclusive) as one field per index; a path with *, ? or [...] that
+// names no file as the files it matches, in name order (glob(3)), each with the spec's selection.
+// Throws CLI::ValidationError naming `flag` for a bad range, two ranges in one spec, or a pattern
+// that matches nothing.
+std::vector<std::string> expand_field_specs(const std::vector<std::string>& specs, const std::string& flag);
+
 // --allow-out-of-range, for the commands that take ranges (field_mapping.h check_range_coverage).
 void add_allow_out_of_range_flag(CLI::App* sub, bool& allow);
 

@@ -1,0 +1,132 @@
+// `tfmatch optimize` with several fields, as a user runs it: a time range, several files and a
+// pattern expand to one TF file per field, each the same bytes as that field's own run; one
+// shared TF with --shared-tf; the series table; the refusals (mixed grids naming the field, a
+// pattern matching nothing, what a series does not do yet) write nothing. On the shared ERA5
+// ensemble: ten members, one TF each and one for all.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "cli_runner.h"
+#include "slab_test_files.h"
+#include "vk_test_env.h"
+
+namespace tfm {
+namespace {
+
+namespace fs = std::filesystem;
+using test::run_cli;
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+class OptimizeSeriesCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ref = slab_test::write_raw(dir.path(), "ref", slab_test::test_field({19, 13, 9}, 0)).string();
+    nc = slab_test::write_netcdf(dir.path(), "field", slab_test::test_field({19, 13, 9}, 3)).string();
+    fs::create_directory(dir / "runs");
+    for (int k = 0; k < 3; ++k)
+      steps.push_back(
+          slab_test::write_raw(dir / "runs", "step" + std::to_string(k), slab_test::test_field({19, 13, 9}, 4 + k)).string());
+    other_grid = slab_test::write_raw(dir.path(), "other", slab_test::test_field({19, 13, 8}, 1)).string();
+    std::ofstream(dir / "tf.json") << R"({"rgba": [[0,0,0,0],[1,0.5,0.2,0.8],[0.2,0.4,1,1]]})";
+  }
+  std::string base(const std::string& out) const {
+    return "optimize --ref " + ref + " --ref-tf " + (dir / "tf.json").string() + " --tf-size 24 --out " +
+           (dir / out).string();
+  }
+  formats_test::TempDir dir;
+  std::string ref, nc, other_grid;
+  std::vector<std::string> steps;  // the raw files runs/step<k>_19x13x9_float32.raw
+};
+
+TEST_F(OptimizeSeriesCli, OneTfPerFieldEachAsItsOwnRun) {
+  // Two time steps of a NetCDF file and three raw files by pattern: five fields.
+  const std::string pattern = "'" + (dir / "runs" / "step*.raw").string() + "'";
+  const auto r = run_cli(base("tf.json") + " --field " + nc + ":T,time=0..1 --field " + pattern + " --json " +
+                         (dir / "series.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(read_text(dir / "series.json"));
+  ASSERT_EQ(j["fields"].size(), 5u);
+  EXPECT_FALSE(j["shared_tf"].get<bool>());
+  const std::vector<std::string> specs = {nc + ":T,time=0", nc + ":T,time=1", steps[0], steps[1], steps[2]};
+  for (size_t i = 0; i < specs.size(); ++i) {
+    SCOPED_TRACE(specs[i]);
+    EXPECT_EQ(j["fields"][i]["field"], specs[i]);
+    const fs::path tf_file = dir / ("tf_00" + std::to_string(i) + ".json");
+    ASSERT_TRUE(fs::exists(tf_file));
+    EXPECT_LT(j["fields"][i]["rmse_after"].get<double>(), j["fields"][i]["rmse_before"].get<double>());
+    const auto one = run_cli(base("one.json") + " --field " + specs[i]);
+    ASSERT_EQ(one.exit_code, 0) << one.output;
+    EXPECT_EQ(read_text(tf_file), read_text(dir / "one.json")) << "the same TF as the field's own run";
+  }
+  const std::string csv = read_text(dir / "tf_series.csv");
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 6) << csv;
+  EXPECT_NE(csv.find("index,field,tf_file,field_lo,field_hi,voxels,rmse_before,rmse_after"), std::string::npos);
+}
+
+TEST_F(OptimizeSeriesCli, SharedTfForAllFields) {
+  const auto r = run_cli(base("shared.json") + " --field " + nc + ":T,time=0..1 --field " + steps[0] +
+                         " --shared-tf --solver qp");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("one shared TF"), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::exists(dir / "shared.json"));
+  EXPECT_FALSE(fs::exists(dir / "shared_000.json"));
+  const std::string csv = read_text(dir / "shared_series.csv");
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 4) << csv;
+}
+
+TEST_F(OptimizeSeriesCli, RefusalsNameTheProblemAndWriteNothing) {
+  auto r = run_cli(base("x.json") + " --field " + nc + ":T,time=0 --field " + other_grid);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("field 2 of 2"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("other"), std::string::npos) << r.output;
+  r = run_cli(base("x.json") + " --field '" + (dir / "nothing*.raw").string() + "'");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("matches no file"), std::string::npos) << r.output;
+  r = run_cli(base("x.json") + " --field " + nc + ":T,time=0..1 --report " + (dir / "rep").string());
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("not built yet"), std::string::npos) << r.output;
+  r = run_cli(base("x.json") + " --field " + nc + ":T,time=0..1 --shared-tf --solver cgls");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("normal-equations or qp"), std::string::npos) << r.output;
+  r = run_cli(base("x.json") + " --field " + nc + ":T,time=0 --shared-tf");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("several --field"), std::string::npos) << r.output;
+  for (const char* name : {"x.json", "x_000.json", "x_series.csv"}) EXPECT_FALSE(fs::exists(dir / name)) << name;
+}
+
+TEST_F(OptimizeSeriesCli, Era5MembersOneTfEachAndOneForAll) {
+  const std::string data = test::shared_data_dir();
+  if (data.empty()) GTEST_SKIP() << "no ../shared/data";
+  const std::string grib = data + "/era5_ensemble_grib1/era5-levels-members.grib";
+  const std::string ref_spec = grib + ":z,member=0";
+  auto r = run_cli("optimize --ref " + ref_spec + " --ref-tf viridis --field " + grib + ":t,member=0..9 --out " +
+                   (dir / "t.json").string() + " --json " + (dir / "t.summary.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json each = nlohmann::json::parse(read_text(dir / "t.summary.json"));
+  ASSERT_EQ(each["fields"].size(), 10u);
+  EXPECT_TRUE(fs::exists(dir / "t_009.json"));
+  r = run_cli("optimize --ref " + ref_spec + " --ref-tf viridis --field " + grib + ":t,member=0..9 --shared-tf --out " +
+              (dir / "t_all.json").string() + " --json " + (dir / "t_all.summary.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json all = nlohmann::json::parse(read_text(dir / "t_all.summary.json"));
+  // Ten members of one forecast: one TF (over the union of their ranges) fits them all about as
+  // well as ten do (each over its own range).
+  for (size_t m = 0; m < 10; ++m) {
+    const double own = each["fields"][m]["rmse_after"].get<double>(), shared = all["fields"][m]["rmse_after"].get<double>();
+    EXPECT_LT(std::abs(shared - own), 0.1 * own) << "member " << m;
+    EXPECT_LT(shared, 0.6 * all["fields"][m]["rmse_before"].get<double>());
+  }
+}
+
+}  // namespace
+}  // namespace tfm
