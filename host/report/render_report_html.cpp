@@ -6,9 +6,8 @@
 #include <sstream>
 
 namespace tfm {
-namespace {
 
-std::string escape(const std::string& text) {
+std::string html_escape(const std::string& text) {
   std::string out;
   for (char c : text) {
     switch (c) {
@@ -21,6 +20,10 @@ std::string escape(const std::string& text) {
   }
   return out;
 }
+
+namespace {
+
+std::string escape(const std::string& text) { return html_escape(text); }
 
 std::string figure(const std::string& file, const std::string& caption) {
   return "<figure><img src=\"" + escape(file) + "\" alt=\"" + escape(caption) + "\"><figcaption>" + escape(caption) +
@@ -57,6 +60,8 @@ div.warn { background: #fff4d6; border: 1px solid #e0b84a; padding: 4px 12px; ma
 )";
 
 }  // namespace
+
+const char* report_css() { return kStyle; }
 
 std::string report_number(double v, int digits) {
   if (std::isinf(v)) return "inf";

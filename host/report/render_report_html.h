@@ -15,5 +15,9 @@ std::string report_html(const ReportInputs& inputs, const ReportSummary& summary
 
 // A number with `digits` significant digits; "inf" / "n/a" for infinity / NaN.
 std::string report_number(double v, int digits);
+// `text` with &, <, > and " as HTML entities.
+std::string html_escape(const std::string& text);
+// The style sheet of the report pages (figures in grids, tables, notes).
+const char* report_css();
 
 }  // namespace tfm

@@ -84,6 +84,24 @@ TEST_F(OptimizeSeriesCli, SharedTfForAllFields) {
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 4) << csv;
 }
 
+TEST_F(OptimizeSeriesCli, ReportShowsEveryFieldAndTheSeries) {
+  const auto r = run_cli(base("tf.json") + " --field " + nc + ":T,time=0..1 --field " + steps[0] + " --report " +
+                         (dir / "rep").string() + " --width 48 --height 40");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (const char* f : {"index.html", "series.json", "reference.png", "rmse.png", "psnr.png", "tfs.png", "field_000.png",
+                        "field_000_before.png", "field_002.png"})
+    EXPECT_TRUE(fs::exists(dir / "rep" / f)) << f;
+  const nlohmann::json m = nlohmann::json::parse(read_text(dir / "rep" / "series.json"));
+  ASSERT_EQ(m["fields"].size(), 3u);
+  for (const auto& f : m["fields"]) {
+    EXPECT_LT(f["voxel_rmse_after"].get<double>(), f["voxel_rmse_before"].get<double>());
+    EXPECT_TRUE(f["image_after"]["psnr"].is_number() || f["image_after"]["psnr"] == "inf");
+  }
+  const std::string html = read_text(dir / "rep" / "index.html");
+  EXPECT_NE(html.find("field_002.png"), std::string::npos);
+  EXPECT_NE(html.find("one TF per field"), std::string::npos);
+}
+
 TEST_F(OptimizeSeriesCli, RefusalsNameTheProblemAndWriteNothing) {
   auto r = run_cli(base("x.json") + " --field " + nc + ":T,time=0 --field " + other_grid);
   EXPECT_NE(r.exit_code, 0);
@@ -92,9 +110,9 @@ TEST_F(OptimizeSeriesCli, RefusalsNameTheProblemAndWriteNothing) {
   r = run_cli(base("x.json") + " --field '" + (dir / "nothing*.raw").string() + "'");
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.output.find("matches no file"), std::string::npos) << r.output;
-  r = run_cli(base("x.json") + " --field " + nc + ":T,time=0..1 --report " + (dir / "rep").string());
+  r = run_cli(base("x.json") + " --field " + nc + ":T,time=0..1 --report " + (dir / "rep").string() + " --marker 1,1,1");
   EXPECT_NE(r.exit_code, 0);
-  EXPECT_NE(r.output.find("not built yet"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("report of one field"), std::string::npos) << r.output;
   r = run_cli(base("x.json") + " --field " + nc + ":T,time=0..1 --shared-tf --solver cgls");
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.output.find("normal-equations or qp"), std::string::npos) << r.output;

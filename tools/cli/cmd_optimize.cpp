@@ -17,6 +17,7 @@
 #include "render_options.h"
 #include "report.h"
 #include "series_optimize.h"
+#include "series_report.h"
 #include "loss_plot.h"
 #include "result_json.h"
 #include "memory_budget.h"
@@ -229,9 +230,9 @@ std::string series_table_path(const std::string& out) {
 // field) or one shared TF (--out), and the table of voxel RMSE before and after per field.
 int run_series(const OptimizeArgs& a, const SolverSettings& settings, const JsonOutput& json) {
   const size_t count = a.fields.size();
-  if (!a.report.empty())
-    throw CLI::ValidationError("--report", "the report of several fields is not built yet (issue #32): run one "
-                               "field with --report, or read the series table");
+  if (!a.markers.empty() || !a.slice_point.empty())
+    throw CLI::ValidationError(a.markers.empty() ? "--slice-point" : "--marker",
+                               "markers and slices belong to the report of one field");
   if (a.stream == "on")
     throw CLI::ValidationError("--stream", "several fields are read one at a time, each whole: --stream off or auto");
   if (globals().ranks->size() > 1)
@@ -250,7 +251,9 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
   }
   for (const std::string& f : tf_files) plan.output(f, "--out");
   const std::string table = series_table_path(a.out);
-  plan.output(table, "--out (series table)").output(json.file(), "--json").check();
+  plan.output(table, "--out (series table)").output(json.file(), "--json");
+  plan.output_directory(a.report, "--report", series_report_file_names(count)).check();
+  if (!a.report.empty()) validate(a.render);  // fail before the fits, not after
 
   StartingContext starting;
   OutputBatch outputs;
@@ -280,8 +283,20 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
     return v;
   };
   auto ctx = starting.get();
+  if (!a.report.empty()) check_render_size(*ctx, render);
   const SeriesResult s = run_optimize_series(*ctx, req);
   progress.finish();
+  std::optional<SeriesReportSummary> summary;
+  if (!a.report.empty()) {
+    set_progress_enabled(!globals().quiet);
+    SeriesReportInputs inputs{ref, req.ref_tf, s, render};
+    for (const std::string& f : a.fields) inputs.labels.push_back(std::filesystem::path(f).filename().string());
+    inputs.load_field = [&](size_t i) { return load_volume(a.fields[i], vo); };
+    inputs.title = "tfmatch: " + std::to_string(count) + " fields matched to " + ref.name;
+    inputs.command_line = globals().command_line;
+    inputs.version = version_line();
+    summary = write_series_report(*ctx, inputs, a.report);
+  }
 
   for (size_t i = 0; i < tf_files.size(); ++i) write_transfer_function(tf_files[i], a.shared_tf ? s.tf : s.fields[i].tf);
   std::ostringstream csv;
@@ -328,6 +343,7 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
       for (const std::string& w : f.warnings) std::cout << "  warning (" << f.name << "): " << w << "\n";
     std::cout << "  wrote " << (a.shared_tf ? a.out : tf_files.front() + " .. " + tf_files.back()) << ", " << table
               << (json.file().empty() ? "" : " and " + a.json) << "\n";
+    if (summary) std::cout << "  report: " << summary->index.string() << "\n";
   }
   return 0;
 }
