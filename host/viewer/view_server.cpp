@@ -130,7 +130,8 @@ std::string option_text(const nlohmann::json& v, const std::string& name) {
 // The viewer's bounds on what one request may make the device do (http_api.md "Jobs").
 void check_viewer_bounds(const std::map<std::string, std::string>& extra) {
   static const std::pair<const char*, uint64_t> kBounds[] = {
-      {"iterations", 5000}, {"max-iterations", 10000}, {"views-per-iteration", 64}, {"view-pool", 256}, {"image-size", 1024}};
+      {"iterations", 5000}, {"max-iterations", 10000}, {"views-per-iteration", 64}, {"view-pool", 256}, {"image-size", 1024},
+      {"weight-views", 64}};
   for (const auto& [name, limit] : kBounds) {
     auto it = extra.find(name);
     if (it == extra.end()) continue;
@@ -434,6 +435,22 @@ struct ViewServer::Impl {
           throw bad_request("\"point\" must be [i, j, k], three grid indices >= 0");
         const GridIndex point{p[0].get<uint64_t>(), p[1].get<uint64_t>(), p[2].get<uint64_t>()};
         send_json(res, {{"job", session.set_point(point)}}, 202);
+        publisher.poke();
+      });
+    });
+    server.Post("/api/field", [this](const httplib::Request& req, httplib::Response& res) {
+      guarded(res, [&] {
+        const nlohmann::json body = parse_body(req);
+        if (!body.contains("index") || !body["index"].is_number_unsigned())
+          throw bad_request("\"index\" must be a field index >= 0");
+        size_t index = body["index"].get<size_t>();
+        uint64_t job = 0;
+        try {
+          job = session.set_field(index);
+        } catch (const std::invalid_argument& e) {
+          throw bad_request(e.what());
+        }
+        send_json(res, {{"job", job}}, 202);
         publisher.poke();
       });
     });

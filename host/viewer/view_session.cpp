@@ -112,6 +112,15 @@ ViewSession::ViewSession(Context& ctx, ViewEnsemble ensemble, ViewConfig config)
   initialize();
 }
 
+ViewSession::ViewSession(Context& ctx, Volume ref, ViewSeries series, ViewConfig config)
+    : ctx_(ctx), config_(std::move(config)), series_(std::move(series)) {
+  if (series_->labels.empty() || !series_->load || series_->index >= series_->labels.size())
+    throw std::invalid_argument("series view: no fields, or a field index past them");
+  ref_ = std::move(ref);
+  field_ = series_->load(series_->index);
+  initialize();
+}
+
 ViewSession::~ViewSession() {
   if (job_thread_.joinable()) job_thread_.join();
 }
@@ -357,6 +366,38 @@ uint64_t ViewSession::set_point(const GridIndex& point) {
   });
 }
 
+uint64_t ViewSession::set_field(size_t index) {
+  if (!series_) throw ConflictError("choosing a field applies to series mode (tfmatch view with several --field)");
+  if (index >= series_->labels.size())
+    throw std::invalid_argument("field " + std::to_string(index) + " of a series of " +
+                                std::to_string(series_->labels.size()) + " (0 to " +
+                                std::to_string(series_->labels.size() - 1) + ")");
+  return start_job("field", [this, index] {
+    const auto t0 = std::chrono::steady_clock::now();
+    std::lock_guard device(device_mutex_);
+    Volume field = series_->load(index);
+    require_same_grid(ref_, field);
+    std::string solver;
+    SolverSettings settings;
+    {
+      std::lock_guard data(data_mutex_);
+      solver = solver_;
+      settings = solver_settings_;
+    }
+    OptimizeResult r = run_optimization(ref_, field, ref_tf_, solver, settings);
+    auto derived = derive(ref_, field, ref_tf_, r);
+    nlohmann::json summary = job_summary(r);
+    summary["field"] = index;
+    {
+      std::lock_guard data(data_mutex_);  // the new field with its result just below (a job runs meanwhile)
+      series_->index = index;
+      field_ = std::move(field);
+    }
+    install(std::nullopt, ref_tf_, std::move(r), std::move(derived), solver, settings);
+    finish_job(summary, t0);
+  });
+}
+
 void ViewSession::wait_for_job() {
   // Not under job_mutex_ while the job runs: its progress and its end take that lock.
   while (job_running_) std::this_thread::sleep_for(std::chrono::milliseconds(5));
@@ -417,7 +458,7 @@ nlohmann::json ViewSession::state() const {
   nlohmann::json extra = nlohmann::json::object();
   for (const auto& [k, v] : solver_settings_.extra) extra[k] = v;
   nlohmann::json state = {
-      {"mode", ensemble_ ? "ensemble" : "pair"},
+      {"mode", ensemble_ ? "ensemble" : series_ ? "series" : "pair"},
       {"title", config_.title},
       {"version", version_},
       {"fields",
@@ -453,6 +494,7 @@ nlohmann::json ViewSession::state() const {
         {"residual_max", derived_->res_range.hi}}},
       {"warnings", result_.warnings},
       {"ensemble", nullptr},
+      {"series", nullptr},
       {"markers", markers()},
   };
   state["render_command"] = state["render_commands"]["reference"];
@@ -464,6 +506,8 @@ nlohmann::json ViewSession::state() const {
                          {"point", e.point},
                          {"point_text", describe_grid_point(e.ensemble.grid, e.point)}};
   }
+  if (series_)
+    state["series"] = {{"count", series_->labels.size()}, {"index", series_->index}, {"labels", series_->labels}};
   state["job"] = job();
   return state;
 }

@@ -78,6 +78,14 @@ struct ViewEnsemble {
   GridIndex point{};
 };
 
+// Many fields against one reference (series mode): one field shown at a time, its TF fitted
+// when it is chosen.
+struct ViewSeries {
+  std::vector<std::string> labels;             // one per field, as the user named it
+  std::function<Volume(size_t)> load;          // field i, loaded when chosen
+  size_t index = 0;                            // the field shown
+};
+
 struct ViewConfig {
   std::string title = "tfmatch view";
   TransferFunction ref_tf;                            // linear RGB table; its range as a TF file's
@@ -98,6 +106,9 @@ class ViewSession {
   // Ensemble mode: both correlation fields of ensemble.point, then the first optimization.
   // Throws std::invalid_argument for a point that cannot be a reference point.
   ViewSession(Context& ctx, ViewEnsemble ensemble, ViewConfig config);
+  // Series mode: the reference and field series.index, optimized before returning. Throws as
+  // pair mode does, std::invalid_argument for no fields or an index past them.
+  ViewSession(Context& ctx, Volume ref, ViewSeries series, ViewConfig config);
   ~ViewSession();  // waits for a running job
   ViewSession(const ViewSession&) = delete;
   ViewSession& operator=(const ViewSession&) = delete;
@@ -147,6 +158,9 @@ class ViewSession {
   // again, as a job. Throws ConflictError in pair mode, std::invalid_argument for a point outside
   // the grid or one that cannot be a reference point (no data, a constant series).
   uint64_t set_point(const GridIndex& point);
+  // Series mode: show field `index` (loaded, its TF fitted with the current solver) as a job.
+  // Throws ConflictError in the other modes, std::invalid_argument for an index past the fields.
+  uint64_t set_field(size_t index);
   // Blocks until no job runs (tests, shutdown).
   void wait_for_job();
 
@@ -192,6 +206,7 @@ class ViewSession {
   Context& ctx_;
   ViewConfig config_;
   std::optional<ViewEnsemble> ensemble_;
+  std::optional<ViewSeries> series_;
 
   // Lock order: device_mutex_ before data_mutex_. The device and everything on it (Derived) are
   // used only under device_mutex_; what state() and downloads read is written only under both,

@@ -1,7 +1,7 @@
 // Real-browser test of `tfmatch view`: headless Chromium (Debian's /usr/bin/chromium) driven by
 // puppeteer-core loads the page the server prints, drags, zooms, switches solver and runs it,
-// moves a slice, edits the reference TF, and in ensemble mode clicks a reference point; it checks
-// that the images and numbers change as they should.
+// moves a slice, edits the reference TF, in ensemble mode clicks a reference point, and in series
+// mode moves the field slider; it checks that the images and numbers change as they should.
 //
 //   node view_test.mjs PATH/TO/tfmatch
 //
@@ -529,6 +529,53 @@ async function ensembleMode(browser) {
   await stopServer(srv, 'ensemble');
 }
 
+// ---- series mode ------------------------------------------------------------------------------------
+// Several --field: the page shows one at a time; the slider chooses another, which is loaded and
+// its TF fitted as a job. The fields: `tfmatch demo`'s files at 24^3 (its field, and the reference
+// itself, whose fitted TF is nearly the reference TF).
+async function seriesMode(browser) {
+  const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'tfmatch-view-series-'));
+  try {
+    await new Promise((resolve, reject) => execFile(binary, ['demo', '--out', dir, '--size', '24', '-q'],
+      (err) => (err ? reject(err) : resolve())));
+    const ref = path.join(dir, 'reference_24x24x24_float32.raw');
+    const field = path.join(dir, 'field_24x24x24_float32.raw');
+    console.log(`series mode: tfmatch view --ref REF --field FIELD --field REF (${since()})`);
+    const srv = await startServer(['--ref', ref, '--ref-tf', path.join(dir, 'reference_tf.json'), '--field', field,
+                                   '--field', ref, '--tf-size', '32', '--port', '0']);
+    const { page, issues, ok } = await openPage(browser, srv, 'series');
+    if (!ok) { await page.close(); await stopServer(srv, 'series'); return; }
+    let v = await viewer(page);
+    check('series: mode, the series panel and the field shown', v.state.mode === 'series' && v.state.series &&
+      v.state.series.count === 2 && v.state.series.index === 0 && (await visible(page, '#series-panel')) &&
+      !(await visible(page, '#ensemble-panel')) && (await text(page, '#series-index')).startsWith('0: field_24x24x24'),
+      JSON.stringify(v.state.series) + ' ' + (await text(page, '#series-index')));
+    check('series: the slider spans the fields', (await page.$eval('#series-slider', (e) => [e.min, e.max, e.value].join())) === '0,1,0');
+    const before = v;
+    await page.$eval('#series-slider', (e) => { e.value = '1'; e.dispatchEvent(new Event('input')); e.dispatchEvent(new Event('change')); });
+    await waitIdle(page, `v.jobsDone > ${before.jobsDone} && v.state.series.index === 1`, 'series: the job for field 1', 120000);
+    v = await viewer(page);
+    check('series: the job for the field finished', v.lastJob && v.lastJob.state === 'done' && v.lastJob.kind === 'field',
+      JSON.stringify(v.lastJob));
+    check('series: field 1 is shown', (await text(page, '#series-index')).startsWith('1: reference_24x24x24') &&
+      v.state.fields.field.name !== before.state.fields.field.name, await text(page, '#series-index'));
+    check('series: its renderings changed', differs(before.imageHashes['field-ref-tf'], v.imageHashes['field-ref-tf']) &&
+      differs(before.imageHashes['field-opt-tf'], v.imageHashes['field-opt-tf']));
+    check('series: the reference against itself fits closely', v.state.metrics.voxel_rmse_optimized_tf < 0.02,
+      String(v.state.metrics.voxel_rmse_optimized_tf));
+    const bad = await fetch(`${srv.origin}/api/field?token=${srv.token}`, { method: 'POST', headers: { 'Content-Type': 'application/json' },
+      body: JSON.stringify({ index: 5 }) });
+    check('series: a field past the series is 400', bad.status === 400, String(bad.status));
+    check('series: no JavaScript errors', issues.pageErrors.length === 0, issues.pageErrors.join(' | '));
+    check('series: no errors shown', v.errors.length === 0, v.errors.join(' | '));
+    await screenshot(page, 'series');
+    await page.close();
+    await stopServer(srv, 'series');
+  } finally {
+    fs.rmSync(dir, { recursive: true, force: true });
+  }
+}
+
 // ---- main -------------------------------------------------------------------------------------------
 let browser;
 try {
@@ -543,6 +590,7 @@ try {
   });
   await pairMode(browser);
   await ensembleMode(browser);
+  await seriesMode(browser);
 } catch (e) {
   check('test ran to its end', false, e && e.stack ? e.stack : String(e));
   for (const s of servers) if (!s.exit) { console.log(`stderr of tfmatch view:\n${s.err.slice(-3000)}`); }

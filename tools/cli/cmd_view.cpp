@@ -32,6 +32,7 @@ namespace {
 
 struct ViewArgs {
   InputArgs in;                 // --ref, --ref-tf, --field, ranges, --tf-size, raw layout, selectors
+  std::vector<std::string> fields;  // every --field, expanded: several make a series
   std::string report;           // reopen a report's inputs
   bool demo = false;            // the built-in pair (or, with --ensemble, the built-in ensemble)
   uint64_t size = 0;            // demo grid size (0: 96 for the pair, 64 for the ensemble)
@@ -127,7 +128,9 @@ int run(ViewArgs a) {
   check_usage([&] { parse_solver_args(require_solver(a.solver), settings); });
   validate(a.render);
   FilePlan plan;
-  plan.input_spec(a.in.ref, "--ref").input_spec(a.in.field, "--field").input_spec(a.in.ref_tf, "--ref-tf");
+  plan.input_spec(a.in.ref, "--ref").input_spec(a.in.ref_tf, "--ref-tf");
+  for (size_t i = 0; i < a.fields.size(); ++i) plan.input_spec(a.fields[i], "--field " + std::to_string(i + 1));
+  if (a.fields.empty()) plan.input_spec(a.in.field, "--field");
   plan.input_spec(a.ensemble, "--ensemble");
   plan.check();
   if (!is_loopback(a.bind))
@@ -178,6 +181,18 @@ int run(ViewArgs a) {
     config.title = std::string(correlation_measure_name(e.params.measure)) + " vs " + correlation_measure_name(e.versus) +
                    " of " + (a.demo ? std::string("the built-in ensemble") : grid.name);
     session = std::make_unique<ViewSession>(*ctx, std::move(e), config);
+  } else if (a.fields.size() > 1) {
+    // Series mode: one field at a time, chosen on the page.
+    const VolumeOptions vo = a.in.volume.options();
+    Volume ref = load_volume(a.in.ref, vo);
+    ViewSeries series;
+    for (const std::string& f : a.fields) series.labels.push_back(std::filesystem::path(f).filename().string());
+    series.load = [fields = a.fields, vo](size_t i) { return load_volume(fields[i], vo); };
+    config.title = std::to_string(a.fields.size()) + " fields matched to " + ref.name;
+    if (config.ref_tf.size() < 2) config.title += " (" + use_default_tf(ref, config) + ")";
+    config.markers = resolve_markers(ref, a.markers);
+    apply_grid_defaults(config.render, ref.dims, ref.spacing, a.render_chosen);
+    session = std::make_unique<ViewSession>(*ctx, std::move(ref), std::move(series), config);
   } else {
     Volume ref, field;
     if (a.demo) {
@@ -228,6 +243,10 @@ CommandRegistration reg(15, [](CLI::App& app) {
       "ensemble reference points) rendered by tfmatch on the device. Prints the URL; Ctrl-C stops. Only this machine "
       "can connect by default, and every request needs the URL's random token");
   add_input_options(sub, args->in, /*required=*/false);
+  // --field takes several fields here: the page shows one at a time, chosen with a slider.
+  sub->remove_option(sub->get_option("--field"));
+  sub->add_option("--field", args->fields, "Field whose transfer function is optimized; several (as optimize: repeat "
+                  "--field, FILE:VAR,time=A..B or member=A..B, a quoted pattern) show one at a time, chosen on the page");
   sub->footer("Without --ref-tf a pair of fields starts from a built-in map: 'diverging' (opacity vee, mapped "
               "symmetrically about 0) when the reference's range spans zero, else 'viridis'; a note on stderr and the "
               "page's title say which.");
@@ -260,6 +279,8 @@ CommandRegistration reg(15, [](CLI::App& app) {
       ->capture_default_str();
   sub->callback([args, ens, sub] {
     args->ensemble_given = ens->count() > 0;
+    args->fields = expand_field_specs(args->fields, "--field");
+    if (!args->fields.empty()) args->in.field = args->fields.front();
     args->render_chosen = render_choices(*sub);
     exit_code() = run(*args);
   });

@@ -643,6 +643,37 @@
     }
   }
 
+  // ---- series: the field shown -------------------------------------------------------------------
+  function initSeries() {
+    const slider = $('#series-slider');
+    slider.addEventListener('input', () => {
+      const ser = V.state && V.state.series;
+      if (ser) $('#series-index').textContent = `${slider.value}: ${ser.labels[Number(slider.value)]}`;
+    });
+    slider.addEventListener('change', () => {
+      if (!V.state || V.state.mode !== 'series' || jobRunning) return;
+      if (Number(slider.value) !== V.state.series.index) setField(Number(slider.value));
+    });
+  }
+
+  async function setField(index) {
+    const box = $('#series-error');
+    box.hidden = true;
+    begin();
+    try {
+      const res = await postJson('/api/field', { index });
+      const body = await res.json();
+      $('#series-index').textContent = `${index}: ${V.state.series.labels[index]} — loading and fitting…`;
+      startJob(body.job, 'field');
+    } catch (e) {
+      if (e instanceof ApiError && e.status === 409) { watchJob(); }
+      box.textContent = e.message || String(e);
+      box.hidden = false;
+    } finally {
+      end();
+    }
+  }
+
   async function setReferencePoint(p) {
     const box = $('#point-error');
     box.hidden = true;
@@ -706,7 +737,7 @@
     const st = V.state;
     document.title = `tfmatch view — ${st.title || ''}`;
     $('#title').textContent = st.title || '';
-    $('#mode-badge').textContent = st.mode === 'ensemble' ? 'ensemble' : 'pair of fields';
+    $('#mode-badge').textContent = st.mode === 'ensemble' ? 'ensemble' : st.mode === 'series' ? 'series of fields' : 'pair of fields';
     document.body.classList.toggle('ensemble', st.mode === 'ensemble');
     const fr = st.fields || {};
     const range = (f) => f && f.range ? ` [${fmt(f.range[0])}, ${fmt(f.range[1])}]` : '';
@@ -722,6 +753,16 @@
       $('#ensemble-text').textContent =
         `${ens.members} members: the TF of the ${ens.versus} field is fitted to the ${ens.measure} field (reference).`;
       $('#point-text').textContent = ens.point_text || `(${(ens.point || []).join(', ')})`;
+    }
+
+    const ser = st.mode === 'series' && st.series;
+    $('#series-panel').hidden = !ser;
+    if (ser) {
+      const slider = $('#series-slider');
+      slider.max = String(ser.count - 1);
+      if (document.activeElement !== slider || !jobRunning) slider.value = String(ser.index);
+      $('#series-text').textContent = `${ser.count} fields against one reference; each gets its own TF when shown.`;
+      $('#series-index').textContent = `${ser.index}: ${ser.labels[ser.index]}`;
     }
 
     showStateMetrics();
@@ -941,7 +982,8 @@
 
   function setJobUI(running) {
     document.body.classList.toggle('job-running', running);
-    for (const el of ['#run-button', '#tf-apply', '#reset-camera', '#image-size', '#slice-index', '#histogram-scale']) {
+    for (const el of ['#run-button', '#tf-apply', '#reset-camera', '#image-size', '#slice-index', '#histogram-scale',
+                      '#series-slider']) {
       $(el).disabled = running;
     }
     for (const el of $$('input[name="slice-axis"], .camera-fields input')) el.disabled = running;
@@ -954,7 +996,7 @@
     if (imageAbort) imageAbort.abort();
     const bar = $('#progress-bar');
     bar.style.width = '0';
-    $('#progress-label').textContent = kind === 'point' ? 'reference point: starting…' : 'starting…';
+    $('#progress-label').textContent = kind === 'point' ? 'reference point: starting…' : kind === 'field' ? 'field: loading…' : 'starting…';
     $('#progress-numbers').textContent = '';
     $('#progress').hidden = false;
     $('#job-message').hidden = true;
@@ -1479,6 +1521,7 @@
     setupViewInteraction();
     setupSlices();
     setupSolverForm();
+    initSeries();
     $('#histogram-scale').addEventListener('change', loadPlots);
     try {
       await loadState();

@@ -409,6 +409,66 @@ TEST(ViewTfPoints, BadPointsAreRefusedSayingWhy) {
   EXPECT_EQ(ok.color[1].srgb[0], 1.0);
 }
 
+// Series mode: the page shows one field of several at a time; choosing another loads it and fits
+// its TF as a job; the other modes refuse the request.
+TEST_F(GpuTest, ViewSeriesChoosingAFieldFitsItsTf) {
+  const Volume ref = synthetic_reference(13, 11, 9);
+  const std::vector<Volume> fields = {synthetic_remapped(ref), synthetic_changed(ref), synthetic_remapped(ref, false)};
+  ViewSeries series;
+  series.labels = {"remapped", "changed", "remapped, no sphere"};
+  size_t loads = 0;
+  series.load = [&](size_t i) {
+    ++loads;
+    Volume v = fields[i];
+    v.name = series.labels[i];
+    return v;
+  };
+  ViewSession session(ctx(), ref, series, small_view_config());
+  EXPECT_EQ(loads, 1u) << "only the field shown is loaded";
+  ViewServer server(session, ViewServerOptions{});
+  server.start();
+  httplib::Client client("127.0.0.1", server.port());
+  client.set_read_timeout(120);
+  const std::string t = "token=" + server.token();
+  const nlohmann::json s0 = nlohmann::json::parse(client.Get("/api/state?" + t)->body);
+  EXPECT_EQ(s0["mode"], "series");
+  EXPECT_EQ(s0["series"]["count"], 3);
+  EXPECT_EQ(s0["series"]["index"], 0);
+  EXPECT_EQ(s0["fields"]["field"]["name"], "remapped");
+  const std::string before = client.Get("/api/render?view=field-opt-tf&w=32&h=32&" + t)->body;
+  auto past = client.Post("/api/field?" + t, R"({"index": 3})", "application/json");
+  ASSERT_TRUE(past);
+  EXPECT_EQ(past->status, 400) << past->body;
+  auto point = client.Post("/api/point?" + t, R"({"point": [1, 1, 1]})", "application/json");
+  ASSERT_TRUE(point);
+  EXPECT_EQ(point->status, 409) << point->body;
+  auto r = client.Post("/api/field?" + t, R"({"index": 1})", "application/json");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  session.wait_for_job();
+  const nlohmann::json s1 = nlohmann::json::parse(client.Get("/api/state?" + t)->body);
+  EXPECT_EQ(s1["job"]["state"], "done") << s1["job"].dump();
+  EXPECT_EQ(s1["job"]["kind"], "field");
+  EXPECT_EQ(s1["series"]["index"], 1);
+  EXPECT_EQ(s1["fields"]["field"]["name"], "changed");
+  EXPECT_GT(s1["version"].get<uint64_t>(), s0["version"].get<uint64_t>());
+  // The same fit as optimize gives that field.
+  OptimizeRequest req;
+  req.ref = &ref;
+  req.field = &fields[1];
+  req.ref_tf = small_view_config().ref_tf;
+  req.tf_size = 16;
+  EXPECT_NEAR(s1["metrics"]["voxel_rmse_optimized_tf"].get<double>(), run_optimize(ctx(), req).after.rmse(), 1e-12);
+  EXPECT_NE(client.Get("/api/render?view=field-opt-tf&w=32&h=32&" + t)->body, before);
+  EXPECT_THROW(session.set_field(7), std::invalid_argument);
+}
+
+TEST_F(ViewServerTest, PairModeRefusesChoosingASeriesField) {
+  auto r = client_->Post(with_token("/api/field"), R"({"index": 0})", "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 409) << r->body;
+}
+
 // Ensemble mode: a new reference point recomputes both correlation fields and optimizes again.
 TEST_F(GpuTest, ViewEnsembleNewReferencePointRecomputesTheFields) {
   ViewEnsemble e;
