@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <optional>
 #include <stdexcept>
 
 #include "cancellation.h"
@@ -34,10 +35,52 @@ Volume load_checked(const SeriesRequest& req, size_t i) {
   return v;
 }
 
+// Field i opened for a streamed fit, on the reference's grid (else the error names it).
+std::unique_ptr<VolumeSlabReader> open_checked(const SeriesRequest& req, const VolumeSlabReader& ref, size_t i) {
+  std::unique_ptr<VolumeSlabReader> f = req.open_field_slabs(i);
+  try {
+    require_same_grid(ref.grid(), f->grid());
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error("field " + std::to_string(i + 1) + " of " + std::to_string(req.field_count) + " (" +
+                             f->grid().name + "): " + e.what() + " (every field is fitted against the one reference)");
+  }
+  return f;
+}
+
+uint64_t slab_slices(const SeriesRequest& req, const VolumeSlabReader& ref) {
+  const uint64_t voxels = req.slab_voxels ? req.slab_voxels : kDefaultSlabVoxels;
+  return std::max<uint64_t>(1, voxels / ref.slice_voxels());
+}
+
 SeriesResult per_field(Context& ctx, const SeriesRequest& req) {
   SeriesResult out;
   out.solver = req.solver;
   out.device = ctx.device_name();
+  if (req.streamed()) {
+    for (size_t i = 0; i < req.field_count; ++i) {
+      checkpoint("series");
+      std::unique_ptr<VolumeSlabReader> ref = req.open_ref_slabs();
+      std::unique_ptr<VolumeSlabReader> field = open_checked(req, *ref, i);
+      StreamedOptimizeRequest r;
+      r.ref = ref.get();
+      r.field = field.get();
+      r.ref_tf = req.ref_tf;
+      r.ref_range = req.ref_range;
+      r.field_range = req.field_range;
+      r.tf_size = req.tf_size;
+      r.solver = req.solver;
+      r.settings = req.settings;
+      r.allow_out_of_range = req.allow_out_of_range;
+      r.slab_voxels = req.slab_voxels;
+      r.max_chunk_voxels = req.max_chunk_voxels;
+      const OptimizeResult one = run_optimize_streamed(ctx, r).result;
+      out.ref_range = one.ref_range;
+      out.fields.push_back({field->grid().name, one.field_range, one.tf, one.before, one.after, one.warnings});
+      add_loss(out.before, one.before);
+      add_loss(out.after, one.after);
+    }
+    return out;
+  }
   for (size_t i = 0; i < req.field_count; ++i) {
     checkpoint("series");
     const Volume field = load_checked(req, i);
@@ -74,13 +117,21 @@ SeriesResult shared(Context& ctx, const SeriesRequest& req) {
   out.shared_tf = true;
   out.solver = req.solver;
   out.device = ctx.device_name();
+  // The reference: in memory, or its grid alone when streamed (read again for each field).
+  std::unique_ptr<VolumeSlabReader> ref_reader = req.streamed() ? req.open_ref_slabs() : nullptr;
+  const Volume& ref_grid = ref_reader ? ref_reader->grid() : *req.ref;
+  const uint64_t slices = ref_reader ? slab_slices(req, *ref_reader) : 0;
   const FieldRange* ref_user = req.ref_range ? &*req.ref_range : (req.ref_tf.range ? &*req.ref_tf.range : nullptr);
-  out.ref_range = resolve_range(req.ref->values, ref_user, req.ref->name);
   std::vector<std::string> warnings;
-  if (ref_user) {
-    const std::string source = req.ref_range ? "the given reference range" : "the reference TF file's range";
-    std::string w = check_range_coverage(req.ref->values, out.ref_range, req.ref->name, source, req.allow_out_of_range);
-    if (!w.empty()) warnings.push_back(std::move(w));
+  if (ref_reader) {
+    out.ref_range = ref_user ? *ref_user : resolve_range(streamed_finite_stats(*ref_reader, slices), nullptr, ref_grid.name);
+  } else {
+    out.ref_range = resolve_range(req.ref->values, ref_user, req.ref->name);
+    if (ref_user) {
+      const std::string source = req.ref_range ? "the given reference range" : "the reference TF file's range";
+      std::string w = check_range_coverage(req.ref->values, out.ref_range, req.ref->name, source, req.allow_out_of_range);
+      if (!w.empty()) warnings.push_back(std::move(w));
+    }
   }
 
   // The one range every field maps through: given, or the union of the fields' own.
@@ -91,8 +142,14 @@ SeriesResult shared(Context& ctx, const SeriesRequest& req) {
   } else {
     for (size_t i = 0; i < req.field_count; ++i) {
       checkpoint("series");
-      const Volume field = load_checked(req, i);
-      const FieldRange r = resolve_range(field.values, nullptr, field.name);
+      FieldRange r;
+      if (ref_reader) {
+        std::unique_ptr<VolumeSlabReader> field = open_checked(req, *ref_reader, i);
+        r = resolve_range(streamed_finite_stats(*field, slices), nullptr, field->grid().name);
+      } else {
+        const Volume field = load_checked(req, i);
+        r = resolve_range(field.values, nullptr, field.name);
+      }
       range = i == 0 ? r : FieldRange{std::min(range.lo, r.lo), std::max(range.hi, r.hi)};
     }
     out.phases.push_back({"ranges", ms_since(t0), -1.0});
@@ -100,36 +157,48 @@ SeriesResult shared(Context& ctx, const SeriesRequest& req) {
 
   // Each field's system, and their exact sum.
   t0 = std::chrono::steady_clock::now();
-  check_device_memory(ctx, 2 * req.ref->values.size() * sizeof(float), "the reference and one field");
-  const DeviceField ref(ctx, req.ref->values, "reference field", req.max_chunk_voxels);
   const Buffer ref_tf_buffer = upload_tf(ctx, req.ref_tf, "reference TF");
   const FieldMapping ref_map = make_mapping(out.ref_range, uint32_t(req.ref_tf.size()));
   const FieldMapping opt_map = make_mapping(range, req.tf_size);
   const FieldMapping before_map = make_mapping(range, uint32_t(req.ref_tf.size()));
   const FieldMapping* before = before_map.tf_size != opt_map.tf_size ? &before_map : nullptr;
   GpuNormalEquations gpu(ctx, req.tf_size);
+  std::optional<DeviceField> ref;
+  if (!ref_reader) {
+    check_device_memory(ctx, 2 * req.ref->values.size() * sizeof(float), "the reference and one field");
+    ref.emplace(ctx, req.ref->values, "reference field", req.max_chunk_voxels);
+  }
   std::vector<uint64_t> total;
   std::vector<NormalEquations> systems;
   for (size_t i = 0; i < req.field_count; ++i) {
     checkpoint("series");
-    const Volume field = load_checked(req, i);
     SeriesFieldResult fr;
-    fr.name = field.name;
     fr.field_range = range;
-    if (req.field_range) {
-      std::string w = check_range_coverage(field.values, range, field.name, "the given field range",
-                                           req.allow_out_of_range);
-      if (!w.empty()) fr.warnings.push_back(std::move(w));
+    std::vector<uint64_t> slots;
+    if (ref_reader) {
+      std::unique_ptr<VolumeSlabReader> reference = req.open_ref_slabs();
+      std::unique_ptr<VolumeSlabReader> field = open_checked(req, *reference, i);
+      fr.name = field->grid().name;
+      slots = assemble_streamed_slots(ctx, gpu, *reference, *field, ref_map, opt_map, ref_tf_buffer, slices, before,
+                                      req.max_chunk_voxels);
+    } else {
+      const Volume field = load_checked(req, i);
+      fr.name = field.name;
+      if (req.field_range) {
+        std::string w = check_range_coverage(field.values, range, field.name, "the given field range",
+                                             req.allow_out_of_range);
+        if (!w.empty()) fr.warnings.push_back(std::move(w));
+      }
+      const DeviceField opt(ctx, field.values, "series field", req.max_chunk_voxels);
+      gpu.reset();
+      gpu.add(*ref, opt, ref_map, opt_map, ref_tf_buffer, before);
+      slots = gpu.fixed_point_slots();
     }
-    const DeviceField opt(ctx, field.values, "series field", req.max_chunk_voxels);
-    gpu.reset();
-    gpu.add(ref, opt, ref_map, opt_map, ref_tf_buffer, before);
-    const std::vector<uint64_t> slots = gpu.fixed_point_slots();
     if (total.empty()) total.assign(slots.size(), 0);
     for (size_t k = 0; k < slots.size(); ++k) total[k] += slots[k];  // modulo 2^64, as on the device
     systems.push_back(gpu.decode(slots, before != nullptr));
     if (systems.back().voxels == 0)
-      throw std::runtime_error("no voxel has data in both " + req.ref->name + " and " + field.name);
+      throw std::runtime_error("no voxel has data in both " + ref_grid.name + " and " + fr.name);
     out.fields.push_back(std::move(fr));
   }
   out.phases.push_back({"assemble", ms_since(t0), -1.0});
@@ -138,7 +207,7 @@ SeriesResult shared(Context& ctx, const SeriesRequest& req) {
   const float nothing = 0.0f;
   const DeviceField ref_placeholder(ctx, std::span<const float>(&nothing, 1), "reference (series)");
   const DeviceField opt_placeholder(ctx, std::span<const float>(&nothing, 1), "fields (series)");
-  VoxelProblem problem{ctx,      *req.ref, *req.ref,    ref_placeholder, opt_placeholder,
+  VoxelProblem problem{ctx,      ref_grid, ref_grid,    ref_placeholder, opt_placeholder,
                        ref_map,  opt_map,  req.ref_tf, ref_tf_buffer,   req.ref_tf.resampled(req.tf_size)};
   problem.system = gpu.decode(total, before != nullptr);
   checkpoint("solve");
@@ -167,8 +236,9 @@ SeriesResult shared(Context& ctx, const SeriesRequest& req) {
 bool solver_fits_shared(std::string_view solver) { return solver == "normal-equations" || solver == "qp"; }
 
 SeriesResult run_optimize_series(Context& ctx, const SeriesRequest& req) {
-  if (!req.ref) throw std::invalid_argument("run_optimize_series: the reference is required");
-  if (req.field_count == 0 || !req.load_field) throw std::runtime_error("no fields to fit");
+  if (req.streamed() ? !req.open_field_slabs : (!req.ref || !req.load_field))
+    throw std::invalid_argument("run_optimize_series: the reference and the fields are required");
+  if (req.field_count == 0) throw std::runtime_error("no fields to fit");
   if (req.tf_size < 2) throw std::runtime_error(parameter("tf-size") + " must be at least 2");
   return req.shared_tf ? shared(ctx, req) : per_field(ctx, req);
 }

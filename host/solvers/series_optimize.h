@@ -11,16 +11,18 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "optimize.h"
+#include "streamed_optimize.h"
 
 namespace tfm {
 
 struct SeriesRequest {
-  const Volume* ref = nullptr;
+  const Volume* ref = nullptr;            // unless streamed
   TransferFunction ref_tf;
   std::optional<FieldRange> ref_range;    // default: the TF file's range, then the finite min/max
   // Per-field fits: each field's range (default its finite min/max). Shared fit: the one range
@@ -37,6 +39,14 @@ struct SeriesRequest {
   // without a field range.
   size_t field_count = 0;
   std::function<Volume(size_t index)> load_field;
+  // Streamed (streamed_optimize.h; normal-equations and qp): the reference and field i opened as
+  // slab readers each time they are read, instead of `ref` and load_field, so that memory does not
+  // grow with the volumes. Per-field fits are run_optimize_streamed's; the shared fit sums the
+  // fields' exact totals as the loaded one does (the same bits).
+  std::function<std::unique_ptr<VolumeSlabReader>()> open_ref_slabs;
+  std::function<std::unique_ptr<VolumeSlabReader>(size_t index)> open_field_slabs;
+  uint64_t slab_voxels = 0;               // voxels read per slab; 0: kDefaultSlabVoxels
+  bool streamed() const { return bool(open_ref_slabs); }
 };
 
 struct SeriesFieldResult {

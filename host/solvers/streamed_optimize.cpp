@@ -194,18 +194,50 @@ bool solver_streams(std::string_view solver) {
   return std::find(n.begin(), n.end(), solver) != n.end();
 }
 
-NormalEquations assemble_streamed(Context& ctx, VolumeSlabReader& ref, VolumeSlabReader& field,
-                                  const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
-                                  uint64_t slab_slices, uint64_t max_chunk_voxels) {
+namespace {
+// The slab-by-slab assembly into `gpu` (reset first).
+void assemble_slabs(Context& ctx, GpuNormalEquations& gpu, VolumeSlabReader& ref, VolumeSlabReader& field,
+                    const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
+                    uint64_t slab_slices, uint64_t max_chunk_voxels, const FieldMapping* before_map) {
   require_same_grid(ref.grid(), field.grid());
   slab_slices = std::clamp<uint64_t>(slab_slices, 1, ref.grid().dims[2]);
   SlabUploader device(ctx, slab_slices * ref.slice_voxels(), max_chunk_voxels);
-  GpuNormalEquations gpu(ctx, opt_map.tf_size);
+  gpu.reset();
   for_each_slab_pair(ref, field, slab_slices, [&](uint64_t, uint64_t, std::span<const float> r, std::span<const float> f) {
     const auto& d = device.upload(r, f);
-    gpu.add(d.first, d.second, ref_map, opt_map, ref_tf);
+    gpu.add(d.first, d.second, ref_map, opt_map, ref_tf, before_map);
   });
+}
+}  // namespace
+
+NormalEquations assemble_streamed(Context& ctx, VolumeSlabReader& ref, VolumeSlabReader& field,
+                                  const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
+                                  uint64_t slab_slices, uint64_t max_chunk_voxels) {
+  GpuNormalEquations gpu(ctx, opt_map.tf_size);
+  assemble_slabs(ctx, gpu, ref, field, ref_map, opt_map, ref_tf, slab_slices, max_chunk_voxels, nullptr);
   return gpu.result();
+}
+
+std::vector<uint64_t> assemble_streamed_slots(Context& ctx, GpuNormalEquations& gpu, VolumeSlabReader& ref,
+                                              VolumeSlabReader& field, const FieldMapping& ref_map,
+                                              const FieldMapping& opt_map, const Buffer& ref_tf, uint64_t slab_slices,
+                                              const FieldMapping* before_map, uint64_t max_chunk_voxels) {
+  assemble_slabs(ctx, gpu, ref, field, ref_map, opt_map, ref_tf, slab_slices, max_chunk_voxels, before_map);
+  return gpu.fixed_point_slots();
+}
+
+FiniteStats streamed_finite_stats(VolumeSlabReader& volume, uint64_t slab_slices) {
+  const uint64_t nz = volume.grid().dims[2];
+  slab_slices = std::clamp<uint64_t>(slab_slices, 1, nz);
+  std::vector<float> slab(slab_slices * volume.slice_voxels());
+  FiniteStats stats{};
+  for (uint64_t z0 = 0; z0 < nz; z0 += slab_slices) {
+    checkpoint("stream");
+    const uint64_t n = std::min(slab_slices, nz - z0);
+    volume.read_slices(z0, n, slab.data());
+    stats = merge(stats, finite_stats(std::span<const float>(slab.data(), n * volume.slice_voxels())));
+  }
+  return stats;
 }
 
 StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimizeRequest& req) {

@@ -73,5 +73,14 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
 NormalEquations assemble_streamed(Context& ctx, VolumeSlabReader& ref, VolumeSlabReader& field,
                                   const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
                                   uint64_t slab_slices, uint64_t max_chunk_voxels = 0);
+// The same into `gpu` (reset first; its TF size that of opt_map), with the before loss when
+// `before_map` is given: its exact 32.32 totals (GpuNormalEquations::fixed_point_slots), which
+// add as integers with other fields' (a shared series fit, series_optimize.h).
+std::vector<uint64_t> assemble_streamed_slots(Context& ctx, GpuNormalEquations& gpu, VolumeSlabReader& ref,
+                                              VolumeSlabReader& field, const FieldMapping& ref_map,
+                                              const FieldMapping& opt_map, const Buffer& ref_tf, uint64_t slab_slices,
+                                              const FieldMapping* before_map = nullptr, uint64_t max_chunk_voxels = 0);
+// The finite min/max and counts of a volume read `slab_slices` z-slices at a time.
+FiniteStats streamed_finite_stats(VolumeSlabReader& volume, uint64_t slab_slices);
 
 }  // namespace tfm

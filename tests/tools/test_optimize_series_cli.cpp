@@ -84,6 +84,26 @@ TEST_F(OptimizeSeriesCli, SharedTfForAllFields) {
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 4) << csv;
 }
 
+// Each field streamed slab by slab: the same TF files as the fields loaded whole.
+TEST_F(OptimizeSeriesCli, StreamedSeriesWritesTheSameTfs) {
+  for (const char* shared : {"", " --shared-tf"}) {
+    SCOPED_TRACE(shared);
+    const std::string fields = " --field " + nc + ":T,time=0..1 --field " + steps[1] + shared;
+    auto on = run_cli(base("on.json") + fields + " --stream on");
+    ASSERT_EQ(on.exit_code, 0) << on.output;
+    auto off = run_cli(base("off.json") + fields + " --stream off");
+    ASSERT_EQ(off.exit_code, 0) << off.output;
+    for (const char* suffix : {"_000.json", "_001.json", "_002.json"}) {
+      if (*shared) break;
+      EXPECT_EQ(read_text(dir / (std::string("on") + suffix)), read_text(dir / (std::string("off") + suffix))) << suffix;
+    }
+    if (*shared) EXPECT_EQ(read_text(dir / "on.json"), read_text(dir / "off.json"));
+  }
+  auto r = run_cli(base("x.json") + " --field " + nc + ":T,time=0..1 --stream on --solver cgls");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("normal-equations and qp"), std::string::npos) << r.output;
+}
+
 TEST_F(OptimizeSeriesCli, ReportShowsEveryFieldAndTheSeries) {
   const auto r = run_cli(base("tf.json") + " --field " + nc + ":T,time=0..1 --field " + steps[0] + " --report " +
                          (dir / "rep").string() + " --width 48 --height 40");
@@ -134,8 +154,13 @@ TEST_F(OptimizeSeriesCli, Era5MembersOneTfEachAndOneForAll) {
   ASSERT_EQ(each["fields"].size(), 10u);
   EXPECT_TRUE(fs::exists(dir / "t_009.json"));
   r = run_cli("optimize --ref " + ref_spec + " --ref-tf viridis --field " + grib + ":t,member=0..9 --shared-tf --out " +
-              (dir / "t_all.json").string() + " --json " + (dir / "t_all.summary.json").string());
+              (dir / "t_all.json").string() + " --json " + (dir / "t_all.summary.json").string() + " --report " +
+              (dir / "t_all_report").string() + " --width 96 --height 48");
   ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json report = nlohmann::json::parse(read_text(dir / "t_all_report" / "series.json"));
+  ASSERT_EQ(report["fields"].size(), 10u);
+  for (const auto& f : report["fields"])  // the members' maps look like the geopotential's under the one TF
+    EXPECT_GT(f["image_after"]["psnr"].get<double>(), f["image_before"]["psnr"].get<double>() + 5.0) << f.dump();
   const nlohmann::json all = nlohmann::json::parse(read_text(dir / "t_all.summary.json"));
   // Ten members of one forecast: one TF (over the union of their ranges) fits them all about as
   // well as ten do (each over its own range).

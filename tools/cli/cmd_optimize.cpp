@@ -233,8 +233,15 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
   if (!a.markers.empty() || !a.slice_point.empty())
     throw CLI::ValidationError(a.markers.empty() ? "--slice-point" : "--marker",
                                "markers and slices belong to the report of one field");
-  if (a.stream == "on")
-    throw CLI::ValidationError("--stream", "several fields are read one at a time, each whole: --stream off or auto");
+  // Streamed: each field (and the reference again) read slab by slab; with auto when the solver
+  // streams and the reference and one field as float32 exceed a quarter of the memory budget.
+  bool stream = a.stream == "on";
+  if (stream && !solver_streams(a.solver))
+    throw CLI::ValidationError("--stream", "solver " + a.solver + " needs the fields in memory; the solvers that "
+                               "stream from disk are normal-equations and qp");
+  if (stream && !a.report.empty())
+    throw CLI::ValidationError("--stream", "the series report renders every field whole: --stream off (or auto) "
+                               "with --report");
   if (globals().ranks->size() > 1)
     throw CLI::ValidationError("--field", "several fields under MPI: not supported (each rank would fit them all)");
   if (a.shared_tf && !solver_fits_shared(a.solver))
@@ -258,11 +265,21 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
   StartingContext starting;
   OutputBatch outputs;
   const VolumeOptions vo = a.in.volume.options();
-  const Volume ref = load_volume(a.in.ref, vo);
+  if (a.stream == "auto" && solver_streams(a.solver) && a.report.empty()) {
+    const std::unique_ptr<VolumeSlabReader> probe = open_volume_slabs_or_load(a.in.ref, vo);
+    const uint64_t bytes = 2 * probe->grid().voxel_count() * sizeof(float);
+    stream = probe->streams() && bytes > memory_budget().bytes / 4;
+    if (stream && !globals().quiet)
+      std::cerr << "tfmatch: streaming the reference and each field from disk (" << format_bytes(bytes)
+                << " as float32 per pair; memory budget " << format_bytes(memory_budget().bytes) << ", "
+                << memory_budget().source << ")\n";
+  }
+  // The reference in memory, or its grid alone when streamed (read again for each field).
+  const Volume ref = stream ? open_volume_slabs_or_load(a.in.ref, vo)->grid() : load_volume(a.in.ref, vo);
   OptimizeRequest loaded;
   load_tf_and_ranges(a.in, loaded);
   SeriesRequest req;
-  req.ref = &ref;
+  req.ref = stream ? nullptr : &ref;
   req.ref_tf = loaded.ref_tf;
   req.ref_range = loaded.ref_range;
   req.field_range = loaded.field_range;
@@ -275,13 +292,22 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
   req.settings.render = render;
   req.shared_tf = a.shared_tf;
   req.field_count = count;
-  Progress progress("fields", count);
+  Progress progress("fields", count * (a.shared_tf && a.in.field_range.empty() ? 2 : 1));  // a shared fit reads the fields twice for their range
   size_t loads = 0;
-  req.load_field = [&](size_t i) {
-    Volume v = load_volume(a.fields[i], vo);
-    progress.update(++loads);
-    return v;
-  };
+  if (stream) {
+    req.open_ref_slabs = [&] { return open_volume_slabs_or_load(a.in.ref, vo); };
+    req.open_field_slabs = [&](size_t i) {
+      std::unique_ptr<VolumeSlabReader> r = open_volume_slabs_or_load(a.fields[i], vo);
+      progress.update(++loads);
+      return r;
+    };
+  } else {
+    req.load_field = [&](size_t i) {
+      Volume v = load_volume(a.fields[i], vo);
+      progress.update(++loads);
+      return v;
+    };
+  }
   auto ctx = starting.get();
   if (!a.report.empty()) check_render_size(*ctx, render);
   const SeriesResult s = run_optimize_series(*ctx, req);

@@ -109,6 +109,36 @@ TEST_F(SeriesOptimize, SharedFitIsTheFitOfAllVoxelsTogether) {
   }
 }
 
+// Streamed slab by slab (three z-slices at a time here), per field and shared: the bits of the
+// fits of the fields in memory.
+TEST_F(SeriesOptimize, StreamedGivesTheBitsOfTheLoadedFits) {
+  const Volume ref = reference();
+  const TransferFunction tf = test::random_tf(16, 7);
+  for (bool shared : {false, true}) {
+    for (const char* solver : {"normal-equations", "qp"}) {
+      SCOPED_TRACE(std::string(solver) + (shared ? ", shared" : ", per field"));
+      SeriesRequest loaded = request(ref, tf, 3);
+      loaded.shared_tf = shared;
+      loaded.solver = solver;
+      const SeriesResult a = run_optimize_series(ctx(), loaded);
+      SeriesRequest streamed = loaded;
+      streamed.ref = nullptr;
+      streamed.load_field = nullptr;
+      streamed.open_ref_slabs = [&] { return slabs_in_memory(ref); };
+      streamed.open_field_slabs = [](size_t i) { return slabs_in_memory(field(int(i))); };
+      streamed.slab_voxels = 3 * kDims[0] * kDims[1];
+      const SeriesResult b = run_optimize_series(ctx(), streamed);
+      ASSERT_EQ(b.fields.size(), 3u);
+      for (size_t k = 0; k < 3; ++k) {
+        EXPECT_TRUE(same_tf(a.fields[k].tf, b.fields[k].tf)) << "field " << k;
+        EXPECT_EQ(a.fields[k].after.rmse(), b.fields[k].after.rmse());
+        EXPECT_EQ(a.fields[k].field_range.lo, b.fields[k].field_range.lo);
+      }
+      if (shared) EXPECT_TRUE(same_tf(a.tf, b.tf));
+    }
+  }
+}
+
 TEST_F(SeriesOptimize, RefusesMixedGridsAndWhatASharedFitCannotDo) {
   const Volume ref = reference();
   const TransferFunction tf = test::random_tf(16, 5);
