@@ -9,6 +9,7 @@
 #include <fstream>
 #include <cmath>
 #include <regex>
+#include <thread>
 #include <set>
 
 #include <nlohmann/json.hpp>
@@ -206,6 +207,42 @@ TEST(ViewCli, Era5EnsembleFromTheSharedData) {
     EXPECT_GT(seen.shown, 0.6) << v << " slice";
     EXPECT_GE(seen.colours, 20u) << v << " slice";
   }
+  view.process->signal(SIGINT);
+  EXPECT_EQ(view.process->finish(std::chrono::seconds(30)).exit_code, 0);
+}
+
+// Series mode on the shared ERA5 ensemble: three temperature members against member 0's
+// geopotential; choosing another member loads it and fits its TF, and the pictures show it.
+TEST(ViewCli, Era5MembersAsASeries) {
+  const std::string d = test::shared_data_dir();
+  if (d.empty()) GTEST_SKIP() << "needs ../shared/data (ERA5 ensemble)";
+  const std::string grib = d + "/era5_ensemble_grib1/era5-levels-members.grib";
+  RunningView view("--ref " + grib + ":z,member=0 --ref-tf viridis --field " + grib + ":t,member=0..2 --width 96 --height 48");
+  ASSERT_GT(view.port, 0) << view.process->output();
+  const nlohmann::json s0 = view.state();
+  EXPECT_EQ(s0["mode"], "series");
+  EXPECT_EQ(s0["series"]["count"], 3);
+  EXPECT_EQ(s0["series"]["labels"][2], "era5-levels-members.grib:t,member=2");
+  const std::string before = view.get("/api/render?view=field-opt-tf");
+  httplib::Client client("127.0.0.1", view.port);
+  client.set_read_timeout(120);
+  auto r = client.Post("/api/field?token=" + view.token, R"({"index": 2})", "application/json");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  nlohmann::json s1;
+  for (int i = 0; i < 600; ++i) {
+    s1 = view.state();
+    if (s1["job"]["state"] != "running") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_EQ(s1["job"]["state"], "done") << s1["job"].dump();
+  EXPECT_EQ(s1["series"]["index"], 2);
+  EXPECT_NE(s1["fields"]["field"]["name"].get<std::string>().find("member=2"), std::string::npos) << s1["fields"].dump();
+  EXPECT_LT(s1["metrics"]["voxel_rmse_optimized_tf"].get<double>(), 0.6 * s1["metrics"]["voxel_rmse_reference_tf"].get<double>());
+  int status = 0;
+  const std::string after = view.get("/api/render?view=field-opt-tf", &status);
+  EXPECT_EQ(status, 200);
+  EXPECT_NE(after, before);
   view.process->signal(SIGINT);
   EXPECT_EQ(view.process->finish(std::chrono::seconds(30)).exit_code, 0);
 }
