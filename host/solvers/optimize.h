@@ -16,21 +16,26 @@
 
 namespace tfm {
 
-struct OptimizeRequest {
-  const Volume* ref = nullptr;
-  const Volume* field = nullptr;
+// What a fit of a second field's TF to a reference is asked, however the fields are read (in
+// memory: run_optimize; slab by slab: run_optimize_streamed; many fields: run_optimize_series).
+struct FitSettings {
   TransferFunction ref_tf;
   std::optional<FieldRange> ref_range;    // user ranges; default: TF file's range, then finite min/max
   std::optional<FieldRange> field_range;
   uint32_t tf_size = 64;
   std::string solver = "normal-equations";
   SolverSettings settings;                // options of `solver` (checked before anything is loaded)
-  uint64_t max_chunk_voxels = 0;          // 0: device limit
+  uint64_t max_chunk_voxels = 0;          // device chunks (tests force splits); 0: device limit
+  // A range not from the field leaving > 95 % of its values outside is an error unless this.
+  bool allow_out_of_range = false;
+};
+
+struct OptimizeRequest : FitSettings {
+  const Volume* ref = nullptr;
+  const Volume* field = nullptr;
   // Also measure the voxel mean absolute error before and after (VoxelLoss::absolute): one pass
   // over the voxels per TF. The RMSE needs none: it follows from the assembled system.
   bool voxel_mae = false;
-  // A range not from the field leaving > 95 % of its values outside is an error unless this.
-  bool allow_out_of_range = false;
 };
 
 struct OptimizeResult {

@@ -21,19 +21,12 @@
 
 namespace tfm {
 
-struct SeriesRequest {
+// field_range: for per-field fits each field's range (default its finite min/max); for the shared
+// fit the one range all fields map through (default the union of their finite min/max: one pass
+// over the fields).
+struct SeriesRequest : FitSettings {
   const Volume* ref = nullptr;            // unless streamed
-  TransferFunction ref_tf;
-  std::optional<FieldRange> ref_range;    // default: the TF file's range, then the finite min/max
-  // Per-field fits: each field's range (default its finite min/max). Shared fit: the one range
-  // all fields map through (default the union of their finite min/max: one pass over the fields).
-  std::optional<FieldRange> field_range;
-  uint32_t tf_size = 64;
-  std::string solver = "normal-equations";
-  SolverSettings settings;
   bool shared_tf = false;
-  bool allow_out_of_range = false;
-  uint64_t max_chunk_voxels = 0;          // 0: device limit
   // The fields: `field_count` of them, field i loaded by load_field(i) when needed (on the grid
   // of `ref`, else the run stops naming it). Called once per field, twice for a shared fit
   // without a field range.

@@ -24,20 +24,13 @@ namespace tfm {
 const std::vector<std::string>& streaming_solvers();
 bool solver_streams(std::string_view solver);
 
-struct StreamedOptimizeRequest {
+// A range taken from the data (no ref_range / field_range) costs a first pass over the files.
+struct StreamedOptimizeRequest : FitSettings {
   VolumeSlabReader* ref = nullptr;
   VolumeSlabReader* field = nullptr;
-  TransferFunction ref_tf;
-  std::optional<FieldRange> ref_range;    // user ranges; default: TF file's range, then finite min/max
-  std::optional<FieldRange> field_range;  //   (which costs a first pass over the files)
-  uint32_t tf_size = 64;
-  std::string solver = "normal-equations";
-  SolverSettings settings;
-  bool allow_out_of_range = false;
   // Voxels read per slab and field (rounded down to whole z-slices, at least one slice); 0: from
   // the memory budget (memory_budget.h), at most kDefaultSlabVoxels.
   uint64_t slab_voxels = 0;
-  uint64_t max_chunk_voxels = 0;  // device chunks (tests force splits); 0: device limit
   // Voxels of each downsampled copy (ref_preview, field_preview); 0: none made.
   uint64_t preview_voxels = 0;
   // The ranks the run is split over (host/model/ranks.h; null: this process alone). Each reads

@@ -111,16 +111,10 @@ void add_provenance(ReportInputs& inputs, const OptimizeArgs& a) {
 // from all voxels, the report's pictures from box-filtered copies made during the same read.
 int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const SolverSettings& settings,
                  const JsonOutput& json, OutputBatch& outputs) {
-  OptimizeRequest loaded;
-  load_tf_and_ranges(a.in, loaded);
   StreamedOptimizeRequest req;
+  load_tf_and_ranges(a.in, req);
   req.ref = streams.ref.get();
   req.field = streams.field.get();
-  req.ref_tf = loaded.ref_tf;
-  req.ref_range = loaded.ref_range;
-  req.field_range = loaded.field_range;
-  req.tf_size = loaded.tf_size;
-  req.allow_out_of_range = loaded.allow_out_of_range;
   req.solver = a.solver;
   req.settings = settings;
   req.ranks = globals().ranks;
@@ -276,15 +270,9 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
   }
   // The reference in memory, or its grid alone when streamed (read again for each field).
   const Volume ref = stream ? open_volume_slabs_or_load(a.in.ref, vo)->grid() : load_volume(a.in.ref, vo);
-  OptimizeRequest loaded;
-  load_tf_and_ranges(a.in, loaded);
   SeriesRequest req;
+  load_tf_and_ranges(a.in, req);
   req.ref = stream ? nullptr : &ref;
-  req.ref_tf = loaded.ref_tf;
-  req.ref_range = loaded.ref_range;
-  req.field_range = loaded.field_range;
-  req.tf_size = loaded.tf_size;
-  req.allow_out_of_range = loaded.allow_out_of_range;
   req.solver = a.solver;
   req.settings = settings;
   RenderSettings render = a.render;  // image-based solvers render with the grid's defaults

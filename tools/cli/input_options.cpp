@@ -74,7 +74,7 @@ void load_inputs(const InputArgs& a, LoadedInputs& out) {
   load_tf_and_ranges(a, out.request);
 }
 
-void load_tf_and_ranges(const InputArgs& a, OptimizeRequest& req) {
+void load_tf_and_ranges(const InputArgs& a, FitSettings& req) {
   std::vector<std::string> notes;
   req.ref_tf = read_transfer_function(a.ref_tf, {}, &notes);
   for (const auto& n : notes) std::cerr << "tfmatch: note: " << n << "\n";

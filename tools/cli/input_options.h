@@ -56,7 +56,7 @@ struct LoadedInputs {
 void load_inputs(const InputArgs& args, LoadedInputs& out);
 // load_inputs() without the volumes: the reference TF, the ranges, the TF size and
 // --allow-out-of-range into `out` (a streamed run reads the volumes slab by slab).
-void load_tf_and_ranges(const InputArgs& args, OptimizeRequest& out);
+void load_tf_and_ranges(const InputArgs& args, FitSettings& out);
 
 // The flags as JSON with absolute paths (a report's inputs.json, which `tfmatch view --report`
 // reopens), and back; relative paths in the JSON are taken relative to `base`.
