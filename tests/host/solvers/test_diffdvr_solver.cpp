@@ -9,54 +9,26 @@
 #include <nlohmann/json.hpp>
 
 #include "cli_runner.h"
-#include "metrics.h"
-#include "optimize.h"
-#include "render.h"
-#include "synthetic_cube.h"
+#include "cube_case.h"
 #include "vk_test_env.h"
 
 namespace tfm {
 namespace {
 
-struct CubeCase {
-  Volume ref = cube_halves(16);
-  Volume field = cube_with_inner_cube(16, 0.5);
-  TransferFunction ref_tf = blue_to_red_tf(16, 0.4);  // the interior shows faintly, as in the paper
-};
-
-OptimizeResult optimize(Context& ctx, const CubeCase& c, const std::string& solver,
-                        std::map<std::string, std::string> extra = {}) {
-  OptimizeRequest req;
-  req.ref = &c.ref;
-  req.field = &c.field;
-  req.ref_tf = c.ref_tf;
-  req.tf_size = 16;
-  req.solver = solver;
-  req.settings.extra = std::move(extra);
-  return run_optimize(ctx, req);
-}
-
-// PSNR of the field rendered with `tf` against the reference image, from the default camera.
-double image_psnr(Context& ctx, const CubeCase& c, const TransferFunction& tf) {
-  RenderSettings s;
-  s.width = s.height = 64;
-  const Image ref = composite_over(render_volume(ctx, c.ref, c.ref_tf, {0, 1}, s), s.background);
-  const Image img = composite_over(render_volume(ctx, c.field, tf, {0, 1}, s), s.background);
-  return compare_images(ref, img).psnr;
-}
+using test::CubeCase;
 
 class DiffDvrSolver : public test::GpuTest {};
 
 TEST_F(DiffDvrSolver, CubeCaseBeatsVoxelLeastSquaresOnImages) {
   const CubeCase c;
-  const double original = image_psnr(ctx(), c, c.ref_tf);
-  const OptimizeResult ne = optimize(ctx(), c, "normal-equations");
-  const double voxel = image_psnr(ctx(), c, ne.tf);
+  const double original = c.image_psnr(ctx(), c.ref_tf);
+  const OptimizeResult ne = c.fit(ctx(), "normal-equations");
+  const double voxel = c.image_psnr(ctx(), ne.tf);
   // Start DiffDVR from the least-squares TF, so it has to find its way back to what is seen.
-  const OptimizeResult dd = optimize(ctx(), c, "diffdvr",
+  const OptimizeResult dd = c.fit(ctx(), "diffdvr",
                                      {{"init", "normal-equations"}, {"iterations", "40"}, {"image-size", "32"},
                                       {"views-per-iteration", "6"}, {"lr", "0.05"}, {"seed", "3"}});
-  const double image = image_psnr(ctx(), c, dd.tf);
+  const double image = c.image_psnr(ctx(), dd.tf);
   std::printf("cube 16^3, PSNR dB: reference TF %.2f, normal equations %.2f, diffdvr %.2f\n", original, voxel, image);
   // The paper: 37.3 (original), 24.8 (CGLS), 36.6 (DiffDVR). The ordering with a clear margin:
   EXPECT_GT(image, voxel + 6.0);
@@ -72,11 +44,11 @@ TEST_F(DiffDvrSolver, SameSeedGivesIdenticalBitsAndAnotherSeedDiffers) {
   const CubeCase c;
   const std::map<std::string, std::string> extra = {
       {"iterations", "3"}, {"image-size", "24"}, {"views-per-iteration", "3"}, {"seed", "7"}, {"lr", "0.05"}};
-  const OptimizeResult a = optimize(ctx(), c, "diffdvr", extra);
-  const OptimizeResult b = optimize(ctx(), c, "diffdvr", extra);
+  const OptimizeResult a = c.fit(ctx(), "diffdvr", extra);
+  const OptimizeResult b = c.fit(ctx(), "diffdvr", extra);
   auto other_extra = extra;
   other_extra["seed"] = "8";
-  const OptimizeResult other = optimize(ctx(), c, "diffdvr", other_extra);
+  const OptimizeResult other = c.fit(ctx(), "diffdvr", other_extra);
   ASSERT_EQ(a.tf.size(), b.tf.size());
   EXPECT_EQ(std::memcmp(a.tf.rgba.data(), b.tf.rgba.data(), a.tf.size() * sizeof(Rgba)), 0);
   EXPECT_EQ(a.details["loss_curve"], b.details["loss_curve"]);
@@ -89,7 +61,7 @@ TEST_F(DiffDvrSolver, RejectsBadOptions) {
   for (auto [flag, value] : {std::pair{"loss", "l3"}, {"cameras", "grid"}, {"init", "zeros"}, {"iterations", "0"},
                              {"image-size", "2.5"}, {"lr", "-1"}, {"seed", "-4"}, {"optimizer", "sgd"}}) {
     try {
-      optimize(ctx(), c, "diffdvr", {{flag, value}});
+      c.fit(ctx(), "diffdvr", {{flag, value}});
       ADD_FAILURE() << "--" << flag << " " << value << " was accepted";
     } catch (const std::runtime_error& e) {
       EXPECT_NE(std::string(e.what()).find(std::string("--") + flag), std::string::npos) << e.what();

@@ -8,39 +8,23 @@
 #include <map>
 #include <string>
 
+#include "cube_case.h"
 #include "gpu_voxel_ops.h"
-#include "metrics.h"
-#include "optimize.h"
-#include "render.h"
-#include "synthetic_cube.h"
 #include "vk_test_env.h"
 
 namespace tfm {
 namespace {
 
-struct Cube {
-  Volume ref = cube_halves(24);
-  Volume field = cube_with_inner_cube(24, 0.5);
-  TransferFunction ref_tf = blue_to_red_tf(16, 0.4);
+// 24^3: rays cross enough voxels for the inner cube to be clearly hidden.
+struct Cube : test::CubeCase {
+  Cube() : CubeCase(24) {}
 };
 
 OptimizeResult fit(Context& ctx, const Cube& c, const std::string& solver, std::map<std::string, std::string> extra) {
-  OptimizeRequest req;
-  req.ref = &c.ref;
-  req.field = &c.field;
-  req.ref_tf = c.ref_tf;
-  req.tf_size = 16;
-  req.solver = solver;
-  req.settings.extra = std::move(extra);
-  return run_optimize(ctx, req);
+  return c.fit(ctx, solver, std::move(extra));
 }
 
-double image_psnr(Context& ctx, const Cube& c, const TransferFunction& tf) {
-  RenderSettings s;
-  s.width = s.height = 96;
-  const Image ref = composite_over(render_volume(ctx, c.ref, c.ref_tf, {0, 1}, s), s.background);
-  return compare_images(ref, composite_over(render_volume(ctx, c.field, tf, {0, 1}, s), s.background)).psnr;
-}
+double image_psnr(Context& ctx, const Cube& c, const TransferFunction& tf) { return c.image_psnr(ctx, tf, 96); }
 
 using VisibilityWeightedSolvers = test::GpuTest;
 
