@@ -196,6 +196,14 @@ RenderRecorder::RenderRecorder(Context& ctx, const VolumeGeometry& geometry, uin
     : ctx_(ctx), geometry_(geometry), kernel_(std::make_unique<RenderImageKernel>(ctx, field_chunks)) {
   views_ = Buffer(ctx, sizeof(gpu::RenderView), MemoryUsage::Device, "recorded render camera");
 }
+RenderRecorder::RenderRecorder(Context& ctx, const VolumeGeometry& geometry, uint32_t field_chunks,
+                               VkBuffer stop_scratch, uint64_t offset, uint64_t bytes)
+    : RenderRecorder(ctx, geometry, field_chunks) {
+  if (bytes < 4) throw std::invalid_argument("RenderRecorder: the host's stop scratch holds no pixel");
+  stop_ = Buffer::adopt(ctx, stop_scratch, offset, bytes, "host scratch: render stop indices");
+  host_stop_ = true;
+}
+
 RenderRecorder::~RenderRecorder() = default;
 
 void RenderRecorder::record_render(VkCommandBuffer cmd, const DeviceField& field, const FieldMapping& mapping,
@@ -223,7 +231,13 @@ void RenderRecorder::record_picture(VkCommandBuffer cmd, const RenderImageKernel
   const MarchConstants march = march_constants(settings, geometry_);
   const gpu::RenderView view = make_render_view(orbit_frame(settings.camera, geometry_, settings.width, settings.height));
   const gpu::RenderPush push = make_render_push(geometry_, march, mapping, field, settings.width, settings.height, 1);
-  if (stop_.size() < pixels * 4) stop_ = Buffer(ctx_, pixels * 4, MemoryUsage::Device, "recorded render stop index");
+  if (stop_.size() < pixels * 4) {
+    if (host_stop_)
+      throw std::invalid_argument("record_render: the host's stop scratch holds " + std::to_string(stop_.size()) +
+                                  " bytes, a " + std::to_string(settings.width) + "x" + std::to_string(settings.height) +
+                                  " image needs " + std::to_string(pixels * 4));
+    stop_ = Buffer(ctx_, pixels * 4, MemoryUsage::Device, "recorded render stop index");
+  }
   CommandBatch& batch = restart(recording_, ctx_, cmd);
   batch.barrier();  // an earlier recording's reads of the table and camera finish first
   record_table(batch, ctx_, tf_, tf_rgba, "recorded render TF");

@@ -155,6 +155,13 @@ class RenderRecorder {
  public:
   // For fields of `geometry` split into `field_chunks` chunks (a field's chunk_count()).
   RenderRecorder(Context& ctx, const VolumeGeometry& geometry, uint32_t field_chunks);
+  // The same with the per-pixel stop indices (4 bytes a pixel, device-local) in the host's memory:
+  // `bytes` of `buffer` from `offset` (storage usage, the device's storage-buffer offset
+  // alignment), for images of up to bytes / 4 pixels. The TF table and the camera (O(N), 64 bytes)
+  // stay the recorder's.
+  RenderRecorder(Context& ctx, const VolumeGeometry& geometry, uint32_t field_chunks, VkBuffer stop_scratch,
+                 uint64_t offset, uint64_t bytes);
+  static uint64_t stop_scratch_bytes(uint32_t width, uint32_t height) { return uint64_t(width) * height * 4; }
   ~RenderRecorder();
   RenderRecorder(const RenderRecorder&) = delete;
   RenderRecorder& operator=(const RenderRecorder&) = delete;
@@ -177,6 +184,7 @@ class RenderRecorder {
   VolumeGeometry geometry_;
   std::unique_ptr<RenderImageKernel> kernel_, image_kernel_;  // the image variant when first used
   Buffer tf_, views_, stop_;
+  bool host_stop_ = false;  // stop_ is the host's scratch (never grown)
   std::unique_ptr<CommandBatch> recording_;
   template <class Field>
   void record_picture(VkCommandBuffer cmd, const RenderImageKernel& kernel, const Field& field,

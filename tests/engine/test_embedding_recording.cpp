@@ -421,6 +421,40 @@ TEST_F(EmbeddingRecording, AssemblyInTheHostsScratchMemory) {
     EXPECT_EQ(a.voxels, b.voxels);
     EXPECT_GT(a.voxels, 0u);
     EXPECT_THROW(VoxelLossRecorder(ctx, unmapped), std::invalid_argument);
+    // The renderer's stop indices in the host's memory: the same picture; an image larger than
+    // the scratch is refused before anything is recorded.
+    const VolumeGeometry geometry = VolumeGeometry::from({25, 20, 10}, {1.0, 1.0, 1.0});
+    const DeviceField grid_field = DeviceField::adopt(ctx, volume, 0, 25 * 20 * 10, "host ref, 25x20x10");  // its first voxels
+    RenderSettings s;
+    s.width = 23;
+    s.height = 17;
+    void* stop_map = nullptr;
+    VkBuffer stop = host.buffer(1024 + RenderRecorder::stop_scratch_bytes(s.width, s.height), &stop_map);
+    RenderRecorder render_in_host_memory(ctx, geometry, 1, stop, 1024, RenderRecorder::stop_scratch_bytes(s.width, s.height));
+    RenderRecorder render_in_own_memory(ctx, geometry, 1);
+    void* pictures_map = nullptr;
+    const uint64_t picture_bytes = uint64_t(s.width) * s.height * 16;
+    VkBuffer pictures = host.buffer(2 * picture_bytes, &pictures_map);
+    Buffer first = Buffer::adopt(ctx, pictures, 0, picture_bytes, "picture, host stop scratch");
+    Buffer second = Buffer::adopt(ctx, pictures, picture_bytes, picture_bytes, "picture, own stop indices");
+    cmd = host.begin();
+    render_in_host_memory.record_render(cmd, grid_field, om7, second_tf, s, first);
+    render_in_own_memory.record_render(cmd, grid_field, om7, second_tf, s, second);
+    Host::host_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                       VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT);
+    host.submit_and_wait();
+    EXPECT_EQ(0, std::memcmp(pictures_map, static_cast<char*>(pictures_map) + picture_bytes, picture_bytes));
+    RenderSettings larger = s;
+    larger.width += 1;
+    Buffer both = Buffer::adopt(ctx, pictures, 0, 2 * picture_bytes, "pictures");  // room for the larger image
+    cmd = host.begin();
+    try {
+      render_in_host_memory.record_render(cmd, grid_field, om7, second_tf, larger, both);
+      ADD_FAILURE() << "an image larger than the host's stop scratch was recorded";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("stop scratch"), std::string::npos) << e.what();
+    }
+    host.submit_and_wait();
   }
 }
 
