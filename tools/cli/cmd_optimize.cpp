@@ -212,6 +212,13 @@ std::string indexed_path(const std::string& out, size_t index, size_t count) {
   return (p.parent_path() / name).string();
 }
 
+// `text` as one CSV field: in double quotes, a quote inside doubled (RFC 4180).
+std::string csv_quoted(const std::string& text) {
+  std::string out = "\"";
+  for (char c : text) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return out + "\"";
+}
+
 // The series table beside --out: <stem>_series.csv.
 std::string series_table_path(const std::string& out) {
   const std::filesystem::path p(out);
@@ -319,7 +326,7 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
   for (size_t i = 0; i < count; ++i) {
     const SeriesFieldResult& f = s.fields[i];
     const std::string& tf_file = tf_files[a.shared_tf ? 0 : i];
-    csv << i << ",\"" << a.fields[i] << "\",\"" << tf_file << "\"," << std::setprecision(9) << f.field_range.lo << ","
+    csv << i << "," << csv_quoted(a.fields[i]) << "," << csv_quoted(tf_file) << "," << std::setprecision(9) << f.field_range.lo << ","
         << f.field_range.hi << "," << f.after.voxels << "," << f.before.rmse() << "," << f.after.rmse() << "\n";
     rows.push_back({{"index", i},
                     {"field", a.fields[i]},
