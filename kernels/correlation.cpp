@@ -128,6 +128,11 @@ double CorrelationKernel::error_bound(const CorrelationParams& params, uint32_t 
   return m == CorrelationMeasure::MiCoefficient ? std::sqrt(2 * mi) + final_ops : mi;
 }
 
+namespace {
+// record()'s chunks of an ensemble beyond one texel view: multiples of this many voxels.
+constexpr uint64_t kRecordChunkAlign = 64;
+}  // namespace
+
 struct CorrelationKernel::Impl {
   explicit Impl(Context& c) : ctx(c) {}
   Context& ctx;
@@ -167,6 +172,7 @@ struct CorrelationKernel::Impl {
     return buffer;
   }
   Buffer series, result;
+  Buffer recorded_series;  // record()'s chunks of an ensemble beyond one texel view
   std::vector<float> gathered;  // a chunk laid out on the host, when it cannot go up member by member
 
   static constexpr auto kBindingCounts =
@@ -336,14 +342,16 @@ void CorrelationKernel::check_record(const Buffer& ensemble, uint64_t voxels, co
                                 std::to_string(uint64_t(members) * voxels * sizeof(float)));
   if (out.size() < voxels * sizeof(float))
     throw std::invalid_argument(name + ": the output buffer holds fewer than " + std::to_string(voxels) + " floats");
-  if (uint64_t(members) * voxels > ctx.limits().maxTexelBufferElements)
-    throw std::invalid_argument(name + ": " + std::to_string(uint64_t(members) * voxels) +
-                                " values exceed one texel view of this device (maxTexelBufferElements " +
-                                std::to_string(ctx.limits().maxTexelBufferElements) + "); compute() streams chunks");
+  if (uint64_t(members) * kRecordChunkAlign > ctx.limits().maxTexelBufferElements)
+    throw std::invalid_argument(name + ": " + std::to_string(members) + " members: " +
+                                std::to_string(kRecordChunkAlign) + " voxels of them exceed one texel view of this "
+                                "device (maxTexelBufferElements " +
+                                std::to_string(ctx.limits().maxTexelBufferElements) + ")");
 }
 
 void CorrelationKernel::record(CommandBatch& batch, const Buffer& ensemble, uint64_t voxels,
-                               const CorrelationReference& ref, const CorrelationTables& tables, Buffer& out) {
+                               const CorrelationReference& ref, const CorrelationTables& tables, Buffer& out,
+                               uint64_t max_chunk_voxels) {
   const std::string name = correlation_measure_name(ref.params.measure);
   const uint32_t members = ref.members;
   Context& ctx = impl_->ctx;
@@ -356,12 +364,40 @@ void CorrelationKernel::record(CommandBatch& batch, const Buffer& ensemble, uint
   const Plan plan = make_plan(ref.params.measure, members);
   check_device_fits(ctx, plan, name, members);
   gpu::CorrelationPush push = make_push(ref);
-  push.voxel_count = uint32_t(voxels);
-  push.member_stride = uint32_t(voxels);  // member-major whatever the strategy
-  batch.dispatch(impl_->pipeline(plan, true),
-                 {Binding::texels(ensemble, VK_FORMAT_R32_SFLOAT, 0, uint64_t(members) * voxels * sizeof(float)), out,
-                  tables.values, tables.order, tables.group, tables.table},
-                 push, correlation_groups(ctx, plan, voxels));
+  const ComputePipeline& pipeline = impl_->pipeline(plan, true);  // member-major whatever the strategy
+  uint64_t chunk = std::min<uint64_t>(ctx.limits().maxTexelBufferElements / members, voxels);
+  if (max_chunk_voxels) chunk = std::min(chunk, max_chunk_voxels);
+  if (chunk == voxels) {  // the whole ensemble is one texel view: read in place
+    push.voxel_count = uint32_t(voxels);
+    push.member_stride = uint32_t(voxels);
+    batch.dispatch(pipeline,
+                   {Binding::texels(ensemble, VK_FORMAT_R32_SFLOAT, 0, uint64_t(members) * voxels * sizeof(float)), out,
+                    tables.values, tables.order, tables.group, tables.table},
+                   push, correlation_groups(ctx, plan, voxels));
+    return;
+  }
+  // Beyond one texel view: voxels [v0, v0 + n) of every member copied on the device (one region
+  // per member) into a member-major chunk of the recorder's that is one view, then the kernel on
+  // it into out's range. Chunks of a multiple of kRecordChunkAlign voxels keep out's ranges at
+  // storage-buffer offset alignment (the device's is at most 256 bytes).
+  chunk = std::max<uint64_t>(kRecordChunkAlign, chunk / kRecordChunkAlign * kRecordChunkAlign);
+  Buffer& series = impl_->kept(impl_->recorded_series, chunk * members * sizeof(float), "recorded correlation chunk");
+  for (uint64_t v0 = 0; v0 < voxels; v0 += chunk) {
+    const uint64_t n = std::min(chunk, voxels - v0);
+    for (uint32_t m = 0; m < members; ++m)
+      batch.copy(ensemble, (uint64_t(m) * voxels + v0) * sizeof(float), series, uint64_t(m) * n * sizeof(float),
+                 n * sizeof(float));
+    batch.barrier();  // the chunk's copies before the kernel reads them
+    push.voxel_count = uint32_t(n);
+    push.member_stride = uint32_t(n);
+    const Buffer range = Buffer::adopt(ctx, out.handle(), out.offset() + v0 * sizeof(float), n * sizeof(float),
+                                       "correlation output range");
+    batch.dispatch(pipeline,
+                   {Binding::texels(series, VK_FORMAT_R32_SFLOAT, 0, uint64_t(members) * n * sizeof(float)), range,
+                    tables.values, tables.order, tables.group, tables.table},
+                   push, correlation_groups(ctx, plan, n));
+    batch.barrier();  // the kernel's reads of the chunk before the next chunk's copies
+  }
 }
 
 }  // namespace tfm

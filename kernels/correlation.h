@@ -61,13 +61,16 @@ class CorrelationKernel {
 
   // Records the field of an ensemble already on the device: `ensemble` holds ref.members x
   // `voxels` floats, member-major (member m's voxel v at m * voxels + v; an embedder's buffer
-  // through Buffer::adopt), `out` gets `voxels` floats. One dispatch, the same kernels and bits
-  // as compute(); a reference with NaN fills `out` with NaN. `tables` must hold `ref`'s tables
-  // (record_correlation_tables, earlier in the same batch). Throws std::invalid_argument when a
-  // buffer is too small or the ensemble exceeds one texel view (maxTexelBufferElements values),
+  // through Buffer::adopt), `out` gets `voxels` floats: the same kernels and bits as compute(); a
+  // reference with NaN fills `out` with NaN. `tables` must hold `ref`'s tables
+  // (record_correlation_tables, earlier in the same batch). An ensemble within one texel view
+  // (maxTexelBufferElements values) is read in place by one dispatch; a larger one in chunks of
+  // voxels (at most `max_chunk_voxels`, when given: tests), each copied on the device into a
+  // member-major chunk of the kernel's memory (one copy region per member) and then read: device
+  // memory of one chunk, no host copy. Throws std::invalid_argument when a buffer is too small,
   // std::runtime_error as compute() does for device limits.
   void record(CommandBatch& batch, const Buffer& ensemble, uint64_t voxels, const CorrelationReference& ref,
-              const CorrelationTables& tables, Buffer& out);
+              const CorrelationTables& tables, Buffer& out, uint64_t max_chunk_voxels = 0);
   // record()'s checks of the buffers and sizes alone (std::invalid_argument), for callers that
   // must refuse before they record anything.
   void check_record(const Buffer& ensemble, uint64_t voxels, const CorrelationParams& params, uint32_t members,

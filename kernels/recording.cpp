@@ -251,7 +251,8 @@ RecordedAccess RenderRecorder::access() {
           VK_ACCESS_SHADER_WRITE_BIT};
 }
 
-CorrelationRecorder::CorrelationRecorder(Context& ctx) : ctx_(ctx), kernel_(std::make_unique<CorrelationKernel>(ctx)) {}
+CorrelationRecorder::CorrelationRecorder(Context& ctx, uint64_t max_chunk_voxels)
+    : ctx_(ctx), kernel_(std::make_unique<CorrelationKernel>(ctx)), max_chunk_voxels_(max_chunk_voxels) {}
 CorrelationRecorder::~CorrelationRecorder() = default;
 
 void CorrelationRecorder::record_correlation(VkCommandBuffer cmd, const Buffer& ensemble, uint64_t voxels,
@@ -263,12 +264,12 @@ void CorrelationRecorder::record_correlation(VkCommandBuffer cmd, const Buffer& 
   batch.barrier();  // an earlier recording's reads of the tables and writes of `out` finish first
   record_correlation_tables(batch, ctx_, ref, tables_);
   batch.barrier();
-  kernel_->record(batch, ensemble, voxels, ref, tables_, out);
+  kernel_->record(batch, ensemble, voxels, ref, tables_, out, max_chunk_voxels_);
 }
 
 RecordedAccess CorrelationRecorder::access() {
-  return {VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_SHADER_READ_BIT,
-          VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT};
+  return {VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+          VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT, VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT};
 }
 
 VoxelLossRecorder::VoxelLossRecorder(Context& ctx) : ctx_(ctx), kernel_(std::make_unique<VoxelLossKernel>(ctx)) {

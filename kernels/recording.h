@@ -262,7 +262,9 @@ class ImageFieldRecorder {
 // host's buffer of M x V floats, member-major (member m's voxel v at m * V + v).
 class CorrelationRecorder {
  public:
-  explicit CorrelationRecorder(Context& ctx);
+  // `max_chunk_voxels`: chunks of an ensemble beyond one texel view (CorrelationKernel::record),
+  // at most this many voxels when given (tests force chunks).
+  explicit CorrelationRecorder(Context& ctx, uint64_t max_chunk_voxels = 0);
   ~CorrelationRecorder();
   CorrelationRecorder(const CorrelationRecorder&) = delete;
   CorrelationRecorder& operator=(const CorrelationRecorder&) = delete;
@@ -270,17 +272,20 @@ class CorrelationRecorder {
   // Records the reference's tables (prepared on the host from `reference_series`, the M values at
   // the reference point, which the host has: nothing is read back) and the field of
   // `params.measure` into `out` (`voxels` floats): the same kernels and bits as
-  // CorrelationKernel::compute on the same values. Throws std::invalid_argument for bad params,
-  // sizes, or an ensemble beyond one texel view (CorrelationKernel::record).
+  // CorrelationKernel::compute on the same values; an ensemble beyond one texel view is read in
+  // chunks copied on the device (CorrelationKernel::record). Throws std::invalid_argument for bad
+  // params or sizes.
   void record_correlation(VkCommandBuffer cmd, const Buffer& ensemble, uint64_t voxels,
                           std::span<const float> reference_series, const CorrelationParams& params, Buffer& out);
-  // Reads the ensemble in the compute-shader stage and writes `out` there (shader write; a
-  // transfer write when the reference has NaN).
+  // Reads the ensemble in the compute-shader stage (beyond one texel view also in the transfer
+  // stage: transfer read) and writes `out` there (shader write; a transfer write when the
+  // reference has NaN).
   static RecordedAccess access();
 
  private:
   Context& ctx_;
   std::unique_ptr<CorrelationKernel> kernel_;
+  uint64_t max_chunk_voxels_;
   CorrelationTables tables_;
   std::unique_ptr<CommandBatch> recording_;
 };

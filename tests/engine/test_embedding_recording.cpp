@@ -550,6 +550,19 @@ TEST_F(EmbeddingRecording, CorrelationOfAnEnsembleInTheHostsBuffer) {
       if (k.measure == CorrelationMeasure::Pearson || k.measure == CorrelationMeasure::Spearman ||
           k.measure == CorrelationMeasure::Kendall)
         EXPECT_FLOAT_EQ(static_cast<const float*>(out_map)[1234], 1.0f);  // the reference point itself
+      // As if beyond one texel view: chunks of 448 voxels copied on the device (7 of them, the last
+      // 319), into a field at an aligned offset of the host's buffer: the same bits.
+      {
+        void* chunked_map = nullptr;
+        VkBuffer chunked_out = host.buffer(256 + voxels * 4, &chunked_map);
+        Buffer chunked_view = Buffer::adopt(ctx, chunked_out, 256, voxels * 4, "host correlation field, chunked");
+        CorrelationRecorder chunked(ctx, 448);
+        cmd = host.begin();
+        chunked.record_correlation(cmd, ensemble_view, voxels, reference, params, chunked_view);
+        Host::host_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT);
+        host.submit_and_wait();
+        EXPECT_EQ(0, std::memcmp(static_cast<const char*>(chunked_map) + 256, expected.data(), voxels * 4)) << "chunked";
+      }
 
       std::vector<float> with_nan = reference;
       with_nan[2] = NAN;
