@@ -46,28 +46,34 @@ constexpr auto kWeightedScatterBindingCounts =
                          TFM_SCATTER_BINDING_STATE, TFM_SCATTER_BINDING_ACCUM, TFM_SCATTER_BINDING_COORD_QUADS,
                          TFM_SCATTER_BINDING_RESIDUAL_TEXELS, TFM_SCATTER_BINDING_SCALE});
 
-// The pipeline of `desc`, its weighted variant when `weighted` (shader "<name>_weighted", where
-// `weighted_counts` are its bindings).
-template <size_t N>
-std::unique_ptr<ComputePipeline> variant(Context& ctx, PipelineDesc desc, bool weighted,
-                                         const std::array<uint32_t, N>& weighted_counts) {
-  if (weighted) {
-    desc.shader = std::string(desc.shader).insert(desc.shader.find("_int64") == std::string::npos
-                                                      ? desc.shader.size()
-                                                      : desc.shader.find("_int64"),
-                                                  "_weighted");
-    desc.binding_counts = gpu::to_vector(weighted_counts);
-    desc.binding_kinds.resize(desc.binding_counts.size(), DescriptorKind::StorageBuffer);
-  }
-  desc.spirv = shader_spirv(desc.shader);
-  return std::make_unique<ComputePipeline>(ctx, desc);
-}
-
 // A TF-sized vector (N RGBA entries) as texels.
 Binding tf_texels(const Buffer& b, uint32_t n) {
   return Binding::texels(b, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(n) * kRgbaBytes);
 }
 }  // namespace
+
+WeightedPipelines::WeightedPipelines(Context& ctx, PipelineDesc plain, std::vector<uint32_t> weighted_counts,
+                                     std::initializer_list<uint32_t> weighted_texels)
+    : ctx_(ctx), weighted_desc_(plain) {
+  plain.spirv = shader_spirv(plain.shader);
+  plain_ = std::make_unique<ComputePipeline>(ctx, plain);
+  // "sparse_scatter_int64" -> "sparse_scatter_weighted_int64"
+  const size_t int64 = weighted_desc_.shader.find("_int64");
+  weighted_desc_.shader.insert(int64 == std::string::npos ? weighted_desc_.shader.size() : int64, "_weighted");
+  weighted_desc_.binding_counts = std::move(weighted_counts);
+  weighted_desc_.binding_kinds.resize(weighted_desc_.binding_counts.size(), DescriptorKind::StorageBuffer);
+  for (uint32_t b : weighted_texels) weighted_desc_.binding_kinds.at(b) = DescriptorKind::UniformTexelBuffer;
+}
+
+const ComputePipeline& WeightedPipelines::get(bool weighted) const {
+  if (!weighted) return *plain_;
+  if (!weighted_) {
+    PipelineDesc desc = weighted_desc_;
+    desc.spirv = shader_spirv(desc.shader);
+    weighted_ = std::make_unique<ComputePipeline>(ctx_, desc);
+  }
+  return *weighted_;
+}
 
 VoxelVectors::VoxelVectors(Context& ctx, const DeviceField& ref, const DeviceField& opt, uint64_t max_chunk_voxels,
                            bool weighted)
@@ -144,16 +150,8 @@ SparsePrepareKernel::SparsePrepareKernel(Context& ctx, uint64_t range_quads, uin
   desc.push_constant_bytes = sizeof(gpu::PreparePush);
   desc.workgroup_size = workgroup_size_;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_}});
-  pipeline_ = variant(ctx, desc, false, kWeightedPrepareBindingCounts);
-  desc.binding_kinds.resize(kWeightedPrepareBindingCounts.size(), DescriptorKind::StorageBuffer);
-  desc.binding_kinds[TFM_PREPARE_BINDING_WEIGHTS] = DescriptorKind::UniformTexelBuffer;
-  desc_ = desc;
-}
-
-const ComputePipeline& SparsePrepareKernel::pipeline(bool weighted) const {
-  if (!weighted) return *pipeline_;
-  if (!weighted_) weighted_ = variant(ctx_, desc_, true, kWeightedPrepareBindingCounts);
-  return *weighted_;
+  pipelines_ = std::make_unique<WeightedPipelines>(ctx, desc, gpu::to_vector(kWeightedPrepareBindingCounts),
+                                                   std::initializer_list<uint32_t>{TFM_PREPARE_BINDING_WEIGHTS});
 }
 
 void SparsePrepareKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
@@ -197,7 +195,7 @@ void SparsePrepareKernel::record(CommandBatch& batch, const DeviceField& ref, co
       bindings.push_back(view_of(*weights, push.weight_field_shift));
       bindings.push_back(v.scale(r.chunk));
     }
-    batch.dispatch(pipeline(weights != nullptr), bindings, push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
+    batch.dispatch(pipelines_->get(weights != nullptr), bindings, push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
   }
 }
 
@@ -219,14 +217,7 @@ SparseGatherKernel::SparseGatherKernel(Context& ctx, bool write_out, bool accumu
                                     {TFM_GATHER_SPEC_WRITE_OUT, write_out ? 1u : 0u},
                                     {TFM_GATHER_SPEC_ACCUMULATE_NORM, accumulate_norm ? 1u : 0u},
                                     {TFM_GATHER_SPEC_NORM_SCALED, scaled ? 1u : 0u}});
-  pipeline_ = variant(ctx, desc, false, kWeightedGatherBindingCounts);
-  desc_ = desc;
-}
-
-const ComputePipeline& SparseGatherKernel::pipeline(bool weighted) const {
-  if (!weighted) return *pipeline_;
-  if (!weighted_) weighted_ = variant(ctx_, desc_, true, kWeightedGatherBindingCounts);
-  return *weighted_;
+  pipelines_ = std::make_unique<WeightedPipelines>(ctx, desc, gpu::to_vector(kWeightedGatherBindingCounts));
 }
 
 void SparseGatherKernel::record(CommandBatch& batch, VoxelVectors& v, uint32_t tf_size, const Buffer& x,
@@ -246,7 +237,7 @@ void SparseGatherKernel::record(CommandBatch& batch, VoxelVectors& v, uint32_t t
     std::vector<Binding> bindings{v.coord(r.chunk), xt, v.rgba(r.chunk), norm_accum, st,
                                   Binding::texels(v.coord(r.chunk), r.format, r.first * 4, r.bytes)};
     if (v.weighted()) bindings.push_back(v.scale(r.chunk));
-    batch.dispatch(pipeline(v.weighted()), bindings, push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
+    batch.dispatch(pipelines_->get(v.weighted()), bindings, push, {lane_groups(ctx_, workgroup_size_, r.voxels)});
     // Successive ranges add into the same accumulators.
     batch.barrier();
   }
@@ -285,14 +276,7 @@ SparseScatterKernel::SparseScatterKernel(Context& ctx, uint32_t tf_size, bool up
                                     {TFM_SCATTER_SPEC_SHARED_SLOTS, shared ? TFM_TF_GRADIENT_SLOTS(tf_size) : 1u},
                                     {TFM_SCATTER_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size : 0u},
                                     {TFM_SCATTER_SPEC_UPDATE_RESIDUAL, update_residual ? 1u : 0u}});
-  pipeline_ = variant(ctx, desc, false, kWeightedScatterBindingCounts);
-  desc_ = desc;
-}
-
-const ComputePipeline& SparseScatterKernel::pipeline(bool weighted) const {
-  if (!weighted) return *pipeline_;
-  if (!weighted_) weighted_ = variant(ctx_, desc_, true, kWeightedScatterBindingCounts);
-  return *weighted_;
+  pipelines_ = std::make_unique<WeightedPipelines>(ctx, desc, gpu::to_vector(kWeightedScatterBindingCounts));
 }
 
 void SparseScatterKernel::record(CommandBatch& batch, VoxelVectors& v, Buffer& accum) const {
@@ -322,7 +306,7 @@ void SparseScatterKernel::record_ranges(CommandBatch& batch, VoxelVectors& v, co
                                   Binding::texels(v.rgba(r.chunk), VK_FORMAT_R32G32B32A32_SFLOAT,
                                                   r.first * kRgbaBytes, r.voxels * kRgbaBytes)};
     if (v.weighted()) bindings.push_back(v.scale(r.chunk));
-    batch.dispatch(pipeline(v.weighted()), bindings, push, {reduction_.groups(ctx_, r.voxels)});
+    batch.dispatch(pipelines_->get(v.weighted()), bindings, push, {reduction_.groups(ctx_, r.voxels)});
     // Successive ranges add into the same accumulators.
     batch.barrier();
   }

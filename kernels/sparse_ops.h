@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <initializer_list>
 #include <memory>
 #include <vector>
 
@@ -21,6 +22,24 @@ class Context;
 // Per-voxel vectors of the matrix-free solvers over a pair of fields: the TF coordinate of each
 // voxel (4 bytes) and one RGBA vector (16 bytes; b, then the CGLS residual). Chunks are sized so
 // that an RGBA chunk fits one storage buffer and lies inside one chunk of the fields.
+// A kernel's pipeline and its TFM_WEIGHTED variant (weighted voxel vectors: the shader
+// "<stem>_weighted", its extra bindings after the plain ones), the variant built when weighted
+// vectors first come.
+class WeightedPipelines {
+ public:
+  // `weighted_counts`: the variant's bindings; `weighted_texels`: which of its extra bindings are
+  // uniform texel buffers (the others storage buffers).
+  WeightedPipelines(Context& ctx, PipelineDesc plain, std::vector<uint32_t> weighted_counts,
+                    std::initializer_list<uint32_t> weighted_texels = {});
+  const ComputePipeline& get(bool weighted) const;
+
+ private:
+  Context& ctx_;
+  std::unique_ptr<ComputePipeline> plain_;
+  PipelineDesc weighted_desc_;
+  mutable std::unique_ptr<ComputePipeline> weighted_;
+};
+
 class VoxelVectors {
  public:
   // `max_chunk_voxels` (0: device limit) forces smaller chunks in tests. Throws
@@ -75,10 +94,7 @@ class SparsePrepareKernel {
   Context& ctx_;
   uint64_t range_quads_;
   uint32_t workgroup_size_;
-  std::unique_ptr<ComputePipeline> pipeline_;
-  PipelineDesc desc_;
-  mutable std::unique_ptr<ComputePipeline> weighted_;  // built when weighted vectors first come
-  const ComputePipeline& pipeline(bool weighted) const;
+  std::unique_ptr<WeightedPipelines> pipelines_;
 };
 
 // q = S x (x: N RGBA entries; weighted vectors: each row times its voxel's scale). With `write_out` stores q in the vectors' RGBA chunks; with
@@ -100,10 +116,7 @@ class SparseGatherKernel {
   bool scaled_;
   uint64_t range_quads_;
   uint32_t workgroup_size_;
-  std::unique_ptr<ComputePipeline> pipeline_;
-  PipelineDesc desc_;
-  mutable std::unique_ptr<ComputePipeline> weighted_;  // built when weighted vectors first come
-  const ComputePipeline& pipeline(bool weighted) const;
+  std::unique_ptr<WeightedPipelines> pipelines_;
   Buffer dummy_state_;
 };
 
@@ -133,10 +146,7 @@ class SparseScatterKernel {
   bool update_;
   uint64_t range_quads_;
   Reduction reduction_;
-  std::unique_ptr<ComputePipeline> pipeline_;
-  PipelineDesc desc_;
-  mutable std::unique_ptr<ComputePipeline> weighted_;  // built when weighted vectors first come
-  const ComputePipeline& pipeline(bool weighted) const;
+  std::unique_ptr<WeightedPipelines> pipelines_;
   Buffer dummy_p_, dummy_state_;
 };
 
