@@ -644,52 +644,50 @@
   }
 
   // ---- series: the field shown -------------------------------------------------------------------
+  let seriesDragging = false;  // the slider is being moved: state updates leave it alone
   function initSeries() {
     const slider = $('#series-slider');
     slider.addEventListener('input', () => {
+      seriesDragging = true;
       const ser = V.state && V.state.series;
       if (ser) $('#series-index').textContent = `${slider.value}: ${ser.labels[Number(slider.value)]}`;
     });
     slider.addEventListener('change', () => {
+      seriesDragging = false;
       if (!V.state || V.state.mode !== 'series' || jobRunning) return;
       if (Number(slider.value) !== V.state.series.index) setField(Number(slider.value));
     });
   }
 
-  async function setField(index) {
-    const box = $('#series-error');
+  // POSTs a change that runs as a job (`kind`): its error in `box`, `pending` shown in `label`
+  // while it starts. Returns whether the job started.
+  async function postJob(path, body, box, label, pending, kind) {
     box.hidden = true;
     begin();
     try {
-      const res = await postJson('/api/field', { index });
-      const body = await res.json();
-      $('#series-index').textContent = `${index}: ${V.state.series.labels[index]} — loading and fitting…`;
-      startJob(body.job, 'field');
+      const res = await postJson(path, body);
+      const started = await res.json();
+      label.textContent = pending;
+      startJob(started.job, kind);
+      return true;
     } catch (e) {
       if (e instanceof ApiError && e.status === 409) { watchJob(); }
       box.textContent = e.message || String(e);
       box.hidden = false;
+      return false;
     } finally {
       end();
     }
   }
 
+  async function setField(index) {
+    const started = await postJob('/api/field', { index }, $('#series-error'), $('#series-index'),
+      `${index}: ${V.state.series.labels[index]} — loading and fitting…`, 'field');
+    if (!started) $('#series-slider').value = String(V.state.series.index);  // back to the field shown
+  }
+
   async function setReferencePoint(p) {
-    const box = $('#point-error');
-    box.hidden = true;
-    begin();
-    try {
-      const res = await postJson('/api/point', { point: p });
-      const body = await res.json();
-      $('#point-text').textContent = `(${p.join(', ')}) — computing…`;
-      startJob(body.job, 'point');
-    } catch (e) {
-      if (e instanceof ApiError && e.status === 409) { watchJob(); }
-      box.textContent = e.message || String(e);
-      box.hidden = false;
-    } finally {
-      end();
-    }
+    await postJob('/api/point', { point: p }, $('#point-error'), $('#point-text'), `(${p.join(', ')}) — computing…`, 'point');
   }
 
   // ---- TF plots ---------------------------------------------------------------------------------
@@ -760,7 +758,7 @@
     if (ser) {
       const slider = $('#series-slider');
       slider.max = String(ser.count - 1);
-      if (document.activeElement !== slider || !jobRunning) slider.value = String(ser.index);
+      if (!seriesDragging) slider.value = String(ser.index);
       $('#series-text').textContent = `${ser.count} fields against one reference; each gets its own TF when shown.`;
       $('#series-index').textContent = `${ser.index}: ${ser.labels[ser.index]}`;
     }
