@@ -15,29 +15,22 @@
 namespace tfm {
 namespace {
 
-// 24^3: rays cross enough voxels for the inner cube to be clearly hidden.
-struct Cube : test::CubeCase {
-  Cube() : CubeCase(24) {}
-};
-
-OptimizeResult fit(Context& ctx, const Cube& c, const std::string& solver, std::map<std::string, std::string> extra) {
-  return c.fit(ctx, solver, std::move(extra));
-}
-
-double image_psnr(Context& ctx, const Cube& c, const TransferFunction& tf) { return c.image_psnr(ctx, tf, 96); }
+// 24^3: rays cross enough voxels for the inner cube to be clearly hidden; pictures of 96^2.
+constexpr uint64_t kSize = 24;
+constexpr uint32_t kPicture = 96;
 
 using VisibilityWeightedSolvers = test::GpuTest;
 
 TEST_F(VisibilityWeightedSolvers, CubeImagesGainOverPlainLeastSquares) {
-  const Cube c;
-  const OptimizeResult plain = fit(ctx(), c, "normal-equations", {});
-  const double plain_psnr = image_psnr(ctx(), c, plain.tf);
+  const test::CubeCase c(kSize);
+  const OptimizeResult plain = c.fit(ctx(), "normal-equations");
+  const double plain_psnr = c.image_psnr(ctx(), plain.tf, kPicture);
   EXPECT_EQ(plain.details["weights"], "none");
   TransferFunction normal_equations_tf;
   for (const char* solver : {"normal-equations", "qp", "cgls"}) {
     SCOPED_TRACE(solver);
-    const OptimizeResult weighted = fit(ctx(), c, solver, {{"weights", "visibility"}});
-    const double psnr = image_psnr(ctx(), c, weighted.tf);
+    const OptimizeResult weighted = c.fit(ctx(), solver, {{"weights", "visibility"}});
+    const double psnr = c.image_psnr(ctx(), weighted.tf, kPicture);
     std::printf("cube 24^3, %s: PSNR plain %.2f dB, visibility-weighted %.2f dB\n", solver, plain_psnr, psnr);
     EXPECT_GT(psnr, plain_psnr + 5.0);
     EXPECT_EQ(weighted.details["weights"], "visibility");
@@ -59,16 +52,16 @@ TEST_F(VisibilityWeightedSolvers, CubeImagesGainOverPlainLeastSquares) {
     }
   }
   // Random cameras, a seed: another camera set, still a gain.
-  const OptimizeResult random = fit(ctx(), c, "normal-equations",
+  const OptimizeResult random = c.fit(ctx(), "normal-equations",
                                     {{"weights", "visibility"}, {"cameras", "random"}, {"seed", "4"}, {"weight-views", "6"}});
-  EXPECT_GT(image_psnr(ctx(), c, random.tf), plain_psnr + 3.0);
+  EXPECT_GT(c.image_psnr(ctx(), random.tf, kPicture), plain_psnr + 3.0);
 }
 
 TEST_F(VisibilityWeightedSolvers, OptionsAreCheckedAndOnlyWhereTheyApply) {
-  const Cube c;
-  EXPECT_THROW(fit(ctx(), c, "normal-equations", {{"weights", "brightness"}}), std::runtime_error);
-  EXPECT_THROW(fit(ctx(), c, "normal-equations", {{"weights", "visibility"}, {"weight-views", "0"}}), std::runtime_error);
-  EXPECT_THROW(fit(ctx(), c, "gradient-descent", {{"weights", "visibility"}}), std::runtime_error);
+  const test::CubeCase c(kSize);
+  EXPECT_THROW(c.fit(ctx(), "normal-equations", {{"weights", "brightness"}}), std::runtime_error);
+  EXPECT_THROW(c.fit(ctx(), "normal-equations", {{"weights", "visibility"}, {"weight-views", "0"}}), std::runtime_error);
+  EXPECT_THROW(c.fit(ctx(), "gradient-descent", {{"weights", "visibility"}}), std::runtime_error);
 }
 
 }  // namespace
