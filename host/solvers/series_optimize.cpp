@@ -219,7 +219,8 @@ SeriesResult shared(Context& ctx, const SeriesRequest& req) {
 
 }  // namespace
 
-bool solver_fits_shared(std::string_view solver) { return solver == "normal-equations" || solver == "qp"; }
+// The solvers that work from the assembled system alone: those that stream.
+bool solver_fits_shared(std::string_view solver) { return solver_streams(solver); }
 
 SeriesResult run_optimize_series(Context& ctx, const SeriesRequest& req) {
   if (req.streamed() ? !req.open_field_slabs : (!req.ref || !req.load_field))
