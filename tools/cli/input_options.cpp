@@ -6,6 +6,7 @@
 #include <charconv>
 #include <iostream>
 #include <optional>
+#include <sstream>
 #include <tuple>
 
 #include "cli.h"
@@ -156,12 +157,8 @@ std::vector<std::string> expand_field_specs(const std::vector<std::string>& spec
     }
     // The selection's parts, one of which may be a range.
     std::vector<std::string> parts;
-    for (size_t start = 0; !selection.empty() && start <= selection.size();) {
-      const size_t comma = selection.find(',', start);
-      parts.push_back(selection.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
-      if (comma == std::string::npos) break;
-      start = comma + 1;
-    }
+    std::istringstream split(selection);
+    for (std::string part; std::getline(split, part, ',');) parts.push_back(part);
     size_t range_part = parts.size();
     std::tuple<std::string, uint64_t, uint64_t> range{"", 0, 0};
     for (size_t k = 0; k < parts.size(); ++k)
