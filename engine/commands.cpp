@@ -135,7 +135,7 @@ VkDescriptorSet CommandBatch::allocate_set(VkDescriptorSetLayout layout) {
                                        {VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE, kDescriptorsPerPool}};
   VkDescriptorPoolCreateInfo info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   info.maxSets = kSetsPerPool;
-  info.poolSizeCount = 2;
+  info.poolSizeCount = static_cast<uint32_t>(std::size(sizes));
   info.pPoolSizes = sizes;
   VkDescriptorPool pool = VK_NULL_HANDLE;
   VK_CHECK(vk.vkCreateDescriptorPool(ctx_.device(), &info, nullptr, &pool));
@@ -312,49 +312,111 @@ void CommandBatch::copy_to_image(const Buffer& src, VkImage image, uint32_t widt
   vk.vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_TRANSFER_BIT, dst_stages, 0, 0, nullptr, 0, nullptr, 1, &to_use);
 }
 
+namespace {
+// The layout a host's image is copied from: its own when a copy may read it there.
+VkImageLayout copy_layout_of(VkImageLayout layout) {
+  return layout == VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL || layout == VK_IMAGE_LAYOUT_GENERAL
+             ? layout
+             : VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
+}
+
+VkImageMemoryBarrier whole_image_barrier(VkImage image, VkImageLayout from, VkImageLayout to, VkAccessFlags src,
+                                         VkAccessFlags dst) {
+  VkImageMemoryBarrier b{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER};
+  b.srcAccessMask = src;
+  b.dstAccessMask = dst;
+  b.oldLayout = from;
+  b.newLayout = to;
+  b.srcQueueFamilyIndex = b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+  b.image = image;
+  b.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+  return b;
+}
+}  // namespace
+
+void CommandBatch::begin_image_copies(std::span<const HostImage> images) {
+  VkPipelineStageFlags host_before = 0;
+  std::vector<VkImageMemoryBarrier> barriers;
+  for (const HostImage& im : images) {
+    host_before |= im.src_stages;
+    barriers.push_back(whole_image_barrier(im.image, im.layout, copy_layout_of(im.layout), im.src_access,
+                                           VK_ACCESS_TRANSFER_READ_BIT));
+  }
+  // Earlier reads and writes of the copies' destinations (the kernels that read the last copy,
+  // the last copy) finish before the copies write them.
+  VkMemoryBarrier before{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  before.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+  before.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  ctx_.vk().vkCmdPipelineBarrier(
+      cmd_, (host_before ? host_before : VkPipelineStageFlags(VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT)) | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT |
+                VK_PIPELINE_STAGE_TRANSFER_BIT,
+      VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &before, 0, nullptr, static_cast<uint32_t>(barriers.size()),
+      barriers.data());
+}
+
+void CommandBatch::copy_image_voxels(const HostImage& image, VkExtent3D extent, uint32_t texel_bytes, uint64_t first,
+                                     uint64_t count, const Buffer& dst, uint64_t dst_offset) {
+  const uint64_t nx = extent.width, ny = extent.height, slice = nx * ny;
+  if (count == 0) return;
+  if (first + count > slice * extent.depth)
+    throw std::logic_error("copy_image_voxels: voxels [" + std::to_string(first) + ", +" + std::to_string(count) +
+                           ") outside the image");
+  std::vector<VkBufferImageCopy> regions;
+  uint64_t v = first;
+  const uint64_t end = first + count;
+  // One box of whole texels starting at voxel v: `w` texels of a row, `h` rows, `d` slices.
+  auto add = [&](uint64_t w, uint64_t h, uint64_t d) {
+    VkBufferImageCopy r{};
+    r.bufferOffset = dst.offset() + dst_offset + (v - first) * texel_bytes;
+    r.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+    r.imageOffset = {int32_t(v % nx), int32_t(v / nx % ny), int32_t(v / slice)};
+    r.imageExtent = {uint32_t(w), uint32_t(h), uint32_t(d)};
+    regions.push_back(r);
+    v += w * h * d;
+  };
+  if (v % nx) add(std::min(nx - v % nx, end - v), 1, 1);  // the rest of the first row
+  if (v < end && v % slice) {                               // whole rows to the end of the slice
+    const uint64_t rows = std::min(ny - v / nx % ny, (end - v) / nx);
+    if (rows) add(nx, rows, 1);
+  }
+  if (v < end && (end - v) / slice) add(nx, ny, (end - v) / slice);  // whole slices
+  if (v < end && (end - v) / nx) add(nx, (end - v) / nx, 1);         // whole rows of the last slice
+  if (v < end) add(end - v, 1, 1);                                   // the start of the last row
+  ctx_.vk().vkCmdCopyImageToBuffer(cmd_, image.image, copy_layout_of(image.layout), dst.handle(),
+                                   static_cast<uint32_t>(regions.size()), regions.data());
+}
+
+void CommandBatch::end_image_copies(std::span<const HostImage> images) {
+  VkPipelineStageFlags host_after = 0;
+  std::vector<VkImageMemoryBarrier> barriers;
+  for (const HostImage& im : images) {
+    host_after |= im.dst_stages;
+    if (copy_layout_of(im.layout) != im.layout)  // the copies only read it: nothing to make visible
+      barriers.push_back(whole_image_barrier(im.image, copy_layout_of(im.layout), im.layout, 0, im.dst_access));
+  }
+  // The copies are visible to the kernels that read them; the images go back to the host's
+  // layouts before its next use of them.
+  VkMemoryBarrier after{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  after.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  after.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+  ctx_.vk().vkCmdPipelineBarrier(
+      cmd_, VK_PIPELINE_STAGE_TRANSFER_BIT,
+      VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | (host_after ? host_after : VkPipelineStageFlags(VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT)), 0, 1,
+      &after, 0, nullptr, static_cast<uint32_t>(barriers.size()), barriers.data());
+}
+
 void CommandBatch::copy_from_image(VkImage image, VkExtent3D extent, VkImageLayout layout,
                                    VkPipelineStageFlags src_stages, VkAccessFlags src_access,
                                    VkPipelineStageFlags dst_stages, VkAccessFlags dst_access, const Buffer& dst,
                                    uint64_t dst_offset) {
-  const auto& vk = ctx_.vk();
-  const bool transition = layout != VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL && layout != VK_IMAGE_LAYOUT_GENERAL;
-  const VkImageLayout copy_layout = transition ? VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL : layout;
-  const VkPipelineStageFlags host_before =
-      src_stages ? src_stages : VkPipelineStageFlags(VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
-  const VkPipelineStageFlags host_after =
-      dst_stages ? dst_stages : VkPipelineStageFlags(VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
-  // Earlier reads and writes of `dst` (the kernels that read the last copy, the last copy) finish
-  // before this copy writes it.
-  VkMemoryBarrier before{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-  before.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  before.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  VkImageMemoryBarrier to_src{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER};
-  to_src.srcAccessMask = src_access;
-  to_src.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-  to_src.oldLayout = layout;
-  to_src.newLayout = copy_layout;
-  to_src.srcQueueFamilyIndex = to_src.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-  to_src.image = image;
-  to_src.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
-  vk.vkCmdPipelineBarrier(cmd_, host_before | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
-                          VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &before, 0, nullptr, 1, &to_src);
+  const HostImage host{image, layout, src_stages, src_access, dst_stages, dst_access};
+  begin_image_copies({&host, 1});
   VkBufferImageCopy region{};
   region.bufferOffset = dst.offset() + dst_offset;
   region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
   region.imageExtent = extent;
-  vk.vkCmdCopyImageToBuffer(cmd_, image, copy_layout, dst.handle(), 1, &region);
-  // The copy is visible to the kernels that read the field; the image goes back to the host's
-  // layout before the host's next use of it.
-  VkMemoryBarrier after{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-  after.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  after.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
-  VkImageMemoryBarrier back = to_src;
-  back.srcAccessMask = 0;  // the copy only read it
-  back.dstAccessMask = dst_access;
-  back.oldLayout = copy_layout;
-  back.newLayout = layout;
-  vk.vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | host_after, 0, 1,
-                          &after, 0, nullptr, transition ? 1 : 0, &back);
+  ctx_.vk().vkCmdCopyImageToBuffer(cmd_, image, copy_layout_of(layout), dst.handle(), 1, &region);
+  end_image_copies({&host, 1});
 }
 
 uint32_t CommandBatch::timestamp() {

@@ -93,6 +93,27 @@ class CommandBatch {
   // host's next use) wait for the copy. Earlier transfer writes to `src` are ordered before it.
   void copy_to_image(const Buffer& src, VkImage image, uint32_t width, VkImageLayout old_layout,
                      VkImageLayout new_layout, VkPipelineStageFlags dst_stages, VkAccessFlags dst_access);
+  // Transfer copies out of a host's images, in three steps: begin_image_copies orders the host's
+  // last writes of each image (src_stages/src_access) and every earlier compute and transfer
+  // access of this batch before transfer reads, moving each image to TRANSFER_SRC_OPTIMAL unless it
+  // is in GENERAL or already there; copy_image_voxels copies any number of voxel ranges; then
+  // end_image_copies makes the copies visible to compute-shader reads and returns each image to
+  // its layout before the host's next use (dst_stages/dst_access).
+  struct HostImage {
+    VkImage image = VK_NULL_HANDLE;
+    VkImageLayout layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+    VkPipelineStageFlags src_stages = 0;  // 0: nothing to wait for
+    VkAccessFlags src_access = 0;
+    VkPipelineStageFlags dst_stages = 0;  // 0: nothing waits
+    VkAccessFlags dst_access = 0;
+  };
+  void begin_image_copies(std::span<const HostImage> images);
+  // Voxels [first, first + count) of mip 0, layer 0 of `image` (`extent` texels of `texel_bytes`,
+  // x fastest, voxel (z ny + y) nx + x) into `dst` from `dst_offset`, tightly packed: at most five
+  // copy regions (a partial row, rows, slices, rows, a partial row). Between begin and end only.
+  void copy_image_voxels(const HostImage& image, VkExtent3D extent, uint32_t texel_bytes, uint64_t first,
+                         uint64_t count, const Buffer& dst, uint64_t dst_offset);
+  void end_image_copies(std::span<const HostImage> images);
   // Copies the whole of mip level 0, layer 0 of the 3D (or 2D) colour image `image` (`extent`
   // texels, x fastest, tightly packed) into `dst` from `dst_offset` (a multiple of the texel size).
   // The image is in `layout` and usable as a transfer source; unless that is TRANSFER_SRC_OPTIMAL
