@@ -329,17 +329,25 @@ void record_correlation_tables(CommandBatch& batch, Context& ctx, const Correlat
   write(tables.table, ref.table.data(), ref.table.size() * sizeof(float), "correlation count table");
 }
 
-void CorrelationKernel::check_record(const Buffer& ensemble, uint64_t voxels, const CorrelationParams& params,
-                                     uint32_t members, const Buffer& out) const {
+void CorrelationKernel::check_record(const DeviceEnsemble& ensemble, const CorrelationParams& params, uint32_t members,
+                                     const Buffer& out) const {
   const std::string name = correlation_measure_name(params.measure);
   const Context& ctx = impl_->ctx;
+  const uint64_t voxels = ensemble.voxel_count();
+  const uint64_t value_bytes = field_format_bytes(ensemble.format);
+  if (!ensemble.buffer && ensemble.images.size() != members)
+    throw std::invalid_argument(name + ": " + std::to_string(ensemble.images.size()) + " member images for a reference of " +
+                                std::to_string(members) + " members");
   if (voxels == 0) throw std::invalid_argument(name + ": no voxels");
   if (voxels > std::numeric_limits<uint32_t>::max())
     throw std::invalid_argument(name + ": " + std::to_string(voxels) + " voxels; one recording takes at most 2^32 - 1");
-  if (ensemble.size() < uint64_t(members) * voxels * sizeof(float))
-    throw std::invalid_argument(name + ": the ensemble buffer holds " + std::to_string(ensemble.size()) + " bytes, " +
-                                std::to_string(members) + " members x " + std::to_string(voxels) + " voxels need " +
-                                std::to_string(uint64_t(members) * voxels * sizeof(float)));
+  if (ensemble.buffer && ensemble.buffer->size() < uint64_t(members) * voxels * value_bytes)
+    throw std::invalid_argument(name + ": the ensemble buffer holds " + std::to_string(ensemble.buffer->size()) +
+                                " bytes, " + std::to_string(members) + " members x " + std::to_string(voxels) +
+                                " voxels of " + field_format_name(ensemble.format) + " need " +
+                                std::to_string(uint64_t(members) * voxels * value_bytes));
+  for (const CommandBatch::HostImage& image : ensemble.images)
+    if (image.image == VK_NULL_HANDLE) throw std::invalid_argument(name + ": a member image is VK_NULL_HANDLE");
   if (out.size() < voxels * sizeof(float))
     throw std::invalid_argument(name + ": the output buffer holds fewer than " + std::to_string(voxels) + " floats");
   if (uint64_t(members) * kRecordChunkAlign > ctx.limits().maxTexelBufferElements)
@@ -349,13 +357,13 @@ void CorrelationKernel::check_record(const Buffer& ensemble, uint64_t voxels, co
                                 std::to_string(ctx.limits().maxTexelBufferElements) + ")");
 }
 
-void CorrelationKernel::record(CommandBatch& batch, const Buffer& ensemble, uint64_t voxels,
-                               const CorrelationReference& ref, const CorrelationTables& tables, Buffer& out,
-                               uint64_t max_chunk_voxels) {
+void CorrelationKernel::record(CommandBatch& batch, const DeviceEnsemble& ensemble, const CorrelationReference& ref,
+                               const CorrelationTables& tables, Buffer& out, uint64_t max_chunk_voxels) {
   const std::string name = correlation_measure_name(ref.params.measure);
   const uint32_t members = ref.members;
+  const uint64_t voxels = ensemble.voxel_count();
   Context& ctx = impl_->ctx;
-  check_record(ensemble, voxels, ref.params, members, out);
+  check_record(ensemble, ref.params, members, out);
   if (ref.has_nan) {  // NaN at every voxel (kernels/correlation.h)
     Buffer view = Buffer::adopt(ctx, out.handle(), out.offset(), voxels * sizeof(float), "correlation output");
     batch.fill(view, 0x7fc00000u);
@@ -365,39 +373,51 @@ void CorrelationKernel::record(CommandBatch& batch, const Buffer& ensemble, uint
   check_device_fits(ctx, plan, name, members);
   gpu::CorrelationPush push = make_push(ref);
   const ComputePipeline& pipeline = impl_->pipeline(plan, true);  // member-major whatever the strategy
+  // The kernels read every format through a texel view of it: the stored texels, converted by the
+  // device as a fetch from a field of that format is.
+  const VkFormat texel_format = voxel_texel_format(ensemble.format);
+  const uint64_t value_bytes = field_format_bytes(ensemble.format);
   uint64_t chunk = std::min<uint64_t>(ctx.limits().maxTexelBufferElements / members, voxels);
   if (max_chunk_voxels) chunk = std::min(chunk, max_chunk_voxels);
-  if (chunk == voxels) {  // the whole ensemble is one texel view: read in place
+  if (ensemble.buffer && chunk == voxels) {  // the whole ensemble is one texel view: read in place
     push.voxel_count = uint32_t(voxels);
     push.member_stride = uint32_t(voxels);
     batch.dispatch(pipeline,
-                   {Binding::texels(ensemble, VK_FORMAT_R32_SFLOAT, 0, uint64_t(members) * voxels * sizeof(float)), out,
+                   {Binding::texels(*ensemble.buffer, texel_format, 0, uint64_t(members) * voxels * value_bytes), out,
                     tables.values, tables.order, tables.group, tables.table},
                    push, correlation_groups(ctx, plan, voxels));
     return;
   }
-  // Beyond one texel view: voxels [v0, v0 + n) of every member copied on the device (one region
-  // per member) into a member-major chunk of the recorder's that is one view, then the kernel on
-  // it into out's range. Chunks of a multiple of kRecordChunkAlign voxels keep out's ranges at
-  // storage-buffer offset alignment (the device's is at most 256 bytes).
+  // Beyond one texel view, and from images: voxels [v0, v0 + n) of every member copied on the
+  // device (a buffer region, or up to five image regions, per member) into a member-major chunk of
+  // the kernel's that is one view, then the kernel on it into out's range. Chunks of a multiple of
+  // kRecordChunkAlign voxels keep out's ranges at storage-buffer offset alignment (the device's is
+  // at most 256 bytes).
   chunk = std::max<uint64_t>(kRecordChunkAlign, chunk / kRecordChunkAlign * kRecordChunkAlign);
-  Buffer& series = impl_->kept(impl_->recorded_series, chunk * members * sizeof(float), "recorded correlation chunk");
+  Buffer& series = impl_->kept(impl_->recorded_series, chunk * members * value_bytes, "recorded correlation chunk");
+  if (!ensemble.buffer) batch.begin_image_copies(ensemble.images);
   for (uint64_t v0 = 0; v0 < voxels; v0 += chunk) {
     const uint64_t n = std::min(chunk, voxels - v0);
-    for (uint32_t m = 0; m < members; ++m)
-      batch.copy(ensemble, (uint64_t(m) * voxels + v0) * sizeof(float), series, uint64_t(m) * n * sizeof(float),
-                 n * sizeof(float));
+    if (v0 > 0) batch.barrier();  // the last chunk's kernel read `series` before these copies write it
+    for (uint32_t m = 0; m < members; ++m) {
+      const uint64_t at = uint64_t(m) * n * value_bytes;
+      if (ensemble.buffer)
+        batch.copy(*ensemble.buffer, (uint64_t(m) * voxels + v0) * value_bytes, series, at, n * value_bytes);
+      else
+        batch.copy_image_voxels(ensemble.images[m], ensemble.extent, uint32_t(value_bytes), v0, n, series, at);
+    }
     batch.barrier();  // the chunk's copies before the kernel reads them
     push.voxel_count = uint32_t(n);
     push.member_stride = uint32_t(n);
     const Buffer range = Buffer::adopt(ctx, out.handle(), out.offset() + v0 * sizeof(float), n * sizeof(float),
                                        "correlation output range");
     batch.dispatch(pipeline,
-                   {Binding::texels(series, VK_FORMAT_R32_SFLOAT, 0, uint64_t(members) * n * sizeof(float)), range,
-                    tables.values, tables.order, tables.group, tables.table},
+                   {Binding::texels(series, texel_format, 0, uint64_t(members) * n * value_bytes), range, tables.values,
+                    tables.order, tables.group, tables.table},
                    push, correlation_groups(ctx, plan, n));
-    batch.barrier();  // the kernel's reads of the chunk before the next chunk's copies
   }
+  if (!ensemble.buffer) batch.end_image_copies(ensemble.images);
+  batch.barrier();  // the kernel's reads of the chunk before any later copy into it
 }
 
 }  // namespace tfm

@@ -22,10 +22,11 @@
 #include "correlation_measure.h"  // the measures, their parameters, EnsembleView
 
 #include "buffer.h"
+#include "commands.h"
+#include "device_field.h"
 
 namespace tfm {
 
-class CommandBatch;
 class Context;
 struct CorrelationReference;
 
@@ -37,6 +38,26 @@ struct CorrelationTables {
 // Records the writes of `ref`'s tables into `tables` (each grown when too small) inside `batch`.
 void record_correlation_tables(CommandBatch& batch, Context& ctx, const CorrelationReference& ref,
                                CorrelationTables& tables);
+
+// An ensemble already on the device, as CorrelationKernel::record reads it: either `buffer`,
+// holding members x `voxels` values of `format` member-major (member m's voxel v at m * voxels + v;
+// an embedder's buffer through Buffer::adopt), or `images`, one 3D image per member (mip 0,
+// layer 0; `extent` texels each, x fastest; transfer-source usage), all in `format`. What the
+// kernels correlate is the stored number (DeviceField's FieldFormat: the float, the float16, or a
+// unorm's c / (2^b - 1)), and the reference series must be given in the same numbers. Pearson,
+// Spearman, Kendall and binned MI are unchanged by an increasing affine value mapping (up to
+// rounding); Kraskov MI's max-norm distances are not, so for it the field is that of the stored
+// numbers.
+struct DeviceEnsemble {
+  const Buffer* buffer = nullptr;
+  uint64_t voxels = 0;  // of a buffer's members; images: extent's product
+  std::span<const CommandBatch::HostImage> images;
+  VkExtent3D extent{0, 0, 0};
+  FieldFormat format = FieldFormat::Float32;
+  uint64_t voxel_count() const {
+    return buffer ? voxels : uint64_t(extent.width) * extent.height * extent.depth;
+  }
+};
 
 // Called after each chunk of voxels with (voxels done, voxels in all).
 using CorrelationProgress = std::function<void(uint64_t done, uint64_t total)>;
@@ -59,21 +80,27 @@ class CorrelationKernel {
   std::vector<float> compute(const EnsembleView& ens, std::span<const float> reference, const CorrelationParams& params,
                              const CorrelationProgress& progress = {}, uint64_t max_device_bytes = 0);
 
-  // Records the field of an ensemble already on the device: `ensemble` holds ref.members x
-  // `voxels` floats, member-major (member m's voxel v at m * voxels + v; an embedder's buffer
-  // through Buffer::adopt), `out` gets `voxels` floats: the same kernels and bits as compute(); a
+  // Records the field of an ensemble already on the device (DeviceEnsemble); `out` gets its
+  // voxel count of floats: the same kernels and bits as compute() on the same stored numbers; a
   // reference with NaN fills `out` with NaN. `tables` must hold `ref`'s tables
-  // (record_correlation_tables, earlier in the same batch). An ensemble within one texel view
-  // (maxTexelBufferElements values) is read in place by one dispatch; a larger one in chunks of
-  // voxels (at most `max_chunk_voxels`, when given: tests), each copied on the device into a
-  // member-major chunk of the kernel's memory (one copy region per member) and then read: device
-  // memory of one chunk, no host copy. Throws std::invalid_argument when a buffer is too small,
-  // std::runtime_error as compute() does for device limits.
-  void record(CommandBatch& batch, const Buffer& ensemble, uint64_t voxels, const CorrelationReference& ref,
+  // (record_correlation_tables, earlier in the same batch). A buffer within one texel view
+  // (maxTexelBufferElements values) is read in place by one dispatch; a larger one, and images
+  // (which the kernels' texel fetches cannot read as one member-major series: one descriptor per
+  // member, with indices that differ between the invocations of a workgroup, is beyond what
+  // Vulkan guarantees), in chunks of voxels (at most `max_chunk_voxels`, when given: tests), each
+  // copied on the device, in its own format, into a member-major chunk of the kernel's memory
+  // and then read: device memory of one chunk, no host copy. Throws std::invalid_argument when a
+  // buffer is too small, std::runtime_error as compute() does for device limits.
+  void record(CommandBatch& batch, const DeviceEnsemble& ensemble, const CorrelationReference& ref,
               const CorrelationTables& tables, Buffer& out, uint64_t max_chunk_voxels = 0);
+  // A buffer of float32 values.
+  void record(CommandBatch& batch, const Buffer& ensemble, uint64_t voxels, const CorrelationReference& ref,
+              const CorrelationTables& tables, Buffer& out, uint64_t max_chunk_voxels = 0) {
+    record(batch, DeviceEnsemble{&ensemble, voxels}, ref, tables, out, max_chunk_voxels);
+  }
   // record()'s checks of the buffers and sizes alone (std::invalid_argument), for callers that
   // must refuse before they record anything.
-  void check_record(const Buffer& ensemble, uint64_t voxels, const CorrelationParams& params, uint32_t members,
+  void check_record(const DeviceEnsemble& ensemble, const CorrelationParams& params, uint32_t members,
                     const Buffer& out) const;
 
   // Which strategy compute() uses for `member_count` (for messages and the benchmark), e.g.

@@ -258,13 +258,45 @@ CorrelationRecorder::~CorrelationRecorder() = default;
 void CorrelationRecorder::record_correlation(VkCommandBuffer cmd, const Buffer& ensemble, uint64_t voxels,
                                              std::span<const float> reference_series, const CorrelationParams& params,
                                              Buffer& out) {
+  record(cmd, DeviceEnsemble{&ensemble, voxels}, reference_series, params, out);
+}
+
+void CorrelationRecorder::record_correlation(VkCommandBuffer cmd, const Buffer& ensemble, FieldFormat format,
+                                             uint64_t voxels, std::span<const float> reference_series,
+                                             const CorrelationParams& params, Buffer& out) {
+  DeviceEnsemble source{&ensemble, voxels};
+  source.format = format;
+  record(cmd, source, reference_series, params, out);
+}
+
+void CorrelationRecorder::record_correlation(VkCommandBuffer cmd, std::span<const ImageFieldSource> members,
+                                             std::span<const float> reference_series, const CorrelationParams& params,
+                                             Buffer& out) {
+  if (members.empty()) throw std::invalid_argument("record_correlation: no member images");
+  std::vector<CommandBatch::HostImage> images;
+  for (const ImageFieldSource& m : members) {
+    if (m.extent.width != members[0].extent.width || m.extent.height != members[0].extent.height ||
+        m.extent.depth != members[0].extent.depth || m.format != members[0].format)
+      throw std::invalid_argument("record_correlation: member image " + std::to_string(images.size()) +
+                                  " differs from member 0 in extent or format");
+    images.push_back({m.image, m.layout, m.src_stages, m.src_access, m.dst_stages, m.dst_access});
+  }
+  DeviceEnsemble source;
+  source.images = images;
+  source.extent = members[0].extent;
+  source.format = field_format_of(members[0].format, "record_correlation");
+  record(cmd, source, reference_series, params, out);
+}
+
+void CorrelationRecorder::record(VkCommandBuffer cmd, const DeviceEnsemble& ensemble,
+                                 std::span<const float> reference_series, const CorrelationParams& params, Buffer& out) {
   const CorrelationReference ref = prepare_correlation_reference(reference_series, params);  // checks params
-  kernel_->check_record(ensemble, voxels, params, ref.members, out);
+  kernel_->check_record(ensemble, params, ref.members, out);
   CommandBatch& batch = restart(recording_, ctx_, cmd);
   batch.barrier();  // an earlier recording's reads of the tables and writes of `out` finish first
   record_correlation_tables(batch, ctx_, ref, tables_);
   batch.barrier();
-  kernel_->record(batch, ensemble, voxels, ref, tables_, out, max_chunk_voxels_);
+  kernel_->record(batch, ensemble, ref, tables_, out, max_chunk_voxels_);
 }
 
 RecordedAccess CorrelationRecorder::access() {

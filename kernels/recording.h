@@ -277,9 +277,22 @@ class CorrelationRecorder {
   // params or sizes.
   void record_correlation(VkCommandBuffer cmd, const Buffer& ensemble, uint64_t voxels,
                           std::span<const float> reference_series, const CorrelationParams& params, Buffer& out);
-  // Reads the ensemble in the compute-shader stage (beyond one texel view also in the transfer
-  // stage: transfer read) and writes `out` there (shader write; a transfer write when the
-  // reference has NaN).
+  // The same for a buffer of members x voxels values of `format` (float16 halves the memory of a
+  // float32 ensemble; unorm16 and unorm8 correlate the stored numbers c / (2^b - 1), which is what
+  // `reference_series` must hold too: kernels/correlation.h's DeviceEnsemble).
+  void record_correlation(VkCommandBuffer cmd, const Buffer& ensemble, FieldFormat format, uint64_t voxels,
+                          std::span<const float> reference_series, const CorrelationParams& params, Buffer& out);
+  // The same for an ensemble held as one 3D image per member (ImageFieldSource each, all of one
+  // extent and format; `out` gets the extent's voxel count of floats): the images are copied
+  // chunk by chunk on the device, in their own format, into the recorder's member-major chunk
+  // (at most maxTexelBufferElements values, or max_chunk_voxels per member) and read from there
+  // with the same kernels and bits as the same stored numbers in a buffer. Each image moves to
+  // TRANSFER_SRC_OPTIMAL (unless GENERAL) and back to its layout inside the recording.
+  void record_correlation(VkCommandBuffer cmd, std::span<const ImageFieldSource> members,
+                          std::span<const float> reference_series, const CorrelationParams& params, Buffer& out);
+  // Reads the ensemble in the compute-shader stage (beyond one texel view and from images also in
+  // the transfer stage: transfer read) and writes `out` there (shader write; a transfer write when
+  // the reference has NaN).
   static RecordedAccess access();
 
  private:
@@ -288,6 +301,8 @@ class CorrelationRecorder {
   uint64_t max_chunk_voxels_;
   CorrelationTables tables_;
   std::unique_ptr<CommandBatch> recording_;
+  void record(VkCommandBuffer cmd, const DeviceEnsemble& ensemble, std::span<const float> reference_series,
+              const CorrelationParams& params, Buffer& out);
 };
 
 // The RGBA voxel loss of a TF pair (voxel_loss_gpu), recorded; the result read after the wait.

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <glm/gtc/packing.hpp>
@@ -572,6 +573,108 @@ TEST_F(EmbeddingRecording, CorrelationOfAnEnsembleInTheHostsBuffer) {
       host.submit_and_wait();
       const float* field = static_cast<const float*>(out_map);
       EXPECT_TRUE(std::all_of(field, field + voxels, [](float x) { return std::isnan(x); }));
+    }
+  }
+}
+
+// An ensemble stored in each field format (float32, float16, unorm16, unorm8), in the host's
+// buffer or as one 3D image per member: the correlation field of the numbers a texel fetch gives
+// (CorrelationKernel::compute on those floats), bit for bit, whole and in chunks of 128 voxels that
+// start mid-row and mid-slice of the images, for both strategies (one invocation, one workgroup per
+// voxel). A unorm code converts as the device does (FieldsInHalfAndUnormFormatsEqualTheirFloatValues:
+// the rounded quotient or the code times the rounded reciprocal), the same way every time.
+TEST_F(EmbeddingRecording, CorrelationOfEnsemblesInEveryFormatAsBuffersAndImages) {
+  Context& ctx = *ctx_;
+  Host& host = *host_;
+  {
+    const VkExtent3D extent{13, 7, 5};
+    const uint64_t voxels = 13 * 7 * 5;
+    struct Case {
+      CorrelationMeasure measure;
+      uint32_t members;
+    };
+    for (FieldFormat format : {FieldFormat::Float32, FieldFormat::Float16, FieldFormat::Unorm16, FieldFormat::Unorm8}) {
+      const uint32_t bytes = field_format_bytes(format);
+      const double unorm_max = format == FieldFormat::Unorm16 ? 65535.0 : 255.0;
+      std::optional<bool> by_quotient;  // how this device converts unorm codes
+      for (const Case& k : {Case{CorrelationMeasure::Pearson, 10}, Case{CorrelationMeasure::Spearman, 40},
+                            Case{CorrelationMeasure::Kendall, 12}, Case{CorrelationMeasure::MiBinned, 12},
+                            Case{CorrelationMeasure::MiKraskov, 9}}) {
+        CorrelationParams params;
+        params.measure = k.measure;
+        SCOPED_TRACE(std::string(field_format_name(format)) + ", " + correlation_measure_name(k.measure) + ", " +
+                     std::to_string(k.members) + " members");
+        // Stored numbers in [0, 1] (ties in the unorm8 codes), and the floats they stand for.
+        const uint64_t values = uint64_t(k.members) * voxels;
+        std::vector<uint8_t> stored(values * bytes);
+        std::vector<float> quotient(values), reciprocal(values);
+        for (uint32_t m = 0; m < k.members; ++m)
+          for (uint64_t v = 0; v < voxels; ++v) {
+            const uint64_t i = m * voxels + v;
+            const double x = 0.5 + 0.3 * std::sin(0.37 * m + 0.011 * double(v)) + 0.15 * std::cos(1.7 * m * m + double(v % 13));
+            if (format == FieldFormat::Float32) {
+              quotient[i] = reciprocal[i] = float(x);
+              std::memcpy(stored.data() + 4 * i, &quotient[i], 4);
+            } else if (format == FieldFormat::Float16) {
+              const uint16_t h = glm::packHalf1x16(float(x));
+              std::memcpy(stored.data() + 2 * i, &h, 2);
+              quotient[i] = reciprocal[i] = glm::unpackHalf1x16(h);
+            } else {
+              const uint32_t code = uint32_t(std::lround(x * unorm_max));
+              std::memcpy(stored.data() + i * bytes, &code, bytes);
+              quotient[i] = float(double(code) / unorm_max);
+              reciprocal[i] = float(code) * float(1.0 / unorm_max);
+            }
+          }
+        const std::vector<float> reference = ensemble_series(EnsembleView{quotient.data(), k.members, voxels}, 200);
+        CorrelationKernel kernel(ctx);
+        const std::vector<float> expected_quotient =
+            kernel.compute(EnsembleView{quotient.data(), k.members, voxels}, reference, params);
+        const std::vector<float> expected_reciprocal =
+            kernel.compute(EnsembleView{reciprocal.data(), k.members, voxels}, reference, params);
+
+        void* ensemble_map = nullptr;
+        VkBuffer ensemble = host.buffer(stored.size() + 4, &ensemble_map);
+        std::memcpy(ensemble_map, stored.data(), stored.size());
+        const Buffer ensemble_view = Buffer::adopt(ctx, ensemble, 0, stored.size(), "host ensemble");
+        std::vector<ImageFieldSource> images(k.members);
+        std::vector<VkBuffer> stagings(k.members);
+        const VkFormat vk_format = voxel_texel_format(format);
+        VkCommandBuffer cmd = host.begin();
+        for (uint32_t m = 0; m < k.members; ++m) {
+          const std::vector<uint8_t> member(stored.begin() + m * voxels * bytes, stored.begin() + (m + 1) * voxels * bytes);
+          images[m].image = host.volume_image(cmd, vk_format, extent, member, stagings[m]);
+          images[m].format = vk_format;
+          images[m].extent = extent;
+          images[m].src_stages = VK_PIPELINE_STAGE_TRANSFER_BIT;  // the host's upload (volume_image)
+          images[m].src_access = VK_ACCESS_TRANSFER_WRITE_BIT;
+        }
+        // Four fields: from the buffer and from the images, whole and in chunks of 128 voxels.
+        const uint64_t stride = 2048;  // bytes between the fields: a multiple of every offset alignment
+        void* out_map = nullptr;
+        VkBuffer out = host.buffer(4 * stride, &out_map);
+        std::vector<Buffer> out_views;
+        for (uint64_t i = 0; i < 4; ++i)
+          out_views.push_back(Buffer::adopt(ctx, out, i * stride, voxels * 4, "host correlation field"));
+        CorrelationRecorder whole(ctx), chunked(ctx, 128), whole_images(ctx), chunked_images(ctx, 128);
+        const uint64_t submissions = ctx.submissions();
+        whole.record_correlation(cmd, ensemble_view, format, voxels, reference, params, out_views[0]);
+        chunked.record_correlation(cmd, ensemble_view, format, voxels, reference, params, out_views[1]);
+        whole_images.record_correlation(cmd, images, reference, params, out_views[2]);
+        chunked_images.record_correlation(cmd, images, reference, params, out_views[3]);
+        Host::host_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT);
+        EXPECT_EQ(ctx.submissions(), submissions) << "nothing submitted while recording";
+        host.submit_and_wait();
+        const float* got = static_cast<const float*>(out_map);
+        const bool quotient_here = std::memcmp(got, expected_quotient.data(), voxels * 4) == 0;
+        if (!by_quotient) by_quotient = quotient_here;
+        const std::vector<float>& expected = *by_quotient ? expected_quotient : expected_reciprocal;
+        const char* what[] = {"buffer", "buffer, chunks of 128", "images", "images, chunks of 128"};
+        for (int i = 0; i < 4; ++i)
+          EXPECT_EQ(0, std::memcmp(got + i * stride / 4, expected.data(), voxels * 4)) << what[i];
+        EXPECT_GT(std::count_if(expected.begin(), expected.end(), [](float x) { return std::isfinite(x) && x != 0.0f; }),
+                  int64_t(voxels / 2));
+      }
     }
   }
 }
