@@ -357,8 +357,13 @@ void CorrelationKernel::check_record(const DeviceEnsemble& ensemble, const Corre
                                 std::to_string(ctx.limits().maxTexelBufferElements) + ")");
 }
 
+uint64_t CorrelationKernel::min_chunk_bytes(uint32_t members, FieldFormat format) {
+  return kRecordChunkAlign * members * field_format_bytes(format);
+}
+
 void CorrelationKernel::record(CommandBatch& batch, const DeviceEnsemble& ensemble, const CorrelationReference& ref,
-                               const CorrelationTables& tables, Buffer& out, uint64_t max_chunk_voxels) {
+                               const CorrelationTables& tables, Buffer& out, uint64_t max_chunk_voxels,
+                               const Buffer* chunk_memory) {
   const std::string name = correlation_measure_name(ref.params.measure);
   const uint32_t members = ref.members;
   const uint64_t voxels = ensemble.voxel_count();
@@ -393,8 +398,16 @@ void CorrelationKernel::record(CommandBatch& batch, const DeviceEnsemble& ensemb
   // the kernel's that is one view, then the kernel on it into out's range. Chunks of a multiple of
   // kRecordChunkAlign voxels keep out's ranges at storage-buffer offset alignment (the device's is
   // at most 256 bytes).
+  const uint64_t memory = chunk_memory ? chunk_memory->size() : kRecordChunkBytes;
+  if (memory < min_chunk_bytes(members, ensemble.format))
+    throw std::invalid_argument(name + ": chunk memory of " + std::to_string(memory) + " bytes; " +
+                                std::to_string(members) + " members need at least " +
+                                std::to_string(min_chunk_bytes(members, ensemble.format)));
+  chunk = std::min(chunk, memory / (members * value_bytes));
   chunk = std::max<uint64_t>(kRecordChunkAlign, chunk / kRecordChunkAlign * kRecordChunkAlign);
-  Buffer& series = impl_->kept(impl_->recorded_series, chunk * members * value_bytes, "recorded correlation chunk");
+  const Buffer& series = chunk_memory ? *chunk_memory
+                                      : impl_->kept(impl_->recorded_series, chunk * members * value_bytes,
+                                                    "recorded correlation chunk");
   if (!ensemble.buffer) batch.begin_image_copies(ensemble.images);
   for (uint64_t v0 = 0; v0 < voxels; v0 += chunk) {
     const uint64_t n = std::min(chunk, voxels - v0);

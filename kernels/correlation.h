@@ -87,12 +87,20 @@ class CorrelationKernel {
   // (maxTexelBufferElements values) is read in place by one dispatch; a larger one, and images
   // (which the kernels' texel fetches cannot read as one member-major series: one descriptor per
   // member, with indices that differ between the invocations of a workgroup, is beyond what
-  // Vulkan guarantees), in chunks of voxels (at most `max_chunk_voxels`, when given: tests), each
-  // copied on the device, in its own format, into a member-major chunk of the kernel's memory
-  // and then read: device memory of one chunk, no host copy. Throws std::invalid_argument when a
-  // buffer is too small, std::runtime_error as compute() does for device limits.
+  // Vulkan guarantees), in chunks of voxels, each copied on the device, in its own format, into a
+  // member-major chunk and then read: device memory of one chunk, no host copy. The chunk is
+  // `chunk_memory` when given (a host's scratch range: the chunks hold as many multiples of 64
+  // voxels as fit), else the kernel's own of at most kRecordChunkBytes; at most `max_chunk_voxels`
+  // voxels when given (tests). Throws std::invalid_argument when a buffer is too small,
+  // std::runtime_error as compute() does for device limits.
   void record(CommandBatch& batch, const DeviceEnsemble& ensemble, const CorrelationReference& ref,
-              const CorrelationTables& tables, Buffer& out, uint64_t max_chunk_voxels = 0);
+              const CorrelationTables& tables, Buffer& out, uint64_t max_chunk_voxels = 0,
+              const Buffer* chunk_memory = nullptr);
+  // The device memory record() keeps for its chunks (64 MiB: dispatches of 16 M float values
+  // each, far beyond what it takes to fill any device).
+  static constexpr uint64_t kRecordChunkBytes = uint64_t(64) << 20;
+  // The smallest chunk memory record() accepts for `members` members of `format`: 64 voxels.
+  static uint64_t min_chunk_bytes(uint32_t members, FieldFormat format);
   // A buffer of float32 values.
   void record(CommandBatch& batch, const Buffer& ensemble, uint64_t voxels, const CorrelationReference& ref,
               const CorrelationTables& tables, Buffer& out, uint64_t max_chunk_voxels = 0) {

@@ -253,6 +253,18 @@ RecordedAccess RenderRecorder::access() {
 
 CorrelationRecorder::CorrelationRecorder(Context& ctx, uint64_t max_chunk_voxels)
     : ctx_(ctx), kernel_(std::make_unique<CorrelationKernel>(ctx)), max_chunk_voxels_(max_chunk_voxels) {}
+
+CorrelationRecorder::CorrelationRecorder(Context& ctx, VkBuffer chunk_scratch, uint64_t offset, uint64_t bytes,
+                                         uint64_t max_chunk_voxels)
+    : CorrelationRecorder(ctx, max_chunk_voxels) {
+  if (chunk_scratch == VK_NULL_HANDLE || bytes == 0)
+    throw std::invalid_argument("CorrelationRecorder: no chunk scratch buffer or an empty range");
+  if (offset % ctx.limits().minTexelBufferOffsetAlignment)
+    throw std::invalid_argument("CorrelationRecorder: chunk scratch offset " + std::to_string(offset) +
+                                " is not a multiple of the device's texel-buffer offset alignment " +
+                                std::to_string(ctx.limits().minTexelBufferOffsetAlignment));
+  chunk_scratch_ = Buffer::adopt(ctx, chunk_scratch, offset, bytes, "host correlation chunk");
+}
 CorrelationRecorder::~CorrelationRecorder() = default;
 
 void CorrelationRecorder::record_correlation(VkCommandBuffer cmd, const Buffer& ensemble, uint64_t voxels,
@@ -292,11 +304,16 @@ void CorrelationRecorder::record(VkCommandBuffer cmd, const DeviceEnsemble& ense
                                  std::span<const float> reference_series, const CorrelationParams& params, Buffer& out) {
   const CorrelationReference ref = prepare_correlation_reference(reference_series, params);  // checks params
   kernel_->check_record(ensemble, params, ref.members, out);
+  if (chunk_scratch_ && chunk_scratch_.size() < CorrelationKernel::min_chunk_bytes(ref.members, ensemble.format))
+    throw std::invalid_argument("record_correlation: the host's chunk scratch holds " +
+                                std::to_string(chunk_scratch_.size()) + " bytes; " + std::to_string(ref.members) +
+                                " members of " + field_format_name(ensemble.format) + " need at least " +
+                                std::to_string(CorrelationKernel::min_chunk_bytes(ref.members, ensemble.format)));
   CommandBatch& batch = restart(recording_, ctx_, cmd);
   batch.barrier();  // an earlier recording's reads of the tables and writes of `out` finish first
   record_correlation_tables(batch, ctx_, ref, tables_);
   batch.barrier();
-  kernel_->record(batch, ensemble, ref, tables_, out, max_chunk_voxels_);
+  kernel_->record(batch, ensemble, ref, tables_, out, max_chunk_voxels_, chunk_scratch_ ? &chunk_scratch_ : nullptr);
 }
 
 RecordedAccess CorrelationRecorder::access() {

@@ -211,9 +211,9 @@ struct ImageFieldSource {
 // `what` for any other.
 FieldFormat field_format_of(VkFormat format, const char* what);
 
-// A host's 3D image as a field every recorder above reads (assembly, voxel loss, residual map,
-// rendering; as a member of a correlation ensemble; the assembly, voxel loss, residual map and
-// rendering also read images in place, their record_* with ImageFieldView). tfmatch's voxel kernels read fields as texel
+// A host's 3D image as a field every recorder above reads (the assembly, voxel loss, residual map
+// and rendering also read images in place, their record_* with ImageFieldView; an ensemble of
+// member images goes to CorrelationRecorder's image overload). tfmatch's voxel kernels read fields as texel
 // buffers, four voxels a texel (DESIGN.md: a texel fetch is a vector gather on CPU devices and a
 // cached load on GPUs), which an image cannot be viewed as; so record_copy() copies the image on
 // the device (vkCmdCopyImageToBuffer, the stored texels unchanged: the same bits as the host's
@@ -265,6 +265,14 @@ class CorrelationRecorder {
   // `max_chunk_voxels`: chunks of an ensemble beyond one texel view (CorrelationKernel::record),
   // at most this many voxels when given (tests force chunks).
   explicit CorrelationRecorder(Context& ctx, uint64_t max_chunk_voxels = 0);
+  // The same with the chunks (of ensembles beyond one texel view, and of member images) in the
+  // host's memory: `bytes` of `buffer` from `offset` (storage, uniform-texel and transfer-
+  // destination usages; the device's texel-buffer offset alignment), at least
+  // CorrelationKernel::min_chunk_bytes(members, format) for the ensembles it will record (else
+  // record_correlation throws std::invalid_argument). The reference's tables (O(M)) stay the
+  // recorder's.
+  CorrelationRecorder(Context& ctx, VkBuffer chunk_scratch, uint64_t offset, uint64_t bytes,
+                      uint64_t max_chunk_voxels = 0);
   ~CorrelationRecorder();
   CorrelationRecorder(const CorrelationRecorder&) = delete;
   CorrelationRecorder& operator=(const CorrelationRecorder&) = delete;
@@ -299,6 +307,7 @@ class CorrelationRecorder {
   Context& ctx_;
   std::unique_ptr<CorrelationKernel> kernel_;
   uint64_t max_chunk_voxels_;
+  Buffer chunk_scratch_;  // the host's chunk memory, when lent
   CorrelationTables tables_;
   std::unique_ptr<CommandBatch> recording_;
   void record(VkCommandBuffer cmd, const DeviceEnsemble& ensemble, std::span<const float> reference_series,

@@ -649,19 +649,27 @@ TEST_F(EmbeddingRecording, CorrelationOfEnsemblesInEveryFormatAsBuffersAndImages
           images[m].src_stages = VK_PIPELINE_STAGE_TRANSFER_BIT;  // the host's upload (volume_image)
           images[m].src_access = VK_ACCESS_TRANSFER_WRITE_BIT;
         }
-        // Four fields: from the buffer and from the images, whole and in chunks of 128 voxels.
+        // Five fields: from the buffer and from the images, whole and in chunks of 128 voxels, and
+        // from the images in chunks in the host's scratch memory (192 voxels a chunk, at an offset).
         const uint64_t stride = 2048;  // bytes between the fields: a multiple of every offset alignment
         void* out_map = nullptr;
-        VkBuffer out = host.buffer(4 * stride, &out_map);
+        VkBuffer out = host.buffer(5 * stride, &out_map);
         std::vector<Buffer> out_views;
-        for (uint64_t i = 0; i < 4; ++i)
+        for (uint64_t i = 0; i < 5; ++i)
           out_views.push_back(Buffer::adopt(ctx, out, i * stride, voxels * 4, "host correlation field"));
+        void* scratch_map = nullptr;
+        const uint64_t scratch_bytes = 3 * CorrelationKernel::min_chunk_bytes(k.members, format);
+        VkBuffer scratch = host.buffer(256 + scratch_bytes, &scratch_map);
         CorrelationRecorder whole(ctx), chunked(ctx, 128), whole_images(ctx), chunked_images(ctx, 128);
+        CorrelationRecorder in_scratch(ctx, scratch, 256, scratch_bytes);
+        CorrelationRecorder too_small(ctx, scratch, 256, CorrelationKernel::min_chunk_bytes(k.members, format) - 1);
         const uint64_t submissions = ctx.submissions();
         whole.record_correlation(cmd, ensemble_view, format, voxels, reference, params, out_views[0]);
         chunked.record_correlation(cmd, ensemble_view, format, voxels, reference, params, out_views[1]);
         whole_images.record_correlation(cmd, images, reference, params, out_views[2]);
         chunked_images.record_correlation(cmd, images, reference, params, out_views[3]);
+        in_scratch.record_correlation(cmd, images, reference, params, out_views[4]);
+        EXPECT_THROW(too_small.record_correlation(cmd, images, reference, params, out_views[4]), std::invalid_argument);
         Host::host_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT);
         EXPECT_EQ(ctx.submissions(), submissions) << "nothing submitted while recording";
         host.submit_and_wait();
@@ -669,8 +677,9 @@ TEST_F(EmbeddingRecording, CorrelationOfEnsemblesInEveryFormatAsBuffersAndImages
         const bool quotient_here = std::memcmp(got, expected_quotient.data(), voxels * 4) == 0;
         if (!by_quotient) by_quotient = quotient_here;
         const std::vector<float>& expected = *by_quotient ? expected_quotient : expected_reciprocal;
-        const char* what[] = {"buffer", "buffer, chunks of 128", "images", "images, chunks of 128"};
-        for (int i = 0; i < 4; ++i)
+        const char* what[] = {"buffer", "buffer, chunks of 128", "images", "images, chunks of 128",
+                              "images, chunks in the host's scratch"};
+        for (int i = 0; i < 5; ++i)
           EXPECT_EQ(0, std::memcmp(got + i * stride / 4, expected.data(), voxels * 4)) << what[i];
         EXPECT_GT(std::count_if(expected.begin(), expected.end(), [](float x) { return std::isfinite(x) && x != 0.0f; }),
                   int64_t(voxels / 2));
