@@ -45,11 +45,11 @@ std::vector<SolverOption> weight_options() {
   return {SolverOption::choice("weights", "none", {"none", "visibility"},
                                "voxel weights: none, or how much the reference renderings over the cameras see each "
                                "voxel (transmittance to the eye, summed over cameras)"),
-          SolverOption::integer("weight-views", 8, 1, 1024, "cameras of --weights visibility"),
+          SolverOption::integer("weight-views", 8, 1, 1024, "cameras of the visibility weights"),
           SolverOption::choice("cameras", "fibonacci", {"random", "fibonacci"},
-                               "cameras of --weights visibility: evenly spread (Fibonacci sphere) or seeded random"),
+                               "where the visibility weights' cameras stand: evenly spread (Fibonacci sphere) or seeded random"),
           SolverOption::integer("seed", 1, 0, std::numeric_limits<uint64_t>::max(),
-                                "seed of --weights visibility's random cameras")};
+                                "seed of the visibility weights' random cameras")};
 }
 
 std::optional<VisibilityWeights> requested_weights(VoxelProblem& p, const SolverArgs& args, SolverOutput& out) {
