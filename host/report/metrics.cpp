@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <future>
 #include <limits>
 #include <stdexcept>
 #include <vector>
@@ -29,24 +30,44 @@ int reflect(int i, int n) {
   return i < n ? i : period - 1 - i;
 }
 
-// Separable Gaussian filter of an h x w plane with reflected borders.
+// Separable Gaussian filter of an h x w plane with reflected borders. Every output is the same
+// sum in the same order (k = -r..r) whether its taps need reflecting or not; the interior, where
+// none does, runs over whole rows without the index arithmetic (the viewer computes these for
+// every camera: 512² took 110 ms a comparison with reflect() on every tap).
 std::vector<double> gaussian_filter(const std::vector<double>& in, int w, int h) {
   double weights[2 * kRadius + 1], sum = 0;
   for (int k = -kRadius; k <= kRadius; ++k) sum += weights[k + kRadius] = std::exp(-0.5 * k * k / (1.5 * 1.5));
   for (double& v : weights) v /= sum;
   std::vector<double> tmp(in.size()), out(in.size());
-  for (int y = 0; y < h; ++y)  // along rows (axis 0 first, as scipy does: the order only rounds)
+  for (int y = 0; y < h; ++y) {  // along rows (axis 0 first, as scipy does: the order only rounds)
+    double* row = tmp.data() + size_t(y) * w;
+    if (y >= kRadius && y < h - kRadius) {
+      for (int x = 0; x < w; ++x) row[x] = 0.0;
+      for (int k = -kRadius; k <= kRadius; ++k) {
+        const double* src = in.data() + size_t(y + k) * w;
+        const double wk = weights[k + kRadius];
+        for (int x = 0; x < w; ++x) row[x] += wk * src[x];
+      }
+      continue;
+    }
     for (int x = 0; x < w; ++x) {
       double acc = 0;
       for (int k = -kRadius; k <= kRadius; ++k) acc += weights[k + kRadius] * in[size_t(reflect(y + k, h)) * w + x];
-      tmp[size_t(y) * w + x] = acc;
+      row[x] = acc;
     }
-  for (int y = 0; y < h; ++y)
+  }
+  for (int y = 0; y < h; ++y) {
+    const double* src = tmp.data() + size_t(y) * w;
+    double* dst = out.data() + size_t(y) * w;
     for (int x = 0; x < w; ++x) {
       double acc = 0;
-      for (int k = -kRadius; k <= kRadius; ++k) acc += weights[k + kRadius] * tmp[size_t(y) * w + reflect(x + k, w)];
-      out[size_t(y) * w + x] = acc;
+      if (x >= kRadius && x < w - kRadius)
+        for (int k = -kRadius; k <= kRadius; ++k) acc += weights[k + kRadius] * src[x + k];
+      else
+        for (int k = -kRadius; k <= kRadius; ++k) acc += weights[k + kRadius] * src[reflect(x + k, w)];
+      dst[x] = acc;
     }
+  }
   return out;
 }
 
@@ -100,7 +121,11 @@ double psnr_from_rmse(double rmse) {
 double image_ssim(const Image& a, const Image& b) {
   require_same_size(a, b);
   if (a.width < 2 * kRadius + 1 || a.height < 2 * kRadius + 1) return std::numeric_limits<double>::quiet_NaN();
-  return (channel_ssim(a, b, 0) + channel_ssim(a, b, 1) + channel_ssim(a, b, 2)) / 3.0;
+  // The channels side by side (independent; summed in the same order after).
+  auto green = std::async(std::launch::async, [&] { return channel_ssim(a, b, 1); });
+  auto blue = std::async(std::launch::async, [&] { return channel_ssim(a, b, 2); });
+  const double red = channel_ssim(a, b, 0);
+  return (red + green.get() + blue.get()) / 3.0;
 }
 
 ImageMetrics compare_images(const Image& a, const Image& b) {
