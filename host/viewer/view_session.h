@@ -4,6 +4,7 @@
 // ensemble), run one at a time on a thread of their own with their progress observable.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -136,7 +137,10 @@ class ViewSession {
   Image render(ViewKind view, const RenderSettings& settings, double* distance_used = nullptr,
                PictureTiming* timing = nullptr, const std::function<bool()>& wanted = {});
   // Image RMSE / PSNR / SSIM of the field with each TF against the reference at `settings`
-  // (`wanted` as for render).
+  // (`wanted` as for render), and "rendered": how many of the three pictures it rendered. A
+  // picture render() made last for the same view, settings and state is used as it is (the page
+  // asks for the metrics right after showing the pictures of the same camera, so they usually
+  // cost no rendering at all).
   nlohmann::json image_metrics(const RenderSettings& settings, const std::function<bool()>& wanted = {});
   // Plane `index` of `axis` (0..2) classified by the view's TF (slice.h): its colours at full
   // strength, or over the background by opacity. Throws std::invalid_argument for an axis or
@@ -220,6 +224,16 @@ class ViewSession {
   std::string solver_;
   SolverSettings solver_settings_;
   uint64_t version_ = 0;
+
+  // The last picture render() made of each view, before decoration, for image_metrics: the
+  // state's version and the settings it was rendered with (z scale the session's).
+  struct Shown {
+    uint64_t version = 0;  // 0: none
+    RenderSettings settings;
+    Image picture;
+  };
+  mutable std::mutex shown_mutex_;
+  std::array<Shown, 5> shown_;  // by ViewKind
 
   mutable std::mutex job_mutex_;
   JobStatus job_;

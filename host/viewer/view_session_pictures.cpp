@@ -29,13 +29,24 @@ double ms_between(std::chrono::steady_clock::time_point a, std::chrono::steady_c
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
 
+// Whether two settings render the same picture (the outline is drawn afterwards).
+bool same_rendering(const RenderSettings& a, const RenderSettings& b) {
+  return a.width == b.width && a.height == b.height && a.step_voxels == b.step_voxels &&
+         a.opacity_scale == b.opacity_scale && a.background == b.background &&
+         a.termination_opacity == b.termination_opacity && a.z_scale == b.z_scale &&
+         a.camera.azimuth_deg == b.camera.azimuth_deg && a.camera.elevation_deg == b.camera.elevation_deg &&
+         a.camera.distance == b.camera.distance && a.camera.fov_deg == b.camera.fov_deg;
+}
+
 // The picture of a rendering: over the background in 8-bit sRGB, with the box outline and the
-// markers when decorated. Needs no device: render() does it after letting the device go, so it
-// overlaps the next request's render.
+// markers when decorated (`undecorated`, when given, receives the picture before). Needs no
+// device: render() does it after letting the device go, so it overlaps the next request's render.
 Image finish_picture(const RenderedImage& rendered, const RenderSettings& s, const VolumeGeometry& geometry,
-                     const std::vector<GridIndex>& markers, bool decorate, PictureTiming* timing) {
+                     const std::vector<GridIndex>& markers, bool decorate, PictureTiming* timing,
+                     Image* undecorated = nullptr) {
   const auto t0 = std::chrono::steady_clock::now();
   Image picture = composite_over(rendered, s.background);
+  if (undecorated) *undecorated = picture;
   const auto t1 = std::chrono::steady_clock::now();
   if (decorate) {
     draw_box_outline(picture, geometry, s);
@@ -92,27 +103,44 @@ Image ViewSession::render(ViewKind view, const RenderSettings& settings, double*
   // job would replace) is still this request's.
   const VolumeGeometry geometry = derived_->geometry;
   const std::vector<GridIndex> dots = markers();
+  const uint64_t version = version_;
   device.unlock();
   if (distance_used) {
     const CameraFrame frame = orbit_frame(s.camera, geometry, s.width, s.height);
     *distance_used = glm::length(frame.eye - geometry.center()) / geometry.radius();
   }
-  return finish_picture(rendered, s, geometry, dots, true, timing);
+  Shown shown{version, s, {}};
+  Image picture = finish_picture(rendered, s, geometry, dots, true, timing, &shown.picture);
+  std::lock_guard lock(shown_mutex_);
+  // A picture of an older state (a job installed meanwhile) never replaces a newer one.
+  if (version >= shown_[size_t(view)].version) shown_[size_t(view)] = std::move(shown);
+  return picture;
 }
 
 nlohmann::json ViewSession::image_metrics(const RenderSettings& settings, const std::function<bool()>& wanted) {
   std::unique_lock device = lock_device_for_request();
   // Asked before each of the three renders: a page that moves the camera meanwhile waits for at
   // most one of them, not all three, before its new pictures start.
+  RenderSettings s = settings;
+  s.z_scale = config_.render.z_scale;  // as render_on_device sets it
+  int rendered = 0;
+  if (wanted && !wanted()) throw SupersededError("a newer camera from the same client replaced these metrics");
   auto picture = [&](ViewKind view) {
+    {
+      std::lock_guard lock(shown_mutex_);
+      const Shown& shown = shown_[size_t(view)];
+      if (shown.version == version_ && same_rendering(shown.settings, s)) return shown.picture;
+    }
     if (wanted && !wanted()) throw SupersededError("a newer camera from the same client replaced these metrics");
+    ++rendered;
     return render_picture(view, settings, false);
   };
   const Image ref = picture(ViewKind::Reference);
   const Image before = picture(ViewKind::FieldRefTf);
   const Image after = picture(ViewKind::FieldOptTf);
   return {{"reference_tf", compare_images(ref, before).to_json()},
-          {"optimized_tf", compare_images(ref, after).to_json()}};
+          {"optimized_tf", compare_images(ref, after).to_json()},
+          {"rendered", rendered}};
 }
 
 Image ViewSession::slice(ViewKind view, int axis, uint64_t index, uint32_t max_size, SliceShading shading) {

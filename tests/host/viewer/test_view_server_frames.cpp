@@ -83,5 +83,38 @@ TEST_F(ViewServerFramesTest, PicturesForACameraThePageMovedPastAreDropped) {
   EXPECT_EQ(bad->status, 400);
 }
 
+// The metrics a page asks for after showing a camera's pictures use those pictures: nothing is
+// rendered again, and the numbers are those of fresh renders. Another camera, a view not shown,
+// or a new state (an optimization ran) renders again.
+TEST_F(ViewServerFramesTest, MetricsUseThePicturesJustShown) {
+  RenderSettings s = session_->default_render();
+  s.width = 40;
+  s.height = 36;
+  s.camera.azimuth_deg = 47;
+  s.camera.elevation_deg = 12;
+  const nlohmann::json fresh = session_->image_metrics(s);
+  EXPECT_EQ(fresh["rendered"], 3);
+  for (ViewKind view : {ViewKind::Reference, ViewKind::FieldRefTf, ViewKind::FieldOptTf}) session_->render(view, s);
+  const nlohmann::json reused = session_->image_metrics(s);
+  EXPECT_EQ(reused["rendered"], 0);
+  EXPECT_EQ(reused["reference_tf"], fresh["reference_tf"]);
+  EXPECT_EQ(reused["optimized_tf"], fresh["optimized_tf"]);
+  // A reference picture at another camera replaces the one at `s`: metrics there render the two
+  // views it lacks, and at `s` the reference again.
+  RenderSettings other = s;
+  other.camera.azimuth_deg = 48;
+  session_->render(ViewKind::Reference, other);
+  EXPECT_EQ(session_->image_metrics(other)["rendered"], 2);
+  EXPECT_EQ(session_->image_metrics(s)["rendered"], 1);  // the reference of `s` was replaced
+  s.box_outline = false;  // drawn after rendering: the same pictures
+  EXPECT_EQ(session_->image_metrics(s)["rendered"], 1);
+  // After an optimization (a new state) nothing earlier is used.
+  for (ViewKind view : {ViewKind::Reference, ViewKind::FieldRefTf, ViewKind::FieldOptTf}) session_->render(view, s);
+  EXPECT_EQ(session_->image_metrics(s)["rendered"], 0);
+  session_->optimize("normal-equations", SolverSettings{});
+  session_->wait_for_job();
+  EXPECT_EQ(session_->image_metrics(s)["rendered"], 3);
+}
+
 }  // namespace
 }  // namespace tfm
