@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <mutex>
 
 #include "cancellation.h"
 #include "commands.h"
@@ -34,7 +36,13 @@ void check_render_size(const Context& ctx, const RenderSettings& s) {
 }
 
 GpuRenderer::GpuRenderer(Context& ctx, const DeviceField& field, const VolumeGeometry& geometry)
-    : ctx_(ctx), field_(field), geometry_(geometry), kernel_(ctx, uint32_t(field.chunk_count())) {}
+    : ctx_(ctx),
+      field_(field),
+      geometry_(geometry),
+      kernel_(ctx, uint32_t(field.chunk_count())),
+      scratch_(std::make_unique<Scratch>()) {}
+
+GpuRenderer::~GpuRenderer() = default;
 
 RenderedImage GpuRenderer::render(const FieldMapping& mapping, const Buffer& tf, const RenderSettings& s,
                                   Progress* progress, double* gpu_ms, RenderCallTimes* times) const {
@@ -46,6 +54,28 @@ RenderedImage GpuRenderer::render_colours(const FieldMapping& mapping, const Buf
   return render_impl(mapping, tf, s, nullptr, nullptr, times, false);
 }
 
+namespace {
+// Pictures up to this many pixels render into buffers the renderer keeps (36 MiB at the limit:
+// image, stop indices, read-back staging); larger ones allocate for the call and free after.
+constexpr uint64_t kKeptPixels = uint64_t(1024) * 1024;
+
+// `kept` when it holds `bytes` (grown once when it does not), else a buffer for this call.
+Buffer& scratch(Context& ctx, Buffer& kept, Buffer& once, uint64_t bytes, bool keep, MemoryUsage usage,
+                const char* name) {
+  Buffer& b = keep ? kept : once;
+  if (!b || b.size() < bytes) {
+    b = Buffer();  // the old one first: the footprint stays bounded
+    b = Buffer(ctx, bytes, usage, name);
+  }
+  return b;
+}
+}  // namespace
+
+struct GpuRenderer::Scratch {
+  std::mutex mutex;  // one call at a time uses the kept buffers
+  Buffer views, image, stop, staging;
+};
+
 RenderedImage GpuRenderer::render_impl(const FieldMapping& mapping, const Buffer& tf, const RenderSettings& s,
                                        Progress* progress, double* gpu_ms, RenderCallTimes* times,
                                        bool read_stop) const {
@@ -56,9 +86,19 @@ RenderedImage GpuRenderer::render_impl(const FieldMapping& mapping, const Buffer
   const gpu::RenderPush push = make_render_push(geometry_, march, mapping, field_, s.width, s.height, 1);
   const uint64_t pixels = uint64_t(s.width) * s.height;
   check_render_size(ctx_, s);
-  Buffer views = make_buffer<gpu::RenderView>(ctx_, std::span(&view, 1), "render camera");
-  Buffer image(ctx_, pixels * 16, MemoryUsage::Device, "render image");
-  Buffer stop(ctx_, pixels * 4, MemoryUsage::Device, "render stop index");
+  // One submission per band, the camera written and the image (and stop indices) copied to
+  // host-visible memory inside them: a picture without progress is one submission and one wait,
+  // into buffers kept between calls (an allocation costs a GPU driver far more than the copy).
+  std::lock_guard lock(scratch_->mutex);
+  const bool keep = pixels <= kKeptPixels;
+  Buffer views_once, image_once, stop_once, staging_once;
+  Buffer& views = scratch(ctx_, scratch_->views, views_once, sizeof(gpu::RenderView), true, MemoryUsage::Device,
+                          "render camera");
+  Buffer& image = scratch(ctx_, scratch_->image, image_once, pixels * 16, keep, MemoryUsage::Device, "render image");
+  Buffer& stop = scratch(ctx_, scratch_->stop, stop_once, pixels * 4, keep, MemoryUsage::Device, "render stop index");
+  const uint64_t read_bytes = pixels * (read_stop ? 20 : 16);
+  Buffer& staging =
+      scratch(ctx_, scratch_->staging, staging_once, read_bytes, keep, MemoryUsage::Readback, "render read-back");
 
   // Bands keep each submission short enough to report progress; multiples of the tile height.
   const uint32_t band = progress ? std::max<uint32_t>(TFM_RENDER_TILE, (s.height / 32 + 7) / 8 * 8) : s.height;
@@ -68,9 +108,19 @@ RenderedImage GpuRenderer::render_impl(const FieldMapping& mapping, const Buffer
     checkpoint("render");
     const uint32_t rows = std::min(band, s.height - row);
     CommandBatch batch(ctx_);
+    if (row == 0) {
+      batch.update(views, 0, &view, sizeof view);
+      batch.barrier();  // the camera before the kernel reads it
+    }
     const uint32_t t0 = batch.timestamp();
     kernel_.record(batch, field_, tf, views, push, image, stop, row, rows);
     const uint32_t t1 = batch.timestamp();
+    if (row + rows == s.height) {  // the last band: the picture to host-visible memory
+      batch.barrier();
+      batch.copy(image, 0, staging, 0, pixels * 16);
+      if (read_stop) batch.copy(stop, 0, staging, pixels * 16, pixels * 4);
+      batch.barrier_to_host();
+    }
     batch.submit_and_wait();
     const double ms = batch.elapsed_ms(t0, t1);
     if (ms < 0) timed = false;
@@ -84,10 +134,11 @@ RenderedImage GpuRenderer::render_impl(const FieldMapping& mapping, const Buffer
   out.width = s.width;
   out.height = s.height;
   out.rgba.resize(pixels * 4);
-  readback(ctx_, image, out.rgba.data(), pixels * 16);
+  const char* mapped = static_cast<const char*>(staging.mapped());
+  std::memcpy(out.rgba.data(), mapped, pixels * 16);
   if (read_stop) {
     out.stop.resize(pixels);
-    readback(ctx_, stop, out.stop.data(), pixels * 4);
+    std::memcpy(out.stop.data(), mapped + pixels * 16, pixels * 4);
   }
   if (times) {
     const auto t2 = std::chrono::steady_clock::now();

@@ -21,8 +21,8 @@ namespace tfm {
 
 // Wall-clock time of a GpuRenderer::render call's parts, milliseconds.
 struct RenderCallTimes {
-  double dispatch_ms = 0.0;  // recording, submitting and waiting for the render
-  double readback_ms = 0.0;  // the image back to host memory
+  double dispatch_ms = 0.0;  // recording, submitting and waiting for the render and its copy to host-visible memory
+  double readback_ms = 0.0;  // the image out of that memory into the RenderedImage
 };
 
 class GpuRenderer {
@@ -30,11 +30,15 @@ class GpuRenderer {
   // The pipeline is specialized for the field's chunk count. Throws std::runtime_error when the
   // field has more chunks than the renderer binds.
   GpuRenderer(Context& ctx, const DeviceField& field, const VolumeGeometry& geometry);
+  ~GpuRenderer();
+  GpuRenderer(const GpuRenderer&) = delete;
+  GpuRenderer& operator=(const GpuRenderer&) = delete;
 
   // Renders settings.camera. With `progress`, the image is rendered in bands of rows, one
   // submission each, and progress->update(rows done) after each; otherwise in one dispatch.
   // `gpu_ms` receives the GPU time (sum over bands; -1 without timestamps), `times` the wall
-  // time of the dispatch and the read-back.
+  // time of the dispatch (the copy to host-visible memory included: one submission) and of the
+  // copy out of it. Calls from several threads take turns (the renderer keeps its buffers).
   RenderedImage render(const FieldMapping& mapping, const Buffer& tf, const RenderSettings& settings,
                        Progress* progress = nullptr, double* gpu_ms = nullptr, RenderCallTimes* times = nullptr) const;
   // The colours only (RenderedImage::stop left empty), in one dispatch: what a picture needs,
@@ -49,6 +53,8 @@ class GpuRenderer {
   const DeviceField& field_;
   VolumeGeometry geometry_;
   RenderImageKernel kernel_;
+  struct Scratch;
+  std::unique_ptr<Scratch> scratch_;  // buffers kept between calls
 };
 
 // Throws std::runtime_error, before anything is allocated, when a settings.width x
