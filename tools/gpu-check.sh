@@ -11,11 +11,12 @@
 # can take them in several calls: check (devices, self-test, test suite), solvers (the table),
 # bench (assembly, DiffDVR, renderer), bench-long (correlation, streaming), startup (a process's
 # fixed cost, the pipeline cache, the phases of --json "timings"), torch (the PyTorch peer,
-# tools/torch_peer.py, where PyTorch is installed); solvers-necker and
+# tools/torch_peer.py, where PyTorch is installed), view (`tfmatch view`'s four pictures per
+# camera change at 512² and 1024², tools/view_latency.py); solvers-necker and
 # solvers-combustion are the table's GPU rows at one size each, cuda the CUDA solvers' tests.
 set -uo pipefail
 
-parts=check,solvers,bench,bench-long,startup,torch
+parts=check,solvers,bench,bench-long,startup,torch,view
 if [ "${1:-}" = "--parts" ]; then parts=$2; shift 2; fi
 want() { [[ ",$parts," == *",$1,"* ]]; }
 build=$(realpath "${1:-build}")
@@ -96,4 +97,12 @@ if want torch; then
   # What a user would write instead, in PyTorch on the same GPU (tools/torch_peer.py), checked
   # against double-precision NumPy first: the peer figures of the README's GPU tables.
   step torch 180 python3 "$(dirname "$0")/torch_peer.py" --check --json "$out/torch.json"
+fi
+if want view; then
+  # The viewer's latency after a camera change from a plain HTTP client (issue 29's goals: four
+  # pictures within 40 ms at 512², 120 ms at 1024²), with the server's breakdown per picture.
+  for size in 512 1024; do
+    step "view-$size" 120 python3 "$(dirname "$0")/view_latency.py" "$tfm" --size "$size" --changes 9 \
+      --json "$out/view-$size.json"
+  done
 fi
