@@ -282,36 +282,6 @@ void CommandBatch::update(const Buffer& dst, uint64_t offset, const void* data, 
                                 bytes_in + done);
 }
 
-void CommandBatch::copy_to_image(const Buffer& src, VkImage image, uint32_t width, VkImageLayout old_layout,
-                                 VkImageLayout new_layout, VkPipelineStageFlags dst_stages, VkAccessFlags dst_access) {
-  const auto& vk = ctx_.vk();
-  VkMemoryBarrier staged{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-  staged.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  staged.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-  VkImageMemoryBarrier to_dst{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER};
-  to_dst.srcAccessMask = 0;  // the old contents are overwritten: only the layout change waits
-  to_dst.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  to_dst.oldLayout = old_layout;
-  to_dst.newLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
-  to_dst.srcQueueFamilyIndex = to_dst.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-  to_dst.image = image;
-  to_dst.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
-  // The host's earlier reads of the image (any stage) finish before the layout changes.
-  vk.vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-                          VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &staged, 0, nullptr, 1, &to_dst);
-  VkBufferImageCopy region{};
-  region.bufferOffset = src.offset();
-  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
-  region.imageExtent = {width, 1, 1};
-  vk.vkCmdCopyBufferToImage(cmd_, src.handle(), image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
-  VkImageMemoryBarrier to_use = to_dst;
-  to_use.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  to_use.dstAccessMask = dst_access;
-  to_use.oldLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
-  to_use.newLayout = new_layout;
-  vk.vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_TRANSFER_BIT, dst_stages, 0, 0, nullptr, 0, nullptr, 1, &to_use);
-}
-
 namespace {
 // The layout a host's image is copied from: its own when a copy may read it there.
 VkImageLayout copy_layout_of(VkImageLayout layout) {
@@ -333,6 +303,29 @@ VkImageMemoryBarrier whole_image_barrier(VkImage image, VkImageLayout from, VkIm
   return b;
 }
 }  // namespace
+
+void CommandBatch::copy_to_image(const Buffer& src, VkImage image, uint32_t width, VkImageLayout old_layout,
+                                 VkImageLayout new_layout, VkPipelineStageFlags dst_stages, VkAccessFlags dst_access) {
+  const auto& vk = ctx_.vk();
+  VkMemoryBarrier staged{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  staged.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  staged.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+  // The old contents are overwritten: only the layout change waits.
+  const VkImageMemoryBarrier to_dst = whole_image_barrier(image, old_layout, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 0,
+                                                          VK_ACCESS_TRANSFER_WRITE_BIT);
+  // The host's earlier reads of the image (any stage) finish before the layout changes.
+  vk.vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
+                          VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &staged, 0, nullptr, 1, &to_dst);
+  VkBufferImageCopy region{};
+  region.bufferOffset = src.offset();
+  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+  region.imageExtent = {width, 1, 1};
+  vk.vkCmdCopyBufferToImage(cmd_, src.handle(), image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+  const VkImageMemoryBarrier to_use = whole_image_barrier(image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, new_layout,
+                                                          VK_ACCESS_TRANSFER_WRITE_BIT, dst_access);
+  vk.vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_TRANSFER_BIT, dst_stages, 0, 0, nullptr, 0, nullptr, 1, &to_use);
+}
+
 
 void CommandBatch::begin_image_copies(std::span<const HostImage> images) {
   VkPipelineStageFlags host_before = 0;
