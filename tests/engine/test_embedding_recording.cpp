@@ -1052,6 +1052,26 @@ TEST_F(EmbeddingRecording, BadArgumentsAreClearErrors) {
     EXPECT_THROW(residual.record_residual_map(cmd, no_view, no_view, m, m, std::vector<float>(32, 0.5f),
                                               std::vector<float>(32, 0.5f), f),
                  std::invalid_argument);
+    // Ensembles of member images: none, a missing image, members that differ, a format that is
+    // no field format, fewer images than reference members; chunk scratch misaligned.
+    CorrelationRecorder correlation(ctx);
+    const std::vector<float> series{0.1f, 0.5f, 0.2f, 0.9f};
+    Buffer out_view = Buffer::adopt(ctx, volume, 0, 256, "out");
+    const ImageFieldSource member{VK_NULL_HANDLE, VK_FORMAT_R32_SFLOAT, {4, 4, 4}};
+    EXPECT_THROW(correlation.record_correlation(cmd, std::span<const ImageFieldSource>{}, series, {}, out_view),
+                 std::invalid_argument);
+    std::vector<ImageFieldSource> members(4, member);
+    EXPECT_THROW(correlation.record_correlation(cmd, members, series, {}, out_view), std::invalid_argument);
+    members[0].image = members[1].image = members[2].image = members[3].image = host.image(VK_IMAGE_TYPE_3D, VK_FORMAT_R32_SFLOAT, {4, 4, 4});
+    members[2].extent = {4, 4, 3};
+    EXPECT_THROW(correlation.record_correlation(cmd, members, series, {}, out_view), std::invalid_argument);
+    members[2].extent = {4, 4, 4};
+    for (ImageFieldSource& m2 : members) m2.format = VK_FORMAT_R8G8B8A8_UNORM;
+    EXPECT_THROW(correlation.record_correlation(cmd, members, series, {}, out_view), std::invalid_argument);
+    for (ImageFieldSource& m2 : members) m2.format = VK_FORMAT_R32_SFLOAT;
+    EXPECT_THROW(correlation.record_correlation(cmd, std::span(members).first(3), series, {}, out_view),
+                 std::invalid_argument);
+    EXPECT_THROW(CorrelationRecorder(ctx, volume, 4, 4096), std::invalid_argument);
     host.submit_and_wait();  // nothing was recorded: an empty command buffer
   }
 }
