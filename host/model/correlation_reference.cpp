@@ -9,6 +9,14 @@
 
 namespace tfm {
 
+uint32_t correlation_bin(float value, float lo, float range, uint32_t bins) {
+  const float scaled = (value - lo) * float(bins);
+  uint32_t b = std::min(uint32_t(scaled / range), bins - 1);
+  if (b > 0 && float(b) * range > scaled) --b;
+  else if (b + 1 < bins && float(b + 1) * range <= scaled) ++b;
+  return b;
+}
+
 std::vector<uint32_t> ascending_order(std::span<const float> values) {
   std::vector<uint32_t> order(values.size());
   std::iota(order.begin(), order.end(), 0u);
@@ -100,12 +108,22 @@ CorrelationReference prepare_correlation_reference(std::span<const float> refere
     case CorrelationMeasure::Pearson: prepare_pearson(reference, r); break;
     case CorrelationMeasure::Spearman: prepare_spearman(reference, r); break;
     case CorrelationMeasure::Kendall: prepare_kendall(reference, r); break;
-    case CorrelationMeasure::MiBinned:
+    case CorrelationMeasure::MiBinned: {
       r.values.assign(reference.begin(), reference.end());
+      // Members grouped by x bin: a voxel's joint counts are then the counts of its y bins
+      // within each group (the kernel's one invocation per voxel).
+      std::vector<float> bx(m_count, 0.0f);
+      if (!r.constant)
+        for (uint32_t m = 0; m < m_count; ++m) bx[m] = float(correlation_bin(reference[m], r.lo, r.hi - r.lo, params.bins));
+      r.order = ascending_order(bx);
+      r.group.assign(m_count, m_count);
+      for (uint32_t p = m_count; p-- > 1;)
+        r.group[p - 1] = bx[r.order[p - 1]] == bx[r.order[p]] ? r.group[p] : p;
       r.table.assign(m_count + 1, 0.0f);
       for (uint32_t c = 1; c <= m_count; ++c) r.table[c] = float(std::log(double(c)));
       r.mi_offset = std::log(double(m_count));
       break;
+    }
     case CorrelationMeasure::MiKraskov:
     case CorrelationMeasure::MiCoefficient: {
       r.order = ascending_order(reference);

@@ -22,9 +22,11 @@ struct CorrelationReference {
   // doubled rank 2 rank - (M + 1) by member (an integer); mi-binned x by member; mi-kraskov x
   // sorted ascending (by x-order position).
   std::vector<float> values;
-  // kendall, mi-kraskov: the member at each position of x's stable ascending order.
+  // kendall, mi-kraskov: the member at each position of x's stable ascending order; mi-binned:
+  // of the stable ascending order of x's bins (correlation_bin).
   std::vector<uint32_t> order;
-  // kendall: the first position of each position's tie group in that order.
+  // kendall: the first position of each position's tie group in that order; mi-binned: the
+  // position one past the end of each position's bin (members of one x bin are consecutive).
   std::vector<uint32_t> group;
   // mi-binned: ln c; mi-kraskov, mi-coefficient: digamma(c); for c = 0 .. M (entry 0 unused).
   std::vector<float> table;
@@ -35,6 +37,13 @@ struct CorrelationReference {
 
 // Throws std::invalid_argument when params do not suit reference.size() members.
 CorrelationReference prepare_correlation_reference(std::span<const float> reference, const CorrelationParams& params);
+
+// Binned mutual information's bin of `value` among `bins` equal-width bins over a series with
+// minimum `lo` and range `range` > 0, in float as the kernel computes it
+// (shaders/correlation_mi_binned.comp), so every device and the CPU peer count alike: the largest
+// b < bins with b * range <= (value - lo) * bins, each side one correctly rounded product (the
+// quotient, which Vulkan lets err by 2.5 ulp, only guesses).
+uint32_t correlation_bin(float value, float lo, float range, uint32_t bins);
 
 // The stable ascending order of `values` (indices), NaN-free input.
 std::vector<uint32_t> ascending_order(std::span<const float> values);

@@ -106,30 +106,20 @@ float kendall(const CorrelationReference& r, const float* y, Scratch& s) {
   return float(std::clamp(numerator / (std::sqrt(n0 - n1) * std::sqrt(n0 - double(y_ties))), -1.0, 1.0));
 }
 
-// The kernel's binning in float (shaders/correlation_mi_binned.comp), so both count alike: the
-// largest b < bins with b * range <= (value - lo) * bins, the quotient only a guess.
-uint32_t bin_of(float value, float lo, float range, uint32_t bins) {
-  const float scaled = (value - lo) * float(bins);
-  uint32_t b = std::min(uint32_t(scaled / range), bins - 1);
-  if (b > 0 && float(b) * range > scaled) --b;
-  else if (b + 1 < bins && float(b + 1) * range <= scaled) ++b;
-  return b;
-}
-
 float mi_binned(const CorrelationReference& r, const float* y, float y_lo, float y_hi, Scratch& s) {
   const uint32_t n = r.members, bins = r.params.bins;
   const float x_range = r.hi - r.lo, y_range = y_hi - y_lo;
   s.joint.assign(size_t(bins) * bins, 0);
   s.marginal.assign(2 * size_t(bins), 0);
   for (uint32_t m = 0; m < n; ++m) {
-    const uint32_t bx = bin_of(r.values[m], r.lo, x_range, bins), by = bin_of(y[m], y_lo, y_range, bins);
+    const uint32_t bx = correlation_bin(r.values[m], r.lo, x_range, bins), by = correlation_bin(y[m], y_lo, y_range, bins);
     ++s.joint[bx * bins + by];
     ++s.marginal[bx];
     ++s.marginal[bins + by];
   }
   double sum = 0.0;
   for (uint32_t m = 0; m < n; ++m) {
-    const uint32_t bx = bin_of(r.values[m], r.lo, x_range, bins), by = bin_of(y[m], y_lo, y_range, bins);
+    const uint32_t bx = correlation_bin(r.values[m], r.lo, x_range, bins), by = correlation_bin(y[m], y_lo, y_range, bins);
     sum += double(r.table[s.joint[bx * bins + by]]) - r.table[s.marginal[bx]] - r.table[s.marginal[bins + by]];
   }
   return float(std::max(r.mi_offset + sum / n, 0.0));
