@@ -63,8 +63,12 @@ Plan make_plan(CorrelationMeasure measure, uint32_t members) {
   Plan p;
   p.shader = mi.shader;
   p.coefficient = measure == CorrelationMeasure::MiCoefficient;
-  // Pearson streams over the members whatever their number.
-  p.group_per_voxel = measure != CorrelationMeasure::Pearson && members > TFM_CORR_INVOCATION_MAX_MEMBERS;
+  // Pearson streams over the members whatever their number; binned MI counts per x bin up to
+  // its own limit (shaders/correlation_layout.h).
+  const uint32_t invocation_max = measure == CorrelationMeasure::Pearson    ? kMaxCorrelationMembers
+                                  : measure == CorrelationMeasure::MiBinned ? TFM_CORR_MI_BINNED_INVOCATION_MAX_MEMBERS
+                                                                            : TFM_CORR_INVOCATION_MAX_MEMBERS;
+  p.group_per_voxel = members > invocation_max;
   uint32_t regions = mi.regions;
   if (p.group_per_voxel) {
     const uint32_t capacity = (members + TFM_CORR_CAPACITY_STEP - 1) / TFM_CORR_CAPACITY_STEP * TFM_CORR_CAPACITY_STEP;
@@ -82,7 +86,7 @@ Plan make_plan(CorrelationMeasure measure, uint32_t members) {
   }
   p.shared_floats = std::max(1u, regions * p.region_floats);
   p.shared_bytes = uint64_t(p.shared_floats) * 4 + uint64_t(p.workgroup) * 16 + 16;  // s_work, s_reduce, s_counts
-  if (measure == CorrelationMeasure::MiBinned) p.shared_bytes += (TFM_CORR_MAX_BINS + 2) * TFM_CORR_MAX_BINS * 4;
+  if (measure == CorrelationMeasure::MiBinned) p.shared_bytes += (TFM_CORR_JOINT_WORDS + 2 * TFM_CORR_MAX_BINS) * 4;
   if (measure == CorrelationMeasure::Spearman) p.shared_bytes += 2 * gpu::kFixedSlotBytes;
   return p;
 }
@@ -94,7 +98,9 @@ std::string CorrelationKernel::strategy(const CorrelationParams& params, uint32_
   if (params.measure == CorrelationMeasure::Pearson) return "one invocation per voxel, two passes over the members";
   if (params.measure == CorrelationMeasure::MiBinned)
     return p.group_per_voxel ? "one workgroup per voxel, shared-memory joint histogram"
-                             : "one invocation per voxel, pairwise bin counts";
+                             : member_count <= TFM_CORR_INVOCATION_MAX_MEMBERS
+                                   ? "one invocation per voxel, pairwise bin counts"
+                                   : "one invocation per voxel, y-bin counts per x bin";
   return p.group_per_voxel ? "one workgroup per voxel, shared-memory merge sort"
                            : "one invocation per voxel, merge sort in a shared-memory slice";
 }

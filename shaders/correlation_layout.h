@@ -51,6 +51,13 @@ namespace tfm::gpu {
 #define TFM_CORR_MAX_K 16u
 // Binned mutual information: the joint histogram of one voxel in shared memory (uint counts).
 #define TFM_CORR_MAX_BINS 64u
+// ... with one workgroup per voxel only beyond this many members: below, one invocation per voxel
+// counts its y bins per x bin in a slice of TFM_CORR_BIN_STRIDE words (65: the slices of
+// neighbouring invocations start in different banks), about 5 M + 2 bins loop iterations.
+#define TFM_CORR_MI_BINNED_INVOCATION_MAX_MEMBERS 4096u
+#define TFM_CORR_BIN_STRIDE 65u
+// The histogram's words: a voxel's bins x bins counts, or the invocations' slices.
+#define TFM_CORR_JOINT_WORDS (TFM_CORR_INVOCATION_WORKGROUP * TFM_CORR_BIN_STRIDE)
 
 #define TFM_CORR_FLAG_REF_CONSTANT 1u  // the reference series is constant
 #define TFM_CORR_FLAG_REF_TIES 2u      // the reference series has ties (kendall sorts x tie groups by y)

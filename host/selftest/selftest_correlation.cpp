@@ -110,7 +110,7 @@ void add_correlation_cases(CaseList& cases) {
     };
     // One invocation per voxel: one past a workgroup of voxels, in chunks (4 KiB hold ~60 voxels).
     add(7, TFM_CORR_INVOCATION_WORKGROUP + 1, 4096, true);
-    // One workgroup per voxel; the paper's 1000 members on a few voxels.
+    // One workgroup per voxel (mi-binned: still one invocation); the paper's 1000 members on a few voxels.
     add(100, 9, 0, true);
     add(33, 13, 0, false);
     add(1000, 9, 0, false);
@@ -123,10 +123,14 @@ void add_correlation_cases(CaseList& cases) {
       add(members, past_workgroup, 0, true);
       add(members, past_workgroup, 0, true, 2);
     }
+    // mi-binned counts per x bin in one invocation up to its own limit: either side of it.
+    if (m.params.measure == M::MiBinned)
+      for (uint32_t members : {TFM_CORR_MI_BINNED_INVOCATION_MAX_MEMBERS, TFM_CORR_MI_BINNED_INVOCATION_MAX_MEMBERS + 1})
+        add(members, 9, 0, false);
   }
   // mi-binned on values within 4 ulp of its bin edges, on both strategies: every device must bin
   // them as the CPU peer does (a division-decided binning did not on NVIDIA's driver 580).
-  for (const uint32_t members : {30u, 100u}) {
+  for (const uint32_t members : {30u, 100u, TFM_CORR_MI_BINNED_INVOCATION_MAX_MEMBERS + 1}) {
     const CorrelationCase c{{CorrelationMeasure::MiBinned, 10}, members, 300, 0, true};
     cases.push_back({"correlation_mi_binned", "CorrelationKernel", correlation_name(c), members == 30,
                      CorrelationKernel::workgroup_size(c.params, members),

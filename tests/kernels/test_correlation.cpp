@@ -324,7 +324,8 @@ std::vector<double> mi_binned_by_definition(const EnsembleView& ens, std::span<c
 // The CPU peer, which the benchmark compares with, must count so too.
 TEST_F(CorrelationKernelGpu, MiBinnedCountsValuesOnBinEdgesAsTheCpuPeer) {
   const CorrelationParams params{CorrelationMeasure::MiBinned, 10};
-  for (const uint32_t members : {30u, 100u}) {
+  // Both strategies: one invocation per voxel up to TFM_CORR_MI_BINNED_INVOCATION_MAX_MEMBERS.
+  for (const uint32_t members : {30u, 100u, TFM_CORR_MI_BINNED_INVOCATION_MAX_MEMBERS + 1}) {
     SCOPED_TRACE(members);
     const CorrelationEnsemble e = bin_edge_ensemble(members, 500);
     const std::vector<float> reference = e.reference();
@@ -339,7 +340,7 @@ TEST_F(CorrelationKernelGpu, MiBinnedCountsValuesOnBinEdgesAsTheCpuPeer) {
 // More workgroups than one dispatch row holds (maxComputeWorkGroupCount[0], 65535 on lavapipe):
 // the rows of a 2-D dispatch cover every voxel once.
 TEST_F(CorrelationKernelGpu, ChunksOfMoreGroupsThanOneRowHolds) {
-  const CorrelationParams params{CorrelationMeasure::MiBinned, 6};
+  const CorrelationParams params{CorrelationMeasure::Spearman};  // at 33 members one workgroup per voxel
   const uint32_t row = ctx().limits().maxComputeWorkGroupCount[0];
   // GPUs hold 2^31 - 1 groups in a row: more voxels than that do not fit one test.
   if (row > (1u << 20)) GTEST_SKIP() << "one dispatch row holds " << row << " workgroups on this device";
@@ -350,7 +351,7 @@ TEST_F(CorrelationKernelGpu, ChunksOfMoreGroupsThanOneRowHolds) {
   uint32_t chunks = 0;
   const std::vector<float> g = kernel.compute(e.view(), reference, params, [&](uint64_t, uint64_t) { ++chunks; });
   ASSERT_EQ(chunks, 1u);
-  expect_field_near(g, mi_binned_by_definition(e.view(), reference, params.bins),
+  expect_field_near(g, correlation_field_reference(e.view(), reference, params),
                     CorrelationKernel::error_bound(params, 33));
 }
 
