@@ -5,7 +5,7 @@
 // that with its barriers or semaphores, submits the command buffer itself, and reads the small
 // result (O(N): M, Sᵀb, bᵀb) after its own fence or timeline-semaphore wait.
 //
-// The per-frame protocol (tools/examples/renderer and tests/engine/test_embedding_recording.cpp):
+// The per-frame protocol (tools/examples/renderer and tests/engine/test_embedding_recording*.cpp):
 //   frame k:   host barrier (its writes of the volumes -> compute-shader reads)
 //              recorder.record_assemble(cmd, ref, opt, maps, reference TF)
 //              host submits cmd with its fence
@@ -219,8 +219,8 @@ FieldFormat field_format_of(VkFormat format, const char* what);
 // the device (vkCmdCopyImageToBuffer, the stored texels unchanged: the same bits as the host's
 // values in a buffer) into the recorder's buffer, or the host's, of the image's size in its own
 // format (2 bytes a voxel for R16). Nothing goes through the host. The cost is that device memory
-// and one device-local copy per recording (on lavapipe: tests/engine/test_embedding_recording.cpp
-// measures it beside the assembly).
+// and one device-local copy per recording (tools/examples/renderer measures a frame with it
+// beside one reading the images in place: docs/embedding.md).
 class ImageFieldRecorder {
  public:
   // The field's buffer is the recorder's (created once). Throws std::invalid_argument for a
