@@ -116,7 +116,7 @@ RenderedImage GpuRenderer::render_impl(const FieldMapping& mapping, const Buffer
     kernel_.record(batch, field_, tf, views, push, image, stop, row, rows);
     const uint32_t t1 = batch.timestamp();
     if (row + rows == s.height) {  // the last band: the picture to host-visible memory
-      batch.barrier();
+      batch.barrier();  // every band's writes of the image and stop indices before the copies read them
       batch.copy(image, 0, staging, 0, pixels * 16);
       if (read_stop) batch.copy(stop, 0, staging, pixels * 16, pixels * 4);
       batch.barrier_to_host();
