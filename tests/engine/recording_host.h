@@ -213,6 +213,12 @@ inline void make_fields(uint64_t voxels, std::vector<float>& ref, std::vector<fl
   }
 }
 
+// Member m's value at voxel v of the tests' ensembles: series that differ from voxel to voxel
+// and from member to member, in [-1.3, 1.3].
+inline double member_value(uint32_t m, uint64_t v) {
+  return std::sin(0.37 * m + 0.011 * double(v)) + 0.3 * std::cos(1.7 * m * m + double(v % 13));
+}
+
 inline TransferFunction reference_tf(double shift) {
   TransferFunction tf;
   for (int j = 0; j < 7; ++j) {

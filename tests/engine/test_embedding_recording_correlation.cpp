@@ -24,6 +24,7 @@ namespace {
 
 using test::EmbeddingRecording;
 using test::Host;
+using test::member_value;
 
 // Correlation fields of an ensemble in the host's buffer (member-major), recorded: the bits of
 // CorrelationKernel::compute on the same values, for strategies of one invocation and of one
@@ -46,7 +47,7 @@ TEST_F(EmbeddingRecording, CorrelationOfAnEnsembleInTheHostsBuffer) {
       std::vector<float> values(uint64_t(k.members) * voxels);
       for (uint32_t m = 0; m < k.members; ++m)
         for (uint64_t v = 0; v < voxels; ++v)
-          values[m * voxels + v] = float(std::sin(0.37 * m + 0.011 * double(v)) + 0.3 * std::cos(1.7 * m * m + double(v % 13)));
+          values[m * voxels + v] = float(member_value(m, v));
       void* ensemble_map = nullptr;
       void* out_map = nullptr;
       VkBuffer ensemble = host.buffer(values.size() * 4, &ensemble_map);
@@ -129,7 +130,7 @@ TEST_F(EmbeddingRecording, CorrelationOfEnsemblesInEveryFormatAsBuffersAndImages
         for (uint32_t m = 0; m < k.members; ++m)
           for (uint64_t v = 0; v < voxels; ++v) {
             const uint64_t i = m * voxels + v;
-            const double x = 0.5 + 0.3 * std::sin(0.37 * m + 0.011 * double(v)) + 0.15 * std::cos(1.7 * m * m + double(v % 13));
+            const double x = 0.5 + 0.35 * member_value(m, v);  // in [0.045, 0.955]
             if (format == FieldFormat::Float32) {
               quotient[i] = reciprocal[i] = float(x);
               std::memcpy(stored.data() + 4 * i, &quotient[i], 4);

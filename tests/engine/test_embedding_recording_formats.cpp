@@ -32,6 +32,7 @@ namespace {
 
 using test::EmbeddingRecording;
 using test::Host;
+using test::member_value;
 using test::make_fields;
 using test::reference_tf;
 
@@ -278,7 +279,7 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
     std::vector<float> values(members * member_voxels);
     for (uint32_t m = 0; m < members; ++m)
       for (uint64_t v = 0; v < member_voxels; ++v)
-        values[m * member_voxels + v] = float(std::sin(0.37 * m + 0.011 * double(v)) + 0.3 * std::cos(1.7 * m * m + double(v % 13)));
+        values[m * member_voxels + v] = float(member_value(m, v));
     void* ensemble_map = nullptr;
     void* out_map = nullptr;
     VkBuffer ensemble = host.buffer(values.size() * 4, &ensemble_map);
