@@ -47,6 +47,13 @@ const MeasureInfo& info(CorrelationMeasure m) {
   throw std::invalid_argument("unknown correlation measure");
 }
 
+// Whether spearman and kendall with one workgroup per voxel compare every pair of members
+// instead of merge-sorting them (shaders/correlation_layout.h).
+bool pairs_compared(CorrelationMeasure measure, uint32_t members) {
+  return (measure == CorrelationMeasure::Spearman && members <= TFM_CORR_SPEARMAN_PAIRS_MAX_MEMBERS) ||
+         (measure == CorrelationMeasure::Kendall && members <= TFM_CORR_KENDALL_PAIRS_MAX_MEMBERS);
+}
+
 // How one measure runs for one member count (why: shaders/correlation_common.glsl).
 struct Plan {
   const char* shader = nullptr;
@@ -75,8 +82,12 @@ Plan make_plan(CorrelationMeasure measure, uint32_t members) {
     p.workgroup = TFM_CORR_GROUP_WORKGROUP;
     // A Kraskov neighbour search may walk past every member (a reference with few distinct
     // values): enough invocations that ceil(M / T) of them stay within the loop budget.
-    if (measure == CorrelationMeasure::MiKraskov || measure == CorrelationMeasure::MiCoefficient) {
-      const uint64_t walks = (uint64_t(members) * members + TFM_CORR_LOOP_BUDGET - 1) / TFM_CORR_LOOP_BUDGET;
+    // Spearman and Kendall comparing every pair likewise (M^2 / T comparisons an invocation), with
+    // room for the voxel's other loops.
+    const bool counting = pairs_compared(measure, members);
+    if (measure == CorrelationMeasure::MiKraskov || measure == CorrelationMeasure::MiCoefficient || counting) {
+      const uint64_t budget = counting ? TFM_CORR_LOOP_BUDGET - 4 * TFM_CORR_CAPACITY_STEP : TFM_CORR_LOOP_BUDGET;
+      const uint64_t walks = (uint64_t(members) * members + budget - 1) / budget;
       p.workgroup = uint32_t(std::max<uint64_t>(p.workgroup, std::bit_ceil(walks)));
     }
     p.region_floats = capacity;
@@ -101,6 +112,8 @@ std::string CorrelationKernel::strategy(const CorrelationParams& params, uint32_
                              : member_count <= TFM_CORR_INVOCATION_MAX_MEMBERS
                                    ? "one invocation per voxel, pairwise bin counts"
                                    : "one invocation per voxel, y-bin counts per x bin";
+  if (p.group_per_voxel && pairs_compared(params.measure, member_count))
+    return "one workgroup per voxel, every pair compared";
   return p.group_per_voxel ? "one workgroup per voxel, shared-memory merge sort"
                            : "one invocation per voxel, merge sort in a shared-memory slice";
 }

@@ -1,7 +1,9 @@
 // Kendall's tau-b between the reference series x and each voxel's series y, with every tie term
-// (as scipy.stats.kendalltau by default), in O(M log M) per voxel by Knight's method. The host
-// sorts x once (ref_order: the member at each position in x order, ref_group: where its x tie
-// group starts). Per voxel, y is laid out in x order; when x has ties, a first merge sort orders
+// (as scipy.stats.kendalltau by default). The host sorts x once (ref_order: the member at each
+// position in x order, ref_group: where its x tie group starts), and per voxel y is laid out in x
+// order. One workgroup per voxel up to TFM_CORR_KENDALL_PAIRS_MAX_MEMBERS compares every pair of
+// positions p < q (x_p < x_q unless they share a tie group), the whole workgroup reading the same
+// q at once, no barriers. Otherwise, in O(M log M) by Knight's method: when x has ties, a first merge sort orders
 // each tie group by y (and the pairs tied in both x and y are counted there); then a merge sort
 // by y counts the discordant pairs as inversions, and the sorted y gives the pairs tied in y.
 //   tau_b = (n0 - n1 - n2 + n3 - 2 discordant) / sqrt((n0 - n1)(n0 - n2)),
@@ -11,6 +13,14 @@
 #define CORR_REGIONS 2
 #include "correlation_common.glsl"
 #include "correlation_sort.glsl"
+
+// tau_b from the voxel's totals t: (discordant pairs, pairs tied in y, pairs tied in both).
+void write_tau(uint v, uint n, uvec4 t) {
+  const int n0 = int(n * (n - 1u) / 2u), n1 = int(pc.ref_tied_pairs);
+  const int numerator = n0 - n1 - int(t.y) + int(t.z) - 2 * int(t.x);
+  const float tau = float(numerator) / (sqrt(float(n0 - n1)) * sqrt(float(n0 - int(t.y))));
+  corr_write(v, clamp(tau, -1.0, 1.0));
+}
 
 void main() {
   const uint n = pc.member_count;
@@ -26,6 +36,23 @@ void main() {
     part = corr_combine(part, corr_stats_term(y));
   }
   if (corr_special_case(v, corr_total(part), CORR_NAN)) return;
+  if (GROUP_PER_VOXEL && n <= TFM_CORR_KENDALL_PAIRS_MAX_MEMBERS) {
+    // corr_total's barrier made the whole series visible. The same integers as the sorts count.
+    uint discordant = 0u, y_tied = 0u, both_tied = 0u;
+    CORR_FOR_EACH(p, n) {
+      const float y = s_work[a + p];
+      const uint group = ref_group[p];
+      for (uint q = 0u; q < n; ++q) {
+        const float other = s_work[a + q];
+        const bool later = q > p, same_x = ref_group[q] == group;
+        discordant += later && !same_x && other < y ? 1u : 0u;
+        y_tied += later && other == y ? 1u : 0u;
+        both_tied += later && same_x && other == y ? 1u : 0u;
+      }
+    }
+    write_tau(v, n, corr_count_total(uvec4(discordant, y_tied, both_tied, 0u)));
+    return;
+  }
   uint seq = a, scratch = b, unused, both_tied = 0u;
   if (x_ties) {
     // Knight's order: x, then y within x ties. Its equal neighbours are the pairs tied in both.
@@ -39,9 +66,5 @@ void main() {
   }
   uint discordant;
   const uint sorted = corr_sort(seq, scratch, n, false, discordant);
-  const uvec4 t = corr_count_total(uvec4(discordant, corr_tied_pairs(sorted, n, false), both_tied, 0u));
-  const int n0 = int(n * (n - 1u) / 2u), n1 = int(pc.ref_tied_pairs);
-  const int numerator = n0 - n1 - int(t.y) + int(t.z) - 2 * int(t.x);
-  const float tau = float(numerator) / (sqrt(float(n0 - n1)) * sqrt(float(n0 - int(t.y))));
-  corr_write(v, clamp(tau, -1.0, 1.0));
+  write_tau(v, n, corr_count_total(uvec4(discordant, corr_tied_pairs(sorted, n, false), both_tied, 0u)));
 }

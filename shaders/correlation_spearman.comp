@@ -1,7 +1,8 @@
 // Spearman's rank correlation between the reference series x and each voxel's series y: the
-// Pearson coefficient of fractional ranks (ties get their mean rank). The voxel's series is
-// merge-sorted in shared memory; member m's rank then comes from two binary searches,
-// 2 rank = lower_bound + upper_bound + 1. Centred doubled ranks c = 2 rank - (M + 1) are integers,
+// Pearson coefficient of fractional ranks (ties get their mean rank): 2 rank = (members below) +
+// (members not above) + 1, counted by comparing every pair (one workgroup per voxel up to
+// TFM_CORR_SPEARMAN_PAIRS_MAX_MEMBERS: the whole workgroup reads the same member at once, no barriers),
+// or from two binary searches in the series merge-sorted in shared memory (the same integers). Centred doubled ranks c = 2 rank - (M + 1) are integers,
 // so the sums of c_x c_y and c_y^2 are exact (64-bit, shaders/fixed_point.glsl); x's centred
 // doubled ranks and their sum of squares come from the host.
 #version 450
@@ -30,6 +31,13 @@ void wide_totals(inout uvec2 a, inout uvec2 b) {
 // Signed 64-bit integer in two's complement (|v| < 2^53) to float.
 float wide_to_float(uvec2 v) { return fx_signed_to_float(v) * TFM_FIXED_ONE; }
 
+// Member m's terms of the exact sums: c_x c_y and c_y^2, c_y its centred doubled rank.
+void add_rank_terms(uint m, int cy, inout uvec2 sxy, inout uvec2 syy) {
+  const int p = int(ref_values[m]) * cy;
+  fx_add(sxy, p < 0 ? fx_negate(uvec2(uint(-p), 0u)) : uvec2(uint(p), 0u));
+  fx_add(syy, uvec2(uint(cy * cy), 0u));
+}
+
 void main() {
   const uint n = pc.member_count;
   const uint v = corr_voxel();
@@ -43,15 +51,27 @@ void main() {
     part = corr_combine(part, corr_stats_term(y));
   }
   if (corr_special_case(v, corr_total(part), CORR_NAN)) return;
-  uint unused;
-  const uint sorted = corr_sort(a, b, n, false, unused);
   uvec2 sxy = uvec2(0u), syy = uvec2(0u);
-  CORR_FOR_EACH(m, n) {
-    const float y = series_value(v, m);
-    const int cy = int(corr_lower_bound(sorted, 0u, n, y) + corr_upper_bound(sorted, 0u, n, y) + 1u) - int(n + 1u);
-    const int p = int(ref_values[m]) * cy;
-    fx_add(sxy, p < 0 ? fx_negate(uvec2(uint(-p), 0u)) : uvec2(uint(p), 0u));
-    fx_add(syy, uvec2(uint(cy * cy), 0u));
+  if (GROUP_PER_VOXEL && n <= TFM_CORR_SPEARMAN_PAIRS_MAX_MEMBERS) {
+    // corr_total's barrier made the whole series visible.
+    CORR_FOR_EACH(m, n) {
+      const float y = s_work[a + m];
+      uint below = 0u, not_above = 0u;
+      for (uint l = 0u; l < n; ++l) {
+        const float other = s_work[a + l];
+        below += other < y ? 1u : 0u;
+        not_above += other <= y ? 1u : 0u;
+      }
+      add_rank_terms(m, int(below + not_above + 1u) - int(n + 1u), sxy, syy);
+    }
+  } else {
+    uint unused;
+    const uint sorted = corr_sort(a, b, n, false, unused);
+    CORR_FOR_EACH(m, n) {
+      const float y = series_value(v, m);
+      add_rank_terms(m, int(corr_lower_bound(sorted, 0u, n, y) + corr_upper_bound(sorted, 0u, n, y) + 1u) - int(n + 1u),
+                     sxy, syy);
+    }
   }
   wide_totals(sxy, syy);
   const float r = wide_to_float(sxy) / (sqrt(pc.ref_norm) * sqrt(wide_to_float(syy)));
