@@ -47,8 +47,8 @@ const MeasureInfo& info(CorrelationMeasure m) {
   throw std::invalid_argument("unknown correlation measure");
 }
 
-// Whether spearman and kendall with one workgroup per voxel compare every pair of members
-// instead of merge-sorting them (shaders/correlation_layout.h).
+// Whether spearman and kendall compare every pair of members instead of merge-sorting them
+// (shaders/correlation_layout.h).
 bool pairs_compared(CorrelationMeasure measure, uint32_t members) {
   return (measure == CorrelationMeasure::Spearman && members <= TFM_CORR_SPEARMAN_PAIRS_MAX_MEMBERS) ||
          (measure == CorrelationMeasure::Kendall && members <= TFM_CORR_KENDALL_PAIRS_MAX_MEMBERS);
@@ -112,8 +112,8 @@ std::string CorrelationKernel::strategy(const CorrelationParams& params, uint32_
                              : member_count <= TFM_CORR_INVOCATION_MAX_MEMBERS
                                    ? "one invocation per voxel, pairwise bin counts"
                                    : "one invocation per voxel, y-bin counts per x bin";
-  if (p.group_per_voxel && pairs_compared(params.measure, member_count))
-    return "one workgroup per voxel, every pair compared";
+  if (pairs_compared(params.measure, member_count))
+    return p.group_per_voxel ? "one workgroup per voxel, every pair compared" : "one invocation per voxel, every pair compared";
   return p.group_per_voxel ? "one workgroup per voxel, shared-memory merge sort"
                            : "one invocation per voxel, merge sort in a shared-memory slice";
 }

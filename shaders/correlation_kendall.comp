@@ -1,11 +1,12 @@
 // Kendall's tau-b between the reference series x and each voxel's series y, with every tie term
 // (as scipy.stats.kendalltau by default). The host sorts x once (ref_order: the member at each
 // position in x order, ref_group: where its x tie group starts), and per voxel y is laid out in x
-// order. One workgroup per voxel up to TFM_CORR_KENDALL_PAIRS_MAX_MEMBERS compares every pair of
-// positions p < q (x_p < x_q unless they share a tie group), the whole workgroup reading the same
-// q at once, no barriers. Otherwise, in O(M log M) by Knight's method: when x has ties, a first merge sort orders
-// each tie group by y (and the pairs tied in both x and y are counted there); then a merge sort
-// by y counts the discordant pairs as inversions, and the sorted y gives the pairs tied in y.
+// order. Up to TFM_CORR_KENDALL_PAIRS_MAX_MEMBERS every pair of positions p < q is compared
+// (x_p < x_q unless they share a tie group; with one workgroup per voxel the whole workgroup reads
+// the same q at once, no barriers). Beyond, in O(M log M) by Knight's method: when x has ties, a
+// first merge sort orders each tie group by y (and the pairs tied in both x and y are counted
+// there); then a merge sort by y counts the discordant pairs as inversions, and the sorted y
+// gives the pairs tied in y.
 //   tau_b = (n0 - n1 - n2 + n3 - 2 discordant) / sqrt((n0 - n1)(n0 - n2)),
 // n0 = M(M-1)/2, n1 / n2 / n3 the pairs tied in x / y / both. All counts are exact integers.
 #version 450
@@ -36,13 +37,16 @@ void main() {
     part = corr_combine(part, corr_stats_term(y));
   }
   if (corr_special_case(v, corr_total(part), CORR_NAN)) return;
-  if (GROUP_PER_VOXEL && n <= TFM_CORR_KENDALL_PAIRS_MAX_MEMBERS) {
-    // corr_total's barrier made the whole series visible. The same integers as the sorts count.
+  if (n <= TFM_CORR_KENDALL_PAIRS_MAX_MEMBERS) {
+    // corr_total's barrier made the whole series visible (one invocation per voxel wrote its own).
+    // The same integers as the sorts count.
     uint discordant = 0u, y_tied = 0u, both_tied = 0u;
     CORR_FOR_EACH(p, n) {
       const float y = s_work[a + p];
       const uint group = ref_group[p];
-      for (uint q = 0u; q < n; ++q) {
+      // A workgroup reads the same q at once, so each invocation runs over all of them; one
+      // invocation per voxel starts past p (p is the same in every invocation).
+      for (uint q = GROUP_PER_VOXEL ? 0u : p + 1u; q < n; ++q) {
         const float other = s_work[a + q];
         const bool later = q > p, same_x = ref_group[q] == group;
         discordant += later && !same_x && other < y ? 1u : 0u;

@@ -47,11 +47,12 @@ namespace tfm::gpu {
 // silently ends every loop of the invocation.
 #define TFM_CORR_LOOP_BUDGET 32768u
 
-// Spearman and Kendall with one workgroup per voxel compare every pair of members up to these
-// many (M^2 / T comparisons an invocation, no sort and none of its barriers), and merge-sort
+// Spearman and Kendall compare every pair of members up to these many (with one workgroup per
+// voxel M^2 / T comparisons an invocation, no sort and none of its barriers), and merge-sort
 // beyond. Measured on lavapipe (bench-correlate, voxels/s, pairs against merge sort): spearman
-// 2.2x at M = 48, 1.5x at 96, 1.0x at 128, 0.92x at 200; kendall (three comparisons a pair)
-// 1.5x at 48, 0.83x at 96, 0.47x at 200. Not measured on a GPU yet.
+// 2.35x at M = 10, 1.36x at 32 (one invocation per voxel), 2.2x at 48, 1.5x at 96, 1.0x at 128,
+// 0.92x at 200; kendall (three comparisons a pair) 1.65x at 10, 1.11x at 32, 1.5x at 48, 1.25x
+// at 64, 0.83x at 96, 0.47x at 200. Not measured on a GPU yet.
 #define TFM_CORR_SPEARMAN_PAIRS_MAX_MEMBERS 128u
 #define TFM_CORR_KENDALL_PAIRS_MAX_MEMBERS 64u
 

@@ -1,10 +1,11 @@
 // Spearman's rank correlation between the reference series x and each voxel's series y: the
 // Pearson coefficient of fractional ranks (ties get their mean rank): 2 rank = (members below) +
-// (members not above) + 1, counted by comparing every pair (one workgroup per voxel up to
-// TFM_CORR_SPEARMAN_PAIRS_MAX_MEMBERS: the whole workgroup reads the same member at once, no barriers),
-// or from two binary searches in the series merge-sorted in shared memory (the same integers). Centred doubled ranks c = 2 rank - (M + 1) are integers,
-// so the sums of c_x c_y and c_y^2 are exact (64-bit, shaders/fixed_point.glsl); x's centred
-// doubled ranks and their sum of squares come from the host.
+// (members not above) + 1, counted by comparing every pair up to
+// TFM_CORR_SPEARMAN_PAIRS_MAX_MEMBERS (with one workgroup per voxel the whole workgroup reads the
+// same member at once, no barriers), or from two binary searches in the series merge-sorted in
+// shared memory beyond (the same integers). Centred doubled ranks c = 2 rank - (M + 1) are
+// integers, so the sums of c_x c_y and c_y^2 are exact (64-bit, shaders/fixed_point.glsl); x's
+// centred doubled ranks and their sum of squares come from the host.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #define CORR_REGIONS 2
@@ -52,8 +53,8 @@ void main() {
   }
   if (corr_special_case(v, corr_total(part), CORR_NAN)) return;
   uvec2 sxy = uvec2(0u), syy = uvec2(0u);
-  if (GROUP_PER_VOXEL && n <= TFM_CORR_SPEARMAN_PAIRS_MAX_MEMBERS) {
-    // corr_total's barrier made the whole series visible.
+  if (n <= TFM_CORR_SPEARMAN_PAIRS_MAX_MEMBERS) {
+    // corr_total's barrier made the whole series visible (one invocation per voxel wrote its own).
     CORR_FOR_EACH(m, n) {
       const float y = s_work[a + m];
       uint below = 0u, not_above = 0u;
