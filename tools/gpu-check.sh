@@ -76,6 +76,10 @@ if want bench; then
 fi
 if want bench-long; then
   step bench-correlate 90 "$tfm" bench-correlate
+  # Where comparing pairs stops beating the merge sort on this GPU (spearman <= 128 and kendall
+  # <= 64 members compare pairs: shaders/correlation_layout.h; measured on lavapipe only).
+  step bench-correlate-pairs 90 "$tfm" bench-correlate --measures spearman,kendall --members 48,64,65,96,128,129,200 \
+    --max-values 40000000 --json "$out/bench-correlate-pairs.json"
   step bench-stream 60 "$tfm" bench-stream --voxels 100000000 --dir "${TMPDIR:-/tmp}"
 fi
 if want startup; then
