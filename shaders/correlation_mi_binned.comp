@@ -7,7 +7,7 @@
 // sum p_xy ln(p_xy / (p_x p_y)), summed per member so both strategies add the same terms).
 // ln c comes from a table the host computes in double. One invocation per voxel counts by
 // comparing every pair of members while M <= 32 (at most 1024 comparisons of bin codes kept in
-// its shared-memory slice: on lavapipe 1.7x faster than what follows at M = 10); up to M = 4096
+// its shared-memory slice: on lavapipe 1.3x faster than what follows at M = 10); up to M = 4096
 // it takes the members grouped by x bin (the host's order: x's bins are the same at every voxel)
 // and counts, in its slice of s_joint, each y bin over all members (c_y, low 16 bits of a word)
 // and within the current x bin (c_xy, high 16 bits): O(M + bins) per voxel, every member's terms
