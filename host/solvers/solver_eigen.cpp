@@ -32,15 +32,7 @@ SolverOutput solve_with_eigen_normal_equations(VoxelProblem& p, const SolverArgs
     eq.btb[size_t(c)] = btb;
   }
   out.phases.push_back({"A^T A", ms_since(t0), -1.0});
-  t0 = std::chrono::steady_clock::now();
-  const SolveResult r = solve_normal_equations(eq, args.solve);
-  out.phases.push_back({"solve", ms_since(t0), -1.0});
-  out.tf = r.tf;
-  out.warnings = r.warnings;
-  out.details["factorization"] = r.factorization;
-  out.details["cond"] = cond_detail(r.cond);
-  out.details["clamped_values"] = r.clamped_values;
-  out.details["unreferenced_entries"] = r.unreferenced_entries;
+  solve_and_record(eq, args.solve, out);
   out.details["nonzeros"] = sys.a.nonZeros();
   return out;
 }

@@ -31,18 +31,9 @@ class NormalEquationsSolver final : public Solver {
 
   SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
     SolverOutput out;
-    const NormalEquations eq = solved_system(p, args, out);
-    const auto t0 = std::chrono::steady_clock::now();
-    const SolveResult r = solve_normal_equations(eq, args.solve);
-    out.phases.push_back({"solve", ms_since(t0), -1.0});
-    out.tf = r.tf;
-    out.warnings = r.warnings;
-    out.details["factorization"] = r.factorization;
-    out.details["cond"] = cond_detail(r.cond);
+    const SolveResult r = solve_and_record(solved_system(p, args, out), args.solve, out);
     out.details["lambda_min"] = r.lambda_min;
     out.details["lambda_max"] = r.lambda_max;
-    out.details["unreferenced_entries"] = r.unreferenced_entries;
-    out.details["clamped_values"] = r.clamped_values;
     out.details["ridge"] = args.solve.ridge;
     out.details["smooth"] = args.solve.smooth;
     return out;

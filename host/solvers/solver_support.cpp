@@ -94,6 +94,19 @@ std::vector<SolverOption> cgls_stop_options() {
 
 DetailValue cond_detail(double cond) { return std::isfinite(cond) ? DetailValue(cond) : DetailValue("inf"); }
 
+SolveResult solve_and_record(const NormalEquations& eq, const SolveOptions& options, SolverOutput& out) {
+  const auto t0 = std::chrono::steady_clock::now();
+  SolveResult r = solve_normal_equations(eq, options);
+  out.phases.push_back({"solve", ms_since(t0), -1.0});
+  out.tf = r.tf;
+  out.warnings = r.warnings;
+  out.details["factorization"] = r.factorization;
+  out.details["cond"] = cond_detail(r.cond);
+  out.details["clamped_values"] = r.clamped_values;
+  out.details["unreferenced_entries"] = r.unreferenced_entries;
+  return r;
+}
+
 TransferFunction clamp_to_tf(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x, uint32_t* clamped) {
   TransferFunction tf;
   tf.rgba.resize(size_t(x.rows()));

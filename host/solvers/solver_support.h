@@ -61,6 +61,10 @@ std::vector<SolverOption> cgls_stop_options();
 // cond(M) as a detail: the number, or "inf" for a singular M.
 DetailValue cond_detail(double cond);
 
+// Solves the banded system (the "solve" phase) and records in `out` what every normal-equations
+// solver reports: the TF, the warnings, the factorization, cond, clamped and unreferenced entries.
+SolveResult solve_and_record(const NormalEquations& eq, const SolveOptions& options, SolverOutput& out);
+
 // x (N x 4) clamped to [0,1] as a TF; counts the components that moved.
 TransferFunction clamp_to_tf(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x, uint32_t* clamped = nullptr);
 // A TF of N float RGBA entries (as read back from the device) clamped to [0,1].

@@ -76,16 +76,8 @@ SolverOutput solve_with_cuda_normal_equations(VoxelProblem& p, const SolverArgs&
     for (int c = 0; c < 4; ++c) diff = std::max(diff, std::abs(direct_eq.rhs(j, c) - eq.rhs(j, c)));
   }
 
-  t0 = std::chrono::steady_clock::now();
-  const SolveResult r = solve_normal_equations(eq, args.solve);
-  out.phases.push_back({"solve", ms_since(t0), -1.0});
-  out.tf = r.tf;
-  out.warnings = r.warnings;
+  solve_and_record(eq, args.solve, out);
   out.details["device"] = cuda::device_name();
-  out.details["factorization"] = r.factorization;
-  out.details["cond"] = cond_detail(r.cond);
-  out.details["clamped_values"] = r.clamped_values;
-  out.details["unreferenced_entries"] = r.unreferenced_entries;
   out.details["nonzeros"] = sys.a.nonZeros();
   out.details["upload_ms"] = cs.upload_ms;
   out.details["cusparse_assembly_gpu_ms"] = cs.assemble_ms;
