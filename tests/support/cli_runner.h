@@ -177,6 +177,12 @@ inline CliSplitResult run_cli_split(const std::string& args, std::chrono::millis
   return out;
 }
 
+// The whole file at `p` (empty when it cannot be read).
+inline std::string read_text(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
 // Every file under `dir`, relative, sorted (what a run left behind).
 inline std::vector<std::string> files_under(const std::filesystem::path& dir) {
   std::vector<std::string> out;

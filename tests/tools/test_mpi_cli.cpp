@@ -28,10 +28,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
+using test::read_text;
 
 #ifdef TFMATCH_MPIEXEC
 // What OpenMPI needs on test machines: CI runs tests as root, which it refuses unless told; and in

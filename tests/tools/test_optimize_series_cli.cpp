@@ -22,10 +22,7 @@ namespace {
 namespace fs = std::filesystem;
 using test::run_cli;
 
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
+using test::read_text;
 
 class OptimizeSeriesCli : public ::testing::Test {
  protected:

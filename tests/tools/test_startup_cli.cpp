@@ -29,10 +29,7 @@ struct CacheDirectory : ScopedEnv {
   explicit CacheDirectory(const std::string& value) : ScopedEnv("TFMATCH_PIPELINE_CACHE", value) {}
 };
 
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
+using test::read_text;
 
 class StartupCli : public ::testing::Test {
  protected:

@@ -23,10 +23,7 @@ using test::files_under;
 using test::TempDir;
 
 void write_text(const fs::path& path, const std::string& text) { std::ofstream(path) << text; }
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
+using test::read_text;
 
 // Runs plan.check() and expects a std::runtime_error whose message holds every needle.
 void expect_refused(const FilePlan& plan, std::initializer_list<std::string> needles) {

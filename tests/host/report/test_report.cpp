@@ -19,12 +19,7 @@
 namespace tfm {
 namespace {
 
-std::string read_text(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using test::read_text;
 
 class Report : public test::GpuTest {};
 
