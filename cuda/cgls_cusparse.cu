@@ -1,6 +1,8 @@
-// Jacobi-preconditioned CGLS on the explicit A with cuSPARSE SpMV (A p and A^T r, A^T built once
-// on the device), four channels stepping independently like the Vulkan `cgls` solver. Every
-// reduction has a fixed shape (grid-stride per thread, then a tree), so runs are bit-identical.
+// Jacobi-preconditioned CGLS on the explicit A = S (x) I_4 with cuSPARSE SpMM (A p and A^T r as
+// S and S^T times n x 4 and voxels x 4 matrices; S and S^T are the DeviceSystem's, built on the
+// device), four channels stepping independently like the Vulkan
+// `cgls` solver. Every reduction has a fixed shape (grid-stride per thread, then a tree), so runs
+// are bit-identical.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -10,27 +12,13 @@
 namespace tfm::cuda {
 namespace {
 
-constexpr int kThreads = 256;           // a power of two and a multiple of 4: a thread keeps one channel
-constexpr int kPartialBlocks = 240;     // blocks of the long (voxel-sized) reductions
+constexpr int kThreads = kReduceThreads;
 constexpr uint32_t kIterationsPerBatch = 8;  // the host reads the stop flags once per batch
 
 struct State {
   double gamma[4], alpha[4], s_norm2[4], s0_norm2[4];
   uint32_t running[4], iterations[4];
 };
-
-// Sums v over the block per channel (thread t holds channel t % 4); every thread gets the four
-// totals in `out`. `sh` has blockDim.x entries.
-__device__ void reduce_channels(double v, double* sh, double out[4]) {
-  __syncthreads();  // a previous reduction's readers are done with sh
-  sh[threadIdx.x] = v;
-  __syncthreads();
-  for (unsigned half = blockDim.x / 2; half >= 4; half /= 2) {
-    if (threadIdx.x < half) sh[threadIdx.x] += sh[threadIdx.x + half];
-    __syncthreads();
-  }
-  for (int c = 0; c < 4; ++c) out[c] = sh[c];
-}
 
 // (R v)_k for R = ridge I + smooth D^T D per channel, on interleaved vectors (k = 4j + c).
 __device__ double r_times(const double* v, uint32_t k, uint32_t n, double ridge, double smooth) {
@@ -39,17 +27,6 @@ __device__ double r_times(const double* v, uint32_t k, uint32_t n, double ridge,
   if (j > 0) d += v[k] - v[k - 4];
   if (j + 1 < n) d += v[k] - v[k + 4];
   return ridge * v[k] + smooth * d;
-}
-
-// partials[4 * block + c] = sum of q_i^2 over this block's entries of channel c.
-__global__ void squared_norm_partials(const double* q, uint64_t len, double* partials) {
-  __shared__ double sh[kThreads];
-  double acc = 0.0;
-  for (uint64_t i = uint64_t(blockIdx.x) * blockDim.x + threadIdx.x; i < len; i += uint64_t(gridDim.x) * blockDim.x)
-    acc += q[i] * q[i];
-  double tot[4];
-  reduce_channels(acc, sh, tot);
-  if (threadIdx.x < 4) partials[4 * blockIdx.x + threadIdx.x] = tot[threadIdx.x];
 }
 
 __global__ void init_kernel(uint32_t n, const double* s, const double* inv_diag, double* x, double* p, State* st) {
@@ -146,32 +123,31 @@ int grid_for(uint64_t len) {
 
 }  // namespace
 
-CglsOutcome cgls(const CsrView& a, std::span<const double> b, const CglsParams& prm) {
+CglsOutcome cgls(const DeviceSystem& system, const CglsParams& prm) {
   const uint32_t n = prm.n;
-  if (b.size() != size_t(a.rows) || size_t(a.cols) != 4 * size_t(n) || a.rows % 4 != 0 || prm.inv_diag.size() != n ||
-      n < 2)
-    throw std::invalid_argument("cuda::cgls: sizes of A, b and the Jacobi diagonal do not match");
-  require_device("cuda-cgls");
+  const DeviceSystem::Impl& sys = system.impl();
+  if (n != sys.n || prm.inv_diag.size() != n || n < 2 || system.voxels() == 0)
+    throw std::invalid_argument("cuda::cgls: sizes of the system and the Jacobi diagonal do not match, or no voxels");
   CglsOutcome out;
   SparseHandle handle;
   auto t0 = std::chrono::steady_clock::now();
-  const DeviceCsr da = upload_csr(a);
-  const DeviceCsr at = transpose(handle, da);
-  const uint64_t m = uint64_t(a.rows);
-  DeviceArray<double> r(b.data(), b.size()), q(m), s(4 * size_t(n)), x(4 * size_t(n)), p(4 * size_t(n));
+  const uint64_t m = 4 * system.voxels();  // rows of A: q and r are voxels x 4, row-major
+  DeviceArray<double> r(m), q(m), s(4 * size_t(n)), x(4 * size_t(n)), p(4 * size_t(n));
+  if (m) check(cudaMemcpy(r.get(), sys.b.get(), m * sizeof(double), cudaMemcpyDeviceToDevice), "r = b");
   DeviceArray<double> inv_diag(prm.inv_diag.data(), n), partials(4 * size_t(kPartialBlocks));
   DeviceArray<State> state(1);
   DeviceArray<char> buffer;
-  const SpMat mat_a(da), mat_at(at);
-  const DnVec vec_p(4 * int64_t(n), p.get()), vec_q(int64_t(m), q.get()), vec_r(int64_t(m), r.get()),
-      vec_s(4 * int64_t(n), s.get());
-  check(cudaDeviceSynchronize(), "upload");
-  out.upload_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  // A v for an interleaved v is S V for the n x 4 matrix V: the products run on S and S^T.
+  const SpMat mat_s(sys.s), mat_st(sys.st);
+  const int64_t voxels = int64_t(system.voxels());
+  const DnMat mat_p(n, 4, p.get()), mat_q(voxels, 4, q.get()), mat_r(voxels, 4, r.get()), mat_sv(n, 4, s.get());
+  check(cudaDeviceSynchronize(), "CGLS set-up");
+  out.setup_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
   EventTimer timer;
   timer.start();
   const double tol2 = prm.tolerance * prm.tolerance;
-  spmv(handle, mat_at, vec_r, vec_s, buffer);  // s0 = A^T b
+  spmm(handle, mat_st, mat_r, mat_sv, buffer);  // s0 = A^T b
   init_kernel<<<1, kThreads>>>(n, s.get(), inv_diag.get(), x.get(), p.get(), state.get());
   check(cudaGetLastError(), "init_kernel");
   State st{};
@@ -181,12 +157,12 @@ CglsOutcome cgls(const CsrView& a, std::span<const double> b, const CglsParams& 
   while (running() && recorded < prm.max_iterations) {
     const uint32_t count = std::min(kIterationsPerBatch, prm.max_iterations - recorded);
     for (uint32_t k = 0; k < count; ++k) {
-      spmv(handle, mat_a, vec_p, vec_q, buffer);  // q = A p
-      squared_norm_partials<<<kPartialBlocks, kThreads>>>(q.get(), m, partials.get());
+      spmm(handle, mat_s, mat_p, mat_q, buffer);  // q = A p
+      launch_squared_norm_partials(q.get(), m, partials.get());
       step_kernel<<<1, kThreads>>>(n, partials.get(), kPartialBlocks, p.get(), x.get(), state.get(), prm.ridge,
                                    prm.smooth);
       residual_kernel<<<grid_for(m), kThreads>>>(r.get(), q.get(), m, state.get());
-      spmv(handle, mat_at, vec_r, vec_s, buffer);  // s = A^T r
+      spmm(handle, mat_st, mat_r, mat_sv, buffer);  // s = A^T r
       direction_kernel<<<1, kThreads>>>(n, s.get(), inv_diag.get(), x.get(), p.get(), state.get(), prm.ridge,
                                         prm.smooth, tol2);
     }

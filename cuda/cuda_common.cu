@@ -1,4 +1,4 @@
-// Device discovery and the CSR helpers shared by the cuSPARSE paths.
+// Device discovery, the CSR transposition and the channel reductions shared by the CUDA paths.
 #include "cuda_common.cuh"
 
 namespace tfm::cuda {
@@ -25,15 +25,33 @@ std::string device_name() {
   return prop.name;
 }
 
-DeviceCsr upload_csr(const CsrView& a) {
-  DeviceCsr m;
-  m.rows = a.rows;
-  m.cols = a.cols;
-  m.nnz = int64_t(a.col.size());
-  m.row_ptr = DeviceArray<int>(a.row_ptr.data(), a.row_ptr.size());
-  m.col = DeviceArray<int>(a.col.data(), a.col.size());
-  m.val = DeviceArray<double>(a.val.data(), a.val.size());
-  return m;
+namespace {
+
+__global__ void squared_norm_partials(const double* q, uint64_t len, double* partials) {
+  __shared__ double sh[kReduceThreads];
+  double acc = 0.0;
+  for (uint64_t i = uint64_t(blockIdx.x) * blockDim.x + threadIdx.x; i < len; i += uint64_t(gridDim.x) * blockDim.x)
+    acc += q[i] * q[i];
+  double tot[4];
+  reduce_channels(acc, sh, tot);
+  if (threadIdx.x < 4) partials[4 * blockIdx.x + threadIdx.x] = tot[threadIdx.x];
+}
+
+}  // namespace
+
+void launch_squared_norm_partials(const double* q, uint64_t len, double* partials) {
+  squared_norm_partials<<<kPartialBlocks, kReduceThreads>>>(q, len, partials);
+}
+
+std::array<double, 4> squared_norms_per_channel(const double* q, uint64_t len) {
+  DeviceArray<double> partials(4 * size_t(kPartialBlocks));
+  launch_squared_norm_partials(q, len, partials.get());
+  check(cudaGetLastError(), "squared_norm_partials");
+  const std::vector<double> host = partials.download();
+  std::array<double, 4> out{};
+  for (int b = 0; b < kPartialBlocks; ++b)
+    for (int c = 0; c < 4; ++c) out[size_t(c)] += host[4 * size_t(b) + size_t(c)];
+  return out;
 }
 
 DeviceCsr transpose(cusparseHandle_t handle, const DeviceCsr& a) {
@@ -71,6 +89,23 @@ SpMat::SpMat(int64_t rows, int64_t cols) {
   check(cusparseCreateCsr(&d, rows, cols, 0, nullptr, nullptr, nullptr, CUSPARSE_INDEX_32I, CUSPARSE_INDEX_32I,
                           CUSPARSE_INDEX_BASE_ZERO, CUDA_R_64F),
         "cusparseCreateCsr");
+}
+
+// CSR algorithm 2, the one for row-major dense matrices. Run-to-run bits matter here (the default
+// SpMV on A^T's long rows changed them on an H100); CglsIsBitIdenticalAndHonoursTheCap and
+// NormalEquationsMatchExactSolution check them on a CUDA device.
+constexpr cusparseSpMMAlg_t kSpmmAlg = CUSPARSE_SPMM_CSR_ALG2;
+
+void spmm(cusparseHandle_t handle, const SpMat& m, const DnMat& x, const DnMat& y, DeviceArray<char>& buffer) {
+  const double one = 1.0, zero = 0.0;
+  const cusparseOperation_t op = CUSPARSE_OPERATION_NON_TRANSPOSE;
+  size_t bytes = 0;
+  check(cusparseSpMM_bufferSize(handle, op, op, &one, m.d, x.d, &zero, y.d, CUDA_R_64F, kSpmmAlg,
+                                &bytes),
+        "cusparseSpMM_bufferSize");
+  if (bytes > buffer.size()) buffer = DeviceArray<char>(bytes);
+  check(cusparseSpMM(handle, op, op, &one, m.d, x.d, &zero, y.d, CUDA_R_64F, kSpmmAlg, buffer.get()),
+        "cusparseSpMM");
 }
 
 }  // namespace tfm::cuda

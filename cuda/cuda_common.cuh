@@ -2,6 +2,7 @@
 // handles, event timing, and the CSR upload/transposition both cuSPARSE paths need.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -103,9 +104,56 @@ struct DeviceCsr {
   DeviceArray<int> row_ptr, col;
   DeviceArray<double> val;
 };
-DeviceCsr upload_csr(const CsrView& a);
 // A^T as CSR (cusparseCsr2cscEx2: the CSC of A is the CSR of A^T).
 DeviceCsr transpose(cusparseHandle_t handle, const DeviceCsr& a);
+
+// What DeviceFields and DeviceSystem (cuda_solvers.h) hold behind their plain C++ faces.
+struct DeviceFields::Impl {
+  DeviceArray<float> ref, opt;
+};
+struct DeviceSystem::Impl {
+  DeviceCsr s, st;        // S (a row per voxel with data, 2 non-zeros a row, n columns) and S^T
+  DeviceArray<double> b;  // voxels x 4 row-major: RGBA per voxel with data
+  uint32_t n = 0;         // TF entries
+};
+
+// tf_coordinate() of host/model/field_mapping.h with explicitly rounded float operations (the _rn
+// intrinsics are never fused into FMAs), so j and w are bit-identical to the host's.
+__device__ inline bool tf_coordinate(float v, float lo, float scale, uint32_t n, uint32_t& j, float& w) {
+  if (isnan(v)) return false;
+  float x = __fmul_rn(__fsub_rn(v, lo), scale);
+  const float top = float(n - 1);
+  x = x < 0.0f ? 0.0f : (x > top ? top : x);
+  const float jf = fminf(floorf(x), float(n - 2));
+  j = uint32_t(jf);
+  w = __fsub_rn(x, jf);
+  return true;
+}
+
+// Threads of the fixed-shape reductions: a power of two and a multiple of 4, so thread t keeps
+// channel t % 4 of interleaved RGBA vectors.
+constexpr int kReduceThreads = 256;
+
+// Sums v over the block per channel (thread t holds channel t % 4); every thread gets the four
+// totals in `out`. `sh` has blockDim.x entries. The tree has a fixed shape: the same bits every run.
+__device__ inline void reduce_channels(double v, double* sh, double out[4]) {
+  __syncthreads();  // a previous reduction's readers are done with sh
+  sh[threadIdx.x] = v;
+  __syncthreads();
+  for (unsigned half = blockDim.x / 2; half >= 4; half /= 2) {
+    if (threadIdx.x < half) sh[threadIdx.x] += sh[threadIdx.x + half];
+    __syncthreads();
+  }
+  for (int c = 0; c < 4; ++c) out[c] = sh[c];
+}
+
+// Blocks of the long (voxel-sized) reductions: partials has 4 * kPartialBlocks entries.
+constexpr int kPartialBlocks = 240;
+// partials[4 * block + c] = sum of q_i^2 over block `block`'s entries of channel c (i % 4 == c),
+// kPartialBlocks blocks, queued on the default stream.
+void launch_squared_norm_partials(const double* q, uint64_t len, double* partials);
+// The four channel sums of q_i^2: the partials above, added on the host in block order.
+std::array<double, 4> squared_norms_per_channel(const double* q, uint64_t len);
 
 
 // Generic-API descriptors (destroyed on scope exit).
@@ -117,17 +165,19 @@ struct SpMat {
   SpMat(const SpMat&) = delete;
   SpMat& operator=(const SpMat&) = delete;
 };
-struct DnVec {
-  cusparseDnVecDescr_t d = nullptr;
-  DnVec(int64_t size, double* values) { check(cusparseCreateDnVec(&d, size, values, CUDA_R_64F), "cusparseCreateDnVec"); }
-  ~DnVec() { if (d) cusparseDestroyDnVec(d); }
-  DnVec(const DnVec&) = delete;
-  DnVec& operator=(const DnVec&) = delete;
+// A dense row-major matrix of doubles, ld = cols: an interleaved RGBA vector is a rows x 4 one.
+struct DnMat {
+  cusparseDnMatDescr_t d = nullptr;
+  DnMat(int64_t rows, int64_t cols, double* values) {
+    check(cusparseCreateDnMat(&d, rows, cols, cols, values, CUDA_R_64F, CUSPARSE_ORDER_ROW), "cusparseCreateDnMat");
+  }
+  ~DnMat() { if (d) cusparseDestroyDnMat(d); }
+  DnMat(const DnMat&) = delete;
+  DnMat& operator=(const DnMat&) = delete;
 };
 
-// y = M x by cusparseSpMV in double (grows `buffer` as needed).
-void spmv(cusparseHandle_t handle, const DeviceCsr& m, const double* x, double* y, DeviceArray<char>& buffer);
-// The same with descriptors made once (the CGLS loop).
-void spmv(cusparseHandle_t handle, const SpMat& m, const DnVec& x, const DnVec& y, DeviceArray<char>& buffer);
+// Y = M X by cusparseSpMM in double, M never transposed (cuSPARSE repeats its bits then; the
+// transposes are explicit CSR matrices). Grows `buffer` as needed.
+void spmm(cusparseHandle_t handle, const SpMat& m, const DnMat& x, const DnMat& y, DeviceArray<char>& buffer);
 
 }  // namespace tfm::cuda

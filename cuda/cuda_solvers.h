@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -19,37 +20,85 @@ void require_device(const std::string& who);
 bool device_available(std::string* why = nullptr);
 std::string device_name();
 
-// A host CSR matrix, 0-based int32 indices (Eigen's RowMajor SparseMatrix layout).
-struct CsrView {
-  int rows = 0, cols = 0;
-  std::span<const int> row_ptr;  // rows + 1
-  std::span<const int> col;      // nnz
-  std::span<const double> val;   // nnz
+// The two fields on the device, uploaded once for the system and the assemblies below. Opaque:
+// no CUDA type appears here. Throws std::runtime_error without a device, std::invalid_argument
+// for fields of different sizes.
+class DeviceFields {
+ public:
+  struct Impl;
+  DeviceFields(std::span<const float> ref, std::span<const float> opt);
+  ~DeviceFields();
+  DeviceFields(const DeviceFields&) = delete;
+  DeviceFields& operator=(const DeviceFields&) = delete;
+  size_t voxels() const { return voxels_; }
+  double upload_ms() const { return upload_ms_; }  // both fields to the device (wall)
+  const Impl& impl() const { return *impl_; }
+
+ private:
+  std::unique_ptr<Impl> impl_;
+  size_t voxels_ = 0;
+  double upload_ms_ = 0.0;
 };
 
-// A^T A (CSR, cols x cols) by cusparseSpGEMM and A^T b by cusparseSpMV, from the explicit A.
+// The paper's explicit system, built on the device: A = S (x) I_4 (4 rows per voxel with data in
+// both fields; S has one, with 1 - w and w at the field's TF coordinate j and j + 1) and b (the
+// reference colours, RGBA per voxel), by a counting pass, a scan and a fill, then S^T by
+// cuSPARSE. The solvers work on S: A's products are S's applied to RGBA columns. A (S expanded),
+// b and their order are bit for bit build_explicit_system()'s (host/solvers/eigen_baseline.h).
+// S's 32-bit CSR indices hold 1 073 741 823 voxels (std::invalid_argument beyond).
+class DeviceSystem {
+ public:
+  struct Impl;
+  DeviceSystem(const DeviceFields& fields, const FieldMapping& ref_map, const FieldMapping& opt_map,
+               std::span<const float> ref_tf_rgba);
+  ~DeviceSystem();
+  DeviceSystem(const DeviceSystem&) = delete;
+  DeviceSystem& operator=(const DeviceSystem&) = delete;
+  uint64_t voxels() const { return voxels_; }  // voxels with data in both fields
+  int64_t nonzeros() const { return 8 * int64_t(voxels_); }  // of A, as the paper counts them
+  std::array<double, 4> btb() const { return btb_; }  // b^T b per channel, a fixed-shape device sum
+  double build_ms() const { return build_ms_; }      // count, scan, fill and S^T (CUDA events)
+  // diag(S^T S): the squared column norms of S, each summed on the device in a fixed shape (the
+  // same bits every run).
+  std::vector<double> column_norms() const;
+  // S and b copied back, for tests: CSR with 0-based indices; b RGBA per voxel.
+  struct Host {
+    std::vector<int> row_ptr, col;
+    std::vector<double> val, b;
+  };
+  Host download() const;
+  const Impl& impl() const { return *impl_; }
+
+ private:
+  std::unique_ptr<Impl> impl_;
+  uint64_t voxels_ = 0;
+  std::array<double, 4> btb_{};
+  double build_ms_ = 0.0;
+};
+
+// The normal equations by cuSPARSE: S^T S (CSR, n x n, tridiagonal) by cusparseSpGEMM and S^T B
+// (n x 4 row-major: A^T b interleaved by channel) by cusparseSpMM. std::invalid_argument for a
+// system without voxels.
 struct CusparseAssembly {
   std::vector<int> row_ptr, col;
   std::vector<double> val;
-  std::vector<double> atb;
-  double upload_ms = 0.0;    // host to device copies of A and b (wall)
-  double assemble_ms = 0.0;  // transpose, SpGEMM and SpMV on the device (CUDA events)
+  std::vector<double> stb;
+  double assemble_ms = 0.0;  // SpGEMM and SpMM on the device (CUDA events)
 };
-CusparseAssembly assemble_cusparse(const CsrView& a, std::span<const double> b);
+CusparseAssembly assemble_cusparse(const DeviceSystem& system);
 
 // The matrix-free assembly (one pass over the voxels, 32.32 fixed-point 64-bit atomics, so the
 // sums are exact and do not depend on scheduling), in the TFM_ASSEMBLE_SLOTS layout of
 // NormalEquations::from_slots. ref_tf_rgba: the reference TF as 4 floats per entry.
 struct DirectAssembly {
   std::vector<double> slots;
-  double upload_ms = 0.0;  // fields and TF to the device (wall)
   double kernel_ms = 0.0;  // the assembly kernel (CUDA events)
 };
-DirectAssembly assemble_direct(std::span<const float> ref, std::span<const float> opt, const FieldMapping& ref_map,
-                               const FieldMapping& opt_map, std::span<const float> ref_tf_rgba);
+DirectAssembly assemble_direct(const DeviceFields& fields, const FieldMapping& ref_map, const FieldMapping& opt_map,
+                               std::span<const float> ref_tf_rgba);
 
 // Jacobi-preconditioned CGLS (Bjorck) on the explicit A = S (x) I_4 (rows 4 per voxel, 4N
-// unknowns interleaved by channel) for the four channels independently, with R = ridge I +
+// unknowns interleaved by channel; A's products are S's on N x 4 and voxels x 4 matrices) for the four channels independently, with R = ridge I +
 // smooth D^T D per channel (absolute weights). A channel stops when ||A^T r - R x||^2 <=
 // tolerance^2 ||A^T b||^2, when its step breaks down, or at max_iterations (the Vulkan `cgls`
 // rule).
@@ -64,9 +113,9 @@ struct CglsOutcome {
   std::vector<double> x;  // 4n, interleaved (entry j, channel c at 4j + c)
   std::array<uint32_t, 4> iterations{};
   std::array<double, 4> relative_residual{};  // ||s|| / ||s0|| per channel at the end
-  double upload_ms = 0.0;   // A, A^T (built on the device) and b (wall)
+  double setup_ms = 0.0;    // the iteration's vectors and descriptors (wall)
   double iterate_ms = 0.0;  // the iterations (CUDA events)
 };
-CglsOutcome cgls(const CsrView& a, std::span<const double> b, const CglsParams& params);
+CglsOutcome cgls(const DeviceSystem& system, const CglsParams& params);
 
 }  // namespace tfm::cuda

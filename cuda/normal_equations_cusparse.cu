@@ -1,5 +1,8 @@
-// The paper's cuSPARSE assembly: A^T (cusparseCsr2cscEx2), A^T A (cusparseSpGEMM, generic API)
-// and A^T b (cusparseSpMV) from the explicit CSR A, all in double precision.
+// The paper's cuSPARSE assembly of the normal equations, on the Kronecker factor S of
+// A = S (x) I_4 (A^T A = S^T S (x) I_4, and A^T b is S^T B for the voxels x 4 matrix B of
+// reference colours): S^T S by cusparseSpGEMM, S^T B by cusparseSpMM, from S and S^T built on
+// the device (explicit_system.cu), all in double precision. A quarter of the rows and products of
+// forming A^T A itself.
 #include <chrono>
 
 #include "cuda_common.cuh"
@@ -14,7 +17,8 @@ namespace {
 // give the same TF bits.
 constexpr cusparseSpGEMMAlg_t kAlg = CUSPARSE_SPGEMM_DEFAULT;
 
-// C = A^T A with the three-phase SpGEMM (work estimation, compute, copy into sized arrays).
+// C = a^T a from a and its transpose `at`, with the three-phase SpGEMM (work estimation, compute,
+// copy into sized arrays).
 DeviceCsr spgemm_ata(cusparseHandle_t handle, const DeviceCsr& at, const DeviceCsr& a) {
   const double one = 1.0, zero = 0.0;
   const cusparseOperation_t op = CUSPARSE_OPERATION_NON_TRANSPOSE;
@@ -58,55 +62,23 @@ DeviceCsr spgemm_ata(cusparseHandle_t handle, const DeviceCsr& at, const DeviceC
 
 }  // namespace
 
-// CSR algorithm 2: bit-identical results on every run for the non-transposed product (the only one
-// used here; A^T is formed explicitly). The default split A^T's long rows across blocks and gave
-// cuda-cgls different bits from run to run on an H100 (CUDA 13.0).
-constexpr cusparseSpMVAlg_t kSpmvAlg = CUSPARSE_SPMV_CSR_ALG2;
-
-void spmv(cusparseHandle_t handle, const SpMat& m, const DnVec& x, const DnVec& y, DeviceArray<char>& buffer) {
-  const double one = 1.0, zero = 0.0;
-  size_t bytes = 0;
-  check(cusparseSpMV_bufferSize(handle, CUSPARSE_OPERATION_NON_TRANSPOSE, &one, m.d, x.d, &zero, y.d, CUDA_R_64F,
-                                kSpmvAlg, &bytes),
-        "cusparseSpMV_bufferSize");
-  if (bytes > buffer.size()) buffer = DeviceArray<char>(bytes);
-  check(cusparseSpMV(handle, CUSPARSE_OPERATION_NON_TRANSPOSE, &one, m.d, x.d, &zero, y.d, CUDA_R_64F,
-                     kSpmvAlg, buffer.get()),
-        "cusparseSpMV");
-}
-
-void spmv(cusparseHandle_t handle, const DeviceCsr& m, const double* x, double* y, DeviceArray<char>& buffer) {
-  const SpMat mat(m);
-  const DnVec vx(m.cols, const_cast<double*>(x)), vy(m.rows, y);
-  spmv(handle, mat, vx, vy, buffer);
-}
-
-CusparseAssembly assemble_cusparse(const CsrView& a, std::span<const double> b) {
-  if (b.size() != size_t(a.rows) || a.row_ptr.size() != size_t(a.rows) + 1 || a.col.size() != a.val.size())
-    throw std::invalid_argument("assemble_cusparse: sizes of A and b do not match");
-  require_device("cuda-normal-equations");
+CusparseAssembly assemble_cusparse(const DeviceSystem& system) {
+  const DeviceSystem::Impl& sys = system.impl();
+  if (system.voxels() == 0) throw std::invalid_argument("assemble_cusparse: no voxel has data in both fields");
   CusparseAssembly out;
   SparseHandle handle;
-  auto t0 = std::chrono::steady_clock::now();
-  const DeviceCsr da = upload_csr(a);
-  DeviceArray<double> db(b.data(), b.size());
-  check(cudaDeviceSynchronize(), "upload");
-  out.upload_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-
   EventTimer timer;
   timer.start();
-  const DeviceCsr at = transpose(handle, da);
-  const DeviceCsr c = spgemm_ata(handle, at, da);
-  DeviceArray<double> atb(size_t(a.cols));
+  const DeviceCsr c = spgemm_ata(handle, sys.st, sys.s);
+  DeviceArray<double> stb(4 * size_t(sys.n));
   DeviceArray<char> buffer;
-  if (a.rows > 0) spmv(handle, at, db.get(), atb.get(), buffer);
-  else check(cudaMemset(atb.get(), 0, atb.size() * sizeof(double)), "cudaMemset");
+  spmm(handle, SpMat(sys.st), DnMat(sys.s.rows, 4, sys.b.get()), DnMat(sys.n, 4, stb.get()), buffer);
   out.assemble_ms = timer.stop();
 
   out.row_ptr = c.row_ptr.download();
   out.col = c.col.download();
   out.val = c.val.download();
-  out.atb = atb.download();
+  out.stb = stb.download();
   return out;
 }
 

@@ -14,19 +14,6 @@ constexpr int kThreads = 256;
 constexpr int kRun = 16;  // contiguous voxels per thread: neighbours mostly share a bin
 constexpr size_t kMaxSharedBytes = 48 * 1024;
 
-// tf_coordinate() of host/field_mapping.h with explicitly rounded float operations (the _rn
-// intrinsics are never fused into FMAs), so j and w are bit-identical to the host's.
-__device__ bool tf_coordinate(float v, float lo, float scale, uint32_t n, uint32_t& j, float& w) {
-  if (isnan(v)) return false;
-  float x = __fmul_rn(__fsub_rn(v, lo), scale);
-  const float top = float(n - 1);
-  x = x < 0.0f ? 0.0f : (x > top ? top : x);
-  const float jf = fminf(floorf(x), float(n - 2));
-  j = uint32_t(jf);
-  w = __fsub_rn(x, jf);
-  return true;
-}
-
 // Non-negative float below 2^32 to 32.32 fixed point (fx_from_float of tf_common.glsl).
 __device__ unsigned long long fx(float c) {
   const float whole = floorf(c);
@@ -103,33 +90,30 @@ __global__ void assemble_kernel(const float* ref, const float* opt, uint64_t cou
 
 }  // namespace
 
-DirectAssembly assemble_direct(std::span<const float> ref, std::span<const float> opt, const FieldMapping& ref_map,
-                               const FieldMapping& opt_map, std::span<const float> ref_tf_rgba) {
-  if (ref.size() != opt.size() || ref_tf_rgba.size() != size_t(ref_map.tf_size) * 4 || opt_map.tf_size < 2)
-    throw std::invalid_argument("assemble_direct: sizes of the fields or the reference TF do not match");
-  require_device("cuda-normal-equations");
+DirectAssembly assemble_direct(const DeviceFields& fields, const FieldMapping& ref_map, const FieldMapping& opt_map,
+                               std::span<const float> ref_tf_rgba) {
+  if (ref_tf_rgba.size() != size_t(ref_map.tf_size) * 4 || opt_map.tf_size < 2)
+    throw std::invalid_argument("assemble_direct: the reference TF does not match its mapping");
+  const DeviceFields::Impl& f = fields.impl();
+  const size_t voxels = fields.voxels();
   DirectAssembly out;
   const uint32_t n = opt_map.tf_size;
   const size_t slots = 6 * size_t(n) + 8;  // TFM_ASSEMBLE_SLOTS(n)
-  auto t0 = std::chrono::steady_clock::now();
-  DeviceArray<float> dref(ref.data(), ref.size()), dopt(opt.data(), opt.size());
   DeviceArray<float> dtf(ref_tf_rgba.data(), ref_tf_rgba.size());
   DeviceArray<unsigned long long> acc(slots);
-  check(cudaDeviceSynchronize(), "upload");
-  out.upload_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
   const bool use_shared = slots * 8 <= kMaxSharedBytes;
   int sms = 0;
   check(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, 0), "cudaDeviceGetAttribute");
   const uint64_t per_block = uint64_t(kThreads) * kRun;
-  const uint64_t wanted = (ref.size() + per_block - 1) / per_block;
+  const uint64_t wanted = (voxels + per_block - 1) / per_block;
   // A few blocks per SM: enough to fill the device, few enough that the shared flushes are cheap.
   const int blocks = int(std::max<uint64_t>(1, std::min<uint64_t>(wanted, uint64_t(sms) * 8)));
   EventTimer timer;
   timer.start();
   check(cudaMemset(acc.get(), 0, slots * 8), "cudaMemset");
   assemble_kernel<<<blocks, kThreads, use_shared ? slots * 8 : 0>>>(
-      dref.get(), dopt.get(), ref.size(), ref_map.lo, ref_map.scale, ref_map.tf_size, opt_map.lo, opt_map.scale, n,
+      f.ref.get(), f.opt.get(), voxels, ref_map.lo, ref_map.scale, ref_map.tf_size, opt_map.lo, opt_map.scale, n,
       reinterpret_cast<const float4*>(dtf.get()), acc.get(), use_shared);
   check(cudaGetLastError(), "assemble_kernel launch");
   out.kernel_ms = timer.stop();

@@ -22,16 +22,9 @@ namespace {
 
 class CudaSolvers : public test::GpuTest {};
 
-std::vector<float> tf_floats(const TransferFunction& tf) {
-  std::vector<float> out;
-  for (const auto& e : tf.rgba)
-    for (double c : e) out.push_back(float(c));
-  return out;
-}
-
-cuda::CsrView view(const ExplicitSystem& sys) {
-  return {int(sys.a.rows()), int(sys.a.cols()), {sys.a.outerIndexPtr(), size_t(sys.a.rows()) + 1},
-          {sys.a.innerIndexPtr(), size_t(sys.a.nonZeros())}, {sys.a.valuePtr(), size_t(sys.a.nonZeros())}};
+template <class T>
+std::vector<T> to_vector(const T* data, Eigen::Index count) {
+  return std::vector<T>(data, data + count);
 }
 
 TEST(CudaRegistration, BothSolversAreRegistered) {
@@ -61,8 +54,8 @@ TEST(CudaAssembly, DirectKernelMatchesCpuReference) {
   for (size_t voxels : {size_t(1), size_t(13), size_t(127), size_t(4097), size_t(300001)}) {
     const test::SolverProblem p = test::make_solver_problem(voxels, 16, 9, 0.0, 1.0, uint32_t(voxels), 0.1, 7);
     const NormalEquations cpu = p.cpu_equations();
-    const cuda::DirectAssembly d = cuda::assemble_direct(p.ref_volume.values, p.opt_volume.values, p.ref_map,
-                                                         p.opt_map, tf_floats(p.ref_tf));
+    const cuda::DeviceFields fields(p.ref_volume.values, p.opt_volume.values);
+    const cuda::DirectAssembly d = cuda::assemble_direct(fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
     const NormalEquations gpu = NormalEquations::from_slots(16, d.slots);
     // Identical TF coordinates; each voxel's terms are float32 products (relative error 2^-23
     // at most, values <= 1) cut to 32.32 fixed point (2^-32): per voxel <= ~3e-7, summed.
@@ -75,10 +68,82 @@ TEST(CudaAssembly, DirectKernelMatchesCpuReference) {
     }
     for (int c = 0; c < 4; ++c) EXPECT_NEAR(gpu.btb[size_t(c)], cpu.btb[size_t(c)], tol) << voxels;
     // Fixed-point sums do not depend on scheduling: a second run gives the same bits.
-    const cuda::DirectAssembly again = cuda::assemble_direct(p.ref_volume.values, p.opt_volume.values, p.ref_map,
-                                                             p.opt_map, tf_floats(p.ref_tf));
+    const cuda::DirectAssembly again = cuda::assemble_direct(fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
     EXPECT_EQ(again.slots, d.slots) << voxels;
   }
+}
+
+// S (x) I_4 as CSR: row 4 v + c of A has S's row v at columns 4 j + c.
+cuda::DeviceSystem::Host expand_to_a(const cuda::DeviceSystem::Host& s) {
+  cuda::DeviceSystem::Host a;
+  const size_t rows = s.row_ptr.size() - 1;
+  a.row_ptr.push_back(0);
+  for (size_t v = 0; v < rows; ++v)
+    for (int c = 0; c < 4; ++c) {
+      for (int k = s.row_ptr[v]; k < s.row_ptr[v + 1]; ++k) {
+        a.col.push_back(4 * s.col[size_t(k)] + c);
+        a.val.push_back(s.val[size_t(k)]);
+      }
+      a.row_ptr.push_back(int(a.col.size()));
+    }
+  return a;
+}
+
+// S and b built on the device (count, scan, fill), S expanded to A = S (x) I_4, are the host's
+// build_explicit_system() bit for bit: awkward sizes (one past a block of 256, several blocks),
+// NaN voxels in either field, values outside both ranges (clamped coordinates), a reference TF
+// that leaves [0, 1] (clamped b).
+TEST(CudaAssembly, DeviceBuiltSystemIsTheHostSystemBitForBit) {
+  REQUIRE_CUDA_DEVICE();
+  for (size_t voxels : {size_t(1), size_t(13), size_t(257), size_t(4097), size_t(300001)}) {
+    test::SolverProblem p = test::make_solver_problem(voxels, 12, 7, -0.2, 1.2, uint32_t(voxels) + 5, 0.1, 9);
+    for (size_t i = 3; i < voxels; i += 11) p.ref_volume.values[i] = NAN;
+    for (size_t i = 5; i < voxels; i += 17) p.opt_volume.values[i] = (i % 2) ? 25.0f : 5.0f;  // outside [10, 20]
+    for (size_t i = 7; i < voxels; i += 19) p.ref_volume.values[i] = (i % 2) ? 1.5f : -0.5f;
+    ExplicitSystem host =
+        build_explicit_system(p.ref_volume.values, p.opt_volume.values, p.ref_map, p.opt_map, p.ref_tf);
+    host.a.makeCompressed();
+    const cuda::DeviceFields fields(p.ref_volume.values, p.opt_volume.values);
+    const cuda::DeviceSystem sys(fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
+    ASSERT_EQ(sys.voxels(), uint64_t(host.b.size() / 4)) << voxels;
+    EXPECT_EQ(sys.nonzeros(), int64_t(host.a.nonZeros())) << voxels;
+    const cuda::DeviceSystem::Host s = sys.download();
+    ASSERT_EQ(s.row_ptr.size(), sys.voxels() + 1) << voxels;
+    const cuda::DeviceSystem::Host a = expand_to_a(s);
+    EXPECT_EQ(a.row_ptr, to_vector(host.a.outerIndexPtr(), host.a.rows() + 1)) << voxels;
+    EXPECT_EQ(a.col, to_vector(host.a.innerIndexPtr(), host.a.nonZeros())) << voxels;
+    EXPECT_EQ(a.val, to_vector(host.a.valuePtr(), host.a.nonZeros())) << voxels;
+    EXPECT_EQ(s.b, to_vector(host.b.data(), host.b.size())) << voxels;
+
+    // diag(M) and b^T b: device sums of a fixed shape against the host's sequential ones.
+    const NormalEquations eigen = to_tridiagonal(explicit_normal_equations(host), 12);
+    const std::vector<double> norms = sys.column_norms();
+    const double tol = 1e-15 * double(voxels) + 1e-15;
+    for (uint32_t j = 0; j < 12; ++j) EXPECT_NEAR(norms[j], eigen.diag[j], tol) << voxels << " j " << j;
+    for (int c = 0; c < 4; ++c) {
+      const double btb = host.b(Eigen::seq(c, host.b.size() - 1, 4)).squaredNorm();
+      EXPECT_NEAR(sys.btb()[size_t(c)], btb, tol) << voxels << " c " << c;
+    }
+    // And the same bits on a second build.
+    const cuda::DeviceSystem again(fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
+    EXPECT_EQ(again.column_norms(), norms) << voxels;
+    EXPECT_EQ(again.btb(), sys.btb()) << voxels;
+  }
+}
+
+TEST(CudaAssembly, DeviceSystemWithoutDataAndWithBadArguments) {
+  REQUIRE_CUDA_DEVICE();
+  test::SolverProblem p = test::make_solver_problem(100, 8, 6, 0.2, 0.8, 1);
+  std::fill(p.ref_volume.values.begin(), p.ref_volume.values.end(), NAN);
+  const cuda::DeviceFields fields(p.ref_volume.values, p.opt_volume.values);
+  const cuda::DeviceSystem empty(fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
+  EXPECT_EQ(empty.voxels(), 0u);
+  EXPECT_EQ(empty.download().row_ptr, std::vector<int>{0});
+  EXPECT_EQ(empty.column_norms(), std::vector<double>(8, 0.0));
+  const std::vector<float> short_tf(4 * 5);
+  EXPECT_THROW(cuda::DeviceSystem(fields, p.ref_map, p.opt_map, short_tf), std::invalid_argument);
+  const std::vector<float> one(99);
+  EXPECT_THROW(cuda::DeviceFields(p.ref_volume.values, one), std::invalid_argument);
 }
 
 TEST(CudaAssembly, CusparseProductsMatchEigenProducts) {
@@ -88,13 +153,26 @@ TEST(CudaAssembly, CusparseProductsMatchEigenProducts) {
     ExplicitSystem sys =
         build_explicit_system(p.ref_volume.values, p.opt_volume.values, p.ref_map, p.opt_map, p.ref_tf);
     sys.a.makeCompressed();
-    const NormalEquations eigen = to_tridiagonal(explicit_normal_equations(sys), 12);
-    const cuda::CusparseAssembly cs = cuda::assemble_cusparse(view(sys), {sys.b.data(), size_t(sys.b.size())});
-    ExplicitNormalEquations ene;
-    ene.ata = Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor>>(
-        48, 48, Eigen::Index(cs.val.size()), cs.row_ptr.data(), cs.col.data(), cs.val.data());
-    ene.atb = Eigen::Map<const Eigen::VectorXd>(cs.atb.data(), Eigen::Index(cs.atb.size()));
-    const NormalEquations gpu = to_tridiagonal(ene, 12);
+    const NormalEquations eigen = to_tridiagonal(explicit_normal_equations(sys), 12);  // from A itself
+    const cuda::DeviceFields fields(p.ref_volume.values, p.opt_volume.values);
+    const cuda::CusparseAssembly cs =
+        cuda::assemble_cusparse(cuda::DeviceSystem(fields, p.ref_map, p.opt_map, p.ref_tf.as_floats()));
+    // S^T S is n x n (A^T A = S^T S (x) I_4) and S^T B is A^T b interleaved.
+    const Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor>> sts(
+        12, 12, Eigen::Index(cs.val.size()), cs.row_ptr.data(), cs.col.data(), cs.val.data());
+    ASSERT_EQ(cs.stb.size(), 48u);
+    for (Eigen::Index j = 0; j < 12; ++j)
+      for (Eigen::Index k = 0; k < 12; ++k)
+        if (std::abs(j - k) > 1) EXPECT_EQ(sts.coeff(j, k), 0.0) << voxels << " (" << j << ", " << k << ")";
+    NormalEquations gpu(12);
+    for (uint32_t j = 0; j < 12; ++j) {
+      gpu.diag[j] = sts.coeff(j, j);
+      if (j + 1 < 12) {
+        gpu.off[j] = sts.coeff(j, j + 1);
+        EXPECT_NEAR(sts.coeff(j + 1, j), gpu.off[j], 1e-15 * double(voxels) + 1e-15) << voxels << " j " << j;
+      }
+      for (int c = 0; c < 4; ++c) gpu.rhs(j, c) = cs.stb[4 * j + c];
+    }
     // Both in double; only the summation order differs: <= voxels * 2^-52 per entry.
     const double tol = 1e-15 * double(voxels) + 1e-15;
     for (uint32_t j = 0; j < 12; ++j) {
