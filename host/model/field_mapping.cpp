@@ -6,35 +6,44 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 #include <utility>
+#include <vector>
 
+#include "parallel_parts.h"
 #include "parameter_names.h"
 
 namespace tfm {
 
-FiniteStats finite_stats(std::span<const float> values) {
-  // Branch-free over kLanes independent float minima/maxima, so the compiler vectorizes it (float
-  // min/max are exact; the loop with a branch per value took twice as long on 41 M voxels). The
-  // per-lane counts of non-finite values are emptied every 2^20 groups, before they could wrap.
+namespace {
+
+// Below this many values a pass runs on the calling thread (a thread costs ~50 us to start).
+constexpr size_t kMinPart = size_t(1) << 20;
+
+// finite_stats() of one part. Branch-free over kLanes independent float minima/maxima and
+// counts, so the compiler vectorizes it at -O2 (non-finite values become +-inf before the min and
+// max instead of a condition inside them: 2.6x faster than that on 41 M voxels). The per-lane
+// counts of non-finite values are emptied every 2^20 groups, before they could wrap.
+FiniteStats part_stats(const float* v, size_t n) {
   constexpr size_t kLanes = 16;
-  constexpr float kMax = std::numeric_limits<float>::max();
+  constexpr float kMax = std::numeric_limits<float>::max(), kInf = std::numeric_limits<float>::infinity();
   float lo[kLanes], hi[kLanes];
   uint32_t bad[kLanes];
-  std::fill_n(lo, kLanes, std::numeric_limits<float>::infinity());
-  std::fill_n(hi, kLanes, -std::numeric_limits<float>::infinity());
+  std::fill_n(lo, kLanes, kInf);
+  std::fill_n(hi, kLanes, -kInf);
   std::fill_n(bad, kLanes, 0u);
   uint64_t non_finite = 0;
-  const float* v = values.data();
-  const size_t n = values.size(), whole = n - n % kLanes;
+  const size_t whole = n - n % kLanes;
   for (size_t i = 0; i < whole;) {
     const size_t end = std::min(whole, i + (kLanes << 20));
     for (; i < end; i += kLanes)
       for (size_t j = 0; j < kLanes; ++j) {
         const float x = v[i + j];
         const bool finite = std::fabs(x) <= kMax;  // false for NaN and infinities
-        lo[j] = finite && x < lo[j] ? x : lo[j];
-        hi[j] = finite && x > hi[j] ? x : hi[j];
-        bad[j] += !finite;
+        const float x_lo = finite ? x : kInf, x_hi = finite ? x : -kInf;
+        lo[j] = x_lo < lo[j] ? x_lo : lo[j];
+        hi[j] = x_hi > hi[j] ? x_hi : hi[j];
+        bad[j] += finite ? 0u : 1u;
       }
     for (size_t j = 0; j < kLanes; ++j) non_finite += std::exchange(bad[j], 0u);
   }
@@ -52,6 +61,56 @@ FiniteStats finite_stats(std::span<const float> values) {
     s.lo = *std::min_element(lo, lo + kLanes);
     s.hi = *std::max_element(hi, hi + kLanes);
   }
+  return s;
+}
+
+// range_coverage() of one part, against float bounds that decide every float as the double range
+// does: x < lo exactly when x < lo_up, the smallest float >= lo (and x > hi when x > hi_down).
+// Branch-free lanes of counts, as part_stats.
+RangeCoverage part_coverage(const float* v, size_t n, float lo_up, float hi_down) {
+  constexpr size_t kLanes = 16;
+  constexpr float kMax = std::numeric_limits<float>::max();
+  uint32_t finite[kLanes] = {}, below[kLanes] = {}, above[kLanes] = {};
+  RangeCoverage c;
+  auto empty_lanes = [&] {
+    for (size_t j = 0; j < kLanes; ++j) {
+      c.finite += std::exchange(finite[j], 0u);
+      c.below += std::exchange(below[j], 0u);
+      c.above += std::exchange(above[j], 0u);
+    }
+  };
+  const size_t whole = n - n % kLanes;
+  for (size_t i = 0; i < whole;) {
+    const size_t end = std::min(whole, i + (kLanes << 20));
+    for (; i < end; i += kLanes)
+      for (size_t j = 0; j < kLanes; ++j) {
+        const float x = v[i + j];
+        const bool f = std::fabs(x) <= kMax;
+        finite[j] += f ? 1u : 0u;
+        below[j] += (f & (x < lo_up)) ? 1u : 0u;
+        above[j] += (f & (x > hi_down)) ? 1u : 0u;
+      }
+    empty_lanes();
+  }
+  for (size_t i = whole; i < n; ++i) {
+    const float x = v[i];
+    if (!(std::fabs(x) <= kMax)) continue;
+    ++c.finite;
+    c.below += x < lo_up;
+    c.above += x > hi_down;
+  }
+  return c;
+}
+
+}  // namespace
+
+FiniteStats finite_stats(std::span<const float> values) {
+  std::vector<FiniteStats> parts(std::thread::hardware_concurrency() + 1);
+  const size_t count = run_in_parts(values.size(), kMinPart, [&](size_t i, size_t begin, size_t end) {
+    parts[i] = part_stats(values.data() + begin, end - begin);
+  });
+  FiniteStats s = parts[0];
+  for (size_t i = 1; i < count; ++i) s = merge(s, parts[i]);
   return s;
 }
 
@@ -103,13 +162,17 @@ FieldRange resolve_range(const FiniteStats& s, const FieldRange* user, const std
 }
 
 RangeCoverage range_coverage(std::span<const float> values, const FieldRange& range) {
+  // Float bounds with the double comparisons' answers (part_coverage); ends beyond float32 become
+  // infinities, below or above every finite float as the double ends are.
+  float lo_up = static_cast<float>(range.lo), hi_down = static_cast<float>(range.hi);
+  if (double(lo_up) < range.lo) lo_up = std::nextafter(lo_up, std::numeric_limits<float>::infinity());
+  if (double(hi_down) > range.hi) hi_down = std::nextafter(hi_down, -std::numeric_limits<float>::infinity());
+  std::vector<RangeCoverage> parts(std::thread::hardware_concurrency() + 1);
+  const size_t count = run_in_parts(values.size(), kMinPart, [&](size_t i, size_t begin, size_t end) {
+    parts[i] = part_coverage(values.data() + begin, end - begin, lo_up, hi_down);
+  });
   RangeCoverage c;
-  for (float v : values) {
-    if (!std::isfinite(v)) continue;
-    ++c.finite;
-    c.below += double(v) < range.lo;
-    c.above += double(v) > range.hi;
-  }
+  for (size_t i = 0; i < count; ++i) c += parts[i];
   return c;
 }
 

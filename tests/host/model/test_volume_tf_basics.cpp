@@ -118,6 +118,40 @@ TEST(FiniteStats, MatchesAPlainLoopOnAwkwardSizes) {
   EXPECT_EQ(finite_stats(none).nan, 3u);
 }
 
+// The vectorized, threaded coverage counts against a plain loop comparing in double, on sizes
+// around its lanes and parts, with values at the float neighbours of ends that float cannot hold
+// (0.1, 0.7) or reach (beyond float32), and non-finite values that never count.
+TEST(RangeCoverage, MatchesAPlainDoubleLoopOnAwkwardSizesAndEnds) {
+  const FieldRange ranges[] = {{0.1, 0.7}, {0.7, 0.95}, {-0.5, 0.1}, {-0.3, 0.30000001192092896}, {-1e39, 0.5},
+                               {0.25, 1e39}, {0.0, 1.0}};
+  for (size_t n : {size_t(0), size_t(1), size_t(17), size_t(1000003), (size_t(16) << 20) + 35}) {
+    std::vector<float> v(n);
+    for (size_t i = 0; i < n; ++i) v[i] = std::sin(0.37f * float(i)) * 0.8f + 0.2f;
+    for (size_t i = 7; i < n; i += 999983) {  // the ends' float neighbours, in every part
+      const float ends[] = {0.1f, 0.7f, 0.3f, -0.3f, 0.5f, 0.25f, 0.95f, -0.5f};
+      const float e = ends[(i / 999983) % 8];
+      v[i] = e;
+      if (i + 1 < n) v[i + 1] = std::nextafter(e, -1.0f);
+      if (i + 2 < n) v[i + 2] = std::nextafter(e, 2.0f);
+      if (i + 3 < n) v[i + 3] = (i % 2) ? NAN : -INFINITY;
+    }
+    if (n > 2) v[n - 1] = INFINITY, v[0] = NAN;
+    for (const FieldRange& r : ranges) {
+      RangeCoverage plain;
+      for (float x : v) {
+        if (!std::isfinite(x)) continue;
+        ++plain.finite;
+        plain.below += double(x) < r.lo;
+        plain.above += double(x) > r.hi;
+      }
+      const RangeCoverage c = range_coverage(v, r);
+      EXPECT_EQ(c.finite, plain.finite) << n << " [" << r.lo << ", " << r.hi << "]";
+      EXPECT_EQ(c.below, plain.below) << n << " [" << r.lo << ", " << r.hi << "]";
+      EXPECT_EQ(c.above, plain.above) << n << " [" << r.lo << ", " << r.hi << "]";
+    }
+  }
+}
+
 TEST(RawVolume, ErrorsNameTheFileAndTheProblem) {
   TempDir dir;
   write_values(dir / "x_2x2x2_complex64.raw", std::vector<float>(8));

@@ -1,0 +1,40 @@
+// Contiguous parts of a range run on the hardware's threads: for passes over a whole field in
+// memory (its finite min/max, its range coverage) whose partial results combine exactly.
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+#include <exception>
+#include <thread>
+#include <vector>
+
+namespace tfm {
+
+// Splits [0, n) into at most hardware_concurrency() contiguous parts of at least `min_part`
+// elements (one part when n is smaller) and calls part(i, begin, end) for each, part 0 on the
+// calling thread, the others on threads of their own; returns the number of parts. The first
+// exception a part throws is rethrown after every part has ended.
+template <class Part>
+size_t run_in_parts(size_t n, size_t min_part, Part&& part) {
+  const size_t threads = std::max(1u, std::thread::hardware_concurrency());
+  const size_t parts = std::max<size_t>(1, std::min(threads, n / std::max<size_t>(min_part, 1)));
+  auto bounds = [&](size_t i) { return n / parts * i + std::min(i, n % parts); };
+  std::vector<std::exception_ptr> errors(parts);
+  auto run = [&](size_t i) {
+    try {
+      part(i, bounds(i), bounds(i + 1));
+    } catch (...) {
+      errors[i] = std::current_exception();
+    }
+  };
+  std::vector<std::thread> helpers;
+  helpers.reserve(parts - 1);
+  for (size_t i = 1; i < parts; ++i) helpers.emplace_back(run, i);
+  run(0);
+  for (auto& t : helpers) t.join();
+  for (auto& e : errors)
+    if (e) std::rethrow_exception(e);
+  return parts;
+}
+
+}  // namespace tfm
