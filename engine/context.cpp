@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <chrono>
 #include <cstdlib>
 #include <cstdio>
 #include <cstring>
@@ -169,26 +170,8 @@ DeviceSummary summarize(const Dispatch& vk, VkPhysicalDevice pd, uint32_t index)
   return s;
 }
 
-}  // namespace
-
-std::vector<DeviceSummary> enumerate_devices() {
-  PFN_vkGetInstanceProcAddr get = loader_get_instance_proc_addr();
-  VkInstance instance = create_instance(false, false);
-  Dispatch vk{};
-  load_instance_functions(vk, get, instance);
-  std::vector<DeviceSummary> out;
-  auto devices = physical_devices(vk, instance);
-  for (uint32_t i = 0; i < devices.size(); ++i) out.push_back(summarize(vk, devices[i], i));
-  vk.vkDestroyInstance(instance, nullptr);
-  return out;
-}
-
-Context::Context() : dispatch_(std::make_unique<Dispatch>()), staging_(std::make_unique<StagingBuffers>()) {}
-
-std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
-  PhaseScope timing(Phase::Startup);
-  PFN_vkGetInstanceProcAddr get = loader_get_instance_proc_addr();
-  ContextOptions options = options_in;
+// The options with what the environment says filled in (ContextOptions).
+ContextOptions with_environment(ContextOptions options) {
   if (!options.device_index && options.device_name.empty()) {
     if (const char* env = std::getenv("TFMATCH_DEVICE"); env && *env) {
       std::string v = env;
@@ -200,34 +183,12 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
     const char* env = std::getenv("TFMATCH_VALIDATION");
     options.validation = env && std::string(env) != "0" && *env;
   }
+  return options;
+}
 
-  std::unique_ptr<Context> ctx(new Context());
-  ctx->owns_ = true;
-  bool want_validation = *options.validation;
-  if (want_validation && !layer_available(kValidationLayer)) {
-    if (options.require_validation)
-      throw std::runtime_error(std::string(kValidationLayer) +
-                               " requested but not installed (apt-get install vulkan-validationlayers)");
-    want_validation = false;
-  }
-  ctx->validation_ = want_validation;
-  ctx->debug_utils_ = instance_extension_available(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
-  ctx->instance_ = create_instance(want_validation, ctx->debug_utils_);
-  Dispatch& vk = *ctx->dispatch_;
-  load_instance_functions(vk, get, ctx->instance_);
-
-  if (ctx->debug_utils_ && want_validation) {
-    VkDebugUtilsMessengerCreateInfoEXT info{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
-    info.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
-                           VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
-    info.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
-                       VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT;
-    info.pfnUserCallback = &Context::debug_callback;
-    info.pUserData = ctx.get();
-    VK_CHECK(vk.vkCreateDebugUtilsMessengerEXT(ctx->instance_, &info, nullptr, &ctx->messenger_));
-  }
-
-  auto devices = physical_devices(vk, ctx->instance_);
+// The index in `devices` that `options` select; throws std::runtime_error naming the devices
+// when none fits.
+uint32_t choose_device(const Dispatch& vk, const std::vector<VkPhysicalDevice>& devices, const ContextOptions& options) {
   std::vector<DeviceSummary> summaries;
   for (uint32_t i = 0; i < devices.size(); ++i) summaries.push_back(summarize(vk, devices[i], i));
   auto list = [&] {
@@ -264,8 +225,121 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
   }
   if (!summaries[*chosen].compute_queue)
     throw std::runtime_error("device " + summaries[*chosen].name + " has no compute queue");
+  return *chosen;
+}
 
-  ctx->physical_device_ = devices[*chosen];
+}  // namespace
+
+std::vector<DeviceSummary> enumerate_devices() {
+  PFN_vkGetInstanceProcAddr get = loader_get_instance_proc_addr();
+  VkInstance instance = create_instance(false, false);
+  Dispatch vk{};
+  load_instance_functions(vk, get, instance);
+  std::vector<DeviceSummary> out;
+  auto devices = physical_devices(vk, instance);
+  for (uint32_t i = 0; i < devices.size(); ++i) out.push_back(summarize(vk, devices[i], i));
+  vk.vkDestroyInstance(instance, nullptr);
+  return out;
+}
+
+DriverFloor measure_driver_floor(const ContextOptions& options_in) {
+  using clock = std::chrono::steady_clock;
+  auto ms = [](clock::time_point a, clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
+  const ContextOptions options = with_environment(options_in);
+  PFN_vkGetInstanceProcAddr get = loader_get_instance_proc_addr();
+  // Which device: chosen on an instance of its own, as Context::create chooses, so the timed
+  // instance below does nothing but what the minimal program does.
+  uint32_t chosen = 0;
+  DriverFloor floor;
+  {
+    VkInstance probe = create_instance(false, false);
+    Dispatch vk{};
+    load_instance_functions(vk, get, probe);
+    try {
+      const auto devices = physical_devices(vk, probe);
+      chosen = choose_device(vk, devices, options);
+      floor.device = summarize(vk, devices[chosen], chosen).name;
+    } catch (...) {
+      vk.vkDestroyInstance(probe, nullptr);
+      throw;
+    }
+    vk.vkDestroyInstance(probe, nullptr);
+  }
+
+  const auto t0 = clock::now();
+  VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
+  app.apiVersion = VK_API_VERSION_1_2;
+  VkInstanceCreateInfo info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+  info.pApplicationInfo = &app;
+  VkInstance instance = VK_NULL_HANDLE;
+  VK_CHECK(vkCreateInstance(&info, nullptr, &instance));
+  const auto t1 = clock::now();
+  Dispatch vk{};
+  load_instance_functions(vk, get, instance);
+  VkDevice device = VK_NULL_HANDLE;
+  try {
+    const auto devices = physical_devices(vk, instance);
+    const uint32_t family = *compute_queue_family(vk, devices.at(chosen), nullptr);
+    const float priority = 1.0f;
+    VkDeviceQueueCreateInfo queue_info{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+    queue_info.queueFamilyIndex = family;
+    queue_info.queueCount = 1;
+    queue_info.pQueuePriorities = &priority;
+    VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+    device_info.queueCreateInfoCount = 1;
+    device_info.pQueueCreateInfos = &queue_info;
+    VK_CHECK(vk.vkCreateDevice(devices[chosen], &device_info, nullptr, &device));
+  } catch (...) {
+    vk.vkDestroyInstance(instance, nullptr);
+    throw;
+  }
+  const auto t2 = clock::now();
+  auto destroy_device = reinterpret_cast<PFN_vkDestroyDevice>(vk.vkGetDeviceProcAddr(device, "vkDestroyDevice"));
+  destroy_device(device, nullptr);
+  vk.vkDestroyInstance(instance, nullptr);
+  const auto t3 = clock::now();
+  floor.instance_ms = ms(t0, t1);
+  floor.device_ms = ms(t1, t2);
+  floor.teardown_ms = ms(t2, t3);
+  return floor;
+}
+
+Context::Context() : dispatch_(std::make_unique<Dispatch>()), staging_(std::make_unique<StagingBuffers>()) {}
+
+std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
+  PhaseScope timing(Phase::Startup);
+  PFN_vkGetInstanceProcAddr get = loader_get_instance_proc_addr();
+  const ContextOptions options = with_environment(options_in);
+
+  std::unique_ptr<Context> ctx(new Context());
+  ctx->owns_ = true;
+  bool want_validation = *options.validation;
+  if (want_validation && !layer_available(kValidationLayer)) {
+    if (options.require_validation)
+      throw std::runtime_error(std::string(kValidationLayer) +
+                               " requested but not installed (apt-get install vulkan-validationlayers)");
+    want_validation = false;
+  }
+  ctx->validation_ = want_validation;
+  ctx->debug_utils_ = instance_extension_available(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
+  ctx->instance_ = create_instance(want_validation, ctx->debug_utils_);
+  Dispatch& vk = *ctx->dispatch_;
+  load_instance_functions(vk, get, ctx->instance_);
+
+  if (ctx->debug_utils_ && want_validation) {
+    VkDebugUtilsMessengerCreateInfoEXT info{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+    info.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
+                           VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+    info.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+                       VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT;
+    info.pfnUserCallback = &Context::debug_callback;
+    info.pUserData = ctx.get();
+    VK_CHECK(vk.vkCreateDebugUtilsMessengerEXT(ctx->instance_, &info, nullptr, &ctx->messenger_));
+  }
+
+  auto devices = physical_devices(vk, ctx->instance_);
+  const uint32_t chosen = choose_device(vk, devices, options);
+  ctx->physical_device_ = devices[chosen];
   ctx->queue_family_ = *compute_queue_family(vk, ctx->physical_device_, nullptr);
 
   float priority = 1.0f;

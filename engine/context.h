@@ -75,6 +75,17 @@ struct DeviceSummary {
 // Lists every physical device the loader reports (creates a temporary instance).
 std::vector<DeviceSummary> enumerate_devices();
 
+// What the driver alone costs a process, the floor under any Vulkan program's start-up: a bare
+// instance (no layers, no extensions), the device Context::create would choose created with one
+// compute queue and nothing enabled, and both destroyed, each timed (the choice itself is made on
+// an instance of its own, untimed). Throws as Context::create does when no device fits.
+struct DriverFloor {
+  std::string device;
+  double instance_ms = 0.0, device_ms = 0.0, teardown_ms = 0.0;
+  double total_ms() const { return instance_ms + device_ms + teardown_ms; }
+};
+DriverFloor measure_driver_floor(const ContextOptions& options = {});
+
 class Context {
  public:
   // Creates instance, device and compute queue. Throws std::runtime_error when no suitable

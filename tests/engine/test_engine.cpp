@@ -270,6 +270,27 @@ TEST(DeviceSelection, BadSelectionsListTheDevices) {
   EXPECT_NO_THROW(Context::create(ok));
 }
 
+// The driver floor times a bare instance and device on the device Context::create chooses, and
+// refuses a selection that fits none as Context::create does.
+TEST(DriverFloor, TimesABareInstanceAndDeviceOfTheChosenDevice) {
+  const DriverFloor floor = measure_driver_floor();
+  const auto ctx = Context::create();
+  EXPECT_EQ(floor.device, ctx->device_name());
+  for (double ms : {floor.instance_ms, floor.device_ms, floor.teardown_ms}) {
+    EXPECT_GT(ms, 0.0);
+    EXPECT_LT(ms, 60000.0);
+  }
+  EXPECT_DOUBLE_EQ(floor.total_ms(), floor.instance_ms + floor.device_ms + floor.teardown_ms);
+  ContextOptions bad;
+  bad.device_index = 999;
+  try {
+    measure_driver_floor(bad);
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("out of range"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Adoption, RejectsMissingHandles) {
   EXPECT_THROW(Context::adopt(ExternalDevice{}), std::invalid_argument);
 }

@@ -59,6 +59,10 @@ Failure describe_failure(std::exception_ptr failure);
 // host/solvers) and turns what it throws into a usage error (exit code 2).
 void check_usage(const std::function<void()>& check);
 
+// The device choice and validation of the global options (--device, --validation; under MPI the
+// node-local rank's device).
+ContextOptions context_options(bool validation_when_installed = false);
+
 // Creates the Vulkan context from the global options. When validation is on, the messages it
 // collected are printed to stderr as the context is released, and the exit code becomes 3.
 // `validation_when_installed` turns the layer on without --validation where it is installed.

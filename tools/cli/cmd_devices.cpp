@@ -1,6 +1,7 @@
 // `tfmatch devices`: the Vulkan devices and the features tfmatch uses, as text or JSON.
 #include <iomanip>
 #include <iostream>
+#include <optional>
 
 #include <nlohmann/json.hpp>
 
@@ -71,25 +72,45 @@ void print_devices(const std::vector<DeviceSummary>& devices) {
   }
 }
 
-// `json_target`: --json's value (empty: text only).
-int run_devices(const std::string& json_target) {
+// `json_target`: --json's value (empty: text only). `floor`: also time the driver alone
+// (measure_driver_floor) on the device tfmatch would choose.
+int run_devices(const std::string& json_target, bool floor) {
   const JsonOutput json(json_target);  // first: with '-', stdout holds only the JSON
   FilePlan().output(json.file(), "--json").check();
   auto devices = enumerate_devices();
-  json.write(devices_json(devices));
+  nlohmann::json out = devices_json(devices);
+  std::optional<DriverFloor> measured;
+  if (floor && !devices.empty()) {
+    measured = measure_driver_floor(context_options());
+    out["driver_floor"] = {{"device", measured->device},
+                           {"instance_ms", measured->instance_ms},
+                           {"device_ms", measured->device_ms},
+                           {"teardown_ms", measured->teardown_ms},
+                           {"total_ms", measured->total_ms()}};
+  }
+  json.write(out);
   if (devices.empty()) {
     std::cout << "no Vulkan devices (install mesa-vulkan-drivers for the lavapipe CPU device)\n";
   } else {
     print_devices(devices);
   }
+  if (measured)
+    std::cout << std::fixed << std::setprecision(1) << "driver floor on " << measured->device
+              << ": instance " << measured->instance_ms << " ms + device " << measured->device_ms
+              << " ms + teardown " << measured->teardown_ms << " ms = " << measured->total_ms() << " ms\n";
   return devices.empty() ? 1 : 0;
 }
 
 CommandRegistration reg(90, [](CLI::App& app) {
   auto json = std::make_shared<std::string>();
+  auto floor = std::make_shared<bool>(false);
   auto* sub = app.add_subcommand("devices", "List Vulkan devices with the features tfmatch uses");
   add_json_option(sub, *json, "the device list");
-  sub->callback([json] { exit_code() = run_devices(*json); });
+  sub->add_flag("--floor", *floor,
+                "Also time what the driver alone costs a process on the device tfmatch would choose: a bare "
+                "instance, that device with one queue and nothing enabled, and their teardown (the floor "
+                "under tfmatch's start-up)");
+  sub->callback([json, floor] { exit_code() = run_devices(*json, *floor); });
 });
 
 }  // namespace

@@ -78,7 +78,7 @@ void check_usage(const std::function<void()>& check) {
   }
 }
 
-std::shared_ptr<Context> make_context(bool validation_when_installed) {
+ContextOptions context_options(bool validation_when_installed) {
   ContextOptions options;
   std::string d = globals().device;
   const Ranks& ranks = *globals().ranks;
@@ -103,6 +103,11 @@ std::shared_ptr<Context> make_context(bool validation_when_installed) {
   } else if (validation_when_installed) {
     options.validation = true;
   }
+  return options;
+}
+
+std::shared_ptr<Context> make_context(bool validation_when_installed) {
+  const ContextOptions options = context_options(validation_when_installed);
   std::unique_ptr<Context> created = Context::create(options);
   // The pipelines of earlier runs on this device and build, so this one need not compile them.
   std::optional<std::filesystem::path> cache_file;

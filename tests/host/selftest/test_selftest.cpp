@@ -169,6 +169,19 @@ TEST(DevicesCli, JsonListsAtLeastOneDevice) {
     EXPECT_GT(d["max_workgroup_invocations"].get<uint64_t>(), 0u);
     EXPECT_TRUE(std::regex_match(d["vulkan"].get<std::string>(), std::regex("1\\.[0-9]+\\.[0-9]+")));
   }
+  // --floor adds the driver's own cost, in the JSON and as a line of text.
+  const test::CliResult floor = test::run_cli("devices --floor --json -");
+  EXPECT_EQ(floor.exit_code, 0) << floor.output;
+  const nlohmann::json f = parse_json(floor.output)["driver_floor"];
+  ASSERT_TRUE(f.is_object()) << floor.output;
+  EXPECT_FALSE(f["device"].get<std::string>().empty());
+  for (const char* key : {"instance_ms", "device_ms", "teardown_ms"}) EXPECT_GT(f[key].get<double>(), 0.0) << key;
+  EXPECT_NEAR(f["total_ms"].get<double>(),
+              f["instance_ms"].get<double>() + f["device_ms"].get<double>() + f["teardown_ms"].get<double>(), 1e-9);
+  const test::CliResult text = test::run_cli("devices --floor");
+  EXPECT_TRUE(std::regex_search(text.output, std::regex("driver floor on .+: instance [0-9.]+ ms \\+ device [0-9.]+ ms "
+                                                        "\\+ teardown [0-9.]+ ms = [0-9.]+ ms\n")))
+      << text.output;
   test::TempDir dir;
   const test::CliResult r = test::run_cli("devices --json " + (dir / "devices.json"));
   EXPECT_EQ(r.exit_code, 0) << r.output;
