@@ -10,13 +10,15 @@
 # step, not the run. LIST (comma separated) picks parts, so that a machine lent for a few minutes
 # can take them in several calls: check (devices, self-test, test suite), solvers (the table),
 # bench (assembly, DiffDVR, renderer), bench-long (correlation, streaming), startup (a process's
-# fixed cost, the pipeline cache, the phases of --json "timings"), torch (the PyTorch peer,
+# fixed cost, the pipeline cache, the phases of --json "timings"), e2e (optimize of 41.5 M voxels
+# and correlate of 10 x 1.76 M from process start to exit, beside the driver's own floor and a
+# read of the files, tools/e2e_timing.py), torch (the PyTorch peer,
 # tools/torch_peer.py, where PyTorch is installed), view (`tfmatch view`'s four pictures per
 # camera change at 512² and 1024², tools/view_latency.py); solvers-necker and
 # solvers-combustion are the table's GPU rows at one size each, cuda the CUDA solvers' tests.
 set -uo pipefail
 
-parts=check,solvers,bench,bench-long,startup,torch,view
+parts=check,solvers,bench,bench-long,startup,e2e,torch,view
 if [ "${1:-}" = "--parts" ]; then parts=$2; shift 2; fi
 want() { [[ ",$parts," == *",$1,"* ]]; }
 build=$(realpath "${1:-build}")
@@ -96,6 +98,12 @@ if want startup; then
       --ref-tf "$demo/reference_tf.json" --out "$out/startup-tf.json" --json "$out/startup-$run.json"
   done
   step startup-devices 30 "$tfm" devices
+fi
+if want e2e; then
+  # Issue 28's end-to-end goals (optimize 41.5 M <= 350 ms, correlate 10 x 1.76 M <= 300 ms, files
+  # in the page cache) with the driver floor (`devices --floor`) measured in the same run.
+  step e2e 240 python3 "$(dirname "$0")/e2e_timing.py" "$tfm" --runs 5 --dir "${TMPDIR:-/tmp}" \
+    --json "$out/e2e.json"
 fi
 if want torch; then
   # What a user would write instead, in PyTorch on the same GPU (tools/torch_peer.py), checked
