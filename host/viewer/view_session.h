@@ -225,15 +225,21 @@ class ViewSession {
   SolverSettings solver_settings_;
   uint64_t version_ = 0;
 
-  // The last picture render() made of each view, before decoration, for image_metrics: the
-  // state's version and the settings it was rendered with (z scale the session's).
+  // The last pictures render() made of each view, before decoration, for image_metrics: the
+  // state's version and the settings each was rendered with (z scale the session's). A few per
+  // view, so that pages at different cameras (two tabs, two people) each find their own pictures
+  // when they ask for the metrics; newest first, at most kShownPerView and kShownBytesPerView
+  // (the newest always kept).
   struct Shown {
-    uint64_t version = 0;  // 0: none
+    uint64_t version = 0;
     RenderSettings settings;
     Image picture;
   };
+  static constexpr size_t kShownPerView = 4;
+  static constexpr size_t kShownBytesPerView = size_t(16) << 20;
+  void keep_shown(ViewKind view, Shown shown);
   mutable std::mutex shown_mutex_;
-  std::array<Shown, 5> shown_;  // by ViewKind
+  std::array<std::vector<Shown>, 5> shown_;  // by ViewKind
 
   mutable std::mutex job_mutex_;
   JobStatus job_;

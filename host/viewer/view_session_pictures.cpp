@@ -111,10 +111,23 @@ Image ViewSession::render(ViewKind view, const RenderSettings& settings, double*
   }
   Shown shown{version, s, {}};
   Image picture = finish_picture(rendered, s, geometry, dots, true, timing, &shown.picture);
-  std::lock_guard lock(shown_mutex_);
-  // A picture of an older state (a job installed meanwhile) never replaces a newer one.
-  if (version >= shown_[size_t(view)].version) shown_[size_t(view)] = std::move(shown);
+  keep_shown(view, std::move(shown));
   return picture;
+}
+
+void ViewSession::keep_shown(ViewKind view, Shown shown) {
+  std::lock_guard lock(shown_mutex_);
+  std::vector<Shown>& kept = shown_[size_t(view)];
+  // A picture of an older state (a job installed meanwhile) is never kept beside newer ones; a
+  // newer state's picture ends the older ones.
+  if (!kept.empty() && shown.version < kept.front().version) return;
+  std::erase_if(kept, [&](const Shown& k) { return k.version < shown.version || same_rendering(k.settings, shown.settings); });
+  kept.insert(kept.begin(), std::move(shown));
+  size_t bytes = 0, keep = 0;
+  while (keep < kept.size() && keep < kShownPerView &&
+         (keep == 0 || bytes + kept[keep].picture.rgb.size() <= kShownBytesPerView))
+    bytes += kept[keep++].picture.rgb.size();
+  kept.resize(keep);
 }
 
 nlohmann::json ViewSession::image_metrics(const RenderSettings& settings, const std::function<bool()>& wanted) {
@@ -128,8 +141,8 @@ nlohmann::json ViewSession::image_metrics(const RenderSettings& settings, const 
   auto picture = [&](ViewKind view) {
     {
       std::lock_guard lock(shown_mutex_);
-      const Shown& shown = shown_[size_t(view)];
-      if (shown.version == version_ && same_rendering(shown.settings, s)) return shown.picture;
+      for (const Shown& shown : shown_[size_t(view)])
+        if (shown.version == version_ && same_rendering(shown.settings, s)) return shown.picture;
     }
     if (wanted && !wanted()) throw SupersededError("a newer camera from the same client replaced these metrics");
     ++rendered;

@@ -99,15 +99,39 @@ TEST_F(ViewServerFramesTest, MetricsUseThePicturesJustShown) {
   EXPECT_EQ(reused["rendered"], 0);
   EXPECT_EQ(reused["reference_tf"], fresh["reference_tf"]);
   EXPECT_EQ(reused["optimized_tf"], fresh["optimized_tf"]);
-  // A reference picture at another camera replaces the one at `s`: metrics there render the two
-  // views it lacks, and at `s` the reference again.
+  // A reference picture at another camera (a second page) is kept beside the one at `s`: metrics
+  // there render the two views it lacks, and at `s` nothing.
   RenderSettings other = s;
   other.camera.azimuth_deg = 48;
   session_->render(ViewKind::Reference, other);
   EXPECT_EQ(session_->image_metrics(other)["rendered"], 2);
-  EXPECT_EQ(session_->image_metrics(s)["rendered"], 1);  // the reference of `s` was replaced
+  EXPECT_EQ(session_->image_metrics(s)["rendered"], 0);
   s.box_outline = false;  // drawn after rendering: the same pictures
+  EXPECT_EQ(session_->image_metrics(s)["rendered"], 0);
+  // Two pages at their own cameras, taking turns: each finds its own pictures. Four cameras later
+  // the first is gone (at most four kept per view).
+  RenderSettings third = s, fourth = s, fifth = s;
+  third.camera.azimuth_deg = 49, fourth.camera.azimuth_deg = 50, fifth.camera.azimuth_deg = 51;
+  for (const RenderSettings* c : {&third, &fourth})
+    for (ViewKind view : {ViewKind::Reference, ViewKind::FieldRefTf, ViewKind::FieldOptTf}) session_->render(view, *c);
+  EXPECT_EQ(session_->image_metrics(third)["rendered"], 0);
+  EXPECT_EQ(session_->image_metrics(fourth)["rendered"], 0);
+  EXPECT_EQ(session_->image_metrics(s)["rendered"], 0);
+  for (ViewKind view : {ViewKind::Reference, ViewKind::FieldRefTf, ViewKind::FieldOptTf}) session_->render(view, fifth);
+  EXPECT_EQ(session_->image_metrics(fifth)["rendered"], 0);
+  // The reference view saw five cameras (s, other, third, fourth, fifth): s's is gone; the other
+  // two views saw four and still hold theirs.
   EXPECT_EQ(session_->image_metrics(s)["rendered"], 1);
+  // A byte budget per view: large pictures keep fewer (always the newest). 1200² is 4.1 MiB: three
+  // fit the 16 MiB of a view, four do not.
+  std::vector<RenderSettings> large(4, s);
+  for (size_t i = 0; i < large.size(); ++i) {
+    large[i].width = large[i].height = 1200;
+    large[i].camera.azimuth_deg = 60.0 + double(i);
+    session_->render(ViewKind::Reference, large[i]);
+  }
+  EXPECT_EQ(session_->image_metrics(large[0])["rendered"], 3);
+  EXPECT_EQ(session_->image_metrics(large[1])["rendered"], 2);
   // After an optimization (a new state) nothing earlier is used.
   for (ViewKind view : {ViewKind::Reference, ViewKind::FieldRefTf, ViewKind::FieldOptTf}) session_->render(view, s);
   EXPECT_EQ(session_->image_metrics(s)["rendered"], 0);
