@@ -32,7 +32,7 @@ void add_member(Ensemble& e, Volume&& v, uint64_t expected_members) {
                                std::to_string(voxels) + " voxels is too large");
     check_memory(expected_members * voxels * sizeof(float),
                  v.name + ": an ensemble of " + std::to_string(expected_members) + " members of " + grid_text(v));
-    reserve_field_values(e.values, expected_members * voxels);
+    e.values.reserve(expected_members * voxels);
   } else if (v.dims != e.grid.dims) {
     throw std::runtime_error("ensemble members are on different grids: " + e.member_names.front() + " is " +
                              grid_text(e.grid) + ", " + v.name + " is " + grid_text(v));

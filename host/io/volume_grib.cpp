@@ -447,7 +447,7 @@ Volume read_grib(const GribSource& source, const VolumeOptions& options) {
   if (members.size() > 1) v.name += ",member=" + std::to_string(k);
   check_memory(v.voxel_count() * sizeof(float), what + ": " + std::to_string(v.dims[0]) + "x" + std::to_string(v.dims[1]) +
                                                    "x" + std::to_string(v.dims[2]) + " values");
-  reserve_field_values(v.values, v.voxel_count());
+  v.values.reserve(v.voxel_count());
   for (const auto& m : msgs) {
     checkpoint("load");
     std::vector<double> values = message_values(m, file);

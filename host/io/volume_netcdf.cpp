@@ -533,7 +533,7 @@ Volume read_netcdf(const NcFile& f, const VolumeOptions& options) {
   if (L.time_axis >= 0 && L.dim_sizes[L.time_axis] > 1) v.name += ",time=" + std::to_string(t);
   if (member_axis >= 0) v.name += ",member=" + std::to_string(m);
   check_memory(voxels * sizeof(float), file + ": variable " + var + " " + L.shape());
-  reserve_field_values(v.values, voxels);
+  v.values.reserve(voxels);
   std::vector<int> iterate;
   if (L.spatial[2] >= 0) iterate.push_back(L.spatial[2]);
   for_each_slab(f, L, start, iterate, [&](const float* s, size_t n) { v.values.insert(v.values.end(), s, s + n); });

@@ -508,7 +508,7 @@ Volume parse_nrrd(std::string_view bytes, const std::string& file, const VolumeO
   const uint64_t voxels = v.voxel_count();
   check_memory(voxels * sizeof(float), file + ": " + std::to_string(d.dims[0]) + "x" + std::to_string(d.dims[1]) + "x" +
                                            std::to_string(d.dims[2]) + " volume (decoded as float32)");
-  reserve_field_values(v.values, voxels);
+  v.values.reserve(voxels);
   TupleReducer reducer(d.components, sel.component,
                        [&](const float* values, uint64_t n) { v.values.insert(v.values.end(), values, values + n); });
   d.decode(reducer);

@@ -106,7 +106,7 @@ Volume read_elements(const std::filesystem::path& path, std::array<uint64_t, 3> 
                                           std::to_string(dims[2]) + " volume (decoded as float32)");
   const size_t size = scalar_bytes(type);
   if (size != sizeof(float)) {
-    reserve_field_values(v.values, count);
+    v.values.reserve(count);
     stream_elements(path, dims, type, big_endian, offset, allow_trailing,
                     [&](const float* values, uint64_t n) { v.values.insert(v.values.end(), values, values + n); });
     return v;
@@ -117,7 +117,6 @@ Volume read_elements(const std::filesystem::path& path, std::array<uint64_t, 3> 
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error(v.name + ": cannot open");
   in.seekg(static_cast<std::streamoff>(offset));
-  reserve_field_values(v.values, count);
   v.values.resize(count);
   const uint64_t block = uint64_t(1) << 22;
   for (uint64_t done = 0; done < count; done += block) {

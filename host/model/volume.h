@@ -35,13 +35,6 @@ double axis_coordinate(const Volume& v, int axis, uint64_t i);
 // A volume with the grid (dims, spacing, origin, axes) and name of `like` and no values.
 Volume empty_like(const Volume& like);
 
-// Reserves room for `count` values in `values` (empty) and asks the kernel to back it with huge
-// pages where it leaves that to the program (Linux transparent huge pages in "madvise" mode, the
-// common default): writing the first values of a 41.5 M-voxel field then takes 512x fewer page
-// faults (166 MB zeroed in 25 instead of 70 ms, measured). Large field readers call it before
-// filling their values; elsewhere it is a plain reserve.
-void reserve_field_values(std::vector<float>& values, size_t count);
-
 // Throws std::runtime_error when the two volumes are not on one grid.
 void require_same_grid(const Volume& a, const Volume& b);
 
