@@ -20,36 +20,49 @@ namespace {
 // Below this many values a pass runs on the calling thread (a thread costs ~50 us to start).
 constexpr size_t kMinPart = size_t(1) << 20;
 
-// finite_stats() of one part. Branch-free over kLanes independent float minima/maxima and
-// counts, so the compiler vectorizes it at -O2 (non-finite values become +-inf before the min and
-// max instead of a condition inside them: 2.6x faster than that on 41 M voxels). The per-lane
-// counts of non-finite values are emptied every 2^20 groups, before they could wrap.
+constexpr size_t kLanes = 16;
+constexpr float kMaxFloat = std::numeric_limits<float>::max(), kInf = std::numeric_limits<float>::infinity();
+
+// Runs lane(j, x) over v[0, whole) in groups of kLanes values (x = v[i + j], lane j of the group),
+// and empty() after every 2^20 groups, before a lane's 32-bit counts could wrap; returns `whole`,
+// the values it took (the rest, fewer than kLanes, are the caller's). Branch-free lane bodies keep
+// kLanes independent accumulators each, so the compiler vectorizes the loop at -O2.
+template <class Lane, class Empty>
+size_t in_lanes(const float* v, size_t n, Lane lane, Empty empty) {
+  const size_t whole = n - n % kLanes;
+  for (size_t i = 0; i < whole;) {
+    const size_t end = std::min(whole, i + (kLanes << 20));
+    for (; i < end; i += kLanes)
+      for (size_t j = 0; j < kLanes; ++j) lane(j, v[i + j]);
+    empty();
+  }
+  return whole;
+}
+
+// finite_stats() of one part: non-finite values become +-inf before the min and max instead of
+// a condition inside them (2.6x faster than that on 41 M voxels).
 FiniteStats part_stats(const float* v, size_t n) {
-  constexpr size_t kLanes = 16;
-  constexpr float kMax = std::numeric_limits<float>::max(), kInf = std::numeric_limits<float>::infinity();
   float lo[kLanes], hi[kLanes];
   uint32_t bad[kLanes];
   std::fill_n(lo, kLanes, kInf);
   std::fill_n(hi, kLanes, -kInf);
   std::fill_n(bad, kLanes, 0u);
   uint64_t non_finite = 0;
-  const size_t whole = n - n % kLanes;
-  for (size_t i = 0; i < whole;) {
-    const size_t end = std::min(whole, i + (kLanes << 20));
-    for (; i < end; i += kLanes)
-      for (size_t j = 0; j < kLanes; ++j) {
-        const float x = v[i + j];
-        const bool finite = std::fabs(x) <= kMax;  // false for NaN and infinities
+  const size_t whole = in_lanes(
+      v, n,
+      [&](size_t j, float x) {
+        const bool finite = std::fabs(x) <= kMaxFloat;  // false for NaN and infinities
         const float x_lo = finite ? x : kInf, x_hi = finite ? x : -kInf;
         lo[j] = x_lo < lo[j] ? x_lo : lo[j];
         hi[j] = x_hi > hi[j] ? x_hi : hi[j];
         bad[j] += finite ? 0u : 1u;
-      }
-    for (size_t j = 0; j < kLanes; ++j) non_finite += std::exchange(bad[j], 0u);
-  }
+      },
+      [&] {
+        for (size_t j = 0; j < kLanes; ++j) non_finite += std::exchange(bad[j], 0u);
+      });
   for (size_t i = whole; i < n; ++i) {
     const float x = v[i];
-    if (std::fabs(x) <= kMax)
+    if (std::fabs(x) <= kMaxFloat)
       lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x);
     else
       ++non_finite;
@@ -66,35 +79,27 @@ FiniteStats part_stats(const float* v, size_t n) {
 
 // range_coverage() of one part, against float bounds that decide every float as the double range
 // does: x < lo exactly when x < lo_up, the smallest float >= lo (and x > hi when x > hi_down).
-// Branch-free lanes of counts, as part_stats.
 RangeCoverage part_coverage(const float* v, size_t n, float lo_up, float hi_down) {
-  constexpr size_t kLanes = 16;
-  constexpr float kMax = std::numeric_limits<float>::max();
   uint32_t finite[kLanes] = {}, below[kLanes] = {}, above[kLanes] = {};
   RangeCoverage c;
-  auto empty_lanes = [&] {
-    for (size_t j = 0; j < kLanes; ++j) {
-      c.finite += std::exchange(finite[j], 0u);
-      c.below += std::exchange(below[j], 0u);
-      c.above += std::exchange(above[j], 0u);
-    }
-  };
-  const size_t whole = n - n % kLanes;
-  for (size_t i = 0; i < whole;) {
-    const size_t end = std::min(whole, i + (kLanes << 20));
-    for (; i < end; i += kLanes)
-      for (size_t j = 0; j < kLanes; ++j) {
-        const float x = v[i + j];
-        const bool f = std::fabs(x) <= kMax;
+  const size_t whole = in_lanes(
+      v, n,
+      [&](size_t j, float x) {
+        const bool f = std::fabs(x) <= kMaxFloat;
         finite[j] += f ? 1u : 0u;
         below[j] += (f & (x < lo_up)) ? 1u : 0u;
         above[j] += (f & (x > hi_down)) ? 1u : 0u;
-      }
-    empty_lanes();
-  }
+      },
+      [&] {
+        for (size_t j = 0; j < kLanes; ++j) {
+          c.finite += std::exchange(finite[j], 0u);
+          c.below += std::exchange(below[j], 0u);
+          c.above += std::exchange(above[j], 0u);
+        }
+      });
   for (size_t i = whole; i < n; ++i) {
     const float x = v[i];
-    if (!(std::fabs(x) <= kMax)) continue;
+    if (!(std::fabs(x) <= kMaxFloat)) continue;
     ++c.finite;
     c.below += x < lo_up;
     c.above += x > hi_down;
