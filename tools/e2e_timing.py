@@ -159,6 +159,8 @@ def main():
         sys.exit(f"e2e_timing.py: {a.tfmatch}: not an executable file")
     if a.runs < 1:
         sys.exit("e2e_timing.py: --runs must be at least 1")
+    if a.dir and not os.path.isdir(a.dir):
+        sys.exit(f"e2e_timing.py: --dir {a.dir}: no such directory")
     work = tempfile.mkdtemp(prefix="tfmatch-e2e-", dir=a.dir)
     try:
         nx, ny, nz = a.pair

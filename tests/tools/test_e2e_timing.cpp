@@ -38,7 +38,10 @@ TEST(E2eTimingScript, TimesOptimizeAndCorrelateBesideTheDriverFloor) {
   size_t left = 0;
   for (const auto& e : std::filesystem::directory_iterator(dir.path)) left += e.path().filename() != "e2e.json";
   EXPECT_EQ(left, 0u);
-  // A program that is not there is a clear error, not a traceback.
+  // A program or directory that is not there is a clear error, not a traceback.
+  const std::string no_dir = std::string("python3 ") + TFMATCH_SOURCE_DIR + "/tools/e2e_timing.py " +
+                             TFMATCH_CLI_PATH + " --dir " + (dir / "no-such-dir") + " 2>&1";
+  EXPECT_NE(std::system(no_dir.c_str()), 0);
   const std::string bad = std::string("python3 ") + TFMATCH_SOURCE_DIR + "/tools/e2e_timing.py " +
                           (dir / "no-such-program") + " 2>&1";
   EXPECT_NE(std::system(bad.c_str()), 0);
