@@ -6,7 +6,6 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
-#include <thread>
 #include <utility>
 #include <vector>
 
@@ -110,12 +109,11 @@ RangeCoverage part_coverage(const float* v, size_t n, float lo_up, float hi_down
 }  // namespace
 
 FiniteStats finite_stats(std::span<const float> values) {
-  std::vector<FiniteStats> parts(std::thread::hardware_concurrency() + 1);
-  const size_t count = run_in_parts(values.size(), kMinPart, [&](size_t i, size_t begin, size_t end) {
-    parts[i] = part_stats(values.data() + begin, end - begin);
+  const std::vector<FiniteStats> parts = in_parts(values.size(), kMinPart, [&](size_t begin, size_t end) {
+    return part_stats(values.data() + begin, end - begin);
   });
   FiniteStats s = parts[0];
-  for (size_t i = 1; i < count; ++i) s = merge(s, parts[i]);
+  for (size_t i = 1; i < parts.size(); ++i) s = merge(s, parts[i]);
   return s;
 }
 
@@ -172,12 +170,11 @@ RangeCoverage range_coverage(std::span<const float> values, const FieldRange& ra
   float lo_up = static_cast<float>(range.lo), hi_down = static_cast<float>(range.hi);
   if (double(lo_up) < range.lo) lo_up = std::nextafter(lo_up, std::numeric_limits<float>::infinity());
   if (double(hi_down) > range.hi) hi_down = std::nextafter(hi_down, -std::numeric_limits<float>::infinity());
-  std::vector<RangeCoverage> parts(std::thread::hardware_concurrency() + 1);
-  const size_t count = run_in_parts(values.size(), kMinPart, [&](size_t i, size_t begin, size_t end) {
-    parts[i] = part_coverage(values.data() + begin, end - begin, lo_up, hi_down);
-  });
   RangeCoverage c;
-  for (size_t i = 0; i < count; ++i) c += parts[i];
+  for (const RangeCoverage& part : in_parts(values.size(), kMinPart, [&](size_t begin, size_t end) {
+         return part_coverage(values.data() + begin, end - begin, lo_up, hi_down);
+       }))
+    c += part;
   return c;
 }
 
