@@ -117,10 +117,6 @@ __global__ void direction_kernel(uint32_t n, const double* s, const double* inv_
   }
 }
 
-int grid_for(uint64_t len) {
-  return int(std::max<uint64_t>(1, std::min<uint64_t>((len + kThreads - 1) / kThreads, 4096)));
-}
-
 }  // namespace
 
 CglsOutcome cgls(const DeviceSystem& system, const CglsParams& prm) {

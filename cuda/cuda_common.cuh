@@ -147,6 +147,13 @@ __device__ inline void reduce_channels(double v, double* sh, double out[4]) {
   for (int c = 0; c < 4; ++c) out[c] = sh[c];
 }
 
+// Blocks of kReduceThreads for a grid-stride loop over `len` elements: enough to cover them, at
+// most 4096.
+inline int grid_for(uint64_t len) {
+  const uint64_t blocks = (len + kReduceThreads - 1) / kReduceThreads;
+  return int(blocks < 1 ? 1 : (blocks > 4096 ? 4096 : blocks));
+}
+
 // Blocks of the long (voxel-sized) reductions: partials has 4 * kPartialBlocks entries.
 constexpr int kPartialBlocks = 240;
 // partials[4 * block + c] = sum of q_i^2 over block `block`'s entries of channel c (i % 4 == c),

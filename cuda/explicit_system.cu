@@ -15,14 +15,9 @@
 namespace tfm::cuda {
 namespace {
 
-constexpr int kThreads = 256;
-constexpr int kMaxBlocks = 4096;  // grid-stride beyond
+constexpr int kThreads = kReduceThreads;  // grid_for() counts blocks of it
 // 2 non-zeros of S per voxel in 32-bit CSR indices (cuSPARSE's csr2csc takes int).
 constexpr uint64_t kMaxVoxels = uint64_t(INT_MAX) / 2;
-
-int grid_for(uint64_t len) {
-  return int(std::max<uint64_t>(1, std::min<uint64_t>((len + kThreads - 1) / kThreads, kMaxBlocks)));
-}
 
 // flags[i] = 1 where both fields have data (NaN is "no data", as everywhere).
 __global__ void count_kernel(const float* ref, const float* opt, uint64_t count, uint32_t* flags) {
