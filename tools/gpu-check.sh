@@ -3,11 +3,17 @@
 # self-test, the test suite, the paper's solver table (Vulkan, CUDA and CPU solvers side by side)
 # and every benchmark, all on the device tfmatch picks (TFMATCH_DEVICE chooses another).
 #
-#   tools/gpu-check.sh [--parts LIST] [BUILD_DIR [OUT_DIR]]    (defaults: all parts, build, gpu-check)
+#   tools/gpu-check.sh [--parts LIST] [--deadline S] [--pack FILE] [BUILD_DIR [OUT_DIR]]
+#                                                   (defaults: all parts, no deadline, build, gpu-check)
 #
 # Each step writes OUT_DIR/<step>.log (and .json where the command has JSON) and one line to
 # OUT_DIR/summary.txt: exit code and seconds. Every step has a time limit, so a hang costs one
-# step, not the run. LIST (comma separated) picks parts, so that a machine lent for a few minutes
+# step, not the run. --deadline S: no step starts later than S seconds after this script did, and
+# each step's limit is cut to the time left, so a run inside a device call of fixed length (600 s
+# at most) ends on its own, with a line in the summary for every step it skipped. --pack FILE:
+# after every step, OUT_DIR without its raw volumes is packed into FILE (.tar.gz, replaced whole,
+# never half-written), so a run cut short from outside still brings back everything up to its last
+# step, as one file (a device call brings back at most 8 files). LIST (comma separated) picks parts, so that a machine lent for a few minutes
 # can take them in several calls: check (devices, self-test, test suite), solvers (the table),
 # bench (assembly, DiffDVR, renderer), bench-long (correlation, streaming), startup (a process's
 # fixed cost, the pipeline cache, the phases of --json "timings"), e2e (optimize of 41.5 M voxels
@@ -19,19 +25,50 @@
 set -uo pipefail
 
 parts=check,solvers,bench,bench-long,startup,e2e,torch,view
-if [ "${1:-}" = "--parts" ]; then parts=$2; shift 2; fi
+deadline=""
+pack=""
+while [ $# -gt 0 ]; do
+  case $1 in
+    --parts) parts=$2; shift 2 ;;
+    --deadline)
+      [[ "${2:-}" =~ ^[0-9]+$ ]] || { echo "gpu-check.sh: --deadline takes whole seconds, not '${2:-}'" >&2; exit 2; }
+      deadline=$2; shift 2 ;;
+    --pack) pack=$(realpath -m "$2"); shift 2 ;;
+    --*) echo "gpu-check.sh: unknown option $1" >&2; exit 2 ;;
+    *) break ;;
+  esac
+done
+known=,check,solvers,solvers-necker,solvers-combustion,cuda,bench,bench-long,startup,e2e,torch,view,
+for part in ${parts//,/ }; do
+  [[ "$known" == *",$part,"* ]] || { echo "gpu-check.sh: unknown part '$part' (known: ${known:1:-1})" >&2; exit 2; }
+done
 want() { [[ ",$parts," == *",$1,"* ]]; }
 build=$(realpath "${1:-build}")
 out=$(realpath -m "${2:-gpu-check}")
+case "$pack" in "$out"/*) echo "gpu-check.sh: the --pack file must lie outside $out" >&2; exit 2 ;; esac
 mkdir -p "$out"
 tfm=$build/tfmatch
 jobs=$(nproc)
 gpu_solvers=normal-equations,qp,cgls,gradient-descent,histogram-matching,cuda-normal-equations,cuda-cgls,diffdvr
 solvers=$gpu_solvers,eigen-normal-equations,eigen-cgls
 
+packed() {  # OUT_DIR (without raw volumes) into the --pack file, replaced whole
+  [ -n "$pack" ] || return 0
+  tar -czf "$pack.part" --exclude='*.raw' -C "$(dirname "$out")" "$(basename "$out")" && mv -f "$pack.part" "$pack"
+}
+
 step() {  # step NAME LIMIT_S COMMAND...: run COMMAND with a limit, log it, note its exit code
   local name=$1 limit=$2
   shift 2
+  if [ -n "$deadline" ]; then
+    local left=$((deadline - SECONDS))
+    if [ "$left" -lt 5 ]; then
+      printf '%-22s skipped: under 5 s left before the --deadline of %d s\n' "$name" "$deadline" | tee -a "$out/summary.txt"
+      packed
+      return
+    fi
+    [ "$left" -lt "$limit" ] && limit=$left
+  fi
   local start_ms rc
   start_ms=$(date +%s%3N)
   timeout --kill-after=10 "$limit" "$@" >"$out/$name.log" 2>&1
@@ -39,6 +76,7 @@ step() {  # step NAME LIMIT_S COMMAND...: run COMMAND with a limit, log it, note
   local ms=$(($(date +%s%3N) - start_ms))
   printf '%-22s rc=%-4s %4d.%01d s%s\n' "$name" "$rc" $((ms / 1000)) $((ms % 1000 / 100)) \
     "$([ "$rc" = 124 ] && echo "  (hit its ${limit} s limit)")" | tee -a "$out/summary.txt"
+  packed
 }
 
 if want check; then
