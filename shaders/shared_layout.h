@@ -34,7 +34,8 @@ using uint = std::uint32_t;
 #define TFM_REDUCE_RUNS_SHARED 0u  // register runs, flushed to workgroup-shared accumulators
 #define TFM_REDUCE_RUNS_GLOBAL 1u  // register runs, flushed to the global accumulators
 #define TFM_REDUCE_PRIVATE 2u      // a private histogram per lane, added to memory at the end
-// Quads of voxels each lane takes from one contiguous segment of its subgroup per step.
+// The most quads a lane takes from one contiguous segment of its subgroup, one per step
+// (quad_segments.glsl: fewer where the dispatch has more lanes than that needs).
 #define TFM_REDUCE_SEGMENT_STEPS 64u
 
 // Fixed-point accumulators (shaders/fixed_point.glsl): each slot is one 64-bit 32.32 number kept
