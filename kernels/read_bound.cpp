@@ -29,9 +29,11 @@ std::array<uint32_t, 2> field_pair_bit_sums(std::span<const float> ref, std::spa
   return s;
 }
 
-FieldPairReadKernel::FieldPairReadKernel(Context& ctx, uint64_t range_quads)
+FieldPairReadKernel::FieldPairReadKernel(Context& ctx, uint64_t range_quads, uint64_t lane_voxels)
     : ctx_(ctx),
-      range_quads_(texel_range_quads(ctx, range_quads, "field_pair_read")) {
+      range_quads_(texel_range_quads(ctx, range_quads, "field_pair_read")),
+      lane_voxels_(lane_voxels) {
+  if (lane_voxels == 0) throw std::invalid_argument("field_pair_read: lanes of 0 voxels");
   PipelineDesc desc;
   desc.shader = "field_pair_read";
   desc.binding_counts = gpu::to_vector(kBindingCounts);
@@ -59,7 +61,7 @@ void FieldPairReadKernel::record(CommandBatch& batch, const DeviceField& ref, co
                    {ref.chunk(r.chunk), opt.chunk(r.chunk),
                     Binding::texels(ref.chunk(r.chunk), r.format, r.first * 4, r.bytes),
                     Binding::texels(opt.chunk(r.chunk), r.format, r.first * 4, r.bytes), result},
-                   push, {voxel_groups(ctx_, r.voxels)});
+                   push, {voxel_groups(ctx_, r.voxels, lane_voxels_)});
     batch.barrier();
   }
 }

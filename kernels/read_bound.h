@@ -11,6 +11,7 @@
 
 #include "device_field.h"
 #include "pipeline.h"
+#include "voxel_pair.h"  // kVoxelLaneVoxels
 
 namespace tfm {
 
@@ -24,8 +25,9 @@ std::array<uint32_t, 2> field_pair_bit_sums(std::span<const float> ref, std::spa
 class FieldPairReadKernel {
  public:
   // `range_quads`: quads per dispatch (a texel view each), a multiple of 64; 0: the device's
-  // maxTexelBufferElements, as the assembly (tests force splits).
-  explicit FieldPairReadKernel(Context& ctx, uint64_t range_quads = 0);
+  // maxTexelBufferElements, as the assembly (tests force splits). `lane_voxels`: voxels per lane
+  // (voxel_groups), as the assembly's run modes take them (ReductionOptions::lane_voxels).
+  explicit FieldPairReadKernel(Context& ctx, uint64_t range_quads = 0, uint64_t lane_voxels = kVoxelLaneVoxels);
   ~FieldPairReadKernel();
   // Records reading every voxel of both fields (same size and chunking) and adding the two bit
   // sums to `result` (two uint32, which the caller zeroes).
@@ -36,6 +38,7 @@ class FieldPairReadKernel {
  private:
   Context& ctx_;
   uint64_t range_quads_;
+  uint64_t lane_voxels_;
   std::unique_ptr<ComputePipeline> pipeline_;
 };
 

@@ -36,6 +36,7 @@ Reduction Reduction::choose(const Context& ctx, const char* kernel, uint32_t tf_
   Reduction r;
   r.tf_size = tf_size;
   r.workgroups = options.workgroups;
+  r.lane_voxels = options.lane_voxels;
   const std::string who = std::string(kernel) + ": ";
   r.int64 = options.atomics == AtomicWidth::Bits64 || (options.atomics == AtomicWidth::Auto && ctx.int64_atomics());
   if (r.int64 && !ctx.int64_atomics())
@@ -66,7 +67,7 @@ Reduction Reduction::choose(const Context& ctx, const char* kernel, uint32_t tf_
 uint32_t Reduction::groups(const Context& ctx, uint64_t voxels) const {
   const uint32_t max_groups = ctx.limits().maxComputeWorkGroupCount[0];
   if (workgroups) return std::min(workgroups, max_groups);
-  if (mode != ReductionMode::Private) return voxel_groups(ctx, voxels);
+  if (mode != ReductionMode::Private) return voxel_groups(ctx, voxels, lane_voxels ? lane_voxels : kVoxelLaneVoxels);
   const uint64_t quads = voxels / 4;
   const uint64_t per_lane = std::clamp<uint64_t>(16ull * tf_size, 2048, 32768);
   uint64_t groups = (quads / per_lane + workgroup_size) / workgroup_size;

@@ -34,6 +34,7 @@ struct ReductionOptions {
   uint32_t workgroups = 0;  // per dispatch; 0: from the chunk size (tests force counts)
   uint32_t range_quads = 0;  // assembly: quads per dispatch (texel view); 0: the device's
                              // maxTexelBufferElements (tests force splits)
+  uint32_t lane_voxels = 0;  // run modes: voxels per lane (voxel_groups); 0: kVoxelLaneVoxels
 };
 const char* reduction_mode_name(ReductionMode mode);
 
@@ -68,6 +69,7 @@ struct Reduction {
   ReductionMode mode = ReductionMode::RunsShared;
   bool int64 = false;
   uint32_t workgroups = 0;  // forced count, or 0
+  uint32_t lane_voxels = 0;  // run modes: voxels per lane, or 0 for kVoxelLaneVoxels
   uint32_t tf_size = 0;
   // Invocations per workgroup: TFM_VOXEL_WORKGROUP, but one subgroup for Private (a CPU device
   // runs a workgroup on one thread, and a lane's cost is its histogram's flush: more, smaller
@@ -82,7 +84,7 @@ struct Reduction {
   static Reduction choose(const Context& ctx, const char* kernel, uint32_t tf_size, uint64_t shared_bytes,
                           const ReductionOptions& options, uint32_t private_max_bins = kPrivateMaxBins);
   // Workgroups of workgroup_size for one dispatch over `voxels`: the forced count, else
-  // voxel_groups() for the run modes and, for Private, enough lanes that each covers about
+  // voxel_groups() for the run modes (lanes of lane_voxels) and, for Private, enough lanes that each covers about
   // 16 N quads (its histogram is added to memory once, so lanes must cover many voxels) but at
   // most 32768 (lavapipe stops a shader after 65535 loop iterations), and up to kPrivateMinGroups
   // workgroups of shorter lanes when the volume is small (every core of a CPU device gets work).

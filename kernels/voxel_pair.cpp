@@ -22,9 +22,8 @@ gpu::VoxelPairPush make_voxel_pair_push(const FieldMapping& ref, const FieldMapp
   return p;
 }
 
-uint32_t voxel_groups(const Context& ctx, uint64_t voxels) {
-  // Enough voxels per group to amortize its flush of the shared accumulators.
-  const uint64_t per_group = uint64_t(TFM_VOXEL_WORKGROUP) * 64;
+uint32_t voxel_groups(const Context& ctx, uint64_t voxels, uint64_t lane_voxels) {
+  const uint64_t per_group = uint64_t(TFM_VOXEL_WORKGROUP) * std::max<uint64_t>(1, lane_voxels);
   uint64_t groups = (voxels + per_group - 1) / per_group;
   return static_cast<uint32_t>(std::clamp<uint64_t>(groups, 1, ctx.limits().maxComputeWorkGroupCount[0]));
 }

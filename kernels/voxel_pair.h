@@ -24,8 +24,13 @@ class Context;
 
 gpu::VoxelPairPush make_voxel_pair_push(const FieldMapping& ref, const FieldMapping& opt);
 
-// Workgroups for a 1-D voxel kernel over `voxels` (each invocation loops over ~32 voxels).
-uint32_t voxel_groups(const Context& ctx, uint64_t voxels);
+// Voxels each lane of a voxel kernel's TFM_VOXEL_WORKGROUP-sized groups takes by default: enough to
+// amortize a workgroup's flush of its shared accumulators (not yet tuned on a GPU: `tfmatch bench
+// --lane-voxels` measures others).
+inline constexpr uint64_t kVoxelLaneVoxels = 64;
+// Workgroups of TFM_VOXEL_WORKGROUP for one dispatch over `voxels`, each lane taking about
+// `lane_voxels` of them (quad_segments.glsl spreads a dispatch's quads over all its lanes).
+uint32_t voxel_groups(const Context& ctx, uint64_t voxels, uint64_t lane_voxels = kVoxelLaneVoxels);
 
 // Workgroup size of a quad kernel whose lanes each keep their own sums or write their own voxels
 // (voxel loss, residual map, the CGLS prepare and gather): `requested` if given, else one subgroup on a CPU device — which

@@ -116,6 +116,16 @@ TEST_F(AssemblyTest, DeterministicAcrossRunsPathsAndWorkgroups) {
                      ", " + std::to_string(groups) + " workgroups");
         expect_exact(run({mode, width, groups}), exact);
       }
+      // Lane lengths of the run modes' workgroups (bench --lane-voxels): from one quad per lane
+      // (every segment one step) to lanes of several 64-step segments.
+      if (mode == ReductionMode::Private) continue;
+      for (uint32_t lane : {4u, 16u, 1000u}) {
+        SCOPED_TRACE(std::string(reduction_mode_name(mode)) + (width == AtomicWidth::Bits64 ? ", 64-bit" : ", 32-bit") +
+                     ", lanes of " + std::to_string(lane) + " voxels");
+        ReductionOptions options{mode, width};
+        options.lane_voxels = lane;
+        expect_exact(run(options), exact);
+      }
     }
 }
 

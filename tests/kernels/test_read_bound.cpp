@@ -46,6 +46,24 @@ TEST_F(ReadBound, ReportsTheGpuTimeWhereTheDeviceHasTimestamps) {
     EXPECT_EQ(ms, -1.0);
 }
 
+// Every lane length (the workgroup count: quad_segments.glsl spreads a dispatch over all its
+// lanes) reads every voxel once: lanes of one quad, of a few segments, longer than the range, over
+// one dispatch and over chunks and ranges that split it.
+TEST_F(ReadBound, EveryLaneLengthReadsEveryVoxelOnce) {
+  const std::vector<float> ref = values(70001, 4), opt = values(70001, 5);
+  const std::array<uint32_t, 2> expected = sums_of_bits(ref, opt);
+  for (uint64_t chunk : {uint64_t(0), uint64_t(9216)}) {
+    const DeviceField dref(ctx(), ref, "ref", chunk), dopt(ctx(), opt, "opt", chunk);
+    for (uint64_t range_quads : {uint64_t(0), uint64_t(640)})
+      for (uint64_t lane : {4u, 12u, 64u, 1000u, 100000u}) {
+        SCOPED_TRACE("chunk " + std::to_string(chunk) + ", range " + std::to_string(range_quads) + ", lanes of " +
+                     std::to_string(lane));
+        EXPECT_EQ(FieldPairReadKernel(ctx(), range_quads, lane).run(dref, dopt), expected);
+      }
+  }
+  EXPECT_THROW(FieldPairReadKernel(ctx(), 0, 0), std::invalid_argument);
+}
+
 // The library's reference (field_pair_bit_sums, which the case table holds the kernel to) against
 // the sums computed here, and what it must notice.
 TEST_F(ReadBound, ReferenceSeesAVoxelLeftOutOrReadTwice) {

@@ -157,7 +157,7 @@ TEST_F(CliConventions, JsonDashKeepsStdoutToOneJsonDocument) {
           " --tf-size 8 --json -",
       "solvers --synthetic --size 8x6x4 --solvers normal-equations --json -",
       "bench-render --size 16 --images 16 --repeat 1 --cpu-rows 2 --json -",
-      "bench --sizes 9x7x5 --tf-sizes 4 --repeats 1 --json -",
+      "bench --sizes 9x7x5 --tf-sizes 4 --repeats 1 --lane-voxels 4,1000 --json -",
   };
   for (const std::string& args : runs) {
     const test::CliSplitResult r = run_cli_split(args);
@@ -172,6 +172,12 @@ TEST_F(CliConventions, JsonDashKeepsStdoutToOneJsonDocument) {
       for (const char* rate : {"upload_staged_bytes_per_s", "host_memcpy_bytes_per_s"})
         EXPECT_GT(j["runs"][0][rate].get<double>(), 0.0) << rate;
       EXPECT_GE(j["runs"][0]["upload_in_place_bytes_per_s"].get<double>(), 0.0);  // 0: the device cannot import
+      // --lane-voxels: a row per length, each with the default's exact sums (else the run fails).
+      const nlohmann::json& lanes = j["runs"][0]["lane_voxels"];
+      ASSERT_EQ(lanes.size(), 2u) << j.dump(1);
+      EXPECT_EQ(lanes[1]["lane_voxels"].get<int>(), 1000);
+      EXPECT_GT(lanes[1]["assemble_ms"].get<double>(), 0.0);
+      EXPECT_TRUE(lanes[0]["same_sums"].get<bool>());
     }
   }
   // A file instead: the text as usual, and the same JSON in the file.

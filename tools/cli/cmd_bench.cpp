@@ -34,6 +34,7 @@ struct BenchArgs {
   std::vector<uint32_t> tf_sizes{16, 64, 256, 1024, 4096};
   int repeats = 3;
   uint64_t eigen_max_voxels = 5'000'000;
+  std::vector<uint32_t> lane_voxels;  // lane lengths to compare the read bound and assembly at
   std::string json;
 };
 
@@ -84,8 +85,8 @@ double copy_ms(Context& ctx, const DeviceField& field, int repeats) {
 // Best GPU time (ms) of reading both fields with the assembly's loads (FieldPairReadKernel);
 // throws when its sums differ from the CPU's (a voxel not read, or read twice).
 double read_ms(Context& ctx, const DeviceField& ref, const DeviceField& opt, const std::array<uint32_t, 2>& expected,
-               int repeats) {
-  const FieldPairReadKernel kernel(ctx);
+               int repeats, uint64_t lane_voxels = kVoxelLaneVoxels) {
+  const FieldPairReadKernel kernel(ctx, 0, lane_voxels);
   double best = 1e300;
   for (int r = 0; r <= repeats; ++r) {  // the first run compiles the shader on lavapipe: not timed
     double ms = -1.0;
@@ -148,6 +149,46 @@ double max_relative_difference(const NormalEquations& a, const NormalEquations& 
   return worst;
 }
 
+// --lane-voxels: the read bound and the assembly (N = 64) with each lane length of the run modes'
+// workgroups (ReductionOptions::lane_voxels), beside the default. Every length must give the
+// default's exact sums; the fastest is what a GPU's default should be.
+nlohmann::json lane_sweep(Context& ctx, const BenchArgs& a, const DeviceField& dref, const DeviceField& dopt,
+                          const std::array<uint32_t, 2>& bit_sums, const FieldMapping& rm, const FieldMapping& om,
+                          const Buffer& tfb) {
+  GpuNormalEquations reference(ctx, 64);
+  reference.add(dref, dopt, rm, om, tfb);
+  const std::vector<uint64_t> expected = reference.fixed_point_slots();
+  const double voxels = double(dref.voxel_count());
+  std::cout << "    voxels per lane (workgroups of " << TFM_VOXEL_WORKGROUP << " invocations; default "
+            << kVoxelLaneVoxels << "), N = 64:\n"
+            << "     lane   read ms   read GB/s   assembly ms   GPU/read   path\n";
+  nlohmann::json rows = nlohmann::json::array();
+  for (uint32_t lane : a.lane_voxels) {
+    const double read = read_ms(ctx, dref, dopt, bit_sums, a.repeats, lane);
+    ReductionOptions options;
+    options.lane_voxels = lane;
+    GpuNormalEquations gpu(ctx, 64, options);
+    gpu.add(dref, dopt, rm, om, tfb);  // first use: lavapipe compiles the shader here
+    const double assemble = warm_best_ms(a.repeats, [&] {
+      gpu.reset();
+      return gpu.add(dref, dopt, rm, om, tfb);
+    });
+    if (gpu.fixed_point_slots() != expected)
+      throw std::runtime_error("bench: lanes of " + std::to_string(lane) + " voxels changed the assembly's sums on " +
+                               ctx.device_name());
+    // Lengths only the run modes take (a CPU device's private histograms size their own lanes).
+    const std::string path = reduction_mode_name(gpu.kernel().mode());
+    std::cout << "    " << std::setw(5) << lane << std::fixed << std::setprecision(3) << std::setw(10) << read
+              << std::setprecision(1) << std::setw(12) << voxels * 8.0 / (read * 1e-3) / 1e9 << std::setprecision(3)
+              << std::setw(14) << assemble << std::setprecision(3) << std::setw(11) << read / assemble << "   "
+              << path << "\n";
+    rows.push_back({{"lane_voxels", lane}, {"read_ms", read}, {"read_bytes_per_s", voxels * 8.0 / (read * 1e-3)},
+                    {"assemble_ms", assemble}, {"assembly_over_read_bound", read / assemble}, {"path", path},
+                    {"same_sums", true}});
+  }
+  return rows;
+}
+
 std::string load_average() {
   double load[3] = {0, 0, 0};
   if (getloadavg(load, 3) != 3) return "unknown";
@@ -185,7 +226,8 @@ int run(const BenchArgs& a) {
     const double copy_bytes_per_s = double(voxels) * 4.0 / (copy_best * 1e-3);
     const double bound_voxels_per_s = copy_bytes_per_s / 8.0;
     // The read bound: both fields read as the assembly reads them, 8 bytes per voxel.
-    const double read_best = read_ms(*ctx, dref, dopt, field_pair_bit_sums(ref.values, field.values), a.repeats);
+    const std::array<uint32_t, 2> bit_sums = field_pair_bit_sums(ref.values, field.values);
+    const double read_best = read_ms(*ctx, dref, dopt, bit_sums, a.repeats);
     const double read_voxels_per_s = double(voxels) / (read_best * 1e-3);
     const UploadRates up = upload_rates(*ctx, dref, dopt, ref, field, a.repeats);
     std::cout << "\n  " << size << " (" << std::setprecision(3) << double(voxels) / 1e6 << " M voxels); copy bound "
@@ -241,6 +283,8 @@ int run(const BenchArgs& a) {
                                    {"max_relative_difference", diff},
                                    {"path", path}});
     }
+    if (!a.lane_voxels.empty())
+      entry["lane_voxels"] = lane_sweep(*ctx, a, dref, dopt, bit_sums, rm, make_mapping(field_range, 64), tfb);
     if (voxels <= a.eigen_max_voxels) {
       // The paper's CPU baseline: explicit sparse A (CSR), then A^T A and A^T b with Eigen (N = 64).
       const FieldMapping om = make_mapping(field_range, 64);
@@ -285,6 +329,11 @@ CommandRegistration reg(80, [](CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--eigen-max-voxels", args->eigen_max_voxels, "Skip the Eigen baseline above this size")
       ->capture_default_str();
+  sub->add_option("--lane-voxels", args->lane_voxels,
+                  "Also time the read bound and the assembly (N = 64) with lanes of these many voxels, comma "
+                  "separated (the GPU kernels' workgroup count; each must give the default's exact sums)")
+      ->delimiter(',')
+      ->check(CLI::Range(4u, 1u << 20));
   add_json_option(sub, args->json, "the numbers");
   sub->callback([args] { exit_code() = run(*args); });
 });
