@@ -52,6 +52,19 @@ TEST(BenchCorrelateCli, TinyRunWritesTableAndJson) {
     // Each side within the bound of the exact value (kernels/correlation.h), so within twice it
     // of each other.
     EXPECT_LE(row["max_abs_difference"].get<double>(), 2 * CorrelationKernel::error_bound(params, members));
+    // The kernels alone on the ensemble already on the device (the run fails unless their field
+    // has compute()'s bits), beside the read bound of the ensemble's bytes: none for the 1500
+    // values of M = 5 (halves under 1024 values), measured for the 12 000 of M = 40.
+    const double res_ms = row["resident_ms"].get<double>(), bound = row["read_bound_bytes_per_s"].get<double>();
+    ASSERT_GT(res_ms, 0.0);
+    EXPECT_DOUBLE_EQ(row["resident_voxels_per_s"].get<double>(), voxels / (res_ms * 1e-3));
+    if (members == 5) {
+      EXPECT_EQ(bound, 0.0);
+      EXPECT_EQ(row["resident_over_read_bound"].get<double>(), 0.0);
+    } else {
+      ASSERT_GT(bound, 0.0);
+      EXPECT_DOUBLE_EQ(row["resident_over_read_bound"].get<double>(), members * voxels * 4.0 / (res_ms * 1e-3) / bound);
+    }
     // The table's line for this row: its rates as printed (%.4g).
     char rates[64];
     std::snprintf(rates, sizeof rates, "%13.4g %13.4g", row["gpu_voxels_per_s"].get<double>(),
