@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-namespace tfm::cli {
+#include "bench_timing.h"  // seconds_since
 
-double seconds_since(std::chrono::steady_clock::time_point t0);
+namespace tfm::cli {
 
 // A grid of about `voxels` voxels, x = y = 1.25 z.
 std::array<uint64_t, 3> bench_grid(uint64_t voxels);

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "atomic_file.h"
+#include "bench_timing.h"
 #include "cli.h"
 #include "commands.h"
 #include "output_check.h"
@@ -38,10 +39,6 @@ struct BenchArgs {
   std::string json;
 };
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
 std::array<uint64_t, 3> parse_dims(const std::string& s) {
   std::array<uint64_t, 3> d{};
   char x1 = 0, x2 = 0;
@@ -51,19 +48,6 @@ std::array<uint64_t, 3> parse_dims(const std::string& s) {
   return d;
 }
 
-// Best device time (ms) of `run` (which returns its own GPU time) over at least `repeats` runs and
-// `warm_ms` of back-to-back device work. The assembly's repeats alternate with the CPU loop's, and a
-// GPU left idle through a CPU loop drops its clocks (an H100 or H200 idles at 345 MHz, 5.7x below
-// its 1980 MHz boost). Timed that way on an H200 (2026-11-27) the assembly took 15.9 ms here and
-// 2.8 ms inside `optimize`, where uploads had just kept the GPU busy: 5.7x, the clocks' ratio. So
-// each round keeps the device busy for a while before its best time counts.
-template <class Run>
-double warm_best_ms(int repeats, Run&& run, int warm_ms = 200) {
-  double best = 1e300;
-  const auto warm_until = std::chrono::steady_clock::now() + std::chrono::milliseconds(warm_ms);
-  for (int r = 0; r < repeats || std::chrono::steady_clock::now() < warm_until; ++r) best = std::min(best, run());
-  return best;
-}
 
 // Best GPU time (ms) of copying every chunk of `field` into a scratch buffer, `repeats` times and
 // for at least 0.3 s (warm_best_ms).

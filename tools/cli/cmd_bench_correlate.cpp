@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "atomic_file.h"
+#include "bench_timing.h"
 #include "buffer.h"
 #include "cancellation.h"
 #include "cli.h"
@@ -47,10 +48,6 @@ struct BenchArgs {
   std::string json;
 };
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
 // The first `voxels` voxels (x fastest) of the synthetic ensemble (host/model/synthetic_ensemble.h)
 // on the paper's grid, generated on just the z levels they need, and the series at its reference
 // point (the centre of its strongly dependent blob).
@@ -74,16 +71,6 @@ BenchEnsemble bench_ensemble(uint32_t members, uint64_t voxels) {
   for (uint32_t m = 0; m < members; ++m)
     std::copy_n(full.values.begin() + int64_t(m * full.voxel_count()), voxels, b.values.begin() + int64_t(m * voxels));
   return b;
-}
-
-// Best device time (ms) of `run` (which returns its GPU time) over `repeats` runs and at least
-// 0.2 s of back-to-back device work (an idle GPU drops its clocks: cmd_bench.cpp's warm_best_ms).
-template <class Run>
-double warm_best_ms(int repeats, Run&& run) {
-  double best = 1e300;
-  const auto warm_until = std::chrono::steady_clock::now() + std::chrono::milliseconds(200);
-  for (int r = 0; r < repeats || std::chrono::steady_clock::now() < warm_until; ++r) best = std::min(best, run());
-  return best;
 }
 
 // The ensemble on the device once (member-major float32), and the device's read bound for its
