@@ -13,15 +13,17 @@
 # at most) ends on its own, with a line in the summary for every step it skipped. --pack FILE:
 # after every step, OUT_DIR without its raw volumes is packed into FILE (.tar.gz, replaced whole,
 # never half-written), so a run cut short from outside still brings back everything up to its last
-# step, as one file (a device call brings back at most 8 files). LIST (comma separated) picks parts, so that a machine lent for a few minutes
-# can take them in several calls: check (devices, self-test, test suite), solvers (the table),
-# bench (assembly, DiffDVR, renderer), bench-long (correlation, streaming), startup (a process's
-# fixed cost, the pipeline cache, the phases of --json "timings"), e2e (optimize of 41.5 M voxels
-# and correlate of 10 x 1.76 M from process start to exit, beside the driver's own floor and a
-# read of the files, tools/e2e_timing.py), torch (the PyTorch peer,
-# tools/torch_peer.py, where PyTorch is installed), view (`tfmatch view`'s four pictures per
-# camera change at 512² and 1024², tools/view_latency.py); solvers-necker and
-# solvers-combustion are the table's GPU rows at one size each, cuda the CUDA solvers' tests.
+# step, as one file (a device call brings back at most 8 files).
+# LIST (comma separated) picks parts, run in the order it names them, so that a machine lent for
+# a few minutes takes what matters most first, or takes them in several calls: check (devices,
+# self-test, test suite), solvers (the table), bench (assembly, DiffDVR, renderer), bench-long
+# (correlation, streaming), startup (a process's fixed cost, the pipeline cache, the phases of
+# --json "timings"), e2e (optimize of 41.5 M voxels and correlate of 10 x 1.76 M from process
+# start to exit, beside the driver's own floor and a read of the files, tools/e2e_timing.py),
+# torch (the PyTorch peer, tools/torch_peer.py, where PyTorch is installed), view (`tfmatch
+# view`'s four pictures per camera change at 512² and 1024², tools/view_latency.py);
+# solvers-necker and solvers-combustion are the table's GPU rows at one size each, cuda the CUDA
+# solvers' tests.
 set -uo pipefail
 
 parts=check,solvers,bench,bench-long,startup,e2e,torch,view
@@ -42,7 +44,6 @@ known=,check,solvers,solvers-necker,solvers-combustion,cuda,bench,bench-long,sta
 for part in ${parts//,/ }; do
   [[ "$known" == *",$part,"* ]] || { echo "gpu-check.sh: unknown part '$part' (known: ${known:1:-1})" >&2; exit 2; }
 done
-want() { [[ ",$parts," == *",$1,"* ]]; }
 build=$(realpath "${1:-build}")
 out=$(realpath -m "${2:-gpu-check}")
 case "$pack" in "$out"/*) echo "gpu-check.sh: the --pack file must lie outside $out" >&2; exit 2 ;; esac
@@ -79,7 +80,7 @@ step() {  # step NAME LIMIT_S COMMAND...: run COMMAND with a limit, log it, note
   packed
 }
 
-if want check; then
+part_check() {
   step version 20 "$tfm" --version
   step devices 30 "$tfm" devices --json "$out/devices.json"
   step selftest 120 "$tfm" selftest --json "$out/selftest.json"
@@ -91,43 +92,45 @@ if want check; then
   else  # no CMake on the machine: the main suite in one process, validation on as under ctest
     step gtest 240 env TFMATCH_VALIDATION=1 "$build/tests/tfmatch_tests" --gtest_brief=1
   fi
-fi
-if want solvers || want solvers-necker; then
+}
+part_solvers_necker() {
   # The paper's Table 1 sizes: Necker (250x352x20) and Combustion (480x720x120), synthetic pair.
   step solvers-necker 90 "$tfm" solvers --synthetic --size 250x352x20 --solvers "$solvers" \
     --json "$out/solvers-necker.json"
-fi
-if want solvers || want solvers-combustion; then
+}
+part_solvers_combustion() {
   step solvers-combustion 120 "$tfm" solvers --synthetic --size 480x720x120 --solvers "$gpu_solvers" \
     --json "$out/solvers-combustion.json"
-fi
-if want solvers; then
+}
+part_solvers() {
+  part_solvers_necker
+  part_solvers_combustion
   # At 41.5 M voxels the CPU baselines take minutes: their own step, so a limit cuts only them.
   step solvers-combustion-cpu 120 "$tfm" solvers --synthetic --size 480x720x120 \
     --solvers eigen-normal-equations,eigen-cgls --json "$out/solvers-combustion-cpu.json"
-fi
-if want cuda; then
+}
+part_cuda() {
   if command -v ctest >/dev/null; then
     step cuda-tests 120 ctest --test-dir "$build" -j"$jobs" --output-on-failure -R '^Cuda'
   else
     step cuda-tests 120 env TFMATCH_VALIDATION=1 "$build/tests/tfmatch_tests" --gtest_filter='Cuda*'
   fi
-fi
-if want bench; then
+}
+part_bench() {
   # --lane-voxels: the run modes' lane length (workgroup count), untuned on a GPU so far.
   step bench 120 "$tfm" bench --repeats 3 --lane-voxels 16,32,64,128,256,1024 --json "$out/bench.json"
   step bench-diffdvr 90 "$tfm" bench-diffdvr --repeat 3
   step bench-render 60 "$tfm" bench-render --repeat 5
-fi
-if want bench-long; then
+}
+part_bench_long() {
   step bench-correlate 90 "$tfm" bench-correlate
   # Where comparing pairs stops beating the merge sort on this GPU (spearman <= 128 and kendall
   # <= 64 members compare pairs: shaders/correlation_layout.h; measured on lavapipe only).
   step bench-correlate-pairs 90 "$tfm" bench-correlate --measures spearman,kendall --members 48,64,65,96,128,129,200 \
     --max-values 40000000 --json "$out/bench-correlate-pairs.json"
   step bench-stream 60 "$tfm" bench-stream --voxels 100000000 --dir "${TMPDIR:-/tmp}"
-fi
-if want startup; then
+}
+part_startup() {
   # A process's fixed cost and where a run's time goes (--json "timings"): the demo's 96^3 pair,
   # optimized first with an empty pipeline cache (every pipeline compiled), then twice with the
   # cache the first run left; `devices` (an instance, no device) for the driver's own floor.
@@ -141,23 +144,26 @@ if want startup; then
       --ref-tf "$demo/reference_tf.json" --out "$out/startup-tf.json" --json "$out/startup-$run.json"
   done
   step startup-devices 30 "$tfm" devices
-fi
-if want e2e; then
+}
+part_e2e() {
   # Issue 28's end-to-end goals (optimize 41.5 M <= 350 ms, correlate 10 x 1.76 M <= 300 ms, files
   # in the page cache) with the driver floor (`devices --floor`) measured in the same run.
   step e2e 240 python3 "$(dirname "$0")/e2e_timing.py" "$tfm" --runs 5 --dir "${TMPDIR:-/tmp}" \
     --json "$out/e2e.json"
-fi
-if want torch; then
+}
+part_torch() {
   # What a user would write instead, in PyTorch on the same GPU (tools/torch_peer.py), checked
   # against double-precision NumPy first: the peer figures of the README's GPU tables.
   step torch 180 python3 "$(dirname "$0")/torch_peer.py" --check --json "$out/torch.json"
-fi
-if want view; then
+}
+part_view() {
   # The viewer's latency after a camera change from a plain HTTP client (issue 29's goals: four
   # pictures within 40 ms at 512², 120 ms at 1024²), with the server's breakdown per picture.
   for size in 512 1024; do
     step "view-$size" 120 python3 "$(dirname "$0")/view_latency.py" "$tfm" --size "$size" --changes 9 \
       --json "$out/view-$size.json"
   done
-fi
+}
+
+# The parts in the order LIST names them, so a short device call runs what matters most first.
+for part in ${parts//,/ }; do "part_${part//-/_}"; done

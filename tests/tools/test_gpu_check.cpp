@@ -69,13 +69,15 @@ TEST(GpuCheckScript, StartupPartPacksEveryStepsLogsAndJson) {
 TEST(GpuCheckScript, DeadlineSkipsStepsAndBadArgumentsAreRefused) {
   test::TempDir dir;
   const std::string out = dir / "out", pack = dir / "gpu.tar.gz";
-  // No time left: every step is skipped with a line saying so, and the pack still comes back.
-  const std::string cmd = gpu_check("--parts startup,e2e --deadline 0 --pack " + pack) + " " + out + " 2>&1";
+  // No time left: every step is skipped with a line saying so, in the order the parts are named,
+  // and the pack still comes back.
+  const std::string cmd = gpu_check("--parts e2e,startup --deadline 0 --pack " + pack) + " " + out + " 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
   const std::string summary = test::read_text(dir.path / "out" / "summary.txt");
   for (const char* step : {"startup-demo", "startup-cold", "e2e"})
     EXPECT_NE(summary.find(std::string(step) + " "), std::string::npos) << step << "\n" << summary;
   EXPECT_EQ(summary.find("rc="), std::string::npos) << summary;
+  EXPECT_LT(summary.find("e2e "), summary.find("startup-demo ")) << summary;
   EXPECT_NE(summary.find("skipped: under 5 s left before the --deadline of 0 s"), std::string::npos) << summary;
   EXPECT_TRUE(has(unpacked(pack, dir.path / "unpacked"), "out/summary.txt"));
 
