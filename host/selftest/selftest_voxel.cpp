@@ -193,16 +193,18 @@ void histogram(Context& ctx, Check& check, size_t voxels, uint32_t bins, Histogr
 
 // The bench's read bound: the sums of both fields' value bits are integers, equal to the
 // reference's exactly (every voxel read once), NaN and infinities among the values; `voxels` 0
-// means four of the device's segments plus one (quad_segments.glsl); dispatches of `range_quads`
-// quads (0: the device's) start inside chunks.
-void read_bound(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels, uint64_t range_quads) {
+// means four of the device's longest segments plus one (quad_segments.glsl); dispatches of
+// `range_quads` quads (0: the device's) start inside chunks; lanes of `lane_voxels` (the
+// workgroup count: from one quad per lane to one workgroup whose lanes take many segments).
+void read_bound(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels, uint64_t range_quads,
+                uint64_t lane_voxels) {
   if (voxels == 0) voxels = 4 * size_t(ctx.subgroup_size()) * TFM_REDUCE_SEGMENT_STEPS + 1;
   std::vector<float> ref = random_floats(voxels, 17u + uint32_t(voxels), -3.0f, 3.0f);
   std::vector<float> opt = random_floats(voxels, 29u + uint32_t(voxels), 0.0f, 100.0f);
   for (size_t i = 5; i < voxels; i += 13) ref[i] = NAN;
   for (size_t i = 9; i < voxels; i += 31) opt[i] = INFINITY;
   const DeviceField dref(ctx, ref, "selftest ref", chunk_voxels), dopt(ctx, opt, "selftest opt", chunk_voxels);
-  const std::array<uint32_t, 2> g = FieldPairReadKernel(ctx, range_quads).run(dref, dopt);
+  const std::array<uint32_t, 2> g = FieldPairReadKernel(ctx, range_quads, lane_voxels).run(dref, dopt);
   const std::array<uint32_t, 2> c = field_pair_bit_sums(ref, opt);
   check.equal("first field's bit sum", 0, double(g[0]), double(c[0]));
   check.equal("second field's bit sum", 1, double(g[1]), double(c[1]));
@@ -303,17 +305,23 @@ void add_voxel_cases(CaseList& cases) {
   add_histogram(100003, 4096, H::Shared, 16384, false);
   add_histogram(100003, 4096, H::Private, 16384, false);
 
-  auto add_read = [&](size_t voxels, uint64_t chunk, uint64_t range_quads, bool quick) {
+  auto add_read = [&](size_t voxels, uint64_t chunk, uint64_t range_quads, bool quick,
+                      uint64_t lane = kVoxelLaneVoxels) {
     std::string name = voxels ? voxels_name(voxels) : "4 segments + 1 voxel";
     if (chunk) name += ", chunks of " + std::to_string(chunk);
     if (range_quads) name += ", ranges of " + std::to_string(range_quads) + " quads";
+    if (lane != kVoxelLaneVoxels) name += ", lanes of " + std::to_string(lane) + " voxels";
     cases.push_back({"field_pair_read", "FieldPairReadKernel", name, quick, TFM_VOXEL_WORKGROUP,
-                     [=](Context& ctx, Check& check) { read_bound(ctx, check, voxels, chunk, range_quads); }});
+                     [=](Context& ctx, Check& check) { read_bound(ctx, check, voxels, chunk, range_quads, lane); }});
   };
   for (size_t voxels : {size_t(1), size_t(3), size_t(4), size_t(5), 4 * past_group - 1, size_t(0), size_t(70001)})
     for (uint64_t chunk : {uint64_t(0), uint64_t(1024)})
       for (uint64_t range_quads : {uint64_t(0), uint64_t(64)}) add_read(voxels, chunk, range_quads, voxels < 70001);
   add_read(4 * past_group + 3, 1024, 0, true);
+  for (uint64_t lane : {uint64_t(4), uint64_t(1 << 20)}) {  // one quad per lane; one workgroup
+    add_read(0, 0, 0, true, lane);
+    add_read(70001, 1024, 64, false, lane);
+  }
   add_read(100003, 0, 0, false);
 }
 
