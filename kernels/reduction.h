@@ -84,10 +84,11 @@ struct Reduction {
   static Reduction choose(const Context& ctx, const char* kernel, uint32_t tf_size, uint64_t shared_bytes,
                           const ReductionOptions& options, uint32_t private_max_bins = kPrivateMaxBins);
   // Workgroups of workgroup_size for one dispatch over `voxels`: the forced count, else
-  // voxel_groups() for the run modes (lanes of lane_voxels) and, for Private, enough lanes that each covers about
-  // 16 N quads (its histogram is added to memory once, so lanes must cover many voxels) but at
-  // most 32768 (lavapipe stops a shader after 65535 loop iterations), and up to kPrivateMinGroups
-  // workgroups of shorter lanes when the volume is small (every core of a CPU device gets work).
+  // voxel_groups() for the run modes (lanes of lane_voxels) and, for Private, enough lanes that
+  // each covers about 16 N quads (its histogram is added to memory once, so lanes must cover many
+  // voxels) but at most 32768 (lavapipe stops a shader after 65535 loop iterations), and up to
+  // kPrivateMinGroups workgroups of shorter lanes when the volume is small (every core of a CPU
+  // device gets work).
   uint32_t groups(const Context& ctx, uint64_t voxels) const;
   // The TFM_*_RUNS_SHARED / _RUNS_GLOBAL / _PRIVATE value of the shaders' MODE constant.
   uint32_t shader_mode() const;
