@@ -118,7 +118,7 @@ part_cuda() {
 }
 part_bench() {
   # --lane-voxels: the run modes' lane length (workgroup count), untuned on a GPU so far.
-  step bench 120 "$tfm" bench --repeats 3 --lane-voxels 16,32,64,128,256,1024 --json "$out/bench.json"
+  step bench 120 "$tfm" bench --repeats 3 --lane-voxels 4,8,16,32,64,128,256,1024 --json "$out/bench.json"
   step bench-diffdvr 90 "$tfm" bench-diffdvr --repeat 3
   step bench-render 60 "$tfm" bench-render --repeat 5
 }
