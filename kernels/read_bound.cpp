@@ -32,16 +32,16 @@ std::array<uint32_t, 2> field_pair_bit_sums(std::span<const float> ref, std::spa
 FieldPairReadKernel::FieldPairReadKernel(Context& ctx, uint64_t range_quads, uint64_t lane_voxels)
     : ctx_(ctx),
       range_quads_(texel_range_quads(ctx, range_quads, "field_pair_read")),
-      lane_voxels_(lane_voxels) {
-  if (lane_voxels == 0) throw std::invalid_argument("field_pair_read: lanes of 0 voxels");
+      lane_voxels_(lane_voxels),
+      workgroup_size_(lane_voxels ? TFM_VOXEL_WORKGROUP : lane_workgroup_size(ctx, 0, "field_pair_read")) {
   PipelineDesc desc;
   desc.shader = "field_pair_read";
   desc.binding_counts = gpu::to_vector(kBindingCounts);
   desc.binding_kinds =
       texel_binding_kinds(desc.binding_counts.size(), {TFM_READ_BINDING_REF_QUADS, TFM_READ_BINDING_OPT_QUADS});
   desc.push_constant_bytes = sizeof(gpu::ReadBoundPush);
-  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
-  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VOXEL_WORKGROUP}});
+  desc.workgroup_size = workgroup_size_;
+  desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
 }
@@ -61,7 +61,9 @@ void FieldPairReadKernel::record(CommandBatch& batch, const DeviceField& ref, co
                    {ref.chunk(r.chunk), opt.chunk(r.chunk),
                     Binding::texels(ref.chunk(r.chunk), r.format, r.first * 4, r.bytes),
                     Binding::texels(opt.chunk(r.chunk), r.format, r.first * 4, r.bytes), result},
-                   push, {voxel_groups(ctx_, r.voxels, lane_voxels_)});
+                   push,
+                   {lane_voxels_ ? voxel_groups(ctx_, r.voxels, lane_voxels_)
+                                 : lane_groups(ctx_, workgroup_size_, r.voxels)});
     batch.barrier();
   }
 }

@@ -11,7 +11,6 @@
 
 #include "device_field.h"
 #include "pipeline.h"
-#include "voxel_pair.h"  // kVoxelLaneVoxels
 
 namespace tfm {
 
@@ -25,9 +24,12 @@ std::array<uint32_t, 2> field_pair_bit_sums(std::span<const float> ref, std::spa
 class FieldPairReadKernel {
  public:
   // `range_quads`: quads per dispatch (a texel view each), a multiple of 64; 0: the device's
-  // maxTexelBufferElements, as the assembly (tests force splits). `lane_voxels`: voxels per lane
-  // (voxel_groups), as the assembly's run modes take them (ReductionOptions::lane_voxels).
-  explicit FieldPairReadKernel(Context& ctx, uint64_t range_quads = 0, uint64_t lane_voxels = kVoxelLaneVoxels);
+  // maxTexelBufferElements, as the assembly (tests force splits). `lane_voxels` 0: this device's
+  // layout of the voxel kernels' lanes (lane_workgroup_size, lane_groups: on a CPU device groups of
+  // one subgroup with long lanes, as its assembly's private histograms; on a GPU the run modes'
+  // groups of TFM_VOXEL_WORKGROUP); else the run modes' groups with lanes of that many voxels
+  // (voxel_groups; ReductionOptions::lane_voxels), whatever the device.
+  explicit FieldPairReadKernel(Context& ctx, uint64_t range_quads = 0, uint64_t lane_voxels = 0);
   ~FieldPairReadKernel();
   // Records reading every voxel of both fields (same size and chunking) and adding the two bit
   // sums to `result` (two uint32, which the caller zeroes).
@@ -39,6 +41,7 @@ class FieldPairReadKernel {
   Context& ctx_;
   uint64_t range_quads_;
   uint64_t lane_voxels_;
+  uint32_t workgroup_size_;
   std::unique_ptr<ComputePipeline> pipeline_;
 };
 

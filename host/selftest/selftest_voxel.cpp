@@ -194,8 +194,9 @@ void histogram(Context& ctx, Check& check, size_t voxels, uint32_t bins, Histogr
 // The bench's read bound: the sums of both fields' value bits are integers, equal to the
 // reference's exactly (every voxel read once), NaN and infinities among the values; `voxels` 0
 // means four of the device's longest segments plus one (quad_segments.glsl); dispatches of
-// `range_quads` quads (0: the device's) start inside chunks; lanes of `lane_voxels` (the
-// workgroup count: from one quad per lane to one workgroup whose lanes take many segments).
+// `range_quads` quads (0: the device's) start inside chunks; lanes of `lane_voxels` (0: the
+// device's layout; else the run modes' groups, from one quad per lane to one workgroup whose
+// lanes take many segments).
 void read_bound(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels, uint64_t range_quads,
                 uint64_t lane_voxels) {
   if (voxels == 0) voxels = 4 * size_t(ctx.subgroup_size()) * TFM_REDUCE_SEGMENT_STEPS + 1;
@@ -306,11 +307,11 @@ void add_voxel_cases(CaseList& cases) {
   add_histogram(100003, 4096, H::Private, 16384, false);
 
   auto add_read = [&](size_t voxels, uint64_t chunk, uint64_t range_quads, bool quick,
-                      uint64_t lane = kVoxelLaneVoxels) {
+                      uint64_t lane = 0) {
     std::string name = voxels ? voxels_name(voxels) : "4 segments + 1 voxel";
     if (chunk) name += ", chunks of " + std::to_string(chunk);
     if (range_quads) name += ", ranges of " + std::to_string(range_quads) + " quads";
-    if (lane != kVoxelLaneVoxels) name += ", lanes of " + std::to_string(lane) + " voxels";
+    if (lane) name += ", lanes of " + std::to_string(lane) + " voxels";
     cases.push_back({"field_pair_read", "FieldPairReadKernel", name, quick, TFM_VOXEL_WORKGROUP,
                      [=](Context& ctx, Check& check) { read_bound(ctx, check, voxels, chunk, range_quads, lane); }});
   };

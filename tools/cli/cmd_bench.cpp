@@ -26,6 +26,7 @@
 #include "normal_equations_cpu.h"
 #include "read_bound.h"
 #include "synthetic.h"
+#include "voxel_pair.h"  // kVoxelLaneVoxels, TFM_VOXEL_WORKGROUP
 
 namespace tfm::cli {
 namespace {
@@ -69,7 +70,7 @@ double copy_ms(Context& ctx, const DeviceField& field, int repeats) {
 // Best GPU time (ms) of reading both fields with the assembly's loads (FieldPairReadKernel);
 // throws when its sums differ from the CPU's (a voxel not read, or read twice).
 double read_ms(Context& ctx, const DeviceField& ref, const DeviceField& opt, const std::array<uint32_t, 2>& expected,
-               int repeats, uint64_t lane_voxels = kVoxelLaneVoxels) {
+               int repeats, uint64_t lane_voxels = 0) {
   const FieldPairReadKernel kernel(ctx, 0, lane_voxels);
   double best = 1e300;
   for (int r = 0; r <= repeats; ++r) {  // the first run compiles the shader on lavapipe: not timed
@@ -143,8 +144,8 @@ nlohmann::json lane_sweep(Context& ctx, const BenchArgs& a, const DeviceField& d
   reference.add(dref, dopt, rm, om, tfb);
   const std::vector<uint64_t> expected = reference.fixed_point_slots();
   const double voxels = double(dref.voxel_count());
-  std::cout << "    voxels per lane (workgroups of " << TFM_VOXEL_WORKGROUP << " invocations; default "
-            << kVoxelLaneVoxels << "), N = 64:\n"
+  std::cout << "    voxels per lane (the run modes' workgroups of " << TFM_VOXEL_WORKGROUP
+            << " invocations; their default " << kVoxelLaneVoxels << "), N = 64:\n"
             << "     lane   read ms   read GB/s   assembly ms   GPU/read   path\n";
   nlohmann::json rows = nlohmann::json::array();
   for (uint32_t lane : a.lane_voxels) {
