@@ -228,6 +228,21 @@ uint32_t choose_device(const Dispatch& vk, const std::vector<VkPhysicalDevice>& 
   return *chosen;
 }
 
+// A device of `pd` with one queue of `family`, and what `info` (features, extensions, pNext)
+// enables beside it: Context::create's device, and the driver floor's bare one.
+VkDevice create_device(const Dispatch& vk, VkPhysicalDevice pd, uint32_t family, VkDeviceCreateInfo info) {
+  const float priority = 1.0f;
+  VkDeviceQueueCreateInfo queue_info{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+  queue_info.queueFamilyIndex = family;
+  queue_info.queueCount = 1;
+  queue_info.pQueuePriorities = &priority;
+  info.queueCreateInfoCount = 1;
+  info.pQueueCreateInfos = &queue_info;
+  VkDevice device = VK_NULL_HANDLE;
+  VK_CHECK(vk.vkCreateDevice(pd, &info, nullptr, &device));
+  return device;
+}
+
 }  // namespace
 
 std::vector<DeviceSummary> enumerate_devices() {
@@ -280,15 +295,7 @@ DriverFloor measure_driver_floor(const ContextOptions& options_in) {
   try {
     const auto devices = physical_devices(vk, instance);
     const uint32_t family = *compute_queue_family(vk, devices.at(chosen), nullptr);
-    const float priority = 1.0f;
-    VkDeviceQueueCreateInfo queue_info{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
-    queue_info.queueFamilyIndex = family;
-    queue_info.queueCount = 1;
-    queue_info.pQueuePriorities = &priority;
-    VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
-    device_info.queueCreateInfoCount = 1;
-    device_info.pQueueCreateInfos = &queue_info;
-    VK_CHECK(vk.vkCreateDevice(devices[chosen], &device_info, nullptr, &device));
+    device = create_device(vk, devices[chosen], family, {VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO});
   } catch (...) {
     vk.vkDestroyInstance(instance, nullptr);
     throw;
@@ -342,11 +349,6 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
   ctx->physical_device_ = devices[chosen];
   ctx->queue_family_ = *compute_queue_family(vk, ctx->physical_device_, nullptr);
 
-  float priority = 1.0f;
-  VkDeviceQueueCreateInfo queue_info{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
-  queue_info.queueFamilyIndex = ctx->queue_family_;
-  queue_info.queueCount = 1;
-  queue_info.pQueuePriorities = &priority;
   VkPhysicalDeviceFeatures supported{};
   vk.vkGetPhysicalDeviceFeatures(ctx->physical_device_, &supported);
   VkPhysicalDeviceFeatures enabled{};
@@ -372,10 +374,8 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
   if (int64_atomics) device_info.pNext = &atomic_features;
   device_info.enabledExtensionCount = static_cast<uint32_t>(device_extensions.size());
   device_info.ppEnabledExtensionNames = device_extensions.data();
-  device_info.queueCreateInfoCount = 1;
-  device_info.pQueueCreateInfos = &queue_info;
   device_info.pEnabledFeatures = &enabled;
-  VK_CHECK(vk.vkCreateDevice(ctx->physical_device_, &device_info, nullptr, &ctx->device_));
+  ctx->device_ = create_device(vk, ctx->physical_device_, ctx->queue_family_, device_info);
   load_device_functions(vk, ctx->device_);
   vk.vkGetDeviceQueue(ctx->device_, ctx->queue_family_, 0, &ctx->queue_);
   ctx->int64_atomics_ = int64_atomics;
