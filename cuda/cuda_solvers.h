@@ -98,10 +98,10 @@ DirectAssembly assemble_direct(const DeviceFields& fields, const FieldMapping& r
                                std::span<const float> ref_tf_rgba);
 
 // Jacobi-preconditioned CGLS (Bjorck) on the explicit A = S (x) I_4 (rows 4 per voxel, 4N
-// unknowns interleaved by channel; A's products are S's on N x 4 and voxels x 4 matrices) for the four channels independently, with R = ridge I +
-// smooth D^T D per channel (absolute weights). A channel stops when ||A^T r - R x||^2 <=
-// tolerance^2 ||A^T b||^2, when its step breaks down, or at max_iterations (the Vulkan `cgls`
-// rule).
+// unknowns interleaved by channel; A's products are S's on N x 4 and voxels x 4 matrices) for
+// the four channels independently, with R = ridge I + smooth D^T D per channel (absolute
+// weights). A channel stops when ||A^T r - R x||^2 <= tolerance^2 ||A^T b||^2, when its step
+// breaks down, or at max_iterations (the Vulkan `cgls` rule).
 struct CglsParams {
   uint32_t n = 0;                  // TF entries
   double tolerance = 1e-6;
