@@ -106,7 +106,7 @@ Plan make_plan(CorrelationMeasure measure, uint32_t members) {
 
 std::string CorrelationKernel::strategy(const CorrelationParams& params, uint32_t member_count) {
   const Plan p = make_plan(params.measure, member_count);
-  if (params.measure == CorrelationMeasure::Pearson) return "one invocation per voxel, two passes over the members";
+  if (params.measure == CorrelationMeasure::Pearson) return "one invocation per voxel, one pass over the members (two for a poorly shifted series)";
   if (params.measure == CorrelationMeasure::MiBinned)
     return p.group_per_voxel ? "one workgroup per voxel, shared-memory joint histogram"
                              : member_count <= TFM_CORR_INVOCATION_MAX_MEMBERS
@@ -131,8 +131,23 @@ double CorrelationKernel::error_bound(const CorrelationParams& params, uint32_t 
   // Conversions to float, a division (2.5 ulp in Vulkan), square roots and exp, with margin.
   constexpr double final_ops = 64 * eps;
   const CorrelationMeasure m = params.measure;
-  if (m == CorrelationMeasure::Pearson || m == CorrelationMeasure::Spearman || m == CorrelationMeasure::Kendall)
-    return final_ops;
+  // Spearman and Kendall sum exact integers.
+  if (m == CorrelationMeasure::Spearman || m == CorrelationMeasure::Kendall) return final_ops;
+  if (m == CorrelationMeasure::Pearson) {
+    // One pass (shaders/correlation_pearson.comp) with Q = M (mean - y0)^2 <= L syy, so
+    // S2 = sum d^2 = syy + Q <= (L + 1) syy. Compensated sums err by <= 2 eps times their terms'
+    // magnitudes (M eps^2 is negligible up to kMaxCorrelationMembers), each term by its own
+    // roundings: S2 by 5 eps S2; S1 = sum d by 3 eps sum |d| <= 3 eps sqrt(M S2), so Q = S1^2 / M
+    // by 6 eps sqrt(Q S2) plus 3.5 eps Q for its division (2.5 ulp) and product; the difference
+    // by eps syy. Half of syy's relative error reaches r through sqrt(syy). sxy = sum x d errs by
+    // 3 eps sqrt(sxx S2), and by the float x's sum (<= eps / 2 sqrt(M sxx)) times the shift
+    // sqrt(Q / M): eps / 2 sqrt(L) sqrt(sxx syy). The second pass (Q beyond L syy) is the
+    // two-pass formula, well within this.
+    const double l = TFM_CORR_PEARSON_SHIFT_LIMIT;
+    const double syy = 5 * (l + 1) + 6 * std::sqrt(l * (l + 1)) + 3.5 * l + 1;
+    const double sxy = 3 * std::sqrt(l + 1) + std::sqrt(l) / 2;
+    return (syy / 2 + sxy) * eps + final_ops;
+  }
   // A float sum of n terms of magnitude <= t errs by <= n eps (n t) at worst; per member (the
   // mean) n eps t. n is the longest chain of additions: one invocation's members, then the
   // workgroup's partials in order.

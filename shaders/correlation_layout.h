@@ -56,6 +56,11 @@ namespace tfm::gpu {
 #define TFM_CORR_SPEARMAN_PAIRS_MAX_MEMBERS 128u
 #define TFM_CORR_KENDALL_PAIRS_MAX_MEMBERS 64u
 
+// Pearson takes one pass over a voxel's members, its sums shifted by the first member, while
+// M (mean - y0)^2 <= this many times the series' sum of squared deviations, and a second pass
+// about the mean beyond (shaders/correlation_pearson.comp; the error bound depends on it).
+#define TFM_CORR_PEARSON_SHIFT_LIMIT 16.0
+
 // Kraskov neighbours: each invocation keeps the k smallest distances in a private array.
 #define TFM_CORR_MAX_K 16u
 // Binned mutual information: the joint histogram of one voxel in shared memory (uint counts).

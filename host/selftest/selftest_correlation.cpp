@@ -1,7 +1,8 @@
 // Self-test cases of the correlation kernels (correlation_pearson, _spearman, _kendall,
 // _mi_binned, _mi_kraskov): every measure on both strategies (one invocation per voxel at
 // M <= 32, one workgroup per voxel above), with ties, a NaN member, a constant voxel, the
-// reference voxel itself and fields split into chunks, against the double-precision references.
+// reference voxel itself and fields split into chunks, and Pearson's shifted one pass at its worst,
+// against the double-precision references.
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -19,7 +20,9 @@ struct CorrelationCase {
   uint32_t members;
   uint64_t voxels;
   uint64_t max_device_bytes = 0;  // small: several chunks
-  bool bin_edges = false;         // bin_edge_ensemble, against the CPU peer's float binning
+  // mixed: correlation_test_ensemble; bin_edges: bin_edge_ensemble, against the CPU peer's float
+  // binning; pearson_shift: pearson_shift_ensemble about 0, pearson_shift_offset about 1000.
+  enum class Data { mixed, bin_edges, pearson_shift, pearson_shift_offset } data = Data::mixed;
   // The voxel whose series is the reference: 0 is the ensemble's reference series; 2 a series
   // rounded to multiples of 1/4, so the reference has many ties (kendall's x tie groups, repeated
   // Kraskov points).
@@ -31,7 +34,7 @@ bool is_mutual_information(const CorrelationParams& p) {
          p.measure == CorrelationMeasure::MiCoefficient;
 }
 
-// Bound: CorrelationKernel::error_bound (the test data make every comparison exact in float).
+// Bound: CorrelationKernel::error_bound (the mixed data make every comparison exact in float).
 // NaN results must be NaN on both sides. The data reach the conventions, which the field must
 // follow: NaN at the voxel with a NaN member (5), NaN (or 0 for mutual information) at the
 // constant voxel (7), 1 at the reference voxel for pearson, spearman and kendall.
@@ -40,8 +43,11 @@ void correlation(Context& ctx, Check& check, CorrelationCase c) {
   if (const uint64_t bytes = CorrelationKernel::shared_memory_bytes(c.params, c.members); !fits_shared_memory(ctx, bytes))
     return check.skip(needs_shared_memory(ctx, bytes));
   const uint32_t seed = 7u * c.members + uint32_t(c.voxels);
-  const CorrelationEnsemble e =
-      c.bin_edges ? bin_edge_ensemble(c.members, c.voxels) : correlation_test_ensemble(c.members, c.voxels, seed);
+  using Data = CorrelationCase::Data;
+  const bool bin_edges = c.data == Data::bin_edges, mixed = c.data == Data::mixed;
+  const CorrelationEnsemble e = bin_edges ? bin_edge_ensemble(c.members, c.voxels)
+                                : mixed   ? correlation_test_ensemble(c.members, c.voxels, seed)
+                                          : pearson_shift_ensemble(c.members, c.data == Data::pearson_shift ? 0.0f : 1000.0f, seed);
   const std::vector<float> reference = ensemble_series(e.view(), c.reference_voxel);
   CorrelationKernel kernel(ctx);
   uint32_t chunks = 0;
@@ -51,20 +57,20 @@ void correlation(Context& ctx, Check& check, CorrelationCase c) {
   // Values on bin edges: the binning is a convention (float products, correlation_mi_binned.comp)
   // that the double reference does not follow, so the CPU peer, which does, is the reference.
   std::vector<double> r;
-  if (c.bin_edges) {
+  if (bin_edges) {
     const std::vector<float> peer = correlation_field_cpu(e.view(), reference, c.params);
     r.assign(peer.begin(), peer.end());
   } else {
     r = correlation_field_reference(e.view(), reference, c.params);
   }
   const double bound = CorrelationKernel::error_bound(c.params, c.members);
-  for (uint64_t v = 0; v < c.voxels; ++v) {
+  for (uint64_t v = 0; v < e.voxels; ++v) {
     if (std::isnan(r[v]))
       check.equal("NaN voxel (1: NaN)", v, std::isnan(g[v]) ? 1.0 : 0.0, 1.0);
     else
       check.near("voxel", v, g[v], r[v], bound);
   }
-  if (!c.bin_edges && c.voxels > 7) {
+  if (mixed && c.voxels > 7) {
     check.require(std::isnan(g[5]), "the voxel with a NaN member is not NaN");
     check.require(is_mutual_information(c.params) ? g[7] == 0.0f : std::isnan(g[7]),
                   "the constant voxel does not follow the convention");
@@ -75,12 +81,17 @@ void correlation(Context& ctx, Check& check, CorrelationCase c) {
 }
 
 std::string correlation_name(const CorrelationCase& c) {
+  using Data = CorrelationCase::Data;
+  if (c.data == Data::pearson_shift || c.data == Data::pearson_shift_offset)
+    return "M=" + std::to_string(c.members) + ", first member's shift ratio 0 to " +
+           std::to_string(int(0.999 * (c.members - 1))) + " (limit " + std::to_string(int(TFM_CORR_PEARSON_SHIFT_LIMIT)) +
+           ")" + (c.data == Data::pearson_shift_offset ? ", values about 1000" : "");
   std::string s = "M=" + std::to_string(c.members) + ", " + voxels_name(c.voxels);
   if (c.params.measure == CorrelationMeasure::MiBinned) s += ", " + std::to_string(c.params.bins) + " bins";
   if (c.params.measure == CorrelationMeasure::MiKraskov) s += ", k=" + std::to_string(c.params.k);
   if (c.params.measure == CorrelationMeasure::MiCoefficient) s += ", coefficient, k=" + std::to_string(c.params.k);
   if (c.max_device_bytes) s += ", chunks";
-  if (c.bin_edges) s += ", values within 4 ulp of bin edges";
+  if (c.data == Data::bin_edges) s += ", values within 4 ulp of bin edges";
   if (c.reference_voxel) s += ", reference with ties (voxel " + std::to_string(c.reference_voxel) + ")";
   return s;
 }
@@ -103,7 +114,7 @@ void add_correlation_cases(CaseList& cases) {
   };
   for (const auto& m : measures) {
     auto add = [&](uint32_t members, uint64_t voxels, uint64_t max_bytes, bool quick, uint64_t reference_voxel = 0) {
-      const CorrelationCase c{m.params, members, voxels, max_bytes, false, reference_voxel};
+      const CorrelationCase c{m.params, members, voxels, max_bytes, CorrelationCase::Data::mixed, reference_voxel};
       cases.push_back({m.shader, "CorrelationKernel", correlation_name(c), quick,
                        CorrelationKernel::workgroup_size(m.params, members),
                        [c](Context& ctx, Check& check) { correlation(ctx, check, c); }});
@@ -131,11 +142,21 @@ void add_correlation_cases(CaseList& cases) {
   // mi-binned on values within 4 ulp of its bin edges, on both strategies: every device must bin
   // them as the CPU peer does (a division-decided binning did not on NVIDIA's driver 580).
   for (const uint32_t members : {30u, 100u, TFM_CORR_MI_BINNED_INVOCATION_MAX_MEMBERS + 1}) {
-    const CorrelationCase c{{CorrelationMeasure::MiBinned, 10}, members, 300, 0, true};
+    const CorrelationCase c{{CorrelationMeasure::MiBinned, 10}, members, 300, 0, CorrelationCase::Data::bin_edges};
     cases.push_back({"correlation_mi_binned", "CorrelationKernel", correlation_name(c), members == 30,
                      CorrelationKernel::workgroup_size(c.params, members),
                      [c](Context& ctx, Check& check) { correlation(ctx, check, c); }});
   }
+  // Pearson's one pass and its second pass for series whose first member is a poor shift, each
+  // within the one bound: short series (never beyond the limit), 20 (just beyond), 10 and 1000 members,
+  // and values far from 0 (where the shift's differences are exact and a float mean is not).
+  for (const uint32_t members : {4u, 10u, 20u, 1000u})
+    for (const auto data : {CorrelationCase::Data::pearson_shift, CorrelationCase::Data::pearson_shift_offset}) {
+      const CorrelationCase c{{CorrelationMeasure::Pearson}, members, 0, 0, data};
+      cases.push_back({"correlation_pearson", "CorrelationKernel", correlation_name(c), members < 1000,
+                       CorrelationKernel::workgroup_size(c.params, members),
+                       [c](Context& ctx, Check& check) { correlation(ctx, check, c); }});
+    }
 }
 
 }  // namespace tfm::selftest

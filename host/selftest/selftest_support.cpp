@@ -4,9 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <random>
 #include <sstream>
 
+#include "correlation_layout.h"
 #include "residual_map_cpu.h"
 
 namespace tfm::selftest {
@@ -105,6 +107,41 @@ CorrelationEnsemble bin_edge_ensemble(uint32_t members, uint64_t voxels) {
       for (int u = 0; u < std::abs(ulps); ++u) value = std::nextafter(value, ulps < 0 ? 0.0f : 4.0f);
       e.values[m * voxels + v] = std::clamp(value, 0.0f, 3.0f);
     }
+  return e;
+}
+
+CorrelationEnsemble pearson_shift_ensemble(uint32_t members, float offset, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  // How far from the mean a of the other members member 0 must lie for the ratio q: with
+  // y0 = a + t, M (mean - y0)^2 = t^2 (M - 1)^2 / M and syy = ss + t^2 (M - 1) / M.
+  const double n = members;
+  auto distance = [n](const std::vector<double>& s, double q) {
+    const double a = std::accumulate(s.begin() + 1, s.end(), 0.0) / (n - 1);
+    double ss = 0;
+    for (size_t m = 1; m < s.size(); ++m) ss += (s[m] - a) * (s[m] - a);
+    return std::pair{a, std::sqrt(q * ss * n / ((n - 1) * (n - 1 - q)))};
+  };
+  std::vector<double> x(members);
+  for (double& v : x) v = normal(rng);
+  const auto [x_mean, x_distance] = distance(x, 0.9 * (n - 1));
+  x[0] = x_mean + x_distance;
+  const double limit = TFM_CORR_PEARSON_SHIFT_LIMIT;
+  std::vector<double> ratios;
+  for (double q : {0.0, 0.5, 1.0, 2.0, 4.0, 8.0, limit - 1, limit - 0.1, limit + 0.1, limit + 1, 2 * limit, 100.0, 1000.0})
+    if (q < n - 1) ratios.push_back(q);
+  for (double f : {0.5, 0.9, 0.99, 0.999}) ratios.push_back(f * (n - 1));
+  // Voxel 0 holds the reference; then each ratio with member 0 above the others, then below.
+  CorrelationEnsemble e{members, 1 + 2 * ratios.size(), {}};
+  e.values.resize(size_t(members) * e.voxels);
+  for (uint32_t m = 0; m < members; ++m) e.values[m * e.voxels] = float(offset + x[m]);
+  std::vector<double> y(members);
+  for (uint64_t v = 1; v < e.voxels; ++v) {
+    for (uint32_t m = 1; m < members; ++m) y[m] = 0.8 * x[m] + 0.6 * normal(rng);
+    const auto [mean, t] = distance(y, ratios[(v - 1) / 2]);
+    y[0] = v % 2 ? mean + t : mean - t;
+    for (uint32_t m = 0; m < members; ++m) e.values[m * e.voxels + v] = float(offset + y[m]);
+  }
   return e;
 }
 

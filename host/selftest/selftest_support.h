@@ -112,6 +112,13 @@ CorrelationEnsemble correlation_test_ensemble(uint32_t members, uint64_t voxels,
 // Every series spans [0, 3] and its other values lie within 4 ulp of the edges of 10 equal bins
 // (k * 3 / 10 in float): where a binning by division and one by products part ways.
 CorrelationEnsemble bin_edge_ensemble(uint32_t members, uint64_t voxels);
+// Pearson's shift (shaders/correlation_pearson.comp): voxel 0 holds the reference series
+// (reference()); every other voxel has member 0 placed so that M (mean - y0)^2 is a chosen
+// multiple q of the series' squared deviations, q from 0 to nearly M - 1 (member 0 the only
+// outlier) and either side of TFM_CORR_PEARSON_SHIFT_LIMIT, above and below the other members,
+// which are `offset` plus noise correlated with the reference. The reference's member 0 is an
+// outlier too, so r nears +-1 at the large q, where a one-pass sum would cancel most.
+CorrelationEnsemble pearson_shift_ensemble(uint32_t members, float offset, uint32_t seed);
 
 // The words of a device buffer.
 std::vector<uint32_t> read_words(Context& ctx, const Buffer& buffer, size_t words);
