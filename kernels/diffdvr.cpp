@@ -53,17 +53,9 @@ constexpr auto kBackwardBindingCounts = gpu::binding_counts(
 }  // namespace
 
 DiffDvrForwardKernel::DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks) : chunks_(field_chunks) {
-  check_chunks(field_chunks);
   // The renderer's pipeline in the mode that stores (C, T): the same march as every image shown.
-  PipelineDesc desc;
-  desc.shader = "render_image";
-  desc.binding_counts = gpu::to_vector(gpu::kRenderBindingCounts);
-  desc.binding_kinds = march_binding_kinds(desc.binding_counts.size(), TFM_RENDER_BINDING_FIELD, TFM_RENDER_BINDING_TF);
-  desc.push_constant_bytes = sizeof(gpu::RenderPush);
-  desc.workgroup_size = TFM_RENDER_TILE * TFM_RENDER_TILE;
-  desc.specialization = gpu::render_specialization(field_chunks, TFM_RENDER_MODE_DIFFDVR_STATE);
-  desc.spirv = shader_spirv(desc.shader);
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+  pipeline_ = std::make_unique<ComputePipeline>(
+      ctx, render_image_pipeline_desc(field_chunks, TFM_RENDER_MODE_DIFFDVR_STATE, "diffdvr"));
 }
 
 void DiffDvrForwardKernel::record(CommandBatch& batch, const DeviceField& field, const Buffer& tf,

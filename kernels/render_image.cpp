@@ -25,12 +25,11 @@ Binding march_tf_binding(const Buffer& tf, uint32_t tf_size) {
   return Binding::texels(tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(tf_size) * 16);
 }
 
-RenderImageKernel::RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32_t mode)
-    : ctx_(ctx), chunks_(field_chunks) {
+PipelineDesc render_image_pipeline_desc(uint32_t field_chunks, uint32_t mode, const char* who) {
   if (field_chunks == 0 || field_chunks > TFM_RENDER_MAX_CHUNKS)
-    throw std::runtime_error("render: the field needs " + std::to_string(field_chunks) +
-                             " buffers; the renderer binds at most " +
-                             std::to_string(TFM_RENDER_MAX_CHUNKS) + " (volume too large for this device)");
+    throw std::runtime_error(std::string(who) + ": the field needs " + std::to_string(field_chunks) +
+                             " buffers; the renderer binds at most " + std::to_string(TFM_RENDER_MAX_CHUNKS) +
+                             " (volume too large for this device)");
   PipelineDesc desc;
   desc.shader = "render_image";
   desc.binding_counts = gpu::to_vector(gpu::kRenderBindingCounts);
@@ -39,7 +38,12 @@ RenderImageKernel::RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32
   desc.workgroup_size = TFM_RENDER_TILE * TFM_RENDER_TILE;
   desc.specialization = gpu::render_specialization(field_chunks, mode);
   desc.spirv = shader_spirv(desc.shader);
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+  return desc;
+}
+
+RenderImageKernel::RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32_t mode)
+    : ctx_(ctx), chunks_(field_chunks) {
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, render_image_pipeline_desc(field_chunks, mode, "render"));
 }
 
 RenderImageKernel::RenderImageKernel(Context& ctx, ImageField) : ctx_(ctx), chunks_(1), image_field_(true) {

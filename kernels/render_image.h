@@ -25,6 +25,11 @@ class Context;
 std::vector<DescriptorKind> march_binding_kinds(size_t bindings, uint32_t field_binding, uint32_t tf_binding);
 Binding march_field_binding(const DeviceField& field);
 Binding march_tf_binding(const Buffer& tf, uint32_t tf_size);
+// The pipeline of shaders/render_image.comp over a field of `field_chunks` buffers in `mode`
+// (TFM_RENDER_MODE_*): the renderer's, and DiffDVR's forward pass, which stores (C, T) from the
+// same march. Throws std::runtime_error, starting with `who`, when the chunks are 0 or more than
+// the march binds.
+PipelineDesc render_image_pipeline_desc(uint32_t field_chunks, uint32_t mode, const char* who);
 
 class RenderImageKernel {
  public:
