@@ -72,6 +72,8 @@ def main():
     parser.add_argument("--size", type=int, default=512)
     parser.add_argument("--changes", type=int, default=9)
     parser.add_argument("--query", default="frame=fast&client=bench")
+    parser.add_argument("--pause", type=float, default=0.0,
+                        help="seconds at least between camera changes (a user who stops dragging)")
     parser.add_argument("--json")
     argv = sys.argv[1:]
     dash = argv.index("--") if "--" in argv else len(argv)
@@ -87,8 +89,16 @@ def main():
         query = f"view={VIEWS[i]}&az={az}&w={args.size}&h={args.size}&token={token}"
         if args.query:
             query += f"&{args.query}&seq={seq}"
-        connections[i].request("GET", "/api/render?" + query)
-        response = connections[i].getresponse()
+        try:
+            connections[i].request("GET", "/api/render?" + query)
+            response = connections[i].getresponse()
+        except (http.client.RemoteDisconnected, ConnectionResetError, BrokenPipeError):
+            # The server closes a kept-alive connection idle for 2 s (a slow device keeps this
+            # view's connection waiting that long for the other views): reconnect and ask again,
+            # as a browser does.
+            connections[i].close()
+            connections[i].request("GET", "/api/render?" + query)
+            response = connections[i].getresponse()
         body = response.read()
         if response.status != 200:
             raise RuntimeError(f"{VIEWS[i]}: HTTP {response.status} {body[:200]!r}")
@@ -99,7 +109,8 @@ def main():
         with ThreadPoolExecutor(len(VIEWS)) as pool:
             last_start = 0.0
             for change in range(-2, args.changes):  # two warm-up changes: pipelines, first touch
-                time.sleep(max(0.0, last_start + len(VIEWS) / PICTURES_PER_SECOND - time.monotonic()))
+                gap = max(len(VIEWS) / PICTURES_PER_SECOND, args.pause if change > -2 else 0.0)
+                time.sleep(max(0.0, last_start + gap - time.monotonic()))
                 last_start = time.monotonic()
                 az, seq = 30 + 7 * (change + 2), change + 3
                 t0 = time.perf_counter()

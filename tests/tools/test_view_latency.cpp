@@ -30,6 +30,11 @@ TEST(ViewLatencyScript, TimesFourPicturesPerCameraChangeWithTheServersBreakdown)
   for (const char* part : {"wait", "render", "readback", "compose", "decorate", "encode", "kB"})
     ASSERT_TRUE(j["per_picture_median"].contains(part)) << part << " in " << j.dump(1);
   EXPECT_GT(j["per_picture_median"]["kB"].get<double>(), 0.1);
+  // Camera changes 2.5 s apart: the server has closed every kept-alive connection (idle for 2 s),
+  // and the client connects again, as a browser does, instead of failing.
+  const std::string paused = std::string("python3 ") + TFMATCH_SOURCE_DIR + "/tools/view_latency.py " +
+                             TFMATCH_CLI_PATH + " --size 40 --changes 1 --pause 2.5 -- --demo --size 16 2>&1";
+  EXPECT_EQ(std::system(paused.c_str()), 0) << paused;
   // A program that is not there is a clear error, not a traceback.
   const std::string bad = std::string("python3 ") + TFMATCH_SOURCE_DIR + "/tools/view_latency.py " +
                           (dir / "no-such-program") + " 2>&1";
