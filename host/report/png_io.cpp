@@ -1,8 +1,10 @@
 // PNG encoding and decoding through libpng's simplified (png_image) API.
 #include "png_io.h"
 
+#include <algorithm>
 #include <cstring>
 #include <stdexcept>
+#include <vector>
 
 #include <png.h>
 #include <zlib.h>
@@ -67,32 +69,12 @@ std::string encode_png_fast(const Image& image) {
   if (image.width == 0 || image.height == 0 || image.rgb.size() != size_t(image.width) * image.height * 3)
     throw std::invalid_argument("encode_png_fast: empty or inconsistent image");
   const size_t row = size_t(image.width) * 3;
-  // Up-filtered rows: a rendering's background and smooth shading become runs of zeros and small
-  // values, which run-length matches take at little cost.
-  std::string filtered((row + 1) * image.height, '\0');
-  for (uint32_t y = 0; y < image.height; ++y) {
-    char* out = filtered.data() + y * (row + 1);
-    const uint8_t* cur = image.rgb.data() + y * row;
-    out[0] = 2;  // filter type Up
-    if (y == 0) {
-      std::memcpy(out + 1, cur, row);
-      continue;
-    }
-    const uint8_t* up = cur - row;
-    for (size_t x = 0; x < row; ++x) out[1 + x] = char(uint8_t(cur[x] - up[x]));
-  }
   z_stream z{};
-  if (deflateInit2(&z, 1, Z_DEFLATED, 15, 8, Z_RLE) != Z_OK)
-    throw std::runtime_error("PNG encoding failed: zlib init");
-  std::string idat(deflateBound(&z, uLong(filtered.size())), '\0');
-  z.next_in = reinterpret_cast<Bytef*>(filtered.data());
-  z.avail_in = uInt(filtered.size());
-  z.next_out = reinterpret_cast<Bytef*>(idat.data());
-  z.avail_out = uInt(idat.size());
-  const int status = deflate(&z, Z_FINISH);
-  idat.resize(z.total_out);
-  deflateEnd(&z);
-  if (status != Z_STREAM_END) throw std::runtime_error("PNG encoding failed: zlib deflate");
+  if (deflateInit2(&z, 1, Z_DEFLATED, 15, 8, Z_RLE) != Z_OK) throw std::runtime_error("PNG encoding failed: zlib init");
+  struct End {
+    z_stream* z;
+    ~End() { deflateEnd(z); }
+  } end{&z};
 
   std::string out("\x89PNG\r\n\x1a\n", 8);
   std::string header;
@@ -100,7 +82,49 @@ std::string encode_png_fast(const Image& image) {
   put_u32(header, image.height);
   header += std::string("\x08\x02\x00\x00\x00", 5);  // 8 bits, RGB, deflate, adaptive filters, no interlace
   put_chunk(out, "IHDR", header);
-  put_chunk(out, "IDAT", idat);
+  // IDAT is deflated in place, into room for the worst case: only the pages deflate writes are
+  // touched. Its rows are filtered in bands of about 64 KiB that stay in cache: filtering the
+  // whole image into a fresh buffer first faulted in every page of it, a quarter of the time of a
+  // 512² frame (4.5 -> 3.45 ms on the 2-core development machine, 2026-11-29).
+  const size_t idat_at = out.size();
+  const uLong raw_bytes = uLong((row + 1) * image.height);
+  out.resize(idat_at + 8 + deflateBound(&z, raw_bytes) + 4);
+  z.next_out = reinterpret_cast<Bytef*>(out.data() + idat_at + 8);
+  z.avail_out = uInt(out.size() - idat_at - 12);
+  const uint32_t band_rows = uint32_t(std::max<size_t>(1, (size_t(64) << 10) / (row + 1)));
+  std::vector<char> band((row + 1) * std::min(band_rows, image.height));
+  int status = Z_OK;
+  for (uint32_t y0 = 0; y0 < image.height; y0 += band_rows) {
+    const uint32_t rows = std::min(band_rows, image.height - y0);
+    // Up-filtered rows: a rendering's background and smooth shading become runs of zeros and
+    // small values, which run-length matches take at little cost.
+    for (uint32_t r = 0; r < rows; ++r) {
+      const uint32_t y = y0 + r;
+      char* filtered = band.data() + r * (row + 1);
+      const uint8_t* cur = image.rgb.data() + y * row;
+      filtered[0] = 2;  // filter type Up
+      if (y == 0) {
+        std::memcpy(filtered + 1, cur, row);
+        continue;
+      }
+      const uint8_t* up = cur - row;
+      for (size_t x = 0; x < row; ++x) filtered[1 + x] = char(uint8_t(cur[x] - up[x]));
+    }
+    z.next_in = reinterpret_cast<Bytef*>(band.data());
+    z.avail_in = uInt(rows * (row + 1));
+    status = deflate(&z, y0 + rows == image.height ? Z_FINISH : Z_NO_FLUSH);
+    if (status != Z_OK && status != Z_STREAM_END) break;
+    if (z.avail_in != 0) status = Z_BUF_ERROR;  // the bound holds for one stream: never here
+  }
+  if (status != Z_STREAM_END) throw std::runtime_error("PNG encoding failed: zlib deflate");
+  const size_t idat_bytes = z.total_out;
+  out.resize(idat_at + 8 + idat_bytes);  // the deflated bytes already stand after length and type
+  std::string length;
+  put_u32(length, uint32_t(idat_bytes));
+  std::memcpy(out.data() + idat_at, length.data(), 4);
+  std::memcpy(out.data() + idat_at + 4, "IDAT", 4);
+  const uLong crc = crc32(0L, reinterpret_cast<const Bytef*>(out.data() + idat_at + 4), uInt(idat_bytes + 4));
+  put_u32(out, uint32_t(crc));
   put_chunk(out, "IEND", "");
   return out;
 }
