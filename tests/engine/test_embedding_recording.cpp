@@ -139,12 +139,18 @@ TEST_F(EmbeddingRecording, AssemblyAndTfUploadRecordIntoTheHostsCommandBuffers) 
     DeviceField big_ref = DeviceField::adopt(ctx, big_volume, 0, big, "big ref");
     DeviceField big_opt = DeviceField::adopt(ctx, big_volume, big * 4, big, "big opt");
     const std::vector<float> tf_floats = reference_tf(0.0).as_floats();
-    const uint64_t before = resident_memory();
-    VkCommandBuffer cmd = host.begin();
-    recorder.record_assemble(cmd, big_ref, big_opt, rm, om, tf_floats);
-    host.submit_and_wait();
-    EXPECT_EQ(recorder.result().voxels, big);
-    const uint64_t grown = resident_memory() - std::min(before, resident_memory());
+    // The first recording over it is not measured: the driver may build the pipeline variant this
+    // size takes only now (lavapipe compiles at the first dispatch, and on the run after its shader
+    // cache was filled, loading the variant from that cache grew the process by 30 MB).
+    uint64_t grown = 0;
+    for (int run = 0; run < 2; ++run) {
+      const uint64_t before = resident_memory();
+      VkCommandBuffer cmd = host.begin();
+      recorder.record_assemble(cmd, big_ref, big_opt, rm, om, tf_floats);
+      host.submit_and_wait();
+      EXPECT_EQ(recorder.result().voxels, big);
+      grown = resident_memory() - std::min(before, resident_memory());
+    }
     EXPECT_LT(grown, uint64_t(8) << 20) << "recording over a 32 MiB field grew host memory by " << grown << " bytes";
   }
 }
