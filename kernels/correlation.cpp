@@ -106,7 +106,7 @@ Plan make_plan(CorrelationMeasure measure, uint32_t members) {
 
 std::string CorrelationKernel::strategy(const CorrelationParams& params, uint32_t member_count) {
   const Plan p = make_plan(params.measure, member_count);
-  if (params.measure == CorrelationMeasure::Pearson) return "one invocation per voxel, one pass over the members (two for a poorly shifted series)";
+  if (params.measure == CorrelationMeasure::Pearson) return "one invocation per voxel, one shifted pass over the members";
   if (params.measure == CorrelationMeasure::MiBinned)
     return p.group_per_voxel ? "one workgroup per voxel, shared-memory joint histogram"
                              : member_count <= TFM_CORR_INVOCATION_MAX_MEMBERS

@@ -45,9 +45,10 @@ void correlation(Context& ctx, Check& check, CorrelationCase c) {
   const uint32_t seed = 7u * c.members + uint32_t(c.voxels);
   using Data = CorrelationCase::Data;
   const bool bin_edges = c.data == Data::bin_edges, mixed = c.data == Data::mixed;
+  const float shift_offset = c.data == Data::pearson_shift_offset ? 1000.0f : 0.0f;
   const CorrelationEnsemble e = bin_edges ? bin_edge_ensemble(c.members, c.voxels)
                                 : mixed   ? correlation_test_ensemble(c.members, c.voxels, seed)
-                                          : pearson_shift_ensemble(c.members, c.data == Data::pearson_shift ? 0.0f : 1000.0f, seed);
+                                          : pearson_shift_ensemble(c.members, shift_offset, seed);
   const std::vector<float> reference = ensemble_series(e.view(), c.reference_voxel);
   CorrelationKernel kernel(ctx);
   uint32_t chunks = 0;
@@ -84,8 +85,9 @@ std::string correlation_name(const CorrelationCase& c) {
   using Data = CorrelationCase::Data;
   if (c.data == Data::pearson_shift || c.data == Data::pearson_shift_offset)
     return "M=" + std::to_string(c.members) + ", first member's shift ratio 0 to " +
-           std::to_string(int(0.999 * (c.members - 1))) + " (limit " + std::to_string(int(TFM_CORR_PEARSON_SHIFT_LIMIT)) +
-           ")" + (c.data == Data::pearson_shift_offset ? ", values about 1000" : "");
+           std::to_string(int(0.999 * (c.members - 1))) + " (limit " +
+           std::to_string(int(TFM_CORR_PEARSON_SHIFT_LIMIT)) + ")" +
+           (c.data == Data::pearson_shift_offset ? ", values about 1000" : "");
   std::string s = "M=" + std::to_string(c.members) + ", " + voxels_name(c.voxels);
   if (c.params.measure == CorrelationMeasure::MiBinned) s += ", " + std::to_string(c.params.bins) + " bins";
   if (c.params.measure == CorrelationMeasure::MiKraskov) s += ", k=" + std::to_string(c.params.k);

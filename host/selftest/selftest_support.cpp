@@ -128,7 +128,8 @@ CorrelationEnsemble pearson_shift_ensemble(uint32_t members, float offset, uint3
   x[0] = x_mean + x_distance;
   const double limit = TFM_CORR_PEARSON_SHIFT_LIMIT;
   std::vector<double> ratios;
-  for (double q : {0.0, 0.5, 1.0, 2.0, 4.0, 8.0, limit - 1, limit - 0.1, limit + 0.1, limit + 1, 2 * limit, 100.0, 1000.0})
+  for (double q : {0.0, 0.5, 1.0, 2.0, 4.0, 8.0, limit - 1, limit - 0.1, limit + 0.1, limit + 1, 2 * limit, 100.0,
+                   1000.0})
     if (q < n - 1) ratios.push_back(q);
   for (double f : {0.5, 0.9, 0.99, 0.999}) ratios.push_back(f * (n - 1));
   // Voxel 0 holds the reference; then each ratio with member 0 above the others, then below.
