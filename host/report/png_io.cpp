@@ -114,7 +114,10 @@ std::string encode_png_fast(const Image& image) {
     z.avail_in = uInt(rows * (row + 1));
     status = deflate(&z, y0 + rows == image.height ? Z_FINISH : Z_NO_FLUSH);
     if (status != Z_OK && status != Z_STREAM_END) break;
-    if (z.avail_in != 0) status = Z_BUF_ERROR;  // the bound holds for one stream: never here
+    if (z.avail_in != 0) {  // out of room: the bound holds for one stream, so never here
+      status = Z_BUF_ERROR;
+      break;
+    }
   }
   if (status != Z_STREAM_END) throw std::runtime_error("PNG encoding failed: zlib deflate");
   const size_t idat_bytes = z.total_out;
