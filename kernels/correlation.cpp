@@ -291,6 +291,17 @@ gpu::CorrelationPush make_push(const CorrelationReference& ref) {
 CorrelationKernel::CorrelationKernel(Context& ctx) : impl_(std::make_unique<Impl>(ctx)) {}
 CorrelationKernel::~CorrelationKernel() = default;
 
+void CorrelationKernel::prepare(const CorrelationParams& params, uint32_t member_count) {
+  validate_correlation_params(params, member_count);
+  const Plan plan = make_plan(params.measure, member_count);
+  check_device_fits(impl_->ctx, plan, correlation_measure_name(params.measure), member_count);
+  // lavapipe compiles a pipeline's code at its first dispatch, not at its creation: so one voxel
+  // (its series the reference itself) goes through compute(), the path the caller's work takes.
+  std::vector<float> series(member_count);
+  for (uint32_t m = 0; m < member_count; ++m) series[m] = float(m);
+  compute(EnsembleView{series.data(), member_count, 1}, series, params);
+}
+
 std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span<const float> reference,
                                               const CorrelationParams& params, const CorrelationProgress& progress,
                                               uint64_t max_device_bytes) {

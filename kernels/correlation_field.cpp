@@ -70,6 +70,14 @@ std::vector<float> correlation_field_streamed(Context& ctx, std::span<VolumeSlab
                                               const CorrelationRequest& r, uint64_t slab_slices, uint64_t first_slice,
                                               uint64_t end_slice, const CorrelationProgress& progress,
                                               const std::function<void(uint64_t)>& after_slab) {
+  CorrelationKernel kernel(ctx);
+  return correlation_field_streamed(kernel, members, r, slab_slices, first_slice, end_slice, progress, after_slab);
+}
+
+std::vector<float> correlation_field_streamed(CorrelationKernel& kernel, std::span<VolumeSlabReader* const> members,
+                                              const CorrelationRequest& r, uint64_t slab_slices, uint64_t first_slice,
+                                              uint64_t end_slice, const CorrelationProgress& progress,
+                                              const std::function<void(uint64_t)>& after_slab) {
   if (members.empty()) throw std::invalid_argument("correlation_field_streamed: no members");
   const uint32_t m_count = static_cast<uint32_t>(members.size());
   validate_correlation_params(r.params, m_count);
@@ -109,7 +117,6 @@ std::vector<float> correlation_field_streamed(Context& ctx, std::span<VolumeSlab
                grid.name + ": a slab of " + std::to_string(slab_slices) + " z-slices of " + std::to_string(m_count) +
                    " members and the correlation field");
   std::vector<float> out(slabs_voxels);
-  CorrelationKernel kernel(ctx);
   const uint64_t passes = r.point2 ? 2 : 1;
   for (uint64_t z0 = first_slice; z0 < end_slice; z0 += slab_slices) {
     const uint64_t n = std::min(slab_slices, end_slice - z0);

@@ -45,6 +45,13 @@ std::vector<float> correlation_field_streamed(Context& ctx, std::span<VolumeSlab
                                               uint64_t first_slice = 0, uint64_t end_slice = 0,
                                               const CorrelationProgress& progress = {},
                                               const std::function<void(uint64_t)>& after_slab = {});
+// The same with the caller's kernel: one whose pipeline prepare() built before the caller measured
+// the memory it sizes the slabs from.
+std::vector<float> correlation_field_streamed(CorrelationKernel& kernel, std::span<VolumeSlabReader* const> members,
+                                              const CorrelationRequest& request, uint64_t slab_slices,
+                                              uint64_t first_slice = 0, uint64_t end_slice = 0,
+                                              const CorrelationProgress& progress = {},
+                                              const std::function<void(uint64_t)>& after_slab = {});
 // Slices per slab for `members` members of `slice_voxels` voxels within `bytes` of host memory
 // (at least 1).
 uint64_t correlation_slab_slices(uint32_t members, uint64_t slice_voxels, uint64_t bytes);

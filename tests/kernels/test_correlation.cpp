@@ -197,6 +197,45 @@ TEST_F(CorrelationKernelGpu, StreamedSlabsGiveTheWholeEnsemblesBits) {
   EXPECT_THROW(correlation_field_streamed(ctx(), readers, no_data, 2), std::invalid_argument);
 }
 
+// prepare() (which the CLI calls before it sizes slabs from the memory left) runs the kernel once
+// on a voxel of its own: afterwards the kernel gives a fresh kernel's bits, also as the caller's
+// kernel of correlation_field_streamed, and it refuses what compute() refuses.
+TEST_F(CorrelationKernelGpu, PreparedKernelGivesAFreshKernelsBits) {
+  const std::array<uint64_t, 3> dims{7, 5, 6};
+  const uint32_t members = 9;
+  const CorrelationEnsemble e = correlation_test_ensemble(members, 7 * 5 * 6, 21);
+  std::vector<std::unique_ptr<VolumeSlabReader>> owned;
+  std::vector<VolumeSlabReader*> readers;
+  for (uint32_t m = 0; m < members; ++m) {
+    Volume v;
+    v.dims = dims;
+    v.values.assign(e.values.begin() + std::ptrdiff_t(m * e.voxels), e.values.begin() + std::ptrdiff_t((m + 1) * e.voxels));
+    owned.push_back(slabs_in_memory(std::move(v)));
+    readers.push_back(owned.back().get());
+  }
+  for (const CorrelationParams& params : kMeasures) {
+    SCOPED_TRACE(correlation_measure_name(params.measure));
+    CorrelationKernel prepared(ctx()), fresh(ctx());
+    prepared.prepare(params, members);
+    const std::vector<float> a = prepared.compute(e.view(), e.reference(), params);
+    const std::vector<float> b = fresh.compute(e.view(), e.reference(), params);
+    ASSERT_EQ(a.size(), b.size());
+    EXPECT_EQ(0, std::memcmp(a.data(), b.data(), a.size() * sizeof(float)));
+    CorrelationRequest r;
+    r.params = params;
+    r.point = 2;
+    const std::vector<float> whole = correlation_field(ctx(), e.view(), r);
+    const std::vector<float> streamed = correlation_field_streamed(prepared, readers, r, 2);
+    ASSERT_EQ(streamed.size(), whole.size());
+    EXPECT_EQ(0, std::memcmp(streamed.data(), whole.data(), whole.size() * sizeof(float)));
+  }
+  CorrelationKernel kernel(ctx());
+  EXPECT_THROW(kernel.prepare({CorrelationMeasure::Pearson}, 2), std::invalid_argument);  // under 3 members
+  CorrelationParams bins{CorrelationMeasure::MiBinned};
+  bins.bins = 1000;
+  EXPECT_THROW(kernel.prepare(bins, members), std::invalid_argument);
+}
+
 // A NaN in the reference series: NaN everywhere, without touching the device.
 TEST_F(CorrelationKernelGpu, NanReferenceGivesNanEverywhere) {
   const CorrelationEnsemble e = correlation_test_ensemble(40, 20, 9);
