@@ -24,6 +24,9 @@ namespace tfm {
 
 static_assert(sizeof(gpu::CorrelationPush) == 40, "CorrelationPush must match the GLSL std430 block");
 static_assert(kMaxCorrelationBins == TFM_CORR_MAX_BINS && kMaxCorrelationK == TFM_CORR_MAX_K);
+// The reference values are one texel view (TFM_CORR_BINDING_REF_VALUES) on every device: Vulkan
+// guarantees maxTexelBufferElements >= 65536.
+static_assert(kMaxCorrelationMembers <= 65536);
 
 namespace {
 
@@ -181,7 +184,8 @@ struct CorrelationKernel::Impl {
       PipelineDesc desc;
       desc.shader = p.shader;
       desc.binding_counts = gpu::to_vector(kBindingCounts);
-      desc.binding_kinds = texel_binding_kinds(desc.binding_counts.size(), {TFM_CORR_BINDING_ENSEMBLE});
+      desc.binding_kinds = texel_binding_kinds(desc.binding_counts.size(),
+                                                 {TFM_CORR_BINDING_ENSEMBLE, TFM_CORR_BINDING_REF_VALUES});
       desc.push_constant_bytes = sizeof(gpu::CorrelationPush);
       desc.workgroup_size = p.workgroup;
       desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, p.workgroup},
@@ -352,7 +356,7 @@ std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span
     CommandBatch batch(ctx);
     batch.dispatch(pipeline,
                    {Binding::texels(series, VK_FORMAT_R32_SFLOAT, 0, uint64_t(n) * members * sizeof(float)), result,
-                    values, order, group, table},
+                    Binding::texels(values, VK_FORMAT_R32_SFLOAT), order, group, table},
                    push, correlation_groups(ctx, plan, n));
     batch.submit_and_wait();
     readback(ctx, result, out.data() + v0, uint64_t(n) * sizeof(float));
@@ -434,7 +438,7 @@ void CorrelationKernel::record(CommandBatch& batch, const DeviceEnsemble& ensemb
     push.member_stride = uint32_t(voxels);
     batch.dispatch(pipeline,
                    {Binding::texels(*ensemble.buffer, texel_format, 0, uint64_t(members) * voxels * value_bytes), out,
-                    tables.values, tables.order, tables.group, tables.table},
+                    Binding::texels(tables.values, VK_FORMAT_R32_SFLOAT), tables.order, tables.group, tables.table},
                    push, correlation_groups(ctx, plan, voxels));
     return;
   }
@@ -470,8 +474,8 @@ void CorrelationKernel::record(CommandBatch& batch, const DeviceEnsemble& ensemb
     const Buffer range = Buffer::adopt(ctx, out.handle(), out.offset() + v0 * sizeof(float), n * sizeof(float),
                                        "correlation output range");
     batch.dispatch(pipeline,
-                   {Binding::texels(series, texel_format, 0, uint64_t(members) * n * value_bytes), range, tables.values,
-                    tables.order, tables.group, tables.table},
+                   {Binding::texels(series, texel_format, 0, uint64_t(members) * n * value_bytes), range,
+                    Binding::texels(tables.values, VK_FORMAT_R32_SFLOAT), tables.order, tables.group, tables.table},
                    push, correlation_groups(ctx, plan, n));
   }
   if (!ensemble.buffer) batch.end_image_copies(ensemble.images);

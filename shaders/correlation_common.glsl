@@ -41,7 +41,12 @@ layout(constant_id = TFM_CORR_SPEC_MEMBER_MAJOR) const bool MEMBER_MAJOR = true;
 // members x 1.76 M voxels: kernel 4x faster this way), and the texture path on GPUs.
 layout(binding = TFM_CORR_BINDING_ENSEMBLE) uniform samplerBuffer ensemble;
 layout(std430, binding = TFM_CORR_BINDING_OUT) writeonly buffer Out { float result[]; };
-layout(std430, binding = TFM_CORR_BINDING_REF_VALUES) readonly buffer RefValues { float ref_values[]; };
+// The reference series as texels too: every invocation reads the same member's value, which a
+// storage-buffer load costs lavapipe a loop over the SIMD lanes (pearson there: 1.1-1.9x faster
+// this way, measured 2026-11-29); a GPU broadcasts either. At most kMaxCorrelationMembers values,
+// within the texel buffer size every device has (65536).
+layout(binding = TFM_CORR_BINDING_REF_VALUES) uniform samplerBuffer ref_value_texels;
+#define REF_VALUE(m) texelFetch(ref_value_texels, int(m)).x
 layout(std430, binding = TFM_CORR_BINDING_REF_ORDER) readonly buffer RefOrder { uint ref_order[]; };
 layout(std430, binding = TFM_CORR_BINDING_REF_GROUP) readonly buffer RefGroup { uint ref_group[]; };
 layout(std430, binding = TFM_CORR_BINDING_TABLE) readonly buffer Table { float count_table[]; };

@@ -14,7 +14,7 @@ namespace tfm::gpu {
 // not need; the wrapper binds a small placeholder there).
 #define TFM_CORR_BINDING_ENSEMBLE 0    // float: one chunk of the ensemble, layout per strategy (below)
 #define TFM_CORR_BINDING_OUT 1         // float per voxel of the chunk
-#define TFM_CORR_BINDING_REF_VALUES 2  // float: the reference series as the measure needs it
+#define TFM_CORR_BINDING_REF_VALUES 2  // float texels: the reference series as the measure needs it
 #define TFM_CORR_BINDING_REF_ORDER 3   // uint per position in x order (x = reference): its member
 #define TFM_CORR_BINDING_REF_GROUP 4   // uint per position in x order: first position of its x tie group
 #define TFM_CORR_BINDING_TABLE 5       // float per count c = 0..M: ln(c) (mi-binned) or digamma(c) (mi-kraskov)

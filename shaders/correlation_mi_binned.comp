@@ -58,7 +58,7 @@ void main() {
   float sum = 0.0;
   if (GROUP_PER_VOXEL) {
     CORR_FOR_EACH(m, n) {
-      const uint bx = bin_of(ref_values[m], pc.ref_lo, x_range), by = bin_of(series_value(v, m), y_lo, y_range);
+      const uint bx = bin_of(REF_VALUE(m), pc.ref_lo, x_range), by = bin_of(series_value(v, m), y_lo, y_range);
       atomicAdd(s_joint[bx * bins + by], 1u);
       atomicAdd(s_marginal[bx], 1u);
       atomicAdd(s_marginal[TFM_CORR_MAX_BINS + by], 1u);
@@ -67,7 +67,7 @@ void main() {
     memoryBarrierShared();
     barrier();
     CORR_FOR_EACH(m, n) {
-      const uint bx = bin_of(ref_values[m], pc.ref_lo, x_range), by = bin_of(series_value(v, m), y_lo, y_range);
+      const uint bx = bin_of(REF_VALUE(m), pc.ref_lo, x_range), by = bin_of(series_value(v, m), y_lo, y_range);
       sum += count_table[s_joint[bx * bins + by]] - count_table[s_marginal[bx]] -
              count_table[s_marginal[TFM_CORR_MAX_BINS + by]];
     }
@@ -75,7 +75,7 @@ void main() {
     // Bin codes x * TFM_CORR_MAX_BINS + y, exact as floats.
     const uint codes = corr_region(0u);
     for (uint m = 0u; m < n; ++m) {
-      const uint bx = bin_of(ref_values[m], pc.ref_lo, x_range), by = bin_of(series_value(v, m), y_lo, y_range);
+      const uint bx = bin_of(REF_VALUE(m), pc.ref_lo, x_range), by = bin_of(series_value(v, m), y_lo, y_range);
       s_work[codes + m] = float(bx * TFM_CORR_MAX_BINS + by);
     }
     for (uint m = 0u; m < n; ++m) {

@@ -84,7 +84,7 @@ void main() {
   const uint ys = corr_sort(r2, r0, n, false, unused);
   // x goes to the sort's other region, free once the sort's last barrier has passed.
   const uint xs = ys == r0 ? r2 : r0;
-  CORR_FOR_EACH(p, n) s_work[xs + p] = ref_values[p];
+  CORR_FOR_EACH(p, n) s_work[xs + p] = REF_VALUE(p);
   if (GROUP_PER_VOXEL) {
     // x is in place before any invocation searches it.
     memoryBarrierShared();

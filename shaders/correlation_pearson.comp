@@ -39,7 +39,7 @@ void main() {
     stats = corr_combine(stats, corr_stats_term(y));
     precise float d = y - y0;
     precise float dd = d * d;
-    precise float xd = ref_values[m] * d;
+    precise float xd = REF_VALUE(m) * d;
     kahan_add(sd, sd_carry, d);
     kahan_add(sdd, sdd_carry, dd);
     kahan_add(sxd, sxd_carry, xd);
@@ -59,7 +59,7 @@ void main() {
     for (uint m = 0u; m < m_count; ++m) {
       precise float d = series_value(v, m) - mean;
       precise float dd = d * d;
-      precise float xd = ref_values[m] * d;
+      precise float xd = REF_VALUE(m) * d;
       kahan_add(sxy, sxy_carry, xd);
       kahan_add(syy, syy_carry, dd);
     }

@@ -34,7 +34,7 @@ float wide_to_float(uvec2 v) { return fx_signed_to_float(v) * TFM_FIXED_ONE; }
 
 // Member m's terms of the exact sums: c_x c_y and c_y^2, c_y its centred doubled rank.
 void add_rank_terms(uint m, int cy, inout uvec2 sxy, inout uvec2 syy) {
-  const int p = int(ref_values[m]) * cy;
+  const int p = int(REF_VALUE(m)) * cy;
   fx_add(sxy, p < 0 ? fx_negate(uvec2(uint(-p), 0u)) : uvec2(uint(p), 0u));
   fx_add(syy, uvec2(uint(cy * cy), 0u));
 }
