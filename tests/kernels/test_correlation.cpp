@@ -51,6 +51,22 @@ std::string measure_label(const CorrelationParams& p) {
 
 class CorrelationGpu : public test::GpuTest, public ::testing::WithParamInterface<CorrelationParams> {};
 
+// The members of `e` (a grid of `dims`) as slab readers, for correlation_field_streamed.
+struct MemberSlabs {
+  MemberSlabs(const CorrelationEnsemble& e, const std::array<uint64_t, 3>& dims) {
+    for (uint32_t m = 0; m < e.members; ++m) {
+      Volume v;
+      v.dims = dims;
+      v.values.assign(e.values.begin() + std::ptrdiff_t(m * e.voxels),
+                      e.values.begin() + std::ptrdiff_t((m + 1) * e.voxels));
+      owned.push_back(slabs_in_memory(std::move(v)));
+      readers.push_back(owned.back().get());
+    }
+  }
+  std::vector<std::unique_ptr<VolumeSlabReader>> owned;
+  std::vector<VolumeSlabReader*> readers;
+};
+
 // Every voxel of `device` within `bound` of `expected`; NaN exactly where `expected` is NaN.
 template <class T>
 void expect_field_near(const std::vector<float>& device, const std::vector<T>& expected, double bound) {
@@ -163,15 +179,8 @@ TEST_F(CorrelationKernelGpu, StreamedSlabsGiveTheWholeEnsemblesBits) {
   const std::array<uint64_t, 3> dims{7, 5, 6};
   const uint32_t members = 9;
   const CorrelationEnsemble e = correlation_test_ensemble(members, 7 * 5 * 6, 21);
-  std::vector<std::unique_ptr<VolumeSlabReader>> owned;
-  std::vector<VolumeSlabReader*> readers;
-  for (uint32_t m = 0; m < members; ++m) {
-    Volume v;
-    v.dims = dims;
-    v.values.assign(e.values.begin() + std::ptrdiff_t(m * e.voxels), e.values.begin() + std::ptrdiff_t((m + 1) * e.voxels));
-    owned.push_back(slabs_in_memory(std::move(v)));
-    readers.push_back(owned.back().get());
-  }
+  const MemberSlabs slabs(e, dims);
+  const std::vector<VolumeSlabReader*>& readers = slabs.readers;
   for (const CorrelationParams& params : kMeasures) {
     SCOPED_TRACE(correlation_measure_name(params.measure));
     for (const bool difference : {false, true}) {
@@ -204,15 +213,7 @@ TEST_F(CorrelationKernelGpu, PreparedKernelGivesAFreshKernelsBits) {
   const std::array<uint64_t, 3> dims{7, 5, 6};
   const uint32_t members = 9;
   const CorrelationEnsemble e = correlation_test_ensemble(members, 7 * 5 * 6, 21);
-  std::vector<std::unique_ptr<VolumeSlabReader>> owned;
-  std::vector<VolumeSlabReader*> readers;
-  for (uint32_t m = 0; m < members; ++m) {
-    Volume v;
-    v.dims = dims;
-    v.values.assign(e.values.begin() + std::ptrdiff_t(m * e.voxels), e.values.begin() + std::ptrdiff_t((m + 1) * e.voxels));
-    owned.push_back(slabs_in_memory(std::move(v)));
-    readers.push_back(owned.back().get());
-  }
+  const MemberSlabs slabs(e, dims);
   for (const CorrelationParams& params : kMeasures) {
     SCOPED_TRACE(correlation_measure_name(params.measure));
     CorrelationKernel prepared(ctx()), fresh(ctx());
@@ -225,7 +226,7 @@ TEST_F(CorrelationKernelGpu, PreparedKernelGivesAFreshKernelsBits) {
     r.params = params;
     r.point = 2;
     const std::vector<float> whole = correlation_field(ctx(), e.view(), r);
-    const std::vector<float> streamed = correlation_field_streamed(prepared, readers, r, 2);
+    const std::vector<float> streamed = correlation_field_streamed(prepared, slabs.readers, r, 2);
     ASSERT_EQ(streamed.size(), whole.size());
     EXPECT_EQ(0, std::memcmp(streamed.data(), whole.data(), whole.size() * sizeof(float)));
   }
