@@ -296,9 +296,7 @@ CorrelationKernel::CorrelationKernel(Context& ctx) : impl_(std::make_unique<Impl
 CorrelationKernel::~CorrelationKernel() = default;
 
 void CorrelationKernel::prepare(const CorrelationParams& params, uint32_t member_count) {
-  validate_correlation_params(params, member_count);
-  const Plan plan = make_plan(params.measure, member_count);
-  check_device_fits(impl_->ctx, plan, correlation_measure_name(params.measure), member_count);
+  validate_correlation_params(params, member_count);  // before the series' allocation
   // lavapipe compiles a pipeline's code at its first dispatch, not at its creation: so one voxel
   // (its series the reference itself) goes through compute(), the path the caller's work takes.
   std::vector<float> series(member_count);

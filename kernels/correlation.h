@@ -80,10 +80,11 @@ class CorrelationKernel {
   std::vector<float> compute(const EnsembleView& ens, std::span<const float> reference, const CorrelationParams& params,
                              const CorrelationProgress& progress = {}, uint64_t max_device_bytes = 0);
 
-  // Builds now the pipeline compute() takes for `params` and `member_count` (throws as compute()
-  // does for bad params and device limits). A device may compile it there, and its compiler holds
-  // memory while it does (lavapipe: ~15 MB of host memory on a cold shader cache), so a caller
-  // that sizes its buffers from the memory left calls this first.
+  // Runs compute() once on one voxel of its own for `params` and `member_count`, so that the
+  // pipeline is built and the driver has compiled it (lavapipe compiles at the first dispatch, and
+  // its compiler holds ~15 MB of host memory on a cold shader cache): a caller that sizes its
+  // buffers from the memory left calls this first. Throws as compute() does for bad params and
+  // device limits.
   void prepare(const CorrelationParams& params, uint32_t member_count);
 
   // Records the field of an ensemble already on the device (DeviceEnsemble); `out` gets its

@@ -186,8 +186,8 @@ TEST(CorrelateStreamed, AnEnsembleLargerThanTheBudgetStaysWithinIt) {
   // Shader caches empty, as on a machine's first run: the driver compiles the kernel in this
   // process (lavapipe's compiler took 14 MB more than the slabs were planned with).
   const test::CliEnvironment cold{{"MESA_SHADER_CACHE_DIR", dir / "mesa-cache"},
-                            {"__GL_SHADER_DISK_CACHE_PATH", dir / "nvidia-cache"},
-                            {"TFMATCH_PIPELINE_CACHE", "off"}};
+                                  {"__GL_SHADER_DISK_CACHE_PATH", dir / "nvidia-cache"},
+                                  {"TFMATCH_PIPELINE_CACHE", "off"}};
   const auto budget = run_cli("--max-memory 240M " + args + dir / "streamed.raw", test::kCliTimeout, cold);
   ASSERT_EQ(budget.exit_code, 0) << budget.output;
   EXPECT_NE(budget.output.find("slab by slab"), std::string::npos) << budget.output;
