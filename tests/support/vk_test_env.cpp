@@ -9,7 +9,7 @@ namespace tfm::test {
 
 Context& context() {
   static std::unique_ptr<Context> ctx = [] {
-    ContextOptions options;  // TFMATCH_VALIDATION=1 comes from ctest (tests/CMakeLists.txt)
+    ContextOptions options;  // TFMATCH_VALIDATION=1: support/test_process_environment.cpp
     auto c = Context::create(options);
     return c;
   }();

@@ -1,0 +1,19 @@
+// The environment every test process runs in, set before main() (so before any thread exists)
+// unless the caller's environment already sets the variable:
+//   TFMATCH_VALIDATION=1         the Khronos validation layer on; any message fails the test
+//   TFMATCH_PIPELINE_CACHE=...   the build's own pipeline cache, not the user's XDG one
+// Set here rather than as ctest's ENVIRONMENT property: gtest_discover_tests passes a property's
+// list elements on as separate words, so only the first variable of a list would reach a test.
+#include <cstdlib>
+
+namespace {
+
+bool set_test_environment() {
+  setenv("TFMATCH_VALIDATION", "1", 0);
+  setenv("TFMATCH_PIPELINE_CACHE", TFMATCH_BUILD_DIR "/pipeline-cache", 0);
+  return true;
+}
+
+[[maybe_unused]] const bool environment_set = set_test_environment();
+
+}  // namespace
