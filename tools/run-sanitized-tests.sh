@@ -14,11 +14,9 @@
 # rather than loosened: tests that hold tfmatch to a peak resident memory, a memory budget or a
 # time (they would measure ASan's shadow memory, quarantine and slower code), and the test whose
 # child process crashes on purpose (ASan turns its SIGSEGV into an abort with a report).
-# Known (2026-11-29, GCC 12): the netCDF-4 probe forks a child that reads the file's metadata
-# while the device starts on another thread; GCC 12's libasan has no fork handler for its
-# allocator's lock, so the child can deadlock and the probe reports the file as "did not finish
-# reading its metadata within 30 s" (seen once in DocExamples/docs_getting_started_md). glibc's
-# own malloc is safe across fork, so the normal build is not affected.
+# Seen on the first run (2026-11-29, GCC 12): the netCDF-4 probe forked a copy of tfmatch while
+# the device started on another thread; GCC 12's libasan has no fork handler for its allocator's
+# lock, so the child deadlocked. The probe now starts its own program (tfmatch-netcdf4-probe).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${TFMATCH_SANITIZE_BUILD:-$root/build-sanitize}

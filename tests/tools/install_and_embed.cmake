@@ -29,6 +29,10 @@ function(build_against_package source build)
 endfunction()
 
 run(${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
+# The netCDF-4 probe's program, where the installed `tfmatch` looks for it (host/io/netcdf4_probe.h).
+if(NOT EXISTS ${prefix}/libexec/tfmatch/tfmatch-netcdf4-probe OR NOT EXISTS ${prefix}/bin/tfmatch)
+  message(FATAL_ERROR "bin/tfmatch or libexec/tfmatch/tfmatch-netcdf4-probe not installed under ${prefix}")
+endif()
 
 # No installed library may define a global Vulkan or volk entry point: a host that uses the
 # plain loader would call tfmatch's copy instead of the loader's.

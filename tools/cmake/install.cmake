@@ -1,7 +1,7 @@
 # The installable package: `cmake --install build --prefix P` puts the libraries in P/lib, the
 # public headers in P/include/tfmatch/<layer>/ (engine, shaders, kernels, model, reference,
 # selftest, solvers, io, report, cuda: an embedder writes #include <tfmatch/engine/context.h>),
-# the `tfmatch` program in P/bin, and P/lib/cmake/tfmatch/tfmatchConfig.cmake (+ version file) and
+# the `tfmatch` program in P/bin, its netCDF-4 probe in P/libexec/tfmatch, and P/lib/cmake/tfmatch/tfmatchConfig.cmake (+ version file) and
 # P/lib/pkgconfig/tfmatch.pc.
 #   tfmatch::tfmatch  engine, shaders, kernels, host/model, host/reference, host/solvers:
 #                     Vulkan headers, Eigen and GLM only (volk is compiled in under private names)
@@ -66,6 +66,7 @@ if(TFMATCH_CUDA)
   install(EXPORT tfmatchCudaTargets NAMESPACE tfmatch:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/tfmatch)
 endif()
 install(TARGETS tfmatch RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+install(TARGETS tfmatch-netcdf4-probe RUNTIME DESTINATION ${CMAKE_INSTALL_LIBEXECDIR}/tfmatch)
 
 # Public headers: every header of the library layers but the internal ones, which stay in the
 # source tree: those named *_private.h or listed in TFMATCH_PRIVATE_HEADERS by their layer, and

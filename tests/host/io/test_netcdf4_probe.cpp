@@ -3,11 +3,14 @@
 #include <gtest/gtest.h>
 #include <netcdf.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <thread>
 
 #include "netcdf4_probe.h"
@@ -60,6 +63,121 @@ TEST(Netcdf4Probe, ANormalChildPassesQuietly) {
   EXPECT_EQ(error_of([] { run_isolated("fine.nc", [] {}, std::chrono::seconds(10)); }), "");
 }
 
+// A shell script standing in for the probe program: what its child does is up to the test.
+class ScriptDir {
+ public:
+  ScriptDir() : dir_(std::filesystem::temp_directory_path() / ("tfmatch_probe_scripts_" + std::to_string(getpid()))) {
+    std::filesystem::create_directories(dir_);
+  }
+  ~ScriptDir() { std::filesystem::remove_all(dir_); }
+  std::string script(const std::string& name, const std::string& body) const {
+    const std::string path = (dir_ / name).string();
+    std::ofstream(path) << "#!/bin/sh\n" << body << "\n";
+    chmod(path.c_str(), 0755);
+    return path;
+  }
+  std::filesystem::path path(const std::string& name) const { return dir_ / name; }
+
+ private:
+  std::filesystem::path dir_;
+};
+
+// Sets an environment variable for one scope (ctest runs every test in its own process).
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const std::string& value) : name_(name) {
+    if (const char* old = std::getenv(name)) old_ = old;
+    setenv(name, value.c_str(), 1);
+  }
+  ~ScopedEnv() {
+    if (old_)
+      setenv(name_, old_->c_str(), 1);
+    else
+      unsetenv(name_);
+  }
+
+ private:
+  const char* name_;
+  std::optional<std::string> old_;
+};
+
+TEST(Netcdf4Probe, AProgramThatCrashesExitsOrHangsIsAnErrorNamingTheFile) {
+  const ScriptDir dir;
+  const auto run = [&](const std::string& body, std::chrono::milliseconds timeout = std::chrono::seconds(10)) {
+    return error_of([&] { EXPECT_TRUE(run_program_isolated("bad.nc", dir.script("p", body), {}, {}, timeout)); });
+  };
+  std::string e = run("kill -SEGV $$");
+  EXPECT_NE(e.find("bad.nc: malformed netCDF-4/HDF5 file: the HDF5 library crashed"), std::string::npos) << e;
+  EXPECT_NE(e.find("Segmentation fault"), std::string::npos) << e;
+  e = run("exit 1");
+  EXPECT_NE(e.find("bad.nc: malformed netCDF-4/HDF5 file: the HDF5 library failed"), std::string::npos) << e;
+  EXPECT_NE(e.find("status 1"), std::string::npos) << e;
+  const auto t0 = std::chrono::steady_clock::now();
+  e = run("exec sleep 100", std::chrono::milliseconds(300));
+  EXPECT_NE(e.find("bad.nc: malformed netCDF-4/HDF5 file: the HDF5 library did not finish"), std::string::npos) << e;
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0);
+  EXPECT_EQ(run("exit 0"), "");
+}
+
+// Arguments reach the program as given, the input as its standard input (the whole of it), and
+// its standard output goes nowhere (the caller's is not its to write on).
+TEST(Netcdf4Probe, TheProgramGetsItsArgumentsAndInput) {
+  const ScriptDir dir;
+  const std::string seen = dir.path("seen").string();
+  const std::string program = dir.script("p", "printf '%s|' \"$@\" > " + seen + "; cat >> " + seen + "; echo to-stdout");
+  std::string input(300000, 'x');
+  input.back() = 'y';
+  testing::internal::CaptureStdout();
+  EXPECT_TRUE(run_program_isolated("f.nc", program, {"--a", "b c", "-- d"}, input, std::chrono::seconds(10)));
+  EXPECT_EQ(testing::internal::GetCapturedStdout(), "");
+  std::ifstream in(seen, std::ios::binary);
+  const std::string got((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(got, "--a|b c|-- d|" + input);
+}
+
+// A program that is not there, or cannot run (status 127: what a shell or the dynamic loader
+// gives), runs nothing and says so: the probe then forks instead.
+TEST(Netcdf4Probe, AProgramThatCannotStartIsReportedNotBlamedOnTheFile) {
+  const ScriptDir dir;
+  EXPECT_FALSE(run_program_isolated("f.nc", dir.path("missing").string(), {}, {}, std::chrono::seconds(10)));
+  EXPECT_FALSE(run_program_isolated("f.nc", dir.script("p", "exit 127"), {}, {}, std::chrono::seconds(10)));
+  const ScopedEnv missing("TFMATCH_NETCDF4_PROBE", dir.path("missing").string());
+  EXPECT_EQ(error_of([] { probe_netcdf4_metadata("f.nc", {}, std::chrono::seconds(10)); }), "");
+}
+
+// The probe runs the program TFMATCH_NETCDF4_PROBE names (ctest names the build's), in its own
+// process: a crash there is the file's error.
+TEST(Netcdf4Probe, TheProbeRunsItsProgram) {
+  const ScriptDir dir;
+  const ScopedEnv crashing("TFMATCH_NETCDF4_PROBE", dir.script("p", "kill -SEGV $$"));
+  EXPECT_EQ(netcdf4_probe_program(), dir.path("p").string());
+  const std::string e = error_of([] { probe_netcdf4_metadata("x.nc", "bytes", std::chrono::seconds(10)); });
+  EXPECT_NE(e.find("x.nc: malformed netCDF-4/HDF5 file: the HDF5 library crashed"), std::string::npos) << e;
+}
+
+// The build's program (the test program names it in TFMATCH_NETCDF4_PROBE; a test build carried
+// to another machine without it skips). On its own: wrong arguments are status 2 (never 127); a
+// file it cannot finish reading (a FIFO nobody writes: netCDF-C's open waits on it forever) ends
+// it after the seconds it was given, even when no caller is left to kill it.
+TEST(Netcdf4Probe, TheProgramRefusesWrongArgumentsAndGivesUpByItself) {
+  const char* built = std::getenv("TFMATCH_NETCDF4_PROBE");
+  if (!built || access(built, X_OK) != 0)
+    GTEST_SKIP() << "the build's tfmatch-netcdf4-probe is not here: " << (built ? built : "TFMATCH_NETCDF4_PROBE unset");
+  std::string e = error_of([&] { run_program_isolated("a.nc", built, {"a.nc"}, {}, std::chrono::seconds(10)); });
+  EXPECT_NE(e.find("status 2"), std::string::npos) << e;
+  e = error_of([&] { run_program_isolated("a.nc", built, {"--give-up-after", "0", "--", "a.nc"}, {}, std::chrono::seconds(10)); });
+  EXPECT_NE(e.find("status 2"), std::string::npos) << e;
+  const ScriptDir dir;
+  const std::string fifo = dir.path("fifo.nc").string();
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  const auto t0 = std::chrono::steady_clock::now();
+  e = error_of([&] { run_program_isolated(fifo, built, {"--give-up-after", "1", "--", fifo}, {}, std::chrono::seconds(20)); });
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_NE(e.find("the HDF5 library crashed reading its metadata (Alarm clock)"), std::string::npos) << e;
+  EXPECT_GE(s, 0.9);
+  EXPECT_LT(s, 10.0);
+}
+
 TEST(Netcdf4Probe, RecognizesTheHdf5SignatureWhereHdf5LooksForIt) {
   const std::string sig("\x89HDF\r\n\x1a\n", 8);
   EXPECT_TRUE(has_hdf5_signature(sig + "rest"));
@@ -93,6 +211,10 @@ TEST(Netcdf4Probe, ValidNetcdf4FilesLoadAndTruncatedOnesFailCleanly) {
 
   std::ifstream in(path, std::ios::binary);
   std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // The bytes in memory go through the program too; so do half of them (netCDF-C's own error
+  // is the caller's to report).
+  probe_netcdf4_metadata(path, bytes);
+  probe_netcdf4_metadata(path, std::string_view(bytes).substr(0, bytes.size() / 2));
   const std::string cut = (dir / "cut.nc").string();
   std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
   const std::string e = error_of([&] { load_volume(cut + ":t"); });
