@@ -7,6 +7,7 @@
 #include <signal.h>
 #include <spawn.h>
 #include <sys/mman.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -15,8 +16,11 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <mutex>
+#include <set>
 #include <stdexcept>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "cancellation.h"
@@ -107,6 +111,21 @@ void check_child_status(const std::string& path, int status) {
                              "); not read");
 }
 
+// Files that passed the probe in this process, as they were then (device, inode, size,
+// modification time): a command that opens one file several times (several variables or time
+// steps of it, one per --field) starts one child, not one per open. A file changed since is
+// probed again.
+using FileIdentity = std::tuple<dev_t, ino_t, off_t, time_t, long>;
+std::mutex g_passed_mutex;
+std::set<FileIdentity> g_passed;  // guarded by g_passed_mutex
+
+bool identify(const std::string& path, FileIdentity& identity) {
+  struct stat st {};
+  if (stat(path.c_str(), &st) != 0) return false;
+  identity = {st.st_dev, st.st_ino, st.st_size, st.st_mtim.tv_sec, st.st_mtim.tv_nsec};
+  return true;
+}
+
 }  // namespace
 
 bool has_hdf5_signature(std::string_view head) {
@@ -143,7 +162,10 @@ std::string netcdf4_probe_program() {
   return {};
 }
 
-void probe_netcdf4_metadata(const std::string& path, std::string_view memory, std::chrono::milliseconds timeout) {
+namespace {
+
+// The probe itself: its program where there is one, else a forked child.
+void probe_uncached(const std::string& path, std::string_view memory, std::chrono::milliseconds timeout) {
   if (const std::string program = netcdf4_probe_program(); !program.empty()) {
     // The program gives up by itself a little after the timeout: a caller killed before it could
     // kill the child leaves no process behind looping on a malformed file.
@@ -154,6 +176,22 @@ void probe_netcdf4_metadata(const std::string& path, std::string_view memory, st
     if (run_program_isolated(path, program, arguments, memory, timeout)) return;
   }
   run_isolated(path, [&] { walk_netcdf4_metadata(path, memory); }, timeout);
+}
+
+}  // namespace
+
+void probe_netcdf4_metadata(const std::string& path, std::string_view memory, std::chrono::milliseconds timeout) {
+  FileIdentity identity;
+  const bool known = memory.empty() && identify(path, identity);
+  if (known) {
+    const std::lock_guard lock(g_passed_mutex);
+    if (g_passed.count(identity)) return;
+  }
+  probe_uncached(path, memory, timeout);
+  if (known) {
+    const std::lock_guard lock(g_passed_mutex);
+    g_passed.insert(identity);
+  }
 }
 
 bool run_program_isolated(const std::string& path, const std::string& program, const std::vector<std::string>& arguments,

@@ -31,7 +31,8 @@ bool has_hdf5_signature(std::string_view head);
 // inside HDF5), exits with a non-zero status (an abort, a sanitizer's crash report) or runs
 // longer than `timeout` (then it is killed), and checks the cancellation
 // flag (host/model/cancellation.h) while it waits. An error netCDF-C reports in the child is left
-// for the caller's own open to report. Returns quietly on success.
+// for the caller's own open to report. Returns quietly on success. A file (not `memory`) that
+// passed is not probed again in this process while its size and modification time stay the same.
 void probe_netcdf4_metadata(const std::string& path, std::string_view memory = {},
                             std::chrono::milliseconds timeout = std::chrono::seconds(30));
 

@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -153,6 +154,35 @@ TEST(Netcdf4Probe, TheProbeRunsItsProgram) {
   EXPECT_EQ(netcdf4_probe_program(), dir.path("p").string());
   const std::string e = error_of([] { probe_netcdf4_metadata("x.nc", "bytes", std::chrono::seconds(10)); });
   EXPECT_NE(e.find("x.nc: malformed netCDF-4/HDF5 file: the HDF5 library crashed"), std::string::npos) << e;
+}
+
+// A file that passed is not probed again while it stays as it was; a changed one is; bytes in
+// memory always are.
+TEST(Netcdf4Probe, AFileThatPassedIsProbedOncePerProcess) {
+  const ScriptDir dir;
+  const std::string count = dir.path("count").string();
+  const ScopedEnv counting("TFMATCH_NETCDF4_PROBE", dir.script("p", "echo run >> " + count));
+  const std::string file = dir.path("f.nc").string();
+  std::ofstream(file) << "first";
+  const auto runs = [&] {
+    std::ifstream in(count);
+    return std::count(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>(), '\n');
+  };
+  probe_netcdf4_metadata(file);
+  probe_netcdf4_metadata(file);
+  EXPECT_EQ(runs(), 1);
+  std::ofstream(file, std::ios::app) << " and more";
+  probe_netcdf4_metadata(file);
+  EXPECT_EQ(runs(), 2);
+  probe_netcdf4_metadata(file, "bytes");
+  probe_netcdf4_metadata(file, "bytes");
+  EXPECT_EQ(runs(), 4);
+  // One that failed is not remembered: it fails again.
+  const std::string bad = dir.path("bad.nc").string();
+  std::ofstream(bad) << "bad";
+  const ScopedEnv crashing("TFMATCH_NETCDF4_PROBE", dir.script("c", "kill -SEGV $$"));
+  EXPECT_NE(error_of([&] { probe_netcdf4_metadata(bad); }), "");
+  EXPECT_NE(error_of([&] { probe_netcdf4_metadata(bad); }), "");
 }
 
 // The build's program (the test program names it in TFMATCH_NETCDF4_PROBE; a test build carried
