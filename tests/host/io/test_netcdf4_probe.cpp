@@ -14,6 +14,7 @@
 #include <optional>
 #include <thread>
 
+#include "cancellation.h"
 #include "netcdf4_probe.h"
 #include "volume_io.h"
 
@@ -154,6 +155,28 @@ TEST(Netcdf4Probe, TheProbeRunsItsProgram) {
   EXPECT_EQ(netcdf4_probe_program(), dir.path("p").string());
   const std::string e = error_of([] { probe_netcdf4_metadata("x.nc", "bytes", std::chrono::seconds(10)); });
   EXPECT_NE(e.find("x.nc: malformed netCDF-4/HDF5 file: the HDF5 library crashed"), std::string::npos) << e;
+}
+
+// A cancellation (Ctrl-C, SIGTERM, or a host's request) stops the wait: the child is killed and
+// the caller gets Cancelled, not an error about the file.
+TEST(Netcdf4Probe, ACancellationStopsTheWaitAndKillsTheChild) {
+  const ScriptDir dir;
+  const std::string program = dir.script("p", "exec sleep 100");
+  std::thread canceller([] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    request_cancel(SIGINT);
+  });
+  const auto t0 = std::chrono::steady_clock::now();
+  int signal = -1;
+  try {
+    run_program_isolated("slow.nc", program, {}, {}, std::chrono::seconds(60));
+  } catch (const Cancelled& c) {
+    signal = c.signal();
+  }
+  canceller.join();
+  reset_cancel();
+  EXPECT_EQ(signal, SIGINT);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0);
 }
 
 // A file that passed is not probed again while it stays as it was; a changed one is; bytes in
