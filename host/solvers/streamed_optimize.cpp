@@ -263,17 +263,6 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
   out.device = ctx.device_name();
   out.voxels_total = grid.voxel_count();
   s.streamed = ref.streams() && field.streams();
-  uint64_t slab_voxels = req.slab_voxels;
-  if (slab_voxels == 0) {
-    // Two host buffers (one read ahead) and a device field per field: 24 bytes per slab voxel;
-    // a quarter of what the budget leaves beside the context's staging memory (not yet resident
-    // before the first upload).
-    const uint64_t held = resident_memory() + kStagingBytes, budget = memory_budget().bytes;
-    const uint64_t left = budget > held ? budget - held : 0;
-    slab_voxels = std::clamp<uint64_t>(left / 4 / 24, uint64_t(1) << 16, kDefaultSlabVoxels);
-  }
-  s.slab_slices = std::clamp<uint64_t>(slab_voxels / ref.slice_voxels(), 1, grid.dims[2]);
-
   Ranks& ranks = req.ranks ? *req.ranks : single_rank();
   // This rank's work, then the agreement: a failure on any rank stops every rank (ranks.h).
   auto on_every_rank = [&](auto&& work) {
@@ -285,6 +274,37 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
     }
     ranks.agree(failed);
   };
+
+  // The assembly's kernel and the reference TF on the device. The kernel runs once on one voxel
+  // before the slabs are sized from the memory left: a driver may compile a pipeline's code at its
+  // first dispatch (lavapipe does, and its compiler's memory stays), which would otherwise come
+  // on top of slabs sized without it (a 160 MiB budget peaked at 215 MiB on a cold shader cache).
+  Buffer ref_tf_buffer;
+  std::optional<GpuNormalEquations> gpu;
+  const bool with_before = req.ref_tf.size() != req.tf_size;
+  on_every_rank([&] {
+    ref_tf_buffer = upload_tf(ctx, req.ref_tf, "reference TF");
+    gpu.emplace(ctx, req.tf_size);
+    const float one_voxel = 0.5f;
+    const DeviceField ref_voxel(ctx, std::span<const float>(&one_voxel, 1), "warm-up voxel");
+    const DeviceField opt_voxel(ctx, std::span<const float>(&one_voxel, 1), "warm-up voxel");
+    const FieldMapping on_ref_tf = make_mapping(FieldRange{}, static_cast<uint32_t>(req.ref_tf.size()));
+    gpu->add(ref_voxel, opt_voxel, on_ref_tf, make_mapping(FieldRange{}, req.tf_size), ref_tf_buffer,
+             with_before ? &on_ref_tf : nullptr);
+    gpu->reset();
+  });
+
+  uint64_t slab_voxels = req.slab_voxels;
+  if (slab_voxels == 0) {
+    // Two host buffers (one read ahead) and a device field per field: 24 bytes per slab voxel;
+    // a quarter of what the budget leaves beside the context's staging memory (not yet resident
+    // before the first upload).
+    const uint64_t held = resident_memory() + kStagingBytes, budget = memory_budget().bytes;
+    const uint64_t left = budget > held ? budget - held : 0;
+    slab_voxels = std::clamp<uint64_t>(left / 4 / 24, uint64_t(1) << 16, kDefaultSlabVoxels);
+  }
+  s.slab_slices = std::clamp<uint64_t>(slab_voxels / ref.slice_voxels(), 1, grid.dims[2]);
+
   // Ranks take whole preview boxes of z-slices, so each box's sums come from one rank.
   if (req.preview_voxels) s.preview_factor = box_factor(grid.dims, req.preview_voxels);
   std::tie(s.first_slice, s.end_slice) =
@@ -331,17 +351,13 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
   // The assembly pass: the system for the optimized TF's size (with the loss before when the
   // reference TF has another size) and the downsampled copies.
   t0 = std::chrono::steady_clock::now();
-  Buffer ref_tf_buffer;
   const FieldMapping ref_map = make_mapping(out.ref_range, static_cast<uint32_t>(req.ref_tf.size()));
   const FieldMapping opt_map = make_mapping(out.field_range, req.tf_size);
   const FieldMapping opt_with_ref_tf = make_mapping(out.field_range, static_cast<uint32_t>(req.ref_tf.size()));
   const FieldMapping* before_map = opt_with_ref_tf.tf_size != opt_map.tf_size ? &opt_with_ref_tf : nullptr;
-  std::optional<GpuNormalEquations> gpu;
   std::optional<BoxFilter> ref_box, field_box;
   double gpu_ms = 0.0;
   on_every_rank([&] {
-    ref_tf_buffer = upload_tf(ctx, req.ref_tf, "reference TF");
-    gpu.emplace(ctx, opt_map.tf_size);
     if (req.preview_voxels) {
       ref_box.emplace(ref.grid(), s.preview_factor);
       field_box.emplace(field.grid(), s.preview_factor);
