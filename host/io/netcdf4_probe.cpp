@@ -17,7 +17,7 @@
 #include <cstring>
 #include <filesystem>
 #include <mutex>
-#include <set>
+#include <map>
 #include <stdexcept>
 #include <thread>
 #include <tuple>
@@ -111,13 +111,14 @@ void check_child_status(const std::string& path, int status) {
                              "); not read");
 }
 
-// Files that passed the probe in this process, as they were then (device, inode, size,
-// modification time): a command that opens one file several times (several variables or time
-// steps of it, one per --field) starts one child, not one per open. A file changed since is
-// probed again.
+// The probe's verdict on each file probed in this process, by the file as it was then (device,
+// inode, size, modification time): empty when it passed, else the error. A command that opens
+// one file several times (several variables or time steps of it, one per --field; a slab reader,
+// then a whole load) starts one child, not one per open, and a malformed file that made HDF5 loop
+// costs one timeout, not one per open. A file changed since is probed again.
 using FileIdentity = std::tuple<dev_t, ino_t, off_t, time_t, long>;
-std::mutex g_passed_mutex;
-std::set<FileIdentity> g_passed;  // guarded by g_passed_mutex
+std::mutex g_verdicts_mutex;
+std::map<FileIdentity, std::string> g_verdicts;  // guarded by g_verdicts_mutex
 
 bool identify(const std::string& path, FileIdentity& identity) {
   struct stat st {};
@@ -184,14 +185,24 @@ void probe_netcdf4_metadata(const std::string& path, std::string_view memory, st
   FileIdentity identity;
   const bool known = memory.empty() && identify(path, identity);
   if (known) {
-    const std::lock_guard lock(g_passed_mutex);
-    if (g_passed.count(identity)) return;
+    const std::lock_guard lock(g_verdicts_mutex);
+    if (const auto v = g_verdicts.find(identity); v != g_verdicts.end()) {
+      if (v->second.empty()) return;
+      throw std::runtime_error(v->second);
+    }
   }
-  probe_uncached(path, memory, timeout);
+  std::string verdict;
+  try {
+    probe_uncached(path, memory, timeout);
+  } catch (const std::runtime_error& e) {  // Cancelled is not one: a cancelled probe has no verdict
+    verdict = e.what();
+    if (verdict.empty()) verdict = path + ": malformed netCDF-4/HDF5 file";
+  }
   if (known) {
-    const std::lock_guard lock(g_passed_mutex);
-    g_passed.insert(identity);
+    const std::lock_guard lock(g_verdicts_mutex);
+    g_verdicts.emplace(identity, verdict);
   }
+  if (!verdict.empty()) throw std::runtime_error(verdict);
 }
 
 bool run_program_isolated(const std::string& path, const std::string& program, const std::vector<std::string>& arguments,

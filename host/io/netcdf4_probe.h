@@ -31,8 +31,9 @@ bool has_hdf5_signature(std::string_view head);
 // inside HDF5), exits with a non-zero status (an abort, a sanitizer's crash report) or runs
 // longer than `timeout` (then it is killed), and checks the cancellation
 // flag (host/model/cancellation.h) while it waits. An error netCDF-C reports in the child is left
-// for the caller's own open to report. Returns quietly on success. A file (not `memory`) that
-// passed is not probed again in this process while its size and modification time stay the same.
+// for the caller's own open to report. Returns quietly on success. A file (not `memory`) is probed
+// once per process while its size and modification time stay the same: a later call gives the
+// first one's verdict (quiet, or the same error at once).
 void probe_netcdf4_metadata(const std::string& path, std::string_view memory = {},
                             std::chrono::milliseconds timeout = std::chrono::seconds(30));
 
