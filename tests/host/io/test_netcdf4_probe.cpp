@@ -11,11 +11,12 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <optional>
 #include <thread>
 
 #include "cancellation.h"
+#include "formats_test_util.h"
 #include "netcdf4_probe.h"
+#include "scoped_env.h"
 #include "volume_io.h"
 
 namespace tfm {
@@ -65,43 +66,23 @@ TEST(Netcdf4Probe, ANormalChildPassesQuietly) {
   EXPECT_EQ(error_of([] { run_isolated("fine.nc", [] {}, std::chrono::seconds(10)); }), "");
 }
 
-// A shell script standing in for the probe program: what its child does is up to the test.
+// A temporary folder for shell scripts standing in for the probe program: what their child
+// does is up to the test.
 class ScriptDir {
  public:
-  ScriptDir() : dir_(std::filesystem::temp_directory_path() / ("tfmatch_probe_scripts_" + std::to_string(getpid()))) {
-    std::filesystem::create_directories(dir_);
-  }
-  ~ScriptDir() { std::filesystem::remove_all(dir_); }
   std::string script(const std::string& name, const std::string& body) const {
-    const std::string path = (dir_ / name).string();
-    std::ofstream(path) << "#!/bin/sh\n" << body << "\n";
-    chmod(path.c_str(), 0755);
-    return path;
+    const std::string file = path(name).string();
+    std::ofstream(file) << "#!/bin/sh\n" << body << "\n";
+    chmod(file.c_str(), 0755);
+    return file;
   }
   std::filesystem::path path(const std::string& name) const { return dir_ / name; }
 
  private:
-  std::filesystem::path dir_;
+  formats_test::TempDir dir_;
 };
 
-// Sets an environment variable for one scope (ctest runs every test in its own process).
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const std::string& value) : name_(name) {
-    if (const char* old = std::getenv(name)) old_ = old;
-    setenv(name, value.c_str(), 1);
-  }
-  ~ScopedEnv() {
-    if (old_)
-      setenv(name_, old_->c_str(), 1);
-    else
-      unsetenv(name_);
-  }
-
- private:
-  const char* name_;
-  std::optional<std::string> old_;
-};
+using test::ScopedEnv;
 
 TEST(Netcdf4Probe, AProgramThatCrashesExitsOrHangsIsAnErrorNamingTheFile) {
   const ScriptDir dir;
