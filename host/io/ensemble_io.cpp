@@ -12,6 +12,7 @@
 
 #include "memory_budget.h"
 #include "parameter_names.h"
+#include "phase_timer.h"
 #include "volume_format_table.h"
 #include "volume_formats.h"
 
@@ -20,6 +21,12 @@ namespace {
 
 std::string grid_text(const Volume& v) {
   return std::to_string(v.dims[0]) + "x" + std::to_string(v.dims[1]) + "x" + std::to_string(v.dims[2]);
+}
+
+void check_member_grid(const Ensemble& e, const Volume& member) {
+  if (member.dims != e.grid.dims)
+    throw std::runtime_error("ensemble members are on different grids: " + e.member_names.front() + " is " +
+                             grid_text(e.grid) + ", " + member.name + " is " + grid_text(member));
 }
 
 // Appends member `v` to `e` (the first member sets the grid).
@@ -33,13 +40,33 @@ void add_member(Ensemble& e, Volume&& v, uint64_t expected_members) {
     check_memory(expected_members * voxels * sizeof(float),
                  v.name + ": an ensemble of " + std::to_string(expected_members) + " members of " + grid_text(v));
     e.values.reserve(expected_members * voxels);
-  } else if (v.dims != e.grid.dims) {
-    throw std::runtime_error("ensemble members are on different grids: " + e.member_names.front() + " is " +
-                             grid_text(e.grid) + ", " + v.name + " is " + grid_text(v));
+  } else {
+    check_member_grid(e, v);
   }
   e.values.insert(e.values.end(), v.values.begin(), v.values.end());
   e.member_names.push_back(v.name);
   ++e.member_count;
+}
+
+// Appends the member `spec` selects. Members after the first are read straight into their place
+// in the ensemble's values where their format reads slabs (the same values, bit for bit:
+// volume_slabs.h), instead of loaded into a volume of their own and copied (10 raw members of
+// 1.76 M voxels on a 2-core machine: loading took 142 ms, now 115, medians of 6 runs). The first
+// member is loaded whole: it sets the grid, with the axis coordinates a slab reader may leave out.
+void add_member(Ensemble& e, const std::string& spec, const VolumeOptions& options, uint64_t expected_members) {
+  if (e.member_count > 0) {
+    if (std::unique_ptr<VolumeSlabReader> reader = open_volume_slabs(spec, options)) {
+      PhaseScope timing(Phase::Read);
+      check_member_grid(e, reader->grid());
+      const uint64_t voxels = e.voxel_count(), at = e.values.size();
+      e.values.resize(at + voxels);  // within the capacity the first member reserved
+      reader->read_slices(0, e.grid.dims[2], e.values.data() + at);
+      e.member_names.push_back(reader->grid().name);
+      ++e.member_count;
+      return;
+    }
+  }
+  add_member(e, load_volume(spec, options), expected_members);
 }
 
 // The file, options and member count of an ensemble `spec` names along its member axis; throws
@@ -75,7 +102,7 @@ Ensemble load_ensemble(const std::string& spec, const VolumeOptions& defaults) {
   for (uint64_t m = 0; m < axis.count; ++m) {
     VolumeOptions o = axis.options;
     o.member_index = m;
-    add_member(e, load_volume(axis.file, o), axis.count);
+    add_member(e, axis.file, o, axis.count);
   }
   e.grid.name = axis.name();
   return e;
@@ -84,7 +111,7 @@ Ensemble load_ensemble(const std::string& spec, const VolumeOptions& defaults) {
 Ensemble load_ensemble_members(const std::vector<std::string>& specs, const VolumeOptions& options) {
   if (specs.size() > std::numeric_limits<uint32_t>::max()) throw std::runtime_error("too many member files");
   Ensemble e;
-  for (const auto& spec : specs) add_member(e, load_volume(spec, options), specs.size());
+  for (const auto& spec : specs) add_member(e, spec, options, specs.size());
   if (!specs.empty()) e.grid.name = specs.front() + " .. " + specs.back();
   return e;
 }

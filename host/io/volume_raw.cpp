@@ -152,16 +152,21 @@ class RawSlabs final : public VolumeSlabReader {
     in_.clear();
     in_.seekg(static_cast<std::streamoff>(z0 * slice_voxels() * size));
     const uint64_t block = uint64_t(1) << 22;
-    buffer_.resize(std::min(count, block) * size);
+    // Four-byte elements straight into `out`, decoded in place (as read_elements); others
+    // through a block buffer.
+    const bool in_place = size == sizeof(float);
+    if (!in_place) buffer_.resize(std::min(count, block) * size);
     for (uint64_t done = 0; done < count; done += block) {
       checkpoint("load");
       const uint64_t n = std::min(block, count - done);
-      in_.read(buffer_.data(), static_cast<std::streamsize>(n * size));
+      char* bytes = in_place ? reinterpret_cast<char*>(out + done) : buffer_.data();
+      in_.read(bytes, static_cast<std::streamsize>(n * size));
       if (!in_)
         throw std::runtime_error(data_.string() + ": read failed at byte " +
                                  std::to_string((z0 * slice_voxels() + done) * size) +
                                  " (the file is shorter than when it was opened?)");
-      decode(buffer_.data(), n, type_, big_endian_, out + done);
+      if (in_place) decode_in_place(bytes, n, type_, big_endian_);
+      else decode(buffer_.data(), n, type_, big_endian_, out + done);
     }
   }
 

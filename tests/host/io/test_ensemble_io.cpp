@@ -3,10 +3,12 @@
 #include <gtest/gtest.h>
 #include <netcdf.h>
 
+#include <bit>
 #include <cmath>
 
 #include "ensemble_io.h"
 #include "formats_test_util.h"
+#include "slab_test_files.h"
 #include "test_data.h"
 #include "vk_test_env.h"
 #include "volume_io.h"
@@ -124,6 +126,44 @@ TEST(EnsembleIo, MemberFilesAndPatterns) {
                {"different grids", "member_0.vti", "4x3x2", "odd.vti", "3x3x2"});
   expect_error([&] { expand_member_patterns({(dir / "none_*.vti").string()}); }, {"none_*.vti", "matches no file"});
   expect_error([&] { load_ensemble(files[0]); }, {"member_0.vti", "no member axis", "--members"});
+}
+
+// Members after the first are read straight into the ensemble where their format streams, and
+// loaded whole where it does not: either way each member holds what load_volume() gives it, bit
+// for bit (NaN included), and a member on another grid is refused naming both files.
+TEST(EnsembleIo, MembersReadInPlaceOrLoadedHoldTheirLoadedValues) {
+  TempDir dir;
+  const std::array<uint64_t, 3> dims{7, 5, 3};
+  std::vector<std::string> specs;
+  specs.push_back(slab_test::write_raw(dir.path(), "a", slab_test::test_field(dims, 0)).string());
+  specs.push_back(slab_test::write_vti_file(dir.path(), "b", slab_test::test_field(dims, 1), /*compressed=*/true).string());
+  specs.push_back(slab_test::write_raw(dir.path(), "c", slab_test::test_field(dims, 2)).string());
+  // Four-byte integers (decoded in place) and two-byte ones (through a block buffer).
+  std::string int32_bytes, uint16_bytes;
+  for (int i = 0; i < 7 * 5 * 3; ++i) {
+    formats_test::put<int32_t>(int32_bytes, int32_t(i * 7919) - 200000, false);
+    formats_test::put<uint16_t>(uint16_bytes, uint16_t(i * 613), false);
+  }
+  formats_test::write_bytes(dir / "d_7x5x3_int32.raw", int32_bytes);
+  formats_test::write_bytes(dir / "e_7x5x3_uint16.raw", uint16_bytes);
+  specs.push_back((dir / "d_7x5x3_int32.raw").string());
+  specs.push_back((dir / "e_7x5x3_uint16.raw").string());
+  specs.push_back(slab_test::write_vti_file(dir.path(), "f", slab_test::test_field(dims, 3), /*compressed=*/false).string());
+
+  const Ensemble e = load_ensemble_members(specs);
+  ASSERT_EQ(e.member_count, specs.size());
+  EXPECT_EQ(e.values.size(), specs.size() * 7 * 5 * 3);
+  for (uint32_t m = 0; m < e.member_count; ++m) {
+    const Volume want = load_volume(specs[m]);
+    EXPECT_EQ(e.member_names[m], want.name);
+    for (uint64_t v = 0; v < want.voxel_count(); ++v)
+      ASSERT_EQ(std::bit_cast<uint32_t>(e.view().at(m, v)), std::bit_cast<uint32_t>(want.values[v]))
+          << specs[m] << ", voxel " << v;
+  }
+
+  const auto odd = slab_test::write_raw(dir.path(), "odd", slab_test::test_field({7, 5, 4}, 4));
+  expect_error([&] { load_ensemble_members({specs[0], specs[2], odd.string()}); },
+               {"different grids", "a_7x5x3_float32.raw", "7x5x3", "odd_7x5x4_float32.raw", "7x5x4"});
 }
 
 TEST(EnsembleIo, Era5GribMembersWithCoordinates) {
