@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <vector>
 
@@ -79,9 +80,11 @@ namespace {
 std::vector<VoxelLoss> measure_voxel_losses(Context& ctx, const DeviceField& ref, const DeviceField& opt,
                                             const FieldMapping& ref_map, const FieldMapping& opt_map,
                                             const Buffer& ref_tf, const Buffer& opt_tf,
-                                            const FieldMapping* before_map, double* gpu_ms) {
+                                            const FieldMapping* before_map, double* gpu_ms,
+                                            const VoxelLossKernel* prepared = nullptr) {
   const size_t losses = before_map ? 2 : 1;
-  VoxelLossKernel kernel(ctx);
+  std::optional<VoxelLossKernel> made;
+  const VoxelLossKernel& kernel = prepared ? *prepared : made.emplace(ctx);
   Buffer accum(ctx, losses * TFM_LOSS_SLOTS * gpu::kFixedSlotBytes, MemoryUsage::Device, "voxel loss accumulators");
   CommandBatch batch(ctx);
   batch.fill(accum, 0u);
@@ -116,9 +119,9 @@ VoxelLoss voxel_loss_gpu(Context& ctx, const DeviceField& ref, const DeviceField
 
 VoxelLosses voxel_losses_gpu(Context& ctx, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
                              const FieldMapping& before_map, const FieldMapping& opt_map, const Buffer& ref_tf,
-                             const Buffer& opt_tf, double* gpu_ms) {
+                             const Buffer& opt_tf, double* gpu_ms, const VoxelLossKernel* kernel) {
   const std::vector<VoxelLoss> l =
-      measure_voxel_losses(ctx, ref, opt, ref_map, opt_map, ref_tf, opt_tf, &before_map, gpu_ms);
+      measure_voxel_losses(ctx, ref, opt, ref_map, opt_map, ref_tf, opt_tf, &before_map, gpu_ms, kernel);
   return {l[1], l[0]};
 }
 

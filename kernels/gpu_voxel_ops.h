@@ -12,6 +12,7 @@
 #include "normal_equations_system.h"
 #include "transfer_function.h"
 #include "assemble_normal_equations.h"
+#include "voxel_loss.h"
 
 namespace tfm {
 
@@ -70,13 +71,14 @@ VoxelLoss voxel_loss_gpu(Context& ctx, const DeviceField& ref, const DeviceField
 
 // The voxel losses of a fit, both in one pass over the voxels: `before`, the second field shown
 // with the reference TF (`before_map` maps it onto the reference TF's entries), and `after`, with
-// `opt_tf` through `opt_map`. Each is what voxel_loss_gpu() gives, bit for bit.
+// `opt_tf` through `opt_map`. Each is what voxel_loss_gpu() gives, bit for bit. `kernel`: one to
+// use (prepared ahead: VoxelLossKernel::prepare(true)), else one is made here.
 struct VoxelLosses {
   VoxelLoss before, after;
 };
 VoxelLosses voxel_losses_gpu(Context& ctx, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
                              const FieldMapping& before_map, const FieldMapping& opt_map, const Buffer& ref_tf,
-                             const Buffer& opt_tf, double* gpu_ms = nullptr);
+                             const Buffer& opt_tf, double* gpu_ms = nullptr, const VoxelLossKernel* kernel = nullptr);
 
 // The voxel loss of the TF `rgba` (N entries as 4N floats, the values the kernels read) from the
 // assembled system alone: per channel ||S x - b||^2 = x^T M x - 2 x^T S^T b + b^T b, no pass over

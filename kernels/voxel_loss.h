@@ -38,6 +38,10 @@ class VoxelLossKernel {
   void record(CommandBatch& batch, const ImageFieldView& ref, const ImageFieldView& opt, const FieldMapping& ref_map,
               const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, Buffer& accum,
               const FieldMapping* before_map = nullptr) const;
+  // Creates now the pipeline record() takes for fields in buffers, with the loss before
+  // optimization or without, so a caller can have it compiled on a thread of its own while other
+  // work runs (run_optimize: during the solve). No other call on this object may run meanwhile.
+  void prepare(bool with_before) const { pipeline(with_before); }
 
  private:
   // Compiled on first use; for images per x and y size (specialization constants).

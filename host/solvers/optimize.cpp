@@ -5,12 +5,14 @@
 #include <cmath>
 #include <future>
 #include <iomanip>
+#include <optional>
 #include <stdexcept>
 
 #include "cancellation.h"
 #include "device_memory.h"
 #include "memory_budget.h"
 #include "parameter_names.h"
+#include "phase_timer.h"
 #include "solver_support.h"
 
 namespace tfm {
@@ -69,6 +71,21 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   const FieldMapping opt_with_ref_tf = make_mapping(out.field_range, static_cast<uint32_t>(req.ref_tf.size()));
   if (opt_with_ref_tf.tf_size != problem.opt_map.tf_size) problem.before_map = opt_with_ref_tf;
 
+  // The MAE pass's pipeline compiles on a thread of its own while the solver runs: a driver
+  // compiles a pipeline for tens of milliseconds or more (lavapipe: the assembly's ~120 ms and
+  // this one's ~65 ms at every start, its pipeline cache holding nothing; a GPU driver on a cold
+  // cache), and the two need not wait for each other. Joined before `loss_kernel` goes, also on
+  // an exception (a std::async future waits when destroyed).
+  std::optional<VoxelLossKernel> loss_kernel;
+  std::future<void> loss_kernel_ready;
+  if (req.voxel_mae) {
+    loss_kernel.emplace(ctx);
+    loss_kernel_ready = std::async(std::launch::async, [&kernel = *loss_kernel] {
+      const UntimedThread overlapped;  // counted as the wait below
+      kernel.prepare(/*with_before=*/true);
+    });
+  }
+
   checkpoint("solve");  // every solver passes here, however few steps of its own it checks
   SolverOutput solved = solver.solve(problem, args);
   for (auto& p : solved.phases) out.phases.push_back(p);
@@ -94,9 +111,13 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   if (req.voxel_mae) {
     t0 = std::chrono::steady_clock::now();
     Buffer opt_tf_buffer = upload_tf(ctx, out.tf, "optimized TF");
+    {
+      PhaseScope waiting(Phase::Pipelines);
+      loss_kernel_ready.get();
+    }
     double gpu_ms = -1.0;  // both losses in one pass over the voxels
     const VoxelLosses mae = voxel_losses_gpu(ctx, ref, opt, problem.ref_map, opt_with_ref_tf, problem.opt_map,
-                                             ref_tf_buffer, opt_tf_buffer, &gpu_ms);
+                                             ref_tf_buffer, opt_tf_buffer, &gpu_ms, &*loss_kernel);
     out.before.absolute = mae.before.absolute;
     out.after.absolute = mae.after.absolute;
     out.phases.push_back({"voxel MAE", ms_since(t0), gpu_ms});

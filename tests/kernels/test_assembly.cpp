@@ -10,6 +10,7 @@
 #include <cstring>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "normal_equations_cpu.h"
@@ -277,6 +278,18 @@ TEST_F(AssemblyTest, VoxelLossesInOnePassAreTheSingleLossesBitForBit) {
   EXPECT_EQ(l.after.squared, single.squared);
   EXPECT_EQ(l.after.absolute, single.absolute);
   EXPECT_EQ(l.after.voxels, single.voxels);
+  // A kernel prepared on another thread (run_optimize compiles it during the solve) gives the
+  // same bits.
+  {
+    const VoxelLossKernel prepared(ctx());
+    std::thread([&] { prepared.prepare(/*with_before=*/true); }).join();
+    const VoxelLosses lp = voxel_losses_gpu(ctx(), ref, opt, rm, bm, om, rtf, otf, nullptr, &prepared);
+    EXPECT_EQ(lp.after.squared, l.after.squared);
+    EXPECT_EQ(lp.after.absolute, l.after.absolute);
+    EXPECT_EQ(lp.before.squared, l.before.squared);
+    EXPECT_EQ(lp.before.absolute, l.before.absolute);
+    EXPECT_EQ(lp.before.voxels, l.before.voxels);
+  }
   // Against the double loop: d of floats in [-0.1, 1.1] moves by < 6e-7, d^2 by < 2e-6, and
   // each term is truncated to 2^-32.
   const std::vector<float> r = ref_tf.as_floats(), o = opt_tf.as_floats();
