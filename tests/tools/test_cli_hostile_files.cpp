@@ -2,12 +2,17 @@
 // 130 KB (the 1 MB file of 1024^3 behaves the same, 8 times slower: README), a PNG header
 // of 60000^2 pixels in 70 bytes, a sparse raw file of 120 GiB. `info` streams the NRRD without
 // holding it; loading is refused before allocating, naming the file, the size and the budget;
-// peak memory stays far below 1 GiB (measured on the child process).
+// peak memory stays far below 1 GiB (measured on the child process). And a folder of downloaded
+// files holding files named like the libraries tfmatch links: never loaded.
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
 #include <zlib.h>
 
+#include <cstdio>
 #include <fstream>
+#include <set>
+#include <sstream>
 
 #include "cli_runner.h"
 
@@ -135,6 +140,44 @@ TEST(CliHostileFiles, MaxMemoryRejectsNonsense) {
   const test::CliResult r = test::run_cli("info x.raw --max-memory lots");
   EXPECT_NE(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("expected a size such as 512M"), std::string::npos) << r.output;
+}
+
+// `command` through the shell; its exit status and output (stdout and stderr together).
+std::pair<int, std::string> shell(const std::string& command) {
+  std::string out;
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return {-1, "popen failed"};
+  char buf[4096];
+  for (size_t n; (n = std::fread(buf, 1, sizeof buf, pipe)) > 0;) out.append(buf, n);
+  const int status = ::pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+// The build tree's tfmatch once ended its library search path with an empty entry (CMake's room
+// for the install to edit it), which the dynamic loader reads as the current directory: run in a
+// folder holding a file named like a library it links, it loaded that file (a garbage one stopped
+// it with "file too short"; a crafted one would have run its code). Every library it links is
+// placed in the working folder as garbage here, and tfmatch must start as if they were not there.
+TEST(CliHostileFiles, LibrariesInTheWorkingFolderAreNeverLoaded) {
+  // The libraries the dynamic loader resolves for tfmatch (what ldd prints), without binutils.
+  const auto [traced, listing] = shell("LD_TRACE_LOADED_OBJECTS=1 exec '" + std::string(TFMATCH_CLI_PATH) + "'");
+  ASSERT_EQ(traced, 0) << listing;
+  std::set<std::string> names;
+  std::istringstream lines(listing);
+  for (std::string line; std::getline(lines, line);) {
+    const size_t arrow = line.find(" => ");
+    if (arrow == std::string::npos) continue;
+    const size_t begin = line.find_first_not_of(" \t");
+    const std::string name = line.substr(begin, arrow - begin);
+    if (name.find('/') == std::string::npos && name.find(".so") != std::string::npos) names.insert(name);
+  }
+  ASSERT_TRUE(names.count("libnetcdf.so.19") || names.size() > 5) << listing;
+  TempDir dir;
+  for (const std::string& name : names) std::ofstream(dir / name) << "not a library";
+  const auto [status, output] = shell("cd '" + dir.path.string() + "' && exec '" + std::string(TFMATCH_CLI_PATH) + "' --version");
+  EXPECT_EQ(status, 0) << output;
+  EXPECT_NE(output.find("tfmatch"), std::string::npos) << output;
+  EXPECT_EQ(output.find("error while loading shared libraries"), std::string::npos) << output;
 }
 
 }  // namespace
