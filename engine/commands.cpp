@@ -106,7 +106,7 @@ CommandBatch::~CommandBatch() {
   // A batch recorded but never submitted, or destroyed by an exception mid-wait, must not be
   // freed while the device may still use it.
   if (submitted_ && !waited_) {
-    PhaseScope timing(Phase::Compute);
+    PhaseScope timing(Phase::Compute, PhaseScope::Nesting::YieldToOuter);
     vk.vkWaitForFences(ctx_.device(), 1, &fence_, VK_TRUE, UINT64_MAX);
   }
   if (queries_) vk.vkDestroyQueryPool(ctx_.device(), queries_, nullptr);
@@ -447,8 +447,8 @@ void CommandBatch::wait() {
   if (external_) throw std::logic_error("CommandBatch: the host waits for its own command buffer");
   if (!submitted_) throw std::logic_error("CommandBatch waited for before it was submitted");
   if (waited_) return;
-  // Device work waited for inside an upload or a readback counts as that transfer (nested scopes).
-  PhaseScope timing(Phase::Compute);
+  // Device work waited for inside an upload or a readback counts as that transfer.
+  PhaseScope timing(Phase::Compute, PhaseScope::Nesting::YieldToOuter);
   const auto& vk = ctx_.vk();
   VK_CHECK(vk.vkWaitForFences(ctx_.device(), 1, &fence_, VK_TRUE, UINT64_MAX));
   waited_ = true;

@@ -51,7 +51,8 @@ double seconds_since_start() {
 UntimedThread::UntimedThread() : was_untimed_(std::exchange(t_untimed, true)) {}
 UntimedThread::~UntimedThread() { t_untimed = was_untimed_; }
 
-PhaseScope::PhaseScope(Phase phase) : phase_(phase), counts_(!t_untimed), outer_(t_innermost) {
+PhaseScope::PhaseScope(Phase phase, Nesting nesting)
+    : phase_(phase), counts_(!t_untimed && !(nesting == Nesting::YieldToOuter && t_innermost)), outer_(t_innermost) {
   if (!counts_) return;
   const double now = seconds_since_start();
   if (outer_) PhaseClock::pause(*outer_, now);

@@ -30,7 +30,10 @@ std::string_view phase_name(Phase phase);
 // phases may then exceed the process's wall time.
 class PhaseScope {
  public:
-  explicit PhaseScope(Phase phase);
+  // YieldToOuter: count only when no other scope is open on this thread; inside one, that one
+  // keeps counting (a wait for the device inside an upload is the upload's time, not compute).
+  enum class Nesting { Count, YieldToOuter };
+  explicit PhaseScope(Phase phase, Nesting nesting = Nesting::Count);
   ~PhaseScope();
   PhaseScope(const PhaseScope&) = delete;
   PhaseScope& operator=(const PhaseScope&) = delete;
