@@ -102,7 +102,8 @@ Buffer::Buffer(Context& ctx, uint64_t bytes, MemoryUsage usage, const std::strin
     VK_CHECK(vk.vkMapMemory(ctx.device(), memory_, 0, VK_WHOLE_SIZE, 0, &mapped_));
 }
 
-Buffer Buffer::import_host(Context& ctx, void* pointer, uint64_t bytes, const std::string& debug_name) {
+Buffer Buffer::import_host(Context& ctx, void* pointer, uint64_t bytes, const std::string& debug_name,
+                           bool kernels_read) {
   const uint64_t align = ctx.min_import_alignment();
   if (!align || !bytes || reinterpret_cast<uintptr_t>(pointer) % align || bytes % align) return {};
   const auto& vk = ctx.vk();
@@ -120,6 +121,7 @@ Buffer Buffer::import_host(Context& ctx, void* pointer, uint64_t bytes, const st
   info.pNext = &external;
   info.size = bytes;
   info.usage = VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+  if (kernels_read) info.usage |= VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT;
   info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
   if (vk.vkCreateBuffer(ctx.device(), &info, nullptr, &b.buffer_) != VK_SUCCESS) return {};
   ctx.set_debug_name(VK_OBJECT_TYPE_BUFFER, reinterpret_cast<uint64_t>(b.buffer_), debug_name.c_str());

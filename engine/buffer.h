@@ -31,8 +31,10 @@ class Buffer {
   // from or to it in place. The memory must stay allocated, and the host must not touch it while
   // the device uses it. Returns an empty Buffer when the device cannot import that memory (no
   // extension, a read-only mapping, no host-coherent type for it). Not counted in buffer_bytes():
-  // it allocates nothing.
-  static Buffer import_host(Context& ctx, void* pointer, uint64_t bytes, const std::string& debug_name);
+  // it allocates nothing. `kernels_read`: kernels may also bind it as a storage or uniform texel
+  // buffer, to read the host memory in place (DeviceField::in_host_memory).
+  static Buffer import_host(Context& ctx, void* pointer, uint64_t bytes, const std::string& debug_name,
+                            bool kernels_read = false);
   // A view of `bytes` of a caller's device buffer from `offset` (an embedder's volume or TF
   // already on the device): kernels bind that range and copies address it, nothing is allocated,
   // and destroying the view leaves the caller's buffer alone. The buffer needs the usages the

@@ -1,6 +1,8 @@
 // Chunked device fields.
 #include "device_field.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <stdexcept>
 
@@ -38,6 +40,33 @@ DeviceField DeviceField::adopt(Context& ctx, VkBuffer buffer, uint64_t offset, u
   for (size_t i = 0; i < field.planned_chunks(); ++i)
     field.chunks_.push_back(Buffer::adopt(ctx, buffer, offset + field.chunk_begin(i) * bytes,
                                           field.chunk_size(i) * bytes, name + " chunk " + std::to_string(i)));
+  return field;
+}
+
+std::optional<DeviceField> DeviceField::in_host_memory(Context& ctx, std::span<const float> values,
+                                                       const std::string& name, uint64_t max_chunk_voxels) {
+  if (values.empty() || !ctx.host_import() || ctx.properties().deviceType != VK_PHYSICAL_DEVICE_TYPE_CPU)
+    return std::nullopt;
+  // The import takes whole aligned units around the values: no more than the pages they lie in,
+  // which are mapped as a whole (a larger alignment could reach unmapped memory).
+  const uint64_t align = ctx.min_import_alignment();
+  const long page = ::sysconf(_SC_PAGESIZE);
+  if (page <= 0 || align > uint64_t(page) || (align & (align - 1))) return std::nullopt;
+  const uintptr_t first = reinterpret_cast<uintptr_t>(values.data()), last = first + values.size_bytes();
+  const uintptr_t begin = first / align * align, end = (last + align - 1) / align * align;
+  const VkPhysicalDeviceLimits& limits = ctx.limits();
+  const uint64_t offset_align = std::max<uint64_t>(limits.minStorageBufferOffsetAlignment, limits.minTexelBufferOffsetAlignment);
+  DeviceField field(ChunkingOnly{}, ctx, values.size(), max_chunk_voxels, name);
+  for (size_t i = 0; i < field.planned_chunks(); ++i)
+    if ((first - begin + field.chunk_begin(i) * sizeof(float)) % offset_align) return std::nullopt;
+  // Kernels only read fields, so the caller's memory is never written through this import.
+  field.host_memory_ = Buffer::import_host(ctx, reinterpret_cast<void*>(begin), end - begin, name + " (host memory)",
+                                           /*kernels_read=*/true);
+  if (!field.host_memory_) return std::nullopt;
+  for (size_t i = 0; i < field.planned_chunks(); ++i)
+    field.chunks_.push_back(Buffer::adopt(ctx, field.host_memory_.handle(),
+                                          first - begin + field.chunk_begin(i) * sizeof(float),
+                                          field.chunk_size(i) * sizeof(float), name + " chunk " + std::to_string(i)));
   return field;
 }
 
@@ -95,6 +124,7 @@ void DeviceField::upload(std::span<const float> values) {
   if (format_ != FieldFormat::Float32)
     throw std::logic_error(std::string("DeviceField::upload: the field stores ") + field_format_name(format_) +
                            ", not float32 (it is the caller's buffer: write it there)");
+  if (host_memory_) throw std::logic_error("DeviceField::upload: the field is the caller's host memory (in_host_memory): write the values there");
   if (values.size() != voxels_) throw std::invalid_argument("DeviceField::upload: size mismatch");
   for (size_t i = 0; i < chunks_.size(); ++i)
     tfm::upload(*ctx_, chunks_[i], values.data() + chunk_begin(i), chunk_size(i) * sizeof(float));

@@ -10,12 +10,15 @@
 #include <cstring>
 #include <limits>
 #include <map>
+#include <memory>
+#include <optional>
 #include <stdexcept>
 #include <tuple>
 
 #include "buffer.h"
 #include "commands.h"
 #include "context.h"
+#include "device_field.h"
 #include "correlation_layout.h"
 #include "correlation_reference.h"
 #include "pipeline.h"
@@ -255,6 +258,16 @@ namespace {
 
 constexpr uint64_t kDefaultDeviceBytes = 256ull << 20;
 
+// The whole member-major ensemble as one device field over its host memory, or null where the
+// device reads a copy (DeviceField::in_host_memory) or it takes more than one buffer.
+std::unique_ptr<DeviceField> ensemble_in_host_memory(Context& ctx, const EnsembleView& ens) {
+  const uint64_t values = ens.voxel_count * ens.member_count;
+  std::optional<DeviceField> field =
+      DeviceField::in_host_memory(ctx, std::span<const float>(ens.values, values), "correlation ensemble", values);
+  if (!field || field->chunk_count() != 1) return nullptr;
+  return std::make_unique<DeviceField>(std::move(*field));
+}
+
 // The region and histogram sizes are fixed by the member count; a device with less shared memory
 // or smaller workgroups than they need cannot run this measure at this size.
 void check_device_fits(const Context& ctx, const Plan& plan, const std::string& name, uint32_t members) {
@@ -341,14 +354,19 @@ std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span
   Buffer order = make_buffer<uint32_t>(ctx, ref.order, "correlation reference order");
   Buffer group = make_buffer<uint32_t>(ctx, ref.group, "correlation reference tie groups");
   Buffer table = make_buffer<float>(ctx, ref.table, "correlation count table");
-  Buffer& series = impl_->kept(impl_->series, chunk * members * sizeof(float), "correlation ensemble chunk");
+  // A member-major ensemble in one chunk is read where it is on a CPU device (its memory is host
+  // memory anyway: DeviceField::in_host_memory), instead of copied into a buffer of its own.
+  const std::unique_ptr<DeviceField> in_place =
+      !plan.group_per_voxel && chunk == voxels ? ensemble_in_host_memory(ctx, ens) : nullptr;
+  const Buffer& series = in_place ? in_place->chunk(0)
+                                  : impl_->kept(impl_->series, chunk * members * sizeof(float), "correlation ensemble chunk");
   Buffer& result = impl_->kept(impl_->result, chunk * sizeof(float), "correlation result chunk");
   gpu::CorrelationPush push = make_push(ref);
   for (uint64_t v0 = 0; v0 < voxels; v0 += chunk) {
     const uint32_t n = uint32_t(std::min(chunk, voxels - v0));
     // Each transfer waits for its copies, so the chunk is on the device before the kernel reads it
     // (and the previous chunk's kernel, waited for below, has finished reading `series`).
-    upload_chunk(ctx, ens, v0, n, plan.group_per_voxel, impl_->gathered, series);
+    if (!in_place) upload_chunk(ctx, ens, v0, n, plan.group_per_voxel, impl_->gathered, impl_->series);
     push.voxel_count = n;
     push.member_stride = n;  // of a member-major chunk (upload_chunk)
     CommandBatch batch(ctx);

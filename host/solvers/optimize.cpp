@@ -50,8 +50,15 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
 
   check_device_memory(ctx, 2 * req.ref->values.size() * sizeof(float), "uploading both fields");
   auto t0 = std::chrono::steady_clock::now();
-  DeviceField ref(ctx, req.ref->values, "reference field", req.max_chunk_voxels);
-  DeviceField opt(ctx, req.field->values, "second field", req.max_chunk_voxels);
+  // On a CPU device the fields are read where they are in host memory; elsewhere uploaded. Both
+  // outlive these views (the request's volumes).
+  auto on_device = [&](const Volume& v, const std::string& name) {
+    if (std::optional<DeviceField> f = DeviceField::in_host_memory(ctx, v.values, name, req.max_chunk_voxels))
+      return std::move(*f);
+    return DeviceField(ctx, v.values, name, req.max_chunk_voxels);
+  };
+  DeviceField ref = on_device(*req.ref, "reference field");
+  DeviceField opt = on_device(*req.field, "second field");
   Buffer ref_tf_buffer = upload_tf(ctx, req.ref_tf, "reference TF");
   out.phases.push_back({"upload", ms_since(t0), -1.0});
 

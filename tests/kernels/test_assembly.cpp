@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdio>
 #include <cstring>
+#include <optional>
 #include <random>
 #include <string>
 #include <thread>
@@ -128,6 +129,36 @@ TEST_F(AssemblyTest, DeterministicAcrossRunsPathsAndWorkgroups) {
         expect_exact(run(options), exact);
       }
     }
+}
+
+// Fields read where they are in host memory (a CPU device: DeviceField::in_host_memory) give the
+// exact sums of uploaded ones, whole and in chunks, from a large allocation (its own pages) and a
+// small one (inside the heap), and leave the caller's values as they were.
+TEST_F(AssemblyTest, FieldsInHostMemoryGiveTheExactSums) {
+  if (ctx().properties().deviceType != VK_PHYSICAL_DEVICE_TYPE_CPU || !ctx().host_import())
+    GTEST_SKIP() << ctx().device_name() << ": fields in host memory are for CPU devices that import host memory";
+  TransferFunction ref_tf = random_tf(64, 5);
+  const FieldMapping rm = make_mapping({0.0, 1.0}, 64), om = make_mapping({3.0, 8.0}, 64);
+  const Buffer tf = upload_tf(ctx(), ref_tf, "tf");
+  for (const size_t n : {size_t(13), size_t(5000), size_t(300001)}) {
+    const Pair p = random_pair(n, 11, 64);
+    const Pair before = p;
+    const std::vector<uint64_t> exact = assemble_normal_equations_fixed_point(p.ref, p.opt, rm, om, ref_tf);
+    for (const uint64_t chunk : {uint64_t(0), uint64_t(4096)}) {
+      SCOPED_TRACE(std::to_string(n) + " voxels, chunks of " + (chunk ? std::to_string(chunk) : "the device's size"));
+      std::optional<DeviceField> ref = DeviceField::in_host_memory(ctx(), p.ref, "ref", chunk);
+      std::optional<DeviceField> opt = DeviceField::in_host_memory(ctx(), p.opt, "opt", chunk);
+      ASSERT_TRUE(ref && opt);  // malloc's 16-byte alignment meets lavapipe's offset alignment
+      EXPECT_TRUE(ref->in_host_memory());
+      if (chunk) EXPECT_GT(ref->chunk_count(), n > chunk ? 1u : 0u);
+      GpuNormalEquations gpu(ctx(), 64);
+      gpu.add(*ref, *opt, rm, om, tf);
+      expect_exact(gpu.fixed_point_slots(), exact);
+      EXPECT_THROW(ref->upload(p.ref), std::logic_error);
+    }
+    ASSERT_EQ(std::memcmp(p.ref.data(), before.ref.data(), n * sizeof(float)), 0);
+    ASSERT_EQ(std::memcmp(p.opt.data(), before.opt.data(), n * sizeof(float)), 0);
+  }
 }
 
 // The multi-threaded CPU loop `tfmatch bench` compares against: the one-thread reference's sums
