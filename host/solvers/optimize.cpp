@@ -48,17 +48,15 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
     if (!w.empty()) out.warnings.push_back(std::move(w));
   }
 
-  check_device_memory(ctx, 2 * req.ref->values.size() * sizeof(float), "uploading both fields");
   auto t0 = std::chrono::steady_clock::now();
-  // On a CPU device the fields are read where they are in host memory; elsewhere uploaded. Both
-  // outlive these views (the request's volumes).
-  auto on_device = [&](const Volume& v, const std::string& name) {
-    if (std::optional<DeviceField> f = DeviceField::in_host_memory(ctx, v.values, name, req.max_chunk_voxels))
-      return std::move(*f);
-    return DeviceField(ctx, v.values, name, req.max_chunk_voxels);
-  };
-  DeviceField ref = on_device(*req.ref, "reference field");
-  DeviceField opt = on_device(*req.field, "second field");
+  // On a CPU device the fields are read where they are in host memory (the request's volumes
+  // outlive these views); elsewhere they are uploaded, after a check that the device holds them.
+  std::optional<DeviceField> ref_in_place = DeviceField::in_host_memory(ctx, req.ref->values, "reference field", req.max_chunk_voxels);
+  std::optional<DeviceField> opt_in_place = DeviceField::in_host_memory(ctx, req.field->values, "second field", req.max_chunk_voxels);
+  const uint64_t copies = (ref_in_place ? 0 : 1) + (opt_in_place ? 0 : 1);
+  if (copies) check_device_memory(ctx, copies * req.ref->values.size() * sizeof(float), "uploading the fields");
+  DeviceField ref = ref_in_place ? std::move(*ref_in_place) : DeviceField(ctx, req.ref->values, "reference field", req.max_chunk_voxels);
+  DeviceField opt = opt_in_place ? std::move(*opt_in_place) : DeviceField(ctx, req.field->values, "second field", req.max_chunk_voxels);
   Buffer ref_tf_buffer = upload_tf(ctx, req.ref_tf, "reference TF");
   out.phases.push_back({"upload", ms_since(t0), -1.0});
 
