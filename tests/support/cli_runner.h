@@ -149,6 +149,19 @@ class CliProcess {
   std::chrono::steady_clock::time_point start_;
 };
 
+// Any shell `command` run to its end, stdout and stderr together: its exit status (-1 when it did
+// not exit normally) and output. For commands that are not a single tfmatch (mpirun, cd && ...).
+inline CliResult run_shell(const std::string& command) {
+  CliResult r;
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  char buffer[4096];
+  for (size_t n; (n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0;) r.output.append(buffer, n);
+  const int status = ::pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
 // `tfmatch ARGS` (through the shell: ARGS may quote and redirect) with extra environment
 // variables, run to its end or killed at `timeout`; stdout and stderr together.
 inline CliResult run_cli(const std::string& args, std::chrono::milliseconds timeout = kCliTimeout,

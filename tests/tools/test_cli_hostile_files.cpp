@@ -6,10 +6,8 @@
 // files holding files named like the libraries tfmatch links: never loaded.
 #include <gtest/gtest.h>
 
-#include <sys/wait.h>
 #include <zlib.h>
 
-#include <cstdio>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -142,17 +140,6 @@ TEST(CliHostileFiles, MaxMemoryRejectsNonsense) {
   EXPECT_NE(r.output.find("expected a size such as 512M"), std::string::npos) << r.output;
 }
 
-// `command` through the shell; its exit status and output (stdout and stderr together).
-std::pair<int, std::string> shell(const std::string& command) {
-  std::string out;
-  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
-  if (!pipe) return {-1, "popen failed"};
-  char buf[4096];
-  for (size_t n; (n = std::fread(buf, 1, sizeof buf, pipe)) > 0;) out.append(buf, n);
-  const int status = ::pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
-
 // The build tree's tfmatch once ended its library search path with an empty entry (CMake's room
 // for the install to edit it), which the dynamic loader reads as the current directory: run in a
 // folder holding a file named like a library it links, it loaded that file (a garbage one stopped
@@ -160,8 +147,9 @@ std::pair<int, std::string> shell(const std::string& command) {
 // placed in the working folder as garbage here, and tfmatch must start as if they were not there.
 TEST(CliHostileFiles, LibrariesInTheWorkingFolderAreNeverLoaded) {
   // The libraries the dynamic loader resolves for tfmatch (what ldd prints), without binutils.
-  const auto [traced, listing] = shell("LD_TRACE_LOADED_OBJECTS=1 exec '" + std::string(TFMATCH_CLI_PATH) + "'");
-  ASSERT_EQ(traced, 0) << listing;
+  const test::CliResult traced = test::run_shell("LD_TRACE_LOADED_OBJECTS=1 exec '" + std::string(TFMATCH_CLI_PATH) + "'");
+  ASSERT_EQ(traced.exit_code, 0) << traced.output;
+  const std::string& listing = traced.output;
   std::set<std::string> names;
   std::istringstream lines(listing);
   for (std::string line; std::getline(lines, line);) {
@@ -174,10 +162,11 @@ TEST(CliHostileFiles, LibrariesInTheWorkingFolderAreNeverLoaded) {
   ASSERT_TRUE(names.count("libnetcdf.so.19") || names.size() > 5) << listing;
   TempDir dir;
   for (const std::string& name : names) std::ofstream(dir / name) << "not a library";
-  const auto [status, output] = shell("cd '" + dir.path.string() + "' && exec '" + std::string(TFMATCH_CLI_PATH) + "' --version");
-  EXPECT_EQ(status, 0) << output;
-  EXPECT_NE(output.find("tfmatch"), std::string::npos) << output;
-  EXPECT_EQ(output.find("error while loading shared libraries"), std::string::npos) << output;
+  const test::CliResult r =
+      test::run_shell("cd '" + dir.path.string() + "' && exec '" + std::string(TFMATCH_CLI_PATH) + "' --version");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("tfmatch"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("error while loading shared libraries"), std::string::npos) << r.output;
 }
 
 }  // namespace

@@ -43,14 +43,7 @@ void mpi_environment() {
 // `COMMAND` through the shell, stdout and stderr together, within 5 minutes.
 test::CliResult run_shell(const std::string& command) {
   mpi_environment();
-  test::CliResult r;
-  FILE* pipe = popen(("timeout 300 " + command + " 2>&1").c_str(), "r");
-  if (!pipe) return r;
-  char buffer[4096];
-  for (size_t n; (n = fread(buffer, 1, sizeof buffer, pipe)) > 0;) r.output.append(buffer, n);
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+  return test::run_shell("timeout 300 " + command);
 }
 
 // `mpirun --oversubscribe -n R tfmatch ARGS` (OpenMPI's launcher; ranks may outnumber the cores).
