@@ -119,15 +119,14 @@ __global__ void direction_kernel(uint32_t n, const double* s, const double* inv_
 
 }  // namespace
 
-CglsOutcome cgls(const DeviceSystem& system, const CglsParams& prm) {
+CglsOutcome cgls(const SystemOnDevice& sys, const CglsParams& prm) {
   const uint32_t n = prm.n;
-  const DeviceSystem::Impl& sys = system.impl();
-  if (n != sys.n || prm.inv_diag.size() != n || n < 2 || system.voxels() == 0)
+  if (n != sys.n || prm.inv_diag.size() != n || n < 2 || sys.voxels() == 0)
     throw std::invalid_argument("cuda::cgls: sizes of the system and the Jacobi diagonal do not match, or no voxels");
   CglsOutcome out;
   SparseHandle handle;
   auto t0 = std::chrono::steady_clock::now();
-  const uint64_t m = 4 * system.voxels();  // rows of A: q and r are voxels x 4, row-major
+  const uint64_t m = 4 * sys.voxels();  // rows of A: q and r are voxels x 4, row-major
   DeviceArray<double> r(m), q(m), s(4 * size_t(n)), x(4 * size_t(n)), p(4 * size_t(n));
   if (m) check(cudaMemcpy(r.get(), sys.b.get(), m * sizeof(double), cudaMemcpyDeviceToDevice), "r = b");
   DeviceArray<double> inv_diag(prm.inv_diag.data(), n), partials(4 * size_t(kPartialBlocks));
@@ -135,7 +134,7 @@ CglsOutcome cgls(const DeviceSystem& system, const CglsParams& prm) {
   DeviceArray<char> buffer;
   // A v for an interleaved v is S V for the n x 4 matrix V: the products run on S and S^T.
   const SpMat mat_s(sys.s), mat_st(sys.st);
-  const int64_t voxels = int64_t(system.voxels());
+  const int64_t voxels = int64_t(sys.voxels());
   const DnMat mat_p(n, 4, p.get()), mat_q(voxels, 4, q.get()), mat_r(voxels, 4, r.get()), mat_sv(n, 4, s.get());
   check(cudaDeviceSynchronize(), "CGLS set-up");
   out.setup_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();

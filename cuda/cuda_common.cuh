@@ -107,15 +107,32 @@ struct DeviceCsr {
 // A^T as CSR (cusparseCsr2cscEx2: the CSC of A is the CSR of A^T).
 DeviceCsr transpose(cusparseHandle_t handle, const DeviceCsr& a);
 
-// What DeviceFields and DeviceSystem (cuda_solvers.h) hold behind their plain C++ faces.
-struct DeviceFields::Impl {
+// What DeviceFields and DeviceSystem (cuda_solvers.h) are in this plugin.
+class FieldsOnDevice final : public DeviceFields {
+ public:
+  FieldsOnDevice(std::span<const float> ref_values, std::span<const float> opt_values);  // explicit_system.cu
   DeviceArray<float> ref, opt;
 };
-struct DeviceSystem::Impl {
+class SystemOnDevice final : public DeviceSystem {
+ public:
+  SystemOnDevice(const FieldsOnDevice& fields, const FieldMapping& ref_map, const FieldMapping& opt_map,
+                 std::span<const float> ref_tf_rgba);  // explicit_system.cu
+  std::vector<double> column_norms() const override;
+  Host download() const override;
   DeviceCsr s, st;        // S (a row per voxel with data, 2 non-zeros a row, n columns) and S^T
   DeviceArray<double> b;  // voxels x 4 row-major: RGBA per voxel with data
   uint32_t n = 0;         // TF entries
 };
+
+// The Backend's calls (cuda_solvers.h), one .cu file each: cuda_common.cu, normal_equations_cusparse.cu,
+// normal_equations_direct.cu, cgls_cusparse.cu.
+bool device_available(std::string* why = nullptr);
+void require_device(const std::string& who);
+std::string device_name();
+CusparseAssembly assemble_cusparse(const SystemOnDevice& system);
+DirectAssembly assemble_direct(const FieldsOnDevice& fields, const FieldMapping& ref_map, const FieldMapping& opt_map,
+                               std::span<const float> ref_tf_rgba);
+CglsOutcome cgls(const SystemOnDevice& system, const CglsParams& params);
 
 // tf_coordinate() of host/model/field_mapping.h with explicitly rounded float operations (the _rn
 // intrinsics are never fused into FMAs), so j and w are bit-identical to the host's.

@@ -78,33 +78,29 @@ __global__ void column_norm_kernel(const int* at_row_ptr, const double* at_val, 
 
 }  // namespace
 
-DeviceFields::DeviceFields(std::span<const float> ref, std::span<const float> opt) : impl_(std::make_unique<Impl>()) {
-  if (ref.size() != opt.size())
-    throw std::invalid_argument("CUDA fields: the two fields have " + std::to_string(ref.size()) + " and " +
-                                std::to_string(opt.size()) + " voxels");
+FieldsOnDevice::FieldsOnDevice(std::span<const float> ref_values, std::span<const float> opt_values) {
+  if (ref_values.size() != opt_values.size())
+    throw std::invalid_argument("CUDA fields: the two fields have " + std::to_string(ref_values.size()) + " and " +
+                                std::to_string(opt_values.size()) + " voxels");
   const auto t0 = std::chrono::steady_clock::now();
-  voxels_ = ref.size();
-  impl_->ref = DeviceArray<float>(ref.data(), ref.size());
-  impl_->opt = DeviceArray<float>(opt.data(), opt.size());
+  voxels_ = ref_values.size();
+  ref = DeviceArray<float>(ref_values.data(), ref_values.size());
+  opt = DeviceArray<float>(opt_values.data(), opt_values.size());
   check(cudaDeviceSynchronize(), "upload of the fields");
   upload_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-DeviceFields::~DeviceFields() = default;
-
-DeviceSystem::DeviceSystem(const DeviceFields& fields, const FieldMapping& ref_map, const FieldMapping& opt_map,
-                           std::span<const float> ref_tf_rgba)
-    : impl_(std::make_unique<Impl>()) {
+SystemOnDevice::SystemOnDevice(const FieldsOnDevice& f, const FieldMapping& ref_map, const FieldMapping& opt_map,
+                               std::span<const float> ref_tf_rgba) {
   const uint32_t n = opt_map.tf_size;
   if (n < 2 || ref_map.tf_size < 2 || ref_tf_rgba.size() != size_t(ref_map.tf_size) * 4)
     throw std::invalid_argument("CUDA system: the TFs need at least 2 entries and the reference TF 4 floats each");
-  const uint64_t count = fields.voxels();
+  const uint64_t count = f.voxels();
   if (count > kMaxVoxels)
     throw std::invalid_argument("CUDA system: " + std::to_string(count) + " voxels exceed the " +
                                 std::to_string(kMaxVoxels) +
                                 " that S's 32-bit CSR indices hold (2 non-zeros per voxel)");
-  const DeviceFields::Impl& f = fields.impl();
-  Impl& s = *impl_;
+  SystemOnDevice& s = *this;
   s.n = n;
   EventTimer timer;
   timer.start();
@@ -148,17 +144,15 @@ DeviceSystem::DeviceSystem(const DeviceFields& fields, const FieldMapping& ref_m
   btb_ = squared_norms_per_channel(s.b.get(), 4 * rows);
 }
 
-DeviceSystem::~DeviceSystem() = default;
-
-std::vector<double> DeviceSystem::column_norms() const {
-  DeviceArray<double> out(impl_->n);
-  column_norm_kernel<<<impl_->n, kThreads>>>(impl_->st.row_ptr.get(), impl_->st.val.get(), out.get());
+std::vector<double> SystemOnDevice::column_norms() const {
+  DeviceArray<double> out(n);
+  column_norm_kernel<<<n, kThreads>>>(st.row_ptr.get(), st.val.get(), out.get());
   check(cudaGetLastError(), "column_norm_kernel");
   return out.download();
 }
 
-DeviceSystem::Host DeviceSystem::download() const {
-  return {impl_->s.row_ptr.download(), impl_->s.col.download(), impl_->s.val.download(), impl_->b.download()};
+DeviceSystem::Host SystemOnDevice::download() const {
+  return {s.row_ptr.download(), s.col.download(), s.val.download(), b.download()};
 }
 
 }  // namespace tfm::cuda

@@ -62,9 +62,8 @@ DeviceCsr spgemm_ata(cusparseHandle_t handle, const DeviceCsr& at, const DeviceC
 
 }  // namespace
 
-CusparseAssembly assemble_cusparse(const DeviceSystem& system) {
-  const DeviceSystem::Impl& sys = system.impl();
-  if (system.voxels() == 0) throw std::invalid_argument("assemble_cusparse: no voxel has data in both fields");
+CusparseAssembly assemble_cusparse(const SystemOnDevice& sys) {
+  if (sys.voxels() == 0) throw std::invalid_argument("assemble_cusparse: no voxel has data in both fields");
   CusparseAssembly out;
   SparseHandle handle;
   EventTimer timer;

@@ -90,12 +90,11 @@ __global__ void assemble_kernel(const float* ref, const float* opt, uint64_t cou
 
 }  // namespace
 
-DirectAssembly assemble_direct(const DeviceFields& fields, const FieldMapping& ref_map, const FieldMapping& opt_map,
+DirectAssembly assemble_direct(const FieldsOnDevice& f, const FieldMapping& ref_map, const FieldMapping& opt_map,
                                std::span<const float> ref_tf_rgba) {
   if (ref_tf_rgba.size() != size_t(ref_map.tf_size) * 4 || opt_map.tf_size < 2)
     throw std::invalid_argument("assemble_direct: the reference TF does not match its mapping");
-  const DeviceFields::Impl& f = fields.impl();
-  const size_t voxels = fields.voxels();
+  const size_t voxels = f.voxels();
   DirectAssembly out;
   const uint32_t n = opt_map.tf_size;
   const size_t slots = 6 * size_t(n) + 8;  // TFM_ASSEMBLE_SLOTS(n)

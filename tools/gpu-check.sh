@@ -110,6 +110,10 @@ part_solvers() {
     --solvers eigen-normal-equations,eigen-cgls --json "$out/solvers-combustion-cpu.json"
 }
 part_cuda() {
+  # The CUDA solvers are a plugin beside the program (host/solvers/cuda/cuda_backend.h): a bundle
+  # that left it behind fails every CUDA step, so say so once, first.
+  [ -f "$build/libtfmatch_cuda.so" ] || echo "cuda: no $build/libtfmatch_cuda.so: the CUDA solvers cannot load" \
+    | tee -a "$out/summary.txt"
   if command -v ctest >/dev/null; then
     step cuda-tests 120 ctest --test-dir "$build" -j"$jobs" --output-on-failure -R '^Cuda'
   else

@@ -96,11 +96,19 @@ foreach(export ${main_exports})
 endforeach()
 if(EXISTS ${prefix}/lib/cmake/tfmatch/tfmatchCudaTargets.cmake)
   file(WRITE ${WORK_DIR}/cuda_component/main.cpp "#include <cstdio>
+#include <stdexcept>
+#include <tfmatch/cuda/cuda_backend.h>
 #include <tfmatch/cuda/cuda_solver_registration.h>
 #include <tfmatch/solvers/solver.h>
 int main() {
   tfm::register_cuda_solvers();
   for (const auto& name : tfm::solver_names()) std::printf(\"%s\\n\", name.c_str());
+  try {
+    std::printf(\"plugin loaded, CUDA device: %d\\n\", int(tfm::cuda::backend(\"list_solvers\").device_available()));
+  } catch (const std::runtime_error& e) {
+    std::printf(\"%s\\n\", e.what());
+    return 1;
+  }
 }
 ")
   file(WRITE ${WORK_DIR}/cuda_component/CMakeLists.txt "cmake_minimum_required(VERSION 3.20)
@@ -111,11 +119,23 @@ add_executable(list_solvers main.cpp)
 target_link_libraries(list_solvers PRIVATE tfmatch::cuda)
 ")
   build_against_package(${WORK_DIR}/cuda_component ${WORK_DIR}/cuda_component/build)
-  run(${WORK_DIR}/cuda_component/build/list_solvers)
-  if(NOT run_output MATCHES "cuda-cgls" OR NOT run_output MATCHES "cuda-normal-equations")
-    message(FATAL_ERROR "the cuda component did not add the CUDA solvers:\n${run_output}")
+  # A program of the embedder's, elsewhere, names the installed plugin.
+  run(${CMAKE_COMMAND} -E env TFMATCH_CUDA_PLUGIN=${prefix}/lib/tfmatch/libtfmatch_cuda.so
+      ${WORK_DIR}/cuda_component/build/list_solvers)
+  if(NOT run_output MATCHES "cuda-cgls" OR NOT run_output MATCHES "cuda-normal-equations"
+     OR NOT run_output MATCHES "plugin loaded")
+    message(FATAL_ERROR "the cuda component did not add the CUDA solvers or load the plugin:\n${run_output}")
   endif()
-  message(STATUS "the cuda component adds the CUDA solvers to the registry")
+  message(STATUS "the cuda component adds the CUDA solvers to the registry and loads the installed plugin")
+  # The installed program finds its plugin in ../lib/tfmatch by itself: a CUDA solver either runs
+  # or says there is no CUDA device (not that the plugin is missing).
+  execute_process(COMMAND ${CMAKE_COMMAND} -E env --unset=TFMATCH_CUDA_PLUGIN ${prefix}/bin/tfmatch demo --size 8
+                          --solver cuda-cgls --no-report --out ${WORK_DIR}/cuda_demo
+                  RESULT_VARIABLE result OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT result EQUAL 0 AND NOT err MATCHES "cuda-cgls: no CUDA device available")
+    message(FATAL_ERROR "the installed tfmatch did not run cuda-cgls (${result}):\n${out}\n${err}")
+  endif()
+  message(STATUS "the installed tfmatch loads its CUDA plugin: ${result}")
 else()
   message(STATUS "no cuda component in this package (built without TFMATCH_CUDA)")
 endif()

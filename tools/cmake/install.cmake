@@ -9,7 +9,8 @@
 #                     Vulkan, no engine (a program that only reads files links no GPU code)
 #   tfmatch::report   images on disk, plots, metrics, report pages (libpng), with tfmatch::io
 #   tfmatch::cuda     the CUDA solvers (find_package(tfmatch COMPONENTS cuda); built with
-#                     TFMATCH_CUDA only): their own export set, so the rest needs no CUDA
+#                     TFMATCH_CUDA only): their own export set; they load the plugin
+#                     P/lib/tfmatch/libtfmatch_cuda.so on first use, so nothing links CUDA
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
@@ -18,8 +19,7 @@ set(tfm_layer_libraries tfmatch_model tfmatch_engine tfmatch_shaders tfmatch_ker
     tfmatch_selftest tfmatch_solvers tfmatch_io tfmatch_report)
 set(tfm_cuda_libraries)
 if(TFMATCH_CUDA)
-  set(tfm_cuda_libraries tfmatch_cuda tfmatch_cuda_solvers)
-  set_target_properties(tfmatch_cuda PROPERTIES EXPORT_NAME cuda_kernels)
+  set(tfm_cuda_libraries tfmatch_cuda_solvers)
   set_target_properties(tfmatch_cuda_solvers PROPERTIES EXPORT_NAME cuda)
 endif()
 # Header folders: "<folder in the install>:<source folder>". The headers include each other by
@@ -63,6 +63,7 @@ install(TARGETS ${tfm_layer_libraries} tfmatch_library
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
 if(TFMATCH_CUDA)
   install(TARGETS ${tfm_cuda_libraries} EXPORT tfmatchCudaTargets ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  install(TARGETS tfmatch_cuda LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}/tfmatch)  # the plugin
   install(EXPORT tfmatchCudaTargets NAMESPACE tfmatch:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/tfmatch)
 endif()
 install(TARGETS tfmatch RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})

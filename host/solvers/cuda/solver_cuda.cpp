@@ -4,7 +4,7 @@
 // host tridiagonal solve) and `cuda-cgls` (Jacobi-preconditioned CGLS with cuSPARSE SpMM). Without
 // a CUDA device they throw on use. Their own library (tfmatch_cuda_solvers, the package's `cuda`
 // component), added to the registry by register_cuda_solvers(): tfmatch::tfmatch itself needs no
-// CUDA.
+// CUDA. The CUDA code is a plugin, loaded when a CUDA solver first runs (cuda_backend.h).
 #include "cuda_solver_registration.h"
 
 #include <algorithm>
@@ -13,35 +13,43 @@
 
 #include <Eigen/SparseCore>
 
-#include "cuda_solvers.h"
+#include "cuda_backend.h"
 #include "parameter_names.h"
 #include "solver_support.h"
 
 namespace tfm {
 namespace {
 
+// The plugin with device 0 selected, or the reason there is none, led by the solver's name.
+const cuda::Backend& device_backend(const std::string& who) {
+  const cuda::Backend& backend = cuda::backend(who);
+  backend.require_device(who);
+  return backend;
+}
+
 // The fields on the device and A, b built there from them.
 struct DeviceProblem {
   std::chrono::steady_clock::time_point started = std::chrono::steady_clock::now();  // first: before the upload
-  cuda::DeviceFields fields;
-  cuda::DeviceSystem system;
-  DeviceProblem(const VoxelProblem& p, std::span<const float> ref_tf, SolverOutput& out)
-      : fields(p.ref_volume.values, p.opt_volume.values), system(fields, p.ref_map, p.opt_map, ref_tf) {
-    if (system.voxels() == 0) throw std::runtime_error("no voxel has data in both fields (all NaN?): nothing to fit");
-    out.phases.push_back({"upload", fields.upload_ms(), -1.0});
-    out.phases.push_back({"build A", ms_since(started) - fields.upload_ms(), system.build_ms()});
+  std::unique_ptr<cuda::DeviceFields> fields;
+  std::unique_ptr<cuda::DeviceSystem> system;
+  DeviceProblem(const cuda::Backend& backend, const VoxelProblem& p, std::span<const float> ref_tf, SolverOutput& out)
+      : fields(backend.upload(p.ref_volume.values, p.opt_volume.values)),
+        system(backend.build_system(*fields, p.ref_map, p.opt_map, ref_tf)) {
+    if (system->voxels() == 0) throw std::runtime_error("no voxel has data in both fields (all NaN?): nothing to fit");
+    out.phases.push_back({"upload", fields->upload_ms(), -1.0});
+    out.phases.push_back({"build A", ms_since(started) - fields->upload_ms(), system->build_ms()});
   }
 };
 
 SolverOutput solve_with_cuda_normal_equations(VoxelProblem& p, const SolverArgs& args) {
-  cuda::require_device("cuda-normal-equations");
+  const cuda::Backend& backend = device_backend("cuda-normal-equations");
   SolverOutput out;
   const uint32_t n = p.opt_map.tf_size;
   const std::vector<float> ref_tf = p.ref_tf.as_floats();
-  const DeviceProblem dev(p, ref_tf, out);
+  const DeviceProblem dev(backend, p, ref_tf, out);
 
   auto t0 = std::chrono::steady_clock::now();
-  const cuda::CusparseAssembly cs = cuda::assemble_cusparse(dev.system);
+  const cuda::CusparseAssembly cs = backend.assemble_cusparse(*dev.system);
   // M = S^T S (tridiagonal: A^T A = M (x) I_4) and S^T B, interleaved like A^T b.
   const Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor>> sts(
       n, n, Eigen::Index(cs.val.size()), cs.row_ptr.data(), cs.col.data(), cs.val.data());
@@ -51,13 +59,13 @@ SolverOutput solve_with_cuda_normal_equations(VoxelProblem& p, const SolverArgs&
     if (j + 1 < n) eq.off[j] = sts.coeff(j, j + 1);
     for (int c = 0; c < 4; ++c) eq.rhs(j, c) = cs.stb[4 * j + c];
   }
-  eq.voxels = dev.system.voxels();
-  eq.btb = dev.system.btb();
+  eq.voxels = dev.system->voxels();
+  eq.btb = dev.system->btb();
   out.phases.push_back({"cuSPARSE S^T S", ms_since(t0), cs.assemble_ms});
 
   // The matrix-free kernel on the same fields, for the comparison the paper makes.
   t0 = std::chrono::steady_clock::now();
-  const cuda::DirectAssembly direct = cuda::assemble_direct(dev.fields, p.ref_map, p.opt_map, ref_tf);
+  const cuda::DirectAssembly direct = backend.assemble_direct(*dev.fields, p.ref_map, p.opt_map, ref_tf);
   const NormalEquations direct_eq = NormalEquations::from_slots(n, direct.slots);
   out.phases.push_back({"direct kernel", ms_since(t0), direct.kernel_ms});
   double diff = 0.0;
@@ -68,10 +76,10 @@ SolverOutput solve_with_cuda_normal_equations(VoxelProblem& p, const SolverArgs&
   }
 
   solve_and_record(eq, args.solve, out);
-  out.details["device"] = cuda::device_name();
-  out.details["nonzeros"] = dev.system.nonzeros();
-  out.details["upload_ms"] = dev.fields.upload_ms();
-  out.details["build_a_gpu_ms"] = dev.system.build_ms();
+  out.details["device"] = backend.device_name();
+  out.details["nonzeros"] = dev.system->nonzeros();
+  out.details["upload_ms"] = dev.fields->upload_ms();
+  out.details["build_a_gpu_ms"] = dev.system->build_ms();
   out.details["cusparse_assembly_gpu_ms"] = cs.assemble_ms;
   out.details["direct_assembly_gpu_ms"] = direct.kernel_ms;
   // Largest |M, S^T b| difference between the two assemblies (float32 products vs double).
@@ -82,14 +90,14 @@ SolverOutput solve_with_cuda_normal_equations(VoxelProblem& p, const SolverArgs&
 SolverOutput solve_with_cuda_cgls(VoxelProblem& p, const SolverArgs& args) {
   const double tolerance = args.number("tolerance");
   const uint32_t max_iterations = uint32_t(args.integer("max-iterations"));
-  cuda::require_device("cuda-cgls");
+  const cuda::Backend& backend = device_backend("cuda-cgls");
   SolverOutput out;
   const uint32_t n = p.opt_map.tf_size;
-  const DeviceProblem dev(p, p.ref_tf.as_floats(), out);
+  const DeviceProblem dev(backend, p, p.ref_tf.as_floats(), out);
   // diag(M) from the squared column norms of A (channel 0 columns), the regularization relative
   // to its mean (absolute_regularization) and the Jacobi diagonal 1 / diag(M + R).
   NormalEquations eq(n);
-  eq.diag = dev.system.column_norms();
+  eq.diag = dev.system->column_norms();
   const Regularization reg = absolute_regularization(eq, args.solve);
   const Tridiagonal h = regularized_matrix(eq, reg);
   std::vector<double> inv_diag(n);
@@ -103,7 +111,7 @@ SolverOutput solve_with_cuda_cgls(VoxelProblem& p, const SolverArgs& args) {
   prm.ridge = reg.ridge;
   prm.smooth = reg.smooth;
   prm.inv_diag = inv_diag;
-  const cuda::CglsOutcome r = cuda::cgls(dev.system, prm);
+  const cuda::CglsOutcome r = backend.cgls(*dev.system, prm);
   const double total_ms = ms_since(t0);
   out.phases.push_back({"set-up", r.setup_ms, -1.0});
   out.phases.push_back({"iterate", total_ms - r.setup_ms, r.iterate_ms});
@@ -123,14 +131,14 @@ SolverOutput solve_with_cuda_cgls(VoxelProblem& p, const SolverArgs& args) {
     max_iter = std::max(max_iter, r.iterations[size_t(c)]);
     worst = std::max(worst, r.relative_residual[size_t(c)]);
   }
-  out.details["device"] = cuda::device_name();
+  out.details["device"] = backend.device_name();
   out.details["iterations"] = max_iter;
   out.details["iterations_per_channel"] = iters;
   out.details["relative_residual"] = worst;  // ||A^T r - R x|| / ||A^T b||, worst channel
   out.details["relative_residual_per_channel"] = residuals;
   out.details["tolerance"] = tolerance;
   out.details["clamped_values"] = clamped;
-  out.details["nonzeros"] = dev.system.nonzeros();
+  out.details["nonzeros"] = dev.system->nonzeros();
   out.details["ridge"] = args.solve.ridge;
   out.details["smooth"] = args.solve.smooth;
   if (worst > tolerance) {

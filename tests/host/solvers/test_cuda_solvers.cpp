@@ -6,19 +6,30 @@
 
 #include <gtest/gtest.h>
 
+#include <dlfcn.h>
+
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 
-#include "cuda_solvers.h"
+#include "cuda_backend.h"
+#include "cli_runner.h"
 #include "eigen_baseline.h"
+#include "scoped_env.h"
 #include "solver_problem.h"
 #include "vk_test_env.h"
 
 namespace tfm {
 namespace {
 
+// The plugin the test program names (TFMATCH_CUDA_PLUGIN: the build's).
+const cuda::Backend& plugin() { return cuda::backend("test"); }
+
 #define REQUIRE_CUDA_DEVICE() \
-  if (!cuda::device_available()) GTEST_SKIP() << "no CUDA device"
+  if (!plugin().device_available()) GTEST_SKIP() << "no CUDA device"
 
 class CudaSolvers : public test::GpuTest {};
 
@@ -32,8 +43,62 @@ TEST(CudaRegistration, BothSolversAreRegistered) {
   EXPECT_NE(find_solver("cuda-cgls"), nullptr);
 }
 
+// The plugin's entry point hands out its Backend only to a loader built from the same
+// cuda_solvers.h (the tag is its hash).
+TEST(CudaPlugin, TheEntryPointChecksTheInterfaceTag) {
+  const char* path = std::getenv("TFMATCH_CUDA_PLUGIN");
+  ASSERT_TRUE(path && *path) << "the test program names the build's plugin";
+  void* handle = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+  ASSERT_NE(handle, nullptr) << dlerror();
+  const auto entry = reinterpret_cast<cuda::BackendEntry>(dlsym(handle, cuda::kBackendEntryName));
+  ASSERT_NE(entry, nullptr);
+  EXPECT_EQ(entry(nullptr), nullptr);
+  EXPECT_EQ(entry("cuda_solvers.h:0000000000000000"), nullptr);
+  EXPECT_EQ(&cuda::load_backend(path), &plugin());  // the loader's tag is the plugin's: the same object
+  dlclose(handle);
+  // Only the entry point is exported: the plugin's own code cannot interpose on the program's.
+  const test::CliResult exported = test::run_shell(std::string("nm -D --defined-only ") + path);
+  ASSERT_EQ(exported.exit_code, 0) << exported.output;
+  EXPECT_NE(exported.output.find(" T tfmatch_cuda_backend"), std::string::npos) << exported.output;
+  EXPECT_EQ(exported.output.find("_ZN3tfm"), std::string::npos) << exported.output;
+}
+
+TEST(CudaPlugin, FilesThatAreNoPluginAreClearErrors) {
+  test::TempDir dir;
+  std::ofstream(dir / "garbage.so") << "not a shared library";
+  Dl_info libc{};
+  ASSERT_NE(dladdr(reinterpret_cast<void*>(&std::printf), &libc), 0);  // a real library, no entry point
+  const std::vector<std::pair<std::string, std::string>> cases{
+      {dir / "missing.so", "cannot be loaded: "},
+      {dir / "garbage.so", "cannot be loaded: "},
+      {libc.dli_fname, "has no entry point tfmatch_cuda_backend: not a tfmatch CUDA plugin"}};
+  for (const auto& [path, why] : cases) {
+    try {
+      cuda::load_backend(path);
+      ADD_FAILURE() << path << " loaded";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("the CUDA solvers' plugin " + path + " " + why), std::string::npos)
+          << e.what();
+    }
+  }
+}
+
+TEST(CudaPlugin, LooksWhereTheProgramAndTheInstallKeepIt) {
+  const std::vector<std::string> named = cuda::plugin_candidates();
+  EXPECT_EQ(named, std::vector<std::string>{std::getenv("TFMATCH_CUDA_PLUGIN")});
+  const test::ScopedEnv unset("TFMATCH_CUDA_PLUGIN", std::nullopt);
+  const std::vector<std::string> places = cuda::plugin_candidates();
+  ASSERT_EQ(places.size(), 3u);
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe");
+  EXPECT_EQ(places[0], (self.parent_path() / "libtfmatch_cuda.so").string());
+  EXPECT_EQ(places[1].rfind(self.parent_path().parent_path().string() + "/lib", 0), 0u) << places[1];
+  EXPECT_TRUE(places[1].ends_with("/tfmatch/libtfmatch_cuda.so")) << places[1];
+  EXPECT_TRUE(std::filesystem::path(places[2]).is_absolute()) << places[2];
+  EXPECT_TRUE(places[2].ends_with("/tfmatch/libtfmatch_cuda.so")) << places[2];
+}
+
 TEST_F(CudaSolvers, WithoutADeviceTheSolversSayWhy) {
-  if (cuda::device_available()) GTEST_SKIP() << "a CUDA device is present";
+  if (plugin().device_available()) GTEST_SKIP() << "a CUDA device is present";
   test::SolverProblem p = test::make_solver_problem(100, 8, 6, 0.2, 0.8, 1);
   p.upload(ctx());
   for (const std::string name : {"cuda-normal-equations", "cuda-cgls"}) {
@@ -54,8 +119,8 @@ TEST(CudaAssembly, DirectKernelMatchesCpuReference) {
   for (size_t voxels : {size_t(1), size_t(13), size_t(127), size_t(4097), size_t(300001)}) {
     const test::SolverProblem p = test::make_solver_problem(voxels, 16, 9, 0.0, 1.0, uint32_t(voxels), 0.1, 7);
     const NormalEquations cpu = p.cpu_equations();
-    const cuda::DeviceFields fields(p.ref_volume.values, p.opt_volume.values);
-    const cuda::DirectAssembly d = cuda::assemble_direct(fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
+    const auto fields = plugin().upload(p.ref_volume.values, p.opt_volume.values);
+    const cuda::DirectAssembly d = plugin().assemble_direct(*fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
     const NormalEquations gpu = NormalEquations::from_slots(16, d.slots);
     // Identical TF coordinates; each voxel's terms are float32 products (relative error 2^-23
     // at most, values <= 1) cut to 32.32 fixed point (2^-32): per voxel <= ~3e-7, summed.
@@ -68,7 +133,7 @@ TEST(CudaAssembly, DirectKernelMatchesCpuReference) {
     }
     for (int c = 0; c < 4; ++c) EXPECT_NEAR(gpu.btb[size_t(c)], cpu.btb[size_t(c)], tol) << voxels;
     // Fixed-point sums do not depend on scheduling: a second run gives the same bits.
-    const cuda::DirectAssembly again = cuda::assemble_direct(fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
+    const cuda::DirectAssembly again = plugin().assemble_direct(*fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
     EXPECT_EQ(again.slots, d.slots) << voxels;
   }
 }
@@ -103,8 +168,9 @@ TEST(CudaAssembly, DeviceBuiltSystemIsTheHostSystemBitForBit) {
     ExplicitSystem host =
         build_explicit_system(p.ref_volume.values, p.opt_volume.values, p.ref_map, p.opt_map, p.ref_tf);
     host.a.makeCompressed();
-    const cuda::DeviceFields fields(p.ref_volume.values, p.opt_volume.values);
-    const cuda::DeviceSystem sys(fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
+    const auto fields = plugin().upload(p.ref_volume.values, p.opt_volume.values);
+    const auto built = plugin().build_system(*fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
+    const cuda::DeviceSystem& sys = *built;
     ASSERT_EQ(sys.voxels(), uint64_t(host.b.size() / 4)) << voxels;
     EXPECT_EQ(sys.nonzeros(), int64_t(host.a.nonZeros())) << voxels;
     const cuda::DeviceSystem::Host s = sys.download();
@@ -125,9 +191,9 @@ TEST(CudaAssembly, DeviceBuiltSystemIsTheHostSystemBitForBit) {
       EXPECT_NEAR(sys.btb()[size_t(c)], btb, tol) << voxels << " c " << c;
     }
     // And the same bits on a second build.
-    const cuda::DeviceSystem again(fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
-    EXPECT_EQ(again.column_norms(), norms) << voxels;
-    EXPECT_EQ(again.btb(), sys.btb()) << voxels;
+    const auto again = plugin().build_system(*fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
+    EXPECT_EQ(again->column_norms(), norms) << voxels;
+    EXPECT_EQ(again->btb(), sys.btb()) << voxels;
   }
 }
 
@@ -135,15 +201,19 @@ TEST(CudaAssembly, DeviceSystemWithoutDataAndWithBadArguments) {
   REQUIRE_CUDA_DEVICE();
   test::SolverProblem p = test::make_solver_problem(100, 8, 6, 0.2, 0.8, 1);
   std::fill(p.ref_volume.values.begin(), p.ref_volume.values.end(), NAN);
-  const cuda::DeviceFields fields(p.ref_volume.values, p.opt_volume.values);
-  const cuda::DeviceSystem empty(fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
-  EXPECT_EQ(empty.voxels(), 0u);
-  EXPECT_EQ(empty.download().row_ptr, std::vector<int>{0});
-  EXPECT_EQ(empty.column_norms(), std::vector<double>(8, 0.0));
+  const auto fields = plugin().upload(p.ref_volume.values, p.opt_volume.values);
+  const auto empty = plugin().build_system(*fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
+  EXPECT_EQ(empty->voxels(), 0u);
+  EXPECT_EQ(empty->download().row_ptr, std::vector<int>{0});
+  EXPECT_EQ(empty->column_norms(), std::vector<double>(8, 0.0));
+  EXPECT_THROW(plugin().assemble_cusparse(*empty), std::invalid_argument);
   const std::vector<float> short_tf(4 * 5);
-  EXPECT_THROW(cuda::DeviceSystem(fields, p.ref_map, p.opt_map, short_tf), std::invalid_argument);
+  EXPECT_THROW(plugin().build_system(*fields, p.ref_map, p.opt_map, short_tf), std::invalid_argument);
   const std::vector<float> one(99);
-  EXPECT_THROW(cuda::DeviceFields(p.ref_volume.values, one), std::invalid_argument);
+  EXPECT_THROW(plugin().upload(p.ref_volume.values, one), std::invalid_argument);
+  // Objects the plugin did not make are refused, not misread.
+  struct Foreign final : cuda::DeviceFields {};
+  EXPECT_THROW(plugin().build_system(Foreign(), p.ref_map, p.opt_map, p.ref_tf.as_floats()), std::invalid_argument);
 }
 
 TEST(CudaAssembly, CusparseProductsMatchEigenProducts) {
@@ -154,9 +224,9 @@ TEST(CudaAssembly, CusparseProductsMatchEigenProducts) {
         build_explicit_system(p.ref_volume.values, p.opt_volume.values, p.ref_map, p.opt_map, p.ref_tf);
     sys.a.makeCompressed();
     const NormalEquations eigen = to_tridiagonal(explicit_normal_equations(sys), 12);  // from A itself
-    const cuda::DeviceFields fields(p.ref_volume.values, p.opt_volume.values);
+    const auto fields = plugin().upload(p.ref_volume.values, p.opt_volume.values);
     const cuda::CusparseAssembly cs =
-        cuda::assemble_cusparse(cuda::DeviceSystem(fields, p.ref_map, p.opt_map, p.ref_tf.as_floats()));
+        plugin().assemble_cusparse(*plugin().build_system(*fields, p.ref_map, p.opt_map, p.ref_tf.as_floats()));
     // S^T S is n x n (A^T A = S^T S (x) I_4) and S^T B is A^T b interleaved.
     const Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor>> sts(
         12, 12, Eigen::Index(cs.val.size()), cs.row_ptr.data(), cs.col.data(), cs.val.data());
