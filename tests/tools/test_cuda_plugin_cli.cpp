@@ -9,6 +9,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include <nlohmann/json.hpp>
+
 #include "cli_runner.h"
 
 namespace tfm {
@@ -58,6 +60,27 @@ TEST_F(CudaPluginCli, OnlyACudaSolverLoadsCuda) {
     EXPECT_NE(r.output.find("cuda-cgls: no CUDA device available"), std::string::npos) << r.output;
     EXPECT_FALSE(std::filesystem::exists(dir / "out.json"));
   }
+}
+
+// `devices` names the plugin and the CUDA device, or says why the CUDA solvers cannot run.
+TEST_F(CudaPluginCli, DevicesSaysWhatTheCudaSolversSee) {
+  const test::CliResult r = run_cli("devices --json - 2>/dev/null", test::kCliTimeout, {{"TFMATCH_CUDA_PLUGIN", ""}});
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json cuda = nlohmann::json::parse(r.output)["cuda"];
+  EXPECT_EQ(cuda["built"], true);
+  EXPECT_EQ(cuda["plugin"], std::string(TFMATCH_BUILD_DIR) + "/libtfmatch_cuda.so");  // beside the program
+  if (cuda.contains("device"))
+    EXPECT_FALSE(cuda["device"].get<std::string>().empty());
+  else
+    EXPECT_EQ(cuda["error"].get<std::string>().rfind("no CUDA device available (cudaGetDeviceCount: ", 0), 0u) << cuda;
+
+  std::ofstream(dir / "libtfmatch_cuda.so") << "not a shared library";
+  const test::CliResult text = run_cli("devices", test::kCliTimeout, {{"TFMATCH_CUDA_PLUGIN", dir / "libtfmatch_cuda.so"}});
+  EXPECT_EQ(text.exit_code, 0) << text.output;  // the Vulkan devices are still there
+  EXPECT_NE(text.output.find("CUDA solvers: cannot run: the CUDA solvers' plugin " + dir / "libtfmatch_cuda.so" +
+                             " cannot be loaded: "),
+            std::string::npos)
+      << text.output;
 }
 
 TEST_F(CudaPluginCli, APluginThatCannotBeLoadedIsAClearError) {

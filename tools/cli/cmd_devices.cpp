@@ -1,4 +1,5 @@
-// `tfmatch devices`: the Vulkan devices and the features tfmatch uses, as text or JSON.
+// `tfmatch devices`: the Vulkan devices and the features tfmatch uses, and whether the CUDA
+// solvers can run (builds with TFMATCH_CUDA), as text or JSON.
 #include <iomanip>
 #include <iostream>
 #include <optional>
@@ -7,6 +8,9 @@
 
 #include "atomic_file.h"
 #include "cli.h"
+#ifdef TFMATCH_HAVE_CUDA
+#include "cuda_backend.h"
+#endif
 #include "output_check.h"
 #include "output_options.h"
 
@@ -53,6 +57,36 @@ nlohmann::json devices_json(const std::vector<DeviceSummary>& devices) {
   return {{"devices", list}};
 }
 
+// The CUDA solvers: not built; or the plugin (host/solvers/cuda/cuda_backend.h) with the CUDA
+// device it sees, or why they cannot run. Loading the plugin and asking the CUDA runtime for its
+// devices happens here only, never in the commands that do not use them.
+nlohmann::json cuda_json() {
+#ifdef TFMATCH_HAVE_CUDA
+  const cuda::PluginStatus& plugin = cuda::plugin_status();
+  nlohmann::json out{{"built", true}, {"plugin", plugin.path}};
+  std::string why;
+  if (!plugin.backend)
+    out["error"] = plugin.error;
+  else if (plugin.backend->device_available(&why))
+    out["device"] = plugin.backend->device_name();
+  else
+    out["error"] = "no CUDA device available (cudaGetDeviceCount: " + why + ")";
+  return out;
+#else
+  return {{"built", false}};
+#endif
+}
+
+void print_cuda(const nlohmann::json& cuda) {
+  std::cout << "CUDA solvers: ";
+  if (!cuda["built"].get<bool>())
+    std::cout << "not in this build (TFMATCH_CUDA off)\n";
+  else if (cuda.contains("device"))
+    std::cout << cuda["device"].get<std::string>() << " (plugin " << cuda["plugin"].get<std::string>() << ")\n";
+  else
+    std::cout << "cannot run: " << cuda["error"].get<std::string>() << "\n";
+}
+
 void print_devices(const std::vector<DeviceSummary>& devices) {
   for (const DeviceSummary& d : devices) {
     std::cout << "[" << d.index << "] " << d.name << " (" << d.type << ")\n"
@@ -88,12 +122,14 @@ int run_devices(const std::string& json_target, bool floor) {
                            {"teardown_ms", measured->teardown_ms},
                            {"total_ms", measured->total_ms()}};
   }
+  out["cuda"] = cuda_json();
   json.write(out);
   if (devices.empty()) {
     std::cout << "no Vulkan devices (install mesa-vulkan-drivers for the lavapipe CPU device)\n";
   } else {
     print_devices(devices);
   }
+  print_cuda(out["cuda"]);
   if (measured)
     std::cout << std::fixed << std::setprecision(1) << "driver floor on " << measured->device
               << ": instance " << measured->instance_ms << " ms + device " << measured->device_ms
@@ -104,7 +140,9 @@ int run_devices(const std::string& json_target, bool floor) {
 CommandRegistration reg(90, [](CLI::App& app) {
   auto json = std::make_shared<std::string>();
   auto floor = std::make_shared<bool>(false);
-  auto* sub = app.add_subcommand("devices", "List Vulkan devices with the features tfmatch uses");
+  auto* sub = app.add_subcommand("devices",
+                                 "List Vulkan devices with the features tfmatch uses, and the CUDA device the CUDA "
+                                 "solvers would use (or why they cannot run)");
   add_json_option(sub, *json, "the device list");
   sub->add_flag("--floor", *floor,
                 "Also time what the driver alone costs a process on the device tfmatch would choose: a bare "

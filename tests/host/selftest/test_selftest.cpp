@@ -168,6 +168,11 @@ TEST(DevicesCli, JsonListsAtLeastOneDevice) {
     EXPECT_TRUE(d["compute_queue"].is_boolean());
     EXPECT_GT(d["max_workgroup_invocations"].get<uint64_t>(), 0u);
     EXPECT_TRUE(std::regex_match(d["vulkan"].get<std::string>(), std::regex("1\\.[0-9]+\\.[0-9]+")));
+#ifdef TFMATCH_HAVE_CUDA
+    EXPECT_EQ(j["cuda"]["built"], true) << r.output;  // the rest: CudaPluginCli.DevicesSaysWhatTheCudaSolversSee
+#else
+    EXPECT_EQ(j["cuda"], nlohmann::json({{"built", false}})) << r.output;
+#endif
   }
   // --floor adds the driver's own cost, in the JSON and as a line of text.
   const test::CliResult floor = test::run_cli("devices --floor --json -");
