@@ -220,6 +220,12 @@ struct TempDir {
   }
 };
 
+// Whether the dynamic loader's log of a run (LD_DEBUG=libs in its environment: "calling init:
+// <path>" for every library it initialised) shows the library file `name` (libnetcdf.so.19).
+inline bool loader_log_shows(const std::string& log, const std::string& name) {
+  return log.find("calling init: ") != std::string::npos && log.find("/" + name) != std::string::npos;
+}
+
 // Writes raw float32 (native byte order): the input files of command-line tests.
 inline void write_floats(const std::string& path, const std::vector<float>& v) {
   std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(v.data()), std::streamsize(v.size() * 4));

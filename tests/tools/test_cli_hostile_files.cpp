@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "cli_runner.h"
+#include "slab_test_files.h"
 
 namespace tfm {
 namespace {
@@ -159,7 +160,9 @@ TEST(CliHostileFiles, LibrariesInTheWorkingFolderAreNeverLoaded) {
     const std::string name = line.substr(begin, arrow - begin);
     if (name.find('/') == std::string::npos && name.find(".so") != std::string::npos) names.insert(name);
   }
-  ASSERT_TRUE(names.count("libnetcdf.so.19") || names.size() > 5) << listing;
+  ASSERT_GT(names.size(), 5u) << listing;
+  // And those it opens when a file or a solver needs them (host/io/lazy_library.h, the CUDA plugin).
+  names.insert({"libnetcdf.so.19", "libeccodes.so.0", "libhdf5_serial.so.103", "libtfmatch_cuda.so"});
   TempDir dir;
   for (const std::string& name : names) std::ofstream(dir / name) << "not a library";
   const test::CliResult r =
@@ -167,6 +170,12 @@ TEST(CliHostileFiles, LibrariesInTheWorkingFolderAreNeverLoaded) {
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("tfmatch"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("error while loading shared libraries"), std::string::npos) << r.output;
+  // A netCDF file read from that folder: netCDF-C comes from where the system keeps it.
+  slab_test::write_netcdf(dir.path, "field", slab_test::test_field({5, 4, 3}, 1));
+  const test::CliResult info = test::run_shell("cd '" + dir.path.string() + "' && exec '" +
+                                               std::string(TFMATCH_CLI_PATH) + "' info field.nc");
+  EXPECT_EQ(info.exit_code, 0) << info.output;
+  EXPECT_NE(info.output.find("grid 5x4x3 (x,y,z)"), std::string::npos) << info.output;
 }
 
 }  // namespace

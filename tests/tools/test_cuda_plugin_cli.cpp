@@ -18,11 +18,7 @@ namespace {
 
 using test::run_cli;
 
-// What LD_DEBUG=libs says the loader opened ("calling init: <path>" per library it initialised).
-bool loaded(const std::string& log, const std::string& library) {
-  return log.find("calling init: ") != std::string::npos &&
-         log.find("/" + library) != std::string::npos;
-}
+bool loaded(const std::string& log, const std::string& library) { return test::loader_log_shows(log, library); }
 
 class CudaPluginCli : public ::testing::Test {
  protected:
