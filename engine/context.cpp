@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "phase_timer.h"
+#include "pipeline.h"
 #include "vk_check.h"
 #include "vk_dispatch.h"
 
@@ -311,7 +312,10 @@ DriverFloor measure_driver_floor(const ContextOptions& options_in) {
   return floor;
 }
 
-Context::Context() : dispatch_(std::make_unique<Dispatch>()), staging_(std::make_unique<StagingBuffers>()) {}
+Context::Context()
+    : dispatch_(std::make_unique<Dispatch>()),
+      staging_(std::make_unique<StagingBuffers>()),
+      pipelines_(std::make_unique<PipelineRegistry>(*this)) {}
 
 std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
   PhaseScope timing(Phase::Startup);
@@ -518,7 +522,8 @@ uint64_t Context::max_buffer_bytes() const {
 }
 
 Context::~Context() {
-  staging_.reset();  // its buffers belong to the device, also an adopted one
+  pipelines_.reset();  // pipelines and staging buffers belong to the device, also an adopted one
+  staging_.reset();
   const Dispatch& vk = *dispatch_;
   if (owns_pipeline_cache_) vk.vkDestroyPipelineCache(device_, pipeline_cache_, nullptr);
   if (!owns_) return;

@@ -21,6 +21,7 @@
 namespace tfm {
 
 struct Dispatch;  // engine/vk_dispatch.h, private to engine/*.cpp
+class PipelineRegistry;  // pipeline.h
 
 // How to choose and create a device. Environment variables fill what is left unset:
 // TFMATCH_DEVICE (index or name substring), TFMATCH_VALIDATION=1.
@@ -140,6 +141,8 @@ class Context {
   std::mutex& queue_mutex() { return queue_mutex_; }
   // The staging memory upload() reuses (buffer.h).
   StagingBuffers& staging() { return *staging_; }
+  // The compute pipelines the kernels of this context share (pipeline.h).
+  PipelineRegistry& pipelines() { return *pipelines_; }
 
   void set_debug_name(VkObjectType type, uint64_t handle, const char* name) const;
 
@@ -211,6 +214,7 @@ class Context {
   std::atomic<uint64_t> submissions_{0};
   std::atomic<uint64_t> buffer_bytes_{0}, peak_buffer_bytes_{0};
   std::unique_ptr<StagingBuffers> staging_;  // released before the device
+  std::unique_ptr<PipelineRegistry> pipelines_;  // likewise
   VkPipelineCache pipeline_cache_ = VK_NULL_HANDLE;
   bool owns_pipeline_cache_ = false;
   std::shared_mutex pipeline_cache_mutex_;

@@ -98,4 +98,29 @@ ComputePipeline::~ComputePipeline() {
   vk.vkDestroyShaderModule(ctx_.device(), module_, nullptr);
 }
 
+SharedPipeline PipelineRegistry::get(const PipelineDesc& desc) {
+  std::vector<DescriptorKind> kinds = desc.binding_kinds;
+  kinds.resize(desc.binding_counts.size(), DescriptorKind::StorageBuffer);  // missing kinds are storage buffers
+  Key key{desc.shader,         desc.spirv.data(),       desc.spirv.size(), desc.binding_counts, std::move(kinds),
+          desc.push_constant_bytes, desc.specialization, desc.workgroup_size};
+  std::shared_ptr<Entry> entry;
+  {
+    std::lock_guard lock(mutex_);
+    std::shared_ptr<Entry>& slot = entries_[std::move(key)];
+    if (!slot) slot = std::make_shared<Entry>();
+    entry = slot;
+  }
+  // Outside the lock: other pipelines are made meanwhile; askers for this one wait here. A throw
+  // leaves the flag unset, so the next asker tries again (and gets the error again).
+  std::call_once(entry->made, [&] { entry->pipeline = std::make_shared<const ComputePipeline>(ctx_, desc); });
+  return entry->pipeline;
+}
+
+size_t PipelineRegistry::size() const {
+  std::lock_guard lock(mutex_);
+  return entries_.size();
+}
+
+SharedPipeline shared_pipeline(Context& ctx, const PipelineDesc& desc) { return ctx.pipelines().get(desc); }
+
 }  // namespace tfm

@@ -4,8 +4,12 @@
 
 #include <cstdint>
 #include <initializer_list>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <span>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <vulkan/vulkan_core.h>
@@ -60,5 +64,39 @@ class ComputePipeline {
   VkPipelineLayout layout_ = VK_NULL_HANDLE;
   VkPipeline pipeline_ = VK_NULL_HANDLE;
 };
+
+// A pipeline shared by the kernels that ask for the same description (PipelineRegistry).
+using SharedPipeline = std::shared_ptr<const ComputePipeline>;
+
+// The compute pipelines of one context: a kernel asks for the pipeline of a description and gets
+// the one made first for the same description (shader name, SPIR-V, bindings, push constants,
+// specialization constants, workgroup), so kernels made again — each solver of `tfmatch solvers`,
+// each fit in the viewer, the assembly a solver and the loss both need — do not have the driver
+// create it again (lavapipe turns SPIR-V into its own code at every vkCreateComputePipelines,
+// ~120 ms for the assembly, and its VkPipelineCache holds nothing; a GPU driver's cache makes a
+// second creation cheap, not free). Pipelines live as long as the context. Thread-safe: a second
+// asker for a pipeline being made waits for it; a creation that throws is not kept.
+class PipelineRegistry {
+ public:
+  explicit PipelineRegistry(Context& ctx) : ctx_(ctx) {}
+  PipelineRegistry(const PipelineRegistry&) = delete;
+  PipelineRegistry& operator=(const PipelineRegistry&) = delete;
+  SharedPipeline get(const PipelineDesc& desc);
+  size_t size() const;  // pipelines made (or being made)
+
+ private:
+  using Key = std::tuple<std::string, const uint32_t*, size_t, std::vector<uint32_t>, std::vector<DescriptorKind>,
+                         uint32_t, std::vector<uint32_t>, uint32_t>;
+  struct Entry {
+    std::once_flag made;
+    SharedPipeline pipeline;
+  };
+  Context& ctx_;
+  mutable std::mutex mutex_;
+  std::map<Key, std::shared_ptr<Entry>> entries_;
+};
+
+// ctx.pipelines().get(desc): the context's pipeline for `desc`, made on first use.
+SharedPipeline shared_pipeline(Context& ctx, const PipelineDesc& desc);
 
 }  // namespace tfm

@@ -98,7 +98,7 @@ AssembleNormalEquationsKernel::Pipelines AssembleNormalEquationsKernel::make_pip
          {TFM_ASSEMBLE_SPEC_WITH_BEFORE, with_before ? 1u : 0u},
          {TFM_ASSEMBLE_SPEC_IMAGE_NX, image ? image->width : 1u},
          {TFM_ASSEMBLE_SPEC_IMAGE_NY, image ? image->height : 1u}});
-    out.push_back(std::make_unique<ComputePipeline>(ctx_, desc));
+    out.push_back(shared_pipeline(ctx_, desc));
   }
   return out;
 }

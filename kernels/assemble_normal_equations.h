@@ -65,7 +65,7 @@ class AssembleNormalEquationsKernel {
   uint64_t range_quads_;
   // One per pass, without and with the before loss and weights, each compiled when first recorded; for
   // images also per x and y size (specialization constants).
-  using Pipelines = std::vector<std::unique_ptr<ComputePipeline>>;
+  using Pipelines = std::vector<SharedPipeline>;
   const Pipelines& pipelines(bool with_before, bool weighted) const;
   const Pipelines& image_pipelines(bool with_before, uint32_t nx, uint32_t ny) const;
   Pipelines make_pipelines(bool with_before, const VkExtent3D* image, bool weighted) const;

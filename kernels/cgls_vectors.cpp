@@ -26,7 +26,7 @@ CglsVectorsKernel::CglsVectorsKernel(Context& ctx) {
   desc.workgroup_size = TFM_VECTOR_WORKGROUP;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VECTOR_WORKGROUP}});
   desc.spirv = shader_spirv(desc.shader);
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+  pipeline_ = shared_pipeline(ctx, desc);
 }
 
 void CglsVectorsKernel::record(CommandBatch& batch, uint32_t stage, uint32_t tf_size, float ridge, float smooth,

@@ -32,7 +32,7 @@ class CglsVectorsKernel {
               const CglsBuffers& buffers) const;
 
  private:
-  std::unique_ptr<ComputePipeline> pipeline_;
+  SharedPipeline pipeline_;
 };
 
 }  // namespace tfm

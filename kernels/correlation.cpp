@@ -177,7 +177,7 @@ struct CorrelationKernel::Impl {
   explicit Impl(Context& c) : ctx(c) {}
   Context& ctx;
   // Pipelines by (shader, strategy, region size, coefficient, layout), built on first use and kept.
-  std::map<std::tuple<std::string, bool, uint32_t, bool, bool>, std::unique_ptr<ComputePipeline>> pipelines;
+  std::map<std::tuple<std::string, bool, uint32_t, bool, bool>, SharedPipeline> pipelines;
 
   // `member_major`: the series' layout (uploaded chunks: member-major unless one workgroup per
   // voxel; device-resident ensembles: member-major).
@@ -198,7 +198,7 @@ struct CorrelationKernel::Impl {
                                         {TFM_CORR_SPEC_COEFFICIENT, p.coefficient ? 1u : 0u},
                                         {TFM_CORR_SPEC_MEMBER_MAJOR, member_major ? 1u : 0u}});
       desc.spirv = shader_spirv(desc.shader);
-      slot = std::make_unique<ComputePipeline>(ctx, desc);
+      slot = shared_pipeline(ctx, desc);
     }
     return *slot;
   }

@@ -54,7 +54,7 @@ constexpr auto kBackwardBindingCounts = gpu::binding_counts(
 
 DiffDvrForwardKernel::DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks) : chunks_(field_chunks) {
   // The renderer's pipeline in the mode that stores (C, T): the same march as every image shown.
-  pipeline_ = std::make_unique<ComputePipeline>(
+  pipeline_ = shared_pipeline(
       ctx, render_image_pipeline_desc(field_chunks, TFM_RENDER_MODE_DIFFDVR_STATE, "diffdvr"));
 }
 
@@ -127,7 +127,7 @@ DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks
                                     {TFM_DIFFDVR_SPEC_PRIVATE_BINS, use_private ? tf_size : 2u},
                                     {TFM_DIFFDVR_SPEC_PIXELS_PER_LANE, use_private ? TFM_DIFFDVR_PRIVATE_PIXELS : 1u}});
   desc.spirv = shader_spirv(desc.shader);
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+  pipeline_ = shared_pipeline(ctx, desc);
 }
 
 void DiffDvrBackwardKernel::record(CommandBatch& batch, const DeviceField& field, const Buffer& tf,

@@ -35,7 +35,7 @@ class DiffDvrForwardKernel {
 
  private:
   uint32_t chunks_;
-  std::unique_ptr<ComputePipeline> pipeline_;
+  SharedPipeline pipeline_;
 };
 
 // TF entries up to which CPU devices take the backward pass's private-histogram build (a vec4 per
@@ -71,7 +71,7 @@ class DiffDvrBackwardKernel {
   uint32_t chunks_;
   uint32_t tf_size_;
   ReductionMode mode_;
-  std::unique_ptr<ComputePipeline> pipeline_;
+  SharedPipeline pipeline_;
 };
 
 // The exact total of signed 32.32 fixed-point accumulators (two's complement, low word first)

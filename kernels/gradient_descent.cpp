@@ -51,7 +51,7 @@ const ComputePipeline& GdGradientKernel::pipeline(uint32_t ref_tf_size) const {
                                       {TFM_GD_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size_ : 0u},
                                       {TFM_GD_SPEC_LOSS_L1, l1_ ? 1u : 0u},
                                       {TFM_GD_SPEC_TF_CACHE, cached}});
-    slot = std::make_unique<ComputePipeline>(ctx_, desc);
+    slot = shared_pipeline(ctx_, desc);
   }
   return *slot;
 }
@@ -89,7 +89,7 @@ GdUpdateKernel::GdUpdateKernel(Context& ctx) {
   desc.workgroup_size = TFM_VECTOR_WORKGROUP;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, TFM_VECTOR_WORKGROUP}});
   desc.spirv = shader_spirv(desc.shader);
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+  pipeline_ = shared_pipeline(ctx, desc);
 }
 
 void GdUpdateKernel::record(CommandBatch& batch, const gpu::GdUpdatePush& push, const GdUpdateBuffers& b) const {

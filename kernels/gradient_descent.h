@@ -37,7 +37,7 @@ class GdGradientKernel {
   uint32_t tf_size_;
   bool l1_;
   Reduction reduction_;
-  mutable std::map<uint32_t, std::unique_ptr<ComputePipeline>> pipelines_;
+  mutable std::map<uint32_t, SharedPipeline> pipelines_;
 };
 
 struct GdUpdateBuffers {
@@ -55,7 +55,7 @@ class GdUpdateKernel {
   void record(CommandBatch& batch, const gpu::GdUpdatePush& push, const GdUpdateBuffers& buffers) const;
 
  private:
-  std::unique_ptr<ComputePipeline> pipeline_;
+  SharedPipeline pipeline_;
 };
 
 // Bytes of the gradient-descent accumulator for N entries (TFM_GD_ACCUM_WORDS).

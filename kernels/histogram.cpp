@@ -54,7 +54,7 @@ FieldHistogramKernel::FieldHistogramKernel(Context& ctx, uint32_t bins, Histogra
                                     {TFM_HIST_SPEC_MODE, shader_mode},
                                     {TFM_HIST_SPEC_PRIVATE_COUNTERS, priv ? counters : 1u}});
   desc.spirv = shader_spirv(desc.shader);
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+  pipeline_ = shared_pipeline(ctx, desc);
 }
 
 FieldHistogram FieldHistogramKernel::run(const DeviceField& field, double lo, double hi) const {

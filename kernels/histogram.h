@@ -43,7 +43,7 @@ class FieldHistogramKernel {
   HistogramMode mode_;
   uint32_t workgroup_size_;
   uint64_t lane_voxels_;  // Private: voxels per lane, so that a lane's flush is small beside them
-  std::unique_ptr<ComputePipeline> pipeline_;
+  SharedPipeline pipeline_;
 };
 
 }  // namespace tfm

@@ -43,7 +43,7 @@ FieldPairReadKernel::FieldPairReadKernel(Context& ctx, uint64_t range_quads, uin
   desc.workgroup_size = workgroup_size_;
   desc.specialization = gpu::by_id({{TFM_SPEC_WORKGROUP_X, workgroup_size_}});
   desc.spirv = shader_spirv(desc.shader);
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+  pipeline_ = shared_pipeline(ctx, desc);
 }
 
 FieldPairReadKernel::~FieldPairReadKernel() = default;

@@ -42,7 +42,7 @@ class FieldPairReadKernel {
   uint64_t range_quads_;
   uint64_t lane_voxels_;
   uint32_t workgroup_size_;
-  std::unique_ptr<ComputePipeline> pipeline_;
+  SharedPipeline pipeline_;
 };
 
 }  // namespace tfm

@@ -43,7 +43,7 @@ PipelineDesc render_image_pipeline_desc(uint32_t field_chunks, uint32_t mode, co
 
 RenderImageKernel::RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32_t mode)
     : ctx_(ctx), chunks_(field_chunks) {
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, render_image_pipeline_desc(field_chunks, mode, "render"));
+  pipeline_ = shared_pipeline(ctx, render_image_pipeline_desc(field_chunks, mode, "render"));
 }
 
 RenderImageKernel::RenderImageKernel(Context& ctx, ImageField) : ctx_(ctx), chunks_(1), image_field_(true) {
@@ -57,7 +57,7 @@ RenderImageKernel::RenderImageKernel(Context& ctx, ImageField) : ctx_(ctx), chun
   desc.workgroup_size = TFM_RENDER_TILE * TFM_RENDER_TILE;
   desc.specialization = gpu::render_specialization(1, TFM_RENDER_MODE_FORWARD);
   desc.spirv = shader_spirv(desc.shader);
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, desc);
+  pipeline_ = shared_pipeline(ctx, desc);
 }
 
 void RenderImageKernel::record(CommandBatch& batch, const DeviceField& field, const Buffer& tf, const Buffer& views,

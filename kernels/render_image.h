@@ -54,7 +54,7 @@ class RenderImageKernel {
   Context& ctx_;
   uint32_t chunks_;
   bool image_field_ = false;
-  std::unique_ptr<ComputePipeline> pipeline_;
+  SharedPipeline pipeline_;
   void record_with(CommandBatch& batch, const Binding& field, const Buffer& tf, const Buffer& views,
                    gpu::RenderPush push, Buffer& image, Buffer& stop, uint32_t row_begin, uint32_t row_count) const;
 };

@@ -23,7 +23,7 @@ ResidualMapKernel::ResidualMapKernel(Context& ctx, uint64_t range_quads, uint32_
     : ctx_(ctx),
       range_quads_(texel_range_quads(ctx, range_quads, "residual_map")),
       workgroup_size_(lane_workgroup_size(ctx, workgroup_size, "residual_map")) {
-  pipeline_ = std::make_unique<ComputePipeline>(ctx, pipeline_desc(nullptr));
+  pipeline_ = shared_pipeline(ctx, pipeline_desc(nullptr));
 }
 
 PipelineDesc ResidualMapKernel::pipeline_desc(const VkExtent3D* image) const {
@@ -79,8 +79,8 @@ void ResidualMapKernel::record(CommandBatch& batch, const ImageFieldView& ref, c
   if (out.format() != FieldFormat::Float32) throw std::invalid_argument("residual map: the output field must be float32");
   if (ref_tf.size() < uint64_t(ref_map.tf_size) * 16 || opt_tf.size() < uint64_t(opt_map.tf_size) * 16)
     throw std::invalid_argument("residual map: TF buffer smaller than its mapping's size");
-  std::unique_ptr<ComputePipeline>& pipeline = image_pipelines_[{ref.extent.width, ref.extent.height}];
-  if (!pipeline) pipeline = std::make_unique<ComputePipeline>(ctx_, pipeline_desc(&ref.extent));
+  SharedPipeline& pipeline = image_pipelines_[{ref.extent.width, ref.extent.height}];
+  if (!pipeline) pipeline = shared_pipeline(ctx_, pipeline_desc(&ref.extent));
   const Binding rtf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
   const Binding otf = Binding::texels(opt_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(opt_map.tf_size) * 16);
   const Binding r_image = Binding::image(ref.view, ref.layout), o_image = Binding::image(opt.view, opt.layout);

@@ -38,9 +38,9 @@ class ResidualMapKernel {
   Context& ctx_;
   uint64_t range_quads_;
   uint32_t workgroup_size_;
-  std::unique_ptr<ComputePipeline> pipeline_;
+  SharedPipeline pipeline_;
   // The image variant per x and y size (specialization constants), made when first recorded.
-  mutable std::map<std::pair<uint32_t, uint32_t>, std::unique_ptr<ComputePipeline>> image_pipelines_;
+  mutable std::map<std::pair<uint32_t, uint32_t>, SharedPipeline> image_pipelines_;
 };
 
 }  // namespace tfm

@@ -56,7 +56,7 @@ WeightedPipelines::WeightedPipelines(Context& ctx, PipelineDesc plain, std::vect
                                      std::initializer_list<uint32_t> weighted_texels)
     : ctx_(ctx), weighted_desc_(plain) {
   plain.spirv = shader_spirv(plain.shader);
-  plain_ = std::make_unique<ComputePipeline>(ctx, plain);
+  plain_ = shared_pipeline(ctx, plain);
   // "sparse_scatter_int64" -> "sparse_scatter_weighted_int64"
   const size_t int64 = weighted_desc_.shader.find("_int64");
   weighted_desc_.shader.insert(int64 == std::string::npos ? weighted_desc_.shader.size() : int64, "_weighted");
@@ -70,7 +70,7 @@ const ComputePipeline& WeightedPipelines::get(bool weighted) const {
   if (!weighted_) {
     PipelineDesc desc = weighted_desc_;
     desc.spirv = shader_spirv(desc.shader);
-    weighted_ = std::make_unique<ComputePipeline>(ctx_, desc);
+    weighted_ = shared_pipeline(ctx_, desc);
   }
   return *weighted_;
 }

@@ -35,9 +35,9 @@ class WeightedPipelines {
 
  private:
   Context& ctx_;
-  std::unique_ptr<ComputePipeline> plain_;
+  SharedPipeline plain_;
   PipelineDesc weighted_desc_;
-  mutable std::unique_ptr<ComputePipeline> weighted_;
+  mutable SharedPipeline weighted_;
 };
 
 class VoxelVectors {

@@ -26,7 +26,7 @@ constexpr uint32_t kWorkgroup = 64;
 // 65535 iterations in all (shaders/correlation_common.glsl), so the views come in batches.
 constexpr uint64_t kMaxSamplesPerInvocation = 60000;
 
-std::unique_ptr<ComputePipeline> make_pipeline(Context& ctx, uint32_t chunks, uint32_t mode) {
+SharedPipeline make_pipeline(Context& ctx, uint32_t chunks, uint32_t mode) {
   PipelineDesc desc;
   desc.shader = "visibility_weights";
   desc.binding_counts = gpu::to_vector(kVisibilityBindingCounts);
@@ -36,7 +36,7 @@ std::unique_ptr<ComputePipeline> make_pipeline(Context& ctx, uint32_t chunks, ui
   desc.specialization =
       gpu::by_id({{TFM_SPEC_WORKGROUP_X, kWorkgroup}, {TFM_RENDER_SPEC_CHUNKS, chunks}, {TFM_VIS_SPEC_MODE, mode}});
   desc.spirv = shader_spirv(desc.shader);
-  return std::make_unique<ComputePipeline>(ctx, desc);
+  return shared_pipeline(ctx, desc);
 }
 }  // namespace
 

@@ -48,7 +48,7 @@ class VisibilityWeightsKernel {
  private:
   Context& ctx_;
   uint32_t chunks_;
-  std::unique_ptr<ComputePipeline> sum_, quantize_;
+  SharedPipeline sum_, quantize_;
 };
 
 }  // namespace tfm

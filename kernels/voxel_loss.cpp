@@ -24,7 +24,7 @@ VoxelLossKernel::VoxelLossKernel(Context& ctx, uint64_t range_quads, uint32_t wo
 VoxelLossKernel::~VoxelLossKernel() = default;
 
 const ComputePipeline& VoxelLossKernel::pipeline(bool with_before, const VkExtent3D* image) const {
-  std::unique_ptr<ComputePipeline>& p =
+  SharedPipeline& p =
       pipelines_[{with_before, image ? image->width : 0u, image ? image->height : 0u}];
   if (p) return *p;
   PipelineDesc desc;
@@ -44,7 +44,7 @@ const ComputePipeline& VoxelLossKernel::pipeline(bool with_before, const VkExten
                                     {TFM_LOSS_SPEC_IMAGE_NX, image ? image->width : 1u},
                                     {TFM_LOSS_SPEC_IMAGE_NY, image ? image->height : 1u}});
   desc.spirv = shader_spirv(desc.shader);
-  p = std::make_unique<ComputePipeline>(ctx_, desc);
+  p = shared_pipeline(ctx_, desc);
   return *p;
 }
 

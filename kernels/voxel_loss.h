@@ -52,7 +52,7 @@ class VoxelLossKernel {
   Context& ctx_;
   uint64_t range_quads_;
   uint32_t workgroup_size_;
-  mutable std::map<std::tuple<bool, uint32_t, uint32_t>, std::unique_ptr<ComputePipeline>> pipelines_;
+  mutable std::map<std::tuple<bool, uint32_t, uint32_t>, SharedPipeline> pipelines_;
 };
 
 }  // namespace tfm

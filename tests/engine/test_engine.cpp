@@ -3,6 +3,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <numeric>
+#include <thread>
 #include <vector>
 
 #include "normal_equations_cpu.h"
@@ -165,6 +166,46 @@ TEST_F(EngineTest, DispatchChecksBindingsPushAndGroupLimits) {
   PipelineDesc no_code = desc;
   no_code.spirv = {};
   EXPECT_THROW(ComputePipeline(ctx(), no_code), std::invalid_argument);
+}
+
+// The context's pipelines are shared by description: the same one for an equal description, from
+// any thread and made once; another for any difference; a creation that failed is tried again.
+TEST_F(EngineTest, PipelinesAreSharedByDescription) {
+  PipelineDesc desc;
+  desc.shader = "voxel_loss";
+  desc.spirv = shader_spirv(desc.shader);
+  desc.binding_counts = {1, 1, 1, 1, 1, 1, 1};
+  desc.binding_kinds = texel_binding_kinds(7, {0, 1, 2, 3, 5, 6});
+  desc.push_constant_bytes = sizeof(gpu::VoxelPairPush);
+  desc.specialization = {TFM_VOXEL_WORKGROUP};
+  desc.workgroup_size = TFM_VOXEL_WORKGROUP;
+  PipelineRegistry& registry = ctx().pipelines();
+  const size_t before = registry.size();
+  std::vector<SharedPipeline> got(6);
+  {
+    std::vector<std::thread> askers;
+    for (SharedPipeline& g : got) askers.emplace_back([&] { g = shared_pipeline(ctx(), desc); });
+    for (std::thread& t : askers) t.join();
+  }
+  for (const SharedPipeline& g : got) {
+    ASSERT_NE(g, nullptr);
+    EXPECT_EQ(g.get(), got[0].get());
+  }
+  EXPECT_LE(registry.size(), before + 1);  // + 0 when an earlier test's kernel made it already
+  PipelineDesc other_constant = desc;  // another workgroup size
+  other_constant.specialization = {TFM_VOXEL_WORKGROUP / 2};
+  other_constant.workgroup_size = TFM_VOXEL_WORKGROUP / 2;
+  PipelineDesc other_name = desc;
+  other_name.shader = "voxel_loss (another kernel's)";
+  const SharedPipeline a = shared_pipeline(ctx(), other_constant), b = shared_pipeline(ctx(), other_name);
+  EXPECT_NE(a.get(), got[0].get());
+  EXPECT_NE(b.get(), got[0].get());
+  EXPECT_NE(a.get(), b.get());
+  EXPECT_EQ(shared_pipeline(ctx(), other_constant).get(), a.get());
+  PipelineDesc too_big = desc;
+  too_big.workgroup_size = ctx().limits().maxComputeWorkGroupInvocations + 1;
+  EXPECT_THROW(shared_pipeline(ctx(), too_big), std::runtime_error);
+  EXPECT_THROW(shared_pipeline(ctx(), too_big), std::runtime_error);  // not kept as made
 }
 
 // Texel bindings: the kind must match the pipeline's, and a view must be aligned, inside its

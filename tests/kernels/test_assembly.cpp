@@ -54,6 +54,36 @@ void expect_exact(const std::vector<uint64_t>& gpu, const std::vector<uint64_t>&
 
 using AssemblyTest = test::GpuTest;
 
+// Two kernels of the same kind made one after the other (two solvers' assemblies) make the driver
+// create their pipelines once, and give the same sums: on a context of its own, whose registry
+// starts empty.
+TEST(AssemblyPipelines, KernelsMadeAgainReuseTheirPipelines) {
+  const std::unique_ptr<Context> own = Context::create();
+  Context& c = *own;
+  std::vector<float> ref(5000), opt(5000);
+  for (size_t i = 0; i < ref.size(); ++i) ref[i] = float(i % 97) / 96.0f, opt[i] = float((i * 7) % 89) / 88.0f;
+  DeviceField r(c, ref, "ref"), o(c, opt, "opt");
+  const Buffer tf_buffer = upload_tf(c, random_tf(8, 5), "tf");
+  const FieldMapping map = make_mapping({0.0, 1.0}, 8), opt_map = make_mapping({0.0, 1.0}, 12);
+  ASSERT_EQ(c.pipelines().size(), 0u);
+  std::vector<uint64_t> first;
+  size_t made = 0;
+  for (int kernel = 0; kernel < 2; ++kernel) {
+    GpuNormalEquations gpu(c, 12);
+    gpu.add(r, o, map, opt_map, tf_buffer);
+    const std::vector<uint64_t> slots = gpu.fixed_point_slots();
+    if (kernel == 0) {
+      first = slots;
+      made = c.pipelines().size();
+      EXPECT_GT(made, 0u) << "the assembly's pipelines did not come from the context's registry";
+    } else {
+      EXPECT_EQ(slots, first);
+      EXPECT_EQ(c.pipelines().size(), made) << "the second kernel made pipelines of its own";
+    }
+  }
+  for (const std::string& m : c.take_validation_messages()) ADD_FAILURE() << "Vulkan validation: " << m;
+}
+
 TEST_F(AssemblyTest, AllNanFieldContributesNothing) {
   std::vector<float> ref(1000, 0.5f), opt(1000, NAN);
   DeviceField r(ctx(), ref, "ref"), o(ctx(), opt, "opt");
