@@ -1,11 +1,12 @@
 // Loading the CUDA solvers' plugin (cuda_backend.h). dlopen by hand: there is no lazy loading of
 // a shared library's dependencies on Linux, and linking libcudart/libcusparse/libnvJitLink into
-// the program cost every process 22 ms of start-up for a solver few commands use.
+// the program cost every process ~24 ms of start-up for solvers few commands use.
 #include "cuda_backend.h"
 
 #include <dlfcn.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <stdexcept>
 
