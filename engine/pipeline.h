@@ -82,7 +82,7 @@ class PipelineRegistry {
   PipelineRegistry(const PipelineRegistry&) = delete;
   PipelineRegistry& operator=(const PipelineRegistry&) = delete;
   SharedPipeline get(const PipelineDesc& desc);
-  size_t size() const;  // pipelines made (or being made)
+  size_t size() const;  // descriptions asked for: pipelines made, being made, or whose creation failed
 
  private:
   using Key = std::tuple<std::string, const uint32_t*, size_t, std::vector<uint32_t>, std::vector<DescriptorKind>,

@@ -12,7 +12,7 @@ data=(); [ "${1:-}" = "--with-data" ] && { data=(--with-data); shift; }
 build=$(realpath "${1:-$root/build}")
 out=$(realpath -m "${2:-$root/.gpu}")
 bundle=$root/../shared/gpu/bundle.sh
-[ -x "$bundle" ] || [ -f "$bundle" ] || { echo "gpu-pack.sh: no $bundle (it comes with ../shared)" >&2; exit 1; }
+[ -f "$bundle" ] || { echo "gpu-pack.sh: no $bundle (it comes with ../shared)" >&2; exit 1; }
 [ -x "$build/tfmatch" ] || { echo "gpu-pack.sh: no $build/tfmatch: build first" >&2; exit 1; }
 case "$out" in
   "$root"/*) mkdir -p "$out"; git -C "$root" check-ignore -q "$out" ||

@@ -30,17 +30,10 @@ class LazyLibrary {
   std::string error_;
 };
 
-// The typed function `name` of `library`: `declared` is tfmatch's own definition of it (only its
-// type is used).
-template <class Fn>
-Fn lazy_function(LazyLibrary& library, Fn declared, const char* name) {
-  (void)declared;
-  return reinterpret_cast<Fn>(library.symbol(name));
-}
-
 }  // namespace tfm
 
-// The body of a forwarding definition: the real function resolved once, then called.
-#define TFM_LAZY_FORWARD(library, name, ...)                                   \
-  static const auto real = ::tfm::lazy_function(library, &::name, #name);      \
+// The body of a forwarding definition of the library function `name` (tfmatch's own definition,
+// whose type is the declared one): the real function resolved once, then called.
+#define TFM_LAZY_FORWARD(library, name, ...)                                                   \
+  static const auto real = reinterpret_cast<decltype(&::name)>((library).symbol(#name));    \
   return real(__VA_ARGS__);

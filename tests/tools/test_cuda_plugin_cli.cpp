@@ -18,7 +18,7 @@ namespace {
 
 using test::run_cli;
 
-bool loaded(const std::string& log, const std::string& library) { return test::loader_log_shows(log, library); }
+using test::loader_log_shows;
 
 class CudaPluginCli : public ::testing::Test {
  protected:
@@ -42,15 +42,15 @@ TEST_F(CudaPluginCli, OnlyACudaSolverLoadsCuda) {
   for (const std::string args : {std::string("--version"), optimize("normal-equations")}) {
     const test::CliResult r = run_cli(args, test::kCliTimeout, env);
     ASSERT_EQ(r.exit_code, 0) << args << "\n" << r.output;
-    ASSERT_TRUE(loaded(r.output, "libc.so.6")) << "no loader log: " << r.output.substr(0, 2000);
+    ASSERT_TRUE(loader_log_shows(r.output, "libc.so.6")) << "no loader log: " << r.output.substr(0, 2000);
     for (const std::string library : {"libtfmatch_cuda.so", "libcudart.so", "libcusparse.so", "libnvJitLink.so"})
-      EXPECT_FALSE(loaded(r.output, library)) << args << " loaded " << library;
+      EXPECT_FALSE(loader_log_shows(r.output, library)) << args << " loaded " << library;
   }
   std::filesystem::remove(dir / "out.json");
 
   const test::CliResult r = run_cli(optimize("cuda-cgls"), test::kCliTimeout, env);
-  EXPECT_TRUE(loaded(r.output, "libtfmatch_cuda.so")) << r.output.substr(0, 4000);
-  EXPECT_TRUE(loaded(r.output, "libcusparse.so")) << r.output.substr(0, 4000);
+  EXPECT_TRUE(loader_log_shows(r.output, "libtfmatch_cuda.so")) << r.output.substr(0, 4000);
+  EXPECT_TRUE(loader_log_shows(r.output, "libcusparse.so")) << r.output.substr(0, 4000);
   if (r.exit_code != 0) {  // no CUDA device here: the solver says so, the plugin is not the problem
     EXPECT_EQ(r.exit_code, 1);
     EXPECT_NE(r.output.find("cuda-cgls: no CUDA device available"), std::string::npos) << r.output;
