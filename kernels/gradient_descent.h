@@ -3,7 +3,6 @@
 #pragma once
 
 #include <cstdint>
-#include <map>
 #include <memory>
 
 #include "buffer.h"
@@ -12,6 +11,7 @@
 #include "pipeline.h"
 #include "reduction.h"
 #include "solver_layout.h"
+#include "tf_residual_pass.h"
 
 namespace tfm {
 
@@ -24,20 +24,13 @@ class Context;
 class GdGradientKernel {
  public:
   GdGradientKernel(Context& ctx, uint32_t tf_size, bool l1, ReductionOptions options = {});
-  ~GdGradientKernel();
-  ReductionMode mode() const { return reduction_.mode; }
-  bool int64_atomics() const { return reduction_.int64; }
+  ReductionMode mode() const { return pass_.reduction().mode; }
+  bool int64_atomics() const { return pass_.reduction().int64; }
   void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
               const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& x, Buffer& accum) const;
 
  private:
-  // The pipeline for a reference TF of `ref_tf_size` entries (CPU devices copy it per lane).
-  const ComputePipeline& pipeline(uint32_t ref_tf_size) const;
-  Context& ctx_;
-  uint32_t tf_size_;
-  bool l1_;
-  Reduction reduction_;
-  mutable std::map<uint32_t, SharedPipeline> pipelines_;
+  TfResidualPass pass_;
 };
 
 struct GdUpdateBuffers {

@@ -1,6 +1,5 @@
 // Loss and gradient of the voxel objective for gradient descent, over one chunk of voxels: per
-// voxel e = T_o(F_o) - b with T_o = x (unclamped, the iterate is kept in [0,1]), b = T_r(F_r)
-// clamped to [0,1]; l2 adds e^2 to the loss and (1-w) e, w e to entries j, j+1 of the gradient
+// voxel e = T_o(F_o) - b (tf_residual.glsl); l2 adds e^2 to the loss and (1-w) e, w e to entries j, j+1 of the gradient
 // sum; l1 adds |e| and (1-w) sign(e), w sign(e). The gradient is reduced as
 // tf_pair_reduce.glsl describes, the loss per lane in registers; every term is converted to
 // 32.32 fixed point on its own and summed as an integer (the same bits for every mode, atomic
@@ -39,22 +38,15 @@ layout(std430, binding = TFM_GD_BINDING_X) readonly buffer X { vec4 x[]; };
 TFM_DECLARE_ACCUMULATORS(TFM_GD_BINDING_ACCUM)
 
 #include "tf_pair_reduce.glsl"
-
-// Private copies of the two TFs (CPU devices: gathers from private memory are cheap there).
-vec4 ref_cache[TF_CACHE_ENTRIES + 1u];
-vec4 x_cache[PRIVATE_BINS + 1u];
-vec4 ref_entry(uint j) { return TF_CACHE_ENTRIES > 0u ? ref_cache[j] : ref_tf[j]; }
-vec4 x_entry(uint j) { return PRIVATE_BINS > 0u ? x_cache[j] : x[j]; }
+#include "tf_residual.glsl"
 
 Fx loss[4];
 
 void take(float ref_value, float opt_value) {
-  uint jr, jo;
-  float wr, wo;
-  const bool ref_ok = tf_coordinate(ref_value, pc.ref_lo, pc.ref_scale, pc.ref_tf_size, jr, wr);
-  const bool ok = tf_coordinate(opt_value, pc.opt_lo, pc.opt_scale, pc.opt_tf_size, jo, wo) && ref_ok;
-  const vec4 b = clamp((1.0 - wr) * ref_entry(jr) + wr * ref_entry(jr + 1u), 0.0, 1.0);
-  const vec4 e = ok ? (1.0 - wo) * x_entry(jo) + wo * x_entry(jo + 1u) - b : vec4(0.0);
+  uint jo;
+  float wo;
+  vec4 b, e;
+  const bool ok = voxel_residual(ref_value, opt_value, jo, wo, b, e);
   const vec4 d = LOSS_L1 ? sign(e) : e;
   for (uint c = 0u; c < 4u; ++c) fx_sum(loss[c], fx_term(LOSS_L1 ? abs(e[c]) : e[c] * e[c]));
   const float w = ok ? wo : 0.0;
@@ -64,8 +56,7 @@ void take(float ref_value, float opt_value) {
 void main() {
   const uint n = pc.opt_tf_size;
   if (MODE == TFM_REDUCE_RUNS_SHARED) TFM_SHARED_ACCUMULATORS_ZERO(TFM_TF_GRADIENT_SLOTS(n))
-  for (uint j = 0u; j < TF_CACHE_ENTRIES; ++j) ref_cache[j] = ref_tf[j];
-  for (uint j = 0u; j < PRIVATE_BINS; ++j) x_cache[j] = x[j];
+  residual_begin();
   for (uint c = 0u; c < 4u; ++c) loss[c] = FX_ZERO;
   pair_begin();
 

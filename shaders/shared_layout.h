@@ -74,7 +74,8 @@ std::vector<uint> to_vector(const std::array<uint, N>& a) {
 // Specialization values indexed by constant_id from (id, value) pairs. Ids missing from the list
 // get 0 (Vulkan ignores map entries of ids a shader does not declare). Throws std::logic_error
 // when an id is given twice.
-inline std::vector<uint> by_id(std::initializer_list<std::pair<uint, uint>> values) {
+template <typename Pairs>
+std::vector<uint> by_id_of(const Pairs& values) {
   std::vector<uint> out;
   std::vector<bool> set;
   for (const auto& [id, value] : values) {
@@ -88,6 +89,8 @@ inline std::vector<uint> by_id(std::initializer_list<std::pair<uint, uint>> valu
   }
   return out;
 }
+inline std::vector<uint> by_id(std::initializer_list<std::pair<uint, uint>> values) { return by_id_of(values); }
+inline std::vector<uint> by_id(const std::vector<std::pair<uint, uint>>& values) { return by_id_of(values); }
 #endif
 
 // ---- assemble_normal_equations.comp (and its TFM_INT64 variant) ----------------------------

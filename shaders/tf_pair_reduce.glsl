@@ -10,11 +10,21 @@
 // The including shader declares the constants MODE, PRIVATE_BINS (N in private mode, else 0)
 // and SHARED_SLOTS, includes fixed_point_accumulators.glsl and declares its accumulators, then
 // calls pair_begin(), pair_add() per voxel and pair_end(n) once per invocation.
+//
+// Several sets (irls_assemble: three sums per entry and channel): the shader defines
+// TFM_PAIR_SETS and TFM_PAIR_SET_STRIDE (the slots of one set, 4N) before including this file and
+// adds with pair_add_set(s, ...), set 0 first for each voxel; set s owns slots s * stride + 4j + c.
+// All sets of a voxel go to the same entry pair, so they share one run.
 #ifndef TFMATCH_TF_PAIR_REDUCE_GLSL
 #define TFMATCH_TF_PAIR_REDUCE_GLSL
 
-Fx pair_hist[4u * PRIVATE_BINS + 1u];
-Fx pair_lo[4], pair_hi[4];   // run sums of entries pair_bin, pair_bin + 1
+#ifndef TFM_PAIR_SETS
+#define TFM_PAIR_SETS 1u
+#define TFM_PAIR_SET_STRIDE 0u
+#endif
+
+Fx pair_hist[TFM_PAIR_SETS * 4u * PRIVATE_BINS + 1u];   // set s of entry j at s 4 PRIVATE_BINS + 4j
+Fx pair_lo[4u * TFM_PAIR_SETS], pair_hi[4u * TFM_PAIR_SETS];  // run sums of entries pair_bin, pair_bin + 1
 uint pair_bin;               // NO_PAIR between runs
 const uint NO_PAIR = 0xFFFFFFFFu;
 
@@ -25,46 +35,53 @@ void pair_slot_add(uint k, Fx v) {
 
 void pair_flush_run() {
   if (pair_bin == NO_PAIR) return;
-  for (uint c = 0u; c < 4u; ++c) {
-    pair_slot_add(4u * pair_bin + c, pair_lo[c]);
-    pair_slot_add(4u * (pair_bin + 1u) + c, pair_hi[c]);
-    pair_lo[c] = pair_hi[c] = FX_ZERO;
-  }
+  for (uint s = 0u; s < TFM_PAIR_SETS; ++s)
+    for (uint c = 0u; c < 4u; ++c) {
+      pair_slot_add(s * TFM_PAIR_SET_STRIDE + 4u * pair_bin + c, pair_lo[4u * s + c]);
+      pair_slot_add(s * TFM_PAIR_SET_STRIDE + 4u * (pair_bin + 1u) + c, pair_hi[4u * s + c]);
+      pair_lo[4u * s + c] = pair_hi[4u * s + c] = FX_ZERO;
+    }
 }
 
 void pair_begin() {
-  for (uint j = 0u; j < PRIVATE_BINS; ++j)
-    for (uint c = 0u; c < 4u; ++c) pair_hist[4u * j + c] = FX_ZERO;
-  for (uint c = 0u; c < 4u; ++c) pair_lo[c] = pair_hi[c] = FX_ZERO;
+  for (uint k = 0u; k < TFM_PAIR_SETS * 4u * PRIVATE_BINS; ++k) pair_hist[k] = FX_ZERO;
+  for (uint k = 0u; k < 4u * TFM_PAIR_SETS; ++k) pair_lo[k] = pair_hi[k] = FX_ZERO;
   pair_bin = NO_PAIR;
 }
 
-// Adds lo to entry j and hi to entry j + 1; nothing when !ok (lo and hi must then be 0: the
-// private histogram adds them without a branch).
-void pair_add(bool ok, uint j, vec4 lo, vec4 hi) {
+// Adds lo to entry j and hi to entry j + 1 of set s; nothing when !ok (lo and hi must then be
+// 0: the private histogram adds them without a branch).
+void pair_add_set(uint s, bool ok, uint j, vec4 lo, vec4 hi) {
   const Fx l0 = fx_signed_term(lo.x), l1 = fx_signed_term(lo.y), l2 = fx_signed_term(lo.z), l3 = fx_signed_term(lo.w);
   const Fx h0 = fx_signed_term(hi.x), h1 = fx_signed_term(hi.y), h2 = fx_signed_term(hi.z), h3 = fx_signed_term(hi.w);
   if (MODE == TFM_REDUCE_PRIVATE) {
-    const uint base = 4u * (ok ? j : 0u);
+    const uint base = s * 4u * PRIVATE_BINS + 4u * (ok ? j : 0u);
     fx_sum(pair_hist[base + 0u], l0), fx_sum(pair_hist[base + 1u], l1);
     fx_sum(pair_hist[base + 2u], l2), fx_sum(pair_hist[base + 3u], l3);
     fx_sum(pair_hist[base + 4u], h0), fx_sum(pair_hist[base + 5u], h1);
     fx_sum(pair_hist[base + 6u], h2), fx_sum(pair_hist[base + 7u], h3);
   } else if (ok) {
-    if (j != pair_bin) {
+    // Set 0 comes first for every voxel and starts its run, so the flush is compiled in once per
+    // voxel, not once per set (lavapipe: irls_assemble with a flush per set took 4-15 s to compile).
+    if (s == 0u && j != pair_bin) {
       pair_flush_run();
       pair_bin = j;
     }
-    fx_sum(pair_lo[0], l0), fx_sum(pair_lo[1], l1), fx_sum(pair_lo[2], l2), fx_sum(pair_lo[3], l3);
-    fx_sum(pair_hi[0], h0), fx_sum(pair_hi[1], h1), fx_sum(pair_hi[2], h2), fx_sum(pair_hi[3], h3);
+    const uint r = 4u * s;
+    fx_sum(pair_lo[r + 0u], l0), fx_sum(pair_lo[r + 1u], l1), fx_sum(pair_lo[r + 2u], l2), fx_sum(pair_lo[r + 3u], l3);
+    fx_sum(pair_hi[r + 0u], h0), fx_sum(pair_hi[r + 1u], h1), fx_sum(pair_hi[r + 2u], h2), fx_sum(pair_hi[r + 3u], h3);
   }
 }
 
-// Adds what the invocation holds to the slots of entries 0..n-1.
+void pair_add(bool ok, uint j, vec4 lo, vec4 hi) { pair_add_set(0u, ok, j, lo, hi); }
+
+// Adds what the invocation holds to the slots of entries 0..n-1 of every set.
 void pair_end(uint n) {
   if (MODE == TFM_REDUCE_PRIVATE) {
-    for (uint j = 0u; j < n; ++j)
-      for (uint c = 0u; c < 4u; ++c) TFM_ADD_GLOBAL(4u * j + c, pair_hist[4u * j + c])
+    for (uint s = 0u; s < TFM_PAIR_SETS; ++s)
+      for (uint j = 0u; j < n; ++j)
+        for (uint c = 0u; c < 4u; ++c)
+          TFM_ADD_GLOBAL(s * TFM_PAIR_SET_STRIDE + 4u * j + c, pair_hist[s * 4u * PRIVATE_BINS + 4u * j + c])
   } else {
     pair_flush_run();
   }

@@ -3,6 +3,7 @@
 // registered solver.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <random>
@@ -38,6 +39,17 @@ struct SolverProblem {
   VoxelProblem problem(Context& ctx) const {
     return VoxelProblem{ctx, ref_volume, opt_volume, *ref, *opt, ref_map, opt_map, ref_tf, *ref_tf_buffer,
                         ref_tf.resampled(opt_map.tf_size)};
+  }
+  // Voxel i's optimized-TF coordinate (entry j, weight w) and b as the kernels compute them (float
+  // TF entries, double arithmetic, clamped); false when either field has no data there.
+  bool voxel_terms(size_t i, uint32_t& j, float& w, double b[4]) const {
+    uint32_t jr;
+    float wr;
+    if (!tf_coordinate(ref_volume.values[i], ref_map, jr, wr) || !tf_coordinate(opt_volume.values[i], opt_map, j, w))
+      return false;
+    for (int c = 0; c < 4; ++c)
+      b[c] = std::clamp((1.0 - wr) * float(ref_tf.rgba[jr][c]) + double(wr) * float(ref_tf.rgba[jr + 1][c]), 0.0, 1.0);
+    return true;
   }
   // Runs the registered solver `solver` with `settings` (options parsed as the command line's).
   SolverOutput solve(Context& ctx, const std::string& solver, const SolverSettings& settings = {}) {

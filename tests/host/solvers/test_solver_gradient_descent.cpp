@@ -21,17 +21,6 @@ namespace {
 
 class SolverGradientDescent : public test::GpuTest {};
 
-// b of voxel i as the kernels compute it (float TF entries, double arithmetic, clamped).
-bool voxel_terms(const test::SolverProblem& p, size_t i, uint32_t& j, float& w, double b[4]) {
-  uint32_t jr;
-  float wr;
-  if (!tf_coordinate(p.ref_volume.values[i], p.ref_map, jr, wr) || !tf_coordinate(p.opt_volume.values[i], p.opt_map, j, w))
-    return false;
-  for (int c = 0; c < 4; ++c)
-    b[c] = std::clamp((1.0 - wr) * float(p.ref_tf.rgba[jr][c]) + double(wr) * float(p.ref_tf.rgba[jr + 1][c]), 0.0, 1.0);
-  return true;
-}
-
 TEST_F(SolverGradientDescent, GradientKernelMatchesCpu) {
   const uint32_t n = 9;
   std::vector<ReductionOptions> paths;
@@ -72,7 +61,7 @@ TEST_F(SolverGradientDescent, GradientKernelMatchesCpu) {
           uint32_t j;
           float w;
           double b[4];
-          if (!voxel_terms(p, i, j, w, b)) continue;
+          if (!p.voxel_terms(i, j, w, b)) continue;
           for (int c = 0; c < 4; ++c) {
             const double e = (1.0 - w) * x[4 * j + c] + double(w) * x[4 * (j + 1) + c] - b[c];
             // The kernel forms e in float: within 1e-6 of this for values in [0,1]. For l1 a sign
@@ -195,7 +184,7 @@ TEST_F(SolverGradientDescent, TwoIterationsMatchACpuReplay) {
     uint32_t j;
     float w;
     double b[4];
-    voxels += voxel_terms(p, i, j, w, b) ? 1 : 0;
+    voxels += p.voxel_terms(i, j, w, b) ? 1 : 0;
   }
   for (uint32_t t = 1; t <= 2; ++t) {
     std::vector<double> g(4 * n, 0.0);
@@ -203,7 +192,7 @@ TEST_F(SolverGradientDescent, TwoIterationsMatchACpuReplay) {
       uint32_t j;
       float w;
       double b[4];
-      if (!voxel_terms(p, i, j, w, b)) continue;
+      if (!p.voxel_terms(i, j, w, b)) continue;
       for (int c = 0; c < 4; ++c) {
         const double e = (1.0 - w) * x[4 * j + c] + double(w) * x[4 * (j + 1) + c] - b[c];
         g[4 * j + c] += 2.0 / (4.0 * voxels) * (1.0 - w) * e;
