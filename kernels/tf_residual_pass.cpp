@@ -11,6 +11,13 @@
 namespace tfm {
 
 namespace {
+// The kernels share binding and specialization numbers: gd_gradient's name them.
+static_assert(TFM_IRLS_BINDING_REF_FIELD == TFM_GD_BINDING_REF_FIELD && TFM_IRLS_BINDING_OPT_FIELD == TFM_GD_BINDING_OPT_FIELD &&
+              TFM_IRLS_BINDING_REF_TF == TFM_GD_BINDING_REF_TF && TFM_IRLS_BINDING_STATE == TFM_GD_BINDING_X &&
+              TFM_IRLS_BINDING_ACCUM == TFM_GD_BINDING_ACCUM && TFM_IRLS_BINDING_REF_QUADS == TFM_GD_BINDING_REF_QUADS &&
+              TFM_IRLS_BINDING_OPT_QUADS == TFM_GD_BINDING_OPT_QUADS);
+static_assert(TFM_IRLS_SPEC_MODE == TFM_GD_SPEC_MODE && TFM_IRLS_SPEC_SHARED_SLOTS == TFM_GD_SPEC_SHARED_SLOTS &&
+              TFM_IRLS_SPEC_PRIVATE_BINS == TFM_GD_SPEC_PRIVATE_BINS && TFM_IRLS_SPEC_TF_CACHE == TFM_GD_SPEC_TF_CACHE);
 // Bindings in the order record() lists the buffers.
 constexpr auto kBindingCounts =
     gpu::binding_counts({TFM_GD_BINDING_REF_FIELD, TFM_GD_BINDING_OPT_FIELD, TFM_GD_BINDING_REF_TF, TFM_GD_BINDING_X,

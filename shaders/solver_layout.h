@@ -185,6 +185,37 @@ TFM_PUSH_CONSTANTS(GdUpdatePush) {
 } TFM_PUSH_INSTANCE(pc);
 #endif
 
+// ---- irls_assemble.comp: one pass of iteratively reweighted least squares (solver `irls`) -------
+// Uses VoxelPairPush (shared_layout.h). Per voxel and channel c the residual e = T_o(F_o) - b at
+// the current TF x, as gd_gradient forms it, gives the weight w_c = delta_c / max(|e_c|, delta_c)
+// in (0, 1]; the pass sums the weighted tridiagonal normal equations of every channel and the l1
+// loss at x. Slots (signed 32.32, fixed_point.glsl; the sums themselves are >= 0): three sets of
+// TFM_TF_GRADIENT_SLOTS(N), slot 4j + c of set s at TFM_IRLS_SET_SLOT(s, j, c, N):
+//   set 0 (TFM_IRLS_SET_DIAG): sum w_c (1-t)^2 into entry j and w_c t^2 into j + 1 (diagonal),
+//   set 1 (TFM_IRLS_SET_OFF):  sum w_c (1-t) t into entry j (the off-diagonal (j, j+1)),
+//   set 2 (TFM_IRLS_SET_RHS):  sum w_c (1-t) b_c into entry j and w_c t b_c into j + 1,
+// t the voxel's weight between entries j and j + 1; then the l1 loss per channel (sum |e_c|) as
+// 4 unsigned slots from TFM_IRLS_LOSS_SLOT(N). Specialization and bindings with the numbers of
+// gd_gradient's (constant 4, its loss choice, unused): kernels/tf_residual_pass.h drives both.
+#define TFM_IRLS_SPEC_MODE 1          // TFM_REDUCE_* (shared_layout.h)
+#define TFM_IRLS_SPEC_SHARED_SLOTS 2  // slots of workgroup-shared accumulators (RUNS_SHARED)
+#define TFM_IRLS_SPEC_PRIVATE_BINS 3  // TF entries of each lane's private histograms (PRIVATE)
+#define TFM_IRLS_SPEC_TF_CACHE 5      // reference TF entries copied per lane (0: read the buffer)
+#define TFM_IRLS_BINDING_REF_FIELD 0
+#define TFM_IRLS_BINDING_OPT_FIELD 1
+#define TFM_IRLS_BINDING_REF_TF 2
+#define TFM_IRLS_BINDING_STATE 3      // x (N RGBA entries), then delta per channel (one vec4)
+#define TFM_IRLS_BINDING_ACCUM 4
+#define TFM_IRLS_BINDING_REF_QUADS 5  // the chunks again as RGBA32F texel buffers (quads of voxels)
+#define TFM_IRLS_BINDING_OPT_QUADS 6
+#define TFM_IRLS_SETS 3u
+#define TFM_IRLS_SET_DIAG 0u
+#define TFM_IRLS_SET_OFF 1u
+#define TFM_IRLS_SET_RHS 2u
+#define TFM_IRLS_SET_SLOT(s, j, c, n) ((s) * TFM_TF_GRADIENT_SLOTS(n) + 4u * (j) + (c))
+#define TFM_IRLS_LOSS_SLOT(n) (TFM_IRLS_SETS * TFM_TF_GRADIENT_SLOTS(n))
+#define TFM_IRLS_ACCUM_WORDS(n) (TFM_FIXED_SLOT_WORDS * (TFM_IRLS_LOSS_SLOT(n) + 4u))
+
 #ifdef __cplusplus
 }  // namespace tfm::gpu
 #endif

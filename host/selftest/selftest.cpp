@@ -25,6 +25,7 @@ const CaseList& all_cases() {
     selftest::add_voxel_cases(list);
     selftest::add_sparse_cases(list);
     selftest::add_gd_cases(list);
+    selftest::add_irls_cases(list);
     selftest::add_render_cases(list);
     selftest::add_correlation_cases(list);
     return list;

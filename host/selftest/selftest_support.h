@@ -73,6 +73,7 @@ using CaseList = std::vector<CaseSpec>;
 void add_voxel_cases(CaseList& cases);   // assemble_normal_equations, voxel_loss, residual_map
 void add_sparse_cases(CaseList& cases);  // sparse_prepare, sparse_gather, sparse_scatter, cgls_vectors
 void add_gd_cases(CaseList& cases);      // gd_gradient, gd_update
+void add_irls_cases(CaseList& cases);    // irls_assemble
 void add_render_cases(CaseList& cases);  // render_image, diffdvr_forward, visibility_weights, diffdvr_backward
 void add_correlation_cases(CaseList& cases);  // correlation_pearson, _spearman, _kendall, _mi_binned, _mi_kraskov
 

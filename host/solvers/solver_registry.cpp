@@ -19,6 +19,7 @@ std::unique_ptr<Solver> make_eigen_cgls_solver();
 std::unique_ptr<Solver> make_eigen_normal_equations_solver();
 std::unique_ptr<Solver> make_gradient_descent_solver();
 std::unique_ptr<Solver> make_histogram_matching_solver();
+std::unique_ptr<Solver> make_irls_solver();
 std::unique_ptr<Solver> make_normal_equations_solver();
 std::unique_ptr<Solver> make_qp_solver();
 namespace {
@@ -42,6 +43,7 @@ std::vector<std::unique_ptr<Solver>> make_solvers() {
   list.push_back(make_eigen_normal_equations_solver());
   list.push_back(make_gradient_descent_solver());
   list.push_back(make_histogram_matching_solver());
+  list.push_back(make_irls_solver());
   list.push_back(make_normal_equations_solver());
   list.push_back(make_qp_solver());
   {

@@ -1,0 +1,81 @@
+// Self-test cases of the IRLS pass (irls_assemble: weighted tridiagonal sums and the l1 loss,
+// every reduction mode and atomic width) against its double CPU reference (irls_cpu.h).
+#include <string>
+
+#include "commands.h"
+#include "gpu_voxel_ops.h"
+#include "irls.h"
+#include "irls_cpu.h"
+#include "selftest_support.h"
+#include "solver_layout.h"
+
+namespace tfm::selftest {
+namespace {
+
+const FieldRange kOptRange{0.0, 1.0};
+
+struct PassCase {
+  size_t voxels;
+  ReductionOptions path;
+  uint64_t chunk_voxels = 0;
+};
+
+void pass(Context& ctx, Check& check, const PassCase& c) {
+  const uint32_t n = 9;
+  const std::string missing = reduction_unavailable(ctx, c.path, n, uint64_t(TFM_IRLS_LOSS_SLOT(n)) * gpu::kFixedSlotBytes);
+  if (!missing.empty()) return check.skip(missing);
+  const FieldPair p = random_pair(c.voxels, 71u + uint32_t(c.voxels), kOptRange, n);
+  const TransferFunction ref_tf = random_tf(11, 72, -0.1, 1.1);
+  const std::vector<float> ref_tf_floats = ref_tf.as_floats();
+  const FieldMapping ref_map = make_mapping({0.0, 1.0}, 11), opt_map = make_mapping(kOptRange, n);
+  DeviceField ref(ctx, p.ref, "selftest reference", c.chunk_voxels), opt(ctx, p.opt, "selftest field", c.chunk_voxels);
+  Buffer tf = upload_tf(ctx, ref_tf, "selftest reference TF");
+  // x, then a weight floor per channel from nearly all-equal weights to nearly l1.
+  const std::array<float, 4> delta = {0.5f, 0.05f, 1e-3f, 1e-4f};
+  std::vector<float> state = random_floats(4 * n, 4, 0.0f, 1.0f);
+  state.insert(state.end(), delta.begin(), delta.end());
+  Buffer sb = make_buffer<float>(ctx, state, "selftest IRLS state");
+  Buffer accum(ctx, irls_accumulator_bytes(n), MemoryUsage::Device, "selftest IRLS accumulators");
+  const IrlsKernel kernel(ctx, n, c.path);
+  check.require(kernel.mode() == c.path.mode, "the kernel did not take the requested path");
+  CommandBatch batch(ctx);
+  batch.fill(accum, 0u);
+  // The zeroed accumulators before the kernel adds to them.
+  batch.barrier();
+  kernel.record(batch, ref, opt, ref_map, opt_map, tf, sb, accum);
+  batch.submit_and_wait();
+  const IrlsSums sums = IrlsSums::from_words(n, read_words(ctx, accum, irls_accumulator_bytes(n) / 4));
+  const IrlsPassCpu expected = irls_pass_cpu(p.ref, p.opt, ref_map, opt_map, ref_tf_floats,
+                                             std::span<const float>(state).first(4 * n), delta);
+  for (uint32_t ch = 0; ch < 4; ++ch) {
+    for (uint32_t j = 0; j < n; ++j) {
+      check.near("diagonal (4j+c)", 4 * j + ch, sums.diag[ch][j], expected.diag[ch][j], expected.diag_bound[ch][j]);
+      check.near("right-hand side (4j+c)", 4 * j + ch, sums.rhs[ch][j], expected.rhs[ch][j], expected.rhs_bound[ch][j]);
+      if (j + 1 < n)
+        check.near("off-diagonal (4j+c)", 4 * j + ch, sums.off[ch][j], expected.off[ch][j], expected.off_bound[ch][j]);
+    }
+    check.near("l1 loss, channel", ch, sums.l1[ch], expected.l1[ch], expected.l1_bound[ch]);
+  }
+}
+
+}  // namespace
+
+void add_irls_cases(CaseList& cases) {
+  const size_t past_group = TFM_VOXEL_WORKGROUP + 1;
+  for (const ReductionOptions& path : reduction_paths()) {
+    auto add = [&](PassCase c, bool quick) {
+      c.path = path;
+      std::string name = voxels_name(c.voxels) + reduction_name(path);
+      if (c.chunk_voxels) name += ", chunks of " + std::to_string(c.chunk_voxels);
+      cases.push_back({"irls_assemble", "IrlsKernel", name, quick, TFM_VOXEL_WORKGROUP,
+                       [c](Context& ctx, Check& check) { pass(ctx, check, c); }});
+    };
+    add({13, path}, false);
+    add({past_group, path}, false);
+    add({5000, path, 1024}, true);
+    add({100003, path}, false);
+    add({100003, path, 16384}, false);
+  }
+}
+
+}  // namespace tfm::selftest
