@@ -38,7 +38,7 @@ TEST(SolverRegistry, ComponentsJoinOnlyBeforeTheRegistryIsBuilt) {
 
 TEST(SolverRegistry, ListsEverySolverOnceInNameOrder) {
   std::vector<std::string> expected = {"cgls", "diffdvr", "eigen-cgls", "eigen-normal-equations", "gradient-descent",
-                                       "histogram-matching", "normal-equations", "qp"};
+                                       "histogram-matching", "irls", "normal-equations", "qp"};
 #ifdef TFMATCH_HAVE_CUDA
   expected.insert(expected.begin() + 1, {"cuda-cgls", "cuda-normal-equations"});
 #endif
