@@ -69,6 +69,9 @@ TEST(DemoCli, TheResidualAfterOptimizationFindsTheChangedRegions) {
   const double fraction = inside / all;
   EXPECT_GE(fraction, 0.80);
   const auto metrics = nlohmann::json::parse(std::ifstream(out / "metrics.json"));
+  // The robust fit by default: least absolute deviations by IRLS, converged.
+  EXPECT_EQ(metrics["optimize"]["solver"], "irls");
+  EXPECT_TRUE(metrics["optimize"]["details"]["converged"].get<bool>());
   const auto& reported = metrics["residual"]["fraction_inside_changed_regions"];
   EXPECT_NEAR(reported["optimized_tf"].get<double>(), fraction, 1e-4);
   EXPECT_LT(reported["reference_tf"].get<double>(), 0.5) << "before, the remap's mismatch is everywhere";
