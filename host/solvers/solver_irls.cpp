@@ -51,8 +51,8 @@ IrlsResult solve_irls_gpu(VoxelProblem& p, const IrlsOptions& o) {
 
   // The start: the box-constrained least-squares fit of the problem's own (unweighted) system,
   // which run_optimize assembles anyway for its losses.
-  auto t0 = std::chrono::steady_clock::now();
   const NormalEquations& eq = assembled_system(p, &out.phases);
+  auto t0 = std::chrono::steady_clock::now();
   const Regularization reg = absolute_regularization(eq, o.regularization);
   const BoxQpResult start = solve_box_constrained(eq, o.regularization);
   Eigen::Matrix<double, Eigen::Dynamic, 4> x = start.x;

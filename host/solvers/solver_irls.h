@@ -34,7 +34,7 @@ struct IrlsResult {
   std::vector<double> history;  // the objective at each pass's iterate
   uint32_t iterations = 0;      // passes
   bool converged = false;       // false: max_iterations ended it
-  std::vector<PhaseTime> phases;  // "setup" (the least-squares start), "iterate"
+  std::vector<PhaseTime> phases;  // "assemble" (unless the problem had its system), "setup" (the least-squares start), "iterate"
 };
 
 // From the box-constrained least-squares solution, passes of weights delta_k / max(|e|, delta_k)
