@@ -5,7 +5,8 @@
 // 32.32 fixed point on its own and summed as an integer (the same bits for every mode, atomic
 // width, chunking and workgroup count). Lanes take consecutive quads of voxels in their
 // subgroup's segment, read as texels, as in assemble_normal_equations.comp, which also explains
-// the modes and the texel buffers (the last voxel_count % 4 voxels are read as floats).
+// the modes and the texel buffers (the last voxel_count % 4 voxels are read as floats;
+// tf_residual_walk.glsl).
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_basic : require
@@ -53,6 +54,8 @@ void take(float ref_value, float opt_value) {
   pair_add(ok, jo, (1.0 - w) * d, w * d);
 }
 
+#include "tf_residual_walk.glsl"
+
 void main() {
   const uint n = pc.opt_tf_size;
   if (MODE == TFM_REDUCE_RUNS_SHARED) TFM_SHARED_ACCUMULATORS_ZERO(TFM_TF_GRADIENT_SLOTS(n))
@@ -60,17 +63,7 @@ void main() {
   for (uint c = 0u; c < 4u; ++c) loss[c] = FX_ZERO;
   pair_begin();
 
-  const uint quads = pc.voxel_count / 4u;
-  TFM_FOR_EACH_QUAD(q, quads) {
-    const vec4 rv = texelFetch(ref_quads, int(q));
-    const vec4 ov = texelFetch(opt_quads, int(q));
-    take(rv.x, ov.x);
-    take(rv.y, ov.y);
-    take(rv.z, ov.z);
-    take(rv.w, ov.w);
-  }
-  if (gl_GlobalInvocationID.x == 0u)
-    for (uint i = 4u * quads; i < pc.voxel_count; ++i) take(texelFetch(ref_field, int(i)).x, texelFetch(opt_field, int(i)).x);
+  residual_walk();
   pair_end(n);
   for (uint c = 0u; c < 4u; ++c) TFM_ADD_GLOBAL(TFM_GD_LOSS_SLOT(n) + c, loss[c])
 

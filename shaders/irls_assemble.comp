@@ -64,6 +64,8 @@ void take(float ref_value, float opt_value) {
   pair_add_set(TFM_IRLS_SET_RHS, ok, jo, rhs_lo, rhs_hi);
 }
 
+#include "tf_residual_walk.glsl"
+
 void main() {
   const uint n = pc.opt_tf_size;
   if (MODE == TFM_REDUCE_RUNS_SHARED) TFM_SHARED_ACCUMULATORS_ZERO(TFM_IRLS_LOSS_SLOT(n))
@@ -72,16 +74,7 @@ void main() {
   for (uint c = 0u; c < 4u; ++c) loss[c] = FX_ZERO;
   pair_begin();
 
-  const uint quads = pc.voxel_count / 4u;
-  TFM_FOR_EACH_QUAD(q, quads) {
-    const vec4 rv = texelFetch(ref_quads, int(q));
-    const vec4 ov = texelFetch(opt_quads, int(q));
-    // A loop, not four calls: each inlined take() carries a run flush of 24 slots, and four
-    // copies made lavapipe's compile several times slower.
-    for (uint k = 0u; k < 4u; ++k) take(rv[k], ov[k]);
-  }
-  if (gl_GlobalInvocationID.x == 0u)
-    for (uint i = 4u * quads; i < pc.voxel_count; ++i) take(texelFetch(ref_field, int(i)).x, texelFetch(opt_field, int(i)).x);
+  residual_walk();
   pair_end(n);
   for (uint c = 0u; c < 4u; ++c) TFM_ADD_GLOBAL(TFM_IRLS_LOSS_SLOT(n) + c, loss[c])
 
