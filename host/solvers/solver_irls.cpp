@@ -165,6 +165,7 @@ class IrlsSolver final : public Solver {
     out.details["converged"] = r.converged;
     out.details["delta"] = o.delta;
     out.details["last_loss"] = r.loss;
+    out.details["objective_per_pass"] = DetailValue::Numbers(r.history);
     out.details["ridge"] = args.solve.ridge;
     out.details["smooth"] = args.solve.smooth;
     return out;

@@ -149,6 +149,11 @@ TEST_F(SolverIrls, MatchesGradientDescentsL1ObjectiveInFarFewerPasses) {
   EXPECT_LE(f_irls, f_gd * (1.0 + 1e-4)) << "irls " << f_irls << " after " << passes << " passes, gd " << f_gd;
   EXPECT_LT(passes, 60u);
   EXPECT_TRUE(irls.details["converged"].get<bool>());
+  // One objective per pass; the TF returned is the best of them.
+  const auto history = irls.details["objective_per_pass"].get<DetailValue::Numbers>();
+  ASSERT_EQ(history.size(), passes);
+  EXPECT_NEAR(*std::min_element(history.begin(), history.end()), irls.details["last_loss"].get<double>(), 1e-15);
+  EXPECT_LT(history.back(), history.front()) << "the passes improve on the least-squares start";
   // Both far below least squares' l1 objective, which the outliers pull.
   const double f_ls = l1_objective(p, solve_box_constrained(p.cpu_equations()).tf);
   EXPECT_LT(f_irls, 0.97 * f_ls);
