@@ -2,6 +2,7 @@
 #include "irls.h"
 
 #include <stdexcept>
+#include <string>
 
 #include "solver_layout.h"
 #include "sparse_ops.h"

@@ -50,7 +50,7 @@ case "$pack" in "$out"/*) echo "gpu-check.sh: the --pack file must lie outside $
 mkdir -p "$out"
 tfm=$build/tfmatch
 jobs=$(nproc)
-gpu_solvers=normal-equations,qp,cgls,gradient-descent,histogram-matching,cuda-normal-equations,cuda-cgls,diffdvr
+gpu_solvers=normal-equations,qp,cgls,gradient-descent,irls,histogram-matching,cuda-normal-equations,cuda-cgls,diffdvr
 solvers=$gpu_solvers,eigen-normal-equations,eigen-cgls
 
 packed() {  # OUT_DIR (without raw volumes) into the --pack file, replaced whole
