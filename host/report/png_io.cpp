@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cstring>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include <png.h>
@@ -134,6 +135,28 @@ std::string encode_png_fast(const Image& image) {
 
 void write_png(const std::filesystem::path& path, const Image& image) {
   write_file_atomically(path, encode_png(image));
+}
+
+BackgroundPngWriter::BackgroundPngWriter(std::size_t max_pending)
+    : max_pending_(max_pending ? max_pending : std::max(1u, std::thread::hardware_concurrency())) {}
+
+void BackgroundPngWriter::add(std::filesystem::path path, const Image& image) {
+  if (pending_.size() >= max_pending_) write_oldest();
+  pending_.emplace_back(std::move(path), std::async(std::launch::async, [image] {
+                          const UntimedThread overlapped;  // counted as the caller's wait
+                          return encode_png(image);
+                        }));
+}
+
+void BackgroundPngWriter::write_oldest() {
+  const PhaseScope timing(Phase::Write);
+  auto [path, bytes] = std::move(pending_.front());
+  pending_.pop_front();
+  write_file_atomically(path, bytes.get());
+}
+
+void BackgroundPngWriter::finish() {
+  while (!pending_.empty()) write_oldest();
 }
 
 Image decode_png(std::string_view bytes, const std::string& name) {

@@ -1,9 +1,13 @@
 // PNG files of 8-bit RGB images (libpng's simplified API), written atomically.
 #pragma once
 
+#include <cstddef>
+#include <deque>
 #include <filesystem>
+#include <future>
 #include <string>
 #include <string_view>
+#include <utility>
 
 #include "image.h"
 
@@ -18,6 +22,24 @@ std::string encode_png(const Image& image);
 std::string encode_png_fast(const Image& image);
 // Writes atomically (host/atomic_file.h). Throws std::runtime_error naming the path.
 void write_png(const std::filesystem::path& path, const Image& image);
+// PNG files encoded on threads of their own while the caller goes on (reports: zlib on one core
+// had been most of their time between renders), written atomically in the order added, from the
+// calling thread (an OutputBatch is single-threaded). At most `max_pending` encodings are in
+// flight (0: the machine's cores); add() writes the oldest first when that many are. The caller's
+// wait counts as the write phase, the encoding threads' time not again. Destroying the writer
+// waits for its encodings and drops what finish() did not write.
+class BackgroundPngWriter {
+ public:
+  explicit BackgroundPngWriter(std::size_t max_pending = 0);
+  void add(std::filesystem::path path, const Image& image);
+  // Writes every picture still pending; rethrows an encoding or writing failure.
+  void finish();
+
+ private:
+  void write_oldest();
+  std::size_t max_pending_;
+  std::deque<std::pair<std::filesystem::path, std::future<std::string>>> pending_;
+};
 // Reads any PNG as 8-bit RGB: grey and palette images are expanded, 16-bit reduced, and an
 // alpha channel is composited over white. Throws std::runtime_error naming the path when the
 // file is missing or not a PNG, and before allocating the image when its header claims more

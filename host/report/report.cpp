@@ -4,10 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <future>
 #include <sstream>
-#include <utility>
-#include <vector>
 
 #include "atomic_file.h"
 #include "camera.h"
@@ -16,7 +13,6 @@
 #include "gpu_voxel_ops.h"
 #include "device_memory.h"
 #include "memory_budget.h"
-#include "phase_timer.h"
 #include "png_io.h"
 #include "progress.h"
 #include "render.h"
@@ -29,28 +25,6 @@
 
 namespace tfm {
 namespace {
-
-// The report's pictures, each encoded to PNG on a thread of its own while the report goes on, and
-// written in order (the output batch is single-threaded) by finish(). Encoding (zlib on one core)
-// had been most of the report's time between its renders.
-class BackgroundPngs {
- public:
-  void add(std::string name, const Image& image) {
-    pending_.emplace_back(std::move(name), std::async(std::launch::async, [image] {
-                            const UntimedThread overlapped;  // counted as the wait in finish()
-                            return encode_png(image);
-                          }));
-  }
-  // Writes every picture into `dir` in the order added; rethrows an encoding failure.
-  void finish(const std::filesystem::path& dir) {
-    const PhaseScope timing(Phase::Write);
-    for (auto& [name, bytes] : pending_) write_file_atomically(dir / name, bytes.get());
-    pending_.clear();
-  }
-
- private:
-  std::vector<std::pair<std::string, std::future<std::string>>> pending_;
-};
 
 double max_value(const Volume& v) {
   double m = 0.0;
@@ -248,9 +222,9 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   };
   // Declared after the batch: on an error its destructor waits for the encodings before the
   // batch removes what was written.
-  BackgroundPngs pngs;
+  BackgroundPngWriter pngs;
   auto save = [&](const std::string& name, const Image& img) {
-    pngs.add(name, img);
+    pngs.add(dir / name, img);
     out.files.push_back(name);
   };
 
@@ -347,7 +321,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
       {255, 255, 255});
   save("overview.png", overview);
 
-  pngs.finish(dir);
+  pngs.finish();
 
   advance("metrics.json");
   nlohmann::json metrics;

@@ -171,8 +171,9 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
   const std::filesystem::path out = batch.directory(dir);
   install_report_font();  // every label in DejaVu Sans when installed
   SeriesReportSummary summary;
+  BackgroundPngWriter pngs;  // after the batch: waits for its encodings before the batch cleans up
   auto write = [&](const std::string& name, const Image& img) {
-    write_png(out / name, img);
+    pngs.add(out / name, img);
     summary.files.push_back(name);
   };
   const RenderSettings& s = in.settings;
@@ -231,6 +232,7 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
                                   {"shared_tf", r.shared_tf},  {"reference", in.ref.name},
                                   {"fields", fields},          {"voxel_rmse_before", r.before.rmse()},
                                   {"voxel_rmse_after", r.after.rmse()}, {"version", in.version}};
+  pngs.finish();
   write_file_atomically(out / "series.json", metrics.dump(2) + "\n");
   summary.files.push_back("series.json");
 

@@ -43,6 +43,34 @@ TEST(RenderPng, RoundTripKeepsEveryByte) {
   }
 }
 
+TEST(RenderPng, BackgroundWriterWritesEveryPictureAndRethrowsFailures) {
+  test::TempDir dir;
+  std::mt19937 rng(2);
+  std::vector<Image> images;
+  for (uint32_t k = 0; k < 7; ++k) {
+    Image img(5 + k, 3 + 2 * k);
+    for (auto& b : img.rgb) b = uint8_t(rng());
+    images.push_back(img);
+  }
+  {
+    // Two in flight: adding the third writes the first.
+    BackgroundPngWriter writer(2);
+    for (size_t k = 0; k < images.size(); ++k) writer.add(dir / ("p" + std::to_string(k) + ".png"), images[k]);
+    EXPECT_TRUE(std::filesystem::exists(dir / "p0.png"));
+    writer.finish();
+  }
+  for (size_t k = 0; k < images.size(); ++k) EXPECT_EQ(read_png(dir / ("p" + std::to_string(k) + ".png")).rgb, images[k].rgb) << k;
+  // A picture for a folder that does not exist: the failure names the file at finish().
+  BackgroundPngWriter writer;
+  writer.add(std::filesystem::path(dir / "missing") / "x.png", images[0]);
+  try {
+    writer.finish();
+    FAIL() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("x.png"), std::string::npos) << e.what();
+  }
+}
+
 // Interactive frames: other bytes, the same pixels, on awkward sizes and content (flat runs,
 // noise, a single row; filtered in bands of about 64 KiB: several bands with a short last one, and
 // rows longer than a band).
