@@ -39,7 +39,8 @@ IrlsSums IrlsSums::from_words(uint32_t n, const std::vector<uint32_t>& words) {
 
 IrlsKernel::IrlsKernel(Context& ctx, uint32_t tf_size, ReductionOptions options)
     // Three sums per entry and channel: the private path holds as many 64-bit sums per lane as
-    // the assembly's (kPrivateHistogramSlots), so up to a third of the gradient's entries.
+    // the assembly's (kPrivateHistogramSlots), 12 an entry, so up to 938 entries (the gradient's
+    // 4 an entry reach 1024).
     : pass_(ctx, tf_size,
             {"irls_assemble", TFM_IRLS_LOSS_SLOT(tf_size), kPrivateHistogramSlots / (4 * TFM_IRLS_SETS), {}},
             options) {}
