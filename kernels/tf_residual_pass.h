@@ -37,7 +37,8 @@ class TfResidualPass {
   uint32_t tf_size() const { return tf_size_; }
   // Adds every chunk of (ref, opt) into `accum` (one dispatch per chunk, each ended by a
   // barrier). Throws std::invalid_argument naming the shader when the fields differ in size or
-  // chunking or the mapping's TF size is not the kernel's; the caller checks its buffers' sizes.
+  // chunking, the mapping's TF size is not the kernel's or the reference TF's buffer is too small;
+  // the caller checks x and the accumulators, whose sizes are its own.
   void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
               const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& x, Buffer& accum) const;
 
