@@ -192,7 +192,10 @@ void main() {
 
 #else  // TFM_DIFFDVR_PRIVATE
 
-vec4 hist[PRIVATE_BINS];  // the lane's gradient sums per TF entry
+// The lane's gradient sums per TF entry, one array per channel (lavapipe compiles four arrays of
+// N floats faster than one of N vec4s: assemble_normal_equations.comp).
+float hist_r[PRIVATE_BINS], hist_g[PRIVATE_BINS], hist_b[PRIVATE_BINS], hist_a[PRIVATE_BINS];
+void hist_add(uint j, vec4 v) { hist_r[j] += v.r, hist_g[j] += v.g, hist_b[j] += v.b, hist_a[j] += v.a; }
 uvec2 lane_loss;          // the lane's loss, fixed point
 uint hist_lo, hist_hi;    // the entries the lane touched: [hist_lo, hist_hi]
 
@@ -206,8 +209,8 @@ void backpropagate_private(uvec2 pixel, uint view) {
     vec4 d;
     // An empty sample gives d = 0 at entry 0: adding it changes nothing and needs no branch.
     const bool ok = step_back(mp, a, j, w, d);
-    hist[j] += (1.0 - w) * d;
-    hist[j + 1u] += w * d;
+    hist_add(j, (1.0 - w) * d);
+    hist_add(j + 1u, w * d);
     hist_lo = ok ? min(hist_lo, j) : hist_lo;
     hist_hi = ok ? max(hist_hi, j + 1u) : hist_hi;
   }
@@ -228,7 +231,7 @@ void subgroup_add(uint k, uvec2 v) {
 
 void main() {
   const uint n = rp.tf_size;
-  for (uint e = 0u; e < n; ++e) hist[e] = vec4(0.0);
+  for (uint e = 0u; e < n; ++e) hist_r[e] = hist_g[e] = hist_b[e] = hist_a[e] = 0.0;
   lane_loss = uvec2(0u);
   hist_lo = n;
   hist_hi = 0u;
@@ -243,7 +246,7 @@ void main() {
   // whole band's sums by that).
   const uint lo = subgroupMin(hist_lo), hi = subgroupMax(hist_hi);
   for (uint e = lo; e <= hi && lo < n; ++e) {
-    const vec4 g = hist[e];
+    const vec4 g = vec4(hist_r[e], hist_g[e], hist_b[e], hist_a[e]);
     for (uint c = 0u; c < 4u; ++c) subgroup_add(4u * e + c, fx_from_signed(g[c]));
   }
   subgroup_add(4u * n, lane_loss);

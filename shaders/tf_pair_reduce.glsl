@@ -23,7 +23,16 @@
 #define TFM_PAIR_SET_STRIDE 0u
 #endif
 
-Fx pair_hist[TFM_PAIR_SETS * 4u * PRIVATE_BINS + 1u];   // set s of entry j at s 4 PRIVATE_BINS + 4j
+// PRIVATE: one histogram per set and channel, pair_hist<s>_<c>[j] (sets up to 3; a set the shader
+// does not use gets one element it never touches). Twelve arrays of N rather than one of 12 N:
+// lavapipe's compile time grows faster than linearly with a private array's size (see
+// assemble_normal_equations.comp), and the adds index each array by j alone.
+#define TFM_PAIR_HIST_SIZE(s) (uint(s) < TFM_PAIR_SETS ? PRIVATE_BINS + 1u : 1u)
+#define TFM_PAIR_EACH_CHANNEL(M, s) M(s, 0) M(s, 1) M(s, 2) M(s, 3)
+#define TFM_PAIR_EACH(M) TFM_PAIR_EACH_CHANNEL(M, 0) TFM_PAIR_EACH_CHANNEL(M, 1) TFM_PAIR_EACH_CHANNEL(M, 2)
+#define TFM_PAIR_DECLARE(s, c) Fx pair_hist##s##_##c[TFM_PAIR_HIST_SIZE(s)];
+TFM_PAIR_EACH(TFM_PAIR_DECLARE)
+const uint tfm_pair_sets_at_most_3[TFM_PAIR_SETS <= 3u ? 1 : -1] = {0u};  // more sets need more arrays above
 Fx pair_lo[4u * TFM_PAIR_SETS], pair_hi[4u * TFM_PAIR_SETS];  // run sums of entries pair_bin, pair_bin + 1
 uint pair_bin;               // NO_PAIR between runs
 const uint NO_PAIR = 0xFFFFFFFFu;
@@ -44,7 +53,10 @@ void pair_flush_run() {
 }
 
 void pair_begin() {
-  for (uint k = 0u; k < TFM_PAIR_SETS * 4u * PRIVATE_BINS; ++k) pair_hist[k] = FX_ZERO;
+  for (uint j = 0u; j < PRIVATE_BINS; ++j) {
+#define TFM_PAIR_ZERO(s, c) if (uint(s) < TFM_PAIR_SETS) pair_hist##s##_##c[j] = FX_ZERO;
+    TFM_PAIR_EACH(TFM_PAIR_ZERO)
+  }
   for (uint k = 0u; k < 4u * TFM_PAIR_SETS; ++k) pair_lo[k] = pair_hi[k] = FX_ZERO;
   pair_bin = NO_PAIR;
 }
@@ -55,11 +67,16 @@ void pair_add_set(uint s, bool ok, uint j, vec4 lo, vec4 hi) {
   const Fx l0 = fx_signed_term(lo.x), l1 = fx_signed_term(lo.y), l2 = fx_signed_term(lo.z), l3 = fx_signed_term(lo.w);
   const Fx h0 = fx_signed_term(hi.x), h1 = fx_signed_term(hi.y), h2 = fx_signed_term(hi.z), h3 = fx_signed_term(hi.w);
   if (MODE == TFM_REDUCE_PRIVATE) {
-    const uint base = s * 4u * PRIVATE_BINS + 4u * (ok ? j : 0u);
-    fx_sum(pair_hist[base + 0u], l0), fx_sum(pair_hist[base + 1u], l1);
-    fx_sum(pair_hist[base + 2u], l2), fx_sum(pair_hist[base + 3u], l3);
-    fx_sum(pair_hist[base + 4u], h0), fx_sum(pair_hist[base + 5u], h1);
-    fx_sum(pair_hist[base + 6u], h2), fx_sum(pair_hist[base + 7u], h3);
+    // s is a constant at every call: the compiler keeps only its set's adds.
+    const uint k = ok ? j : 0u;
+#define TFM_PAIR_ADD_SET(s_)                                                                     \
+    if (s == uint(s_) && uint(s_) < TFM_PAIR_SETS) {                                            \
+      fx_sum(pair_hist##s_##_0[k], l0), fx_sum(pair_hist##s_##_1[k], l1);                       \
+      fx_sum(pair_hist##s_##_2[k], l2), fx_sum(pair_hist##s_##_3[k], l3);                       \
+      fx_sum(pair_hist##s_##_0[k + 1u], h0), fx_sum(pair_hist##s_##_1[k + 1u], h1);            \
+      fx_sum(pair_hist##s_##_2[k + 1u], h2), fx_sum(pair_hist##s_##_3[k + 1u], h3);            \
+    }
+    TFM_PAIR_ADD_SET(0) TFM_PAIR_ADD_SET(1) TFM_PAIR_ADD_SET(2)
   } else if (ok) {
     // Set 0 comes first for every voxel and starts its run, so the flush is compiled in once per
     // voxel, not once per set (lavapipe: irls_assemble with a flush per set took 4-15 s to compile).
@@ -78,10 +95,11 @@ void pair_add(bool ok, uint j, vec4 lo, vec4 hi) { pair_add_set(0u, ok, j, lo, h
 // Adds what the invocation holds to the slots of entries 0..n-1 of every set.
 void pair_end(uint n) {
   if (MODE == TFM_REDUCE_PRIVATE) {
-    for (uint s = 0u; s < TFM_PAIR_SETS; ++s)
-      for (uint j = 0u; j < n; ++j)
-        for (uint c = 0u; c < 4u; ++c)
-          TFM_ADD_GLOBAL(s * TFM_PAIR_SET_STRIDE + 4u * j + c, pair_hist[s * 4u * PRIVATE_BINS + 4u * j + c])
+    for (uint j = 0u; j < n; ++j) {
+#define TFM_PAIR_FLUSH(s, c) \
+      if (uint(s) < TFM_PAIR_SETS) TFM_ADD_GLOBAL(uint(s) * TFM_PAIR_SET_STRIDE + 4u * j + uint(c), pair_hist##s##_##c[j])
+      TFM_PAIR_EACH(TFM_PAIR_FLUSH)
+    }
   } else {
     pair_flush_run();
   }

@@ -8,15 +8,27 @@
 #ifndef TFMATCH_TF_RESIDUAL_GLSL
 #define TFMATCH_TF_RESIDUAL_GLSL
 
-// Private copies of the two TFs (CPU devices: gathers from private memory are cheap there).
-vec4 ref_cache[TF_CACHE_ENTRIES + 1u];
-vec4 x_cache[PRIVATE_BINS + 1u];
-vec4 ref_entry(uint j) { return TF_CACHE_ENTRIES > 0u ? ref_cache[j] : ref_tf[j]; }
-vec4 x_entry(uint j) { return PRIVATE_BINS > 0u ? x_cache[j] : x[j]; }
+// Private copies of the two TFs (CPU devices: gathers from private memory are cheap there), one
+// array per channel: lavapipe's compile time grows faster than linearly with a private array's
+// size (assemble_normal_equations.comp), so four arrays of N floats beat one of N vec4s.
+float ref_cache_r[TF_CACHE_ENTRIES + 1u], ref_cache_g[TF_CACHE_ENTRIES + 1u];
+float ref_cache_b[TF_CACHE_ENTRIES + 1u], ref_cache_a[TF_CACHE_ENTRIES + 1u];
+float x_cache_r[PRIVATE_BINS + 1u], x_cache_g[PRIVATE_BINS + 1u];
+float x_cache_b[PRIVATE_BINS + 1u], x_cache_a[PRIVATE_BINS + 1u];
+vec4 ref_entry(uint j) {
+  return TF_CACHE_ENTRIES > 0u ? vec4(ref_cache_r[j], ref_cache_g[j], ref_cache_b[j], ref_cache_a[j]) : ref_tf[j];
+}
+vec4 x_entry(uint j) { return PRIVATE_BINS > 0u ? vec4(x_cache_r[j], x_cache_g[j], x_cache_b[j], x_cache_a[j]) : x[j]; }
 
 void residual_begin() {
-  for (uint j = 0u; j < TF_CACHE_ENTRIES; ++j) ref_cache[j] = ref_tf[j];
-  for (uint j = 0u; j < PRIVATE_BINS; ++j) x_cache[j] = x[j];
+  for (uint j = 0u; j < TF_CACHE_ENTRIES; ++j) {
+    const vec4 v = ref_tf[j];
+    ref_cache_r[j] = v.r, ref_cache_g[j] = v.g, ref_cache_b[j] = v.b, ref_cache_a[j] = v.a;
+  }
+  for (uint j = 0u; j < PRIVATE_BINS; ++j) {
+    const vec4 v = x[j];
+    x_cache_r[j] = v.r, x_cache_g[j] = v.g, x_cache_b[j] = v.b, x_cache_a[j] = v.a;
+  }
 }
 
 // The voxel's optimized-TF coordinate (entry j, weight t towards j + 1), b and e; false, with
