@@ -113,10 +113,10 @@ bool in_pass(uint t) { return t >= TERM_FIRST && t < TERM_FIRST + TERM_COUNT; }
 
 // PRIVATE: one histogram per term of the pass, entry j at [j] (a term outside the pass gets a
 // one-element array it never touches). One array per term, not one of TERM_COUNT N sums: lavapipe
-// compiles a private array in a time that grows faster than linearly with its size (its driver
-// zero-fills the whole array in one block of stores that LLVM's scheduler orders pairwise), so
-// eleven arrays of N compile several times faster than one of 11 N and run as fast (measured:
-// N = 64, 2.6 s -> 0.4 s with a cold shader cache; N = 256, 14.8 s -> 2.0 s).
+// compiles a private array in a time that grows faster than linearly with its size (the time is
+// in LLVM's instruction scheduler; most likely the driver zero-fills the array in one block of
+// stores), so eleven arrays of N compile several times faster than one of 11 N and run as fast
+// (docs/benchmarks.md, "A cold shader cache"; test ShaderPrivateArrays).
 #define TFM_EACH_TERM(M) M(0) M(1) M(2) M(3) M(4) M(5) M(6) M(7) M(8) M(9) M(10)
 // (t - TERM_FIRST < TERM_COUNT, unsigned: glslang turns && between specialization constants into
 // SPIR-V that does not validate.)
