@@ -85,6 +85,8 @@ TEST(ViewCli, ServesTheDemoAndCtrlCEndsItWithExitZeroWritingNothing) {
   const nlohmann::json s = view.state();
   EXPECT_EQ(s["mode"], "pair");
   EXPECT_EQ(s["grid"]["dims"], nlohmann::json({20, 20, 20}));
+  // The demo pair opens with tfmatch demo's own fit of it.
+  EXPECT_EQ(s["solver"]["name"], "irls") << s.dump();
   // Without the token: 403.
   httplib::Client anonymous("127.0.0.1", view.port);
   auto r = anonymous.Get("/api/state");
@@ -300,7 +302,7 @@ TEST(ViewCli, UsageErrors) {
       {"view --port 0 --ref a.raw", "view: a pair of fields needs --ref and --field (and --ref-tf, else a built-in map)"},
       {"view --demo --port 70000", "--port: Value 70000 not in range 0 to 65535"},
       {"view --port 0 --demo --solver nothing", "unknown solver 'nothing' (available: "},
-      {"view --port 0 --demo --lr 0.1", "--lr applies to solvers diffdvr, gradient-descent, not to normal-equations"},
+      {"view --port 0 --demo --lr 0.1", "--lr applies to solvers diffdvr, gradient-descent, not to irls"},
   };
   for (const auto& [args, message] : cases) {
     const test::CliResult r = run_cli(args, test::kQuickCliTimeout);

@@ -41,7 +41,7 @@ struct ViewArgs {
   std::vector<std::string> members;
   std::string member_dim, measure = "mi-coefficient", versus = "pearson", point;
   uint32_t bins = 16, k = 3;
-  std::string solver = "normal-equations";
+  std::string solver;           // empty: as tfmatch demo for --demo's pair (irls), else normal-equations
   double ridge = 0.0, smooth = 0.0;
   std::map<std::string, std::string> extra;
   std::vector<std::string> markers;
@@ -119,6 +119,9 @@ int run(ViewArgs a) {
   if (!a.report.empty()) inputs_from_report(a.report, a.in, a);
   if (!ensemble_mode && !a.demo && (a.in.ref.empty() || a.in.field.empty()))
     throw CLI::ValidationError("view", "a pair of fields needs --ref and --field (and --ref-tf, else a built-in map)");
+  // The demo pair opens with the fit `tfmatch demo` makes of it (least absolute deviations keep its
+  // two real changes out of the TF: cmd_demo.cpp), so the page shows what the demo's report shows.
+  if (a.solver.empty()) a.solver = a.demo && !ensemble_mode ? "irls" : "normal-equations";
 
   SolverSettings settings;
   settings.solve.ridge = a.ridge;
@@ -267,8 +270,10 @@ CommandRegistration reg(15, [](CLI::App& app) {
                                           "(default: the grid's middle; the demo's own point)");
   sub->add_option("--bins", args->bins, "mi-binned: bins")->check(CLI::Range(2u, kMaxCorrelationBins))->capture_default_str();
   sub->add_option("--k", args->k, "mi-kraskov, mi-coefficient: neighbours")->check(CLI::PositiveNumber)->capture_default_str();
-  sub->add_option("--solver", args->solver, "First solver: " + solver_name_list() + " (the page can choose another)")
-      ->capture_default_str();
+  sub->add_option("--solver", args->solver,
+                  "First solver: " + solver_name_list() +
+                      " (default: irls for --demo's pair, as tfmatch demo; normal-equations otherwise; the page can "
+                      "choose another)");
   sub->add_option("--ridge", args->ridge, "Tikhonov weight, relative to the mean diagonal of M")->check(CLI::NonNegativeNumber);
   sub->add_option("--smooth", args->smooth, "Smoothness weight, relative to the mean diagonal of M")->check(CLI::NonNegativeNumber);
   add_solver_options(sub, args->extra);
