@@ -23,9 +23,12 @@ class Context;
 // within kPrivateHistogramCounters, else Shared where the counters fit the workgroup's shared
 // memory, else Global.
 enum class HistogramMode { Auto, Private, Shared, Global };
-// Counters one invocation keeps privately on a CPU device: the bytes of the assembly's private
-// budget (kPrivateHistogramSlots 64-bit sums, reduction.h); private_limit() on others.
-inline constexpr uint32_t kPrivateHistogramCounters = 2 * 11 * 1024;
+// Counters one invocation keeps privately on a CPU device (private_limit() on others): those of
+// 4096 bins, histogram-matching's default. The private array is one array, and lavapipe's compile
+// time grows with its size (docs/benchmarks.md, "A cold shader cache"); measured with the cache
+// empty, 20 M voxels: 4096 bins private 9.0 s to compile, 48 ms a run; 8192 bins private 16.5 s
+// and 50 ms, against 0.3 s and ~185 ms in shared memory, which takes the larger histograms.
+inline constexpr uint32_t kPrivateHistogramCounters = TFM_HIST_COUNTERS(4096u);
 
 class FieldHistogramKernel {
  public:

@@ -62,6 +62,17 @@ TEST_F(Histogram, PrivateCountsOverLongLanesAndChunks) {
   }
 }
 
+// Auto keeps private counters up to histogram-matching's 4096 bins on a CPU device; a larger
+// histogram goes to shared memory, which compiles in a fraction of the time (kernels/histogram.h).
+TEST_F(Histogram, PrivateCountersUpTo4096BinsOnACpuDevice) {
+  if (ctx().properties().deviceType != VK_PHYSICAL_DEVICE_TYPE_CPU)
+    GTEST_SKIP() << ctx().device_name() << ": private counters are for CPU devices";
+  EXPECT_EQ(FieldHistogramKernel(ctx(), 4096).mode(), HistogramMode::Private);
+  EXPECT_THROW(FieldHistogramKernel(ctx(), 4097, HistogramMode::Private), std::invalid_argument);
+  const bool fits_shared = TFM_HIST_COUNTERS(4097u) * sizeof(uint32_t) <= ctx().limits().maxComputeSharedMemorySize;
+  EXPECT_EQ(FieldHistogramKernel(ctx(), 4097).mode(), fits_shared ? HistogramMode::Shared : HistogramMode::Global);
+}
+
 TEST_F(Histogram, RejectsBadBinsAndRanges) {
   EXPECT_THROW(FieldHistogramKernel(ctx(), 0), std::invalid_argument);
   EXPECT_THROW(FieldHistogramKernel(ctx(), TFM_HIST_MAX_BINS + 1), std::invalid_argument);
