@@ -25,6 +25,10 @@ Volume synthetic_remapped(const Volume& reference, bool with_structural_differen
 // given) gets 1 per voxel, else 0: the sphere, and every voxel where the moved blob changes the
 // reference's value by more than 0.02 of its range.
 Volume synthetic_changed(const Volume& reference, std::vector<uint8_t>* changed = nullptr);
+// The solver that fits synthetic_changed()'s pair by default (tfmatch demo, tfmatch view --demo):
+// least absolute deviations keep its two real changes out of the TF, where least squares makes
+// each entry the mean of the colours its voxels ask for and spreads the changes over the field.
+inline constexpr const char* kChangedPairSolver = "irls";
 
 // Centre and radius (in voxels) of the structural-difference sphere of synthetic_remapped().
 struct Sphere {

@@ -157,7 +157,7 @@ std::vector<std::string> demo_file_names(const DemoArgs& a) {
 DemoArgs with_default_solver(DemoArgs a) {
   if (!a.solver.empty()) return a;
   const bool robust = !a.ensemble && a.demo_case == "changes";
-  a.solver = robust ? "irls" : "normal-equations";
+  a.solver = robust ? kChangedPairSolver : "normal-equations";
   return a;
 }
 

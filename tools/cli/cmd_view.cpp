@@ -119,9 +119,9 @@ int run(ViewArgs a) {
   if (!a.report.empty()) inputs_from_report(a.report, a.in, a);
   if (!ensemble_mode && !a.demo && (a.in.ref.empty() || a.in.field.empty()))
     throw CLI::ValidationError("view", "a pair of fields needs --ref and --field (and --ref-tf, else a built-in map)");
-  // The demo pair opens with the fit `tfmatch demo` makes of it (least absolute deviations keep its
-  // two real changes out of the TF: cmd_demo.cpp), so the page shows what the demo's report shows.
-  if (a.solver.empty()) a.solver = a.demo && !ensemble_mode ? "irls" : "normal-equations";
+  // The demo pair opens with the fit `tfmatch demo` makes of it, so the page shows what the demo's
+  // report shows.
+  if (a.solver.empty()) a.solver = a.demo && !ensemble_mode ? kChangedPairSolver : "normal-equations";
 
   SolverSettings settings;
   settings.solve.ridge = a.ridge;
