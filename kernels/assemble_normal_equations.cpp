@@ -29,16 +29,15 @@ constexpr uint32_t kBinTerms = 11;
 std::vector<AssembleNormalEquationsKernel::TermPass> assemble_term_passes(ReductionMode mode, uint32_t tf_size,
                                                                           uint32_t slots) {
   if (mode != ReductionMode::Private) return {{0, kBinTerms}};
-  // As many terms per pass as keep a lane's histogram within `slots`, spread evenly over the
-  // fewest passes.
-  const uint32_t per_pass = std::clamp<uint32_t>(slots / tf_size, 1, kBinTerms);
-  const uint32_t count = (kBinTerms + per_pass - 1) / per_pass;
+  // The fewest passes that keep a lane's histogram within `slots`, each of the same number of
+  // terms but the last (the passes are rows of one dispatch of one pipeline: row y adds the
+  // terms from y times that number), spread as evenly as that allows.
+  const uint32_t most = std::clamp<uint32_t>(slots / tf_size, 1, kBinTerms);
+  const uint32_t count = (kBinTerms + most - 1) / most;
+  const uint32_t per_pass = (kBinTerms + count - 1) / count;
   std::vector<AssembleNormalEquationsKernel::TermPass> passes;
-  for (uint32_t p = 0, first = 0; p < count; ++p) {
-    const uint32_t terms = (kBinTerms - first) / (count - p);
-    passes.push_back({first, terms});
-    first += terms;
-  }
+  for (uint32_t first = 0; first < kBinTerms; first += per_pass)
+    passes.push_back({first, std::min(per_pass, kBinTerms - first)});
   return passes;
 }
 
@@ -49,58 +48,51 @@ AssembleNormalEquationsKernel::AssembleNormalEquationsKernel(Context& ctx, uint3
                                    options, kAssemblePrivateMaxBins)),
       passes_(assemble_term_passes(reduction_.mode, tf_size, private_limit(ctx, kPrivateHistogramSlots))),
       range_quads_(texel_range_quads(ctx, options.range_quads, "assemble")) {
-  // Pipelines are compiled on first use: a kernel records either variant (pipelines()).
+  // Pipelines are compiled on first use: a kernel records either variant (pipeline()).
 }
 
-const AssembleNormalEquationsKernel::Pipelines& AssembleNormalEquationsKernel::pipelines(bool with_before,
-                                                                                        bool weighted) const {
-  Pipelines& out = pipelines_[(with_before ? 1 : 0) + (weighted ? 2 : 0)];
-  if (out.empty()) out = make_pipelines(with_before, nullptr, weighted);
-  return out;
+const ComputePipeline& AssembleNormalEquationsKernel::pipeline(bool with_before, bool weighted) const {
+  SharedPipeline& out = pipelines_[(with_before ? 1 : 0) + (weighted ? 2 : 0)];
+  if (!out) out = make_pipeline(with_before, nullptr, weighted);
+  return *out;
 }
 
-const AssembleNormalEquationsKernel::Pipelines& AssembleNormalEquationsKernel::image_pipelines(bool with_before, uint32_t nx,
-                                                                                             uint32_t ny) const {
-  Pipelines& out = image_pipelines_[{with_before, nx, ny}];
+const ComputePipeline& AssembleNormalEquationsKernel::image_pipeline(bool with_before, uint32_t nx, uint32_t ny) const {
+  SharedPipeline& out = image_pipelines_[{with_before, nx, ny}];
   const VkExtent3D extent{nx, ny, 1};
-  if (out.empty()) out = make_pipelines(with_before, &extent, false);
-  return out;
+  if (!out) out = make_pipeline(with_before, &extent, false);
+  return *out;
 }
 
-AssembleNormalEquationsKernel::Pipelines AssembleNormalEquationsKernel::make_pipelines(bool with_before,
-                                                                                      const VkExtent3D* image,
-                                                                                      bool weighted) const {
-  Pipelines out;
+SharedPipeline AssembleNormalEquationsKernel::make_pipeline(bool with_before, const VkExtent3D* image,
+                                                          bool weighted) const {
   const char* shader = image      ? "assemble_normal_equations_image"
                        : weighted ? "assemble_normal_equations_weighted"
                                   : "assemble_normal_equations";
-  for (const TermPass& pass : passes_) {
-    PipelineDesc desc = reduction_.pipeline_desc(
-        shader, weighted ? gpu::to_vector(kWeightedBindingCounts) : gpu::to_vector(kAssembleBindingCounts),
-        sizeof(gpu::VoxelPairPush));
-    desc.binding_kinds = texel_binding_kinds(
-        desc.binding_counts.size(),
-        {TFM_ASSEMBLE_BINDING_REF_TF, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS,
-         TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD});
-    if (weighted)
-      for (uint32_t b : {TFM_ASSEMBLE_BINDING_WEIGHTS, TFM_ASSEMBLE_BINDING_WEIGHT_QUADS})
-        desc.binding_kinds.at(b) = DescriptorKind::UniformTexelBuffer;
-    if (image)
-      bind_fields_as_images(desc, {TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD,
-                                 TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS});
-    desc.specialization = gpu::by_id(
-        {{TFM_SPEC_WORKGROUP_X, reduction_.workgroup_size},
-         {TFM_ASSEMBLE_SPEC_MODE, reduction_.shader_mode()},
-         {TFM_ASSEMBLE_SPEC_SHARED_SLOTS, reduction_.mode == ReductionMode::RunsShared ? slots() : 1u},
-         {TFM_ASSEMBLE_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size_ : 0u},
-         {TFM_ASSEMBLE_SPEC_TERM_FIRST, pass.first},
-         {TFM_ASSEMBLE_SPEC_TERM_COUNT, pass.count},
-         {TFM_ASSEMBLE_SPEC_WITH_BEFORE, with_before ? 1u : 0u},
-         {TFM_ASSEMBLE_SPEC_IMAGE_NX, image ? image->width : 1u},
-         {TFM_ASSEMBLE_SPEC_IMAGE_NY, image ? image->height : 1u}});
-    out.push_back(shared_pipeline(ctx_, desc));
-  }
-  return out;
+  PipelineDesc desc = reduction_.pipeline_desc(
+      shader, weighted ? gpu::to_vector(kWeightedBindingCounts) : gpu::to_vector(kAssembleBindingCounts),
+      sizeof(gpu::VoxelPairPush));
+  desc.binding_kinds = texel_binding_kinds(
+      desc.binding_counts.size(),
+      {TFM_ASSEMBLE_BINDING_REF_TF, TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS,
+       TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD});
+  if (weighted)
+    for (uint32_t b : {TFM_ASSEMBLE_BINDING_WEIGHTS, TFM_ASSEMBLE_BINDING_WEIGHT_QUADS})
+      desc.binding_kinds.at(b) = DescriptorKind::UniformTexelBuffer;
+  if (image)
+    bind_fields_as_images(desc, {TFM_ASSEMBLE_BINDING_REF_FIELD, TFM_ASSEMBLE_BINDING_OPT_FIELD,
+                               TFM_ASSEMBLE_BINDING_REF_QUADS, TFM_ASSEMBLE_BINDING_OPT_QUADS});
+  desc.specialization = gpu::by_id(
+      {{TFM_SPEC_WORKGROUP_X, reduction_.workgroup_size},
+       {TFM_ASSEMBLE_SPEC_MODE, reduction_.shader_mode()},
+       {TFM_ASSEMBLE_SPEC_SHARED_SLOTS, reduction_.mode == ReductionMode::RunsShared ? slots() : 1u},
+       {TFM_ASSEMBLE_SPEC_PRIVATE_BINS, reduction_.mode == ReductionMode::Private ? tf_size_ : 0u},
+       {TFM_ASSEMBLE_SPEC_TERM_FIRST, passes_.front().first},
+       {TFM_ASSEMBLE_SPEC_TERM_COUNT, passes_.front().count},
+       {TFM_ASSEMBLE_SPEC_WITH_BEFORE, with_before ? 1u : 0u},
+       {TFM_ASSEMBLE_SPEC_IMAGE_NX, image ? image->width : 1u},
+       {TFM_ASSEMBLE_SPEC_IMAGE_NY, image ? image->height : 1u}});
+  return shared_pipeline(ctx_, desc);
 }
 
 AssembleNormalEquationsKernel::~AssembleNormalEquationsKernel() = default;
@@ -137,8 +129,9 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
   }
   gpu::VoxelPairPush push = push_for(ref_map, opt_map, ref_tf, accum, before_map);
   const Binding tf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
-  const auto& passes = pipelines(before_map != nullptr, weights != nullptr);
-  for (const QuadRange& r : quad_ranges(ref, range_quads_)) {  // one dispatch per range and pass
+  const ComputePipeline& pipe = pipeline(before_map != nullptr, weights != nullptr);
+  const uint32_t rows = static_cast<uint32_t>(passes_.size());
+  for (const QuadRange& r : quad_ranges(ref, range_quads_)) {  // one dispatch per range, a row per pass
     push.voxel_count = static_cast<uint32_t>(r.voxels);
     push.first_voxel = static_cast<uint32_t>(r.first);
     std::vector<Binding> bindings{voxel_texels(ref, r.chunk), voxel_texels(opt, r.chunk), tf, accum,
@@ -147,11 +140,9 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const DeviceFiel
       bindings.push_back(voxel_texels(*weights, r.chunk));
       bindings.push_back(quad_texels(*weights, r));
     }
-    for (const auto& pipe : passes) {
-      batch.dispatch(*pipe, bindings, push, {reduction_.groups(ctx_, r.voxels)});
-      // Successive dispatches add into the same accumulators.
-      batch.barrier();
-    }
+    batch.dispatch(pipe, bindings, push, {reduction_.groups(ctx_, r.voxels), rows});
+    // Successive dispatches add into the same accumulators.
+    batch.barrier();
   }
 }
 
@@ -163,14 +154,14 @@ void AssembleNormalEquationsKernel::record(CommandBatch& batch, const ImageField
   gpu::VoxelPairPush push = push_for(ref_map, opt_map, ref_tf, accum, before_map);
   const Binding tf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
   const Binding r_image = Binding::image(ref.view, ref.layout), o_image = Binding::image(opt.view, opt.layout);
-  const auto& passes = image_pipelines(before_map != nullptr, e.width, e.height);
+  const ComputePipeline& pipe = image_pipeline(before_map != nullptr, e.width, e.height);
+  const uint32_t rows = static_cast<uint32_t>(passes_.size());
   for (const QuadRange& r : quad_ranges(std::span<const uint64_t>(&voxels, 1), range_quads_)) {
     push.voxel_count = static_cast<uint32_t>(r.voxels);
     push.first_voxel = static_cast<uint32_t>(r.first);
-    for (const auto& pipe : passes) {
-      batch.dispatch(*pipe, {r_image, o_image, tf, accum, r_image, o_image}, push, {reduction_.groups(ctx_, r.voxels)});
-      batch.barrier();
-    }
+    batch.dispatch(pipe, {r_image, o_image, tf, accum, r_image, o_image}, push,
+                   {reduction_.groups(ctx_, r.voxels), rows});
+    batch.barrier();
   }
 }
 

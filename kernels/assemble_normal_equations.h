@@ -34,7 +34,8 @@ class AssembleNormalEquationsKernel {
   uint32_t slots() const;
   ReductionMode mode() const { return reduction_.mode; }
   bool int64_atomics() const { return reduction_.int64; }
-  // Records one dispatch per chunk, texel range and term pass (barriers between them). With
+  // Records one dispatch per chunk and texel range (barriers between them), a workgroup row per
+  // term pass. With
   // `before_map` (the second field mapped onto the reference TF's entries: tf_size of ref_map)
   // the kernel also adds the loss before optimization to slots [6N+4, 6N+8) (shared_layout.h).
   // With `weights` (a float32 field of the same size and chunking, values in [0, 1]) every term
@@ -51,7 +52,8 @@ class AssembleNormalEquationsKernel {
               const FieldMapping& opt_map, const Buffer& ref_tf, Buffer& accum,
               const FieldMapping* before_map = nullptr) const;
 
-  // Which of the 11 bin terms one pass adds (shaders/assemble_normal_equations.comp).
+  // Which of the 11 bin terms one pass adds (shaders/assemble_normal_equations.comp): pass p is
+  // row p of every dispatch; all passes but the last add the same number of terms.
   struct TermPass {
     uint32_t first = 0, count = 11;
   };
@@ -63,21 +65,20 @@ class AssembleNormalEquationsKernel {
   Reduction reduction_;
   std::vector<TermPass> passes_;
   uint64_t range_quads_;
-  // One per pass, without and with the before loss and weights, each compiled when first recorded; for
-  // images also per x and y size (specialization constants).
-  using Pipelines = std::vector<SharedPipeline>;
-  const Pipelines& pipelines(bool with_before, bool weighted) const;
-  const Pipelines& image_pipelines(bool with_before, uint32_t nx, uint32_t ny) const;
-  Pipelines make_pipelines(bool with_before, const VkExtent3D* image, bool weighted) const;
+  // Without and with the before loss and weights, each compiled when first recorded (one for every
+  // term pass); for images also per x and y size (specialization constants).
+  const ComputePipeline& pipeline(bool with_before, bool weighted) const;
+  const ComputePipeline& image_pipeline(bool with_before, uint32_t nx, uint32_t ny) const;
+  SharedPipeline make_pipeline(bool with_before, const VkExtent3D* image, bool weighted) const;
   gpu::VoxelPairPush push_for(const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
                               Buffer& accum, const FieldMapping* before_map) const;
-  mutable std::array<Pipelines, 4> pipelines_;  // [with_before + 2 weighted]
-  mutable std::map<std::tuple<bool, uint32_t, uint32_t>, Pipelines> image_pipelines_;
+  mutable std::array<SharedPipeline, 4> pipelines_;  // [with_before + 2 weighted]
+  mutable std::map<std::tuple<bool, uint32_t, uint32_t>, SharedPipeline> image_pipelines_;
 };
 
-// The term passes of the assembly: all 11 terms at once, or in Private mode as many per pass as
+// The term passes of the assembly: all 11 terms at once, or in Private mode the fewest passes that
 // keep a lane's histogram (terms x TF entries) within `slots` (the device's
-// private_limit(ctx, kPrivateHistogramSlots)).
+// private_limit(ctx, kPrivateHistogramSlots)), each of the same number of terms but the last.
 std::vector<AssembleNormalEquationsKernel::TermPass> assemble_term_passes(ReductionMode mode, uint32_t tf_size,
                                                                           uint32_t slots = kPrivateHistogramSlots);
 

@@ -34,9 +34,11 @@
 //    instructions. Each lane adds its histogram to the global accumulators once at the end, so
 //    a lane must cover many voxels (the host sizes it), and a workgroup is one subgroup (a CPU
 //    device runs a workgroup on one thread: small groups spread the lanes over every core). A histogram of all 11 terms of N entries
-//    costs 88 N bytes per lane; above 1024 entries the host splits the 11 terms into passes
-//    (TERM_FIRST, TERM_COUNT) that each hold a few terms of every entry, so the private memory
-//    stays bounded and TF sizes up to 4096 cost a few cheap passes instead of a path change.
+//    costs 88 N bytes per lane; above 1024 entries the host splits the 11 terms into passes that
+//    each hold TERM_COUNT terms of every entry, so the private memory stays bounded and TF sizes
+//    up to 4096 cost a few cheap passes instead of a path change. The passes are the rows of one
+//    dispatch of one pipeline (row y adds terms TERM_FIRST + y TERM_COUNT onwards, chosen at run
+//    time), so a CPU device compiles TERM_COUNT arrays of N once, not 11 over a pipeline per pass.
 // Term conversions use 32-bit float-to-integer conversions (fx_term): a 64-bit one has no vector
 // instruction on x86 before AVX-512 and was a third of the kernel's time on lavapipe.
 // Atomics: TFM_INT64 builds (devices with 64-bit buffer and shared atomics) add one 64-bit word
@@ -60,8 +62,9 @@ layout(constant_id = TFM_ASSEMBLE_SPEC_MODE) const uint MODE = TFM_REDUCE_RUNS_S
 layout(constant_id = TFM_ASSEMBLE_SPEC_SHARED_SLOTS) const uint SHARED_SLOTS = 1u;
 // TF entries of each lane's private histogram (0 unless MODE is PRIVATE).
 layout(constant_id = TFM_ASSEMBLE_SPEC_PRIVATE_BINS) const uint PRIVATE_BINS = 0u;
-// The bin terms this dispatch adds: TERM_COUNT of the 11, from TERM_FIRST (all 11 but in
-// PRIVATE passes). b^T b, the voxel count and the before loss belong to the pass with TERM_FIRST = 0.
+// The bin terms a workgroup row adds: TERM_COUNT of the 11, from TERM_FIRST + TERM_COUNT
+// gl_WorkGroupID.y (one row of all 11 but in PRIVATE passes, where each row is a pass). Every row
+// sums b^T b, the voxel count and the before loss; the row whose first term is 0 adds them.
 layout(constant_id = TFM_ASSEMBLE_SPEC_TERM_FIRST) const uint TERM_FIRST = 0u;
 layout(constant_id = TFM_ASSEMBLE_SPEC_TERM_COUNT) const uint TERM_COUNT = 11u;
 // Also sum the loss before optimization (a reference TF of another size than N). A constant, not
@@ -109,19 +112,28 @@ uint term_slot(uint t, uint j) {
   const uint n = pc.opt_tf_size, stb = 2u * n - 1u;
   return t == 0u ? j : t == 1u ? j + 1u : t == 2u ? n + j : t < 7u ? stb + 4u * j + (t - 3u) : stb + 4u * (j + 1u) + (t - 7u);
 }
-bool in_pass(uint t) { return t >= TERM_FIRST && t < TERM_FIRST + TERM_COUNT; }
+// One row holds every term: the row's terms are constants the compiler folds.
+const bool ALL_TERMS = TERM_COUNT >= TERMS;
+// The first term of this workgroup row.
+uint row_first() { return ALL_TERMS ? TERM_FIRST : TERM_FIRST + gl_WorkGroupID.y * TERM_COUNT; }
+// Term t of a voxel with TF weights u = 1 - w, w and reference colour b, as fixed point (0 for
+// t >= 11): one expression where t is a constant, a choice among the 11 where it is not.
+Fx voxel_term(uint t, float s, float u, float w, vec4 b) {
+  // Each term is a product of u or w with u, w or a channel of b.
+  const float left = t == 1u || t >= 7u ? w : u;
+  const float right = t == 0u ? u : t < 3u ? w : b[(t - 3u) & 3u];
+  return t < TERMS ? fx_term(weighted(s, left * right)) : FX_ZERO;
+}
 
-// PRIVATE: one histogram per term of the pass, entry j at [j] (a term outside the pass gets a
-// one-element array it never touches). One array per term, not one of TERM_COUNT N sums: lavapipe
+// PRIVATE: one histogram per term of the row, entry j at [j]: hist<a> sums the row's term
+// row_first() + a (a >= TERM_COUNT gets a one-element array it never touches). One array per
+// term, not one of TERM_COUNT N sums: lavapipe
 // compiles a private array in a time that grows faster than linearly with its size (the time is
 // in LLVM's instruction scheduler; most likely the driver zero-fills the array in one block of
 // stores), so eleven arrays of N compile several times faster than one of 11 N and run as fast
 // (docs/benchmarks.md, "A cold shader cache"; test ShaderPrivateArrays).
 #define TFM_EACH_TERM(M) M(0) M(1) M(2) M(3) M(4) M(5) M(6) M(7) M(8) M(9) M(10)
-// (t - TERM_FIRST < TERM_COUNT, unsigned: glslang turns && between specialization constants into
-// SPIR-V that does not validate.)
-#define TFM_IN_PASS(t) ((t) - TERM_FIRST < TERM_COUNT)
-#define TFM_DECLARE_HIST(t) Fx hist##t[TFM_IN_PASS(uint(t)) ? PRIVATE_BINS + 1u : 1u];
+#define TFM_DECLARE_HIST(a) Fx hist##a[uint(a) < TERM_COUNT ? PRIVATE_BINS + 1u : 1u];
 TFM_EACH_TERM(TFM_DECLARE_HIST)
 Fx run[TERMS];    // RUNS modes: sums of the current bin
 uint run_bin;     // RUNS modes: the current bin, or NO_BIN
@@ -151,7 +163,7 @@ void take(float ref_value, float opt_value, float s) {
   b = ok ? clamp(b, 0.0, 1.0) : vec4(0.0);
   const float w = ok ? wo : 0.0;
   const float u = ok ? 1.0 - wo : 0.0;
-  if (TERM_FIRST == 0u) {
+  if (ALL_TERMS || gl_WorkGroupID.y == 0u) {
     for (uint c = 0u; c < 4u; ++c) fx_sum(btb[c], fx_term(weighted(s, b[c] * b[c])));
     voxels += ok ? 1u : 0u;
     // The loss before optimization: the second field shown with the reference TF (its own
@@ -165,22 +177,18 @@ void take(float ref_value, float opt_value, float s) {
       for (uint c = 0u; c < 4u; ++c) fx_sum(before[c], fx_term(weighted(s, d[c] * d[c])));
     }
   }
-  // The terms are listed out (no arrays, no loops): every index below is a constant, and terms
-  // outside the pass are constant zeros the compiler drops.
-#define TFM_TERM(i, value) const Fx t##i = in_pass(uint(i)) ? fx_term(weighted(s, value)) : FX_ZERO
-  TFM_TERM(0, u * u); TFM_TERM(1, w * w); TFM_TERM(2, u * w);
-  TFM_TERM(3, u * b.x); TFM_TERM(4, u * b.y); TFM_TERM(5, u * b.z); TFM_TERM(6, u * b.w);
-  TFM_TERM(7, w * b.x); TFM_TERM(8, w * b.y); TFM_TERM(9, w * b.z); TFM_TERM(10, w * b.w);
+  // The terms are listed out (no arrays, no loops): with one row of all terms every index below
+  // is a constant.
   if (MODE == TFM_REDUCE_PRIVATE) {
-    const uint j = ok ? jo : 0u;
-#define TFM_ADD_HIST(i) if (in_pass(uint(i))) fx_sum(hist##i[j], t##i);
+    const uint j = ok ? jo : 0u, first = row_first();
+#define TFM_ADD_HIST(a) if (uint(a) < TERM_COUNT) fx_sum(hist##a[j], voxel_term(first + uint(a), s, u, w, b));
     TFM_EACH_TERM(TFM_ADD_HIST)
   } else if (ok) {
     if (jo != run_bin) {
       flush_run();
       run_bin = jo;
     }
-#define TFM_ADD_RUN(i) fx_sum(run[i], t##i);
+#define TFM_ADD_RUN(i) fx_sum(run[i], voxel_term(uint(i), s, u, w, b));
     TFM_EACH_TERM(TFM_ADD_RUN)
   }
 }
@@ -190,7 +198,7 @@ void main() {
   const uint slots = TFM_ASSEMBLE_SLOTS(n);
   if (MODE == TFM_REDUCE_RUNS_SHARED) TFM_SHARED_ACCUMULATORS_ZERO(slots)
   for (uint j = 0u; j < PRIVATE_BINS; ++j) {
-#define TFM_ZERO_HIST(i) if (in_pass(uint(i))) hist##i[j] = FX_ZERO;
+#define TFM_ZERO_HIST(a) if (uint(a) < TERM_COUNT) hist##a[j] = FX_ZERO;
     TFM_EACH_TERM(TFM_ZERO_HIST)
   }
   for (uint t = 0u; t < TERMS; ++t) run[t] = FX_ZERO;
@@ -213,15 +221,17 @@ void main() {
     for (uint i = pc.first_voxel + 4u * quads; i < pc.first_voxel + pc.voxel_count; ++i)
       take(REF_VOXEL(i), OPT_VOXEL(i), WEIGHT_VOXEL(i));
 
+  const uint first = row_first();
   if (MODE == TFM_REDUCE_PRIVATE) {
     for (uint j = 0u; j + 1u < n; ++j) {
-#define TFM_FLUSH_HIST(i) if (in_pass(uint(i))) add_global(term_slot(uint(i), j), hist##i[j]);
+#define TFM_FLUSH_HIST(a) \
+      if (uint(a) < TERM_COUNT && first + uint(a) < TERMS) add_global(term_slot(first + uint(a), j), hist##a[j]);
       TFM_EACH_TERM(TFM_FLUSH_HIST)
     }
   } else {
     flush_run();
   }
-  if (TERM_FIRST == 0u) {
+  if (first == 0u) {
     for (uint c = 0u; c < 4u; ++c) add_slot(6u * n - 1u + c, btb[c]);
     add_slot(6u * n + 3u, fx_count(voxels));
     if (WITH_BEFORE)

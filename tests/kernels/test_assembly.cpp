@@ -211,7 +211,8 @@ TEST(AssemblyCpuLoop, ThreadedMatchesOneThread) {
 }
 
 // Private passes: every one of the 11 bin terms in exactly one pass, in order, each pass's
-// histogram (terms x entries) within kPrivateHistogramSlots; the other modes take all at once.
+// histogram (terms x entries) within kPrivateHistogramSlots, every pass but the last of the same
+// number of terms (the passes are rows of one pipeline); the other modes take all at once.
 TEST(AssembleTermPasses, CoverEveryTermOnceWithinTheBudget) {
   for (uint32_t n : {2u, 64u, 1024u, 1025u, 2048u, 3000u, 4096u}) {
     const auto passes = assemble_term_passes(ReductionMode::Private, n);
@@ -219,6 +220,8 @@ TEST(AssembleTermPasses, CoverEveryTermOnceWithinTheBudget) {
     for (const auto& p : passes) {
       EXPECT_EQ(p.first, next) << n;
       EXPECT_GE(p.count, 1u);
+      if (&p != &passes.back()) EXPECT_EQ(p.count, passes.front().count) << n;
+      EXPECT_LE(p.count, passes.front().count) << n;
       EXPECT_LE(uint64_t(p.count) * n, kPrivateHistogramSlots) << n;
       next += p.count;
     }
