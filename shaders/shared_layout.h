@@ -117,8 +117,8 @@ inline std::vector<uint> by_id(const std::vector<std::pair<uint, uint>>& values)
 #define TFM_ASSEMBLE_SPEC_MODE 1          // TFM_REDUCE_RUNS_SHARED, _RUNS_GLOBAL or _PRIVATE
 #define TFM_ASSEMBLE_SPEC_SHARED_SLOTS 2  // slots of workgroup-shared accumulators (RUNS_SHARED)
 #define TFM_ASSEMBLE_SPEC_PRIVATE_BINS 3  // TF entries of each lane's private histogram (PRIVATE)
-#define TFM_ASSEMBLE_SPEC_TERM_FIRST 4    // first of the 11 bin terms a dispatch adds (PRIVATE passes)
-#define TFM_ASSEMBLE_SPEC_TERM_COUNT 5    // how many of them (11 but in PRIVATE passes)
+#define TFM_ASSEMBLE_SPEC_TERM_FIRST 4    // first of the 11 bin terms workgroup row 0 adds (row y: + y TERM_COUNT)
+#define TFM_ASSEMBLE_SPEC_TERM_COUNT 5    // bin terms a row adds (11 but in PRIVATE passes: a row per pass)
 #define TFM_ASSEMBLE_SPEC_WITH_BEFORE 6   // 1: also sum the before loss (push: before_lo, before_scale)
 // The variant that reads both fields from 3D images (TFM_FIELD_IMAGE): their x and y sizes, to
 // turn a voxel index into a texel (every field binding then holds a sampled image).
