@@ -63,8 +63,8 @@ layout(constant_id = TFM_ASSEMBLE_SPEC_SHARED_SLOTS) const uint SHARED_SLOTS = 1
 // TF entries of each lane's private histogram (0 unless MODE is PRIVATE).
 layout(constant_id = TFM_ASSEMBLE_SPEC_PRIVATE_BINS) const uint PRIVATE_BINS = 0u;
 // The bin terms a workgroup row adds: TERM_COUNT of the 11, from TERM_FIRST + TERM_COUNT
-// gl_WorkGroupID.y (one row of all 11 but in PRIVATE passes, where each row is a pass). Every row
-// sums b^T b, the voxel count and the before loss; the row whose first term is 0 adds them.
+// gl_WorkGroupID.y (one row of all 11 but in PRIVATE passes, where each row is a pass). The row
+// whose first term is 0 also sums b^T b, the voxel count and the before loss.
 layout(constant_id = TFM_ASSEMBLE_SPEC_TERM_FIRST) const uint TERM_FIRST = 0u;
 layout(constant_id = TFM_ASSEMBLE_SPEC_TERM_COUNT) const uint TERM_COUNT = 11u;
 // Also sum the loss before optimization (a reference TF of another size than N). A constant, not
@@ -163,7 +163,7 @@ void take(float ref_value, float opt_value, float s) {
   b = ok ? clamp(b, 0.0, 1.0) : vec4(0.0);
   const float w = ok ? wo : 0.0;
   const float u = ok ? 1.0 - wo : 0.0;
-  if (ALL_TERMS || gl_WorkGroupID.y == 0u) {
+  if (row_first() == 0u) {
     for (uint c = 0u; c < 4u; ++c) fx_sum(btb[c], fx_term(weighted(s, b[c] * b[c])));
     voxels += ok ? 1u : 0u;
     // The loss before optimization: the second field shown with the reference TF (its own
