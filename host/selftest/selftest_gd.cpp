@@ -15,7 +15,6 @@
 namespace tfm::selftest {
 namespace {
 
-const FieldRange kOptRange{0.0, 1.0};
 
 struct GradientCase {
   size_t voxels;
@@ -33,12 +32,10 @@ void gradient(Context& ctx, Check& check, const GradientCase& c) {
   const uint32_t n = 9;
   const std::string missing = reduction_unavailable(ctx, c.path, n, signed_accumulator_bytes(n));
   if (!missing.empty()) return check.skip(missing);
-  const FieldPair p = random_pair(c.voxels, 61u + uint32_t(c.voxels), kOptRange, n);
-  const TransferFunction ref_tf = random_tf(11, 62, -0.1, 1.1);
-  const std::vector<float> ref_tf_floats = ref_tf.as_floats();
-  const FieldMapping ref_map = make_mapping({0.0, 1.0}, 11), opt_map = make_mapping(kOptRange, n);
-  DeviceField ref(ctx, p.ref, "selftest reference", c.chunk_voxels), opt(ctx, p.opt, "selftest field", c.chunk_voxels);
-  Buffer tf = upload_tf(ctx, ref_tf, "selftest reference TF");
+  const ResidualCaseInputs in(ctx, c.voxels, 61, n, c.chunk_voxels);
+  const FieldPair& p = in.pair;
+  const std::vector<float>& ref_tf_floats = in.ref_tf_floats;
+  const FieldMapping &ref_map = in.ref_map, &opt_map = in.opt_map;
   const std::vector<float> x = random_floats(4 * n, 3, 0.0f, 1.0f);
   Buffer xb = make_buffer<float>(ctx, x, "selftest x");
   Buffer accum(ctx, gd_accumulator_bytes(n), MemoryUsage::Device, "selftest GD accumulators");
@@ -48,7 +45,7 @@ void gradient(Context& ctx, Check& check, const GradientCase& c) {
   batch.fill(accum, 0u);
   // The zeroed accumulators before the kernel adds to them.
   batch.barrier();
-  kernel.record(batch, ref, opt, ref_map, opt_map, tf, xb, accum);
+  kernel.record(batch, in.ref, in.opt, ref_map, opt_map, in.tf, xb, accum);
   batch.submit_and_wait();
   const std::vector<uint32_t> words = read_words(ctx, accum, gd_accumulator_bytes(n) / 4);
   const size_t loss_word = size_t(TFM_FIXED_SLOT_WORDS) * TFM_GD_LOSS_SLOT(n);

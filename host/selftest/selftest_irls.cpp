@@ -12,7 +12,6 @@
 namespace tfm::selftest {
 namespace {
 
-const FieldRange kOptRange{0.0, 1.0};
 
 struct PassCase {
   size_t voxels;
@@ -24,12 +23,10 @@ void pass(Context& ctx, Check& check, const PassCase& c) {
   const uint32_t n = 9;
   const std::string missing = reduction_unavailable(ctx, c.path, n, uint64_t(TFM_IRLS_LOSS_SLOT(n)) * gpu::kFixedSlotBytes);
   if (!missing.empty()) return check.skip(missing);
-  const FieldPair p = random_pair(c.voxels, 71u + uint32_t(c.voxels), kOptRange, n);
-  const TransferFunction ref_tf = random_tf(11, 72, -0.1, 1.1);
-  const std::vector<float> ref_tf_floats = ref_tf.as_floats();
-  const FieldMapping ref_map = make_mapping({0.0, 1.0}, 11), opt_map = make_mapping(kOptRange, n);
-  DeviceField ref(ctx, p.ref, "selftest reference", c.chunk_voxels), opt(ctx, p.opt, "selftest field", c.chunk_voxels);
-  Buffer tf = upload_tf(ctx, ref_tf, "selftest reference TF");
+  const ResidualCaseInputs in(ctx, c.voxels, 71, n, c.chunk_voxels);
+  const FieldPair& p = in.pair;
+  const std::vector<float>& ref_tf_floats = in.ref_tf_floats;
+  const FieldMapping &ref_map = in.ref_map, &opt_map = in.opt_map;
   // x, then a weight floor per channel from nearly all-equal weights to nearly l1.
   const std::array<float, 4> delta = {0.5f, 0.05f, 1e-3f, 1e-4f};
   std::vector<float> state = random_floats(4 * n, 4, 0.0f, 1.0f);
@@ -42,7 +39,7 @@ void pass(Context& ctx, Check& check, const PassCase& c) {
   batch.fill(accum, 0u);
   // The zeroed accumulators before the kernel adds to them.
   batch.barrier();
-  kernel.record(batch, ref, opt, ref_map, opt_map, tf, sb, accum);
+  kernel.record(batch, in.ref, in.opt, ref_map, opt_map, in.tf, sb, accum);
   batch.submit_and_wait();
   const IrlsSums sums = IrlsSums::from_words(n, read_words(ctx, accum, irls_accumulator_bytes(n) / 4));
   const IrlsPassCpu expected = irls_pass_cpu(p.ref, p.opt, ref_map, opt_map, ref_tf_floats,

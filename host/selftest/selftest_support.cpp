@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "correlation_layout.h"
+#include "gpu_voxel_ops.h"  // upload_tf
 #include "residual_map_cpu.h"
 
 namespace tfm::selftest {
@@ -55,6 +56,16 @@ FieldPair random_pair(size_t voxels, uint32_t seed, const FieldRange& opt_range,
   }
   return p;
 }
+
+ResidualCaseInputs::ResidualCaseInputs(Context& ctx, size_t voxels, uint32_t seed, uint32_t n, uint64_t chunk_voxels)
+    : pair(random_pair(voxels, seed + uint32_t(voxels), {0.0, 1.0}, n)),
+      ref_tf(random_tf(11, seed + 1, -0.1, 1.1)),
+      ref_tf_floats(ref_tf.as_floats()),
+      ref_map(make_mapping({0.0, 1.0}, 11)),
+      opt_map(make_mapping({0.0, 1.0}, n)),
+      ref(ctx, pair.ref, "selftest reference", chunk_voxels),
+      opt(ctx, pair.opt, "selftest field", chunk_voxels),
+      tf(upload_tf(ctx, ref_tf, "selftest reference TF")) {}
 
 TransferFunction random_tf(uint32_t n, uint32_t seed, double lo, double hi) {
   std::mt19937 rng(seed);

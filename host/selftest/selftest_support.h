@@ -10,6 +10,7 @@
 #include "buffer.h"
 #include "context.h"
 #include "correlation.h"
+#include "device_field.h"
 #include "field_mapping.h"
 #include "reduction.h"
 #include "transfer_function.h"
@@ -86,6 +87,20 @@ struct FieldPair {
   std::vector<float> ref, opt;
 };
 FieldPair random_pair(size_t voxels, uint32_t seed, const FieldRange& opt_range, uint32_t opt_tf_size);
+
+// The inputs of a case of the kernels that evaluate the residual at a TF (gd_gradient,
+// irls_assemble): random_pair(voxels, seed + voxels) with both fields on [0, 1] and N optimized
+// entries, a reference TF of 11 entries in [-0.1, 1.1] (seed + 1: b is clamped), their mappings,
+// and the fields (split into chunks of chunk_voxels, 0: whole) and the TF on the device.
+struct ResidualCaseInputs {
+  ResidualCaseInputs(Context& ctx, size_t voxels, uint32_t seed, uint32_t n, uint64_t chunk_voxels);
+  FieldPair pair;
+  TransferFunction ref_tf;
+  std::vector<float> ref_tf_floats;
+  FieldMapping ref_map, opt_map;
+  DeviceField ref, opt;
+  Buffer tf;
+};
 
 // N entries with every component uniform in [lo, hi].
 TransferFunction random_tf(uint32_t n, uint32_t seed, double lo = 0.0, double hi = 1.0);
