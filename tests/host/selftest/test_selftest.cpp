@@ -46,31 +46,62 @@ TEST(Selftest, CoversEveryComputeShader) {
     EXPECT_NE(std::find(covered.begin(), covered.end(), s), covered.end()) << "no self-test case runs " << s << ".comp";
 }
 
+// `selftest --quick` runs at least one case of every kernel (the case table, without a device).
+TEST(Selftest, QuickCasesCoverEveryComputeShader) {
+  std::set<std::string> quick;
+  for (const SelftestCaseEntry& e : selftest_cases())
+    if (e.quick) quick.insert(e.kernel);
+  for (const std::string& s : shader_names()) EXPECT_TRUE(quick.count(s)) << "no quick self-test case runs " << s << ".comp";
+}
+
 using SelftestGpu = test::GpuTest;
 
-TEST_F(SelftestGpu, QuickRunPassesAndNamesEveryKernel) {
-  const SelftestReport report = run_selftest(ctx(), SelftestOptions{.quick = true});
+// The cases of `kernels` that `selftest --quick` runs (the table's order).
+std::vector<size_t> quick_cases_of(const std::set<std::string>& kernels) {
+  std::vector<size_t> out;
+  const std::vector<SelftestCaseEntry> table = selftest_cases();
+  for (size_t i = 0; i < table.size(); ++i)
+    if (table[i].quick && kernels.count(table[i].kernel)) out.push_back(i);
+  return out;
+}
+
+// A quick run of a few kernels as `tfmatch selftest --quick --kernel ...` makes it: exactly the
+// table's quick cases of those kernels, all passed, with the validation state. Every case of every
+// kernel passing on this device is KernelCases.MatchTheirCpuReferences (tests/kernels), and the
+// whole quick run through the command line is the README's example (DocExamples), so this test
+// does not run the whole table a third time.
+TEST_F(SelftestGpu, QuickRunOfChosenKernelsRunsTheirQuickCases) {
+  const std::set<std::string> chosen = {"residual_map", "gd_update", "correlation_pearson"};
+  SelftestOptions options{.quick = true};
+  options.kernels.assign(chosen.begin(), chosen.end());
+  const SelftestReport report = run_selftest(ctx(), options);
   std::ostringstream table;
   print_selftest_table(table, report);
   std::cout << table.str();
   EXPECT_TRUE(report.passed()) << table.str();
-  std::set<std::string> ran;
-  for (const SelftestCase& c : report.cases) {
-    if (c.status == SelftestStatus::Skipped) continue;
-    ran.insert(c.kernel);
+  const std::vector<SelftestCaseEntry> entries = selftest_cases();
+  const std::vector<size_t> expected = quick_cases_of(chosen);
+  ASSERT_EQ(report.cases.size(), expected.size()) << table.str();
+  for (size_t k = 0; k < expected.size(); ++k) {
+    const SelftestCase& c = report.cases[k];
+    EXPECT_EQ(c.kernel, entries[expected[k]].kernel);
+    EXPECT_EQ(c.name, entries[expected[k]].name);
+    EXPECT_EQ(c.status, SelftestStatus::Pass) << c.kernel << " (" << c.name << "): " << c.detail;
     EXPECT_GT(c.compared, 0u) << c.kernel << " (" << c.name << ") compared nothing";
     EXPECT_LE(c.max_error, c.bound) << c.kernel << " (" << c.name << ")";
   }
-  // Every kernel of the shader directory ran at least one case here (lavapipe has every limit
-  // the cases need; another device may skip some), and all of them passed (above).
-  for (const std::string& s : shader_names()) EXPECT_TRUE(ran.count(s)) << s << " ran no case";
   EXPECT_EQ(report.validation, ctx().validation_enabled());
-  // A case whose shared-memory path needs more than the device has is skipped, saying what.
+}
+
+// A case whose shared-memory path needs more than the device has is skipped, saying what.
+TEST_F(SelftestGpu, CaseBeyondTheSharedMemoryIsSkippedSayingWhatItNeeds) {
   const bool fits = uint64_t(6 * 1500 + 4) * 8 <= ctx().limits().maxComputeSharedMemorySize;
+  const std::vector<SelftestCaseEntry> table = selftest_cases();
   bool found = false;
-  for (const SelftestCase& c : report.cases)
-    if (c.kernel == "assemble_normal_equations" && c.name.find("N=1500, runs, shared memory") != std::string::npos) {
+  for (size_t i : quick_cases_of({"assemble_normal_equations"}))
+    if (table[i].name.find("N=1500, runs, shared memory") != std::string::npos) {
       found = true;
+      const SelftestCase c = run_selftest_case(ctx(), i);
       EXPECT_EQ(c.status, fits ? SelftestStatus::Pass : SelftestStatus::Skipped) << c.detail;
       if (!fits) EXPECT_EQ(c.detail.rfind("needs ", 0), 0u) << c.detail;
     }
@@ -107,22 +138,27 @@ TEST_F(SelftestGpu, SelectsKernelsAndRejectsUnknownNames) {
   EXPECT_THROW(run_selftest(ctx(), options), std::invalid_argument);
 }
 
-TEST(SelftestCli, QuickJsonPassesAndListsEveryKernel) {
-  const test::CliResult r = test::run_cli("-q selftest --quick --json -");
+// The JSON report of `selftest --quick --kernel ...` (a whole quick run is the README's example).
+TEST(SelftestCli, QuickJsonListsTheKernelsAndCasesItRan) {
+  const test::CliResult r = test::run_cli("-q selftest --quick --kernel residual_map,gd_update --json -");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   const nlohmann::json j = parse_json(r.output);
   ASSERT_TRUE(j.is_object()) << r.output;
   EXPECT_TRUE(j["passed"].get<bool>());
+  EXPECT_TRUE(j["quick"].get<bool>());
   EXPECT_EQ(j["counts"]["fail"].get<int>(), 0);
   EXPECT_FALSE(j["device"].get<std::string>().empty());
   std::set<std::string> kernels;
   for (const auto& k : j["kernels"]) kernels.insert(k.get<std::string>());
-  for (const std::string& s : shader_names()) EXPECT_TRUE(kernels.count(s)) << s << " missing from the JSON";
-  ASSERT_FALSE(j["cases"].empty());
+  EXPECT_EQ(kernels, (std::set<std::string>{"residual_map", "gd_update"}));
+  EXPECT_EQ(j["cases"].size(), quick_cases_of(kernels).size());
+  EXPECT_EQ(j["counts"]["pass"].get<size_t>(), j["cases"].size());
   for (const auto& c : j["cases"]) {
-    for (const char* key : {"kernel", "wrapper", "case", "status", "max_error", "bound", "time_ms"})
+    for (const char* key : {"kernel", "wrapper", "case", "status", "max_error", "bound", "compared", "detail", "time_ms"})
       EXPECT_TRUE(c.contains(key)) << key << " missing in " << c.dump();
-    EXPECT_NE(c["status"].get<std::string>(), "fail") << c.dump();
+    EXPECT_TRUE(kernels.count(c["kernel"].get<std::string>())) << c.dump();
+    EXPECT_EQ(c["status"].get<std::string>(), "pass") << c.dump();
+    EXPECT_LE(c["max_error"].get<double>(), c["bound"].get<double>()) << c.dump();
   }
 }
 
