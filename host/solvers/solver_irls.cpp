@@ -4,7 +4,8 @@
 // sum w e^2 + 2 delta x^T R x over the box is the majorize-minimize step of the Huber loss of
 // threshold delta (|e| <= e^2 / (2 max(|e_k|, delta)) + const at the current residual e_k), so
 // the Huber objective never increases at a fixed delta. delta shrinks from 1/shrink to its floor
-// (continuation), then the passes go on until one gains less than the tolerance.
+// (continuation), then the passes go on, over-relaxed (IrlsOptions::overrelax_max), until one
+// gains less than the tolerance.
 #include "solver_irls.h"
 
 #include <algorithm>
@@ -45,6 +46,8 @@ IrlsResult solve_irls_gpu(VoxelProblem& p, const IrlsOptions& o) {
   if (!(o.shrink > 1.0) || !std::isfinite(o.shrink)) throw std::invalid_argument("solve_irls_gpu: shrink must be > 1");
   if (!(o.tolerance > 0.0 && o.tolerance < 1.0)) throw std::invalid_argument("solve_irls_gpu: tolerance must be in (0, 1)");
   if (o.max_iterations < 1) throw std::invalid_argument("solve_irls_gpu: max_iterations must be >= 1");
+  if (!(o.overrelax_max >= 1.0 && o.overrelax_growth >= 1.0) || !std::isfinite(o.overrelax_max * o.overrelax_growth))
+    throw std::invalid_argument("solve_irls_gpu: overrelax_max and overrelax_growth must be >= 1");
   Context& ctx = p.ctx;
   const uint32_t n = p.opt_map.tf_size;
   IrlsResult out;
@@ -55,7 +58,11 @@ IrlsResult solve_irls_gpu(VoxelProblem& p, const IrlsOptions& o) {
   auto t0 = std::chrono::steady_clock::now();
   const Regularization reg = absolute_regularization(eq, o.regularization);
   const BoxQpResult start = solve_box_constrained(eq, o.regularization);
-  Eigen::Matrix<double, Eigen::Dynamic, 4> x = start.x;
+  using Iterate = Eigen::Matrix<double, Eigen::Dynamic, 4>;
+  Iterate x = start.x;
+  Iterate best_step;   // the plain step from the best iterate: where the passes go on after a rejection
+  double beta = 1.0;   // over-relaxation of the next step
+  bool relaxed = false;  // the iterate of this pass is an over-relaxed step
   const IrlsKernel kernel(ctx, n);
   Buffer state(ctx, irls_state_bytes(n), MemoryUsage::Device, "IRLS state");
   Buffer accum(ctx, irls_accumulator_bytes(n), MemoryUsage::Device, "IRLS accumulators");
@@ -95,18 +102,32 @@ IrlsResult solve_irls_gpu(VoxelProblem& p, const IrlsOptions& o) {
     progress.update(pass);
     const bool at_floor = delta <= o.delta;
     const double gain = best - f;
-    if (f < best) {
+    const bool lowered = f < best;
+    if (lowered) {
       best = f;
       best_values.assign(values.begin(), values.begin() + 4 * n);
     }
-    if (previous_at_floor && at_floor && gain <= o.tolerance * f) {
+    // (A rejected over-relaxed step says nothing about convergence.)
+    if ((lowered || !relaxed) && previous_at_floor && at_floor && gain <= o.tolerance * f) {
       out.converged = true;
       break;
     }
     if (pass == o.max_iterations) break;
+    if (!lowered && relaxed) {
+      // An over-relaxed step that did not lower the objective: drop it and go on from the plain
+      // step of the best iterate. (A plain step is kept as before: it lowers the Huber loss of
+      // its threshold, if not always the l1 loss.)
+      ++out.rejected;
+      x = best_step;
+      relaxed = false;
+      beta = 1.0;
+      delta = std::max(o.delta, delta / o.shrink);
+      continue;
+    }
     previous_at_floor = at_floor;
 
     // The weighted, regularized system of each channel, solved exactly in the box from x.
+    const Iterate from = x;
     for (uint32_t c = 0; c < 4; ++c) {
       NormalEquations weighted(n);
       weighted.diag = sums.diag[c];
@@ -117,6 +138,12 @@ IrlsResult solve_irls_gpu(VoxelProblem& p, const IrlsOptions& o) {
       solve_box_qp(h, rhs, xc);
       x.col(c) = xc;
     }
+    if (lowered) best_step = x;
+    // Over-relaxed only from a best iterate at the final threshold: during the continuation each
+    // pass's system is another Huber loss's, and a longer step towards one overshoots the next.
+    relaxed = lowered && at_floor && beta > 1.0;
+    if (relaxed) x = (from + beta * (x - from)).cwiseMax(0.0).cwiseMin(1.0);
+    if (lowered && at_floor) beta = std::min(beta * o.overrelax_growth, o.overrelax_max);
     delta = std::max(o.delta, delta / o.shrink);
   }
   progress.finish();
@@ -162,6 +189,7 @@ class IrlsSolver final : public Solver {
     out.details["box"] = "enforced";  // every pass solves its system in the box exactly
     out.details["loss"] = "l1";
     out.details["iterations"] = r.iterations;
+    out.details["rejected_steps"] = r.rejected;
     out.details["converged"] = r.converged;
     out.details["delta"] = o.delta;
     out.details["last_loss"] = r.loss;

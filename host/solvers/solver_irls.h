@@ -22,6 +22,16 @@ struct IrlsOptions {
   // Stop once the threshold is at delta and a pass lowered the objective by less than this
   // fraction of it.
   double tolerance = 1e-5;
+  // Over-relaxation once the threshold is at delta (adaptive, as in adaptive overrelaxed EM,
+  // Salakhutdinov & Roweis 2003): the next iterate is x + beta (x_mm - x), x_mm the pass's
+  // box-constrained solve, kept in the box; beta starts at 1 and grows by overrelax_growth after
+  // every pass that lowered the objective, up to overrelax_max; a pass that did not lower it is
+  // dropped and the passes go on from the plain step of the best iterate, beta back at 1. The
+  // passes at a fixed threshold converge linearly (each gains ~0.8 of the one before on the demo
+  // pair), so steps longer than the majorizer's reach a third fewer passes. overrelax_max = 1:
+  // plain majorize-minimize.
+  double overrelax_max = 8.0;
+  double overrelax_growth = 1.5;
   uint32_t max_iterations = 100;  // passes over the voxels, the first included
   SolveOptions regularization;    // ridge and smooth (relative weights); factorization unused
 };
@@ -32,6 +42,7 @@ struct IrlsResult {
   // descent's l1 loss.
   double loss = 0.0;
   std::vector<double> history;  // the objective at each pass's iterate
+  uint32_t rejected = 0;        // over-relaxed iterates that did not lower the objective
   uint32_t iterations = 0;      // passes
   bool converged = false;       // false: max_iterations ended it
   std::vector<PhaseTime> phases;  // "assemble" (unless the problem had its system), "setup" (the least-squares start), "iterate"
