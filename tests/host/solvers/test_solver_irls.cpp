@@ -184,7 +184,7 @@ TEST_F(SolverIrls, OverRelaxedPassesReachThePlainObjectiveInFewerPasses) {
     EXPECT_EQ(a.rejected, 0u);
     EXPECT_LT(b.iterations, a.iterations);
     EXPECT_LE(b.loss, a.loss * (1.0 + 1e-5));
-    // The result is the best pass, and the over-relaxed run's best is its last accepted one.
+    // The result is the best of the passes, rejected steps included in the history.
     EXPECT_EQ(b.loss, *std::min_element(b.history.begin(), b.history.end()));
   }
   test::SolverProblem small = test::make_solver_problem(100, 8, 8, 0.0, 1.0, 3);
