@@ -35,10 +35,9 @@ class AssembleNormalEquationsKernel {
   ReductionMode mode() const { return reduction_.mode; }
   bool int64_atomics() const { return reduction_.int64; }
   // Records one dispatch per chunk and texel range (barriers between them), a workgroup row per
-  // term pass. With
-  // `before_map` (the second field mapped onto the reference TF's entries: tf_size of ref_map)
-  // the kernel also adds the loss before optimization to slots [6N+4, 6N+8) (shared_layout.h).
-  // With `weights` (a float32 field of the same size and chunking, values in [0, 1]) every term
+  // term pass. With `before_map` (the second field mapped onto the reference TF's entries:
+  // tf_size of ref_map) the kernel also adds the loss before optimization to slots
+  // [6N+4, 6N+8) (shared_layout.h). With `weights` (a float32 field of the same size and chunking, values in [0, 1]) every term
   // of voxel i is multiplied by weights[i], rounded once to float (the weighted least squares of
   // visibility weights, kernels/visibility_weights.h); the voxel count stays a count.
   void record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt, const FieldMapping& ref_map,
@@ -65,8 +64,9 @@ class AssembleNormalEquationsKernel {
   Reduction reduction_;
   std::vector<TermPass> passes_;
   uint64_t range_quads_;
-  // Without and with the before loss and weights, each compiled when first recorded (one for every
-  // term pass); for images also per x and y size (specialization constants).
+  // Without and with the before loss and weights, each compiled when first recorded (one pipeline
+  // for all term passes: they are its workgroup rows); for images also per x and y size
+  // (specialization constants).
   const ComputePipeline& pipeline(bool with_before, bool weighted) const;
   const ComputePipeline& image_pipeline(bool with_before, uint32_t nx, uint32_t ny) const;
   SharedPipeline make_pipeline(bool with_before, const VkExtent3D* image, bool weighted) const;

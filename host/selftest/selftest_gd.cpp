@@ -15,7 +15,6 @@
 namespace tfm::selftest {
 namespace {
 
-
 struct GradientCase {
   size_t voxels;
   bool l1;

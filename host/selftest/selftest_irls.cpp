@@ -12,7 +12,6 @@
 namespace tfm::selftest {
 namespace {
 
-
 struct PassCase {
   size_t voxels;
   ReductionOptions path;
