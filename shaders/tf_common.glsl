@@ -1,4 +1,4 @@
-// The field-to-TF mapping of DESIGN.md in GLSL, bit-identical to the host's (host/field_mapping.h).
+// The field-to-TF mapping of DESIGN.md in GLSL, bit-identical to the host's (host/model/field_mapping.h).
 #ifndef TFMATCH_TF_COMMON_GLSL
 #define TFMATCH_TF_COMMON_GLSL
 

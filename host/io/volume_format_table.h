@@ -31,7 +31,7 @@ struct VolumeFormat {
   bool has_times = false;       // ",time=N" / --time
   bool has_members = false;     // ",member=N" / --member
   // With has_members: how many members the array `options` select has (1 when it has no member
-  // axis); an ensemble is read member by member (host/io/ensemble.h).
+  // axis); an ensemble is read member by member (host/io/ensemble_io.h).
   uint64_t (*count_members)(const std::filesystem::path& path, const VolumeOptions& options) = nullptr;
   // Reads one volume; throws std::runtime_error "<file>: <what is wrong>".
   Volume (*read)(const std::filesystem::path& path, const VolumeOptions& options) = nullptr;

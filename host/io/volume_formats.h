@@ -146,7 +146,7 @@ using DataFileLoader = std::function<std::string(const std::string& relative_nam
 Volume parse_nrrd(std::string_view bytes, const std::string& name, const VolumeOptions& options,
                   const DataFileLoader& open_data_file);
 
-// The .dat descriptor (host/volume_raw.cpp), parsed from text.
+// The .dat descriptor (host/io/volume_raw.cpp), parsed from text.
 struct DatDescriptor {
   std::string object_file;
   std::array<uint64_t, 3> dims{0, 0, 0};

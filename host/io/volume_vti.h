@@ -1,5 +1,5 @@
 // Writing VTK XML ImageData (.vti) so fields and residual maps open in ParaView; reading is in
-// load_volume() (host/volume_vti.cpp).
+// load_volume() (host/io/volume_vti.cpp).
 #pragma once
 
 #include <array>

@@ -1,4 +1,4 @@
-// Process-wide per-phase wall-clock accounting (engine/phase_timer.h).
+// Process-wide per-phase wall-clock accounting (host/model/phase_timer.h).
 #include "phase_timer.h"
 
 #include <atomic>

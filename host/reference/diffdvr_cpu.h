@@ -1,5 +1,5 @@
 // Double-precision CPU reference of DiffDVR's gradient: a straightforward reverse mode that
-// marches each ray forward exactly as the CPU renderer does (host/cpu_renderer.h), stores every
+// marches each ray forward exactly as the CPU renderer does (host/reference/cpu_renderer.h), stores every
 // sample, and walks the record backwards. The GPU backward pass (shaders/diffdvr_backward.comp)
 // must agree with it to near float rounding.
 #pragma once

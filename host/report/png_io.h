@@ -20,7 +20,7 @@ std::string encode_png(const Image& image);
 // matches only. About 30 % larger; several times faster. Throws std::runtime_error when zlib
 // fails.
 std::string encode_png_fast(const Image& image);
-// Writes atomically (host/atomic_file.h). Throws std::runtime_error naming the path.
+// Writes atomically (host/io/atomic_file.h). Throws std::runtime_error naming the path.
 void write_png(const std::filesystem::path& path, const Image& image);
 // PNG files encoded on threads of their own while the caller goes on (reports: zlib on one core
 // had been most of their time between renders), written atomically in the order added, from the

@@ -1,4 +1,4 @@
-// The report's index.html (tools/app/report.h): a self-contained page that shows the report's
+// The report's index.html (host/report/report.h): a self-contained page that shows the report's
 // pictures side by side with the numbers.
 #pragma once
 

@@ -1,5 +1,5 @@
 // Report generation: renders and plots on the device, measures the images, writes PNGs,
-// metrics.json, overview.png and index.html (tools/app/render_report_html.cpp).
+// metrics.json, overview.png and index.html (host/report/render_report_html.cpp).
 #include "report.h"
 
 #include <algorithm>

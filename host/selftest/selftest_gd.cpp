@@ -22,7 +22,7 @@ struct GradientCase {
   uint64_t chunk_voxels = 0;
 };
 
-// Bounds (tests/test_solver_gradient_descent.cpp): the kernel forms e in float, within 1e-6 of
+// Bounds (tests/host/solvers/test_solver_gradient_descent.cpp): the kernel forms e in float, within 1e-6 of
 // the double value for values in [0,1]. l2: terms (1-w) e, w e, each a float product (2^-22
 // relative with the roundings of w and 1 - w), plus 1e-6 per term for e and 2^-32 per term for
 // the fixed-point truncation. l1: a sign can flip only where |e| < 1e-6, moving the sum by at
@@ -86,7 +86,7 @@ std::vector<uint32_t> encode_signed(const std::vector<double>& sums) {
   return words;
 }
 
-// One step from hand-made state. Bounds (tests/test_solver_gradient_descent.cpp): the gradient g
+// One step from hand-made state. Bounds (tests/host/solvers/test_solver_gradient_descent.cpp): the gradient g
 // is a few float operations, within 1e-6 of the magnitudes of its terms (which may cancel); the
 // Adam moments within 1e-6 of theirs plus what g carries; x in [0,1] after a float step is within
 // a few ulps of the step and of x: 1e-6.

@@ -127,7 +127,7 @@ struct DeviceScene {
 
 enum class Output { Image, State };  // (premultiplied RGB, opacity) or (premultiplied RGB, T)
 
-// Bound 5e-5 per component (tests/test_render_gpu.cpp): the device rounds sample positions
+// Bound 5e-5 per component (tests/kernels/test_render_gpu.cpp): the device rounds sample positions
 // (|p| < 100 voxels: < 1e-5 voxel), trilinear and TF weights in float, and exp() and normalize()
 // may be off by a few ulp (GLSL allows exp 3 + 2|x| ulp); a ray composites <= ~150 such steps.
 // Pixels where float may legitimately take another discrete decision than double (sample count
@@ -184,7 +184,7 @@ void forward(Context& ctx, Check& check, const Scene& s) {
 // The inverse-check mode re-marches each ray backwards from its final state, undoing every
 // compositing step, and writes the recovered start state, which is exactly 0. Float round-off of
 // <= ~150 steps of one division and one multiply-subtract each bounds it well below 1e-4
-// (tests/test_render_gpu.cpp). Rays must reach the termination opacity somewhere.
+// (tests/kernels/test_render_gpu.cpp). Rays must reach the termination opacity somewhere.
 void inverse_check(Context& ctx, Check& check, const Scene& s) {
   DeviceScene d(ctx, s);
   const RenderImageKernel kernel(ctx, uint32_t(d.field.chunk_count()), TFM_RENDER_MODE_INVERSE_CHECK);
@@ -234,7 +234,7 @@ struct GradientScene {
 
 // The backward pass's loss and TF gradient against the CPU reverse mode, both from the same
 // target images (the CPU reference's renders of the reference field, uploaded as floats) and
-// summed over the views. Bounds (tests/test_diffdvr_gradient.cpp, test_diffdvr_reverse.cpp),
+// summed over the views. Bounds (tests/kernels/test_diffdvr_gradient.cpp, test_diffdvr_reverse.cpp),
 // relative to the largest gradient entry as terms of both signs cancel in single entries: 5e-5.
 // The device rounds the TF coordinate in float (|dw| <= 2^-24 (N-1)), sample positions and
 // trilinear weights (~1e-7), exp() (a few ulp), and T recovered by K ~ 30 divisions drifts by
@@ -305,7 +305,7 @@ TransferFunction tf_in(uint32_t n, uint32_t seed, double c_lo, double c_hi, doub
   return tf;
 }
 
-// The DiffDVR scene of tests/test_diffdvr_reverse.cpp: two noisy fields, three views from above,
+// The DiffDVR scene of tests/kernels/test_diffdvr_reverse.cpp: two noisy fields, three views from above,
 // oblique and below, 24x24 pixels.
 GradientScene gradient_scene(std::array<uint64_t, 3> dims, uint32_t tf_size, uint32_t width, uint32_t height,
                              int nan_every = 0) {
@@ -391,7 +391,7 @@ void add_render_cases(CaseList& cases) {
     s.bands = 3;
     full_scenes.emplace_back("48x40x32 grid with NaNs in 4 chunks, 96x80 image, 4 views, 3 row bands", s);
   }
-  Scene inverse;  // the inverse check of tests/test_render_gpu.cpp
+  Scene inverse;  // the inverse check of tests/kernels/test_render_gpu.cpp
   inverse.volume = wavy_volume({16, 12, 10}, {1.0, 1.0, 1.5}, 13, 31);
   inverse.tf = random_tf(16, 14);
   inverse.settings = settings(16, 12, 40.0);

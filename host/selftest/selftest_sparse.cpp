@@ -132,7 +132,7 @@ void gather(Context& ctx, Check& check, const SparseCase& c, float scale) {
 
 // s = S^T r into signed fixed-point slots. Each term is one float product (2^-24 relative; 2^-22
 // with the roundings of w and 1 - w), truncated to 2^-32 on its own; the fixed-point total is
-// exact. So |error| <= magnitude * 2^-22 + terms * 2^-32 (tests/test_solver_kernels.cpp).
+// exact. So |error| <= magnitude * 2^-22 + terms * 2^-32 (tests/kernels/test_solver_kernels.cpp).
 void scatter(Context& ctx, Check& check, const SparseCase& c, const ReductionOptions& path) {
   const uint32_t n = 9;
   const std::string missing = reduction_unavailable(ctx, path, n, signed_accumulator_bytes(n));
@@ -177,7 +177,7 @@ void scatter(Context& ctx, Check& check, const SparseCase& c, const ReductionOpt
 
 // The CGLS residual update r -= alpha (S p) before s = S^T r: r is a float update of values
 // below ~3 (a few ulps: 2e-6); each slot then sums terms within 2e-6 plus one float product
-// (3e-6 per term), as tests/test_solver_kernels.cpp bounds it.
+// (3e-6 per term), as tests/kernels/test_solver_kernels.cpp bounds it.
 void scatter_update(Context& ctx, Check& check, const SparseCase& c, const ReductionOptions& path) {
   const uint32_t n = 9;
   const std::string missing = reduction_unavailable(ctx, path, n, signed_accumulator_bytes(n));
@@ -235,7 +235,7 @@ struct CglsCase {
 // scaled norm, sparse_scatter with and without the residual update, and the three cgls_vectors
 // stages, recorded as host/solvers/solver_cgls.cpp does) against (M + R) x = S^T b solved densely
 // in double from the CPU assembly. R = ridge I + smooth D^T D with weights 10% and 5% of the mean
-// diagonal keep the scaled condition number small, so (tests/test_solver_cgls.cpp): with the stop
+// diagonal keep the scaled condition number small, so (tests/host/solvers/test_solver_cgls.cpp): with the stop
 // test at 1e-6, |x - x*| <~ cond * 1e-6 |x*| plus float iterates' ~1e-6; 1e-4 max(1, |x*|)
 // bounds both with margin.
 void cgls(Context& ctx, Check& check, const CglsCase& c) {

@@ -1,5 +1,5 @@
 // CGLS with Jacobi preconditioning on an explicit sparse matrix (Eigen): the paper's CPU CGLS
-// baseline, run on the explicit A = S (x) I_4 of host/eigen_baseline.h as one system.
+// baseline, run on the explicit A = S (x) I_4 of host/solvers/eigen_baseline.h as one system.
 #pragma once
 
 #include <cstdint>

@@ -1,4 +1,4 @@
-// The host solver of the voxel least-squares system (kernels/normal_equations_system.h): tridiagonal
+// The host solver of the voxel least-squares system (host/model/normal_equations_system.h): tridiagonal
 // LDL^T, or the minimum-norm solution when M is singular, ridge and smoothness regularization,
 // cond(M); all O(N) in time and memory (host/solvers/tridiagonal.h).
 #pragma once

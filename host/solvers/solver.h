@@ -5,7 +5,7 @@
 // Adding a solver touches two files: a new solver_<name>.cpp that defines a Solver subclass and
 // a factory `std::unique_ptr<Solver> make_<name>_solver()`, and solver_registry.cpp, which
 // declares the factory and calls it in make_solvers(). The command line's flags and help follow
-// from options(); tests/test_solver_registry.cpp lists the expected names.
+// from options(); tests/host/solvers/test_solver_registry.cpp lists the expected names.
 #pragma once
 
 #include <cstdint>

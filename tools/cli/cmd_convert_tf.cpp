@@ -1,5 +1,5 @@
 // `tfmatch convert-tf IN OUT`: transfer functions between tfmatch JSON, the framework's XML and
-// ParaView presets (formats by content and extension, host/tf_formats.h).
+// ParaView presets (formats by content and extension, host/io/tf_formats.h).
 #include <iostream>
 
 #include "builtin_tf.h"

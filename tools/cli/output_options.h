@@ -42,7 +42,7 @@ CLI::Option* add_json_option(CLI::App* sub, std::string& target, const std::stri
 // anything: for '-' it keeps stdout for the JSON and sends what the command prints there for people
 // (tables, summaries) to /dev/null until it is destroyed, so stdout is one JSON document; stderr
 // (progress, warnings, errors) is untouched. Throws std::runtime_error when stdout cannot be set aside.
-// Where the run's time went so far (engine/phase_timer.h), in milliseconds: one entry per phase
+// Where the run's time went so far (host/model/phase_timer.h), in milliseconds: one entry per phase
 // ("startup_ms" ... "write_ms"), "total_ms" since the program started and "other_ms", the rest
 // (parsing, host-side work between phases; negative only when phases ran side by side).
 nlohmann::json timings_json();

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Expected image metrics for tests/test_metrics.cpp, from an independent implementation.
+"""Expected image metrics for tests/host/report/test_metrics.cpp, from an independent implementation.
 
 Regenerates the test images from the same integer formulas as the C++ test (make_pair there)
 and prints RMSE, PSNR and SSIM as computed by scikit-image:
@@ -7,7 +7,7 @@ and prints RMSE, PSNR and SSIM as computed by scikit-image:
                         data_range=255, channel_axis=-1)
 Run with Debian's python3-skimage (apt-get install -y python3-skimage):
   /usr/bin/python3 tests/host/report/ssim_expected.py
-and paste the printed values into kExpected in tests/test_metrics.cpp.
+and paste the printed values into kExpected in tests/host/report/test_metrics.cpp.
 """
 import math
 
@@ -17,7 +17,7 @@ from skimage.metrics import mean_squared_error, peak_signal_noise_ratio, structu
 
 
 def pixel(case, w, h, x, y, c, second):
-    """Integer formulas shared with make_pair() in tests/test_metrics.cpp."""
+    """Integer formulas shared with make_pair() in tests/host/report/test_metrics.cpp."""
     if case == "noise":
         a = ((x * 73 + y * 151 + c * 29) ^ (x * y * 7)) & 255
         if not second:

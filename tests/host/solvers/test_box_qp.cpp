@@ -1,4 +1,4 @@
-// The box-constrained least-squares solver (host/box_qp.h) against independent references on the
+// The box-constrained least-squares solver (host/solvers/box_qp.h) against independent references on the
 // explicit dense system: exhaustive enumeration of active sets for tiny N, a long projected-
 // gradient run for medium N; KKT checks; active and inactive constraints; rank-deficient M.
 #include <gtest/gtest.h>

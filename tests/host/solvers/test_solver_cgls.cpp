@@ -1,4 +1,4 @@
-// GPU CGLS (`cgls`) and the CPU CGLS baseline (`eigen-cgls`, host/cgls_cpu.h) against the exact
+// GPU CGLS (`cgls`) and the CPU CGLS baseline (`eigen-cgls`, host/solvers/cgls_cpu.h) against the exact
 // normal-equations solution: small and medium problems, split chunks, regularization, rank-
 // deficient M, the stop test, and bit-identical results across runs.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Every solver on one problem (tools/app/solver_comparison.h): they agree where they should, keep
+// Every solver on one problem (host/solvers/solver_comparison.h): they agree where they should, keep
 // the box, survive a rank-deficient M with and without regularization without NaN anywhere; and
 // `tfmatch solvers` prints its table and JSON, and rejects bad input.
 #include <gtest/gtest.h>
