@@ -6,7 +6,8 @@
 // Results are deterministic: the same bits on every run, chunking and device.
 //
 // Conventions every measure shares (the CPU references in host/reference/correlation_cpu.h too):
-// - NaN in the reference series or in a voxel's series (any member) gives NaN at that voxel.
+// - NaN in the reference series or in a voxel's series (any member) gives NaN at that voxel; for
+//   pearson so does ±Inf (the mean is infinite), as the double reference's arithmetic gives it.
 // - A constant series (either one): pearson, spearman and kendall give NaN (no variance);
 //   mi-binned, mi-kraskov and mi-coefficient give 0 (a constant carries no information).
 // - At least 3 members and at most kMaxCorrelationMembers (std::invalid_argument otherwise).

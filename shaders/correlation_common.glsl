@@ -137,20 +137,25 @@ void corr_write(uint v, float value) {
   if (!GROUP_PER_VOXEL || gl_LocalInvocationIndex == 0u) result[v] = value;
 }
 
-// The result of a voxel whose series (stats from corr_total: y min, z max, w NaN flag) or the
-// reference rules the measure out, following kernels/correlation.h: NaN for NaN members; for a
-// constant series `constant_value` (NaN for the correlation coefficients, 0 for mutual
-// information). Returns false when the measure must be computed.
-bool corr_special_case(uint v, vec4 stats, float constant_value) {
-  if (stats.w > 0.0) {
+// The result of a voxel with a member without a value (`no_value`: NaN, and for pearson ±Inf), with
+// all members equal (not `varies`), or of a constant reference, following kernels/correlation.h:
+// NaN for a member without a value; for a constant series `constant_value` (NaN for the correlation
+// coefficients, 0 for mutual information). Returns false when the measure must be computed.
+bool corr_special_result(uint v, bool no_value, bool varies, float constant_value) {
+  if (no_value) {
     corr_write(v, CORR_NAN);
     return true;
   }
-  if (stats.y == stats.z || (pc.flags & TFM_CORR_FLAG_REF_CONSTANT) != 0u) {
+  if (!varies || (pc.flags & TFM_CORR_FLAG_REF_CONSTANT) != 0u) {
     corr_write(v, constant_value);
     return true;
   }
   return false;
+}
+
+// The same from the series' stats (corr_total's: y min, z max, w NaN flag).
+bool corr_special_case(uint v, vec4 stats, float constant_value) {
+  return corr_special_result(v, stats.w > 0.0, stats.y != stats.z, constant_value);
 }
 
 #endif

@@ -247,6 +247,38 @@ TEST_F(CorrelationKernelGpu, NanReferenceGivesNanEverywhere) {
     for (float v : kernel.compute(e.view(), reference, p)) EXPECT_TRUE(std::isnan(v)) << correlation_measure_name(p.measure);
 }
 
+// An infinite member makes pearson's mean infinite: NaN, as the double reference's arithmetic
+// gives it, whether the member is the first (the kernel's shift) or another, +Inf or -Inf, and in
+// the reference series too. Before 2026-12-04 the kernel's shifted sums turned NaN and clamp()
+// made that -1 on lavapipe. Every other voxel keeps the bits it has without the infinities.
+TEST_F(CorrelationKernelGpu, PearsonOfAnInfiniteMemberIsNanAsOnTheCpu) {
+  const CorrelationParams pearson{CorrelationMeasure::Pearson};
+  CorrelationKernel kernel(ctx());
+  for (uint32_t members : {9u, 40u}) {
+    const CorrelationEnsemble plain = correlation_test_ensemble(members, 20, 4);
+    CorrelationEnsemble e = plain;
+    e.values[0 * e.voxels + 9] = INFINITY;             // the first member: the one the kernel shifts by
+    e.values[3 * e.voxels + 10] = -INFINITY;
+    e.values[(members - 1) * e.voxels + 11] = INFINITY;  // the last
+    const std::vector<float> reference = plain.reference();
+    const std::vector<float> gpu = kernel.compute(e.view(), reference, pearson);
+    const std::vector<float> cpu = correlation_field_cpu(e.view(), reference, pearson);
+    const std::vector<float> before = kernel.compute(plain.view(), reference, pearson);
+    for (uint64_t v = 0; v < e.voxels; ++v) {
+      if (v >= 9 && v <= 11) {
+        EXPECT_TRUE(std::isnan(cpu[v])) << "the CPU reference at voxel " << v << ": " << cpu[v];
+        EXPECT_TRUE(std::isnan(gpu[v])) << members << " members, voxel " << v << ": " << gpu[v];
+      } else {
+        EXPECT_EQ(0, std::memcmp(&gpu[v], &before[v], sizeof(float))) << "voxel " << v << ": " << gpu[v] << " vs " << before[v];
+      }
+    }
+    std::vector<float> infinite_reference = reference;
+    infinite_reference[2] = -INFINITY;
+    for (float v : kernel.compute(plain.view(), infinite_reference, pearson)) EXPECT_TRUE(std::isnan(v));
+    for (float v : correlation_field_cpu(plain.view(), infinite_reference, pearson)) EXPECT_TRUE(std::isnan(v));
+  }
+}
+
 // A constant reference: NaN for the coefficients, 0 for mutual information; NaN members stay NaN.
 TEST_F(CorrelationKernelGpu, ConstantReferenceFollowsTheConventions) {
   for (uint32_t members : {9u, 40u}) {
