@@ -37,7 +37,8 @@ bool is_mutual_information(const CorrelationParams& p) {
 // Bound: CorrelationKernel::error_bound (the mixed data make every comparison exact in float).
 // NaN results must be NaN on both sides. The data reach the conventions, which the field must
 // follow: NaN at the voxel with a NaN member (5), NaN (or 0 for mutual information) at the
-// constant voxel (7), 1 at the reference voxel for pearson, spearman and kendall.
+// constant voxel (7), 1 at the reference voxel for pearson, spearman and kendall; for pearson NaN
+// at a voxel with an infinite member too (9, where the grid has it: the mean is infinite).
 void correlation(Context& ctx, Check& check, CorrelationCase c) {
   c.params.k = std::min(c.params.k, c.members - 1);  // k < M
   if (const uint64_t bytes = CorrelationKernel::shared_memory_bytes(c.params, c.members); !fits_shared_memory(ctx, bytes))
@@ -46,9 +47,12 @@ void correlation(Context& ctx, Check& check, CorrelationCase c) {
   using Data = CorrelationCase::Data;
   const bool bin_edges = c.data == Data::bin_edges, mixed = c.data == Data::mixed;
   const float shift_offset = c.data == Data::pearson_shift_offset ? 1000.0f : 0.0f;
-  const CorrelationEnsemble e = bin_edges ? bin_edge_ensemble(c.members, c.voxels)
-                                : mixed   ? correlation_test_ensemble(c.members, c.voxels, seed)
-                                          : pearson_shift_ensemble(c.members, shift_offset, seed);
+  CorrelationEnsemble e = bin_edges ? bin_edge_ensemble(c.members, c.voxels)
+                          : mixed   ? correlation_test_ensemble(c.members, c.voxels, seed)
+                                    : pearson_shift_ensemble(c.members, shift_offset, seed);
+  const bool infinite_member =
+      mixed && c.params.measure == CorrelationMeasure::Pearson && c.voxels > 9 && c.reference_voxel != 9;
+  if (infinite_member) e.values[2 * e.voxels + 9] = INFINITY;
   const std::vector<float> reference = ensemble_series(e.view(), c.reference_voxel);
   CorrelationKernel kernel(ctx);
   uint32_t chunks = 0;
@@ -76,6 +80,7 @@ void correlation(Context& ctx, Check& check, CorrelationCase c) {
     check.require(is_mutual_information(c.params) ? g[7] == 0.0f : std::isnan(g[7]),
                   "the constant voxel does not follow the convention");
   }
+  if (infinite_member) check.require(std::isnan(g[9]), "the voxel with an infinite member is not NaN");
   if (c.params.measure == CorrelationMeasure::Pearson || c.params.measure == CorrelationMeasure::Spearman ||
       c.params.measure == CorrelationMeasure::Kendall)
     check.near("the reference voxel itself", c.reference_voxel, g[c.reference_voxel], 1.0, bound);
