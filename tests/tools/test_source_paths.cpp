@@ -20,20 +20,24 @@ namespace {
 namespace fs = std::filesystem;
 
 // The top-level folders a path can start with, and the kinds of file a reference names.
-constexpr std::array<std::string_view, 8> kTopFolders{"engine", "kernels", "host", "shaders", "tools", "tests", "docs", "cuda"};
-constexpr std::array<std::string_view, 17> kNamedExtensions{".h",  ".cpp", ".c",     ".cu",  ".cuh", ".comp",
-                                                            ".glsl", ".md", ".sh",    ".py",  ".cmake", ".in",
-                                                            ".txt", ".mjs", ".js",    ".html", ".css"};
+constexpr std::array<std::string_view, 8> kTopFolders{"engine", "kernels", "host", "shaders",
+                                                      "tools",  "tests",   "docs", "cuda"};
+constexpr std::array<std::string_view, 17> kNamedExtensions{".h",    ".cpp", ".c",  ".cu",   ".cuh",   ".comp",
+                                                            ".glsl", ".md",  ".sh", ".py",   ".cmake", ".in",
+                                                            ".txt",  ".mjs", ".js", ".html", ".css"};
 
 bool ends_with(std::string_view s, std::string_view suffix) {
   return s.size() >= suffix.size() && s.substr(s.size() - suffix.size()) == suffix;
 }
 
 bool named_kind(std::string_view path) {
-  return std::any_of(kNamedExtensions.begin(), kNamedExtensions.end(), [&](std::string_view e) { return ends_with(path, e); });
+  return std::any_of(kNamedExtensions.begin(), kNamedExtensions.end(),
+                     [&](std::string_view e) { return ends_with(path, e); });
 }
 
-bool path_char(char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.' || c == '/' || c == '-'; }
+bool path_char(char c) {
+  return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.' || c == '/' || c == '-';
+}
 
 // The repository's text files (sources, scripts, pages), without build trees, installed packages
 // and hidden folders other than .ci.
@@ -97,8 +101,9 @@ TEST(SourcePaths, ReferencesFindTheirPathsAndNothingElse) {
   std::vector<std::string> paths;
   for (const Reference& r : refs) paths.push_back(std::to_string(r.line) + " " + r.path);
   std::sort(paths.begin(), paths.end());
-  EXPECT_EQ(paths, (std::vector<std::string>{"1 docs/solvers.md", "1 host/io/atomic_file.h",
-                                             "1 tests/kernels/test_render_gpu.cpp", "5 tools/cmake/tfmatchConfig.cmake.in"}));
+  EXPECT_EQ(paths,
+            (std::vector<std::string>{"1 docs/solvers.md", "1 host/io/atomic_file.h",
+                                      "1 tests/kernels/test_render_gpu.cpp", "5 tools/cmake/tfmatchConfig.cmake.in"}));
 }
 
 TEST(SourcePaths, EveryNamedRepositoryFileExists) {
