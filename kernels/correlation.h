@@ -7,7 +7,8 @@
 //
 // Conventions every measure shares (the CPU references in host/reference/correlation_cpu.h too):
 // - NaN in the reference series or in a voxel's series (any member) gives NaN at that voxel; for
-//   pearson so does ±Inf (the mean is infinite), as the double reference's arithmetic gives it.
+//   pearson and mi-binned so does ±Inf (needs_finite_members: an infinite mean, bins over an
+//   infinite range). The rank measures and mi-kraskov order ±Inf as any other value.
 // - A constant series (either one): pearson, spearman and kendall give NaN (no variance);
 //   mi-binned, mi-kraskov and mi-coefficient give 0 (a constant carries no information).
 // - At least 3 members and at most kMaxCorrelationMembers (std::invalid_argument otherwise).

@@ -131,16 +131,22 @@ vec4 corr_stats_term(float y) {
   return isnan(y) ? vec4(0.0, CORR_INF, -CORR_INF, 1.0) : vec4(0.0, y, y, 0.0);
 }
 #define CORR_STATS_EMPTY vec4(0.0, CORR_INF, -CORR_INF, 0.0)
+// The same where an infinite member has no value either (needs_finite_members: mi-binned's bins
+// over the range; pearson keeps its own flags). any(), not ||, which glslang compiles to a branch.
+vec4 corr_finite_stats_term(float y) {
+  return any(bvec2(isnan(y), isinf(y))) ? vec4(0.0, CORR_INF, -CORR_INF, 1.0) : vec4(0.0, y, y, 0.0);
+}
 
 // Writes the voxel's result once (by the first invocation of its workgroup).
 void corr_write(uint v, float value) {
   if (!GROUP_PER_VOXEL || gl_LocalInvocationIndex == 0u) result[v] = value;
 }
 
-// The result of a voxel with a member without a value (`no_value`: NaN, and for pearson ±Inf), with
-// all members equal (not `varies`), or of a constant reference, following kernels/correlation.h:
-// NaN for a member without a value; for a constant series `constant_value` (NaN for the correlation
-// coefficients, 0 for mutual information). Returns false when the measure must be computed.
+// The result of a voxel with a member without a value (`no_value`: NaN, and ±Inf where the measure
+// needs finite members), with all members equal (not `varies`), or of a constant reference,
+// following kernels/correlation.h: NaN for a member without a value; for a constant series
+// `constant_value` (NaN for the correlation coefficients, 0 for mutual information). Returns false
+// when the measure must be computed.
 bool corr_special_result(uint v, bool no_value, bool varies, float constant_value) {
   if (no_value) {
     corr_write(v, CORR_NAN);

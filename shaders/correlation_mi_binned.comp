@@ -51,7 +51,7 @@ void main() {
   const uint v = corr_voxel();
   if (v >= pc.voxel_count) return;  // uniform across a workgroup per voxel
   vec4 part = CORR_STATS_EMPTY;
-  CORR_FOR_EACH(m, n) part = corr_combine(part, corr_stats_term(series_value(v, m)));
+  CORR_FOR_EACH(m, n) part = corr_combine(part, corr_finite_stats_term(series_value(v, m)));
   const vec4 stats = corr_total(part);
   if (corr_special_case(v, stats, 0.0)) return;
   const float y_lo = stats.y, y_range = stats.z - stats.y;

@@ -26,6 +26,10 @@ const char* correlation_measure_name(CorrelationMeasure m) {
   throw std::invalid_argument("unknown correlation measure");
 }
 
+bool needs_finite_members(CorrelationMeasure m) {
+  return m == CorrelationMeasure::Pearson || m == CorrelationMeasure::MiBinned;
+}
+
 std::vector<std::string> correlation_measure_names() {
   std::vector<std::string> names;
   for (const MeasureName& i : kMeasureNames) names.emplace_back(i.name);

@@ -37,6 +37,10 @@ const char* correlation_measure_name(CorrelationMeasure m);
 // Throws std::invalid_argument listing the names when unknown.
 CorrelationMeasure parse_correlation_measure(const std::string& name);
 std::vector<std::string> correlation_measure_names();
+// Whether an infinite member leaves the measure without a value, as NaN does: pearson (the mean is
+// infinite) and mi-binned (equal-width bins over an infinite range). The rank measures and
+// mi-kraskov order ±Inf as any other value.
+bool needs_finite_members(CorrelationMeasure m);
 // Throws std::invalid_argument when params do not suit `member_count` (fewer than 3 members,
 // bins or k out of range).
 void validate_correlation_params(const CorrelationParams& params, uint32_t member_count);

@@ -97,11 +97,9 @@ CorrelationReference prepare_correlation_reference(std::span<const float> refere
   CorrelationReference r;
   r.params = params;
   r.members = uint32_t(reference.size());
-  // Pearson's mean is infinite with an infinite member: NaN, as the double reference gives; the
-  // ranks and bins of the other measures order ±Inf as any value.
-  const bool pearson = params.measure == CorrelationMeasure::Pearson;
+  const bool finite = needs_finite_members(params.measure);
   r.has_nan = std::any_of(reference.begin(), reference.end(),
-                          [&](float v) { return std::isnan(v) || (pearson && std::isinf(v)); });
+                          [&](float v) { return std::isnan(v) || (finite && std::isinf(v)); });
   if (r.has_nan) return r;
   const auto [lo, hi] = std::minmax_element(reference.begin(), reference.end());
   r.lo = *lo;

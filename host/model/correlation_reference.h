@@ -15,7 +15,7 @@ namespace tfm {
 struct CorrelationReference {
   CorrelationParams params;
   uint32_t members = 0;
-  bool has_nan = false;   // NaN (pearson: or ±Inf) in x: every voxel's result is NaN, nothing else is filled
+  bool has_nan = false;   // NaN (or ±Inf: needs_finite_members) in x: every result NaN, nothing else filled
   bool constant = false;  // min == max
   float lo = 0.0f, hi = 0.0f;
   // Per measure (the kernels' REF_VALUES): pearson x - mean(x) by member; spearman the centred

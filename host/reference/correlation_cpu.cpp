@@ -18,25 +18,27 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-bool has_nan(std::span<const double> v) {
-  return std::any_of(v.begin(), v.end(), [](double a) { return std::isnan(a); });
+// NaN, or with `finite` (needs_finite_members) also ±Inf: a member without a value.
+bool has_no_value(std::span<const double> v, bool finite) {
+  return std::any_of(v.begin(), v.end(), [&](double a) { return std::isnan(a) || (finite && std::isinf(a)); });
 }
 
 bool is_constant(std::span<const double> v) {
   return std::all_of(v.begin(), v.end(), [&](double a) { return a == v[0]; });
 }
 
-// The series must pair up and have at least 3 members; then NaN anywhere gives NaN and a constant
-// series `constant_value` (kernels/correlation.h). Returns true when that settles the result.
+// The series must pair up and have at least 3 members; then NaN anywhere (with `finite` ±Inf too)
+// gives NaN and a constant series `constant_value` (kernels/correlation.h). Returns true when that
+// settles the result.
 bool special_case(std::span<const double> x, std::span<const double> y, const char* measure,
-                  double constant_value, double& result) {
+                  double constant_value, double& result, bool finite = false) {
   if (x.size() != y.size())
     throw std::invalid_argument(std::string(measure) + ": series of " + std::to_string(x.size()) + " and " +
                                 std::to_string(y.size()) + " values");
   if (x.size() < 3)
     throw std::invalid_argument(std::string(measure) + ": an ensemble needs at least 3 members (got " +
                                 std::to_string(x.size()) + ")");
-  if (has_nan(x) || has_nan(y)) {
+  if (has_no_value(x, finite) || has_no_value(y, finite)) {
     result = kNaN;
     return true;
   }
@@ -72,7 +74,7 @@ double digamma(uint64_t n) {
 
 double pearson_cpu(std::span<const double> x, std::span<const double> y) {
   double r;
-  if (special_case(x, y, "pearson", kNaN, r)) return r;
+  if (special_case(x, y, "pearson", kNaN, r, needs_finite_members(CorrelationMeasure::Pearson))) return r;
   const double n = double(x.size());
   double mx = 0.0, my = 0.0;
   for (size_t i = 0; i < x.size(); ++i) mx += x[i], my += y[i];
@@ -114,7 +116,7 @@ double kendall_tau_b_cpu(std::span<const double> x, std::span<const double> y) {
 
 double mutual_information_binned_cpu(std::span<const double> x, std::span<const double> y, uint32_t bins) {
   double r;
-  if (special_case(x, y, "mi-binned", 0.0, r)) return r;
+  if (special_case(x, y, "mi-binned", 0.0, r, needs_finite_members(CorrelationMeasure::MiBinned))) return r;
   if (bins < 2) throw std::invalid_argument("mi-binned: bins must be at least 2");
   auto binner = [bins](std::span<const double> v) {
     const auto [lo, hi] = std::minmax_element(v.begin(), v.end());

@@ -175,7 +175,8 @@ float mi_kraskov(const CorrelationReference& r, const float* y, Scratch& s) {
 
 float voxel_value(const CorrelationReference& r, const float* y, Scratch& s) {
   const auto [lo, hi] = std::minmax_element(y, y + r.members);
-  if (std::any_of(y, y + r.members, [](float v) { return std::isnan(v); })) return kNaN;
+  const bool finite = needs_finite_members(r.params.measure);
+  if (std::any_of(y, y + r.members, [&](float v) { return std::isnan(v) || (finite && std::isinf(v)); })) return kNaN;
   const bool mi = r.params.measure == CorrelationMeasure::MiBinned || r.params.measure == CorrelationMeasure::MiKraskov ||
                   r.params.measure == CorrelationMeasure::MiCoefficient;
   if (r.constant || *lo == *hi) return mi ? 0.0f : kNaN;

@@ -37,8 +37,9 @@ bool is_mutual_information(const CorrelationParams& p) {
 // Bound: CorrelationKernel::error_bound (the mixed data make every comparison exact in float).
 // NaN results must be NaN on both sides. The data reach the conventions, which the field must
 // follow: NaN at the voxel with a NaN member (5), NaN (or 0 for mutual information) at the
-// constant voxel (7), 1 at the reference voxel for pearson, spearman and kendall; for pearson NaN
-// at a voxel with an infinite member too (9, where the grid has it: the mean is infinite).
+// constant voxel (7), 1 at the reference voxel for pearson, spearman and kendall; for pearson and
+// mi-binned NaN at a voxel with an infinite member too (9, where the grid has it:
+// needs_finite_members).
 void correlation(Context& ctx, Check& check, CorrelationCase c) {
   c.params.k = std::min(c.params.k, c.members - 1);  // k < M
   if (const uint64_t bytes = CorrelationKernel::shared_memory_bytes(c.params, c.members); !fits_shared_memory(ctx, bytes))
@@ -51,7 +52,7 @@ void correlation(Context& ctx, Check& check, CorrelationCase c) {
                           : mixed   ? correlation_test_ensemble(c.members, c.voxels, seed)
                                     : pearson_shift_ensemble(c.members, shift_offset, seed);
   const bool infinite_member =
-      mixed && c.params.measure == CorrelationMeasure::Pearson && c.voxels > 9 && c.reference_voxel != 9;
+      mixed && needs_finite_members(c.params.measure) && c.voxels > 9 && c.reference_voxel != 9;
   if (infinite_member) e.values[2 * e.voxels + 9] = INFINITY;
   const std::vector<float> reference = ensemble_series(e.view(), c.reference_voxel);
   CorrelationKernel kernel(ctx);

@@ -247,35 +247,45 @@ TEST_F(CorrelationKernelGpu, NanReferenceGivesNanEverywhere) {
     for (float v : kernel.compute(e.view(), reference, p)) EXPECT_TRUE(std::isnan(v)) << correlation_measure_name(p.measure);
 }
 
-// An infinite member makes pearson's mean infinite: NaN, as the double reference's arithmetic
-// gives it, whether the member is the first (the kernel's shift) or another, +Inf or -Inf, and in
-// the reference series too. Before 2026-12-04 the kernel's shifted sums turned NaN and clamp()
-// made that -1 on lavapipe. Every other voxel keeps the bits it has without the infinities.
-TEST_F(CorrelationKernelGpu, PearsonOfAnInfiniteMemberIsNanAsOnTheCpu) {
-  const CorrelationParams pearson{CorrelationMeasure::Pearson};
+// An infinite member leaves pearson (the mean is infinite) and mi-binned (equal-width bins over an
+// infinite range) without a value: NaN, as NaN does (needs_finite_members), whether it is the
+// first member (pearson's shift) or another, +Inf or -Inf, and in the reference series too; the
+// CPU peer and the double reference agree. Before 2026-12-04 the kernels gave pearson -1 (its
+// shifted sums turned NaN and clamp() took the lower end) and mi-binned 0 for a -Inf member, where
+// the peer gave a number. Every other voxel keeps the bits it has without the infinities.
+TEST_F(CorrelationKernelGpu, InfiniteMembersLeavePearsonAndBinnedMiWithoutAValue) {
   CorrelationKernel kernel(ctx());
-  for (uint32_t members : {9u, 40u}) {
-    const CorrelationEnsemble plain = correlation_test_ensemble(members, 20, 4);
-    CorrelationEnsemble e = plain;
-    e.values[0 * e.voxels + 9] = INFINITY;             // the first member: the one the kernel shifts by
-    e.values[3 * e.voxels + 10] = -INFINITY;
-    e.values[(members - 1) * e.voxels + 11] = INFINITY;  // the last
-    const std::vector<float> reference = plain.reference();
-    const std::vector<float> gpu = kernel.compute(e.view(), reference, pearson);
-    const std::vector<float> cpu = correlation_field_cpu(e.view(), reference, pearson);
-    const std::vector<float> before = kernel.compute(plain.view(), reference, pearson);
-    for (uint64_t v = 0; v < e.voxels; ++v) {
-      if (v >= 9 && v <= 11) {
-        EXPECT_TRUE(std::isnan(cpu[v])) << "the CPU reference at voxel " << v << ": " << cpu[v];
-        EXPECT_TRUE(std::isnan(gpu[v])) << members << " members, voxel " << v << ": " << gpu[v];
-      } else {
-        EXPECT_EQ(0, std::memcmp(&gpu[v], &before[v], sizeof(float))) << "voxel " << v << ": " << gpu[v] << " vs " << before[v];
+  for (const CorrelationParams& p : {CorrelationParams{CorrelationMeasure::Pearson},
+                                     CorrelationParams{CorrelationMeasure::MiBinned}}) {
+    const std::string name = correlation_measure_name(p.measure);
+    ASSERT_TRUE(needs_finite_members(p.measure)) << name;
+    for (uint32_t members : {9u, 40u}) {
+      const CorrelationEnsemble plain = correlation_test_ensemble(members, 20, 4);
+      CorrelationEnsemble e = plain;
+      e.values[0 * e.voxels + 9] = INFINITY;  // the first member: the one pearson shifts by
+      e.values[3 * e.voxels + 10] = -INFINITY;
+      e.values[(members - 1) * e.voxels + 11] = INFINITY;  // the last
+      const std::vector<float> reference = plain.reference();
+      const std::vector<float> gpu = kernel.compute(e.view(), reference, p);
+      const std::vector<float> peer = correlation_field_cpu(e.view(), reference, p);
+      const std::vector<double> exact = correlation_field_reference(e.view(), reference, p);
+      const std::vector<float> before = kernel.compute(plain.view(), reference, p);
+      for (uint64_t v = 0; v < e.voxels; ++v) {
+        if (v >= 9 && v <= 11) {
+          EXPECT_TRUE(std::isnan(peer[v])) << name << ": the CPU peer at voxel " << v << ": " << peer[v];
+          EXPECT_TRUE(std::isnan(exact[v])) << name << ": the double reference at voxel " << v << ": " << exact[v];
+          EXPECT_TRUE(std::isnan(gpu[v])) << name << ", " << members << " members, voxel " << v << ": " << gpu[v];
+        } else {
+          EXPECT_EQ(0, std::memcmp(&gpu[v], &before[v], sizeof(float)))
+              << name << ", voxel " << v << ": " << gpu[v] << " vs " << before[v];
+        }
       }
+      std::vector<float> infinite_reference = reference;
+      infinite_reference[2] = -INFINITY;
+      for (float v : kernel.compute(plain.view(), infinite_reference, p)) EXPECT_TRUE(std::isnan(v)) << name;
+      for (float v : correlation_field_cpu(plain.view(), infinite_reference, p)) EXPECT_TRUE(std::isnan(v)) << name;
+      for (double v : correlation_field_reference(plain.view(), infinite_reference, p)) EXPECT_TRUE(std::isnan(v)) << name;
     }
-    std::vector<float> infinite_reference = reference;
-    infinite_reference[2] = -INFINITY;
-    for (float v : kernel.compute(plain.view(), infinite_reference, pearson)) EXPECT_TRUE(std::isnan(v));
-    for (float v : correlation_field_cpu(plain.view(), infinite_reference, pearson)) EXPECT_TRUE(std::isnan(v));
   }
 }
 
