@@ -1,7 +1,7 @@
 // A volume read a slab of z-slices at a time (`tfmatch optimize` on volumes larger than memory):
-// the interface the file formats implement (open_volume_slabs() of host/io/volume_io.h opens one for a file) and the
-// streamed assembly reads (host/solvers/streamed_optimize.h), and an in-memory implementation for
-// a volume loaded whole.
+// the interface the file formats implement (open_volume_slabs() of host/io/volume_io.h opens one
+// for a file) and the streamed assembly reads (host/solvers/streamed_optimize.h), and an in-memory
+// implementation for a volume loaded whole.
 #pragma once
 
 #include <cstdint>

@@ -284,7 +284,8 @@ TEST_F(CorrelationKernelGpu, InfiniteMembersLeavePearsonAndBinnedMiWithoutAValue
       infinite_reference[2] = -INFINITY;
       for (float v : kernel.compute(plain.view(), infinite_reference, p)) EXPECT_TRUE(std::isnan(v)) << name;
       for (float v : correlation_field_cpu(plain.view(), infinite_reference, p)) EXPECT_TRUE(std::isnan(v)) << name;
-      for (double v : correlation_field_reference(plain.view(), infinite_reference, p)) EXPECT_TRUE(std::isnan(v)) << name;
+      for (double v : correlation_field_reference(plain.view(), infinite_reference, p))
+        EXPECT_TRUE(std::isnan(v)) << name;
     }
   }
 }
