@@ -126,16 +126,16 @@ uvec4 corr_count_total(uvec4 v) {
   return uvec4(s_counts[0], s_counts[1], s_counts[2], s_counts[3]);
 }
 
-// Partial (unused, min, max, has NaN) of one value; NaN takes no part in min and max.
-vec4 corr_stats_term(float y) {
-  return isnan(y) ? vec4(0.0, CORR_INF, -CORR_INF, 1.0) : vec4(0.0, y, y, 0.0);
+// Partial (unused, min, max, has no value) of one value; a value it flags takes no part in min and
+// max. corr_stats_term flags NaN.
+vec4 corr_value_stats(bool no_value, float y) {
+  return no_value ? vec4(0.0, CORR_INF, -CORR_INF, 1.0) : vec4(0.0, y, y, 0.0);
 }
+vec4 corr_stats_term(float y) { return corr_value_stats(isnan(y), y); }
 #define CORR_STATS_EMPTY vec4(0.0, CORR_INF, -CORR_INF, 0.0)
 // The same where an infinite member has no value either (needs_finite_members: mi-binned's bins
 // over the range; pearson keeps its own flags). any(), not ||, which glslang compiles to a branch.
-vec4 corr_finite_stats_term(float y) {
-  return any(bvec2(isnan(y), isinf(y))) ? vec4(0.0, CORR_INF, -CORR_INF, 1.0) : vec4(0.0, y, y, 0.0);
-}
+vec4 corr_finite_stats_term(float y) { return corr_value_stats(any(bvec2(isnan(y), isinf(y))), y); }
 
 // Writes the voxel's result once (by the first invocation of its workgroup).
 void corr_write(uint v, float value) {
