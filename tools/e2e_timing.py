@@ -125,17 +125,19 @@ def plain_ms(cmd):
 
 
 def run_many(name, cmd, json_path, runs):
-    samples, timings = [], []
+    samples, timings, phases = [], [], []
     for _ in range(runs):
         ms, j = timed(cmd, json_path)
         samples.append(ms)
         timings.append(j.get("timings", {}))
+        phases.append(j.get("phases", []))
     rest = samples[1:] or samples
     median = statistics.median(rest)
-    # The timings of the run nearest the median (after the first).
+    # The timings and phases (optimize's assembly kernel among them) of the run nearest the median
+    # (after the first).
     pick = min(range(len(rest)), key=lambda i: abs(rest[i] - median)) + (1 if len(samples) > 1 else 0)
     return {"command": name, "first_ms": samples[0], "samples_ms": samples, "median_ms": median,
-            "timings": timings[pick]}
+            "timings": timings[pick], "phases": phases[pick]}
 
 
 def phase_line(timings):

@@ -7,13 +7,14 @@
 #                                                   (defaults: all parts, no deadline, build, gpu-check)
 #
 # Each step writes OUT_DIR/<step>.log (and .json where the command has JSON) and one line to
-# OUT_DIR/summary.txt: exit code and seconds. Every step has a time limit, so a hang costs one
-# step, not the run. --deadline S: no step starts later than S seconds after this script did, and
-# each step's limit is cut to the time left, so a run inside a device call of fixed length (600 s
-# at most) ends on its own, with a line in the summary for every step it skipped. --pack FILE:
-# after every step, OUT_DIR without its raw volumes is packed into FILE (.tar.gz, replaced whole,
-# never half-written), so a run cut short from outside still brings back everything up to its last
-# step, as one file (a device call brings back at most 8 files).
+# OUT_DIR/summary.txt: exit code and seconds; after every step OUT_DIR/targets.md gives issues 28
+# and 29's GPU goals against what has run (tools/gpu_targets.py). Every step has a time limit, so
+# a hang costs one step, not the run. --deadline S: no step starts later than S seconds after this
+# script did, and each step's limit is cut to the time left, so a run inside a device call of fixed
+# length (600 s at most) ends on its own, with a line in the summary for every step it skipped.
+# --pack FILE: after every step, OUT_DIR without its raw volumes is packed into FILE (.tar.gz,
+# replaced whole, never half-written), so a run cut short from outside still brings back
+# everything up to its last step, as one file (a device call brings back at most 8 files).
 # LIST (comma separated) picks parts, run in the order it names them, so that a machine lent for
 # a few minutes takes what matters most first, or takes them in several calls: check (devices,
 # self-test, test suite), solvers (the table), bench (assembly, DiffDVR, renderer), bench-long
@@ -53,7 +54,12 @@ jobs=$(nproc)
 gpu_solvers=normal-equations,qp,cgls,gradient-descent,irls,histogram-matching,cuda-normal-equations,cuda-cgls,diffdvr
 solvers=$gpu_solvers,eigen-normal-equations,eigen-cgls
 
-packed() {  # OUT_DIR (without raw volumes) into the --pack file, replaced whole
+packed() {  # the goals' table, then OUT_DIR (without raw volumes) into the --pack file, replaced whole
+  # Issues 28 and 29's goals against what has run so far (tools/gpu_targets.py; a failure to read
+  # a result is in targets.log and costs no step).
+  python3 "$(dirname "$0")/gpu_targets.py" "$out" --json "$out/targets.json" \
+    >"$out/targets.md.part" 2>"$out/targets.log" && mv -f "$out/targets.md.part" "$out/targets.md" \
+    || rm -f "$out/targets.md.part"
   [ -n "$pack" ] || return 0
   tar -czf "$pack.part" --exclude='*.raw' -C "$(dirname "$out")" "$(basename "$out")" && mv -f "$pack.part" "$pack"
 }
@@ -123,11 +129,11 @@ part_cuda() {
 part_bench() {
   # --lane-voxels: the run modes' lane length (workgroup count), untuned on a GPU so far.
   step bench 120 "$tfm" bench --repeats 3 --lane-voxels 4,8,16,32,64,128,256,1024 --json "$out/bench.json"
-  step bench-diffdvr 90 "$tfm" bench-diffdvr --repeat 3
+  step bench-diffdvr 90 "$tfm" bench-diffdvr --repeat 3 --json "$out/bench-diffdvr.json"
   step bench-render 60 "$tfm" bench-render --repeat 5
 }
 part_bench_long() {
-  step bench-correlate 90 "$tfm" bench-correlate
+  step bench-correlate 90 "$tfm" bench-correlate --json "$out/bench-correlate.json"
   # Where comparing pairs stops beating the merge sort on this GPU (spearman <= 128 and kendall
   # <= 64 members compare pairs: shaders/correlation_layout.h; measured on lavapipe only).
   step bench-correlate-pairs 90 "$tfm" bench-correlate --measures spearman,kendall --members 48,64,65,96,128,129,200 \

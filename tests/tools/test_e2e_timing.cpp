@@ -32,6 +32,11 @@ TEST(E2eTimingScript, TimesOptimizeAndCorrelateBesideTheDriverFloor) {
     EXPECT_GT(r["timings"]["total_ms"].get<double>(), 0.0) << command;
     EXPECT_LT(r["timings"]["total_ms"].get<double>(), r["samples_ms"][1].get<double>()) << command;
   }
+  // optimize's --json phases, its assembly kernel's GPU time among them (tools/gpu_targets.py
+  // compares it with bench's).
+  bool assembly = false;
+  for (const auto& phase : j["optimize"]["phases"]) assembly = assembly || (phase["name"] == "assemble" && phase.contains("gpu_ms"));
+  EXPECT_TRUE(assembly) << j["optimize"].dump(1);
   EXPECT_GT(j["driver_floor"]["total_ms"].get<double>(), 0.0);
   EXPECT_FALSE(j["default_sizes"].get<bool>());
   // The inputs went into a directory of their own under --dir, removed afterwards.

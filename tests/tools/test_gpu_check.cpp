@@ -60,6 +60,12 @@ TEST(GpuCheckScript, StartupPartPacksEveryStepsLogsAndJson) {
     const nlohmann::json j = nlohmann::json::parse(std::ifstream(dir.path / "unpacked" / "out" / ("startup-" + std::string(run) + ".json")));
     EXPECT_GT(j["timings"]["total_ms"].get<double>(), 0.0) << run;
   }
+  // The goals' table (tools/gpu_targets.py) comes back too, every goal of a part not run unmeasured.
+  ASSERT_TRUE(has(files, "out/targets.md"));
+  const std::string table = test::read_text(dir.path / "unpacked" / "out" / "targets.md");
+  EXPECT_NE(table.find("| read bound | "), std::string::npos) << table;
+  EXPECT_NE(table.find("step bench did not run"), std::string::npos) << table;
+  EXPECT_EQ(test::read_text(dir.path / "out" / "targets.log"), "");
   // The demo's pictures come back, its raw volumes (megabytes that nobody reads there) do not.
   EXPECT_TRUE(has(files, "out/startup-demo/overview.png"));
   EXPECT_TRUE(std::none_of(files.begin(), files.end(), [](const std::string& f) { return f.ends_with(".raw"); }));
