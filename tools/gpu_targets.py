@@ -30,6 +30,7 @@ READ_BOUND_GOAL = {"H200": 3.0e12, "H100": 2.5e12}   # bytes/s: what PyTorch's s
 ASSEMBLY_MS_GOAL = {"H200": 0.5}
 TORCH_TOLERANCE = 0.95             # "reaches PyTorch": within 5 %, one run's noise on a GPU
 BENCH_VS_OPTIMIZE_TOLERANCE = 1.25  # "the same time inside bench and optimize"
+STREAM_OFF_RATIO_GOAL = 1.5        # optimize of files not in the page cache / one read of them
 CPU_RATIO_GOAL = 20.0              # kendall, mi-*: resident kernels >= 20x the CPU reference
 CPU_RATIO_MEASURES = ("kendall", "mi-binned", "mi-kraskov", "mi-coefficient")
 TORCH_MEASURES = ("pearson", "spearman")
@@ -257,6 +258,21 @@ def end_to_end_goals(r, t, e2e):
             t.judged(f"{name} end to end", target, f"{run['median_ms']:.0f} ms (median)", run["median_ms"] <= ms, note)
 
 
+def stream_off_goal(r, t):
+    target = f"optimize / read ≤ {STREAM_OFF_RATIO_GOAL}, --stream off, 41.5 M voxels, page cache dropped"
+    bs = r.json("bench-stream-off.json")
+    if bs is None:
+        t.absent("optimize from disk", target, r.missing("bench-stream-off"))
+        return
+    run = next((x for x in bs["runs"] if r.any_size or abs(x["voxels"] / PAIR_VOXELS - 1) < 0.05), None)
+    if bs["stream"] != "off" or run is None:
+        t.absent("optimize from disk", target, f"bench-stream-off.json ran --stream {bs['stream']} at "
+                 + ", ".join(str(x["voxels"]) for x in bs["runs"]) + " voxels")
+        return
+    t.judged("optimize from disk", target, f"{run['optimize_over_read']:.2f} ({run['optimize_s']:.2f} s, "
+             f"read {run['read_once_s']:.2f} s)", run["optimize_over_read"] <= STREAM_OFF_RATIO_GOAL)
+
+
 def cuda_goals(r, t):
     goals = (("cuda-normal-equations", 240.0), ("cuda-cgls", 1000.0))
     sv = r.json("solvers-combustion.json")
@@ -326,6 +342,7 @@ def evaluate(folder, any_size=False):
     judge("e2e.json", lambda: optimize_assembly_goal(r, t, bench_n64, e2e))
     judge("bench-correlate.json", lambda: correlation_goals(r, t, torch))
     judge("e2e.json", lambda: end_to_end_goals(r, t, e2e))
+    judge("bench-stream-off.json", lambda: stream_off_goal(r, t))
     judge("solvers-combustion.json", lambda: cuda_goals(r, t))
     judge("bench-diffdvr.json", lambda: diffdvr_goal(r, t))
     judge("view-*.json", lambda: view_goals(r, t))

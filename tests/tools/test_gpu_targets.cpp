@@ -56,6 +56,7 @@ TEST_F(GpuTargets, JudgesRealRunsAgainstEachGoal) {
   run("-q bench-correlate --voxels 64 --members 10,100,1000 --measures pearson,spearman,kendall --max-values 100000 --json " +
       (dir / "bench-correlate.json"));
   run("-q bench-diffdvr --size 16 --image-size 32 --views 2 --repeat 1 --steps 0.5,0.25 --json " + (dir / "bench-diffdvr.json"));
+  run("-q bench-stream --voxels 40000 --stream off --dir " + dir.path.string() + " --json " + (dir / "bench-stream-off.json"));
   run("-q solvers --synthetic --size 24x20x10 --solvers normal-equations --json " + (dir / "solvers-combustion.json"));
   fs::create_directories(dir.path / "e2e-work");
   const test::CliResult e2e = test::run_shell(python() + " " + TFMATCH_SOURCE_DIR + "/tools/e2e_timing.py " +
@@ -104,6 +105,8 @@ TEST_F(GpuTargets, JudgesRealRunsAgainstEachGoal) {
   EXPECT_EQ(rows["correlate end to end"]["verdict"], verdict(timing["correlate"]["median_ms"].get<double>() <= 300));
   // optimize's own assembly kernel, from the phases e2e_timing.py keeps, beside bench's.
   EXPECT_NE(rows["assembly in bench = in optimize"]["verdict"], "not measured") << rows["assembly in bench = in optimize"];
+  const json stream = read_json(dir.path / "bench-stream-off.json");
+  EXPECT_EQ(rows["optimize from disk"]["verdict"], verdict(stream["runs"][0]["optimize_over_read"].get<double>() <= 1.5));
   EXPECT_EQ(rows["cuda-normal-equations"]["verdict"], "not measured");  // no row of it
   bool diffdvr = true;
   const json diffdvr_rows = read_json(dir.path / "bench-diffdvr.json")["iterations"];
@@ -124,7 +127,7 @@ TEST_F(GpuTargets, JudgesRealRunsAgainstEachGoal) {
   // At the goals' own sizes these small runs measure nothing, and the table says which size it wanted.
   ASSERT_EQ(targets(dir.path, "--json " + (dir / "targets.json")).exit_code, 0);
   rows = rows_by_goal(read_json(dir.path / "targets.json"));
-  for (const char* goal : {"read bound", "upload", "pearson / read bound", "optimize end to end", "cuda-cgls"})
+  for (const char* goal : {"read bound", "upload", "pearson / read bound", "optimize end to end", "optimize from disk", "cuda-cgls"})
     EXPECT_EQ(rows[goal]["verdict"], "not measured") << goal;
   EXPECT_NE(rows["read bound"]["note"].get<std::string>().find("480x720x120"), std::string::npos);
   EXPECT_NE(rows["pearson / read bound"]["note"].get<std::string>().find("1760000"), std::string::npos);
