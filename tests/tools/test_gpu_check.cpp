@@ -87,6 +87,18 @@ TEST(GpuCheckScript, DeadlineSkipsStepsAndBadArgumentsAreRefused) {
   EXPECT_NE(summary.find("skipped: under 5 s left before the --deadline of 0 s"), std::string::npos) << summary;
   EXPECT_TRUE(has(unpacked(pack, dir.path / "unpacked"), "out/summary.txt"));
 
+  // "goals": every part the goals' table reads, the most telling first.
+  const std::string goals_cmd = gpu_check("--parts goals --deadline 0") + " " + (dir / "goals") + " 2>&1";
+  ASSERT_EQ(std::system(goals_cmd.c_str()), 0) << goals_cmd;
+  const std::string goals = "\n" + test::read_text(dir.path / "goals" / "summary.txt");
+  size_t at = 0;
+  for (const char* step : {"bench ", "e2e ", "torch ", "bench-correlate ", "bench-stream-off ", "view-512 ",
+                           "solvers-combustion ", "cuda-tests ", "selftest ", "ctest "}) {
+    const size_t found = goals.find(std::string("\n") + step);
+    EXPECT_TRUE(found != std::string::npos && found >= at) << step << "\n" << goals;
+    at = found == std::string::npos ? at : found;
+  }
+
   // Mistyped arguments end the script at once (exit 2), before any step.
   for (const std::string& bad : std::vector<std::string>{"--parts chek", "--deadline soon", "--pack " + (dir / "bad") + "/p.tar.gz", "--frobnicate"}) {
     // Behind a harmless part and no time, so that a check that lets one through costs nothing.
