@@ -190,6 +190,17 @@ inline CliSplitResult run_cli_split(const std::string& args, std::chrono::millis
   return out;
 }
 
+// A child GoogleTest program's output, for a failure message: its "[  SKIPPED ]" markers written
+// "[  skipped ]". ctest reports a test whose output holds that marker as skipped
+// (gtest_discover_tests' SKIP_REGULAR_EXPRESSION), so a failure that quotes a child's skips would
+// pass CI as "Skipped".
+inline std::string quoted_test_output(std::string output) {
+  const std::string marker = "[  SKIPPED ]";
+  for (size_t at = output.find(marker); at != std::string::npos; at = output.find(marker, at + marker.size()))
+    output.replace(at, marker.size(), "[  skipped ]");
+  return output;
+}
+
 // The whole file at `p` (empty when it cannot be read).
 inline std::string read_text(const std::filesystem::path& p) {
   std::ifstream in(p, std::ios::binary);

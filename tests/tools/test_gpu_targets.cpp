@@ -47,7 +47,7 @@ class GpuTargets : public ::testing::Test {
   test::TempDir dir;
 };
 
-TEST_F(GpuTargets, JudgesRealRunsAgainstEachGoal) {
+TEST_F(GpuTargets, JudgesTheBenchmarksRunsAgainstEachGoal) {
   const auto run = [&](const std::string& args) {
     const test::CliResult r = test::run_cli(args);
     ASSERT_EQ(r.exit_code, 0) << args << "\n" << r.output;
@@ -127,7 +127,7 @@ TEST_F(GpuTargets, JudgesRealRunsAgainstEachGoal) {
   // Without a CUDA device the CUDA tests skip: passing, but nothing was measured on a GPU.
   const bool cuda_skipped = cuda.output.find("[  SKIPPED ]") != std::string::npos;
   EXPECT_EQ(rows["CUDA tests"]["verdict"], cuda.exit_code ? "missed" : cuda_skipped ? "not measured" : "met")
-      << rows["CUDA tests"] << "\n" << cuda.output;
+      << rows["CUDA tests"] << "\n" << test::quoted_test_output(cuda.output);
   // The Markdown table has a line per row.
   size_t lines = 0;
   for (size_t at = table.output.find("\n| "); at != std::string::npos; at = table.output.find("\n| ", at + 1)) ++lines;
