@@ -25,7 +25,7 @@
 # view`'s four pictures per camera change at 512² and 1024², tools/view_latency.py);
 # solvers-necker and solvers-combustion are the table's GPU rows at one size each, cuda the CUDA
 # solvers' tests. "goals" stands for every part that targets.md's goals read, the most telling
-# first: bench,e2e,torch,bench-long,view,solvers-combustion,cuda,check (in 540 s the last may be cut).
+# first (goal_parts below; within 540 s the last may be cut).
 set -uo pipefail
 goal_parts=bench,e2e,torch,bench-long,view,solvers-combustion,cuda,check
 
