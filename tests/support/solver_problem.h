@@ -84,15 +84,19 @@ inline SolverProblem make_solver_problem(size_t voxels, uint32_t n, uint32_t ref
   return p;
 }
 
-// Largest |a - b| over all entries and channels.
+// Largest |a - b| over all entries and channels; infinite for TFs of different sizes or none,
+// so that a solver returning no TF fails every bound on it.
 inline double max_difference(const TransferFunction& a, const TransferFunction& b) {
+  if (a.size() != b.size() || a.size() == 0) return INFINITY;
   double worst = 0.0;
   for (size_t j = 0; j < a.size(); ++j)
     for (int c = 0; c < 4; ++c) worst = std::max(worst, std::abs(a.rgba[j][c] - b.rgba[j][c]));
   return worst;
 }
 
+// Every component of a non-empty TF finite and within [0, 1].
 inline bool all_finite_in_box(const TransferFunction& tf) {
+  if (tf.rgba.empty()) return false;
   for (const auto& e : tf.rgba)
     for (double c : e)
       if (!std::isfinite(c) || c < 0.0 || c > 1.0) return false;
