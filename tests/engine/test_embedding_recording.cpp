@@ -11,6 +11,7 @@
 #include <memory>
 #include <vector>
 
+#include <glm/gtc/packing.hpp>
 #include <gtest/gtest.h>
 
 #include "buffer.h"
@@ -127,6 +128,25 @@ TEST_F(EmbeddingRecording, AssemblyAndTfUploadRecordIntoTheHostsCommandBuffers) 
       for (const Readback& r : images) {
         const std::vector<uint8_t> expected = encode_tf_texels(fitted, r.format);
         EXPECT_EQ(0, std::memcmp(r.map, expected.data(), expected.size())) << "format " << int(r.format);
+        // And the texels decode to the fitted TF within their format's rounding, so the encoding
+        // both sides share is checked on its own: half floats to half an ulp (2^-11 relative,
+        // 2^-25 absolute below 2^-14), unorm8 to half a step.
+        for (size_t i = 0; i < fitted.size(); ++i) {
+          const float x = fitted[i];
+          double decoded = 0.0, bound = 0.0;
+          if (r.format == VK_FORMAT_R32G32B32A32_SFLOAT) {
+            decoded = static_cast<const float*>(r.map)[i];
+          } else if (r.format == VK_FORMAT_R16G16B16A16_SFLOAT) {
+            decoded = glm::unpackHalf1x16(static_cast<const uint16_t*>(r.map)[i]);
+            bound = std::max(std::ldexp(std::abs(double(x)), -11), std::ldexp(1.0, -25));
+          } else {
+            decoded = static_cast<const uint8_t*>(r.map)[i] / 255.0;
+            bound = 0.5 / 255.0 + 1e-9;
+          }
+          const double target = r.format == VK_FORMAT_R8G8B8A8_UNORM ? std::clamp(double(x), 0.0, 1.0) : double(x);
+          EXPECT_LE(std::abs(decoded - target), bound) << "format " << int(r.format) << ", component " << i;
+        }
+        EXPECT_FALSE(fitted.empty());
       }
     }
     // Host memory does not grow with the volume: a recording over 2 x 8 M voxels of the host's
