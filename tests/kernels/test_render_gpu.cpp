@@ -27,6 +27,7 @@ TEST_F(RenderGpu, FullyNaNFieldIsTransparent) {
   s.camera.distance = 2.4;
   s.camera.fov_deg = 40;
   const RenderedImage img = render_volume(ctx(), vol, test::random_tf(4, 12), {0, 1}, s);
+  ASSERT_EQ(img.rgba.size(), size_t(9 * 9 * 4));
   for (float v : img.rgba) ASSERT_EQ(v, 0.0f);
   EXPECT_GT(img.samples(), 0u) << "rays still march (and count) the empty samples";
 }

@@ -83,6 +83,7 @@ TEST_F(ResidualMap, FieldAgainstItselfIsZeroAndGridMismatchThrows) {
   for (size_t i = 0; i < v.voxel_count(); ++i) v.values.push_back(float(i % 29) / 28.0f);
   const TransferFunction tf = random_tf(16, 5);
   const Volume r = residual_map(ctx(), v, tf, {0, 1}, v, tf, {0, 1});
+  ASSERT_EQ(r.values.size(), v.voxel_count());
   for (float x : r.values) ASSERT_EQ(x, 0.0f);
   Volume w = v;
   w.dims = {7, 13, 5};

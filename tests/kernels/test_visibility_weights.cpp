@@ -83,18 +83,20 @@ TEST_F(VisibilityWeightsTest, MatchTheCpuReferenceOnAwkwardGridsAndCameras) {
     for (size_t k = 0; k < gpu.weights.chunk_count(); ++k)
       readback(ctx(), gpu.weights.chunk(k), w.data() + gpu.weights.chunk_begin(k), gpu.weights.chunk_size(k) * 4);
     double worst = 0.0;
-    size_t seen = 0;
+    size_t seen = 0, compared = 0;
     for (size_t i = 0; i < w.size(); ++i) {
       ASSERT_GE(w[i], 0.0f);
       ASSERT_LE(w[i], 1.0f);
       EXPECT_EQ(w[i] * 65536.0f, std::round(w[i] * 65536.0f)) << "voxel " << i << ": not a multiple of 2^-16";
       // A sample on the edge of a NaN cell may be empty in float and not in double, or the reverse.
-      if (!cpu.ambiguous[i]) worst = std::max(worst, std::abs(double(w[i]) - cpu.weights[i]));
+      if (!cpu.ambiguous[i]) worst = std::max(worst, std::abs(double(w[i]) - cpu.weights[i])), ++compared;
       seen += cpu.weights[i] > 0.0 ? 1 : 0;
     }
     // Quantization (2^-17) plus float marching against double.
     EXPECT_LT(worst, 1e-4) << "largest difference from the CPU reference";
     EXPECT_GT(seen, 0u);
+    // The voxels left out as ambiguous are the few on the edges of NaN cells, not the comparison.
+    EXPECT_GT(compared, w.size() * 9 / 10) << compared << " of " << w.size() << " compared";
   }
 }
 

@@ -102,9 +102,11 @@ TEST_F(SeriesOptimize, SharedFitIsTheFitOfAllVoxelsTogether) {
     EXPECT_TRUE(same_tf(s.tf, whole.tf)) << "bit for bit the fit of all voxels together";
     EXPECT_NEAR(s.after.rmse(), whole.after.rmse(), 1e-12);
     EXPECT_NEAR(s.before.rmse(), whole.before.rmse(), 1e-12);
+    ASSERT_EQ(s.fields.size(), 3u);
     for (const SeriesFieldResult& f : s.fields) EXPECT_TRUE(same_tf(f.tf, s.tf));
     // One TF fits each field worse than its own TF does.
     const SeriesResult own = run_optimize_series(ctx(), request(ref, tf, 3));
+    ASSERT_EQ(own.fields.size(), 3u);
     for (size_t k = 0; k < 3; ++k) EXPECT_GE(s.fields[k].after.rmse(), own.fields[k].after.rmse());
   }
 }
@@ -128,6 +130,7 @@ TEST_F(SeriesOptimize, StreamedGivesTheBitsOfTheLoadedFits) {
       streamed.open_field_slabs = [](size_t i) { return slabs_in_memory(field(int(i))); };
       streamed.slab_voxels = 3 * kDims[0] * kDims[1];
       const SeriesResult b = run_optimize_series(ctx(), streamed);
+      ASSERT_EQ(a.fields.size(), 3u);
       ASSERT_EQ(b.fields.size(), 3u);
       for (size_t k = 0; k < 3; ++k) {
         EXPECT_TRUE(same_tf(a.fields[k].tf, b.fields[k].tf)) << "field " << k;
