@@ -192,6 +192,37 @@ TEST_F(CliOutputs, NegativeDimsAreNamed) {
   EXPECT_EQ(r.output.find("overflow"), std::string::npos) << r.output;
 }
 
+// A number that is not one is a usage error naming the option, before any work, on every
+// command: CLI11 alone read "" as 0, let NaN through every range (`--ridge nan` wrote a TF of
+// ones with exit 0) and wrapped "-1" to 2^64 - 1 ("time 18446744073709551615 is out of range").
+TEST_F(CliOutputs, EmptyNanAndNegativeNumbersAreUsageErrors) {
+  const std::string out = " --out " + dir / "out.json";
+  const std::string volume = " --volume " + dir / "ref_8x8x8_float32.raw" + " --tf " + dir / "tf.json" + " --out " +
+                             dir / "out.png";
+  const struct {
+    std::string args, message;
+  } cases[] = {
+      {"optimize " + inputs() + out + " --solver qp --ridge nan", "--ridge: expected a number >= 0, got 'nan'"},
+      {"optimize " + inputs() + out + " --smooth ''", "--smooth: expected a number >= 0, got ''"},
+      {"optimize " + inputs() + out + " --ridge -1", "--ridge: expected a number >= 0, got '-1'"},
+      {"render" + volume + " --azimuth ''", "--azimuth: expected a number, got ''"},
+      {"render" + volume + " --elevation NaN", "--elevation: expected a number, got 'NaN'"},
+      {"render" + volume + " --step nan", "--step: expected a number, got 'nan'"},
+      {"info " + dir / "ref_8x8x8_float32.raw" + " --time -1", "--time: expected a number >= 0, got '-1'"},
+      {"bench --tf-sizes 16,-4", "--tf-sizes: Value -4 not in range 2 to 1048576"},
+      {"correlate --members " + dir / "ref_8x8x8_float32.raw" + " --point 1,1,1 --time -2 --out " + dir / "out.vti",
+       "--time: expected a number >= 0, got '-2'"},
+      {"view --demo --k 0", "--k: expected a number > 0, got '0'"},
+  };
+  for (const auto& c : cases) {
+    const test::CliResult r = run_cli(c.args, test::kQuickCliTimeout);
+    EXPECT_EQ(r.exit_code, 2) << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.message), std::string::npos) << c.args << "\n" << r.output;
+    EXPECT_EQ(r.output.find("1797693"), std::string::npos) << "DBL_MAX printed in full:\n" << r.output;
+    for (const char* name : {"out.json", "out.png", "out.vti"}) EXPECT_FALSE(fs::exists(dir.path / name)) << c.args;
+  }
+}
+
 // The residual of a field with itself is 0 everywhere, and the summary says so (not "max 1",
 // the display range's fallback).
 TEST_F(CliOutputs, ResidualOfAFieldWithItselfSaysZero) {

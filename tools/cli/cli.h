@@ -95,4 +95,15 @@ FieldRange parse_range(const std::string& text, const std::string& flag);
 // Accepts a positive integer only: CLI11 alone reads "-64" into an unsigned as 2^64 - 64.
 const CLI::Validator& positive_integer();
 
+// A finite number >= 0 / > 0, with the help text of CLI11's NonNegativeNumber / PositiveNumber
+// ("NONNEGATIVE", "POSITIVE") but a message that says what was expected instead of printing
+// DBL_MAX in full ("--ridge: expected a number >= 0, got '-1'").
+const CLI::Validator& non_negative();
+const CLI::Validator& positive();
+
+// Every numeric option of `app` and its subcommands refuses an empty value, NaN and, where it is
+// unsigned, a minus sign — each a usage error naming the option. CLI11 alone reads "" as 0, lets
+// NaN through every range check (NaN < lo and NaN > hi are both false) and wraps "-1" to 2^64 - 1.
+void require_numbers(CLI::App& app);
+
 }  // namespace tfm::cli

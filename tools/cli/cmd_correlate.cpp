@@ -429,7 +429,7 @@ CommandRegistration reg(23, [](CLI::App& app) {
   sub->add_option("--bins", args->bins, "mi-binned: equal-width bins over each series' min..max")
       ->check(CLI::Range(2u, kMaxCorrelationBins))->capture_default_str();
   sub->add_option("--k", args->k, "mi-kraskov, mi-coefficient: neighbours of the KSG estimator (1 .. members-1)")
-      ->check(CLI::PositiveNumber)->capture_default_str();
+      ->check(positive())->capture_default_str();
   sub->add_flag("--abs", args->absolute, "Write the magnitude |result| (after the difference with --point2)");
   sub->add_option("--out", args->out, "Output field: .vti (origin and spacing kept), .raw (float32), or .pvti (ParaView "
                   "parallel image data: the .pvti and a directory of .vti pieces, one per MPI rank), same grid")
@@ -442,7 +442,7 @@ CommandRegistration reg(23, [](CLI::App& app) {
       ->check(CLI::IsMember({"auto", "on", "off"}))->capture_default_str();
   sub->add_option("--slab-slices", args->slab_slices, "Slab by slab: z-slices per slab (default: as many as a quarter of "
                   "the memory budget left holds for every member)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   add_volume_flags(sub, args->volume_flags, FieldSelectors::VarTime);
   sub->callback([args] { exit_code() = run(*args); });
 });

@@ -467,10 +467,10 @@ CommandRegistration reg(10, [](CLI::App& app) {
   sub->add_option("--solver", args->solver, "Solver: " + solver_name_list() + " (described below)")
       ->capture_default_str();
   sub->add_option("--ridge", args->ridge, "Tikhonov weight, relative to the mean diagonal of M")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   sub->add_option("--smooth", args->smooth, "First-difference smoothness weight, relative to the mean diagonal of M (diffdvr: "
                   "weight of (N-1) sum of squared TF differences, added to the mean image loss)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   sub->add_option("--factorization", args->factorization, "normal-equations: auto (LDL^T deciding the rank entry by "
                   "entry: the minimum-norm solution when M is singular) or ldlt (no rank decision)")
       ->check(CLI::IsMember({"auto", "ldlt"}))->capture_default_str();

@@ -97,9 +97,9 @@ CommandRegistration reg(15, [](CLI::App& app) {
                   "image-based diffdvr to include it — it takes minutes on large fields; qp always runs as the reference)")
       ->delimiter(',');
   sub->add_option("--ridge", args->ridge, "Tikhonov weight, relative to the mean diagonal of M")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   sub->add_option("--smooth", args->smooth, "First-difference smoothness weight, relative to the mean diagonal of M")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   add_json_option(sub, args->json, "the comparison");
   add_solver_options(sub, args->extra);
   sub->footer(solver_descriptions());

@@ -269,13 +269,13 @@ CommandRegistration reg(15, [](CLI::App& app) {
   sub->add_option("--point", args->point, "Ensemble: first reference point, I,J,K or lon=..,lat=..,level=.. "
                                           "(default: the grid's middle; the demo's own point)");
   sub->add_option("--bins", args->bins, "mi-binned: bins")->check(CLI::Range(2u, kMaxCorrelationBins))->capture_default_str();
-  sub->add_option("--k", args->k, "mi-kraskov, mi-coefficient: neighbours")->check(CLI::PositiveNumber)->capture_default_str();
+  sub->add_option("--k", args->k, "mi-kraskov, mi-coefficient: neighbours")->check(positive())->capture_default_str();
   sub->add_option("--solver", args->solver,
                   "First solver: " + solver_name_list() +
                       " (default: irls for --demo's pair, as tfmatch demo; normal-equations otherwise; the page can "
                       "choose another)");
-  sub->add_option("--ridge", args->ridge, "Tikhonov weight, relative to the mean diagonal of M")->check(CLI::NonNegativeNumber);
-  sub->add_option("--smooth", args->smooth, "Smoothness weight, relative to the mean diagonal of M")->check(CLI::NonNegativeNumber);
+  sub->add_option("--ridge", args->ridge, "Tikhonov weight, relative to the mean diagonal of M")->check(non_negative());
+  sub->add_option("--smooth", args->smooth, "Smoothness weight, relative to the mean diagonal of M")->check(non_negative());
   add_solver_options(sub, args->extra);
   add_render_options(sub, args->render);
   add_marker_option(sub, args->markers);

@@ -1,5 +1,6 @@
 // The `tfmatch` program: parses the command line and runs the chosen subcommand.
 #include <algorithm>
+#include <cmath>
 #include <cctype>
 #include <cstdio>
 #include <cstdlib>
@@ -192,6 +193,58 @@ const CLI::Validator& positive_integer() {
   return validator;
 }
 
+namespace {
+
+// A finite number >= 0 (or > 0 where `zero_allowed` is false).
+CLI::Validator sign_check(bool zero_allowed, const char* description) {
+  return CLI::Validator(
+      [zero_allowed](std::string& text) -> std::string {
+        double v = 0.0;
+        const bool ok = CLI::detail::lexical_cast(text, v) && std::isfinite(v) && (zero_allowed ? v >= 0.0 : v > 0.0);
+        if (!ok) return std::string("expected a number ") + (zero_allowed ? ">= 0" : "> 0") + ", got '" + text + "'";
+        return {};
+      },
+      description);
+}
+
+// The type CLI11 gives an option ("FLOAT", "UINT", ...), without its validators' descriptions.
+std::string base_type(const CLI::Option& option) {
+  const std::string full = option.get_type_name();
+  return full.substr(0, full.find(':'));
+}
+
+}  // namespace
+
+const CLI::Validator& non_negative() {
+  static const CLI::Validator validator = sign_check(true, "NONNEGATIVE");
+  return validator;
+}
+
+const CLI::Validator& positive() {
+  static const CLI::Validator validator = sign_check(false, "POSITIVE");
+  return validator;
+}
+
+void require_numbers(CLI::App& app) {
+  for (CLI::Option* option : app.get_options()) {
+    const std::string type = base_type(*option);
+    const bool is_float = type == "FLOAT", is_unsigned = type == "UINT", is_integer = is_unsigned || type == "INT";
+    if (!is_float && !is_integer) continue;
+    // With an empty description, so that --help and docs/commands.md read as before.
+    option->check(CLI::Validator(
+        [is_float, is_unsigned](std::string& text) -> std::string {
+          const size_t first = text.find_first_not_of(" \t");
+          if (first == std::string::npos) return "expected a number, got '" + text + "'";
+          if (is_unsigned && text[first] == '-') return "expected a number >= 0, got '" + text + "'";
+          double v = 0.0;
+          if (is_float && CLI::detail::lexical_cast(text, v) && std::isnan(v)) return "expected a number, got '" + text + "'";
+          return {};
+        },
+        ""));
+  }
+  for (CLI::App* sub : app.get_subcommands({})) require_numbers(*sub);
+}
+
 std::string version_text() {
   std::ostringstream os;
   os << "tfmatch " << TFMATCH_VERSION << "\n"
@@ -310,6 +363,7 @@ int main(int argc, char** argv) {
   auto& commands = registered_commands();
   std::sort(commands.begin(), commands.end(), [](auto& a, auto& b) { return a.first < b.first; });
   for (auto& [order, setup] : commands) setup(app);
+  require_numbers(app);
   // Under MPI only the streamed optimize and correlate are split over ranks; every other command
   // runs in one process (docs/mpi.md).
   if (globals().ranks->size() > 1)
