@@ -181,12 +181,15 @@ RangeCoverage range_coverage(std::span<const float> values, const FieldRange& ra
 std::string check_range_coverage(std::span<const float> values, const FieldRange& range, const std::string& what,
                                  const std::string& source, bool allow) {
   const RangeCoverage c = range_coverage(values, range);
-  if (!(c.outside_fraction() > kRangeWarnFraction)) return "";
+  if (c.finite && !(c.outside_fraction() > kRangeWarnFraction)) return "";
   return check_range_coverage(c, finite_stats(values), range, what, source, allow);
 }
 
 std::string check_range_coverage(const RangeCoverage& c, const FiniteStats& s, const FieldRange& range,
                                  const std::string& what, const std::string& source, bool allow) {
+  // As without a given range (resolve_range): a field of NaN and infinities has nothing a range
+  // could be checked against, nor a value to map.
+  if (c.finite == 0) throw std::runtime_error(what + ": the field has no finite value");
   const double f = c.outside_fraction();
   if (!(f > kRangeWarnFraction)) return "";
   std::ostringstream os;

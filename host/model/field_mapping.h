@@ -58,7 +58,8 @@ inline constexpr double kRangeErrorFraction = 0.95;
 // Checks `range` (described by `source`, e.g. "the reference TF file's range") against the
 // field's finite values: returns a warning with the counts below and above when more than 5 %
 // lie outside, and throws std::runtime_error when more than 95 % do, unless `allow` (then the
-// warning says the check was overridden). Empty when the range fits.
+// warning says the check was overridden). Empty when the range fits. Throws too for a field with
+// no finite value (NaN and infinities only), as resolve_range() does without a range.
 std::string check_range_coverage(std::span<const float> values, const FieldRange& range, const std::string& what,
                                  const std::string& source, bool allow);
 // The same from the counts and the field's finite_stats() (a field streamed from disk).

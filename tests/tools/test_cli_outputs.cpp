@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <limits>
 
 #include "cli_runner.h"
 
@@ -221,6 +222,46 @@ TEST_F(CliOutputs, EmptyNanAndNegativeNumbersAreUsageErrors) {
     EXPECT_EQ(r.output.find("1797693"), std::string::npos) << "DBL_MAX printed in full:\n" << r.output;
     for (const char* name : {"out.json", "out.png", "out.vti"}) EXPECT_FALSE(fs::exists(dir.path / name)) << c.args;
   }
+}
+
+// A field without a finite value is refused when a range is given too (a TF file's, --range), as
+// it is without one: an all-infinite reference with a TF file's range wrote a constant TF with
+// exit 0, and `render --range` drew an all-NaN field as an empty picture. A residual of two fields
+// that never both have data is refused as optimize refuses the pair (it wrote a map of zeros).
+TEST_F(CliOutputs, FieldsWithoutDataAreRefusedWhateverTheRange) {
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+  write_floats(dir / "inf_8x8x8_float32.raw", std::vector<float>(512, inf));
+  write_floats(dir / "nan_8x8x8_float32.raw", std::vector<float>(512, nan));
+  std::vector<float> low(512, nan), high(512, nan);
+  for (size_t i = 0; i < 256; ++i) low[i] = float(i) / 255.0f, high[i + 256] = float(i) / 255.0f;
+  write_floats(dir / "low_8x8x8_float32.raw", low);
+  write_floats(dir / "high_8x8x8_float32.raw", high);
+  std::ofstream(dir / "ranged.json") << R"({"range": [0, 1], "rgba": [[0,0,0,0],[1,0.5,0.2,0.8],[0.2,0.4,1,1]]})";
+  const struct {
+    std::string args, message;
+  } cases[] = {
+      {"optimize --ref " + dir / "inf_8x8x8_float32.raw" + " --ref-tf " + dir / "ranged.json" + " --field " +
+           dir / "field_8x8x8_float32.raw" + " --out " + dir / "out.json",
+       "inf_8x8x8_float32.raw: the field has no finite value"},
+      {"render --volume " + dir / "nan_8x8x8_float32.raw" + " --tf " + dir / "tf.json" + " --range 0,1 --width 16 --height 16 --out " +
+           dir / "out.png",
+       "nan_8x8x8_float32.raw: the field has no finite value"},
+      {"residual --ref " + dir / "low_8x8x8_float32.raw" + " --ref-tf " + dir / "ranged.json" + " --field " +
+           dir / "high_8x8x8_float32.raw" + " --field-tf " + dir / "ranged.json" + " --out " + dir / "out.vti",
+       "no voxel has data in both"},
+  };
+  for (const auto& c : cases) {
+    const test::CliResult r = run_cli(c.args);
+    EXPECT_EQ(r.exit_code, 1) << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.message), std::string::npos) << c.args << "\n" << r.output;
+    for (const char* name : {"out.json", "out.png", "out.vti"}) EXPECT_FALSE(fs::exists(dir.path / name)) << c.args;
+  }
+  // Half the voxels with data in both: a map, and not of zeros only.
+  const test::CliResult r = run_cli("residual --ref " + dir / "low_8x8x8_float32.raw" + " --ref-tf " + dir / "ranged.json" +
+                                    " --field " + dir / "low_8x8x8_float32.raw" + " --field-tf " + dir / "tf.json" +
+                                    " --field-range 0,2 --out " + dir / "out.vti");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find("mean 0, max 0 "), std::string::npos) << r.output;
 }
 
 // The residual of a field with itself is 0 everywhere, and the summary says so (not "max 1",

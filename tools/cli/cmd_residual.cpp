@@ -56,6 +56,10 @@ int run(ResidualArgs a) {
   const FieldRange ref_range = field_range_for(ref, ref_tf, a.ref_range, "--ref-range", a.allow_out_of_range);
   const FieldRange field_range = field_range_for(field, field_tf, a.field_range, "--field-range", a.allow_out_of_range);
 
+  // A map of zeros would read as a perfect match (optimize refuses such a pair the same way).
+  bool both = false;
+  for (size_t i = 0; i < ref.values.size() && !both; ++i) both = !std::isnan(ref.values[i]) && !std::isnan(field.values[i]);
+  if (!both) throw std::runtime_error("no voxel has data in both " + ref.name + " and " + field.name);
   Volume residual = residual_map(*ctx, ref, ref_tf, ref_range, field, field_tf, field_range);
   // .vti opens in ParaView with its grid and spacing; anything else is float32 raw.
   const bool vti = has_extension(a.out, ".vti");
