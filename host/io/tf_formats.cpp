@@ -128,7 +128,7 @@ size_t auto_table_size(const ControlPointTf& cp) {
   return 256;
 }
 
-ControlPointTf parse_tf_xml(std::string_view text, const std::string& name) {
+ControlPointTf parse_tf_xml(std::string_view text, const std::string& name, std::vector<std::string>* notes) {
   auto root = parse_xml(text, name);
   if (root->name != "TransferFunction")
     throw std::runtime_error(name + ": the root element is <" + root->name + ">, not <TransferFunction>");
@@ -143,9 +143,16 @@ ControlPointTf parse_tf_xml(std::string_view text, const std::string& name) {
   if (interp && *interp != "sRGB" && *interp != "Linear RGB")
     throw std::runtime_error(name + ": unknown interpolation_colorspace '" + *interp + "' (sRGB or Linear RGB)");
   cp.interpolation = interp && *interp == "Linear RGB" ? ColorInterpolation::LinearRgb : ColorInterpolation::SRgb;
+  // Opacities and colours outside [0, 1] are clamped, as the paper's framework reads its files,
+  // and a note says how many (tfmatch JSON and ParaView presets refuse them instead).
+  size_t clamped = 0;
+  const auto in_unit = [&clamped](double v) {
+    clamped += v < 0.0 || v > 1.0;
+    return std::clamp(v, 0.0, 1.0);
+  };
   if (const XmlElement* ops = root->child("OpacityPoints"))
     for (const XmlElement* p : ops->children_named("OpacityPoint"))
-      cp.opacity.push_back({attr_number(*p, "position", name), std::clamp(attr_number(*p, "opacity", name), 0.0, 1.0)});
+      cp.opacity.push_back({attr_number(*p, "position", name), in_unit(attr_number(*p, "opacity", name))});
   if (const XmlElement* cps = root->child("ColorPoints")) {
     const std::string* mode = cps->attribute("color_data");
     const std::string m = mode ? *mode : "ubyte";
@@ -155,11 +162,14 @@ ControlPointTf parse_tf_xml(std::string_view text, const std::string& name) {
       ControlPointTf::ColorPoint c;
       c.position = attr_number(*p, "position", name);
       const char* keys[3] = {"r", "g", "b"};
-      for (int i = 0; i < 3; ++i) c.srgb[i] = std::clamp(attr_number(*p, keys[i], name) / scale, 0.0, 1.0);
+      for (int i = 0; i < 3; ++i) c.srgb[i] = in_unit(attr_number(*p, keys[i], name) / scale);
       if (points_linear) c.srgb = linear_to_srgb(c.srgb);
       cp.color.push_back(c);
     }
   }
+  if (clamped && notes)
+    notes->push_back(name + ": " + std::to_string(clamped) + " opacity or colour value" + (clamped > 1 ? "s" : "") +
+                     " outside [0,1] clamped to it");
   if (cp.opacity.empty()) throw std::runtime_error(name + ": no <OpacityPoint> in <OpacityPoints>");
   if (cp.color.empty()) throw std::runtime_error(name + ": no <ColorPoint> in <ColorPoints>");
   auto lo = root->attribute("range_min"), hi = root->attribute("range_max");  // tfmatch's addition
@@ -286,7 +296,7 @@ TransferFunction parse_transfer_function(std::string_view text, const std::strin
   // Skip a UTF-8 byte order mark.
   if (text.substr(p, 3) == "\xEF\xBB\xBF") p += 3;
   if (p == text.size()) throw std::runtime_error(name + ": empty transfer function file");
-  if (text[p] == '<') return table_from_control_points(parse_tf_xml(text, name), options.table_size);
+  if (text[p] == '<') return table_from_control_points(parse_tf_xml(text, name, notes), options.table_size);
   if (text[p] != '{' && text[p] != '[')
     throw std::runtime_error(name + ": not a transfer function (expected XML, tfmatch JSON or a ParaView preset)");
   if (text[p] == '{') {

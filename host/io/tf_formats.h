@@ -47,8 +47,10 @@ ControlPointTf control_points_from_table(const TransferFunction& tf);
 size_t auto_table_size(const ControlPointTf& cp);
 
 // XML of the framework. Throws std::runtime_error "<name>: ..." for malformed XML, a missing
-// <TransferFunction>, points without numbers, non-finite values or no points at all.
-ControlPointTf parse_tf_xml(std::string_view text, const std::string& name);
+// <TransferFunction>, points without numbers, non-finite values or no points at all. Opacities
+// and colours outside [0, 1] are clamped, as the framework does, with a line in `notes` saying
+// how many.
+ControlPointTf parse_tf_xml(std::string_view text, const std::string& name, std::vector<std::string>* notes = nullptr);
 std::string tf_to_xml(const TransferFunction& tf);
 
 // ParaView preset: an object, or an array of them (the one named `preset`, else the first).

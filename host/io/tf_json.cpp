@@ -1,4 +1,5 @@
-// tfmatch's TF JSON format: {"rgba": [[r,g,b,a], ...], "range": [lo, hi]?}.
+// tfmatch's TF JSON format: {"rgba": [[r,g,b,a], ...], "range": [lo, hi]?, "colorspace":
+// "linear-rgb" (the default) | "srgb"?}.
 #include "tf_json.h"
 
 #include <cmath>
@@ -9,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "atomic_file.h"
+#include "color_spaces.h"
 
 namespace tfm {
 
@@ -21,6 +23,14 @@ TransferFunction parse_tf_json(const std::string& text, const std::string& sourc
   }
   if (!doc.is_object() || !doc.contains("rgba") || !doc["rgba"].is_array())
     throw std::runtime_error(source + ": expected an object with an \"rgba\" array of [r,g,b,a] rows");
+  // Tables are linear RGB (docs/formats.md); a table declared sRGB is converted entry by entry.
+  bool srgb = false;
+  if (doc.contains("colorspace")) {
+    const auto& space = doc["colorspace"];
+    srgb = space == "srgb";
+    if (!srgb && space != "linear-rgb")
+      throw std::runtime_error(source + ": unknown \"colorspace\" " + space.dump() + " (linear-rgb, the default, or srgb)");
+  }
   TransferFunction tf;
   size_t row = 0;
   for (const auto& e : doc["rgba"]) {
@@ -35,6 +45,8 @@ TransferFunction parse_tf_json(const std::string& text, const std::string& sourc
         throw std::runtime_error(source + ": rgba row " + std::to_string(row) + " has value " +
                                  std::to_string(v[c]) + " outside [0,1]");
     }
+    if (srgb)
+      for (int c = 0; c < 3; ++c) v[c] = srgb_to_linear(v[c]);
     tf.rgba.push_back(v);
     ++row;
   }

@@ -52,12 +52,34 @@ TEST(TfFormats, XmlBlendsInSrgbOrLinearAndReadsEveryColorDataMode) {
   EXPECT_NEAR(one("ushort", "65535"), 1.0, 1e-15);
   EXPECT_NEAR(one("float", "0.5"), kHalfSrgbLinear, 1e-12);
   EXPECT_NEAR(one("float_255", "127.5"), kHalfSrgbLinear, 1e-12);
-  EXPECT_NEAR(one("ubyte", "300"), 1.0, 1e-15);  // clamped like the framework does
+  EXPECT_NEAR(one("ubyte", "300"), 1.0, 1e-15);  // clamped like the framework does, with a note
+  std::vector<std::string> notes;
+  parse_transfer_function(xml("", "", "<ColorPoint position=\"0.5\" r=\"300\" g=\"-2\" b=\"0\"/>\n"), "f.xml", {2, ""}, &notes);
+  ASSERT_EQ(notes.size(), 1u);
+  EXPECT_NE(notes[0].find("f.xml: 2 opacity or colour values outside [0,1] clamped to it"), std::string::npos) << notes[0];
+  notes.clear();
+  parse_transfer_function(xml("", "", bw), "f.xml", {2, ""}, &notes);
+  EXPECT_TRUE(notes.empty());
   // Points in any order; a single colour point is constant.
   TransferFunction u = parse(xml("", "", "<ColorPoint position=\"1\" r=\"255\" g=\"0\" b=\"0\"/>\n"
                                          "<ColorPoint position=\"0\" r=\"0\" g=\"0\" b=\"255\"/>\n"), 2);
   EXPECT_EQ(u.rgba[0], (Rgba{0, 0, 1, 0}));
   EXPECT_EQ(u.rgba[1], (Rgba{1, 0, 0, 1}));
+}
+
+// tfmatch JSON tables are linear RGB; one that says it is sRGB is converted entry by entry (the
+// "colorspace" field was ignored before, so an sRGB table was read as linear).
+TEST(TfFormats, JsonTablesAreLinearOrConvertedFromSrgb) {
+  const std::string rows = "\"rgba\": [[0.5,0.25,1,0.5],[0,1,0.04045,1]]}";
+  const TransferFunction linear = parse("{\"colorspace\": \"linear-rgb\", " + rows);
+  EXPECT_EQ(linear.rgba[0], (Rgba{0.5, 0.25, 1, 0.5}));
+  EXPECT_EQ(parse("{" + rows).rgba, linear.rgba);  // the default
+  const TransferFunction srgb = parse("{\"colorspace\": \"srgb\", " + rows);
+  EXPECT_NEAR(srgb.rgba[0][0], kHalfSrgbLinear, 1e-12);
+  EXPECT_NEAR(srgb.rgba[0][1], std::pow((0.25 + 0.055) / 1.055, 2.4), 1e-12);
+  EXPECT_EQ(srgb.rgba[0][2], 1.0);
+  EXPECT_EQ(srgb.rgba[0][3], 0.5);  // opacity is not a colour
+  EXPECT_NEAR(srgb.rgba[1][2], 0.04045 / 12.92, 1e-12);  // the linear segment's end
 }
 
 TEST(TfFormats, TableSizeFollowsTheControlPoints) {
@@ -171,6 +193,8 @@ TEST(TfFormats, MalformedFilesGiveClearErrors) {
   expect_error([&] { parse("{\"Name\": \"x\"}"); }, {"no \"RGBPoints\""});
   expect_error([&] { parse("[1, 2"); }, {"not valid JSON"});
   expect_error([&] { parse("{\"rgba\": [[0,0,0,0]]}"); }, {"at least 2 entries"});
+  expect_error([&] { parse("{\"colorspace\": \"cmyk\", \"rgba\": [[0,0,0,0],[1,1,1,1]]}"); },
+               {"unknown \"colorspace\" \"cmyk\" (linear-rgb, the default, or srgb)"});
   expect_error([&] { parse("hello"); }, {"not a transfer function"});
   expect_error([&] { parse(""); }, {"empty transfer function file"});
 }
