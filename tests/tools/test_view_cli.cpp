@@ -301,6 +301,7 @@ TEST(ViewCli, UsageErrors) {
       {"view --port 0 --demo --ref a.raw", "view: give one of:"},
       {"view --port 0 --ref a.raw", "view: a pair of fields needs --ref and --field (and --ref-tf, else a built-in map)"},
       {"view --demo --port 70000", "--port: Value 70000 not in range 0 to 65535"},
+      {"view --port 0 --demo --bind ''", "--bind: expected an address such as 127.0.0.1 or 0.0.0.0, got ''"},
       {"view --port 0 --demo --solver nothing", "unknown solver 'nothing' (available: "},
       {"view --port 0 --demo --lr 0.1", "--lr applies to solvers diffdvr, gradient-descent, not to irls"},
   };

@@ -281,6 +281,14 @@ CommandRegistration reg(15, [](CLI::App& app) {
   add_marker_option(sub, args->markers);
   sub->add_option("--port", args->port, "TCP port (0: any free port)")->check(CLI::Range(0, 65535))->capture_default_str();
   sub->add_option("--bind", args->bind, "Address to listen on (default: this machine only; another prints a warning)")
+      ->check(CLI::Validator(
+          [](std::string& address) -> std::string {
+            // An empty address listened on some interface while the printed URL named 127.0.0.1.
+            if (address.empty() || address.find_first_of(" \t") != std::string::npos)
+              return "expected an address such as 127.0.0.1 or 0.0.0.0, got '" + address + "'";
+            return {};
+          },
+          ""))
       ->capture_default_str();
   sub->callback([args, ens, sub] {
     args->ensemble_given = ens->count() > 0;
