@@ -1,5 +1,7 @@
 // `tfmatch convert-volume IN... OUT.vti`: any field tfmatch reads, as VTK ImageData for ParaView.
+#include <filesystem>
 #include <iostream>
+#include <set>
 
 #include "atomic_file.h"
 #include "cli.h"
@@ -35,12 +37,21 @@ int run(const ConvertVolumeArgs& a) {
     volumes.push_back(load_volume(in, vo));
     if (volumes.size() > 1) require_same_grid(volumes.front(), volumes.back());
   }
+  std::set<std::string> taken;
   for (size_t i = 0; i < volumes.size(); ++i) {
-    // Array name: the selection after the last ':' (variable), else the file stem.
+    // Array name: the variable after the last ':' without its ",time=N"-style selectors (a name
+    // with them could not be selected, `FILE:A,time=1` being a selector itself), else the file
+    // stem; a name already taken (two files of one name in different folders, one variable at two
+    // times) gets _2, _3, ..., so that each array can be selected by its name.
     const std::string& n = volumes[i].name;
     auto colon = n.rfind(':');
     std::string name = colon != std::string::npos ? n.substr(colon + 1) : std::filesystem::path(n).stem().string();
-    arrays.emplace_back(name.empty() ? "field" + std::to_string(i) : name, &volumes[i]);
+    if (colon != std::string::npos) name = name.substr(0, name.find(','));
+    if (name.empty()) name = "field" + std::to_string(i);
+    std::string unique = name;
+    for (int k = 2; taken.count(unique); ++k) unique = name + "_" + std::to_string(k);
+    taken.insert(unique);
+    arrays.emplace_back(unique, &volumes[i]);
   }
   write_vti(a.out, arrays, VtiWriteOptions{!a.no_compress});
   outputs.commit();
