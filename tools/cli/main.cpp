@@ -1,7 +1,7 @@
 // The `tfmatch` program: parses the command line and runs the chosen subcommand.
 #include <algorithm>
-#include <cmath>
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
