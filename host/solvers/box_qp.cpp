@@ -189,7 +189,6 @@ BoxQpStats solve_box_qp(const Tridiagonal& h, const Eigen::VectorXd& c, Eigen::V
 BoxQpResult solve_box_constrained(const NormalEquations& eq, const SolveOptions& options, const BoxQpOptions& qp) {
   if (eq.n < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
   if (eq.voxels == 0) throw std::runtime_error("no voxel has data in both fields (all NaN?): nothing to fit");
-  if (options.ridge < 0 || options.smooth < 0) throw std::invalid_argument("regularization weights must be >= 0");
   BoxQpResult result;
   result.regularization = absolute_regularization(eq, options);
   const Tridiagonal h = regularized_matrix(eq, result.regularization);

@@ -12,6 +12,16 @@
 namespace tfm {
 
 Regularization absolute_regularization(const NormalEquations& eq, const SolveOptions& options) {
+  for (const auto& [name, value] : {std::pair{"ridge", options.ridge}, std::pair{"smooth", options.smooth}})
+    if (!(value >= 0) || !std::isfinite(value))
+      throw std::invalid_argument(parameter(name) + ": regularization weights must be finite and >= 0");
+  if (options.smooth > kMaxRelativeSmooth) {
+    std::ostringstream os;
+    os << parameter("smooth") << " " << options.smooth << " is beyond " << kMaxRelativeSmooth
+       << ", where double precision no longer resolves the data under the smoothness term; at " << kMaxRelativeSmooth
+       << " the TF is already the constant mean reference colour that heavier smoothing tends to";
+    throw std::invalid_argument(os.str());
+  }
   double mean_diag = 0.0;
   for (double d : eq.diag) mean_diag += d;
   if (eq.n > 0) mean_diag /= eq.n;
@@ -31,7 +41,6 @@ SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions
   if (n < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
   if (eq.voxels == 0)
     throw std::runtime_error("no voxel has data in both fields (all NaN?): nothing to fit");
-  if (options.ridge < 0 || options.smooth < 0) throw std::invalid_argument("regularization weights must be >= 0");
 
   SolveResult result;
   for (uint32_t j = 0; j < n; ++j) result.unreferenced_entries += eq.diag[j] == 0.0 ? 1 : 0;
@@ -47,6 +56,12 @@ SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions
   const double singular_tol = 1e-12 * std::abs(result.lambda_max);
   bool singular = result.lambda_min <= singular_tol;
   result.cond = singular ? std::numeric_limits<double>::infinity() : result.lambda_max / result.lambda_min;
+  const bool regularized = options.ridge > 0 || options.smooth > 0;
+  result.error_amplification = result.cond;
+  if (regularized && !singular) {
+    const double data_max = tridiagonal_extreme_eigenvalues(Tridiagonal{eq.diag, eq.off}).second;
+    result.error_amplification = std::max(data_max, 0.0) / result.lambda_min;
+  }
 
   const Eigen::MatrixXd rhs = eq.rhs;
   bool rank_revealing = options.factorization == Factorization::Auto;
@@ -60,7 +75,8 @@ SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions
     }
   }
   if (rank_revealing) {
-    MinNormSolve solve = solve_psd_tridiagonal_min_norm(reg, rhs);
+    // The rank is decided at the precision of M's float32 data, not of M + R: R is exact.
+    MinNormSolve solve = solve_psd_tridiagonal_min_norm(reg, rhs, kDependentPivot, eq.diag);
     result.x = solve.x;
     result.dependent_entries = solve.dependent;
     const bool deficient = solve.unreferenced + solve.dependent > 0;
@@ -70,6 +86,7 @@ SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions
       // eigenvalue test: the computed M is nearly, not exactly, singular.
       singular = true;
       result.cond = std::numeric_limits<double>::infinity();
+      result.error_amplification = result.cond;
     }
   }
 
@@ -81,12 +98,17 @@ SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions
          << "combination each (their minimum-norm values were taken)";
     os << "; " << parameter("smooth") << " fills them from their neighbours";
     result.warnings.push_back(os.str());
-  } else if (result.cond > options.cond_warning) {
+  } else if (result.error_amplification > options.cond_warning) {
     std::ostringstream os;
-    os << "cond(M) = " << result.cond << " exceeds " << options.cond_warning
-       << ": M carries ~1e-7 relative error from float32 data, so x may be wrong by cond*1e-7; "
-          "consider "
-       << parameter("solver") << " cgls or " << parameter("smooth");
+    if (regularized)
+      os << "lambda_max(M) / lambda_min(M + regularization) = " << result.error_amplification << " exceeds "
+         << options.cond_warning << ": M carries ~1e-7 relative error from float32 data, so x may be wrong by that "
+         << "ratio * 1e-7; consider " << parameter("solver") << " cgls or a larger " << parameter("ridge") << " or "
+         << parameter("smooth");
+    else
+      os << "cond(M) = " << result.cond << " exceeds " << options.cond_warning
+         << ": M carries ~1e-7 relative error from float32 data, so x may be wrong by cond*1e-7; consider "
+         << parameter("solver") << " cgls or " << parameter("smooth");
     result.warnings.push_back(os.str());
   }
 

@@ -33,7 +33,6 @@ JacobiSetup jacobi_setup(VoxelProblem& p, const SolveOptions& options, const Nor
   js.eq = system ? *system : assembled_system(p, &assembled);
   js.gpu_ms = assembled.empty() ? 0.0 : assembled[0].gpu_ms;
   if (js.eq.voxels == 0) throw std::runtime_error("no voxel has data in both fields (all NaN?): nothing to fit");
-  if (options.ridge < 0 || options.smooth < 0) throw std::invalid_argument("regularization weights must be >= 0");
   js.reg = absolute_regularization(js.eq, options);
   const Tridiagonal h = regularized_matrix(js.eq, js.reg);
   js.inv_diag.resize(js.eq.n);

@@ -25,10 +25,15 @@ void check_sizes(const Tridiagonal& t, Eigen::Index rows) {
     throw std::invalid_argument("tridiagonal solve: sizes of the diagonal, off-diagonal and right-hand side do not match");
 }
 
+// A pivot this many units of double roundoff of its diagonal is zero whatever the data's noise:
+// the elimination's cancellation alone can leave that much.
+constexpr double kRoundoffPivot = 64 * DBL_EPSILON;
+
 // Forward sweep: LDL^T (pivot, l) and L y = b in place of b, with entry kinds. With `tolerance`
-// < 0 no entry is unreferenced or dependent (plain LDL^T).
-void factor_and_forward(const Tridiagonal& t, double tolerance, Eigen::MatrixXd& y, std::vector<double>& pivot,
-                        std::vector<double>& l, std::vector<Entry>& kind) {
+// < 0 no entry is unreferenced or dependent (plain LDL^T). Entry j is dependent when its pivot is
+// at most tolerance * data_diag[j] (t.diag[j] when data_diag is empty) or kRoundoffPivot * t.diag[j].
+void factor_and_forward(const Tridiagonal& t, double tolerance, std::span<const double> data_diag, Eigen::MatrixXd& y,
+                        std::vector<double>& pivot, std::vector<double>& l, std::vector<Entry>& kind) {
   const size_t n = t.diag.size();
   const bool decide = tolerance >= 0;
   bool open = false;  // the previous entry ends an open run this one couples to
@@ -54,7 +59,7 @@ void factor_and_forward(const Tridiagonal& t, double tolerance, Eigen::MatrixXd&
       kind[j] = Entry::Start;
     }
     pivot[j] = p;
-    if (decide && p <= tolerance * d) {
+    if (decide && p <= std::max(tolerance * (data_diag.empty() ? d : data_diag[j]), kRoundoffPivot * d)) {
       kind[j] = Entry::Dependent;
       y.row(Eigen::Index(j)).setZero();
       open = false;  // column j is left out: the next entry starts a run of its own
@@ -159,14 +164,17 @@ size_t count_below(const Tridiagonal& t, double x, double pivmin) {
 
 }  // namespace
 
-MinNormSolve solve_psd_tridiagonal_min_norm(const Tridiagonal& t, const Eigen::MatrixXd& b, double tolerance) {
+MinNormSolve solve_psd_tridiagonal_min_norm(const Tridiagonal& t, const Eigen::MatrixXd& b, double tolerance,
+                                            std::span<const double> data_diag) {
   check_sizes(t, b.rows());
   const size_t n = t.diag.size();
+  if (!data_diag.empty() && data_diag.size() != n)
+    throw std::invalid_argument("tridiagonal solve: the data diagonal's size does not match the matrix");
   MinNormSolve out;
   out.x = b;
   std::vector<double> pivot(n), l(n);
   std::vector<Entry> kind(n);
-  factor_and_forward(t, std::max(tolerance, 0.0), out.x, pivot, l, kind);
+  factor_and_forward(t, std::max(tolerance, 0.0), data_diag, out.x, pivot, l, kind);
   backward(pivot, l, kind, out.x);
   std::vector<double> z(n), pivot2(n), l2(n);
   std::vector<size_t> rescaled_at;
@@ -187,7 +195,7 @@ Eigen::MatrixXd solve_tridiagonal_ldlt(const Tridiagonal& t, const Eigen::Matrix
   Eigen::MatrixXd x = b;
   std::vector<double> pivot(n), l(n);
   std::vector<Entry> kind(n);
-  factor_and_forward(t, -1.0, x, pivot, l, kind);
+  factor_and_forward(t, -1.0, {}, x, pivot, l, kind);
   backward(pivot, l, kind, x);
   return x;
 }

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -36,10 +37,17 @@ constexpr double kDependentPivot = 1e-6;
 // at j + 1. Each closed run has one null vector z (z_j = 1, M_[s..j-1] z_[s..j-1] = -T_{j-1,j}
 // e_last); the run is solved with the entry where |z| is largest left out (two positive definite
 // blocks) and made orthogonal to z, which in exact arithmetic gives the minimum-norm solution.
-// Runs are disjoint, so the whole solve is O(n k). Throws std::invalid_argument on mismatched
-// sizes.
+// Runs are disjoint, so the whole solve is O(n k).
+//
+// `data_diag` (n entries, or empty for T's own diagonal) is the part of T's diagonal that carries
+// the data's float32 error, against which the tolerance is measured: for T = M + R with an exactly
+// known regularization R, M's diagonal. R's entries are exact, so a pivot that R lifts above the
+// data's noise is no rank decision to make: a heavily smoothed M + s D^T D (s >> M) has a last
+// pivot of M's size, far below tolerance * T_jj but well determined. A pivot within a few units of
+// double roundoff of T_jj is zero whatever the tolerance. Throws std::invalid_argument on
+// mismatched sizes.
 MinNormSolve solve_psd_tridiagonal_min_norm(const Tridiagonal& t, const Eigen::MatrixXd& b,
-                                            double tolerance = kDependentPivot);
+                                            double tolerance = kDependentPivot, std::span<const double> data_diag = {});
 
 // LDL^T without any rank decision (a zero pivot gives inf/NaN in x): O(n k).
 Eigen::MatrixXd solve_tridiagonal_ldlt(const Tridiagonal& t, const Eigen::MatrixXd& b);

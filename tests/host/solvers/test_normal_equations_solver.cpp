@@ -153,6 +153,96 @@ TEST(NormalEquationsSolver, UnreferencedEntriesHandled) {
   for (int c = 0; c < 4; ++c) EXPECT_NEAR(rs.x(n - 1, c), rs.x(used - 1, c), 1e-6);
 }
 
+// A smoothness weight far above M's (s >> voxels per entry) leaves one direction to the data, the
+// constant TF, so x tends to the mean reference colour (S 1 = 1: 1^T S^T b / 1^T M 1 = mean b),
+// away from it by O(N^2 / s). The rank decision must not take the constant direction for noise
+// (its pivot is of M's size, not of M + s D^T D's): it did, and --smooth 1e8 gave a TF of zeros.
+// Moderate weights are checked against the dense augmented least squares, heavy ones against the
+// mean; neither warns, since the exact regularization makes x no less certain.
+TEST(NormalEquationsSolver, HeavySmoothingTendsToTheMeanReferenceColour) {
+  for (double opt_hi : {1.0, 0.5}) {  // 0.5: entries 6.. are touched by no voxel
+    const uint32_t n = 12;
+    Problem p = small_problem(500, n, 21, opt_hi);
+    NormalEquations eq = assemble_normal_equations_cpu(p.ref, p.opt, p.rm, p.om, p.ref_tf);
+    ExplicitSystem sys = build_explicit_system(p.ref, p.opt, p.rm, p.om, p.ref_tf);
+    Eigen::RowVector4d mean = Eigen::RowVector4d::Zero();
+    const Eigen::Index voxels = sys.b.size() / 4;
+    for (Eigen::Index i = 0; i < voxels; ++i)
+      for (int c = 0; c < 4; ++c) mean(c) += sys.b(4 * i + c);
+    mean /= double(voxels);
+    const double md = mean_diag(eq);
+    for (double smooth : {1e2, 1e4, 1e6, 1e8, kMaxRelativeSmooth}) {
+      SolveOptions o;
+      o.smooth = smooth;
+      const SolveResult r = solve_normal_equations(eq, o);
+      SCOPED_TRACE("opt_hi " + std::to_string(opt_hi) + ", smooth " + std::to_string(smooth));
+      ASSERT_EQ(r.x.rows(), Eigen::Index(n));
+      EXPECT_EQ(r.factorization, "ldlt");
+      EXPECT_EQ(r.dependent_entries, 0u);
+      EXPECT_TRUE(std::isfinite(r.cond));
+      EXPECT_TRUE(r.warnings.empty()) << r.warnings.front();
+      EXPECT_LT(r.error_amplification, 1e3);
+      if (smooth <= 1e4) {
+        Eigen::VectorXd dense = dense_least_squares(sys, n, 0.0, smooth * md);
+        EXPECT_LE((r.x - unstack(dense, n)).cwiseAbs().maxCoeff(), 1e-9);
+      }
+      const double bound = 10.0 * n * n / smooth + 1e-6;  // and M and S^T b carry float32 rounding
+      for (uint32_t j = 0; j < n; ++j)
+        for (int c = 0; c < 4; ++c) EXPECT_NEAR(r.x(j, c), mean(c), bound) << "entry " << j << " channel " << c;
+    }
+  }
+}
+
+// Beyond kMaxRelativeSmooth double rounding outgrows the data (1.8e-4 at 1e13): refused, as are
+// weights that are no weights, naming the flag, by the one check every voxel solver goes through.
+TEST(NormalEquationsSolver, WeightsBeyondWhatDoublesResolveAreRefused) {
+  Problem p = small_problem(200, 8, 3);
+  NormalEquations eq = assemble_normal_equations_cpu(p.ref, p.opt, p.rm, p.om, p.ref_tf);
+  auto refused = [&](double ridge, double smooth, const std::string& needle) {
+    SolveOptions o;
+    o.ridge = ridge;
+    o.smooth = smooth;
+    try {
+      solve_normal_equations(eq, o);
+      ADD_FAILURE() << "ridge " << ridge << ", smooth " << smooth << " were accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(absolute_regularization(eq, o), std::invalid_argument);
+  };
+  refused(0.0, 2 * kMaxRelativeSmooth, "--smooth 2e+09 is beyond 1e+09");
+  refused(0.0, -1.0, "--smooth");
+  refused(std::nan(""), 0.0, "--ridge");
+  refused(INFINITY, 0.0, "--ridge");
+  SolveOptions huge_ridge;  // a ridge only shrinks x towards 0, with no cancellation: any finite one
+  huge_ridge.ridge = 1e30;
+  EXPECT_LE(solve_normal_equations(eq, huge_ridge).x.cwiseAbs().maxCoeff(), 1e-29);
+}
+
+// The warning measures how much M's float32 error can move x: cond(M) without regularization, and
+// lambda_max(M) / lambda_min(M + R) with it, both against dense eigenvalues.
+TEST(NormalEquationsSolver, ErrorAmplificationMatchesDenseEigenvalues) {
+  Problem p = small_problem(300, 10, 5);
+  NormalEquations eq = assemble_normal_equations_cpu(p.ref, p.opt, p.rm, p.om, p.ref_tf);
+  const Eigen::MatrixXd m = eq.dense_m();
+  const double data_max = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(m).eigenvalues().maxCoeff();
+  const SolveResult plain = solve_normal_equations(eq);
+  EXPECT_EQ(plain.error_amplification, plain.cond);
+  SolveOptions o;
+  o.ridge = 0.5;
+  o.smooth = 3.0;
+  const SolveResult r = solve_normal_equations(eq, o);
+  const Regularization reg = absolute_regularization(eq, o);
+  Eigen::MatrixXd mr = m;
+  for (uint32_t j = 0; j < eq.n; ++j) {
+    mr(j, j) += reg.ridge + reg.smooth * ((j == 0 || j + 1 == eq.n) ? 1.0 : 2.0);
+    if (j + 1 < eq.n) mr(j, j + 1) = mr(j + 1, j) = mr(j, j + 1) - reg.smooth;
+  }
+  const double reg_min = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(mr).eigenvalues().minCoeff();
+  EXPECT_NEAR(r.error_amplification / (data_max / reg_min), 1.0, 1e-10);
+  EXPECT_LT(r.error_amplification, r.cond);
+}
+
 using SolverGpuTest = test::GpuTest;
 
 // GPU-assembled and CPU-assembled systems give the same TF (to cond * assembly error).
