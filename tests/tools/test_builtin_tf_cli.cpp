@@ -34,6 +34,26 @@ class BuiltinTfCli : public ::testing::Test {
   const std::string ref = dir / "ref_8x8x8_float32.raw", field = dir / "field_8x8x8_float32.raw";
 };
 
+// A note (here: an XML TF's colours outside [0,1], clamped as the framework does) goes to stderr,
+// and -q, "only errors and warnings", keeps it back wherever a TF is read.
+TEST_F(BuiltinTfCli, NotesAreQuietUnderQ) {
+  std::ofstream(dir / "loud.xml")
+      << "<TransferFunction colorspace=\"sRGB\">\n<OpacityPoints>\n<OpacityPoint position=\"0\" opacity=\"0\"/>\n"
+         "<OpacityPoint position=\"1\" opacity=\"1\"/>\n</OpacityPoints>\n<ColorPoints>\n"
+         "<ColorPoint position=\"0.5\" r=\"300\" g=\"0\" b=\"0\"/>\n</ColorPoints>\n</TransferFunction>\n";
+  const std::string note = "tfmatch: note: " + dir / "loud.xml" + ": 1 opacity or colour value outside [0,1] clamped";
+  for (const std::string& command :
+       {"convert-tf " + dir / "loud.xml" + " " + dir / "loud.json",
+        "optimize --ref " + ref + " --ref-tf " + dir / "loud.xml" + " --field " + field + " --out " + dir / "t.json"}) {
+    const auto loud = test::run_cli_split(command);
+    ASSERT_EQ(loud.exit_code, 0) << loud.errors;
+    EXPECT_NE(loud.errors.find(note), std::string::npos) << loud.errors;
+    const auto quiet = test::run_cli_split("-q " + command);
+    ASSERT_EQ(quiet.exit_code, 0) << quiet.errors;
+    EXPECT_EQ(quiet.errors.find("note:"), std::string::npos) << quiet.errors;
+  }
+}
+
 TEST_F(BuiltinTfCli, ConvertTfWritesABuiltInMapForEditing) {
   auto r = run_cli("convert-tf viridis " + dir / "viridis.json");
   ASSERT_EQ(r.exit_code, 0) << r.output;

@@ -27,6 +27,11 @@ struct GlobalOptions {
 };
 GlobalOptions& globals();
 
+// Prints "<prefix>: note: <text>" on stderr unless -q: a note says what tfmatch chose or did
+// (a cache ignored, a file loaded whole, a TF clamped), never that a result may be wrong; a
+// warning does that, and -q keeps warnings.
+void print_note(const std::string& text, const std::string& prefix = "tfmatch");
+
 // A subcommand adds itself to the app; its callback sets the exit code through `exit_code()`.
 using CommandSetup = std::function<void(CLI::App& app)>;
 struct CommandRegistration {

@@ -20,7 +20,7 @@ int run(const ConvertTfArgs& a) {
   FilePlan().input_spec(a.in, "input").output(a.out, "output").check();
   std::vector<std::string> notes;
   TransferFunction tf = read_transfer_function(a.in, TfReadOptions{a.size, ""}, &notes);
-  for (const auto& n : notes) std::cerr << "tfmatch: note: " << n << "\n";
+  for (const auto& n : notes) print_note(n);
   write_transfer_function(a.out, tf);
   if (!globals().quiet) std::cout << "wrote " << a.out << " (" << tf.size() << " entries)\n";
   return 0;

@@ -87,8 +87,8 @@ std::optional<Streams> open_streams(const OptimizeArgs& a) {
   }
   for (auto [reader, spec] : {std::pair{&s.ref, &a.in.ref}, std::pair{&s.field, &a.in.field}}) {
     if (*reader) continue;
-    std::cerr << "tfmatch: note: " << *spec << " cannot be read slab by slab (only raw, .dat, NetCDF and "
-              << "uncompressed raw-appended VTI can): loading it whole\n";
+    print_note(*spec + " cannot be read slab by slab (only raw, .dat, NetCDF and uncompressed raw-appended VTI "
+               "can): loading it whole");
     *reader = slabs_in_memory(load_volume(*spec, vo));
   }
   return s;

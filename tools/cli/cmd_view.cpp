@@ -97,12 +97,12 @@ std::string use_default_tf(const Volume& ref, ViewConfig& config) {
     if (!config.ref_range && std::isfinite(m)) config.ref_tf.range = FieldRange{-m, m};
   }
   std::ostringstream note;
-  note << "tfmatch view: note: no --ref-tf: the reference " << ref.name << " starts with the built-in '" << tf.name
+  note << "no --ref-tf: the reference " << ref.name << " starts with the built-in '" << tf.name
        << "' (" << builtin_tf_source(tf.name) << ", opacity " << opacity_shape_name(tf.opacity) << ") because "
        << why << " ([" << range.lo << ", " << range.hi << "])";
   if (config.ref_tf.range)
     note << "; mapped over [" << config.ref_tf.range->lo << ", " << config.ref_tf.range->hi << "] so that 0 is its middle";
-  std::cerr << note.str() << "; --ref-tf NAME or FILE chooses another\n";
+  print_note(note.str() + "; --ref-tf NAME or FILE chooses another", "tfmatch view");
   return "reference TF: built-in " + tf.name + ", the default";
 }
 
@@ -153,7 +153,7 @@ int run(ViewArgs a) {
   if (!a.in.ref_tf.empty()) {
     std::vector<std::string> notes;
     config.ref_tf = read_transfer_function(a.in.ref_tf, {}, &notes);
-    for (const auto& n : notes) std::cerr << "tfmatch: note: " << n << "\n";
+    for (const auto& n : notes) print_note(n);
   }
 
   std::unique_ptr<ViewSession> session;

@@ -78,7 +78,7 @@ void load_inputs(const InputArgs& a, LoadedInputs& out) {
 void load_tf_and_ranges(const InputArgs& a, FitSettings& req) {
   std::vector<std::string> notes;
   req.ref_tf = read_transfer_function(a.ref_tf, {}, &notes);
-  for (const auto& n : notes) std::cerr << "tfmatch: note: " << n << "\n";
+  for (const auto& n : notes) print_note(n);
   if (!a.ref_range.empty()) req.ref_range = parse_range(a.ref_range, "--ref-range");
   if (!a.field_range.empty()) req.field_range = parse_range(a.field_range, "--field-range");
   req.tf_size = a.tf_size;

@@ -38,6 +38,10 @@ GlobalOptions& globals() {
   return g;
 }
 
+void print_note(const std::string& text, const std::string& prefix) {
+  if (!globals().quiet) std::cerr << prefix << ": note: " << text << "\n";
+}
+
 std::vector<std::pair<int, CommandSetup>>& registered_commands() {
   static std::vector<std::pair<int, CommandSetup>> list;
   return list;
@@ -124,7 +128,7 @@ std::shared_ptr<Context> make_context(bool validation_when_installed) {
     } catch (const VulkanError& e) {
       note = "pipeline cache " + cache_file->string() + " ignored: the driver refused it (" + e.what() + ")";
     }
-    if (!note.empty() && !globals().quiet) std::cerr << "tfmatch: note: " << note << "\n";
+    if (!note.empty()) print_note(note);
   }
   return std::shared_ptr<Context>(created.release(), [cache_file, cached = std::move(cached)](Context* ctx) {
     auto messages = ctx->take_validation_messages();
@@ -136,10 +140,10 @@ std::shared_ptr<Context> make_context(bool validation_when_installed) {
         const std::vector<uint8_t> data = ctx->pipeline_cache_data();
         if (data != cached) {
           const std::string problem = write_pipeline_cache(*cache_file, data);
-          if (!problem.empty() && !globals().quiet) std::cerr << "tfmatch: note: pipeline cache not stored: " << problem << "\n";
+          if (!problem.empty()) print_note("pipeline cache not stored: " + problem);
         }
       } catch (const std::exception& e) {
-        if (!globals().quiet) std::cerr << "tfmatch: note: pipeline cache not stored: " << e.what() << "\n";
+        print_note(std::string("pipeline cache not stored: ") + e.what());
       }
     }
     delete ctx;
@@ -348,7 +352,7 @@ int main(int argc, char** argv) {
         globals().quiet = true;
         tfm::set_progress_enabled(false);  // before any command runs, whichever shows progress
       },
-      "Print only errors (no summaries, no progress)");
+      "Print only errors and warnings (no summaries, notes or progress)");
   app.footer(exit_code_help());
   app.add_option_function<std::string>(
          "--max-memory",
