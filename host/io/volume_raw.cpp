@@ -260,16 +260,29 @@ static std::pair<std::array<uint64_t, 3>, ScalarType> raw_layout(const std::file
   std::smatch m;
   const std::string file = path.filename().string();
   if (std::regex_search(file, m, pattern)) {
+    std::array<uint64_t, 3> named{};
     try {
-      if (!dims) dims = std::array<uint64_t, 3>{std::stoull(m[1]), std::stoull(m[2]), std::stoull(m[3])};
+      named = {std::stoull(m[1]), std::stoull(m[2]), std::stoull(m[3])};
     } catch (const std::exception&) {
       throw std::runtime_error(path.string() + ": dimensions in the file name are out of range");
     }
-    if (type == ScalarType::Unknown) {
-      type = parse_scalar_type(m[4]);
-      if (type == ScalarType::Unknown)
-        throw std::runtime_error(path.string() + ": unknown element type '" + m[4].str() + "' in the file name");
-    }
+    const ScalarType named_type = parse_scalar_type(m[4]);
+    if (named_type == ScalarType::Unknown && type == ScalarType::Unknown)
+      throw std::runtime_error(path.string() + ": unknown element type '" + m[4].str() + "' in the file name");
+    // A name and an option that disagree leave no way to tell which is right: reading with either
+    // could give a plausible-looking but wrong field.
+    auto dims_text = [](const std::array<uint64_t, 3>& d) {
+      return std::to_string(d[0]) + "x" + std::to_string(d[1]) + "x" + std::to_string(d[2]);
+    };
+    if (dims && *dims != named)
+      throw std::runtime_error(path.string() + ": the file name says " + dims_text(named) + " but " + parameter("dims") +
+                               " says " + dims_text(*dims) + ": rename the file or leave out " + parameter("dims"));
+    if (type != ScalarType::Unknown && named_type != ScalarType::Unknown && type != named_type)
+      throw std::runtime_error(path.string() + ": the file name says " + scalar_type_name(named_type) + " but " +
+                               parameter("type") + " says " + scalar_type_name(type) + ": rename the file or leave out " +
+                               parameter("type"));
+    dims = named;
+    if (type == ScalarType::Unknown) type = named_type;
   }
   if (!dims)
     throw std::runtime_error(path.string() + ": raw file without dimensions: name it name_XxYxZ_type.raw "

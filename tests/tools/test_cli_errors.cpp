@@ -64,6 +64,21 @@ TEST_F(CliErrors, RawWithoutDimensions) {
   expect_failure(ok_inputs(dir / "plain.raw"), {"plain.raw", "--dims"});
 }
 
+// A file name and --dims or --type that disagree: reading either way could give a wrong field
+// that looks plausible (4x4x4 floats read as 2x4x8 is a reshuffled field); both used to be
+// silently overridden by the option.
+TEST_F(CliErrors, RawNameAndOptionsThatDisagree) {
+  expect_failure(ok_inputs() + " --dims 2,4,8", {"ref_4x4x4_float32.raw", "the file name says 4x4x4", "--dims says 2x4x8"});
+  expect_failure(ok_inputs() + " --type int32", {"ref_4x4x4_float32.raw", "the file name says float32", "--type says int32"});
+  // Options that agree with the name, or that a plain file needs, still read.
+  auto agree = run_cli("optimize --out " + dir / "agree.json" + " " + ok_inputs() + " --dims 4,4,4 --type float32");
+  EXPECT_EQ(agree.exit_code, 0) << agree.output;
+  write_floats(dir / "plain.raw", ramp(64, 3.0f));
+  auto plain = run_cli("optimize --out " + dir / "plain.json" + " " + ok_inputs("", dir / "plain.raw") +
+                       " --dims 4,4,4 --type float32");
+  EXPECT_EQ(plain.exit_code, 0) << plain.output;
+}
+
 TEST_F(CliErrors, ConstantField) {
   write_floats(dir / "const_4x4x4_float32.raw", std::vector<float>(64, 2.5f));
   expect_failure(ok_inputs("", dir / "const_4x4x4_float32.raw"), {"const_4x4x4_float32.raw", "constant"});
