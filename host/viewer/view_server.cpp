@@ -212,6 +212,11 @@ struct ViewServer::Impl {
 
   Impl(ViewSession& s, ViewServerOptions o)
       : session(s), options(std::move(o)), events(options.max_event_streams), publisher(session, events) {
+    // An empty address lets the library choose the interface ([::1] on some machines) while url()
+    // names 127.0.0.1, and a page at that URL is refused.
+    if (options.bind.empty() || options.bind.find_first_of(" \t\r\n") != std::string::npos)
+      throw std::invalid_argument("tfmatch view: expected an address to listen on such as 127.0.0.1 or 0.0.0.0, got '" +
+                                  options.bind + "'");
     if (options.token.empty()) options.token = random_token();
     tokens = options.device_requests_per_second;
     if (options.assets_dir.empty()) page = view_page_html();

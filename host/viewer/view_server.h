@@ -32,8 +32,8 @@ struct ViewServerOptions {
 
 class ViewServer {
  public:
-  // Binds the port (not yet serving). Throws std::runtime_error when the address or port cannot
-  // be bound, naming them.
+  // Binds the port (not yet serving). Throws std::invalid_argument for an empty address (or one
+  // with spaces), std::runtime_error when the address or port cannot be bound, naming them.
   ViewServer(ViewSession& session, ViewServerOptions options);
   ~ViewServer();  // stops serving and waits for the listening thread
   ViewServer(const ViewServer&) = delete;

@@ -66,6 +66,16 @@ TEST_F(ViewServerTest, EveryRequestNeedsTheToken) {
   EXPECT_NE(server_->url().find("http://127.0.0.1:" + std::to_string(server_->port()) + "/?token="), std::string::npos);
 }
 
+// The library refuses an address that is none, as the command line does: an empty one listened
+// on an interface of httplib's choosing while url() named 127.0.0.1.
+TEST_F(ViewServerTest, AnEmptyAddressIsRefused) {
+  for (const char* bind : {"", " ", "127.0.0.1 "}) {
+    ViewServerOptions o;
+    o.bind = bind;
+    EXPECT_THROW(ViewServer(*session_, o), std::invalid_argument) << "'" << bind << "'";
+  }
+}
+
 TEST_F(ViewServerTest, ServesThePageWithItsScriptAndStyleInlined) {
   auto r = get("/");
   ASSERT_TRUE(r);
