@@ -22,10 +22,18 @@ void check_reference_point(const EnsembleView& ens, uint64_t voxel, CorrelationM
     throw std::invalid_argument("reference voxel " + std::to_string(voxel) + " is outside the ensemble's " +
                                 std::to_string(ens.voxel_count) + " voxels");
   const std::vector<float> s = ensemble_series(ens, voxel);
-  for (uint32_t m = 0; m < ens.member_count; ++m)
-    if (!std::isfinite(s[m]))
+  for (uint32_t m = 0; m < ens.member_count; ++m) {
+    if (std::isnan(s[m]))
       throw std::invalid_argument("the reference point has no data in member " + std::to_string(m) +
                                   " (a NaN or fill value): every correlation with it would be NaN; choose another point");
+    // +-Inf is a value: the rank and neighbour measures order it beyond every finite one; a mean
+    // or equal-width bins over it have none.
+    if (std::isinf(s[m]) && needs_finite_members(measure))
+      throw std::invalid_argument("the reference point's value in member " + std::to_string(m) + " is " +
+                                  (s[m] > 0 ? "+inf" : "-inf") + ": " + correlation_measure_name(measure) +
+                                  " of a series with an infinite value has none (NaN everywhere); choose another "
+                                  "point, or a rank measure (spearman, kendall, mi-kraskov)");
+  }
   const bool needs_variance = measure == CorrelationMeasure::Pearson || measure == CorrelationMeasure::Spearman ||
                               measure == CorrelationMeasure::Kendall;
   bool constant = true;

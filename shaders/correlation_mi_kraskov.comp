@@ -77,7 +77,7 @@ void main() {
     s_work[yx + p] = series_value(v, ref_order[p]);
     const float y = series_value(v, p);
     s_work[r2 + p] = y;
-    part = corr_combine(part, corr_stats_term(y));
+    part = corr_combine(part, corr_finite_stats_term(y));  // an infinite member: no neighbours, no value
   }
   if (corr_special_case(v, corr_total(part), 0.0)) return;
   uint unused;

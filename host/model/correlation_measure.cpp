@@ -27,7 +27,8 @@ const char* correlation_measure_name(CorrelationMeasure m) {
 }
 
 bool needs_finite_members(CorrelationMeasure m) {
-  return m == CorrelationMeasure::Pearson || m == CorrelationMeasure::MiBinned;
+  return m == CorrelationMeasure::Pearson || m == CorrelationMeasure::MiBinned || m == CorrelationMeasure::MiKraskov ||
+         m == CorrelationMeasure::MiCoefficient;
 }
 
 std::vector<std::string> correlation_measure_names() {

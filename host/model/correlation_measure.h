@@ -38,8 +38,11 @@ const char* correlation_measure_name(CorrelationMeasure m);
 CorrelationMeasure parse_correlation_measure(const std::string& name);
 std::vector<std::string> correlation_measure_names();
 // Whether an infinite member leaves the measure without a value, as NaN does: pearson (the mean is
-// infinite) and mi-binned (equal-width bins over an infinite range). The rank measures and
-// mi-kraskov order ±Inf as any other value.
+// infinite), mi-binned (equal-width bins over an infinite range), mi-kraskov and mi-coefficient
+// (the estimator's max-norm distances to an infinite value are all infinite: the point has no k
+// nearest neighbours; the kernels and the CPU peer, which search sorted values, and the double
+// reference, which measures distances, gave three different numbers). Spearman and kendall order
+// ±Inf beyond every finite value.
 bool needs_finite_members(CorrelationMeasure m);
 // Throws std::invalid_argument when params do not suit `member_count` (fewer than 3 members,
 // bins or k out of range).

@@ -141,7 +141,7 @@ double mutual_information_binned_cpu(std::span<const double> x, std::span<const 
 
 double mutual_information_kraskov_cpu(std::span<const double> x, std::span<const double> y, uint32_t k) {
   double r;
-  if (special_case(x, y, "mi-kraskov", 0.0, r)) return r;
+  if (special_case(x, y, "mi-kraskov", 0.0, r, needs_finite_members(CorrelationMeasure::MiKraskov))) return r;
   const size_t n = x.size();
   if (k < 1 || k >= n) throw std::invalid_argument("mi-kraskov: k must be 1.." + std::to_string(n - 1));
   double sum = 0.0;

@@ -37,9 +37,9 @@ bool is_mutual_information(const CorrelationParams& p) {
 // Bound: CorrelationKernel::error_bound (the mixed data make every comparison exact in float).
 // NaN results must be NaN on both sides. The data reach the conventions, which the field must
 // follow: NaN at the voxel with a NaN member (5), NaN (or 0 for mutual information) at the
-// constant voxel (7), 1 at the reference voxel for pearson, spearman and kendall; for pearson and
-// mi-binned NaN at a voxel with an infinite member too (9, where the grid has it:
-// needs_finite_members).
+// constant voxel (7), 1 at the reference voxel for pearson, spearman and kendall; for pearson,
+// mi-binned and the Kraskov measures NaN at a voxel with an infinite member too (9, where the
+// grid has it: needs_finite_members).
 void correlation(Context& ctx, Check& check, CorrelationCase c) {
   c.params.k = std::min(c.params.k, c.members - 1);  // k < M
   if (const uint64_t bytes = CorrelationKernel::shared_memory_bytes(c.params, c.members); !fits_shared_memory(ctx, bytes))

@@ -94,6 +94,41 @@ TEST_P(CorrelationGpu, ReferenceWithTwoValues) {
   expect_field_near(g, r, CorrelationKernel::error_bound(params, members));
 }
 
+// An infinite value in the reference series is a value for the rank measures (check_reference_point
+// accepts it there: the kernel, the CPU peer and the double reference agree, and +-Inf rank as the
+// largest and smallest values, as a finite value beyond every other would) and no value for the
+// others (refused; needs_finite_members).
+TEST_P(CorrelationGpu, InfiniteReferenceValues) {
+  const CorrelationParams params = GetParam();
+  for (uint32_t members : {9u, 40u}) {
+    const CorrelationEnsemble e = correlation_test_ensemble(members, 50, 13);
+    std::vector<float> reference = ensemble_series(e.view(), 7);
+    std::vector<float> beyond = reference;
+    reference[2] = INFINITY;
+    reference[5] = -INFINITY;
+    beyond[2] = 1e30f;
+    beyond[5] = -1e30f;
+    EnsembleView with_reference = e.view();
+    std::vector<float> values = e.values;
+    for (uint32_t m = 0; m < members; ++m) values[size_t(m) * e.voxels + 7] = reference[m];
+    with_reference.values = values.data();
+    if (needs_finite_members(params.measure)) {
+      EXPECT_THROW(check_reference_point(with_reference, 7, params.measure), std::invalid_argument);
+      continue;
+    }
+    EXPECT_NO_THROW(check_reference_point(with_reference, 7, params.measure));
+    CorrelationKernel kernel(ctx());
+    const std::vector<float> g = kernel.compute(e.view(), reference, params);
+    const std::vector<double> r = correlation_field_reference(e.view(), reference, params);
+    const std::vector<float> peer = correlation_field_cpu(e.view(), reference, params);
+    const double bound = CorrelationKernel::error_bound(params, members);
+    expect_field_near(g, r, bound);
+    expect_field_near(peer, r, bound);
+    if (params.measure == CorrelationMeasure::Spearman || params.measure == CorrelationMeasure::Kendall)
+      expect_field_near(g, correlation_field_reference(e.view(), beyond, params), bound);
+  }
+}
+
 TEST_P(CorrelationGpu, SameBitsOnEveryRunAndChunking) {
   const CorrelationParams params = GetParam();
   for (uint32_t members : {7u, 33u}) {
@@ -247,18 +282,22 @@ TEST_F(CorrelationKernelGpu, NanReferenceGivesNanEverywhere) {
     for (float v : kernel.compute(e.view(), reference, p)) EXPECT_TRUE(std::isnan(v)) << correlation_measure_name(p.measure);
 }
 
-// An infinite member leaves pearson (the mean is infinite) and mi-binned (equal-width bins over an
-// infinite range) without a value: NaN, as NaN does (needs_finite_members), whether it is the
-// first member (pearson's shift) or another, +Inf or -Inf, and in the reference series too; the
-// CPU peer and the double reference agree. Before 2026-12-04 the kernels gave pearson -1 (its
-// shifted sums turned NaN and clamp() took the lower end) and mi-binned 0 for a -Inf member, where
-// the peer gave a number. Every other voxel keeps the bits it has without the infinities.
-TEST_F(CorrelationKernelGpu, InfiniteMembersLeavePearsonAndBinnedMiWithoutAValue) {
+// An infinite member leaves pearson (the mean is infinite), mi-binned (equal-width bins over an
+// infinite range) and the Kraskov measures (no finite neighbour distances) without a value: NaN,
+// as NaN does (needs_finite_members), whether it is the first member (pearson's shift) or
+// another, +Inf or -Inf, and in the reference series too; the CPU peer and the double reference
+// agree. Before 2026-12-04 the kernels gave pearson -1 (its shifted sums turned NaN and clamp()
+// took the lower end) and mi-binned 0 for a -Inf member, where the peer gave a number; before
+// 2026-12-06 mi-kraskov's kernel and peer gave 0.154 where the double reference gave 0.282 (an
+// infinite reference member, M = 9). Every other voxel keeps the bits it has without the
+// infinities.
+TEST_F(CorrelationKernelGpu, InfiniteMembersLeaveMeansBinsAndNeighboursWithoutAValue) {
   CorrelationKernel kernel(ctx());
-  for (const CorrelationParams& p : {CorrelationParams{CorrelationMeasure::Pearson},
-                                     CorrelationParams{CorrelationMeasure::MiBinned}}) {
+  uint32_t measures = 0;
+  for (const CorrelationParams& p : kMeasures) {
+    if (!needs_finite_members(p.measure)) continue;
+    ++measures;
     const std::string name = correlation_measure_name(p.measure);
-    ASSERT_TRUE(needs_finite_members(p.measure)) << name;
     for (uint32_t members : {9u, 40u}) {
       const CorrelationEnsemble plain = correlation_test_ensemble(members, 20, 4);
       CorrelationEnsemble e = plain;
@@ -288,6 +327,7 @@ TEST_F(CorrelationKernelGpu, InfiniteMembersLeavePearsonAndBinnedMiWithoutAValue
         EXPECT_TRUE(std::isnan(v)) << name;
     }
   }
+  EXPECT_EQ(measures, 4u) << "pearson, mi-binned, mi-kraskov, mi-coefficient";
 }
 
 // A constant reference: NaN for the coefficients, 0 for mutual information; NaN members stay NaN.

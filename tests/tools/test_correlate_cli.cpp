@@ -110,6 +110,16 @@ TEST_F(CorrelateCli, BadEnsemblesFailClearlyAndWriteNothing) {
   holed.values[0] = NAN;
   write_vti(dir / "member_105.vti", holed, "t");
   fails("--members " + members + " --point 0,0,0", {"no data in member 5"});
+  // An infinite one: refused by the measures it leaves without a value, named as what it is; the
+  // rank measures order it and write a field.
+  holed.values[0] = -INFINITY;
+  write_vti(dir / "member_105.vti", holed, "t");
+  fails("--members " + members + " --point 0,0,0", {"member 5 is -inf", "pearson", "spearman"});
+  fails("--members " + members + " --point 0,0,0 --measure mi-binned", {"member 5 is -inf", "mi-binned"});
+  const auto ranked = run_cli("correlate --members " + members + " --point 0,0,0 --measure kendall --out " + out);
+  EXPECT_EQ(ranked.exit_code, 0) << ranked.output;
+  EXPECT_TRUE(std::filesystem::exists(out));
+  std::filesystem::remove(out);
   fails("--members " + members + " --point 11,0,0", {"--point", "outside the grid 11x8x5"});
   fails("--members " + members + " --point 1,1,1 --measure mi-kraskov --k 12", {"k"});
   fails("--members " + members + " --point 1,1,1 --measure cosine", {"--measure", "pearson"});
