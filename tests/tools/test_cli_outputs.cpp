@@ -203,14 +203,16 @@ TEST_F(CliOutputs, EmptyNanAndNegativeNumbersAreUsageErrors) {
   const struct {
     std::string args, message;
   } cases[] = {
-      {"optimize " + inputs() + out + " --solver qp --ridge nan", "--ridge: expected a number >= 0, got 'nan'"},
-      {"optimize " + inputs() + out + " --smooth ''", "--smooth: expected a number >= 0, got ''"},
+      {"optimize " + inputs() + out + " --solver qp --ridge nan", "--ridge: expected a number, got 'nan'"},
+      {"optimize " + inputs() + out + " --smooth ''", "--smooth: expected a number, got ''"},
       {"optimize " + inputs() + out + " --ridge -1", "--ridge: expected a number >= 0, got '-1'"},
       {"render" + volume + " --azimuth ''", "--azimuth: expected a number, got ''"},
       {"render" + volume + " --elevation NaN", "--elevation: expected a number, got 'NaN'"},
       {"render" + volume + " --step nan", "--step: expected a number, got 'nan'"},
       {"info " + dir / "ref_8x8x8_float32.raw" + " --time -1", "--time: expected a number >= 0, got '-1'"},
       {"bench --tf-sizes 16,-4", "--tf-sizes: Value -4 not in range 2 to 1048576"},
+      {"optimize " + inputs() + out + " --tf-size ''", "--tf-size: expected a number, got ''"},  // not 'Value  not in range'
+      {"render" + volume + " --width ' '", "--width: expected a number, got ' '"},
       {"correlate --members " + dir / "ref_8x8x8_float32.raw" + " --point 1,1,1 --time -2 --out " + dir / "out.vti",
        "--time: expected a number >= 0, got '-2'"},
       {"view --demo --k 0", "--k: expected a number > 0, got '0'"},

@@ -234,17 +234,26 @@ void require_numbers(CLI::App& app) {
     const std::string type = base_type(*option);
     const bool is_float = type == "FLOAT", is_unsigned = type == "UINT", is_integer = is_unsigned || type == "INT";
     if (!is_float && !is_integer) continue;
-    // With an empty description, so that --help and docs/commands.md read as before.
-    option->check(CLI::Validator(
-        [is_float, is_unsigned](std::string& text) -> std::string {
-          const size_t first = text.find_first_not_of(" \t");
-          if (first == std::string::npos) return "expected a number, got '" + text + "'";
-          if (is_unsigned && text[first] == '-') return "expected a number >= 0, got '" + text + "'";
+    // With empty descriptions, so that --help and docs/commands.md read as before. Not a number at
+    // all: ahead of the option's own checks (transform() puts a validator first; this one changes
+    // nothing), whose range message would read "Value  not in range 1 to 16384" for ''. A minus
+    // sign: after them, so that a range says what it allows.
+    option->transform(CLI::Validator(
+        [is_float](std::string& text) -> std::string {
           double v = 0.0;
-          if (is_float && CLI::detail::lexical_cast(text, v) && std::isnan(v)) return "expected a number, got '" + text + "'";
+          if (text.find_first_not_of(" \t") == std::string::npos ||
+              (is_float && CLI::detail::lexical_cast(text, v) && std::isnan(v)))
+            return "expected a number, got '" + text + "'";
           return {};
         },
         ""));
+    if (is_unsigned)
+      option->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            if (text[text.find_first_not_of(" \t")] == '-') return "expected a number >= 0, got '" + text + "'";
+            return {};
+          },
+          ""));
   }
   for (CLI::App* sub : app.get_subcommands({})) require_numbers(*sub);
 }
