@@ -1,4 +1,4 @@
-// The viewer page, assembled from its three files.
+// The viewer page, assembled from index.html, viewer.css and the script's parts.
 #include "view_page.h"
 
 #include <filesystem>
@@ -31,21 +31,36 @@ std::string replace_line(std::string html, std::string_view marker, const std::s
   return html.replace(begin, end - begin, replacement);
 }
 
+// The script's parts in the order they run: each may use what the ones before it declare.
+struct ScriptPart {
+  const char* name;
+  std::string_view (*built_in)();
+};
+constexpr ScriptPart kScriptParts[] = {
+    {"viewer_core.js", view_asset_viewer_core_js},   {"viewer_views.js", view_asset_viewer_views_js},
+    {"viewer_panels.js", view_asset_viewer_panels_js}, {"viewer_jobs.js", view_asset_viewer_jobs_js},
+    {"viewer_tf_editor.js", view_asset_viewer_tf_editor_js}, {"viewer_start.js", view_asset_viewer_start_js},
+};
+
 }  // namespace
 
+std::vector<std::string> view_page_script_parts() {
+  std::vector<std::string> names;
+  for (const ScriptPart& p : kScriptParts) names.emplace_back(p.name);
+  return names;
+}
+
 std::string view_page_html(const std::string& assets_dir) {
-  std::string html, css, js;
-  if (assets_dir.empty()) {
-    html = std::string(view_asset_index_html());
-    css = std::string(view_asset_viewer_css());
-    js = std::string(view_asset_viewer_js());
-  } else {
-    html = read_asset(assets_dir, "index.html");
-    css = read_asset(assets_dir, "viewer.css");
-    js = read_asset(assets_dir, "viewer.js");
-  }
+  const bool built_in = assets_dir.empty();
+  std::string html = built_in ? std::string(view_asset_index_html()) : read_asset(assets_dir, "index.html");
+  const std::string css = built_in ? std::string(view_asset_viewer_css()) : read_asset(assets_dir, "viewer.css");
+  // One function scope around the parts: they share their names with each other, not with the
+  // window (the page exposes only window.tfmViewer).
+  std::string js = "(() => {\n'use strict';\n";
+  for (const ScriptPart& p : kScriptParts) js += built_in ? std::string(p.built_in()) : read_asset(assets_dir, p.name);
+  js += "})();";
   html = replace_line(std::move(html), "<!-- viewer.css -->", "<style>\n" + css + "\n</style>");
-  return replace_line(std::move(html), "<!-- viewer.js -->", "<script>\n" + js + "\n</script>");
+  return replace_line(std::move(html), "<!-- viewer script -->", "<script>\n" + js + "\n</script>");
 }
 
 }  // namespace tfm

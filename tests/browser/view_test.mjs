@@ -183,7 +183,7 @@ async function checkAccess(srv, label) {
   const page = await fetch(srv.url);
   const html = await page.text();
   check(`${label}: the page is one document with its CSS and JavaScript inlined`,
-    page.status === 200 && html.includes('<style>') && html.includes('window.tfmViewer') && !html.includes('<!-- viewer.js -->'),
+    page.status === 200 && html.includes('<style>') && html.includes('window.tfmViewer') && !html.includes('<!-- viewer script -->'),
     `status ${page.status}, ${html.length} bytes`);
 }
 

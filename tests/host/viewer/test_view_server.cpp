@@ -3,11 +3,15 @@
 // keeps serving, the device held by a job answering 503.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include "camera.h"
+#include "cli_runner.h"
 #include "cancellation.h"
 #include "png_io.h"
 #include "render.h"
@@ -66,6 +70,34 @@ TEST_F(ViewServerTest, EveryRequestNeedsTheToken) {
   EXPECT_NE(server_->url().find("http://127.0.0.1:" + std::to_string(server_->port()) + "/?token="), std::string::npos);
 }
 
+// The page from its source folder (TFMATCH_VIEW_ASSETS, for editing without a rebuild) is the page
+// built in, byte for byte; every script file of the folder is one of the parts joined, so a new
+// part cannot be left out of the page; a folder that lacks a part is an error naming it.
+TEST(ViewPage, TheSourceFolderGivesTheBuiltInPageFromEveryScriptPart) {
+  const std::filesystem::path page = std::filesystem::path(TFMATCH_SOURCE_DIR) / "host" / "viewer" / "page";
+  EXPECT_EQ(view_page_html(page.string()), view_page_html());
+  std::vector<std::string> scripts;
+  for (const auto& entry : std::filesystem::directory_iterator(page))
+    if (entry.path().extension() == ".js") scripts.push_back(entry.path().filename().string());
+  std::vector<std::string> parts = view_page_script_parts();
+  ASSERT_FALSE(parts.empty());
+  EXPECT_EQ(parts.front(), "viewer_core.js");
+  EXPECT_EQ(parts.back(), "viewer_start.js");
+  std::sort(scripts.begin(), scripts.end());
+  std::sort(parts.begin(), parts.end());
+  EXPECT_EQ(scripts, parts);
+
+  test::TempDir dir;
+  for (const char* name : {"index.html", "viewer.css", "viewer_core.js"})
+    std::filesystem::copy_file(page / name, std::filesystem::path(dir.path) / name);
+  try {
+    view_page_html(dir.path.string());
+    ADD_FAILURE() << "a folder without viewer_views.js gave a page";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("viewer_views.js: cannot read the viewer page file"), std::string::npos) << e.what();
+  }
+}
+
 // The library refuses an address that is none, as the command line does: an empty one listened
 // on an interface of httplib's choosing while url() named 127.0.0.1.
 TEST_F(ViewServerTest, AnEmptyAddressIsRefused) {
@@ -83,7 +115,7 @@ TEST_F(ViewServerTest, ServesThePageWithItsScriptAndStyleInlined) {
   EXPECT_NE(r->get_header_value("Content-Type").find("text/html"), std::string::npos);
   EXPECT_NE(r->body.find("<script>"), std::string::npos);
   EXPECT_NE(r->body.find("<style>"), std::string::npos);
-  EXPECT_EQ(r->body.find("<!-- viewer.js -->"), std::string::npos);
+  EXPECT_EQ(r->body.find("<!-- viewer script -->"), std::string::npos);
   // Nothing from the network: no external script, style or font.
   EXPECT_EQ(r->body.find("src=\"http"), std::string::npos);
   EXPECT_EQ(r->body.find("href=\"http"), std::string::npos);
