@@ -5,6 +5,7 @@
 #include <sys/socket.h>
 
 #include <algorithm>
+#include <atomic>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -202,6 +203,7 @@ struct ViewServer::Impl {
   ProgressPublisher publisher;
   httplib::Server server;
   std::thread thread;
+  std::atomic<bool> listen_returned{false};
   int port = 0;
   std::string page;  // assembled once (built in) or per request (assets_dir)
 
@@ -482,7 +484,15 @@ ViewServer::~ViewServer() { stop(); }
 
 void ViewServer::start() {
   if (impl_->thread.joinable()) return;
-  impl_->thread = std::thread([impl = impl_.get()] { impl->server.listen_after_bind(); });
+  impl_->listen_returned = false;
+  impl_->thread = std::thread([impl = impl_.get()] {
+    impl->server.listen_after_bind();
+    impl->listen_returned = true;
+  });
+  // httplib's stop() does nothing until the listening thread has begun (is_running()): a stop()
+  // that came first left that thread blocked in accept() and stop()'s join waiting forever. So
+  // start() returns once it listens, or once listening has ended (a failure).
+  while (!impl_->server.is_running() && !impl_->listen_returned) std::this_thread::sleep_for(std::chrono::microseconds(200));
 }
 
 void ViewServer::stop() {

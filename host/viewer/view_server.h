@@ -15,7 +15,7 @@ struct ViewServerOptions {
   std::string bind = "127.0.0.1";  // address to listen on; another than loopback reaches others
   int port = 0;                    // 0: any free port
   std::string token;               // empty: 128 random bits as hex
-  // Serve index.html, viewer.css and viewer.js from this directory instead of the copies built
+  // Serve index.html, viewer.css and viewer_*.js from this directory instead of the copies built
   // into the binary (editing the page without rebuilding); empty: built in.
   std::string assets_dir;
   uint32_t device_requests_per_second = 40;  // renders, slices, plots, metrics: more get 429
@@ -39,7 +39,7 @@ class ViewServer {
   ViewServer(const ViewServer&) = delete;
   ViewServer& operator=(const ViewServer&) = delete;
 
-  void start();  // serves on a thread of its own until stop()
+  void start();  // serves on a thread of its own until stop(); returns once it listens
   void stop();
 
   int port() const;
