@@ -274,13 +274,13 @@ static std::pair<std::array<uint64_t, 3>, ScalarType> raw_layout(const std::file
     auto dims_text = [](const std::array<uint64_t, 3>& d) {
       return std::to_string(d[0]) + "x" + std::to_string(d[1]) + "x" + std::to_string(d[2]);
     };
-    if (dims && *dims != named)
-      throw std::runtime_error(path.string() + ": the file name says " + dims_text(named) + " but " + parameter("dims") +
-                               " says " + dims_text(*dims) + ": rename the file or leave out " + parameter("dims"));
+    auto disagree = [&](const std::string& option, const std::string& by_name, const std::string& by_option) {
+      return std::runtime_error(path.string() + ": the file name says " + by_name + " but " + parameter(option) +
+                                " says " + by_option + ": rename the file or leave out " + parameter(option));
+    };
+    if (dims && *dims != named) throw disagree("dims", dims_text(named), dims_text(*dims));
     if (type != ScalarType::Unknown && named_type != ScalarType::Unknown && type != named_type)
-      throw std::runtime_error(path.string() + ": the file name says " + scalar_type_name(named_type) + " but " +
-                               parameter("type") + " says " + scalar_type_name(type) + ": rename the file or leave out " +
-                               parameter("type"));
+      throw disagree("type", scalar_type_name(named_type), scalar_type_name(type));
     dims = named;
     if (type == ScalarType::Unknown) type = named_type;
   }

@@ -492,7 +492,8 @@ void ViewServer::start() {
   // httplib's stop() does nothing until the listening thread has begun (is_running()): a stop()
   // that came first left that thread blocked in accept() and stop()'s join waiting forever. So
   // start() returns once it listens, or once listening has ended (a failure).
-  while (!impl_->server.is_running() && !impl_->listen_returned) std::this_thread::sleep_for(std::chrono::microseconds(200));
+  while (!impl_->server.is_running() && !impl_->listen_returned)
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
 }
 
 void ViewServer::stop() {

@@ -68,8 +68,10 @@ TEST_F(CliErrors, RawWithoutDimensions) {
 // that looks plausible (4x4x4 floats read as 2x4x8 is a reshuffled field); both used to be
 // silently overridden by the option.
 TEST_F(CliErrors, RawNameAndOptionsThatDisagree) {
-  expect_failure(ok_inputs() + " --dims 2,4,8", {"ref_4x4x4_float32.raw", "the file name says 4x4x4", "--dims says 2x4x8"});
-  expect_failure(ok_inputs() + " --type int32", {"ref_4x4x4_float32.raw", "the file name says float32", "--type says int32"});
+  expect_failure(ok_inputs() + " --dims 2,4,8",
+                 {"ref_4x4x4_float32.raw", "the file name says 4x4x4", "--dims says 2x4x8"});
+  expect_failure(ok_inputs() + " --type int32",
+                 {"ref_4x4x4_float32.raw", "the file name says float32", "--type says int32"});
   // Options that agree with the name, or that a plain file needs, still read.
   auto agree = run_cli("optimize --out " + dir / "agree.json" + " " + ok_inputs() + " --dims 4,4,4 --type float32");
   EXPECT_EQ(agree.exit_code, 0) << agree.output;

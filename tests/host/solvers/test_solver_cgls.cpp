@@ -139,7 +139,8 @@ TEST_F(SolverCgls, IterationCapStopsAndWarns) {
   EXPECT_GT(out.details["relative_residual"].get<double>(), 1e-6);
   ASSERT_EQ(out.warnings.size(), 1u);
   EXPECT_NE(out.warnings[0].find("CGLS stopped at --max-iterations 3"), std::string::npos) << out.warnings[0];
-  EXPECT_NE(out.warnings[0].find("normal-equations and qp solve the same regularized system exactly"), std::string::npos);
+  EXPECT_NE(out.warnings[0].find("normal-equations and qp solve the same regularized system exactly"),
+            std::string::npos);
   EXPECT_EQ(out.warnings[0].find("no smaller than at the start"), std::string::npos) << out.warnings[0];
   s.extra["tolerance"] = "2";
   EXPECT_THROW(p.solve(ctx(), "cgls", s), std::runtime_error);

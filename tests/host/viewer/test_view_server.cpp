@@ -94,7 +94,8 @@ TEST(ViewPage, TheSourceFolderGivesTheBuiltInPageFromEveryScriptPart) {
     view_page_html(dir.path.string());
     ADD_FAILURE() << "a folder without viewer_views.js gave a page";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("viewer_views.js: cannot read the viewer page file"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("viewer_views.js: cannot read the viewer page file"), std::string::npos)
+        << e.what();
   }
 }
 
