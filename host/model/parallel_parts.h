@@ -31,11 +31,14 @@ auto in_parts(size_t n, size_t min_part, Part&& part) -> std::vector<std::invoke
       errors[i] = std::current_exception();
     }
   };
-  std::vector<std::thread> helpers;
-  helpers.reserve(parts - 1);
-  for (size_t i = 1; i < parts; ++i) helpers.emplace_back(run, i);
-  run(0);
-  for (auto& t : helpers) t.join();
+  {
+    // jthreads: should starting one fail, the ones already running are joined before the error
+    // leaves (a std::thread still joinable when destroyed ends the program).
+    std::vector<std::jthread> helpers;
+    helpers.reserve(parts - 1);
+    for (size_t i = 1; i < parts; ++i) helpers.emplace_back(run, i);
+    run(0);
+  }
   for (auto& e : errors)
     if (e) std::rethrow_exception(e);
   std::vector<Result> out;

@@ -212,10 +212,13 @@ std::vector<float> correlation_field_cpu(const EnsembleView& ens, std::span<cons
       for (uint32_t i = 0; i < count; ++i) out[v0 + i] = voxel_value(ref, block.data() + size_t(i) * ens.member_count, s);
     }
   };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
-  work();
-  for (std::thread& t : pool) t.join();
+  {
+    // jthreads: joined however this block is left (a failed start, an exception on this thread),
+    // before `out` and the counter they use go away.
+    std::vector<std::jthread> pool;
+    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
+    work();
+  }
   return out;
 }
 

@@ -2,6 +2,7 @@
 #include "normal_equations_cpu.h"
 
 #include <algorithm>
+#include <exception>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -43,19 +44,28 @@ NormalEquations assemble_normal_equations_cpu_threaded(std::span<const float> re
   if (ref.size() != opt.size()) throw std::invalid_argument("assemble_normal_equations_cpu_threaded: size mismatch");
   if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
   std::vector<NormalEquations> parts(threads, NormalEquations(opt_map.tf_size));
-  std::vector<std::thread> workers;
-  for (unsigned t = 0; t < threads; ++t)
-    workers.emplace_back([&, t] {
-      const size_t begin = ref.size() * t / threads, end = ref.size() * (t + 1) / threads;
-      // Each thread sums into a system of its own stack, not into parts[t]: the vector's elements
-      // are adjacent, and the per-voxel counters of neighbouring threads shared cache lines
-      // (false sharing made this loop up to 1.7x slower, depending on the struct's layout).
-      NormalEquations local(opt_map.tf_size);
-      accumulate_normal_equations_cpu(local, ref.subspan(begin, end - begin), opt.subspan(begin, end - begin),
-                                      ref_map, opt_map, ref_tf);
-      parts[t] = std::move(local);
-    });
-  for (std::thread& w : workers) w.join();
+  std::vector<std::exception_ptr> errors(threads);
+  {
+    // jthreads: joined however this block is left; what a worker throws is rethrown below.
+    std::vector<std::jthread> workers;
+    for (unsigned t = 0; t < threads; ++t)
+      workers.emplace_back([&, t] {
+        try {
+          const size_t begin = ref.size() * t / threads, end = ref.size() * (t + 1) / threads;
+          // Each thread sums into a system of its own stack, not into parts[t]: the vector's
+          // elements are adjacent, and the per-voxel counters of neighbouring threads shared cache
+          // lines (false sharing made this loop up to 1.7x slower, depending on the struct's layout).
+          NormalEquations local(opt_map.tf_size);
+          accumulate_normal_equations_cpu(local, ref.subspan(begin, end - begin), opt.subspan(begin, end - begin),
+                                          ref_map, opt_map, ref_tf);
+          parts[t] = std::move(local);
+        } catch (...) {
+          errors[t] = std::current_exception();
+        }
+      });
+  }
+  for (const std::exception_ptr& e : errors)
+    if (e) std::rethrow_exception(e);
   NormalEquations total = std::move(parts[0]);
   for (unsigned t = 1; t < threads; ++t) {
     for (uint32_t j = 0; j < total.n; ++j) total.diag[j] += parts[t].diag[j];

@@ -208,6 +208,8 @@ TEST(AssemblyCpuLoop, ThreadedMatchesOneThread) {
     for (uint32_t j = 0; j + 1 < 64; ++j) EXPECT_NEAR(many.off[j], one.off[j], 1e-12 * one.off[j]);
     for (int c = 0; c < 4; ++c) EXPECT_NEAR(many.btb[c], one.btb[c], 1e-12 * one.btb[c]);
   }
+  // What a worker throws reaches the caller (it ended the program through std::terminate).
+  EXPECT_THROW(assemble_normal_equations_cpu_threaded(p.ref, p.opt, rm, om, random_tf(9, 32), 3), std::invalid_argument);
 }
 
 // Private passes: every one of the 11 bin terms in exactly one pass, in order, each pass's
