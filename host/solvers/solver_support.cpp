@@ -101,6 +101,7 @@ SolveResult solve_and_record(const NormalEquations& eq, const SolveOptions& opti
   out.warnings = r.warnings;
   out.details["factorization"] = r.factorization;
   out.details["cond"] = cond_detail(r.cond);
+  out.details["error_amplification"] = cond_detail(r.error_amplification);  // what the warning weighs
   out.details["clamped_values"] = r.clamped_values;
   out.details["unreferenced_entries"] = r.unreferenced_entries;
   return r;

@@ -12,6 +12,7 @@
 #include "gpu_voxel_ops.h"
 #include "normal_equations.h"
 #include "optimize.h"
+#include "solver_problem.h"
 #include "synthetic.h"
 #include "vk_test_env.h"
 
@@ -244,6 +245,20 @@ TEST(NormalEquationsSolver, ErrorAmplificationMatchesDenseEigenvalues) {
 }
 
 using SolverGpuTest = test::GpuTest;
+
+// The solver's details carry what the warning weighs beside cond(M + R): smoothing raises cond,
+// not the error amplification, and neither warns here.
+TEST_F(SolverGpuTest, DetailsCarryTheErrorAmplification) {
+  test::SolverProblem p = test::make_solver_problem(5000, 16, 12, 0.2, 0.8, 3);
+  p.upload(ctx());
+  SolverSettings s;
+  s.solve.smooth = 1e4;
+  const SolverOutput out = p.solve(ctx(), "normal-equations", s);
+  ASSERT_TRUE(out.details["cond"].is_number() && out.details["error_amplification"].is_number());
+  EXPECT_GT(out.details["cond"].get<double>(), 1e4);
+  EXPECT_LT(out.details["error_amplification"].get<double>(), 1e2);
+  EXPECT_TRUE(out.warnings.empty());
+}
 
 // GPU-assembled and CPU-assembled systems give the same TF (to cond * assembly error).
 TEST_F(SolverGpuTest, GpuAssemblyGivesTheSameSolution) {
