@@ -26,13 +26,13 @@ void check_reference_point(const EnsembleView& ens, uint64_t voxel, CorrelationM
     if (std::isnan(s[m]))
       throw std::invalid_argument("the reference point has no data in member " + std::to_string(m) +
                                   " (a NaN or fill value): every correlation with it would be NaN; choose another point");
-    // +-Inf is a value: the rank and neighbour measures order it beyond every finite one; a mean
-    // or equal-width bins over it have none.
+    // +-Inf is a value: the rank measures order it beyond every finite one; a mean, equal-width
+    // bins or neighbour distances over it have none (needs_finite_members).
     if (std::isinf(s[m]) && needs_finite_members(measure))
       throw std::invalid_argument("the reference point's value in member " + std::to_string(m) + " is " +
                                   (s[m] > 0 ? "+inf" : "-inf") + ": " + correlation_measure_name(measure) +
                                   " of a series with an infinite value has none (NaN everywhere); choose another "
-                                  "point, or a rank measure (spearman, kendall, mi-kraskov)");
+                                  "point, or a rank measure (spearman, kendall)");
   }
   const bool needs_variance = measure == CorrelationMeasure::Pearson || measure == CorrelationMeasure::Spearman ||
                               measure == CorrelationMeasure::Kendall;

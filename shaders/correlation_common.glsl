@@ -134,7 +134,8 @@ vec4 corr_value_stats(bool no_value, float y) {
 vec4 corr_stats_term(float y) { return corr_value_stats(isnan(y), y); }
 #define CORR_STATS_EMPTY vec4(0.0, CORR_INF, -CORR_INF, 0.0)
 // The same where an infinite member has no value either (needs_finite_members: mi-binned's bins
-// over the range, mi-kraskov's neighbour distances; pearson keeps its own flags). any(), not ||, which glslang compiles to a branch.
+// over the range, mi-kraskov's neighbour distances; pearson keeps its own flags). any(), not ||,
+// which glslang compiles to a branch.
 vec4 corr_finite_stats_term(float y) { return corr_value_stats(any(bvec2(isnan(y), isinf(y))), y); }
 
 // Writes the voxel's result once (by the first invocation of its workgroup).

@@ -115,6 +115,10 @@ TEST_F(CorrelateCli, BadEnsemblesFailClearlyAndWriteNothing) {
   holed.values[0] = -INFINITY;
   write_vti(dir / "member_105.vti", holed, "t");
   fails("--members " + members + " --point 0,0,0", {"member 5 is -inf", "pearson", "spearman"});
+  // It suggests only measures that take the point: not the Kraskov ones, which refuse it too.
+  const auto suggested = run_cli("correlate --members " + members + " --point 0,0,0 --out " + out);
+  EXPECT_EQ(suggested.output.find("mi-kraskov"), std::string::npos) << suggested.output;
+  fails("--members " + members + " --point 0,0,0 --measure mi-kraskov", {"member 5 is -inf", "mi-kraskov"});
   fails("--members " + members + " --point 0,0,0 --measure mi-binned", {"member 5 is -inf", "mi-binned"});
   const auto ranked = run_cli("correlate --members " + members + " --point 0,0,0 --measure kendall --out " + out);
   EXPECT_EQ(ranked.exit_code, 0) << ranked.output;

@@ -250,7 +250,8 @@ void require_numbers(CLI::App& app) {
     if (is_unsigned)
       option->check(CLI::Validator(
           [](std::string& text) -> std::string {
-            if (text[text.find_first_not_of(" \t")] == '-') return "expected a number >= 0, got '" + text + "'";
+            const size_t first = text.find_first_not_of(" \t");
+            if (first != std::string::npos && text[first] == '-') return "expected a number >= 0, got '" + text + "'";
             return {};
           },
           ""));
