@@ -5,6 +5,7 @@
 #include <cfloat>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 #include "cancellation.h"
 
@@ -198,6 +199,24 @@ Eigen::MatrixXd solve_tridiagonal_ldlt(const Tridiagonal& t, const Eigen::Matrix
   factor_and_forward(t, -1.0, {}, x, pivot, l, kind);
   backward(pivot, l, kind, x);
   return x;
+}
+
+TridiagonalLdlt factor_positive_definite(const Tridiagonal& t) {
+  check_sizes(t, -1);
+  const size_t n = t.diag.size();
+  TridiagonalLdlt f{std::vector<double>(n), std::vector<double>(n - 1)};
+  for (size_t j = 0; j < n; ++j) {
+    double p = t.diag[j];
+    if (j > 0) {
+      f.lower[j - 1] = t.off[j - 1] / f.pivot[j - 1];
+      p -= f.lower[j - 1] * t.off[j - 1];
+    }
+    if (!(p > 0.0) || !std::isfinite(p))
+      throw std::invalid_argument("LDL^T: the tridiagonal matrix is not positive definite (pivot " +
+                                  std::to_string(j) + " is " + std::to_string(p) + ")");
+    f.pivot[j] = p;
+  }
+  return f;
 }
 
 std::pair<double, double> tridiagonal_extreme_eigenvalues(const Tridiagonal& t) {

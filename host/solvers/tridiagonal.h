@@ -52,6 +52,16 @@ MinNormSolve solve_psd_tridiagonal_min_norm(const Tridiagonal& t, const Eigen::M
 // LDL^T without any rank decision (a zero pivot gives inf/NaN in x): O(n k).
 Eigen::MatrixXd solve_tridiagonal_ldlt(const Tridiagonal& t, const Eigen::MatrixXd& b);
 
+// L D L^T of a symmetric positive definite tridiagonal T: pivots D_j (n) and multipliers
+// lower[j] = L_{j+1,j} (n-1), so that T = L diag(pivot) L^T with L unit lower bidiagonal. For
+// preconditioners (the cgls solver's): O(n), no rank decision. Throws std::invalid_argument when
+// the sizes disagree or a pivot is not positive (T is not positive definite).
+struct TridiagonalLdlt {
+  std::vector<double> pivot;
+  std::vector<double> lower;
+};
+TridiagonalLdlt factor_positive_definite(const Tridiagonal& t);
+
 // The smallest and largest eigenvalue of a symmetric tridiagonal matrix, by bisection on Sturm
 // counts from the Gershgorin interval: O(n) per step, about 100 steps, absolute error within a few
 // units of roundoff times the matrix norm (as a QR iteration's) and relative error ~1e-15 for

@@ -247,6 +247,35 @@ TEST(Tridiagonal, RejectsMismatchedSizes) {
   EXPECT_THROW(tridiagonal_extreme_eigenvalues(Tridiagonal{}), std::invalid_argument);
 }
 
+// L D L^T of positive definite matrices (the cgls preconditioner's diag(M) + s D^T D, heavy and
+// light smoothing, and a random diagonally dominant one) multiplies back to T within roundoff; an
+// indefinite or singular matrix and mismatched sizes are refused.
+TEST(Tridiagonal, PositiveDefiniteFactorsMultiplyBack) {
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const uint32_t n = 37;
+  for (const double smooth : {0.0, 1e-3, 1.0, 1e8}) {
+    Tridiagonal t;
+    for (uint32_t j = 0; j < n; ++j) t.diag.push_back(31.0 + 100.0 * u(rng) + smooth * ((j > 0) + (j + 1 < n)));
+    for (uint32_t j = 0; j + 1 < n; ++j) t.off.push_back(smooth > 0.0 ? -smooth : 30.0 * (u(rng) - 0.5));
+    const TridiagonalLdlt f = factor_positive_definite(t);
+    ASSERT_EQ(f.pivot.size(), n);
+    ASSERT_EQ(f.lower.size(), n - 1);
+    Eigen::MatrixXd l = Eigen::MatrixXd::Identity(n, n), dense = Eigen::MatrixXd::Zero(n, n);
+    for (uint32_t j = 0; j + 1 < n; ++j) l(j + 1, j) = f.lower[j];
+    for (uint32_t j = 0; j < n; ++j) {
+      EXPECT_GT(f.pivot[j], 0.0);
+      dense(j, j) = t.diag[j];
+      if (j + 1 < n) dense(j, j + 1) = dense(j + 1, j) = t.off[j];
+    }
+    const Eigen::MatrixXd back = l * Eigen::VectorXd::Map(f.pivot.data(), n).asDiagonal() * l.transpose();
+    EXPECT_LE(max_abs(back - dense), 1e-14 * max_abs(dense)) << "smooth " << smooth;
+  }
+  EXPECT_THROW(factor_positive_definite(Tridiagonal{{1.0, 1.0}, {1.0}}), std::invalid_argument);   // singular
+  EXPECT_THROW(factor_positive_definite(Tridiagonal{{1.0, -2.0}, {0.5}}), std::invalid_argument);  // indefinite
+  EXPECT_THROW(factor_positive_definite(Tridiagonal{{1.0, 1.0}, {}}), std::invalid_argument);
+}
+
 // The box-constrained solver on runs of single-weight cells (singular without zero rows),
 // against exhaustive enumeration of active sets on the explicit S for N = 6.
 TEST(Tridiagonal, BoxConstrainedSingularRunsMatchEnumeration) {
