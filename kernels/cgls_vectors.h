@@ -14,10 +14,18 @@ namespace tfm {
 
 class Context;
 
+// The preconditioner P = L D L^T (L unit lower bidiagonal) applied to s each iteration.
+struct CglsPreconditioner {
+  const Buffer* inv_pivot = nullptr;  // N floats: 1 / D_j (0: entry j stays 0)
+  const Buffer* lower = nullptr;      // N floats: L_{j+1,j} (the last unused)
+  Buffer* z = nullptr;                // N RGBA of scratch, written when bidiagonal
+  bool bidiagonal = false;            // false: L = I (Jacobi), z = s / D_j entry by entry
+};
+
 struct CglsBuffers {
   const Buffer* s_accum = nullptr;      // signed S^T r slots (signed_accumulator_bytes(N))
   const Buffer* delta_accum = nullptr;  // ||S p||^2 (TFM_GATHER_NORM_SLOTS unsigned slots)
-  const Buffer* inv_diag = nullptr;     // N floats
+  CglsPreconditioner preconditioner;
   Buffer* x = nullptr;                  // N RGBA
   Buffer* p = nullptr;                  // N RGBA
   Buffer* state = nullptr;              // gpu::CglsState
@@ -27,7 +35,8 @@ class CglsVectorsKernel {
  public:
   explicit CglsVectorsKernel(Context& ctx);
   // Records one stage (TFM_CGLS_STAGE_*). ridge/smooth are absolute weights; the stop test is
-  // ||s||^2 <= tolerance^2 ||s0||^2. Throws std::invalid_argument when a buffer is missing or small.
+  // ||s||^2 <= tolerance^2 ||s0||^2, or the float32 floor of solver_layout.h under regularization.
+  // Throws std::invalid_argument when a buffer is missing or small.
   void record(CommandBatch& batch, uint32_t stage, uint32_t tf_size, float ridge, float smooth, float tolerance,
               const CglsBuffers& buffers) const;
 

@@ -99,18 +99,24 @@ TFM_PUSH_CONSTANTS(SparsePush) {
 } TFM_PUSH_INSTANCE(pc);
 #endif
 
-// ---- cgls_vectors.comp: the TF-sized steps of Jacobi-preconditioned CGLS, four channels at once --
+// ---- cgls_vectors.comp: the TF-sized steps of preconditioned CGLS, four channels at once ---------
+// The preconditioner P = L D L^T (L unit lower bidiagonal): Jacobi, diag(M + R), without
+// smoothing; diag(M) + R with it, so the smoothing is inverted exactly (cgls_preconditioner()).
 // Specialization: workgroup size (a power of two) only.
 #define TFM_CGLS_BINDING_S_ACCUM 0     // signed slots of S^T r (from sparse_scatter)
 #define TFM_CGLS_BINDING_DELTA_ACCUM 1 // ||S p||^2 (from sparse_gather)
-#define TFM_CGLS_BINDING_INV_DIAG 2    // 1 / diag(M + R) per entry, 0 for unreferenced entries
+#define TFM_CGLS_BINDING_INV_PIVOT 2   // 1 / D_j per entry, 0 for an entry that stays 0
 #define TFM_CGLS_BINDING_X 3
 #define TFM_CGLS_BINDING_P 4
 #define TFM_CGLS_BINDING_STATE 5
+#define TFM_CGLS_BINDING_LOWER 6       // L_{j+1,j} per entry (N floats, the last unused)
+#define TFM_CGLS_BINDING_Z 7           // N RGBA: z = P^-1 s, written only when P is not diagonal
 
-#define TFM_CGLS_STAGE_INIT 0u       // s = S^T b, z = D^-1 s, p = z, gamma = s.z, x = 0
+#define TFM_CGLS_STAGE_INIT 0u       // s = S^T b, z = P^-1 s, p = z, gamma = s.z, x = 0
 #define TFM_CGLS_STAGE_STEP 1u       // delta = ||S p||^2 + p.R p, alpha = gamma / delta, x += alpha p
-#define TFM_CGLS_STAGE_DIRECTION 2u  // s = S^T r - R x, z = D^-1 s, beta, p = z + beta p, stop test
+#define TFM_CGLS_STAGE_DIRECTION 2u  // s = S^T r - R x, z = P^-1 s, beta, p = z + beta p, stop test
+// Stop test: ||s||^2 <= max(tolerance2 ||s0||^2, (u (ridge + 4 smooth))^2 ||x||^2), u = 2^-24: the
+// tolerance, or the float32 floor below which R's action on the rounding of x hides the residual.
 
 // Per-channel scalars of the four CGLS runs (std430: vec4/uvec4 members, no padding).
 struct CglsState {
@@ -129,8 +135,9 @@ TFM_PUSH_CONSTANTS(CglsPush) {
   uint stage;         // TFM_CGLS_STAGE_*
   float ridge_weight;      // absolute weights of R = ridge I + smooth D^T D
   float smooth_weight;
-  float tolerance2;   // stop when ||s||^2 <= tolerance2 * ||s0||^2
-  uint pad0, pad1, pad2;
+  float tolerance2;   // stop when ||s||^2 <= tolerance2 * ||s0||^2 (or at the float32 floor)
+  uint bidiagonal;    // 1: L has multipliers (substitution, serial); 0: P = D (entry by entry)
+  uint pad1, pad2;
 } TFM_PUSH_INSTANCE(pc);
 #endif
 

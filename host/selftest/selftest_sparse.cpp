@@ -9,8 +9,8 @@
 
 #include <Eigen/Dense>
 
-#include "cgls_vectors.h"
 #include "commands.h"
+#include "device_cgls.h"
 #include "gpu_voxel_ops.h"
 #include "normal_equations_cpu.h"
 #include "selftest_support.h"
@@ -229,15 +229,19 @@ struct CglsCase {
   size_t voxels;
   uint32_t tf_size;
   uint64_t field_chunk = 0, vector_chunk = 0;
+  double smooth = 0.05;     // relative to the mean diagonal of M (the ridge is 0.1)
+  bool bidiagonal = false;  // precondition with diag(M) + R (L D L^T) instead of diag(M + R)
 };
 
-// One Jacobi-preconditioned CGLS solve on the device (sparse_prepare, sparse_gather with the
-// scaled norm, sparse_scatter with and without the residual update, and the three cgls_vectors
-// stages, recorded as host/solvers/solver_cgls.cpp does) against (M + R) x = S^T b solved densely
-// in double from the CPU assembly. R = ridge I + smooth D^T D with weights 10% and 5% of the mean
-// diagonal keep the scaled condition number small, so (tests/host/solvers/test_solver_cgls.cpp): with the stop
-// test at 1e-6, |x - x*| <~ cond * 1e-6 |x*| plus float iterates' ~1e-6; 1e-4 max(1, |x*|)
-// bounds both with margin.
+// One preconditioned CGLS solve on the device (sparse_prepare, sparse_gather with the scaled norm,
+// sparse_scatter with and without the residual update, and the three cgls_vectors stages, as
+// kernels/device_cgls.h records them for the `cgls` solver) against (M + R) x = S^T b solved
+// densely in double from the CPU assembly. R = ridge I + smooth D^T D. Jacobi (diag(M + R)) with
+// weights 10% and 5% of the mean diagonal keeps the scaled condition number small; diag(M) + R,
+// factored here by its own L D L^T, keeps it as small under smoothing 1000 times the data. So
+// (tests/host/solvers/test_solver_cgls.cpp): with the stop test at 1e-6, |x - x*| <~ cond * 1e-6
+// |x*| plus float iterates' ~1e-6; 1e-4 max(1, |x*|) bounds both with margin. The bidiagonal
+// case must also converge in at most N iterations (Jacobi needs hundreds at that smoothing).
 void cgls(Context& ctx, Check& check, const CglsCase& c) {
   const uint32_t n = c.tf_size;
   Problem p(ctx, c.voxels, n, 41, c.field_chunk, c.vector_chunk);
@@ -245,66 +249,54 @@ void cgls(Context& ctx, Check& check, const CglsCase& c) {
       assemble_normal_equations_cpu(p.fields.ref, p.fields.opt, p.ref_map, p.opt_map, p.ref_tf);
   check.require(eq.voxels > 0, "no voxel has data in both fields");
   const double mean_diag = double(eq.voxels) / n;  // sum of M's rows is the voxel count
-  const float ridge = float(0.1 * mean_diag), smooth = float(0.05 * mean_diag);
+  const float ridge = float(0.1 * mean_diag), smooth = float(c.smooth * mean_diag);
   Eigen::MatrixXd h = eq.dense_m();
   for (uint32_t j = 0; j < n; ++j) {
     h(j, j) += double(ridge) + double(smooth) * ((j > 0) + (j + 1 < n));
     if (j + 1 < n) h(j, j + 1) -= double(smooth), h(j + 1, j) -= double(smooth);
   }
-  std::vector<float> inv_diag(n);
-  for (uint32_t j = 0; j < n; ++j) inv_diag[j] = float(1.0 / h(j, j));
+  CglsFactors factors;
+  factors.inv_pivot.resize(n);
+  if (c.bidiagonal) {  // L D L^T of diag(h) with R's off-diagonal -smooth
+    double pivot = h(0, 0);
+    factors.inv_pivot[0] = float(1.0 / pivot);
+    for (uint32_t j = 1; j < n; ++j) {
+      const double l = -double(smooth) / pivot;
+      pivot = h(j, j) + l * double(smooth);
+      factors.lower.push_back(float(l));
+      factors.inv_pivot[j] = float(1.0 / pivot);
+    }
+  } else {
+    for (uint32_t j = 0; j < n; ++j) factors.inv_pivot[j] = float(1.0 / h(j, j));
+  }
   const Eigen::Matrix<double, Eigen::Dynamic, 4> exact = h.ldlt().solve(eq.rhs);
 
   VoxelVectors& vectors = *p.vectors;
-  Buffer inv_diag_buffer = make_buffer<float>(ctx, inv_diag, "selftest CGLS inverse diagonal");
-  Buffer s_accum(ctx, signed_accumulator_bytes(n), MemoryUsage::Device, "selftest CGLS S^T r");
-  Buffer delta_accum(ctx, TFM_GATHER_NORM_SLOTS * 8, MemoryUsage::Device, "selftest CGLS ||S p||^2");
-  Buffer x(ctx, uint64_t(n) * 16, MemoryUsage::Device, "selftest CGLS x");
-  Buffer dir(ctx, uint64_t(n) * 16, MemoryUsage::Device, "selftest CGLS p");
-  Buffer state(ctx, sizeof(gpu::CglsState), MemoryUsage::Device, "selftest CGLS state");
   const SparsePrepareKernel prepare_kernel(ctx);
-  const SparseGatherKernel gather_kernel(ctx, false, true, true);
-  const SparseScatterKernel scatter_kernel(ctx, n, false), update_kernel(ctx, n, true);
-  const CglsVectorsKernel vectors_kernel(ctx);
-  const CglsBuffers buffers{&s_accum, &delta_accum, &inv_diag_buffer, &x, &dir, &state};
-  const float tolerance = 1e-6f;
+  DeviceCgls device(ctx, n, factors, {ridge, smooth, 1e-6f});
   {
     CommandBatch batch(ctx);
     prepare_kernel.record(batch, *p.ref, *p.opt, p.ref_map, p.opt_map, p.ref_tf_buffer, vectors);
-    batch.fill(s_accum, 0u);
-    // Coordinates, b and the zeroed accumulators are written before the scatter reads them.
-    batch.barrier();
-    scatter_kernel.record(batch, vectors, s_accum);  // s0 = S^T b (ends with a barrier)
-    vectors_kernel.record(batch, TFM_CGLS_STAGE_INIT, n, ridge, smooth, tolerance, buffers);
+    device.record_start(batch, vectors);
     batch.submit_and_wait();
   }
-  gpu::CglsState st{};
-  readback(ctx, state, &st, sizeof(st));
+  gpu::CglsState st = device.read_state(ctx);
   auto running = [&st] { return st.running.x | st.running.y | st.running.z | st.running.w; };
   const uint32_t max_iterations = 4 * n + 20;
   for (uint32_t done = 0; running() && done < max_iterations; done += 4) {
     CommandBatch batch(ctx);
-    for (int k = 0; k < 4; ++k) {
-      batch.fill(delta_accum, 0u);
-      // The zeroed accumulator (and p of the previous direction stage) before the gather.
-      batch.barrier();
-      gather_kernel.record(batch, vectors, n, dir, delta_accum, &state);  // ends with a barrier
-      vectors_kernel.record(batch, TFM_CGLS_STAGE_STEP, n, ridge, smooth, tolerance, buffers);
-      // alpha is written, and the vector stages are done with s, before s is cleared.
-      batch.barrier();
-      batch.fill(s_accum, 0u);
-      batch.barrier();
-      update_kernel.record_update(batch, vectors, dir, state, s_accum);  // ends with a barrier
-      vectors_kernel.record(batch, TFM_CGLS_STAGE_DIRECTION, n, ridge, smooth, tolerance, buffers);
-      // p, x and the state are final before the next iteration reads them.
-      batch.barrier();
-    }
+    for (int k = 0; k < 4; ++k) device.record_iteration(batch, vectors);
     batch.submit_and_wait();
-    readback(ctx, state, &st, sizeof(st));
+    st = device.read_state(ctx);
+  }
+  if (c.bidiagonal) {
+    const uint32_t iterations[4] = {st.iterations.x, st.iterations.y, st.iterations.z, st.iterations.w};
+    for (uint32_t ch = 0; ch < 4; ++ch)
+      check.require(iterations[ch] <= n, "channel " + std::to_string(ch) + " took " + std::to_string(iterations[ch]) +
+                                             " iterations, more than N = " + std::to_string(n));
   }
   // A run that stops at the iteration cap without meeting its stop test is judged by x alone.
-  std::vector<float> xs(size_t(n) * 4);
-  readback(ctx, x, xs.data(), xs.size() * sizeof(float));
+  const std::vector<float> xs = device.read_x(ctx);
   const double bound = 1e-4 * std::max(1.0, exact.cwiseAbs().maxCoeff());
   for (uint32_t j = 0; j < n; ++j)
     for (int ch = 0; ch < 4; ++ch) check.near("x (4j+c)", 4 * j + ch, xs[4 * j + ch], exact(j, ch), bound);
@@ -355,6 +347,7 @@ void add_sparse_cases(CaseList& cases) {
 
   auto add_cgls = [&](const CglsCase& c, bool quick) {
     std::string name = voxels_name(c.voxels) + ", N=" + std::to_string(c.tf_size) + ", regularized solve";
+    if (c.bidiagonal) name += ", smoothing " + std::to_string(int(c.smooth)) + "x inverted by L D L^T";
     if (c.field_chunk) name += ", field chunks of " + std::to_string(c.field_chunk);
     if (c.vector_chunk) name += ", vector chunks of " + std::to_string(c.vector_chunk);
     cases.push_back({"cgls_vectors", "CglsVectorsKernel", name, quick, TFM_VECTOR_WORKGROUP,
@@ -367,6 +360,10 @@ void add_sparse_cases(CaseList& cases) {
   add_cgls({100003, 64, 32768, 8192}, false);
   // More entries than the vector kernel's 256 invocations: each loops over two blocks.
   add_cgls({100003, 300}, false);
+  // Smoothing 1000 times the data's diagonal, preconditioned by diag(M) + R: the substitution
+  // sweeps, and convergence in at most N iterations. One N shared with gather and scatter cases.
+  add_cgls({5000, 64, 0, 0, 1000.0, true}, true);
+  add_cgls({100003, 300, 32768, 8192, 1000.0, true}, false);
 }
 
 }  // namespace tfm::selftest

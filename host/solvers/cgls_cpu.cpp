@@ -1,4 +1,4 @@
-// Jacobi-preconditioned CGLS on an explicit sparse matrix.
+// Preconditioned CGLS on an explicit sparse matrix, in double.
 #include "cgls_cpu.h"
 
 #include <cmath>
@@ -8,20 +8,13 @@
 
 namespace tfm {
 
-CglsResult cgls_jacobi(const Eigen::SparseMatrix<double, Eigen::RowMajor>& a, const Eigen::VectorXd& b,
-                       const Eigen::SparseMatrix<double>& r, const CglsOptions& options) {
+CglsResult cgls_preconditioned(const Eigen::SparseMatrix<double, Eigen::RowMajor>& a, const Eigen::VectorXd& b,
+                               const Eigen::SparseMatrix<double>& r, const CglsPreconditionerFn& inverse,
+                               const CglsOptions& options) {
   const Eigen::Index n = a.cols();
   const bool regularized = r.nonZeros() > 0;
   if (b.size() != a.rows() || (regularized && (r.rows() != n || r.cols() != n)))
-    throw std::invalid_argument("cgls_jacobi: sizes of A, b and R do not match");
-
-  // Jacobi: squared column norms of A plus the diagonal of R.
-  Eigen::VectorXd inv_diag = Eigen::VectorXd::Zero(n);
-  for (Eigen::Index row = 0; row < a.outerSize(); ++row)
-    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(a, row); it; ++it)
-      inv_diag[it.col()] += it.value() * it.value();
-  if (regularized) inv_diag += r.diagonal();
-  for (Eigen::Index j = 0; j < n; ++j) inv_diag[j] = inv_diag[j] > 0.0 ? 1.0 / inv_diag[j] : 0.0;
+    throw std::invalid_argument("cgls: sizes of A, b and R do not match");
 
   CglsResult out;
   out.x = Eigen::VectorXd::Zero(n);
@@ -32,7 +25,7 @@ CglsResult cgls_jacobi(const Eigen::SparseMatrix<double, Eigen::RowMajor>& a, co
     out.converged = true;
     return out;
   }
-  Eigen::VectorXd z = inv_diag.cwiseProduct(s);
+  Eigen::VectorXd z = inverse(s);
   Eigen::VectorXd p = z;
   double gamma = s.dot(z);
   Eigen::VectorXd q, rp;
@@ -51,7 +44,7 @@ CglsResult cgls_jacobi(const Eigen::SparseMatrix<double, Eigen::RowMajor>& a, co
     res -= alpha * q;
     s = a.transpose() * res;
     if (regularized) s -= r * out.x;
-    z = inv_diag.cwiseProduct(s);
+    z = inverse(s);
     const double gamma_new = s.dot(z);
     p = z + (gamma_new / gamma) * p;
     gamma = gamma_new;
@@ -61,6 +54,23 @@ CglsResult cgls_jacobi(const Eigen::SparseMatrix<double, Eigen::RowMajor>& a, co
   }
   out.converged = out.relative_residual <= options.tolerance;
   return out;
+}
+
+CglsResult cgls_jacobi(const Eigen::SparseMatrix<double, Eigen::RowMajor>& a, const Eigen::VectorXd& b,
+                       const Eigen::SparseMatrix<double>& r, const CglsOptions& options) {
+  const Eigen::Index n = a.cols();
+  if (r.nonZeros() > 0 && (r.rows() != n || r.cols() != n))
+    throw std::invalid_argument("cgls_jacobi: sizes of A, b and R do not match");
+  // Jacobi: squared column norms of A plus the diagonal of R.
+  Eigen::VectorXd inv_diag = Eigen::VectorXd::Zero(n);
+  for (Eigen::Index row = 0; row < a.outerSize(); ++row)
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(a, row); it; ++it)
+      inv_diag[it.col()] += it.value() * it.value();
+  if (r.nonZeros() > 0) inv_diag += r.diagonal();
+  for (Eigen::Index j = 0; j < n; ++j) inv_diag[j] = inv_diag[j] > 0.0 ? 1.0 / inv_diag[j] : 0.0;
+  return cgls_preconditioned(
+      a, b, r, [&inv_diag](const Eigen::VectorXd& s) -> Eigen::VectorXd { return inv_diag.cwiseProduct(s); },
+      options);
 }
 
 }  // namespace tfm

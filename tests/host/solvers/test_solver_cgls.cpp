@@ -3,6 +3,8 @@
 // deficient M, the stop test, and bit-identical results across runs.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <random>
 
 #include <Eigen/Dense>
@@ -11,6 +13,7 @@
 #include "eigen_baseline.h"
 #include "solver_cgls.h"
 #include "solver_problem.h"
+#include "tridiagonal.h"
 #include "vk_test_env.h"
 
 namespace tfm {
@@ -118,6 +121,87 @@ TEST_F(SolverCgls, UnreferencedEntriesWithAndWithoutSmoothness) {
   const SolveResult exact_smooth = solve_normal_equations(eq, s.solve);
   EXPECT_TRUE(test::all_finite_in_box(smooth.tf));
   EXPECT_LT(test::max_difference(smooth.tf, exact_smooth.tf), kCglsTolerance);
+}
+
+// Smoothing from as strong as the data to a million times stronger: the preconditioner inverts
+// it exactly, so CGLS converges in a handful of iterations to the regularized normal equations'
+// solution. Jacobi alone (before 2026-12-06) stopped at the 1000-iteration cap from --smooth 100
+// on, with a warning; heavier smoothing ends at the float32 floor, which then says so in the
+// details, not in a warning.
+TEST_F(SolverCgls, HeavySmoothingConvergesInFewIterations) {
+  test::SolverProblem p = test::make_solver_problem(20000, 64, 30, 0.1, 0.9, 11, 0.05);
+  p.upload(ctx());
+  for (const double smooth : {1.0, 100.0, 1e4, 1e6}) {
+    SolverSettings s;
+    s.solve.smooth = smooth;
+    const SolverOutput out = p.solve(ctx(), "cgls", s);
+    const SolveResult exact = solve_normal_equations(p.cpu_equations(), s.solve);
+    EXPECT_LT(test::max_difference(out.tf, exact.tf), kCglsTolerance) << "smooth " << smooth;
+    EXPECT_LE(out.details["iterations"].get<int>(), 16) << "smooth " << smooth;
+    EXPECT_TRUE(out.warnings.empty()) << "smooth " << smooth << ": " << out.warnings.front();
+    const double residual = out.details["relative_residual"].get<double>();
+    const double floor = out.details["residual_floor"].get<double>();
+    EXPECT_LE(residual, std::max(1e-6, floor)) << "smooth " << smooth;
+    EXPECT_GT(floor, 0.0);
+  }
+}
+
+// The double reference of the GPU iteration: the same preconditioned CGLS per channel on the
+// explicit S, its preconditioner diag(S^T S) + R solved densely (no tridiagonal code). At a
+// smoothing whose float32 floor stays below the tolerance, each channel takes the same number of
+// iterations within 2, and both land on the normal equations' solution.
+TEST_F(SolverCgls, SmoothedIterationsMatchTheDoubleReference) {
+  test::SolverProblem p = test::make_solver_problem(12000, 48, 30, 0.1, 0.9, 12, 0.05, 41);
+  p.upload(ctx());
+  SolverSettings settings;
+  settings.solve.smooth = 3.0;
+  settings.extra["tolerance"] = "1e-5";
+  const SolverOutput out = p.solve(ctx(), "cgls", settings);
+  const NormalEquations eq = p.cpu_equations();
+  const Regularization reg = absolute_regularization(eq, settings.solve);
+  const uint32_t n = 48;
+  std::vector<Eigen::Triplet<double>> terms, r_terms;
+  std::vector<std::array<double, 4>> rows_b;
+  for (size_t i = 0; i < p.ref_volume.values.size(); ++i) {
+    uint32_t j;
+    float w;
+    double b[4];
+    if (!p.voxel_terms(i, j, w, b)) continue;
+    const int row = int(rows_b.size());
+    terms.emplace_back(row, int(j), 1.0 - double(w));
+    terms.emplace_back(row, int(j) + 1, double(w));
+    rows_b.push_back({b[0], b[1], b[2], b[3]});
+  }
+  Eigen::SparseMatrix<double, Eigen::RowMajor> a(Eigen::Index(rows_b.size()), n);
+  a.setFromTriplets(terms.begin(), terms.end());
+  for (uint32_t j = 0; j < n; ++j) {
+    r_terms.emplace_back(j, j, reg.smooth * ((j > 0) + (j + 1 < n)));
+    if (j + 1 < n) r_terms.emplace_back(j, j + 1, -reg.smooth), r_terms.emplace_back(j + 1, j, -reg.smooth);
+  }
+  Eigen::SparseMatrix<double> r(n, n);
+  r.setFromTriplets(r_terms.begin(), r_terms.end());
+  Eigen::MatrixXd precond = Eigen::MatrixXd(r);
+  const Eigen::SparseMatrix<double> ata = Eigen::SparseMatrix<double>(a.transpose()) * a;
+  for (uint32_t j = 0; j < n; ++j) precond(j, j) += ata.coeff(j, j);
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(precond);
+  const SolveResult exact = solve_normal_equations(eq, settings.solve);
+  const std::vector<double> gpu_iterations = out.details["iterations_per_channel"].get<DetailValue::Numbers>();
+  ASSERT_EQ(gpu_iterations.size(), 4u);
+  for (int c = 0; c < 4; ++c) {
+    Eigen::VectorXd b(Eigen::Index(rows_b.size()));
+    for (size_t i = 0; i < rows_b.size(); ++i) b[Eigen::Index(i)] = rows_b[i][size_t(c)];
+    CglsOptions o;
+    o.tolerance = 1e-5;
+    const CglsResult cpu = cgls_preconditioned(
+        a, b, r, [&ldlt](const Eigen::VectorXd& v) -> Eigen::VectorXd { return ldlt.solve(v); }, o);
+    ASSERT_TRUE(cpu.converged) << "channel " << c;
+    EXPECT_NEAR(gpu_iterations[size_t(c)], double(cpu.iterations), 2.0) << "channel " << c;
+    for (uint32_t j = 0; j < n; ++j) {
+      EXPECT_NEAR(cpu.x[j], exact.x(j, c), 1e-4) << "channel " << c << " entry " << j;
+      EXPECT_NEAR(out.tf.rgba[j][size_t(c)], std::clamp(exact.x(j, c), 0.0, 1.0), kCglsTolerance)
+          << "channel " << c << " entry " << j;
+    }
+  }
 }
 
 TEST_F(SolverCgls, IsBitIdenticalAcrossRuns) {
