@@ -6,12 +6,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <numbers>
+#include <sstream>
 #include <stdexcept>
 
+#include "box_qp.h"
 #include "cancellation.h"
 #include "commands.h"
 #include "gradient_descent.h"
+#include "parameter_names.h"
 #include "progress.h"
 #include "solver_support.h"
 #include "sparse_ops.h"
@@ -21,6 +25,8 @@ namespace tfm {
 namespace {
 
 constexpr uint32_t kIterationsPerBatch = 32;
+// Farther than this from the optimum (TF units; 2.5 of 255 colour levels) the solver warns.
+constexpr double kDistanceWarning = 1e-2;
 
 }  // namespace
 
@@ -86,6 +92,13 @@ GradientDescentResult solve_gradient_descent_gpu(VoxelProblem& p, const Gradient
   for (double l : loss) total += l;
   // Mean over voxels and RGBA of e^2 (l2) or |e| (l1) at the last gradient evaluation.
   out.last_loss = total / (4.0 * double(js.eq.voxels));
+  if (!o.l1) {
+    const BoxQpResult optimum = solve_box_constrained(js.eq, o.regularization);
+    double worst = 0.0;
+    for (uint32_t j = 0; j < n; ++j)
+      for (int c = 0; c < 4; ++c) worst = std::max(worst, std::abs(double(xs[4 * j + c]) - optimum.x(j, c)));
+    out.distance_to_optimum = worst;
+  }
   return out;
 }
 
@@ -156,8 +169,19 @@ class GradientDescentSolver final : public Solver {
     out.details["optimizer"] = o.adam ? "adam" : "sgd";
     out.details["lr"] = o.lr;
     out.details["last_loss"] = r.last_loss;
+    if (r.distance_to_optimum >= 0.0) out.details["distance_to_optimum"] = r.distance_to_optimum;
     out.details["ridge"] = args.solve.ridge;
     out.details["smooth"] = args.solve.smooth;
+    if (r.distance_to_optimum > kDistanceWarning) {
+      std::ostringstream os;
+      os << "gradient descent ended after " << parameter("iterations") << " " << o.iterations
+         << " with TF entries up to " << std::setprecision(2) << r.distance_to_optimum
+         << " away from the exact minimizer of the same loss in [0,1]";
+      if (args.solve.smooth > 0.0) os << " (" << parameter("smooth") << " makes the problem stiff for gradient steps)";
+      os << "; more " << parameter("iterations") << " or another " << parameter("lr") << " may get closer, and "
+         << parameter("solver") << " qp solves it exactly";
+      out.warnings.push_back(os.str());
+    }
     return out;
   }
 };

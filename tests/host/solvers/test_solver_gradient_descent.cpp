@@ -235,9 +235,40 @@ TEST_F(SolverGradientDescent, L2ConvergesToTheBoxConstrainedOptimum) {
   // lavapipe); Jacobi-scaled SGD converges linearly (measured: 4e-8). 1e-4 leaves margin and is
   // 100 times below the error of clamping.
   EXPECT_LT(test::max_difference(out.tf, qp.tf), 1e-4);
+  // The solver's own distance to the optimum is this one (its system comes from the GPU's
+  // fixed-point assembly, the same numbers to rounding), and so close it says nothing.
+  EXPECT_NEAR(out.details["distance_to_optimum"].get<double>(), test::max_difference(out.tf, qp.tf), 1e-7);
+  EXPECT_TRUE(out.warnings.empty()) << out.warnings.front();
   s.extra["optimizer"] = "sgd";
   const SolverOutput sgd = p.solve(ctx(), "gradient-descent", s);
   EXPECT_LT(test::max_difference(sgd.tf, qp.tf), 1e-4);
+}
+
+// Heavy smoothing makes the problem stiff for a fixed number of gradient steps (Adam's steps are
+// about lr in size whatever the curvature; SGD's are scaled by the diagonal only): the iterate
+// ends far from the optimum, and the solver measures how far and warns instead of returning it
+// silently. The l1 loss has no exact minimizer at hand and reports none.
+TEST_F(SolverGradientDescent, EndingFarFromTheOptimumIsMeasuredAndWarned) {
+  test::SolverProblem p = test::make_solver_problem(4000, 12, 24, 0.0, 1.0, 31);
+  p.upload(ctx());
+  const NormalEquations eq = p.cpu_equations();
+  SolverSettings s;
+  s.solve.smooth = 1e6;
+  s.extra["iterations"] = "40";
+  const BoxQpResult qp = solve_box_constrained(eq, s.solve);
+  for (const char* optimizer : {"adam", "sgd"}) {
+    s.extra["optimizer"] = optimizer;
+    const SolverOutput out = p.solve(ctx(), "gradient-descent", s);
+    const double distance = test::max_difference(out.tf, qp.tf);
+    ASSERT_GT(distance, 0.05) << optimizer << ": the test needs a run that ends far away";
+    EXPECT_NEAR(out.details["distance_to_optimum"].get<double>(), distance, 1e-6) << optimizer;
+    ASSERT_EQ(out.warnings.size(), 1u) << optimizer;
+    for (const char* word : {"--iterations 40", "--smooth", "qp"})
+      EXPECT_NE(out.warnings[0].find(word), std::string::npos) << out.warnings[0];
+  }
+  s.extra["loss"] = "l1";
+  const SolverOutput l1 = p.solve(ctx(), "gradient-descent", s);
+  EXPECT_FALSE(l1.details.contains("distance_to_optimum"));
 }
 
 TEST_F(SolverGradientDescent, L1ConvergesToPerEntryWeightedMedian) {
