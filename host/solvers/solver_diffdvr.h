@@ -93,6 +93,13 @@ class DiffDvrGradient {
 
 enum class DiffDvrStart { Reference, NormalEquations };
 
+// The largest smoothness weight of diffdvr (absolute: beside the mean image loss, not scaled as
+// the voxel solvers' relative --smooth). The image loss's gradient per TF entry is at most O(1),
+// so at 1e9 the minimizer's neighbouring entries are within ~1e-11 of each other: the constant TF any
+// heavier weight tends to. Beyond, the penalty's doubles only head for overflow (at 1e300 Adam
+// was fed infinite gradients and left entries such as an opacity of 5e-19).
+constexpr double kMaxDiffDvrSmooth = 1e9;
+
 // Settings of the optimizer loop (solver "diffdvr": its options and SolverArgs::render).
 struct DiffDvrOptions {
   ImageLoss loss = ImageLoss::L2;
@@ -107,7 +114,7 @@ struct DiffDvrOptions {
   DiffDvrStart start = DiffDvrStart::Reference;  // the reference TF resampled, or the normal-equations TF
   SolveOptions normal_equations;           // for start = NormalEquations
   double learning_rate = 0.02;             // Adam, in (0, 1]
-  double smooth = 0.0;                     // weight of the TF's squared first differences, >= 0
+  double smooth = 0.0;                     // weight of the TF's squared first differences, in [0, kMaxDiffDvrSmooth]
   RenderSettings render;                   // optical model, camera distance / fov, image width and height
 };
 

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 #include <random>
+#include <sstream>
 #include <stdexcept>
 
 #include "adam.h"
@@ -43,7 +44,8 @@ DiffDvrResult solve_diffdvr_gpu(VoxelProblem& p, const DiffDvrOptions& o) {
     throw std::invalid_argument("solve_diffdvr_gpu: iterations and views per iteration must be >= 1");
   if (!(o.learning_rate > 0 && o.learning_rate <= 1))
     throw std::invalid_argument("solve_diffdvr_gpu: learning rate must be in (0, 1]");
-  if (!(o.smooth >= 0) || !std::isfinite(o.smooth)) throw std::invalid_argument("solve_diffdvr_gpu: smooth must be >= 0");
+  if (!(o.smooth >= 0 && o.smooth <= kMaxDiffDvrSmooth))
+    throw std::invalid_argument("solve_diffdvr_gpu: smooth must be in [0, 1e9]");
   validate(o.render);
   DiffDvrResult out;
   TransferFunction tf = p.initial;
@@ -177,7 +179,12 @@ class DiffDvrSolver final : public Solver {
     o.learning_rate = args.number("lr");
     // The weight of (N-1) sum of squared TF differences, added to the mean image loss.
     o.smooth = args.solve.smooth;
-    if (!(o.smooth >= 0) || !std::isfinite(o.smooth)) throw std::runtime_error(parameter("smooth") + ": expected a weight >= 0");
+    if (!(o.smooth >= 0 && o.smooth <= kMaxDiffDvrSmooth)) {
+      std::ostringstream os;
+      os << parameter("smooth") << " " << o.smooth << ": diffdvr takes a weight in [0, " << kMaxDiffDvrSmooth
+         << "]; at " << kMaxDiffDvrSmooth << " the TF it tends to is already constant to ~1e-11";
+      throw std::runtime_error(os.str());
+    }
     o.render = args.render;
     o.render.width = o.render.height = uint32_t(args.integer("image-size"));
     const DiffDvrResult r = solve_diffdvr_gpu(p, o);

@@ -468,8 +468,8 @@ CommandRegistration reg(10, [](CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--ridge", args->ridge, "Tikhonov weight, relative to the mean diagonal of M")
       ->check(non_negative());
-  sub->add_option("--smooth", args->smooth, "First-difference smoothness weight, relative to the mean diagonal of M (diffdvr: "
-                  "weight of (N-1) sum of squared TF differences, added to the mean image loss)")
+  sub->add_option("--smooth", args->smooth, "First-difference smoothness weight, relative to the mean diagonal of M, at most 1e9 "
+                  "(diffdvr: weight of (N-1) sum of squared TF differences, added to the mean image loss, at most 1e9)")
       ->check(non_negative());
   sub->add_option("--factorization", args->factorization, "normal-equations: auto (LDL^T deciding the rank entry by "
                   "entry: the minimum-norm solution when M is singular) or ldlt (no rank decision)")

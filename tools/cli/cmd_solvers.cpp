@@ -98,7 +98,7 @@ CommandRegistration reg(15, [](CLI::App& app) {
       ->delimiter(',');
   sub->add_option("--ridge", args->ridge, "Tikhonov weight, relative to the mean diagonal of M")
       ->check(non_negative());
-  sub->add_option("--smooth", args->smooth, "First-difference smoothness weight, relative to the mean diagonal of M")
+  sub->add_option("--smooth", args->smooth, "First-difference smoothness weight, relative to the mean diagonal of M, at most 1e9")
       ->check(non_negative());
   add_json_option(sub, args->json, "the comparison");
   add_solver_options(sub, args->extra);

@@ -1,6 +1,7 @@
 // The "diffdvr" solver end to end: the paper's synthetic cube case (image-based optimization
 // beats voxel least squares on image PSNR because the interior is hardly visible), convergence
 // from the normal-equations start, determinism for a seed, and the command line with --report.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -10,6 +11,7 @@
 
 #include "cli_runner.h"
 #include "cube_case.h"
+#include "solver_diffdvr.h"
 #include "vk_test_env.h"
 
 namespace tfm {
@@ -65,6 +67,42 @@ TEST_F(DiffDvrSolver, RejectsBadOptions) {
       ADD_FAILURE() << "--" << flag << " " << value << " was accepted";
     } catch (const std::runtime_error& e) {
       EXPECT_NE(std::string(e.what()).find(std::string("--") + flag), std::string::npos) << e.what();
+    }
+  }
+}
+
+// --smooth is diffdvr's own absolute prior: up to 1e9 it holds the TF's neighbours together (at 1e9
+// a constant TF, the limit of heavier weights); beyond, it is refused naming the flag and the limit.
+TEST_F(DiffDvrSolver, SmoothnessUpToItsLimitAndNoFurther) {
+  const CubeCase c;
+  OptimizeRequest req;
+  req.ref = &c.ref;
+  req.field = &c.field;
+  req.ref_tf = c.ref_tf;
+  req.tf_size = 16;
+  req.solver = "diffdvr";
+  req.settings.extra = {{"iterations", "200"}, {"image-size", "16"}, {"views-per-iteration", "2"}};
+  auto spread = [](const TransferFunction& tf) {  // largest difference of neighbouring entries
+    double worst = 0.0;
+    for (size_t j = 0; j + 1 < tf.size(); ++j)
+      for (int ch = 0; ch < 4; ++ch) worst = std::max(worst, std::abs(tf.rgba[j + 1][ch] - tf.rgba[j][ch]));
+    return worst;
+  };
+  const double free_spread = spread(run_optimize(ctx(), req).tf);
+  ASSERT_GT(free_spread, 0.1) << "the unsmoothed fit should keep the reference TF's ramp";
+  req.settings.solve.smooth = kMaxDiffDvrSmooth;
+  // Adam's steps are about lr (0.02) whatever the weight, so the entries need most of the 200
+  // steps to meet (30 steps: still 0.086 apart); then the penalty outweighs the image gradient by
+  // 1e9 and what is left is the steps' residue (measured on the demo pair: 2.3e-5 at 200 steps).
+  EXPECT_LT(spread(run_optimize(ctx(), req).tf), 1e-3);
+  for (const double bad : {2 * kMaxDiffDvrSmooth, 1e300}) {
+    req.settings.solve.smooth = bad;
+    try {
+      run_optimize(ctx(), req);
+      ADD_FAILURE() << "--smooth " << bad << " was accepted";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("--smooth"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("1e+09"), std::string::npos) << e.what();
     }
   }
 }
