@@ -8,6 +8,13 @@ namespace tfm {
 
 namespace {
 
+// The factors, once they are known to have N (and N - 1) entries: checked before any buffer is made.
+const CglsFactors& checked(const CglsFactors& f, uint32_t n) {
+  if (f.inv_pivot.size() != n || (!f.lower.empty() && f.lower.size() + 1 != n))
+    throw std::invalid_argument("DeviceCgls: the preconditioner needs N inverse pivots and N - 1 multipliers");
+  return f;
+}
+
 std::vector<float> lower_or_zeros(const CglsFactors& f, uint32_t n) {
   std::vector<float> lower(n, 0.0f);  // N floats: the shader's binding, the last unused
   std::copy(f.lower.begin(), f.lower.end(), lower.begin());
@@ -19,7 +26,7 @@ std::vector<float> lower_or_zeros(const CglsFactors& f, uint32_t n) {
 DeviceCgls::DeviceCgls(Context& ctx, uint32_t tf_size, const CglsFactors& factors, const CglsWeights& weights)
     : n_(tf_size),
       weights_(weights),
-      bidiagonal_(!factors.lower.empty()),
+      bidiagonal_(!checked(factors, tf_size).lower.empty()),  // first: the buffers below trust the sizes
       inv_pivot_(make_buffer<float>(ctx, factors.inv_pivot, "CGLS inverse pivots")),
       lower_(make_buffer<float>(ctx, lower_or_zeros(factors, tf_size), "CGLS multipliers")),
       z_(ctx, uint64_t(tf_size) * 16, MemoryUsage::Device, "CGLS z"),
@@ -32,10 +39,7 @@ DeviceCgls::DeviceCgls(Context& ctx, uint32_t tf_size, const CglsFactors& factor
       gather_(ctx, false, true, true),
       scatter_(ctx, tf_size, false),
       scatter_update_(ctx, tf_size, true),
-      vectors_(ctx) {
-  if (factors.inv_pivot.size() != tf_size || (bidiagonal_ && factors.lower.size() + 1 != tf_size))
-    throw std::invalid_argument("DeviceCgls: the preconditioner needs N inverse pivots and N - 1 multipliers");
-}
+      vectors_(ctx) {}
 
 void DeviceCgls::record_stage(CommandBatch& batch, uint32_t stage) {
   vectors_.record(batch, stage, n_, weights_.ridge, weights_.smooth, weights_.tolerance, buffers());

@@ -10,6 +10,7 @@
 #include <Eigen/Dense>
 
 #include "cgls_cpu.h"
+#include "device_cgls.h"
 #include "eigen_baseline.h"
 #include "solver_cgls.h"
 #include "solver_problem.h"
@@ -202,6 +203,41 @@ TEST_F(SolverCgls, SmoothedIterationsMatchTheDoubleReference) {
           << "channel " << c << " entry " << j;
     }
   }
+}
+
+// The device loop refuses factors of the wrong sizes before it makes a buffer (a long multiplier
+// list once overran the N-entry copy), and the preconditioner is Jacobi without smoothing and the
+// LDL^T of diag(M) + R with it.
+TEST_F(SolverCgls, PreconditionerFactorsAreCheckedAndMatchTheirDefinition) {
+  const uint32_t n = 9;
+  for (const CglsFactors& bad : {CglsFactors{std::vector<float>(n - 1, 1.0f), {}},
+                                 CglsFactors{std::vector<float>(n, 1.0f), std::vector<float>(n + 40, 0.5f)},
+                                 CglsFactors{std::vector<float>(n, 1.0f), std::vector<float>(n - 2, 0.5f)}})
+    EXPECT_THROW(DeviceCgls(ctx(), n, bad, {}), std::invalid_argument);
+  EXPECT_NO_THROW(DeviceCgls(ctx(), n, CglsFactors{std::vector<float>(n, 1.0f), std::vector<float>(n - 1, 0.5f)}, {}));
+
+  test::SolverProblem p = test::make_solver_problem(3000, 16, 20, 0.1, 0.9, 5);
+  const NormalEquations eq = p.cpu_equations();
+  const Tridiagonal m = regularized_matrix(eq, {});
+  const CglsFactors jacobi = cgls_preconditioner(eq, {});
+  EXPECT_TRUE(jacobi.lower.empty());
+  for (uint32_t j = 0; j < 16; ++j) EXPECT_FLOAT_EQ(jacobi.inv_pivot[j], float(1.0 / m.diag[j]));
+  const Regularization reg{0.0, 7.0};
+  const CglsFactors smoothed = cgls_preconditioner(eq, reg);
+  ASSERT_EQ(smoothed.lower.size(), 15u);
+  // (L D L^T) e_j, column by column, against diag(M) + 7 D^T D.
+  for (uint32_t j = 0; j < 16; ++j)
+    for (uint32_t k = 0; k < 16; ++k) {
+      double sum = 0.0;  // sum_i L_ji D_i L_ki over i in {j-1, j} and {k-1, k}
+      for (uint32_t i = 0; i < 16; ++i) {
+        const double l_ji = i == j ? 1.0 : (i + 1 == j ? smoothed.lower[i] : 0.0);
+        const double l_ki = i == k ? 1.0 : (i + 1 == k ? smoothed.lower[i] : 0.0);
+        sum += l_ji * l_ki / double(smoothed.inv_pivot[i]);
+      }
+      const double d_t_d = j == k ? double((j > 0) + (j + 1 < 16)) : (j + 1 == k || k + 1 == j ? -1.0 : 0.0);
+      const double want = (j == k ? m.diag[j] : 0.0) + 7.0 * d_t_d;
+      EXPECT_NEAR(sum, want, 1e-5 * std::abs(m.diag[j] + 14.0)) << j << "," << k;
+    }
 }
 
 TEST_F(SolverCgls, IsBitIdenticalAcrossRuns) {
