@@ -33,7 +33,8 @@ double CglsGpuResult::worst_relative_residual() const {
 bool CglsGpuResult::any_capped() const { return std::find(capped.begin(), capped.end(), true) != capped.end(); }
 
 CglsFactors cgls_preconditioner(const NormalEquations& eq, const Regularization& reg) {
-  if (eq.voxels == 0 || eq.n < 2) throw std::invalid_argument("cgls_preconditioner: a system without voxels");
+  if (eq.voxels == 0 || eq.n < 2)
+    throw std::invalid_argument("cgls_preconditioner: a system without voxels or with fewer than 2 entries");
   CglsFactors f;
   const Tridiagonal h = regularized_matrix(eq, reg);
   f.inv_pivot.resize(eq.n);

@@ -47,7 +47,7 @@ struct CglsGpuResult {
 // smoothing, diag(M) + R: its L D L^T inverts the smoothing exactly, so the preconditioned system
 // keeps the condition of the data's Jacobi scaling however heavy the smoothing (Jacobi alone
 // stopped at 1000 iterations from --smooth 100 on). Throws std::invalid_argument for a system
-// without voxels.
+// without voxels or with fewer than 2 entries.
 CglsFactors cgls_preconditioner(const NormalEquations& eq, const Regularization& reg);
 
 // Runs CGLS from x = 0 on the GPU until every channel meets the tolerance (or its float32 floor) or
