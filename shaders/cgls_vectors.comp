@@ -2,8 +2,12 @@
 // in one workgroup: loops over the N entries and reduces dot products in shared memory in a fixed
 // order, so every run gives the same bits. Stages (push constant): INIT, STEP, DIRECTION; see
 // solver_layout.h. The voxel-sized products S p and S^T r come from sparse_gather/scatter. The
-// preconditioner P = L D L^T is applied entry by entry when L = I (Jacobi) and by one invocation's
-// forward and backward substitution otherwise: 2N dependent steps, small beside the voxel passes.
+// preconditioner P = L D L^T is applied entry by entry when L = I (Jacobi) and otherwise by forward
+// and backward substitution, each a first-order linear recurrence solved as a scan: every invocation
+// runs over its own segment of ceil(N / W) entries twice, and the segments' maps are composed in
+// log2 W steps. (One invocation's sweep over all N entries is 2N dependent steps, slow on a GPU,
+// and wrong on lavapipe beyond N ~ 32 000: llvmpipe silently ends an invocation's loops once they
+// have run 65535 iterations in all.)
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #define TFM_WANT_CGLS_PUSH
@@ -97,26 +101,89 @@ vec4 r_times_p(uint j, uint n) {
   return pc.ridge_weight * p[j] + pc.smooth_weight * d;
 }
 
+shared float scan_a[gl_WorkGroupSize.x];
+shared vec4 scan_b[gl_WorkGroupSize.x];
+
+// The entries [first, end) of this invocation's segment of the substitution (ceil(N / W) each; the
+// last ones may be empty).
+uvec2 segment(uint n) {
+  const uint length = (n + gl_WorkGroupSize.x - 1u) / gl_WorkGroupSize.x;
+  const uint first = min(gl_LocalInvocationID.x * length, n);
+  return uvec2(first, min(first + length, n));
+}
+
+// The step of a substitution at entry j: u_j = a u_prev + b, from z_store[j]. Forward (L y = s):
+// y_j = s_j - L_{j,j-1} y_{j-1}. Backward (D L^T z = y): z_j = y_j / D_j - L_{j+1,j} z_{j+1}. The
+// multipliers are at most 1 in magnitude (P is diagonally dominant: every pivot is >= smooth), so
+// the products the scan forms stay bounded.
+float step_a(uint j, uint n, bool backward) {
+  if (backward) return j + 1u < n ? -lower[j] : 0.0;
+  return j > 0u ? -lower[j - 1u] : 0.0;
+}
+vec4 step_b(uint j, bool backward) { return backward ? inv_pivot[j] * z_store[j] : z_store[j]; }
+
+// The value entering this invocation's segment: the segments before it (after it, backward)
+// composed by an inclusive scan of the maps u_out = a u_in + b, in a fixed order.
+vec4 segment_input(float a, vec4 b, bool backward) {
+  const uint w = gl_WorkGroupSize.x;
+  const uint pos = backward ? w - 1u - gl_LocalInvocationID.x : gl_LocalInvocationID.x;
+  // Every invocation has read the previous substitution's scan before it is overwritten.
+  barrier();
+  scan_a[pos] = a;
+  scan_b[pos] = b;
+  // Every segment's map is visible before the first level composes them.
+  memoryBarrierShared();
+  barrier();
+  for (uint offset = 1u; offset < w; offset *= 2u) {
+    float before_a = 1.0;
+    vec4 before_b = vec4(0.0);
+    if (pos >= offset) {
+      before_a = scan_a[pos - offset];
+      before_b = scan_b[pos - offset];
+    }
+    // Every invocation has read this level's inputs before any is overwritten.
+    barrier();
+    scan_b[pos] = a * before_b + b;
+    scan_a[pos] = a * before_a;
+    a = scan_a[pos];
+    b = scan_b[pos];
+    // This level's maps are visible before the next level reads them.
+    memoryBarrierShared();
+    barrier();
+  }
+  return pos > 0u ? scan_b[pos - 1u] : vec4(0.0);
+}
+
+// One substitution over z_store in place: each invocation composes its segment's map, the scan
+// gives each segment its input, and each invocation runs its segment again from that input.
+void substitute_pass(uint n, bool backward) {
+  const uvec2 seg = segment(n);
+  float a = 1.0;
+  vec4 b = vec4(0.0);
+  for (uint i = seg.x; i < seg.y; ++i) {
+    const uint j = backward ? seg.y - 1u - (i - seg.x) : i;
+    const float aj = step_a(j, n, backward);
+    a *= aj;
+    b = aj * b + step_b(j, backward);
+  }
+  vec4 u = segment_input(a, b, backward);
+  for (uint i = seg.x; i < seg.y; ++i) {
+    const uint j = backward ? seg.y - 1u - (i - seg.x) : i;
+    u = step_a(j, n, backward) * u + step_b(j, backward);
+    z_store[j] = u;
+  }
+}
+
 // z = P^-1 s in place in z_store, which holds s on entry (every invocation's entries). With L = I
 // the caller scales entry by entry instead (z = inv_pivot * s) and never calls this.
 void substitute(uint n) {
-  // Every invocation's s_j is in z_store before the sweep reads it.
+  // Every invocation's s_j is in z_store before the segments read it.
   memoryBarrierBuffer();
   barrier();
-  if (gl_LocalInvocationID.x == 0u) {
-    vec4 y = z_store[0];
-    for (uint j = 1u; j < n; ++j) {  // L y = s
-      y = z_store[j] - lower[j - 1u] * y;
-      z_store[j] = y;
-    }
-    vec4 w = inv_pivot[n - 1u] * y;  // D L^T z = y
-    z_store[n - 1u] = w;
-    for (uint j = n - 1u; j > 0u; --j) {
-      w = inv_pivot[j - 1u] * z_store[j - 1u] - lower[j - 1u] * w;
-      z_store[j - 1u] = w;
-    }
-  }
-  // The sweep's z is visible to every invocation before any reads it.
+  substitute_pass(n, false);
+  // A segment's y is read backward by the invocation that wrote it: no barrier needed between.
+  substitute_pass(n, true);
+  // Every segment's z is visible to every invocation before any reads it.
   memoryBarrierBuffer();
   barrier();
 }
