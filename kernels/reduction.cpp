@@ -64,12 +64,25 @@ Reduction Reduction::choose(const Context& ctx, const char* kernel, uint32_t tf_
   return r;
 }
 
+uint64_t Reduction::lane_quads_max() const {
+  const uint64_t reserve = 2ull * tf_size + kPrivateMaxBins + 16;
+  return std::min<uint64_t>(32768, (kLaneLoopBudget - reserve) / std::max(1u, lane_loops_per_quad));
+}
+
 uint32_t Reduction::groups(const Context& ctx, uint64_t voxels) const {
   const uint32_t max_groups = ctx.limits().maxComputeWorkGroupCount[0];
+  const uint64_t quads = voxels / 4;
+  if (mode == ReductionMode::Private) {
+    // Lanes take quads in segments of TFM_REDUCE_SEGMENT_STEPS (quad_segments.glsl), so a lane's
+    // share is up to 64 quads over quads / lanes: kLaneLoopBudget's margin below 65535 holds them.
+    const uint64_t lanes = (quads + lane_quads_max() - 1) / lane_quads_max();
+    const uint64_t budget_groups = (lanes + workgroup_size - 1) / workgroup_size;
+    if (workgroups)
+      return static_cast<uint32_t>(std::clamp<uint64_t>(std::max<uint64_t>(workgroups, budget_groups), 1, max_groups));
+  }
   if (workgroups) return std::min(workgroups, max_groups);
   if (mode != ReductionMode::Private) return voxel_groups(ctx, voxels, lane_voxels ? lane_voxels : kVoxelLaneVoxels);
-  const uint64_t quads = voxels / 4;
-  const uint64_t per_lane = std::clamp<uint64_t>(16ull * tf_size, 2048, 32768);
+  const uint64_t per_lane = std::clamp<uint64_t>(16ull * tf_size, 2048, lane_quads_max());
   uint64_t groups = (quads / per_lane + workgroup_size) / workgroup_size;
   // Smaller volumes: more, shorter lanes (down to 4 N quads each, at least 256), so that up to
   // kPrivateMinGroups workgroups keep every core of a CPU device busy.

@@ -58,6 +58,13 @@ inline constexpr uint32_t kPrivateHistogramSlots = 11 * 1024;
 // assembly with 11 x 701 sums per invocation, 61.7 KiB, failed vkCreateComputePipelines with
 // VK_ERROR_UNKNOWN; 11 x 64 built and matched the CPU).
 inline constexpr uint32_t kGpuPrivateBudgetDivisor = 8;
+// Loop iterations one lane of a Private dispatch may run in all. llvmpipe (lavapipe, the CPU device
+// Private is for) keeps one counter per invocation, set to 65535 and decreased at the end of every
+// iteration of every loop (nested ones too, and once more as a loop exits); at 0 every loop of the
+// invocation ends, silently. The margin covers the lane's loops outside its walk (zeroing and
+// adding its histogram, 2 N + 2, and a reference-TF cache of up to kPrivateMaxBins + 1, in
+// lane_quads_max()) and a lane's share of quads rounding up by less than a segment.
+inline constexpr uint64_t kLaneLoopBudget = 60000;
 // Workgroups a Private dispatch over a small volume is split into at least (when each lane still
 // covers its minimum of voxels), so that every core of a CPU device has work.
 inline constexpr uint64_t kPrivateMinGroups = 16;
@@ -75,6 +82,10 @@ struct Reduction {
   // runs a workgroup on one thread, and a lane's cost is its histogram's flush: more, smaller
   // groups spread the same lanes over every core).
   uint32_t workgroup_size = TFM_VOXEL_WORKGROUP;
+  // Loop iterations a lane's Private walk runs per quad (1; tf_residual_walk.glsl's loop over a
+  // quad's four voxels makes it TFM_RESIDUAL_WALK_LOOPS_PER_QUAD): groups() keeps every lane's
+  // walk within kLaneLoopBudget.
+  uint32_t lane_loops_per_quad = 1;
 
   // Resolves `options` for a kernel whose shared accumulators take `shared_bytes` for `tf_size`
   // entries and whose private histograms hold up to private_max_bins entries on a CPU device
@@ -86,10 +97,13 @@ struct Reduction {
   // Workgroups of workgroup_size for one dispatch over `voxels`: the forced count, else
   // voxel_groups() for the run modes (lanes of lane_voxels) and, for Private, enough lanes that
   // each covers about 16 N quads (its histogram is added to memory once, so lanes must cover many
-  // voxels) but at most 32768 (lavapipe stops a shader after 65535 loop iterations), and up to
-  // kPrivateMinGroups workgroups of shorter lanes when the volume is small (every core of a CPU
-  // device gets work).
+  // voxels) but at most lane_quads_max(), and up to kPrivateMinGroups workgroups of shorter lanes
+  // when the volume is small (every core of a CPU device gets work). A forced Private count is
+  // raised where its lanes would exceed lane_quads_max().
   uint32_t groups(const Context& ctx, uint64_t voxels) const;
+  // Private: the most quads one lane walks, 32768 or what kLaneLoopBudget leaves at
+  // lane_loops_per_quad loop iterations a quad.
+  uint64_t lane_quads_max() const;
   // The TFM_*_RUNS_SHARED / _RUNS_GLOBAL / _PRIVATE value of the shaders' MODE constant.
   uint32_t shader_mode() const;
   // A pipeline of `shader` (its _int64 build when this reduction uses 64-bit atomics) over

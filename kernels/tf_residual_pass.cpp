@@ -29,7 +29,9 @@ TfResidualPass::TfResidualPass(Context& ctx, uint32_t tf_size, TfResidualShader 
       tf_size_(tf_size),
       shader_(std::move(shader)),
       reduction_(Reduction::choose(ctx, shader_.name, tf_size, uint64_t(shader_.shared_slots) * gpu::kFixedSlotBytes,
-                                   options, shader_.private_max_bins)) {}
+                                   options, shader_.private_max_bins)) {
+  reduction_.lane_loops_per_quad = TFM_RESIDUAL_WALK_LOOPS_PER_QUAD;
+}
 
 const ComputePipeline& TfResidualPass::pipeline(uint32_t ref_tf_size) const {
   const bool private_cache =

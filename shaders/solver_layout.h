@@ -158,6 +158,9 @@ TFM_PUSH_CONSTANTS(CglsPush) {
 #define TFM_GD_BINDING_REF_QUADS 5  // the chunks again as RGBA32F texel buffers (quads of voxels)
 #define TFM_GD_BINDING_OPT_QUADS 6
 #define TFM_GD_LOSS_SLOT(n) TFM_TF_GRADIENT_SLOTS(n)
+// Loop iterations tf_residual_walk.glsl runs per quad of a lane (the walk's 1, and its loop over
+// the quad's 4 voxels, 4 + 1 as it exits): what lavapipe's loop counter sees (kernels/reduction.h).
+#define TFM_RESIDUAL_WALK_LOOPS_PER_QUAD 6u
 #define TFM_GD_ACCUM_WORDS(n) (TFM_FIXED_SLOT_WORDS * (TFM_GD_LOSS_SLOT(n) + 4u))
 
 // ---- gd_update.comp: one SGD or Adam step on the TF, projected to [0,1] ---------------------------

@@ -12,7 +12,8 @@ void residual_walk() {
     const vec4 rv = texelFetch(ref_quads, int(q));
     const vec4 ov = texelFetch(opt_quads, int(q));
     // A loop, not four calls: each inlined take() carries its reduction's run flush, and four
-    // copies made lavapipe compile irls_assemble (24 slots a flush) several times slower.
+    // copies made lavapipe compile irls_assemble (24 slots a flush) several times slower. It makes
+    // a quad cost TFM_RESIDUAL_WALK_LOOPS_PER_QUAD loop iterations (the host sizes lanes by it).
     for (uint k = 0u; k < 4u; ++k) take(rv[k], ov[k]);
   }
   if (gl_GlobalInvocationID.x == 0u)

@@ -171,6 +171,15 @@ void add_gd_cases(CaseList& cases) {
       add({100003, l1, path}, false);
       add({100003, l1, path, 16384}, false);
     }
+  // One workgroup asked for 400 003 voxels: its lanes would walk 12 500 quads each at 6 loop
+  // iterations a quad, past lavapipe's 65535 (kernels/reduction.h); the count is raised instead.
+  for (bool l1 : {false, true}) {
+    const ReductionOptions one_group{ReductionMode::Private, AtomicWidth::Bits64, 1};
+    const GradientCase c{400003, l1, one_group};
+    cases.push_back({"gd_gradient", "GdGradientKernel",
+                     voxels_name(c.voxels) + (l1 ? ", l1" : ", l2") + reduction_name(one_group), false,
+                     TFM_VOXEL_WORKGROUP, [c](Context& ctx, Check& check) { gradient(ctx, check, c); }});
+  }
   for (bool adam : {true, false}) {
     auto add = [&](uint32_t n, bool quick) {
       const std::string name = "N=" + std::to_string(n) + (adam ? ", Adam step" : ", SGD step (Jacobi-scaled)");

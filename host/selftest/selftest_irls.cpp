@@ -72,6 +72,10 @@ void add_irls_cases(CaseList& cases) {
     add({100003, path}, false);
     add({100003, path, 16384}, false);
   }
+  // One workgroup asked for 400 003 voxels: past lavapipe's loop budget unless raised (as gd_gradient).
+  const PassCase one_group{400003, {ReductionMode::Private, AtomicWidth::Bits64, 1}};
+  cases.push_back({"irls_assemble", "IrlsKernel", voxels_name(one_group.voxels) + reduction_name(one_group.path), false,
+                   TFM_VOXEL_WORKGROUP, [one_group](Context& ctx, Check& check) { pass(ctx, check, one_group); }});
 }
 
 }  // namespace tfm::selftest

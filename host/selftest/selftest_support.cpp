@@ -183,6 +183,7 @@ std::string reduction_name(const ReductionOptions& o) {
   std::string s;
   if (o.mode != ReductionMode::Auto) s += std::string(", ") + reduction_mode_name(o.mode);
   if (o.atomics != AtomicWidth::Auto) s += o.atomics == AtomicWidth::Bits64 ? ", 64-bit atomics" : ", 32-bit atomics";
+  if (o.workgroups) s += ", " + std::to_string(o.workgroups) + (o.workgroups == 1 ? " workgroup asked" : " workgroups asked");
   return s;
 }
 
