@@ -430,9 +430,14 @@ void Context::load_device_info(bool external_memory_host) {
   if (external_memory_host) maint3.pNext = &host_memory;
   VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
   subgroup.pNext = &maint3;
+  VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
+  driver.pNext = &subgroup;
   VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
-  props2.pNext = &subgroup;
+  props2.pNext = &driver;
   vk.vkGetPhysicalDeviceProperties2(physical_device_, &props2);
+  // Mesa's llvmpipe counts every loop iteration of a shader invocation against one limit of
+  // 65535 (LP_MAX_TGSI_LOOP_ITERATIONS, "shared between every loop") and then ends every loop.
+  loop_iteration_limit_ = driver.driverID == VK_DRIVER_ID_MESA_LLVMPIPE ? 65535u : 0u;
   subgroup_size_ = subgroup.subgroupSize;
   subgroup_operations_ = compute_subgroup_operations(subgroup);
   max_allocation_bytes_ = maint3.maxMemoryAllocationSize;

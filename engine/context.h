@@ -119,6 +119,10 @@ class Context {
   uint32_t subgroup_size() const { return subgroup_size_; }
   // VkSubgroupFeatureFlags supported in compute shaders (0 when compute has no subgroup ops).
   uint32_t subgroup_operations() const { return subgroup_operations_; }
+  // Loop iterations one shader invocation may run in all before the driver ends its loops
+  // silently: 65535 on llvmpipe (lavapipe); 0 where no such limit is known. Kernels whose loops
+  // grow with their inputs (ray marching) check their worst case against it.
+  uint32_t loop_iteration_limit() const { return loop_iteration_limit_; }
   // Whether shaders may use 64-bit integers with atomics on buffer and shared memory: enabled by
   // Context::create where the device supports them, declared by the host for an adopted device.
   bool int64_atomics() const { return int64_atomics_; }
@@ -204,6 +208,7 @@ class Context {
   uint32_t timestamp_valid_bits_ = 0;
   uint32_t subgroup_size_ = 0;
   uint32_t subgroup_operations_ = 0;
+  uint32_t loop_iteration_limit_ = 0;
   bool int64_atomics_ = false;
   bool host_import_ = false;
   uint64_t min_import_alignment_ = 0;

@@ -52,7 +52,7 @@ constexpr auto kBackwardBindingCounts = gpu::binding_counts(
 
 }  // namespace
 
-DiffDvrForwardKernel::DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks) : chunks_(field_chunks) {
+DiffDvrForwardKernel::DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks) : ctx_(ctx), chunks_(field_chunks) {
   // The renderer's pipeline in the mode that stores (C, T): the same march as every image shown.
   pipeline_ = shared_pipeline(
       ctx, render_image_pipeline_desc(field_chunks, TFM_RENDER_MODE_DIFFDVR_STATE, "diffdvr"));
@@ -62,6 +62,7 @@ void DiffDvrForwardKernel::record(CommandBatch& batch, const DeviceField& field,
                                   const Buffer& views, gpu::RenderPush push, Buffer& state, Buffer& stop,
                                   uint32_t row_begin, uint32_t row_count) const {
   check_pass(field, chunks_, tf, views, push, state, stop, row_begin, row_count);
+  check_march_loops(ctx_, push, 1, 0, "diffdvr");
   push.row_offset = row_begin;
   push.row_end = row_begin + row_count;
   // Buffers in the binding order of gpu::kRenderBindingCounts; the state is the renderer's image.
@@ -102,7 +103,7 @@ ReductionMode DiffDvrBackwardKernel::choose(const Context& ctx, uint32_t tf_size
 
 DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks, uint32_t tf_size, ImageLoss loss,
                                              ReductionMode mode)
-    : chunks_(field_chunks), tf_size_(tf_size), mode_(mode) {
+    : ctx_(ctx), chunks_(field_chunks), tf_size_(tf_size), mode_(mode) {
   check_chunks(field_chunks);
   if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
   mode_ = choose(ctx, tf_size, mode);
@@ -138,6 +139,12 @@ void DiffDvrBackwardKernel::record(CommandBatch& batch, const DeviceField& field
   if (target.size() < state.size()) throw std::invalid_argument("diffdvr: target image smaller than the state");
   if (accum.size() < slots() * gpu::kFixedSlotBytes)
     throw std::invalid_argument("diffdvr: accumulator buffer too small");
+  // A private lane marches TFM_DIFFDVR_PRIVATE_PIXELS rays back and zeroes and adds its N-entry
+  // histogram; a runs lane one ray, whose samples and runs (at most one a sample) both loop.
+  if (mode_ == ReductionMode::Private)
+    check_march_loops(ctx_, push, TFM_DIFFDVR_PRIVATE_PIXELS, 2ull * tf_size_ + 8, "diffdvr");
+  else
+    check_march_loops(ctx_, push, 3, 8, "diffdvr");
   push.row_offset = row_begin;
   push.row_end = row_begin + row_count;
   // Buffers in the binding order of kBackwardBindingCounts.

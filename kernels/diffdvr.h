@@ -29,11 +29,13 @@ class DiffDvrForwardKernel {
   DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks);
   // Records one dispatch over rows [row_begin, row_begin + row_count) of every view of `push`.
   // `state` holds width*height*views vec4 (C, T), `stop` as many uints. Throws
-  // std::invalid_argument when a buffer or the field's chunking does not fit.
+  // std::invalid_argument when a buffer or the field's chunking does not fit, std::runtime_error
+  // when the rays are longer than the device lets one invocation march (check_march_loops).
   void record(CommandBatch& batch, const DeviceField& field, const Buffer& tf, const Buffer& views,
               gpu::RenderPush push, Buffer& state, Buffer& stop, uint32_t row_begin, uint32_t row_count) const;
 
  private:
+  const Context& ctx_;
   uint32_t chunks_;
   SharedPipeline pipeline_;
 };
@@ -62,12 +64,14 @@ class DiffDvrBackwardKernel {
   // Adds the loss of (state vs target) over rows [row_begin, row_begin + row_count) of every view
   // and its gradient w.r.t. `tf` to `accum`. `state`/`stop` are the forward pass's output for
   // (field, tf, views, push); `target` has the same layout. Throws std::invalid_argument when a
-  // buffer, the TF size or the chunking does not fit.
+  // buffer, the TF size or the chunking does not fit, std::runtime_error when the rays are longer
+  // than the device lets one invocation march back (check_march_loops).
   void record(CommandBatch& batch, const DeviceField& field, const Buffer& tf, const Buffer& views,
               gpu::RenderPush push, const Buffer& state, const Buffer& stop, const Buffer& target, Buffer& accum,
               uint32_t row_begin, uint32_t row_count) const;
 
  private:
+  const Context& ctx_;
   uint32_t chunks_;
   uint32_t tf_size_;
   ReductionMode mode_;

@@ -3,6 +3,8 @@
 
 #include "shader_registry.h"
 
+#include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -41,8 +43,43 @@ PipelineDesc render_image_pipeline_desc(uint32_t field_chunks, uint32_t mode, co
   return desc;
 }
 
+namespace {
+// v in three significant digits, rounded up when `up` (a bound that must hold as printed).
+std::string three_digits(double v, bool up = false) {
+  if (up && v > 0) {
+    const double unit = std::pow(10.0, std::floor(std::log10(v)) - 2);
+    v = std::ceil(v / unit * (1 - 1e-12)) * unit;
+  }
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.3g", v);
+  return text;
+}
+}  // namespace
+
+void check_march_loops(const Context& ctx, const gpu::RenderPush& push, uint32_t rays, uint64_t other_loops,
+                       const char* who) {
+  const uint64_t limit = ctx.loop_iteration_limit();
+  // The invocation's loops outside the march (camera set-up, the box's axes) with margin.
+  constexpr uint64_t kReserve = 256;
+  const uint64_t need = uint64_t(rays) * (uint64_t(push.max_steps) + 1) + other_loops + kReserve;
+  if (limit == 0 || need <= limit) return;
+  // max_steps is ceil(box diagonal / dt) + 2: the most samples that fit, and the step they need.
+  const uint64_t fits = limit > other_loops + kReserve ? (limit - other_loops - kReserve) / rays : 0;
+  const double diagonal_steps = double(push.max_steps) - 2.0;
+  const std::string advice =
+      fits > 4 ? "use a step of at least " + three_digits(double(push.dt) * diagonal_steps / double(fits - 3), true) +
+                     " voxels for this volume, or another Vulkan device"
+               : "this needs another Vulkan device";
+  throw std::runtime_error(std::string(who) + ": rays of up to " + std::to_string(push.max_steps) +
+                           " samples (the box diagonal at a step of " + three_digits(push.dt) + " voxels)" +
+                           (rays > 1 ? ", " + std::to_string(rays) + " of them in one shader invocation," : "") +
+                           " need " + std::to_string(need) + " loop iterations, more than this device's driver runs " +
+                           "in one invocation (llvmpipe: " + std::to_string(limit) + ") before it ends the loops; " +
+                           advice);
+}
+
 RenderImageKernel::RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32_t mode)
-    : ctx_(ctx), chunks_(field_chunks) {
+    : ctx_(ctx), chunks_(field_chunks), rays_per_pixel_(mode == TFM_RENDER_MODE_INVERSE_CHECK ? 2u : 1u) {
   pipeline_ = shared_pipeline(ctx, render_image_pipeline_desc(field_chunks, mode, "render"));
 }
 
@@ -88,6 +125,7 @@ void RenderImageKernel::record_with(CommandBatch& batch, const Binding& field, c
     throw std::invalid_argument("render: fewer camera records than views");
   if (tf.size() < uint64_t(push.tf_size) * 16) throw std::invalid_argument("render: TF buffer smaller than tf_size");
   if (uint64_t(row_begin) + row_count > push.height) throw std::invalid_argument("render: row band outside the image");
+  check_march_loops(ctx_, push, rays_per_pixel_, 0, "render");
   push.row_offset = row_begin;
   push.row_end = row_begin + row_count;
   const Groups groups{(push.width + TFM_RENDER_TILE - 1) / TFM_RENDER_TILE,

@@ -31,6 +31,14 @@ Binding march_tf_binding(const Buffer& tf, uint32_t tf_size);
 // the march binds.
 PipelineDesc render_image_pipeline_desc(uint32_t field_chunks, uint32_t mode, const char* who);
 
+// Throws std::runtime_error, starting with `who`, when one invocation of a marching kernel would
+// run more loop iterations than the device lets it (Context::loop_iteration_limit: llvmpipe ends
+// every loop of an invocation after 65535 in all, silently): `rays` rays of up to push.max_steps
+// samples each, and `other_loops` iterations besides. The message names the smallest step that
+// fits this volume. Does nothing on devices without such a limit.
+void check_march_loops(const Context& ctx, const gpu::RenderPush& push, uint32_t rays, uint64_t other_loops,
+                       const char* who);
+
 class RenderImageKernel {
  public:
   // `field_chunks`: chunks of the fields this pipeline renders (1..TFM_RENDER_MAX_CHUNKS);
@@ -53,6 +61,7 @@ class RenderImageKernel {
  private:
   Context& ctx_;
   uint32_t chunks_;
+  uint32_t rays_per_pixel_ = 1;  // 2 in TFM_RENDER_MODE_INVERSE_CHECK: the march, then its inversion
   bool image_field_ = false;
   SharedPipeline pipeline_;
   void record_with(CommandBatch& batch, const Binding& field, const Buffer& tf, const Buffer& views,

@@ -63,6 +63,8 @@ VisibilityWeights VisibilityWeightsKernel::compute(const DeviceField& ref, const
   const MarchConstants march = march_constants(settings, geometry);
   // The renderer's push block carries the grid and marching constants, checked as for a render.
   const gpu::RenderPush rp = make_render_push(geometry, march, ref_map, ref, settings.width, settings.height, 1);
+  // Views come in batches of up to kMaxSamplesPerInvocation samples, but one view's ray is one loop.
+  check_march_loops(ctx_, rp, 1, 2, "visibility weights");
   std::vector<gpu::RenderView> views;
   for (const OrbitCamera& c : cameras) {
     RenderSettings s = settings;

@@ -2,11 +2,20 @@
 // test_kernel_cases.cpp: awkward grids and images, anisotropic spacing, seven cameras including
 // both poles, NaNs, fields in several chunks, early termination and the inverse-march check, each
 // against the double-precision CPU renderer): a field of NaN only is transparent and its rays
-// still march.
+// still march; rays as long as the device lets one invocation march are whole, and longer ones
+// are refused where the driver would cut them short (llvmpipe).
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
 
+#include "cli_runner.h"
+#include "context.h"
+#include "cpu_renderer.h"
 #include "render.h"
+#include "diffdvr.h"
+#include "render_image.h"
 #include "test_data.h"
 #include "vk_test_env.h"
 
@@ -30,6 +39,100 @@ TEST_F(RenderGpu, FullyNaNFieldIsTransparent) {
   ASSERT_EQ(img.rgba.size(), size_t(9 * 9 * 4));
   for (float v : img.rgba) ASSERT_EQ(v, 0.0f);
   EXPECT_GT(img.samples(), 0u) << "rays still march (and count) the empty samples";
+}
+
+// A 4 x 4 x 1500 column seen from above through a narrow lens: the rays run its whole height.
+// At a step of 0.025 voxels they take 60 002 samples, within llvmpipe's 65535 loop iterations an
+// invocation, and match the CPU renderer; at 0.01, 150 002 samples: llvmpipe would end the march
+// at about 65 000 samples (the picture 40 % paler: before 2026-12-06 it was), so there the render
+// is refused naming the smallest step, and on other devices it matches the CPU renderer too.
+TEST_F(RenderGpu, LongRaysAreWholeOrRefused) {
+  const Volume vol = test::make_volume({4, 4, 1500}, {1, 1, 1}, "column", [](uint64_t, uint64_t, uint64_t z, uint64_t) {
+    return float(0.5 + 0.45 * std::sin(0.05 * double(z)));
+  });
+  const TransferFunction tf = test::random_tf(8, 5, 0.1, 0.9, 0.2, 0.8);
+  RenderSettings s;
+  s.width = s.height = 3;
+  s.opacity_scale = 2.0;  // at most 2 optical depths over the box: no ray terminates early
+  s.termination_opacity = 0.9999;
+  s.camera.elevation_deg = 90;
+  s.camera.fov_deg = 0.5;
+  for (const double step : {0.025, 0.01}) {
+    s.step_voxels = step;
+    const MarchConstants m = march_constants(s, VolumeGeometry::from(vol.dims, vol.spacing));
+    const bool too_long = ctx().loop_iteration_limit() != 0 && m.max_steps + 1 + 256 > ctx().loop_iteration_limit();
+    ASSERT_EQ(too_long, step == 0.01 && ctx().loop_iteration_limit() != 0) << m.max_steps << " samples";
+    if (too_long) {
+      try {
+        render_volume(ctx(), vol, tf, {0, 1}, s);
+        ADD_FAILURE() << "rays of " << m.max_steps << " samples were rendered";
+      } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("use a step of at least 0.0"), std::string::npos) << e.what();
+      }
+      continue;
+    }
+    const RenderedImage gpu = render_volume(ctx(), vol, tf, {0, 1}, s);
+    const CpuRender cpu = render_cpu(vol, tf, {0, 1}, s);
+    ASSERT_EQ(gpu.rgba.size(), cpu.rgba.size());
+    EXPECT_GT(cpu.rgba[4 * 4 + 3], 0.5) << "the centre ray gathers most of its opacity along the column";
+    for (size_t k = 0; k < cpu.rgba.size(); ++k)
+      EXPECT_NEAR(gpu.rgba[k], cpu.rgba[k], 2e-3) << "step " << step << ", value " << k;
+  }
+}
+
+// The check every marching kernel makes counts all the rays one invocation marches and its other
+// loops: exactly at the limit it passes, one sample more is refused naming the count and a step
+// that fits (which passes); devices without a known limit pass everything.
+TEST_F(RenderGpu, MarchLoopCheckCountsEveryRayOfAnInvocation) {
+  const uint64_t limit = ctx().loop_iteration_limit();
+  gpu::RenderPush push{};
+  push.dt = 0.01f;
+  for (const uint32_t rays : {1u, 4u}) {
+    const uint64_t other = 2 * 1024 + 8;
+    // rays (max_steps + 1) + other + 256 == limit, or the largest below when it does not divide.
+    const uint32_t at_limit = limit ? uint32_t((limit - other - 256) / rays - 1) : 1000000u;
+    push.max_steps = at_limit;
+    EXPECT_NO_THROW(check_march_loops(ctx(), push, rays, other, "test")) << rays << " rays";
+    push.max_steps = at_limit + 1;
+    if (limit == 0) {
+      EXPECT_NO_THROW(check_march_loops(ctx(), push, rays, other, "test"));
+      continue;
+    }
+    try {
+      check_march_loops(ctx(), push, rays, other, "test");
+      ADD_FAILURE() << rays << " rays of " << push.max_steps << " samples passed";
+    } catch (const std::runtime_error& e) {
+      const std::string what = e.what();
+      EXPECT_EQ(what.rfind("test: rays of up to " + std::to_string(at_limit + 1) + " samples", 0), 0u) << what;
+      EXPECT_EQ(what.find(" of them in one shader invocation") != std::string::npos, rays > 1) << what;
+      const size_t at = what.find("a step of at least ");
+      ASSERT_NE(at, std::string::npos) << what;
+      // The step named gives a diagonal of (max_steps - 2) dt in fewer samples: it passes.
+      const double step = std::stod(what.substr(at + 18));
+      gpu::RenderPush fitting = push;
+      fitting.max_steps = uint32_t(std::ceil(double(push.max_steps - 2) * push.dt / step)) + 2;
+      EXPECT_NO_THROW(check_march_loops(ctx(), fitting, rays, other, "test")) << what;
+    }
+  }
+}
+
+// DiffDVR's backward pass marches four rays a lane on a CPU device: the demo's 96^3 pair at a step
+// of 0.01 voxels (16 630 samples a ray) is refused there, before any output, naming the step that
+// fits; elsewhere it runs.
+TEST_F(RenderGpu, DiffDvrRefusesRaysItCannotMarchBack) {
+  const test::TempDir dir;
+  const test::CliResult r = test::run_cli("demo --out " + dir / "demo" +
+                                          " --solver diffdvr --size 96 --image-size 16 --iterations 1 --no-report "
+                                          "--step 0.01");
+  if (ctx().loop_iteration_limit() == 0 || DiffDvrBackwardKernel::choose(ctx(), 64) != ReductionMode::Private) {
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return;
+  }
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("diffdvr: rays of up to 16630 samples"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("4 of them in one shader invocation"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("use a step of at least 0.0103 voxels"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "demo")) << "nothing is written";
 }
 
 }  // namespace
