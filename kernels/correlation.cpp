@@ -69,9 +69,27 @@ struct Plan {
   uint32_t region_floats = 1;
   uint32_t shared_floats = 1;
   uint64_t shared_bytes = 0;  // everything the kernel declares in workgroup-shared memory
+  // The Kraskov measures: loop iterations one invocation's neighbour searches may take at worst
+  // (each invocation's points, each walking past up to M - 1 others, each step costing its loop
+  // and up to k + 1 of the k nearest distances' insertion loop, and two binary searches a point).
+  uint64_t search_loops = 0;
 };
 
-Plan make_plan(CorrelationMeasure measure, uint32_t members) {
+// Loop iterations of one point's Kraskov search at worst, M members, k neighbours.
+uint64_t kraskov_point_loops(uint32_t members, uint32_t k) {
+  return uint64_t(members - 1) * (k + 2) + 4 * (std::bit_width(members) + 1) + 4;
+}
+
+// Loop iterations an invocation's Kraskov searches may take: 3/4 of llvmpipe's 65535, the rest
+// for the sort and the voxel's other loops (a few thousand at most).
+constexpr uint64_t kKraskovSearchBudget = 49152;
+
+// The largest workgroup a plan asks for: every Vulkan device's maxComputeWorkGroupSize[0] is at
+// least 128; 1024 is the usual (lavapipe, NVIDIA, AMD), and check_device_fits names the limit.
+constexpr uint32_t kCorrelationMaxWorkgroup = 1024;
+
+Plan make_plan(const CorrelationParams& params, uint32_t members) {
+  const CorrelationMeasure measure = params.measure;
   const MeasureInfo& mi = info(measure);
   Plan p;
   p.shader = mi.shader;
@@ -87,12 +105,21 @@ Plan make_plan(CorrelationMeasure measure, uint32_t members) {
     const uint32_t capacity = (members + TFM_CORR_CAPACITY_STEP - 1) / TFM_CORR_CAPACITY_STEP * TFM_CORR_CAPACITY_STEP;
     p.workgroup = TFM_CORR_GROUP_WORKGROUP;
     // A Kraskov neighbour search may walk past every member (a reference with few distinct
-    // values): enough invocations that ceil(M / T) of them stay within the loop budget.
-    // Spearman and Kendall comparing every pair likewise (M^2 / T comparisons an invocation), with
-    // room for the voxel's other loops.
+    // values, or a voxel whose series spreads far wider than the reference's, when the k nearest
+    // in the max norm are decided by y): enough invocations that their ceil(M / T) searches stay
+    // within kKraskovSearchBudget, up to kCorrelationMaxWorkgroup (beyond, check_device_fits
+    // refuses devices with a loop limit). Spearman and Kendall comparing every pair likewise (M^2 / T
+    // comparisons an invocation), with room for the voxel's other loops.
     const bool counting = pairs_compared(measure, members);
-    if (measure == CorrelationMeasure::MiKraskov || measure == CorrelationMeasure::MiCoefficient || counting) {
-      const uint64_t budget = counting ? TFM_CORR_LOOP_BUDGET - 4 * TFM_CORR_CAPACITY_STEP : TFM_CORR_LOOP_BUDGET;
+    const bool kraskov = measure == CorrelationMeasure::MiKraskov || measure == CorrelationMeasure::MiCoefficient;
+    if (kraskov) {
+      const uint64_t point = kraskov_point_loops(members, params.k);
+      while (p.workgroup < kCorrelationMaxWorkgroup &&
+             (members + p.workgroup - 1) / p.workgroup * point > kKraskovSearchBudget)
+        p.workgroup *= 2;
+      p.search_loops = (members + p.workgroup - 1) / p.workgroup * point;
+    } else if (counting) {
+      const uint64_t budget = TFM_CORR_LOOP_BUDGET - 4 * TFM_CORR_CAPACITY_STEP;
       const uint64_t walks = (uint64_t(members) * members + budget - 1) / budget;
       p.workgroup = uint32_t(std::max<uint64_t>(p.workgroup, std::bit_ceil(walks)));
     }
@@ -100,6 +127,8 @@ Plan make_plan(CorrelationMeasure measure, uint32_t members) {
     if (measure == CorrelationMeasure::MiBinned) regions = 0;  // the histogram needs no series storage
   } else {
     p.region_floats = TFM_CORR_INVOCATION_WORKGROUP * TFM_CORR_SLICE_STRIDE;
+    if (measure == CorrelationMeasure::MiKraskov || measure == CorrelationMeasure::MiCoefficient)
+      p.search_loops = members * kraskov_point_loops(members, params.k);
   }
   p.shared_floats = std::max(1u, regions * p.region_floats);
   p.shared_bytes = uint64_t(p.shared_floats) * 4 + uint64_t(p.workgroup) * 16 + 16;  // s_work, s_reduce, s_counts
@@ -111,7 +140,7 @@ Plan make_plan(CorrelationMeasure measure, uint32_t members) {
 }  // namespace
 
 std::string CorrelationKernel::strategy(const CorrelationParams& params, uint32_t member_count) {
-  const Plan p = make_plan(params.measure, member_count);
+  const Plan p = make_plan(params, member_count);
   if (params.measure == CorrelationMeasure::Pearson) return "one invocation per voxel, one shifted pass over the members";
   if (params.measure == CorrelationMeasure::MiBinned)
     return p.group_per_voxel ? "one workgroup per voxel, shared-memory joint histogram"
@@ -125,11 +154,11 @@ std::string CorrelationKernel::strategy(const CorrelationParams& params, uint32_
 }
 
 uint32_t CorrelationKernel::workgroup_size(const CorrelationParams& params, uint32_t member_count) {
-  return make_plan(params.measure, member_count).workgroup;
+  return make_plan(params, member_count).workgroup;
 }
 
 uint64_t CorrelationKernel::shared_memory_bytes(const CorrelationParams& params, uint32_t member_count) {
-  return make_plan(params.measure, member_count).shared_bytes;
+  return make_plan(params, member_count).shared_bytes;
 }
 
 double CorrelationKernel::error_bound(const CorrelationParams& params, uint32_t member_count) {
@@ -157,7 +186,7 @@ double CorrelationKernel::error_bound(const CorrelationParams& params, uint32_t 
   // A float sum of n terms of magnitude <= t errs by <= n eps (n t) at worst; per member (the
   // mean) n eps t. n is the longest chain of additions: one invocation's members, then the
   // workgroup's partials in order.
-  const Plan p = make_plan(m, member_count);
+  const Plan p = make_plan(params, member_count);
   const double additions =
       p.group_per_voxel ? std::ceil(double(member_count) / p.workgroup) + p.workgroup : double(member_count);
   const double ln_m = std::log(double(member_count));
@@ -280,6 +309,11 @@ void check_device_fits(const Context& ctx, const Plan& plan, const std::string& 
   if (plan.workgroup > max_workgroup)
     throw std::runtime_error(what + "workgroups of " + std::to_string(plan.workgroup) + " invocations; the device allows " +
                              std::to_string(max_workgroup) + " (maxComputeWorkGroupInvocations, maxComputeWorkGroupSize[0])");
+  if (const uint64_t limit = ctx.loop_iteration_limit(); limit && plan.search_loops * 65535 > kKraskovSearchBudget * limit)
+    throw std::runtime_error(what + "up to " + std::to_string(plan.search_loops) +
+                             " loop iterations in one shader invocation for its neighbour searches; this device's driver "
+                             "ends an invocation's loops after " + std::to_string(limit) +
+                             " (llvmpipe): use a smaller --k or fewer members, or another Vulkan device");
 }
 
 // Groups for one voxel per workgroup or invocation, never more (shaders/correlation_common.glsl):
@@ -332,7 +366,7 @@ std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span
   }
 
   Context& ctx = impl_->ctx;
-  const Plan plan = make_plan(params.measure, members);
+  const Plan plan = make_plan(params, members);
   const VkPhysicalDeviceLimits& limits = ctx.limits();
   check_device_fits(ctx, plan, name, members);
   const ComputePipeline& pipeline = impl_->pipeline(plan, !plan.group_per_voxel);
@@ -439,7 +473,7 @@ void CorrelationKernel::record(CommandBatch& batch, const DeviceEnsemble& ensemb
     batch.fill(view, 0x7fc00000u);
     return;
   }
-  const Plan plan = make_plan(ref.params.measure, members);
+  const Plan plan = make_plan(ref.params, members);
   check_device_fits(ctx, plan, name, members);
   gpu::CorrelationPush push = make_push(ref);
   const ComputePipeline& pipeline = impl_->pipeline(plan, true);  // member-major whatever the strategy

@@ -22,7 +22,8 @@ struct CorrelationCase {
   uint64_t max_device_bytes = 0;  // small: several chunks
   // mixed: correlation_test_ensemble; bin_edges: bin_edge_ensemble, against the CPU peer's float
   // binning; pearson_shift: pearson_shift_ensemble about 0, pearson_shift_offset about 1000.
-  enum class Data { mixed, bin_edges, pearson_shift, pearson_shift_offset } data = Data::mixed;
+  // spread: spread_ensemble, series a thousand times wider (and narrower) than the reference.
+  enum class Data { mixed, bin_edges, pearson_shift, pearson_shift_offset, spread } data = Data::mixed;
   // The voxel whose series is the reference: 0 is the ensemble's reference series; 2 a series
   // rounded to multiples of 1/4, so the reference has many ties (kendall's x tie groups, repeated
   // Kraskov points).
@@ -48,9 +49,10 @@ void correlation(Context& ctx, Check& check, CorrelationCase c) {
   using Data = CorrelationCase::Data;
   const bool bin_edges = c.data == Data::bin_edges, mixed = c.data == Data::mixed;
   const float shift_offset = c.data == Data::pearson_shift_offset ? 1000.0f : 0.0f;
-  CorrelationEnsemble e = bin_edges ? bin_edge_ensemble(c.members, c.voxels)
-                          : mixed   ? correlation_test_ensemble(c.members, c.voxels, seed)
-                                    : pearson_shift_ensemble(c.members, shift_offset, seed);
+  CorrelationEnsemble e = bin_edges                 ? bin_edge_ensemble(c.members, c.voxels)
+                          : mixed                     ? correlation_test_ensemble(c.members, c.voxels, seed)
+                          : c.data == Data::spread    ? spread_ensemble(c.members, seed)
+                                                      : pearson_shift_ensemble(c.members, shift_offset, seed);
   const bool infinite_member =
       mixed && needs_finite_members(c.params.measure) && c.voxels > 9 && c.reference_voxel != 9;
   if (infinite_member) e.values[2 * e.voxels + 9] = INFINITY;
@@ -100,6 +102,7 @@ std::string correlation_name(const CorrelationCase& c) {
   if (c.params.measure == CorrelationMeasure::MiCoefficient) s += ", coefficient, k=" + std::to_string(c.params.k);
   if (c.max_device_bytes) s += ", chunks";
   if (c.data == Data::bin_edges) s += ", values within 4 ulp of bin edges";
+  if (c.data == Data::spread) s += ", series 1000 times wider and narrower than the reference";
   if (c.reference_voxel) s += ", reference with ties (voxel " + std::to_string(c.reference_voxel) + ")";
   return s;
 }
@@ -152,6 +155,17 @@ void add_correlation_cases(CaseList& cases) {
   for (const uint32_t members : {30u, 100u, TFM_CORR_MI_BINNED_INVOCATION_MAX_MEMBERS + 1}) {
     const CorrelationCase c{{CorrelationMeasure::MiBinned, 10}, members, 300, 0, CorrelationCase::Data::bin_edges};
     cases.push_back({"correlation_mi_binned", "CorrelationKernel", correlation_name(c), members == 30,
+                     CorrelationKernel::workgroup_size(c.params, members),
+                     [c](Context& ctx, Check& check) { correlation(ctx, check, c); }});
+  }
+  // Kraskov searches that walk past nearly every member (the k nearest decided by a series far
+  // wider than the reference): before 2026-12-06 the workgroup was sized for one loop iteration a
+  // step, and lavapipe ended the searches early (0.09 nats for 0.002). At M = 1409, k = 9 (11 loop
+  // iterations a step) 512 invocations of 3 searches each stay within the budget, and within
+  // 32 KiB of shared memory.
+  for (const auto& [members, k] : {std::pair{1000u, 3u}, std::pair{1409u, 9u}}) {
+    const CorrelationCase c{{CorrelationMeasure::MiKraskov, 16, k}, members, 4, 0, CorrelationCase::Data::spread};
+    cases.push_back({"correlation_mi_kraskov", "CorrelationKernel", correlation_name(c), false,
                      CorrelationKernel::workgroup_size(c.params, members),
                      [c](Context& ctx, Check& check) { correlation(ctx, check, c); }});
   }

@@ -157,6 +157,20 @@ CorrelationEnsemble pearson_shift_ensemble(uint32_t members, float offset, uint3
   return e;
 }
 
+CorrelationEnsemble spread_ensemble(uint32_t members, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> grid(0, 4096), wide(0, 16000);
+  CorrelationEnsemble e{members, 4, std::vector<float>(size_t(members) * 4)};
+  for (uint32_t m = 0; m < members; ++m) {
+    const int x = m < 2 ? 4096 * int(m) : grid(rng);
+    e.values[m * 4 + 0] = float(x) / 1024.0f;
+    e.values[m * 4 + 1] = float(wide(rng)) / 4.0f;
+    e.values[m * 4 + 2] = float(x) * (1000.0f / 1024.0f);  // 125 x / 128: exact
+    e.values[m * 4 + 3] = float(grid(rng)) / (1024.0f * 1024.0f);
+  }
+  return e;
+}
+
 bool classify(const std::vector<float>& tf, const FieldMapping& map, float v, double out[4]) {
   return tf_colour_cpu(tf, map, v, out);
 }

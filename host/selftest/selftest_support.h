@@ -135,6 +135,12 @@ CorrelationEnsemble bin_edge_ensemble(uint32_t members, uint64_t voxels);
 // which are `offset` plus noise correlated with the reference. The reference's member 0 is an
 // outlier too, so r nears +-1 at the large q, where a one-pass sum would cancel most.
 CorrelationEnsemble pearson_shift_ensemble(uint32_t members, float offset, uint32_t seed);
+// Series of other spreads than the reference's (voxel 0: multiples of 2^-10 in [0, 4], spanning
+// it): voxel 1 independent of it on [0, 4000] (multiples of 1/4), voxel 2 1000 times it, voxel 3
+// independent on [0, 4 / 1024]. Every difference stays exact in float. Where y spreads far wider
+// than x, the k nearest neighbours in the max norm are decided by y, and a Kraskov search walks
+// past nearly every member.
+CorrelationEnsemble spread_ensemble(uint32_t members, uint32_t seed);
 
 // The words of a device buffer.
 std::vector<uint32_t> read_words(Context& ctx, const Buffer& buffer, size_t words);

@@ -371,7 +371,7 @@ TEST_F(CorrelationKernelGpu, RejectsBadInputWithClearMessages) {
   const std::vector<float> too_many(kMaxCorrelationMembers + 1);
   EXPECT_NE(message({too_many.data(), kMaxCorrelationMembers + 1, 1}, too_many, {}).find("(got 16385)"), std::string::npos);
   // More members than the device's workgroups hold: a runtime error naming the limit (shared
-  // memory on lavapipe's 32 KiB; the workgroup size for mi-kraskov, 8192 invocations here).
+  // memory: lavapipe's 32 KiB, most GPUs' 48 KiB).
   const std::vector<float> many(kMaxCorrelationMembers, 1.0f);
   for (const CorrelationParams& p : {CorrelationParams{CorrelationMeasure::Kendall}, {CorrelationMeasure::MiKraskov}}) {
     const bool fits = CorrelationKernel::shared_memory_bytes(p, kMaxCorrelationMembers) <=
