@@ -273,13 +273,18 @@ void main() {
       state.gamma = mix(gamma, gz, on);
       state.s_norm2 = mix(state.s_norm2, ss, on);
       state.iterations += running;
-      // The float32 floor: x holds each entry to half an ulp, u |x_j| (u = 2^-24), and R turns
-      // that into an error of s up to ||R|| u ||x|| (||R|| <= ridge + 4 smooth) that no iteration
-      // removes; a channel whose residual is down to it stops. 0 without R.
-      const float amp = exp2(-24.0) * (pc.ridge_weight + 4.0 * pc.smooth_weight);
-      const bvec4 done = lessThanEqual(ss, max(pc.tolerance2 * s0, amp * amp * xx));
+      // The float32 floor: x holds each entry to half an ulp, e_j <= u |x_j| / 2 (u = 2^-24),
+      // which moves s by R e, a residual no iteration removes. It is measured in P^-1's norm,
+      // gz = s^T P^-1 s: P >= R / 2 (diag(M) + R, or Jacobi's diagonal, which bounds R / 2), so
+      // the rounding's share is at most 2 e^T R e <= (ridge + 4 smooth) u^2 ||x||^2 / 2, and a
+      // channel whose gz is down to it stops. In the plain norm the same rounding is as large as
+      // a smooth error that P^-1 weighs far more, so a floor there stopped heavy smoothing at large
+      // N while x was still 0.04 from the fit. 0 without R.
+      const vec4 floor_gz = exp2(-48.0) * (pc.ridge_weight + 4.0 * pc.smooth_weight) * xx;
+      const bvec4 converged = lessThanEqual(ss, pc.tolerance2 * s0);
+      const bvec4 at_floor = lessThanEqual(gz, floor_gz);
       for (uint c = 0u; c < 4u; ++c) {
-        if (done[c] || !(gz[c] > 0.0)) state.running[c] = 0u;
+        if (converged[c] || at_floor[c] || !(gz[c] > 0.0)) state.running[c] = 0u;
       }
     }
   }

@@ -115,8 +115,9 @@ TFM_PUSH_CONSTANTS(SparsePush) {
 #define TFM_CGLS_STAGE_INIT 0u       // s = S^T b, z = P^-1 s, p = z, gamma = s.z, x = 0
 #define TFM_CGLS_STAGE_STEP 1u       // delta = ||S p||^2 + p.R p, alpha = gamma / delta, x += alpha p
 #define TFM_CGLS_STAGE_DIRECTION 2u  // s = S^T r - R x, z = P^-1 s, beta, p = z + beta p, stop test
-// Stop test: ||s||^2 <= max(tolerance2 ||s0||^2, (u (ridge + 4 smooth))^2 ||x||^2), u = 2^-24: the
-// tolerance, or the float32 floor below which R's action on the rounding of x hides the residual.
+// Stop test: ||s||^2 <= tolerance2 ||s0||^2, or s.z = s^T P^-1 s <= u^2 (ridge + 4 smooth) ||x||^2,
+// u = 2^-24: the float32 floor, where the residual in P^-1's norm is down to what R makes of the
+// rounding of x.
 
 // Per-channel scalars of the four CGLS runs (std430: vec4/uvec4 members, no padding).
 struct CglsState {

@@ -30,8 +30,9 @@ struct CglsGpuResult {
   std::array<uint32_t, 4> iterations{};         // per RGBA channel
   std::array<double, 4> relative_residual{};    // ||S^T r - R x|| / ||S^T b|| per channel at the end
   // The float32 floor of the relative residual per channel, u (ridge + 4 smooth) ||x|| / ||S^T b||
-  // (u = 2^-24; 0 without regularization): below it R's action on x's rounding hides the residual,
-  // so a channel stops there when the tolerance is out of reach (cgls_vectors.comp).
+  // (u = 2^-24; 0 without regularization): how large R's action on x's rounding can make the
+  // residual. A channel stops when the tolerance is out of reach and its residual in P^-1's norm
+  // is down to that rounding's share there (cgls_vectors.comp), which a smooth error never is.
   std::array<double, 4> residual_floor{};
   uint32_t clamped_values = 0;                  // components moved into [0,1]
   uint32_t voxel_chunks = 0;                    // blocks of the voxel vectors
