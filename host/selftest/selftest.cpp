@@ -28,6 +28,7 @@ const CaseList& all_cases() {
     selftest::add_irls_cases(list);
     selftest::add_render_cases(list);
     selftest::add_correlation_cases(list);
+    selftest::add_device_cases(list);
     return list;
   }();
   return cases;

@@ -77,6 +77,7 @@ void add_gd_cases(CaseList& cases);      // gd_gradient, gd_update
 void add_irls_cases(CaseList& cases);    // irls_assemble
 void add_render_cases(CaseList& cases);  // render_image, diffdvr_forward, visibility_weights, diffdvr_backward
 void add_correlation_cases(CaseList& cases);  // correlation_pearson, _spearman, _kendall, _mi_binned, _mi_kraskov
+void add_device_cases(CaseList& cases);  // loop_probe
 
 // ---- test data (fixed seeds) ----------------------------------------------------------------
 
