@@ -9,12 +9,13 @@
 #include <filesystem>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "cli_runner.h"
 #include "context.h"
 #include "cpu_renderer.h"
-#include "render.h"
 #include "diffdvr.h"
+#include "render.h"
 #include "render_image.h"
 #include "test_data.h"
 #include "vk_test_env.h"
@@ -133,6 +134,27 @@ TEST_F(RenderGpu, DiffDvrRefusesRaysItCannotMarchBack) {
   EXPECT_NE(r.output.find("4 of them in one shader invocation"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("use a step of at least 0.0103 voxels"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "demo")) << "nothing is written";
+}
+
+// The visibility weights march one view per invocation once rays are long: an 8 x 8 x 2000 column
+// at a step of 0.02 voxels (100 004 samples a ray) is refused on llvmpipe before anything is
+// written, naming the step that fits; elsewhere the fit runs.
+TEST_F(RenderGpu, VisibilityWeightsRefuseRaysTheyCannotMarch) {
+  const test::TempDir dir;
+  std::vector<float> column(8 * 8 * 2000);
+  for (size_t i = 0; i < column.size(); ++i) column[i] = float((i / 64) % 50) / 49.0f;
+  test::write_floats(dir / "column_8x8x2000_float32.raw", column);
+  const test::CliResult r = test::run_cli("optimize --ref " + dir / "column_8x8x2000_float32.raw" +
+                                          " --ref-tf grey --field " + dir / "column_8x8x2000_float32.raw" + " --out " +
+                                          dir / "tf.json" + " --solver normal-equations --weights visibility --step 0.02");
+  if (ctx().loop_iteration_limit() == 0) {
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return;
+  }
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("visibility weights: rays of up to 100004 samples"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("use a step of at least 0.0307 voxels"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "tf.json")) << "nothing is written";
 }
 
 }  // namespace
