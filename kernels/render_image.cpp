@@ -13,7 +13,7 @@
 namespace tfm {
 
 static_assert(sizeof(gpu::RenderView) == 64, "RenderView must match the GLSL std430 struct");
-static_assert(sizeof(gpu::RenderPush) == 76, "RenderPush must match the GLSL push-constant block");
+static_assert(sizeof(gpu::RenderPush) == 84, "RenderPush must match the GLSL push-constant block");
 
 std::vector<DescriptorKind> march_binding_kinds(size_t bindings, uint32_t field_binding, uint32_t tf_binding) {
   return texel_binding_kinds(bindings, {field_binding, tf_binding});
@@ -44,6 +44,10 @@ PipelineDesc render_image_pipeline_desc(uint32_t field_chunks, uint32_t mode, co
 }
 
 namespace {
+// Loop iterations a marching invocation runs outside its march (camera set-up, the box's axes),
+// with margin.
+constexpr uint64_t kMarchLoopReserve = 256;
+
 // v in three significant digits, rounded up when `up` (a bound that must hold as printed).
 std::string three_digits(double v, bool up = false) {
   if (up && v > 0) {
@@ -59,12 +63,10 @@ std::string three_digits(double v, bool up = false) {
 void check_march_loops(const Context& ctx, const gpu::RenderPush& push, uint32_t rays, uint64_t other_loops,
                        const char* who) {
   const uint64_t limit = ctx.loop_iteration_limit();
-  // The invocation's loops outside the march (camera set-up, the box's axes) with margin.
-  constexpr uint64_t kReserve = 256;
-  const uint64_t need = uint64_t(rays) * (uint64_t(push.max_steps) + 1) + other_loops + kReserve;
+  const uint64_t need = uint64_t(rays) * (uint64_t(push.max_steps) + 1) + other_loops + kMarchLoopReserve;
   if (limit == 0 || need <= limit) return;
   // max_steps is ceil(box diagonal / dt) + 2: the most samples that fit, and the step they need.
-  const uint64_t fits = limit > other_loops + kReserve ? (limit - other_loops - kReserve) / rays : 0;
+  const uint64_t fits = limit > other_loops + kMarchLoopReserve ? (limit - other_loops - kMarchLoopReserve) / rays : 0;
   const double diagonal_steps = double(push.max_steps) - 2.0;
   const std::string advice =
       fits > 4 ? "use a step of at least " + three_digits(double(push.dt) * diagonal_steps / double(fits - 3), true) +
@@ -125,13 +127,32 @@ void RenderImageKernel::record_with(CommandBatch& batch, const Binding& field, c
     throw std::invalid_argument("render: fewer camera records than views");
   if (tf.size() < uint64_t(push.tf_size) * 16) throw std::invalid_argument("render: TF buffer smaller than tf_size");
   if (uint64_t(row_begin) + row_count > push.height) throw std::invalid_argument("render: row band outside the image");
-  check_march_loops(ctx_, push, rays_per_pixel_, 0, "render");
   push.row_offset = row_begin;
   push.row_end = row_begin + row_count;
   const Groups groups{(push.width + TFM_RENDER_TILE - 1) / TFM_RENDER_TILE,
                       (row_count + TFM_RENDER_TILE - 1) / TFM_RENDER_TILE, push.view_count};
   // Buffers in the binding order of gpu::kRenderBindingCounts.
-  batch.dispatch(*pipeline_, {field, march_tf_binding(tf, push.tf_size), views, image, stop}, push, groups);
+  const std::vector<Binding> bindings = {field, march_tf_binding(tf, push.tf_size), views, image, stop};
+  // Where the driver limits an invocation's loops (llvmpipe), rays longer than it allows are
+  // marched in several dispatches, each resuming from the state the one before stored in the
+  // image and stop buffers (render_image.comp). The inverse check walks each ray back in the
+  // invocation that marched it, so it needs whole rays.
+  const uint64_t limit = ctx_.loop_iteration_limit();
+  const uint64_t per_dispatch = limit > kMarchLoopReserve + 1 ? limit - kMarchLoopReserve - 1 : 0;
+  if (rays_per_pixel_ > 1 || per_dispatch == 0 || push.max_steps <= per_dispatch) {
+    check_march_loops(ctx_, push, rays_per_pixel_, 0, "render");
+    push.first_sample = 0;
+    push.sample_end = 0;
+    batch.dispatch(*pipeline_, bindings, push, groups);
+    return;
+  }
+  for (uint64_t first = 0; first < push.max_steps; first += per_dispatch) {
+    // The part before has stored every ray's state before this one reads it.
+    if (first > 0) batch.barrier();
+    push.first_sample = uint32_t(first);
+    push.sample_end = uint32_t(std::min<uint64_t>(first + per_dispatch, push.max_steps));
+    batch.dispatch(*pipeline_, bindings, push, groups);
+  }
 }
 
 gpu::RenderView make_render_view(const CameraFrame& f) {

@@ -50,8 +50,11 @@ class RenderImageKernel {
   RenderImageKernel(Context& ctx, ImageField);
   uint32_t field_chunks() const { return chunks_; }
   // Records one dispatch over rows [row_begin, row_begin + row_count) of every view. `image`
-  // holds width*height*views vec4, `stop` as many uints. Throws std::invalid_argument when the
-  // field's chunk count or a buffer size does not fit.
+  // holds width*height*views vec4, `stop` as many uints. On a device that limits an invocation's
+  // loops (llvmpipe), rays longer than it allows take several dispatches with barriers between,
+  // each resuming from the state the one before left in `image` and `stop`. Throws
+  // std::invalid_argument when the field's chunk count or a buffer size does not fit, and
+  // std::runtime_error (check_march_loops) when the inverse check's rays are too long for it.
   void record(CommandBatch& batch, const DeviceField& field, const Buffer& tf, const Buffer& views,
               gpu::RenderPush push, Buffer& image, Buffer& stop, uint32_t row_begin, uint32_t row_count) const;
   // The same from the image variant: `field`'s extent is the push block's grid.

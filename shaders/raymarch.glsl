@@ -225,13 +225,12 @@ bool shade_sample(Ray ray, uint k, MarchParams mp, out vec3 rgb, out float tau) 
   return true;
 }
 
-// Front-to-back marching with early termination. Returns the samples marched (k_stop: the ray
+// Front-to-back marching with early termination from sample k (color/transmittance hold the state
+// before it: (0, 1) at k = 0) up to sample k_end. Returns the samples marched (k_stop: the ray
 // stopped after sample k_stop - 1); color/transmittance hold the final state.
-uint march_forward(Ray ray, MarchParams mp, out vec3 color, out float transmittance) {
-  color = vec3(0.0);
-  transmittance = 1.0;
-  uint k = 0u;
-  while (k < ray.steps) {
+uint march_forward(Ray ray, MarchParams mp, uint k, uint k_end, inout vec3 color, inout float transmittance) {
+  k_end = min(k_end, ray.steps);
+  while (k < k_end) {
     vec3 rgb;
     float tau;
     if (shade_sample(ray, k, mp, rgb, tau)) composite(color, transmittance, rgb, tau);

@@ -13,8 +13,9 @@ TFM_DECLARE_RAYMARCH_BINDINGS(TFM_RENDER_BINDING_FIELD, TFM_RENDER_BINDING_TF)
 #include "raymarch.glsl"
 
 layout(std430, binding = TFM_RENDER_BINDING_VIEWS) readonly buffer Views { RenderView views[]; };
-layout(std430, binding = TFM_RENDER_BINDING_IMAGE) writeonly buffer Image { vec4 image[]; };
-layout(std430, binding = TFM_RENDER_BINDING_STOP) writeonly buffer Stop { uint stop_index[]; };
+// Read back when a dispatch resumes the rays an earlier one began (rp.first_sample > 0).
+layout(std430, binding = TFM_RENDER_BINDING_IMAGE) buffer Image { vec4 image[]; };
+layout(std430, binding = TFM_RENDER_BINDING_STOP) buffer Stop { uint stop_index[]; };
 
 void main() {
   uvec2 pixel;
@@ -22,19 +23,29 @@ void main() {
   if (!invocation_pixel(pixel, view)) return;
   const MarchParams mp = march_params_from_push();
   const Ray ray = view_ray(views[view], pixel, mp);
-  vec3 color;
-  float transmittance;
-  const uint k_stop = march_forward(ray, mp, color, transmittance);
+  const uint index = pixel_index(pixel, view);
+  vec3 color = vec3(0.0);
+  float transmittance = 1.0;
+  uint k = 0u;
+  if (rp.first_sample > 0u) {
+    // A later part of a long ray: the state where the earlier dispatch left it, unless the ray
+    // ended there (its last sample, or early termination).
+    k = stop_index[index];
+    const vec4 state = image[index];
+    color = state.rgb;
+    transmittance = MODE == TFM_RENDER_MODE_DIFFDVR_STATE ? state.a : 1.0 - state.a;
+    if (k < rp.first_sample || k >= ray.steps || transmittance <= mp.stop_transmittance) return;
+  }
+  const uint k_stop = march_forward(ray, mp, k, rp.sample_end == 0u ? ray.steps : rp.sample_end, color, transmittance);
 
   if (MODE == TFM_RENDER_MODE_INVERSE_CHECK) {
     // Walk back exactly as a DiffDVR backward pass would; the state must return to (0, 1).
-    for (uint k = k_stop; k > 0u; --k) {
+    for (uint back = k_stop; back > 0u; --back) {
       vec3 rgb;
       float tau;
-      if (shade_sample(ray, k - 1u, mp, rgb, tau)) uncomposite(color, transmittance, rgb, tau);
+      if (shade_sample(ray, back - 1u, mp, rgb, tau)) uncomposite(color, transmittance, rgb, tau);
     }
   }
-  const uint index = pixel_index(pixel, view);
   image[index] = vec4(color, MODE == TFM_RENDER_MODE_DIFFDVR_STATE ? transmittance : 1.0 - transmittance);
   stop_index[index] = k_stop;
 }

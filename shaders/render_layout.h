@@ -110,6 +110,12 @@ TFM_PUSH_CONSTANTS(RenderPush) {
   float inv_axis_x;       // world -> index: index = world * inv_axis
   float inv_axis_y;
   float inv_axis_z;
+  // render_image: this dispatch marches samples [first_sample, sample_end) of each ray, resuming
+  // from the state an earlier dispatch stored when first_sample > 0; sample_end 0: to the ray's
+  // end. Long rays come in several dispatches where the driver limits an invocation's loops
+  // (kernels/render_image.cpp); the other marching kernels take whole rays (0, 0).
+  uint first_sample;
+  uint sample_end;
 } TFM_PUSH_INSTANCE(rp);
 #endif
 
