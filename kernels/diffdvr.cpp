@@ -94,9 +94,25 @@ std::string DiffDvrBackwardKernel::unsupported(const Context& ctx, uint32_t tf_s
   return {};
 }
 
-ReductionMode DiffDvrBackwardKernel::choose(const Context& ctx, uint32_t tf_size, ReductionMode mode) {
+// A private lane marches TFM_DIFFDVR_PRIVATE_PIXELS rays back and zeroes and adds its N-entry
+// histogram; a runs lane one ray, whose samples and runs (at most one a sample, and lanes of a
+// SIMD vector diverge) both loop.
+uint32_t DiffDvrBackwardKernel::rays_per_invocation(ReductionMode mode) {
+  return mode == ReductionMode::Private ? TFM_DIFFDVR_PRIVATE_PIXELS : 3u;
+}
+
+uint64_t DiffDvrBackwardKernel::other_loops(ReductionMode mode, uint32_t tf_size) {
+  return mode == ReductionMode::Private ? 2ull * tf_size + 8 : 8;
+}
+
+ReductionMode DiffDvrBackwardKernel::choose(const Context& ctx, uint32_t tf_size, ReductionMode mode,
+                                            uint32_t max_steps) {
   if (mode != ReductionMode::Auto) return mode;
-  if (is_cpu_device(ctx) && unsupported(ctx, tf_size, ReductionMode::Private).empty()) return ReductionMode::Private;
+  const bool private_rays_fit =
+      max_steps == 0 || march_loops_fit(ctx, max_steps, rays_per_invocation(ReductionMode::Private),
+                                        other_loops(ReductionMode::Private, tf_size));
+  if (is_cpu_device(ctx) && private_rays_fit && unsupported(ctx, tf_size, ReductionMode::Private).empty())
+    return ReductionMode::Private;
   if (unsupported(ctx, tf_size, ReductionMode::RunsShared).empty()) return ReductionMode::RunsShared;
   return ReductionMode::RunsGlobal;
 }
@@ -139,12 +155,7 @@ void DiffDvrBackwardKernel::record(CommandBatch& batch, const DeviceField& field
   if (target.size() < state.size()) throw std::invalid_argument("diffdvr: target image smaller than the state");
   if (accum.size() < slots() * gpu::kFixedSlotBytes)
     throw std::invalid_argument("diffdvr: accumulator buffer too small");
-  // A private lane marches TFM_DIFFDVR_PRIVATE_PIXELS rays back and zeroes and adds its N-entry
-  // histogram; a runs lane one ray, whose samples and runs (at most one a sample) both loop.
-  if (mode_ == ReductionMode::Private)
-    check_march_loops(ctx_, push, TFM_DIFFDVR_PRIVATE_PIXELS, 2ull * tf_size_ + 8, "diffdvr");
-  else
-    check_march_loops(ctx_, push, 3, 8, "diffdvr");
+  check_march_loops(ctx_, push, rays_per_invocation(mode_), other_loops(mode_, tf_size_), "diffdvr");
   push.row_offset = row_begin;
   push.row_end = row_begin + row_count;
   // Buffers in the binding order of kBackwardBindingCounts.

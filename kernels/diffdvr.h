@@ -58,8 +58,16 @@ class DiffDvrBackwardKernel {
   ReductionMode mode() const { return mode_; }
   // Why `mode` cannot run on this device for `tf_size` entries, or "" when it can (Auto: "").
   static std::string unsupported(const Context& ctx, uint32_t tf_size, ReductionMode mode);
-  // The mode a kernel for `tf_size` entries takes when asked for `mode` (resolves Auto).
-  static ReductionMode choose(const Context& ctx, uint32_t tf_size, ReductionMode mode = ReductionMode::Auto);
+  // The mode a kernel for `tf_size` entries takes when asked for `mode` (resolves Auto). With
+  // `max_steps` (the rays' samples, 0: unknown), Auto leaves Private, whose lanes march
+  // TFM_DIFFDVR_PRIVATE_PIXELS rays each, for the runs modes when those rays are longer than the
+  // device lets one invocation loop (Context::loop_iteration_limit).
+  static ReductionMode choose(const Context& ctx, uint32_t tf_size, ReductionMode mode = ReductionMode::Auto,
+                              uint32_t max_steps = 0);
+  // The loop iterations one invocation's march back costs besides its rays' samples, and the rays
+  // it marches, in `mode` (Private or a runs mode) for `tf_size` entries: what record() checks.
+  static uint32_t rays_per_invocation(ReductionMode mode);
+  static uint64_t other_loops(ReductionMode mode, uint32_t tf_size);
   bool uses_shared_memory() const { return mode_ == ReductionMode::RunsShared; }
   // Adds the loss of (state vs target) over rows [row_begin, row_begin + row_count) of every view
   // and its gradient w.r.t. `tf` to `accum`. `state`/`stop` are the forward pass's output for

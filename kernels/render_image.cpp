@@ -60,11 +60,16 @@ std::string three_digits(double v, bool up = false) {
 }
 }  // namespace
 
+bool march_loops_fit(const Context& ctx, uint32_t max_steps, uint32_t rays, uint64_t other_loops) {
+  const uint64_t limit = ctx.loop_iteration_limit();
+  return limit == 0 || uint64_t(rays) * (uint64_t(max_steps) + 1) + other_loops + kMarchLoopReserve <= limit;
+}
+
 void check_march_loops(const Context& ctx, const gpu::RenderPush& push, uint32_t rays, uint64_t other_loops,
                        const char* who) {
+  if (march_loops_fit(ctx, push.max_steps, rays, other_loops)) return;
   const uint64_t limit = ctx.loop_iteration_limit();
   const uint64_t need = uint64_t(rays) * (uint64_t(push.max_steps) + 1) + other_loops + kMarchLoopReserve;
-  if (limit == 0 || need <= limit) return;
   // max_steps is ceil(box diagonal / dt) + 2: the most samples that fit, and the step they need.
   const uint64_t fits = limit > other_loops + kMarchLoopReserve ? (limit - other_loops - kMarchLoopReserve) / rays : 0;
   const double diagonal_steps = double(push.max_steps) - 2.0;
@@ -74,7 +79,7 @@ void check_march_loops(const Context& ctx, const gpu::RenderPush& push, uint32_t
                : "this needs another Vulkan device";
   throw std::runtime_error(std::string(who) + ": rays of up to " + std::to_string(push.max_steps) +
                            " samples (the box diagonal at a step of " + three_digits(push.dt) + " voxels)" +
-                           (rays > 1 ? ", " + std::to_string(rays) + " of them in one shader invocation," : "") +
+                           (rays > 1 ? ", " + std::to_string(rays) + " loop iterations a sample in one shader invocation," : "") +
                            " need " + std::to_string(need) + " loop iterations, more than this device's driver runs " +
                            "in one invocation (llvmpipe: " + std::to_string(limit) + ") before it ends the loops; " +
                            advice);

@@ -52,7 +52,8 @@ DiffDvrGradient::DiffDvrGradient(Context& ctx, const DeviceField& ref, const Dev
       march_(march_constants(settings, geometry)),
       forward_ref_(ctx, uint32_t(ref.chunk_count())),
       forward_opt_(ctx, uint32_t(opt.chunk_count())),
-      backward_(ctx, uint32_t(opt.chunk_count()), opt_map.tf_size, loss, reduction),
+      backward_(ctx, uint32_t(opt.chunk_count()), opt_map.tf_size, loss,
+                DiffDvrBackwardKernel::choose(ctx, opt_map.tf_size, reduction, march_.max_steps)),
       buffers_(std::make_unique<Buffers>()) {
   const uint64_t pixels = uint64_t(settings.width) * settings.height;
   const uint64_t by_memory = ctx.max_buffer_bytes() / (pixels * 16);

@@ -256,6 +256,35 @@ TEST_F(DiffDvrGradientTest, L1MatchesFiniteDifferences) {
   EXPECT_GT(exited, 10u);
 }
 
+// Rays of ~20 000 samples down a 3 x 3 x 1000 column: too long for a CPU device's private lanes
+// (4 rays each past llvmpipe's 65535 loop iterations), so Auto takes the runs path there, as on a
+// GPU, and its gradient matches the CPU reverse mode. The bound: T recovered by ~20 000 divisions
+// drifts by up to ~20 000 float ulps (1e-3 relative) where the short rays above drift by ~30.
+TEST_F(DiffDvrGradientTest, LongRaysMatchTheReverseModeOnThePathTheyFit) {
+  Case c;
+  c.ref = wavy_volume({3, 3, 1000}, {1.0, 1.0, 1.0}, 1);
+  c.opt = wavy_volume({3, 3, 1000}, {1.0, 1.0, 1.0}, 2);
+  c.ref_tf = random_tf(9, 3, 0.1, 0.9, 0.1, 0.9);
+  c.tf = random_tf(7, 4, 0.1, 0.9, 0.1, 0.9);
+  c.settings.width = c.settings.height = 3;
+  c.settings.step_voxels = 0.05;
+  c.settings.opacity_scale = 2.0;  // no ray terminates early
+  OrbitCamera down;
+  down.elevation_deg = 90;
+  down.fov_deg = 0.5;
+  c.cameras = {down};
+  const MarchConstants m = march_constants(c.settings, VolumeGeometry::from(c.opt.dims, c.opt.spacing));
+  ASSERT_GT(m.max_steps, 19000u);
+  const ReductionMode chosen = DiffDvrBackwardKernel::choose(ctx(), 7, ReductionMode::Auto, m.max_steps);
+  if (ctx().loop_iteration_limit() != 0) EXPECT_NE(chosen, ReductionMode::Private) << "4 rays a lane do not fit";
+  const CpuSide cpu(c);
+  double cpu_loss = 0;
+  const std::vector<double> reverse = cpu.gradient(&cpu_loss);
+  const ImageLossGradient gpu = gpu_gradient(ctx(), c);
+  expect_close(gpu.gradient, reverse, 1e-2, "GPU backward pass on long rays vs CPU reverse mode");
+  EXPECT_NEAR(gpu.loss, cpu_loss, 1e-3 * cpu_loss);
+}
+
 // Reference images rendered once into the pool and reused give the same loss and gradient bits
 // as rendering them with each evaluation, whatever the order in which pool cameras are chosen.
 TEST_F(DiffDvrGradientTest, PooledReferenceViewsGiveTheSameBits) {
