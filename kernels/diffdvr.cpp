@@ -97,7 +97,7 @@ std::string DiffDvrBackwardKernel::unsupported(const Context& ctx, uint32_t tf_s
 // A private lane marches TFM_DIFFDVR_PRIVATE_PIXELS rays back and zeroes and adds its N-entry
 // histogram; a runs lane one ray, whose samples and runs (at most one a sample, and lanes of a
 // SIMD vector diverge) both loop.
-uint32_t DiffDvrBackwardKernel::rays_per_invocation(ReductionMode mode) {
+uint32_t DiffDvrBackwardKernel::loops_per_sample(ReductionMode mode) {
   return mode == ReductionMode::Private ? TFM_DIFFDVR_PRIVATE_PIXELS : 3u;
 }
 
@@ -109,7 +109,7 @@ ReductionMode DiffDvrBackwardKernel::choose(const Context& ctx, uint32_t tf_size
                                             uint32_t max_steps) {
   if (mode != ReductionMode::Auto) return mode;
   const bool private_rays_fit =
-      max_steps == 0 || march_loops_fit(ctx, max_steps, rays_per_invocation(ReductionMode::Private),
+      max_steps == 0 || march_loops_fit(ctx, max_steps, loops_per_sample(ReductionMode::Private),
                                         other_loops(ReductionMode::Private, tf_size));
   if (is_cpu_device(ctx) && private_rays_fit && unsupported(ctx, tf_size, ReductionMode::Private).empty())
     return ReductionMode::Private;
@@ -155,7 +155,7 @@ void DiffDvrBackwardKernel::record(CommandBatch& batch, const DeviceField& field
   if (target.size() < state.size()) throw std::invalid_argument("diffdvr: target image smaller than the state");
   if (accum.size() < slots() * gpu::kFixedSlotBytes)
     throw std::invalid_argument("diffdvr: accumulator buffer too small");
-  check_march_loops(ctx_, push, rays_per_invocation(mode_), other_loops(mode_, tf_size_), "diffdvr");
+  check_march_loops(ctx_, push, loops_per_sample(mode_), other_loops(mode_, tf_size_), "diffdvr");
   push.row_offset = row_begin;
   push.row_end = row_begin + row_count;
   // Buffers in the binding order of kBackwardBindingCounts.

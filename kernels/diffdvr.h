@@ -64,9 +64,10 @@ class DiffDvrBackwardKernel {
   // device lets one invocation loop (Context::loop_iteration_limit).
   static ReductionMode choose(const Context& ctx, uint32_t tf_size, ReductionMode mode = ReductionMode::Auto,
                               uint32_t max_steps = 0);
-  // The loop iterations one invocation's march back costs besides its rays' samples, and the rays
-  // it marches, in `mode` (Private or a runs mode) for `tf_size` entries: what record() checks.
-  static uint32_t rays_per_invocation(ReductionMode mode);
+  // What record() checks in `mode` (Private or a runs mode) for `tf_size` entries: the loop
+  // iterations one invocation's march back costs a sample (Private: its rays; runs: a ray's
+  // samples and runs), and its other loops.
+  static uint32_t loops_per_sample(ReductionMode mode);
   static uint64_t other_loops(ReductionMode mode, uint32_t tf_size);
   bool uses_shared_memory() const { return mode_ == ReductionMode::RunsShared; }
   // Adds the loss of (state vs target) over rows [row_begin, row_begin + row_count) of every view

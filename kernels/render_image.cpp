@@ -58,20 +58,26 @@ std::string three_digits(double v, bool up = false) {
   std::snprintf(text, sizeof(text), "%.3g", v);
   return text;
 }
+
+// The loop iterations of rays of `max_steps` samples at `loops_per_sample`, and `other_loops`.
+uint64_t march_loops_needed(uint32_t max_steps, uint32_t loops_per_sample, uint64_t other_loops) {
+  return uint64_t(loops_per_sample) * (uint64_t(max_steps) + 1) + other_loops + kMarchLoopReserve;
+}
 }  // namespace
 
-bool march_loops_fit(const Context& ctx, uint32_t max_steps, uint32_t rays, uint64_t other_loops) {
+bool march_loops_fit(const Context& ctx, uint32_t max_steps, uint32_t loops_per_sample, uint64_t other_loops) {
   const uint64_t limit = ctx.loop_iteration_limit();
-  return limit == 0 || uint64_t(rays) * (uint64_t(max_steps) + 1) + other_loops + kMarchLoopReserve <= limit;
+  return limit == 0 || march_loops_needed(max_steps, loops_per_sample, other_loops) <= limit;
 }
 
-void check_march_loops(const Context& ctx, const gpu::RenderPush& push, uint32_t rays, uint64_t other_loops,
-                       const char* who) {
-  if (march_loops_fit(ctx, push.max_steps, rays, other_loops)) return;
+void check_march_loops(const Context& ctx, const gpu::RenderPush& push, uint32_t loops_per_sample,
+                       uint64_t other_loops, const char* who) {
+  if (march_loops_fit(ctx, push.max_steps, loops_per_sample, other_loops)) return;
   const uint64_t limit = ctx.loop_iteration_limit();
-  const uint64_t need = uint64_t(rays) * (uint64_t(push.max_steps) + 1) + other_loops + kMarchLoopReserve;
+  const uint64_t need = march_loops_needed(push.max_steps, loops_per_sample, other_loops);
   // max_steps is ceil(box diagonal / dt) + 2: the most samples that fit, and the step they need.
-  const uint64_t fits = limit > other_loops + kMarchLoopReserve ? (limit - other_loops - kMarchLoopReserve) / rays : 0;
+  const uint64_t fits =
+      limit > other_loops + kMarchLoopReserve ? (limit - other_loops - kMarchLoopReserve) / loops_per_sample : 0;
   const double diagonal_steps = double(push.max_steps) - 2.0;
   const std::string advice =
       fits > 4 ? "use a step of at least " + three_digits(double(push.dt) * diagonal_steps / double(fits - 3), true) +
@@ -79,7 +85,9 @@ void check_march_loops(const Context& ctx, const gpu::RenderPush& push, uint32_t
                : "this needs another Vulkan device";
   throw std::runtime_error(std::string(who) + ": rays of up to " + std::to_string(push.max_steps) +
                            " samples (the box diagonal at a step of " + three_digits(push.dt) + " voxels)" +
-                           (rays > 1 ? ", " + std::to_string(rays) + " loop iterations a sample in one shader invocation," : "") +
+                           (loops_per_sample > 1
+                                ? ", " + std::to_string(loops_per_sample) + " loop iterations a sample in one shader invocation,"
+                                : "") +
                            " need " + std::to_string(need) + " loop iterations, more than this device's driver runs " +
                            "in one invocation (llvmpipe: " + std::to_string(limit) + ") before it ends the loops; " +
                            advice);

@@ -33,14 +33,14 @@ PipelineDesc render_image_pipeline_desc(uint32_t field_chunks, uint32_t mode, co
 
 // Throws std::runtime_error, starting with `who`, when one invocation of a marching kernel would
 // run more loop iterations than the device lets it (Context::loop_iteration_limit: llvmpipe ends
-// every loop of an invocation after 65535 in all, silently): `rays` loop iterations a sample
-// (several rays an invocation, or a ray whose samples and runs both loop) over up to
-// push.max_steps samples, and `other_loops` iterations besides. The message names the smallest step that
-// fits this volume. Does nothing on devices without such a limit.
-void check_march_loops(const Context& ctx, const gpu::RenderPush& push, uint32_t rays, uint64_t other_loops,
-                       const char* who);
+// every loop of an invocation after 65535 in all, silently): `loops_per_sample` loop iterations a
+// sample (several rays an invocation, or a ray whose samples and runs both loop) over up to
+// push.max_steps samples, and `other_loops` iterations besides. The message names the smallest
+// step that fits this volume. Does nothing on devices without such a limit.
+void check_march_loops(const Context& ctx, const gpu::RenderPush& push, uint32_t loops_per_sample,
+                       uint64_t other_loops, const char* who);
 // Whether check_march_loops would let rays of `max_steps` samples through.
-bool march_loops_fit(const Context& ctx, uint32_t max_steps, uint32_t rays, uint64_t other_loops);
+bool march_loops_fit(const Context& ctx, uint32_t max_steps, uint32_t loops_per_sample, uint64_t other_loops);
 
 class RenderImageKernel {
  public:
