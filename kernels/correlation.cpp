@@ -84,11 +84,8 @@ uint64_t kraskov_point_loops(uint32_t members, uint32_t k) {
 // for the sort and the voxel's other loops (a few thousand at most).
 constexpr uint64_t kKraskovSearchBudget = 49152;
 
-// The largest workgroup a plan asks for: every Vulkan device's maxComputeWorkGroupSize[0] is at
-// least 128; 1024 is the usual (lavapipe, NVIDIA, AMD), and check_device_fits names the limit.
-constexpr uint32_t kCorrelationMaxWorkgroup = 1024;
-
-Plan make_plan(const CorrelationParams& params, uint32_t members) {
+// `max_workgroup`: the largest workgroup the plan may ask for (CorrelationKernel::max_workgroup).
+Plan make_plan(const CorrelationParams& params, uint32_t members, uint32_t max_workgroup) {
   const CorrelationMeasure measure = params.measure;
   const MeasureInfo& mi = info(measure);
   Plan p;
@@ -107,14 +104,14 @@ Plan make_plan(const CorrelationParams& params, uint32_t members) {
     // A Kraskov neighbour search may walk past every member (a reference with few distinct
     // values, or a voxel whose series spreads far wider than the reference's, when the k nearest
     // in the max norm are decided by y): enough invocations that their ceil(M / T) searches stay
-    // within kKraskovSearchBudget, up to kCorrelationMaxWorkgroup (beyond, check_device_fits
-    // refuses devices with a loop limit). Spearman and Kendall comparing every pair likewise (M^2 / T
+    // within kKraskovSearchBudget, up to the device's largest workgroup (beyond, check_device_fits
+    // refuses devices with a loop limit; others have none and run the plan as it is). Spearman and Kendall comparing every pair likewise (M^2 / T
     // comparisons an invocation), with room for the voxel's other loops.
     const bool counting = pairs_compared(measure, members);
     const bool kraskov = measure == CorrelationMeasure::MiKraskov || measure == CorrelationMeasure::MiCoefficient;
     if (kraskov) {
       const uint64_t point = kraskov_point_loops(members, params.k);
-      while (p.workgroup < kCorrelationMaxWorkgroup &&
+      while (p.workgroup * 2 <= max_workgroup &&
              (members + p.workgroup - 1) / p.workgroup * point > kKraskovSearchBudget)
         p.workgroup *= 2;
       p.search_loops = (members + p.workgroup - 1) / p.workgroup * point;
@@ -139,8 +136,13 @@ Plan make_plan(const CorrelationParams& params, uint32_t members) {
 
 }  // namespace
 
-std::string CorrelationKernel::strategy(const CorrelationParams& params, uint32_t member_count) {
-  const Plan p = make_plan(params, member_count);
+uint32_t CorrelationKernel::max_workgroup(const Context& ctx) {
+  const VkPhysicalDeviceLimits& limits = ctx.limits();
+  return std::min({kMaxWorkgroup, limits.maxComputeWorkGroupInvocations, limits.maxComputeWorkGroupSize[0]});
+}
+
+std::string CorrelationKernel::strategy(const CorrelationParams& params, uint32_t member_count, uint32_t max_workgroup) {
+  const Plan p = make_plan(params, member_count, max_workgroup);
   if (params.measure == CorrelationMeasure::Pearson) return "one invocation per voxel, one shifted pass over the members";
   if (params.measure == CorrelationMeasure::MiBinned)
     return p.group_per_voxel ? "one workgroup per voxel, shared-memory joint histogram"
@@ -153,15 +155,17 @@ std::string CorrelationKernel::strategy(const CorrelationParams& params, uint32_
                            : "one invocation per voxel, merge sort in a shared-memory slice";
 }
 
-uint32_t CorrelationKernel::workgroup_size(const CorrelationParams& params, uint32_t member_count) {
-  return make_plan(params, member_count).workgroup;
+uint32_t CorrelationKernel::workgroup_size(const CorrelationParams& params, uint32_t member_count,
+                                          uint32_t max_workgroup) {
+  return make_plan(params, member_count, max_workgroup).workgroup;
 }
 
-uint64_t CorrelationKernel::shared_memory_bytes(const CorrelationParams& params, uint32_t member_count) {
-  return make_plan(params, member_count).shared_bytes;
+uint64_t CorrelationKernel::shared_memory_bytes(const CorrelationParams& params, uint32_t member_count,
+                                               uint32_t max_workgroup) {
+  return make_plan(params, member_count, max_workgroup).shared_bytes;
 }
 
-double CorrelationKernel::error_bound(const CorrelationParams& params, uint32_t member_count) {
+double CorrelationKernel::error_bound(const CorrelationParams& params, uint32_t member_count, uint32_t max_workgroup) {
   constexpr double eps = 0x1p-24;
   // Conversions to float, a division (2.5 ulp in Vulkan), square roots and exp, with margin.
   constexpr double final_ops = 64 * eps;
@@ -186,7 +190,7 @@ double CorrelationKernel::error_bound(const CorrelationParams& params, uint32_t 
   // A float sum of n terms of magnitude <= t errs by <= n eps (n t) at worst; per member (the
   // mean) n eps t. n is the longest chain of additions: one invocation's members, then the
   // workgroup's partials in order.
-  const Plan p = make_plan(params, member_count);
+  const Plan p = make_plan(params, member_count, max_workgroup);
   const double additions =
       p.group_per_voxel ? std::ceil(double(member_count) / p.workgroup) + p.workgroup : double(member_count);
   const double ln_m = std::log(double(member_count));
@@ -203,15 +207,19 @@ constexpr uint64_t kRecordChunkAlign = 64;
 }  // namespace
 
 struct CorrelationKernel::Impl {
-  explicit Impl(Context& c) : ctx(c) {}
+  Impl(Context& c, uint32_t max_wg)
+      : ctx(c), max_workgroup(max_wg ? std::min(max_wg, CorrelationKernel::max_workgroup(c)) : CorrelationKernel::max_workgroup(c)) {}
   Context& ctx;
-  // Pipelines by (shader, strategy, region size, coefficient, layout), built on first use and kept.
-  std::map<std::tuple<std::string, bool, uint32_t, bool, bool>, SharedPipeline> pipelines;
+  uint32_t max_workgroup;  // what the plans are made with
+  // Pipelines by (shader, strategy, workgroup, region size, coefficient, layout), built on first
+  // use and kept. The workgroup is part of the key: the Kraskov measures' grows with k at the
+  // same member count (and so the same region).
+  std::map<std::tuple<std::string, bool, uint32_t, uint32_t, bool, bool>, SharedPipeline> pipelines;
 
   // `member_major`: the series' layout (uploaded chunks: member-major unless one workgroup per
   // voxel; device-resident ensembles: member-major).
   const ComputePipeline& pipeline(const Plan& p, bool member_major) {
-    auto& slot = pipelines[{p.shader, p.group_per_voxel, p.region_floats, p.coefficient, member_major}];
+    auto& slot = pipelines[{p.shader, p.group_per_voxel, p.workgroup, p.region_floats, p.coefficient, member_major}];
     if (!slot) {
       PipelineDesc desc;
       desc.shader = p.shader;
@@ -339,7 +347,8 @@ gpu::CorrelationPush make_push(const CorrelationReference& ref) {
 
 }  // namespace
 
-CorrelationKernel::CorrelationKernel(Context& ctx) : impl_(std::make_unique<Impl>(ctx)) {}
+CorrelationKernel::CorrelationKernel(Context& ctx, uint32_t max_workgroup)
+    : impl_(std::make_unique<Impl>(ctx, max_workgroup)) {}
 CorrelationKernel::~CorrelationKernel() = default;
 
 void CorrelationKernel::prepare(const CorrelationParams& params, uint32_t member_count) {
@@ -366,7 +375,7 @@ std::vector<float> CorrelationKernel::compute(const EnsembleView& ens, std::span
   }
 
   Context& ctx = impl_->ctx;
-  const Plan plan = make_plan(params, members);
+  const Plan plan = make_plan(params, members, impl_->max_workgroup);
   const VkPhysicalDeviceLimits& limits = ctx.limits();
   check_device_fits(ctx, plan, name, members);
   const ComputePipeline& pipeline = impl_->pipeline(plan, !plan.group_per_voxel);
@@ -473,7 +482,7 @@ void CorrelationKernel::record(CommandBatch& batch, const DeviceEnsemble& ensemb
     batch.fill(view, 0x7fc00000u);
     return;
   }
-  const Plan plan = make_plan(ref.params, members);
+  const Plan plan = make_plan(ref.params, members, impl_->max_workgroup);
   check_device_fits(ctx, plan, name, members);
   gpu::CorrelationPush push = make_push(ref);
   const ComputePipeline& pipeline = impl_->pipeline(plan, true);  // member-major whatever the strategy

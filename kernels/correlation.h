@@ -68,7 +68,9 @@ using CorrelationProgress = std::function<void(uint64_t done, uint64_t total)>;
 // may be called any number of times.
 class CorrelationKernel {
  public:
-  explicit CorrelationKernel(Context& ctx);
+  // `max_workgroup`: plan with workgroups of at most this many invocations (0: the device's own
+  // limit, max_workgroup(ctx)), as on a device that allows no more; for tests and comparisons.
+  explicit CorrelationKernel(Context& ctx, uint32_t max_workgroup = 0);
   ~CorrelationKernel();
   CorrelationKernel(const CorrelationKernel&) = delete;
   CorrelationKernel& operator=(const CorrelationKernel&) = delete;
@@ -120,13 +122,25 @@ class CorrelationKernel {
   void check_record(const DeviceEnsemble& ensemble, const CorrelationParams& params, uint32_t members,
                     const Buffer& out) const;
 
+  // The largest workgroup a plan asks for: 1024 (lavapipe's, NVIDIA's and AMD's limit), or less
+  // where the device allows less. Only the Kraskov measures grow their workgroups that far (to
+  // keep each invocation's neighbour searches within llvmpipe's loop limit); every Vulkan device
+  // allows at least 128.
+  static constexpr uint32_t kMaxWorkgroup = 1024;
+  // kMaxWorkgroup within `ctx`'s maxComputeWorkGroupInvocations and maxComputeWorkGroupSize[0]:
+  // what compute() and record() plan with, and what the functions below take as
+  // `max_workgroup` to describe the plan of one device.
+  static uint32_t max_workgroup(const Context& ctx);
   // Which strategy compute() uses for `member_count` (for messages and the benchmark), e.g.
   // "one invocation per voxel" or "one workgroup per voxel, shared-memory sort".
-  static std::string strategy(const CorrelationParams& params, uint32_t member_count);
+  static std::string strategy(const CorrelationParams& params, uint32_t member_count,
+                              uint32_t max_workgroup = kMaxWorkgroup);
   // Invocations per workgroup and workgroup shared memory the kernel needs for `member_count`
   // members (compute() throws std::runtime_error naming the device limit it exceeds).
-  static uint32_t workgroup_size(const CorrelationParams& params, uint32_t member_count);
-  static uint64_t shared_memory_bytes(const CorrelationParams& params, uint32_t member_count);
+  static uint32_t workgroup_size(const CorrelationParams& params, uint32_t member_count,
+                                 uint32_t max_workgroup = kMaxWorkgroup);
+  static uint64_t shared_memory_bytes(const CorrelationParams& params, uint32_t member_count,
+                                      uint32_t max_workgroup = kMaxWorkgroup);
   // The largest |compute() - correlation_field_reference()| the float kernels can show where
   // every comparison of member values is exact in float (series of multiples of 2^-10 whose
   // ranges are powers of two, as the tests use): a few roundings of the final float operations
@@ -135,7 +149,8 @@ class CorrelationKernel {
   // the tabulated logarithms or digamma values; sqrt(2 b) + that for mi-coefficient, b the
   // bound of its MI. Elsewhere a value within float rounding of a bin edge or of another
   // distance may count differently from the double reference.
-  static double error_bound(const CorrelationParams& params, uint32_t member_count);
+  static double error_bound(const CorrelationParams& params, uint32_t member_count,
+                            uint32_t max_workgroup = kMaxWorkgroup);
 
  private:
   struct Impl;

@@ -43,7 +43,9 @@ bool is_mutual_information(const CorrelationParams& p) {
 // grid has it: needs_finite_members).
 void correlation(Context& ctx, Check& check, CorrelationCase c) {
   c.params.k = std::min(c.params.k, c.members - 1);  // k < M
-  if (const uint64_t bytes = CorrelationKernel::shared_memory_bytes(c.params, c.members); !fits_shared_memory(ctx, bytes))
+  const uint32_t max_workgroup = CorrelationKernel::max_workgroup(ctx);
+  if (const uint64_t bytes = CorrelationKernel::shared_memory_bytes(c.params, c.members, max_workgroup);
+      !fits_shared_memory(ctx, bytes))
     return check.skip(needs_shared_memory(ctx, bytes));
   const uint32_t seed = 7u * c.members + uint32_t(c.voxels);
   using Data = CorrelationCase::Data;
@@ -71,7 +73,7 @@ void correlation(Context& ctx, Check& check, CorrelationCase c) {
   } else {
     r = correlation_field_reference(e.view(), reference, c.params);
   }
-  const double bound = CorrelationKernel::error_bound(c.params, c.members);
+  const double bound = CorrelationKernel::error_bound(c.params, c.members, max_workgroup);
   for (uint64_t v = 0; v < e.voxels; ++v) {
     if (std::isnan(r[v]))
       check.equal("NaN voxel (1: NaN)", v, std::isnan(g[v]) ? 1.0 : 0.0, 1.0);

@@ -29,6 +29,7 @@ namespace {
 using selftest::bin_edge_ensemble;
 using selftest::correlation_test_ensemble;
 using selftest::CorrelationEnsemble;
+using selftest::spread_ensemble;
 
 const CorrelationParams kMeasures[] = {
     {CorrelationMeasure::Pearson},           {CorrelationMeasure::Spearman},
@@ -374,10 +375,10 @@ TEST_F(CorrelationKernelGpu, RejectsBadInputWithClearMessages) {
   // memory: lavapipe's 32 KiB, most GPUs' 48 KiB).
   const std::vector<float> many(kMaxCorrelationMembers, 1.0f);
   for (const CorrelationParams& p : {CorrelationParams{CorrelationMeasure::Kendall}, {CorrelationMeasure::MiKraskov}}) {
-    const bool fits = CorrelationKernel::shared_memory_bytes(p, kMaxCorrelationMembers) <=
+    const uint32_t max_workgroup = CorrelationKernel::max_workgroup(ctx());
+    const bool fits = CorrelationKernel::shared_memory_bytes(p, kMaxCorrelationMembers, max_workgroup) <=
                           ctx().limits().maxComputeSharedMemorySize &&
-                      CorrelationKernel::workgroup_size(p, kMaxCorrelationMembers) <=
-                          ctx().limits().maxComputeWorkGroupInvocations;
+                      CorrelationKernel::workgroup_size(p, kMaxCorrelationMembers, max_workgroup) <= max_workgroup;
     if (fits) continue;
     try {
       kernel.compute({many.data(), kMaxCorrelationMembers, 1}, many, p);
@@ -458,6 +459,72 @@ TEST_F(CorrelationKernelGpu, MiBinnedCountsValuesOnBinEdgesAsTheCpuPeer) {
     expect_field_near(g, expected, bound);
     expect_field_near(correlation_field_cpu(e.view(), reference, params), expected, bound);
   }
+}
+
+// The Kraskov plans grow their workgroups until each invocation's neighbour searches stay within
+// llvmpipe's loop limit, and never beyond what the device allows (a device whose workgroups hold
+// fewer than 1024 invocations ran none of the larger plans before 2026-12-06, though it has no
+// loop limit). The figures: M = 1000 with k = 3 needs ceil(1000 / T) * 5043 loop iterations within
+// 49152, so T = 128; k = 9 (11 a step) T = 256; M = 1409, k = 9: T = 512.
+TEST(CorrelationPlan, KraskovWorkgroupsGrowWithTheSearchesWithinTheDevicesLimit) {
+  const CorrelationParams k3{CorrelationMeasure::MiKraskov, 16, 3}, k9{CorrelationMeasure::MiKraskov, 16, 9};
+  EXPECT_EQ(CorrelationKernel::workgroup_size(k3, 1000), 128u);
+  EXPECT_EQ(CorrelationKernel::workgroup_size(k9, 1000), 256u);
+  EXPECT_EQ(CorrelationKernel::workgroup_size(k9, 1409), 512u);
+  EXPECT_EQ(CorrelationKernel::workgroup_size(k3, 1000, 64), 64u);
+  EXPECT_EQ(CorrelationKernel::workgroup_size(k9, 1409, 256), 256u);
+  EXPECT_LT(CorrelationKernel::shared_memory_bytes(k9, 1409, 256), CorrelationKernel::shared_memory_bytes(k9, 1409));
+  // The sort-based measures keep one subgroup's worth whatever the limit.
+  EXPECT_EQ(CorrelationKernel::workgroup_size({CorrelationMeasure::Spearman}, 1000, 32), 32u);
+}
+
+// One kernel object, one member count, two k: two workgroup sizes, two pipelines, each k with a
+// fresh kernel's bits. Before 2026-12-06 the pipelines were kept by region size alone, so k = 9
+// after k = 1 ran k = 1's 64 invocations where its plan had 256: other sums' order, and on
+// lavapipe, for data whose searches walk further, past the loop limit.
+TEST_F(CorrelationKernelGpu, KraskovKeepsAPipelinePerWorkgroupAtOneMemberCount) {
+  const CorrelationEnsemble e = spread_ensemble(1000, 11);
+  const std::vector<float> reference = e.reference();
+  CorrelationKernel kernel(ctx());
+  const uint32_t max_workgroup = CorrelationKernel::max_workgroup(ctx());
+  for (const uint32_t k : {1u, 9u}) {
+    SCOPED_TRACE(k);
+    const CorrelationParams params{CorrelationMeasure::MiKraskov, 16, k};
+    const std::vector<float> g = kernel.compute(e.view(), reference, params);
+    const std::vector<float> fresh = CorrelationKernel(ctx()).compute(e.view(), reference, params);
+    EXPECT_EQ(std::memcmp(g.data(), fresh.data(), g.size() * sizeof(float)), 0);
+    expect_field_near(g, correlation_field_reference(e.view(), reference, params),
+                      CorrelationKernel::error_bound(params, 1000, max_workgroup));
+  }
+  EXPECT_EQ(CorrelationKernel::workgroup_size({CorrelationMeasure::MiKraskov, 16, 1}, 1000, max_workgroup), 64u);
+}
+
+// A plan made for smaller workgroups than the searches need: a device without a loop limit runs
+// it (same values within the bound of its own plan); llvmpipe refuses it, naming the loop
+// iterations (16 searches of 5043 each at T = 64), and computes nothing.
+TEST_F(CorrelationKernelGpu, KraskovWithinSmallerWorkgroupsRunsOrRefusesByTheLoopLimit) {
+  const CorrelationEnsemble e = spread_ensemble(1000, 12);
+  const std::vector<float> reference = e.reference();
+  const CorrelationParams params{CorrelationMeasure::MiKraskov, 16, 3};
+  CorrelationKernel kernel(ctx(), 64);
+  if (ctx().loop_iteration_limit() == 0) {
+    expect_field_near(kernel.compute(e.view(), reference, params),
+                      correlation_field_reference(e.view(), reference, params),
+                      CorrelationKernel::error_bound(params, 1000, 64));
+    return;
+  }
+  try {
+    kernel.compute(e.view(), reference, params);
+    ADD_FAILURE() << "no exception for 64 invocations of 16 searches each";
+  } catch (const std::runtime_error& ex) {
+    const std::string what = ex.what();
+    EXPECT_NE(what.find("mi-kraskov with 1000 members needs up to 80688 loop iterations"), std::string::npos) << what;
+    EXPECT_NE(what.find("after 65535 (llvmpipe)"), std::string::npos) << what;
+  }
+  // Within the device's own limit the same kernel class plans 128 invocations and runs.
+  expect_field_near(CorrelationKernel(ctx(), 128).compute(e.view(), reference, params),
+                    correlation_field_reference(e.view(), reference, params),
+                    CorrelationKernel::error_bound(params, 1000, 128));
 }
 
 // More workgroups than one dispatch row holds (maxComputeWorkGroupCount[0], 65535 on lavapipe):
