@@ -42,9 +42,13 @@ struct BoxQpStats {
 BoxQpStats solve_box_qp(const Tridiagonal& h, const Eigen::VectorXd& c, Eigen::VectorXd& x,
                         const BoxQpOptions& options = {});
 
-// Optimality residual in TF units: the largest |x_j - clamp(x_j - g_j / H_jj, lower, upper)|
-// over components with H_jj > 0, g = H x - c (a projected diagonal Newton step), and the largest
-// bound violation. Zero exactly at a KKT point of the problem above.
+// Optimality residual in TF units: the largest bound violation, and the largest
+// |x_j - clamp(x_j + p_j, lower, upper)| over the free components F, with p_F the Newton step
+// H_FF p_F = -g_F, g = H x - c; a component is free unless H_jj = 0 or it sits on a bound with a
+// multiplier of the right sign (g_j >= 0 at the lower, <= 0 at the upper). Zero exactly at a KKT
+// point of the problem above; where the bounds held are the optimum's, the distance to it on F,
+// however ill-conditioned H is (a diagonal step reads small along smooth directions under heavy
+// smoothing).
 double box_kkt_residual(const Tridiagonal& h, const Eigen::VectorXd& c, const Eigen::VectorXd& x,
                         double lower = 0.0, double upper = 1.0);
 

@@ -197,6 +197,43 @@ TEST(BoxQp, KktResidualDetectsNonOptimalPoints) {
   EXPECT_GE(box_kkt_residual(h, eq.rhs.col(0), x), 0.5);
 }
 
+// Under heavy smoothing H is ill-conditioned: a point off the optimum along a smooth direction
+// leaves a gradient of about lambda_min times its distance, while H_jj is near lambda_max. The
+// residual (a Newton step on the free components) must read the distance; the diagonal step it
+// replaced read 1e-7 for the 0.1 here (and gradient descent in `tfmatch solvers` at --smooth 1e6
+// stood 0.63 from the optimum with a "KKT" of 6e-6).
+TEST(BoxQp, KktResidualReadsTheDistanceUnderHeavySmoothing) {
+  const DenseSystem d = make_system(3000, 64, 13, smooth_colour);
+  const NormalEquations eq = equations_of(d);
+  SolveOptions options;
+  options.smooth = 1e6;
+  const Tridiagonal h = regularized_matrix(eq, absolute_regularization(eq, options));
+  const BoxQpResult qp = solve_box_constrained(eq, options);
+  const Eigen::VectorXd c = eq.rhs.col(0);
+  Eigen::VectorXd x = qp.x.col(0);
+  ASSERT_LT(box_kkt_residual(h, c, x), 1e-9);
+  ASSERT_GT(x.minCoeff(), 0.15);
+  ASSERT_LT(x.maxCoeff(), 0.85);
+  // The smoothest direction: every entry 0.1 higher, inside the box.
+  x.array() += 0.1;
+  const double residual = box_kkt_residual(h, c, x);
+  EXPECT_GT(residual, 0.09);
+  EXPECT_LT(residual, 0.11);
+  Eigen::VectorXd g = -c;  // H x - c, for the diagonal step
+  for (Eigen::Index j = 0; j < x.size(); ++j) {
+    g[j] += h.diag[size_t(j)] * x[j];
+    if (j > 0) g[j] += h.off[size_t(j - 1)] * x[j - 1];
+    if (j + 1 < x.size()) g[j] += h.off[size_t(j)] * x[j + 1];
+  }
+  double diagonal_step = 0.0;
+  for (Eigen::Index j = 0; j < x.size(); ++j) diagonal_step = std::max(diagonal_step, std::abs(g[j] / h.diag[size_t(j)]));
+  EXPECT_LT(diagonal_step, 1e-5) << "the diagonal step should read small here (else the test shows nothing)";
+  // On a bound with the multiplier's sign wrong, the component is free and the step moves it in.
+  Eigen::VectorXd low = qp.x.col(0);
+  low[10] = 0.0;
+  EXPECT_GT(box_kkt_residual(h, c, low), 0.1);
+}
+
 TEST(BoxQp, UnreferencedEntriesStayZeroWithoutNaN) {
   // Voxels only in cells [0, 4) and [9, 15): entries 5..8 are touched by no voxel (zero rows of M).
   DenseSystem a = make_system(300, 16, 11, step_colour, 0, 4);
