@@ -95,10 +95,12 @@ std::string DiffDvrBackwardKernel::unsupported(const Context& ctx, uint32_t tf_s
 }
 
 // A private lane marches TFM_DIFFDVR_PRIVATE_PIXELS rays back and zeroes and adds its N-entry
-// histogram; a runs lane one ray, whose samples and runs (at most one a sample, and lanes of a
-// SIMD vector diverge) both loop.
-uint32_t DiffDvrBackwardKernel::loops_per_sample(ReductionMode mode) {
-  return mode == ReductionMode::Private ? TFM_DIFFDVR_PRIVATE_PIXELS : 3u;
+// histogram; a runs lane one ray. Nested on llvmpipe: an inner iteration steps every lane still in
+// its run (each at least one sample, so at most 8 a sample for a vector of 8 lanes), and the outer
+// loop and the inner loop's entries come at most once a sample each.
+uint32_t DiffDvrBackwardKernel::loops_per_sample(ReductionMode mode, RunsMarch march) {
+  if (mode == ReductionMode::Private) return TFM_DIFFDVR_PRIVATE_PIXELS;
+  return march == RunsMarch::Flat ? 1u : 10u;
 }
 
 uint64_t DiffDvrBackwardKernel::other_loops(ReductionMode mode, uint32_t tf_size) {
@@ -109,7 +111,7 @@ ReductionMode DiffDvrBackwardKernel::choose(const Context& ctx, uint32_t tf_size
                                             uint32_t max_steps) {
   if (mode != ReductionMode::Auto) return mode;
   const bool private_rays_fit =
-      max_steps == 0 || march_loops_fit(ctx, max_steps, loops_per_sample(ReductionMode::Private),
+      max_steps == 0 || march_loops_fit(ctx, max_steps, loops_per_sample(ReductionMode::Private, RunsMarch::Auto),
                                         other_loops(ReductionMode::Private, tf_size));
   if (is_cpu_device(ctx) && private_rays_fit && unsupported(ctx, tf_size, ReductionMode::Private).empty())
     return ReductionMode::Private;
@@ -118,11 +120,12 @@ ReductionMode DiffDvrBackwardKernel::choose(const Context& ctx, uint32_t tf_size
 }
 
 DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks, uint32_t tf_size, ImageLoss loss,
-                                             ReductionMode mode)
-    : ctx_(ctx), chunks_(field_chunks), tf_size_(tf_size), mode_(mode) {
+                                             ReductionMode mode, RunsMarch march)
+    : ctx_(ctx), chunks_(field_chunks), tf_size_(tf_size), mode_(mode), march_(march) {
   check_chunks(field_chunks);
   if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
   mode_ = choose(ctx, tf_size, mode);
+  if (march_ == RunsMarch::Auto) march_ = ctx.loop_iteration_limit() != 0 ? RunsMarch::Flat : RunsMarch::Nested;
   if (const std::string why = unsupported(ctx, tf_size, mode_); !why.empty())
     throw std::runtime_error("diffdvr backward: " + why);
   const bool use_shared = mode_ == ReductionMode::RunsShared;
@@ -142,7 +145,8 @@ DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks
                                     {TFM_DIFFDVR_SPEC_SHARED_WORDS, shared_slots * TFM_FIXED_SLOT_WORDS},
                                     {TFM_DIFFDVR_SPEC_USE_SHARED, use_shared ? 1u : 0u},
                                     {TFM_DIFFDVR_SPEC_PRIVATE_BINS, use_private ? tf_size : 2u},
-                                    {TFM_DIFFDVR_SPEC_PIXELS_PER_LANE, use_private ? TFM_DIFFDVR_PRIVATE_PIXELS : 1u}});
+                                    {TFM_DIFFDVR_SPEC_PIXELS_PER_LANE, use_private ? TFM_DIFFDVR_PRIVATE_PIXELS : 1u},
+                                    {TFM_DIFFDVR_SPEC_FLAT_RUNS, march_ == RunsMarch::Flat && !use_private ? 1u : 0u}});
   desc.spirv = shader_spirv(desc.shader);
   pipeline_ = shared_pipeline(ctx, desc);
 }
@@ -155,7 +159,7 @@ void DiffDvrBackwardKernel::record(CommandBatch& batch, const DeviceField& field
   if (target.size() < state.size()) throw std::invalid_argument("diffdvr: target image smaller than the state");
   if (accum.size() < slots() * gpu::kFixedSlotBytes)
     throw std::invalid_argument("diffdvr: accumulator buffer too small");
-  check_march_loops(ctx_, push, loops_per_sample(mode_), other_loops(mode_, tf_size_), "diffdvr");
+  check_march_loops(ctx_, push, loops_per_sample(mode_, march_), other_loops(mode_, tf_size_), "diffdvr");
   push.row_offset = row_begin;
   push.row_end = row_begin + row_count;
   // Buffers in the binding order of kBackwardBindingCounts.

@@ -44,6 +44,12 @@ class DiffDvrForwardKernel {
 // entry and lane: 16 KiB per lane at 1024).
 inline constexpr uint32_t kDiffDvrPrivateMaxBins = 1024;
 
+// How the backward pass's runs modes march a ray back (diffdvr_backward.comp, backpropagate_runs):
+// Nested, a loop of runs around a loop of samples, keeps the flushes out of the code every sample
+// passes (GPUs); Flat, one loop with the flush inside, costs one loop iteration a sample (devices
+// that count them, Context::loop_iteration_limit). The same runs and sums: the same bits.
+enum class RunsMarch { Auto, Nested, Flat };
+
 class DiffDvrBackwardKernel {
  public:
   // How the gradient is summed (diffdvr_backward.comp's header explains each): Auto takes Private
@@ -51,8 +57,10 @@ class DiffDvrBackwardKernel {
   // when the slots of `tf_size` entries fit shared memory, else RunsGlobal. A forced mode the
   // device cannot run throws std::runtime_error naming what is missing. The runs modes give the
   // same bits; Private sums in another float grouping (deterministic too).
+  // `march`: how a runs mode marches its rays (RunsMarch; Auto: Flat on devices with a loop limit,
+  // else Nested; ignored by Private).
   DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks, uint32_t tf_size, ImageLoss loss,
-                        ReductionMode mode = ReductionMode::Auto);
+                        ReductionMode mode = ReductionMode::Auto, RunsMarch march = RunsMarch::Auto);
   uint32_t tf_size() const { return tf_size_; }
   uint32_t slots() const { return TFM_DIFFDVR_SLOTS(tf_size_); }  // accumulator bytes: 8 per slot
   ReductionMode mode() const { return mode_; }
@@ -64,10 +72,12 @@ class DiffDvrBackwardKernel {
   // device lets one invocation loop (Context::loop_iteration_limit).
   static ReductionMode choose(const Context& ctx, uint32_t tf_size, ReductionMode mode = ReductionMode::Auto,
                               uint32_t max_steps = 0);
+  RunsMarch march() const { return march_; }
   // What record() checks in `mode` (Private or a runs mode) for `tf_size` entries: the loop
-  // iterations one invocation's march back costs a sample (Private: its rays; runs: a ray's
-  // samples and runs), and its other loops.
-  static uint32_t loops_per_sample(ReductionMode mode);
+  // iterations one invocation's march back costs a sample (Private: its rays; a runs mode: 1
+  // marched flat, at most 10 nested on llvmpipe's SIMD vectors of 8 lanes, whose inner loop steps
+  // while any lane is still in its run), and its other loops.
+  static uint32_t loops_per_sample(ReductionMode mode, RunsMarch march);
   static uint64_t other_loops(ReductionMode mode, uint32_t tf_size);
   bool uses_shared_memory() const { return mode_ == ReductionMode::RunsShared; }
   // Adds the loss of (state vs target) over rows [row_begin, row_begin + row_count) of every view
@@ -84,6 +94,7 @@ class DiffDvrBackwardKernel {
   uint32_t chunks_;
   uint32_t tf_size_;
   ReductionMode mode_;
+  RunsMarch march_;
   SharedPipeline pipeline_;
 };
 

@@ -28,7 +28,8 @@
 //    fields mostly do), converts the sums to fixed point when the interval changes and adds them
 //    with integer atomics into the workgroup's shared accumulators (USE_SHARED), flushed once per
 //    workgroup into the global ones, or straight into the global ones. The march is two nested
-//    loops, one run per outer iteration (see backpropagate_runs).
+//    loops, one run per outer iteration, or on devices with a loop limit one flat loop with the
+//    same bits (see backpropagate_runs).
 //  - TFM_DIFFDVR_PRIVATE build (CPU devices such as lavapipe): each invocation marches
 //    PIXELS_PER_LANE pixels (rows 16 apart, so a workgroup steps through 16x16 tiles), each ray in
 //    one flat loop, and adds every sample to its own float histogram of the TF entries (a vec4 per entry),
@@ -61,6 +62,8 @@ layout(constant_id = TFM_DIFFDVR_SPEC_USE_SHARED) const bool USE_SHARED = true;
 // TFM_DIFFDVR_PRIVATE: the entries of a lane's histogram (the TF size) and its pixels.
 layout(constant_id = TFM_DIFFDVR_SPEC_PRIVATE_BINS) const uint PRIVATE_BINS = 2u;
 layout(constant_id = TFM_DIFFDVR_SPEC_PIXELS_PER_LANE) const uint PIXELS_PER_LANE = 1u;
+// Default build: march a ray's runs in one loop (see backpropagate_runs).
+layout(constant_id = TFM_DIFFDVR_SPEC_FLAT_RUNS) const bool FLAT_RUNS = false;
 
 TFM_DECLARE_RAYMARCH_BINDINGS(TFM_DIFFDVR_BWD_BINDING_FIELD, TFM_DIFFDVR_BWD_BINDING_TF)
 #include "raymarch.glsl"
@@ -145,11 +148,31 @@ void backpropagate_runs(uvec2 pixel, uint view) {
   FX_ATOMIC_ADD_TO(USE_SHARED, s_acc, accum, 4u * mp.tf_size, fx_from_float(loss))
   // Runs: consecutive samples in one TF interval sum their gradients in float registers (g0, g1
   // for entries cur, cur + 1); a run is flushed to the accumulators when the interval changes.
+  uint cur = 0xFFFFFFFFu;
+  vec4 g0 = vec4(0.0), g1 = vec4(0.0);
+  if (FLAT_RUNS) {
+    // One loop iteration a sample, the flush inside it: devices with a loop limit (llvmpipe),
+    // where the two loops below could cost up to three iterations a sample (a SIMD vector's lanes
+    // end their runs at different samples). Same runs and sums, so the same bits (0 + x = x).
+    while (a.k > 0u) {
+      uint j;
+      float w;
+      vec4 d;
+      if (!step_back(mp, a, j, w, d)) continue;
+      if (cur != 0xFFFFFFFFu && j != cur) {
+        flush(cur, g0, g1);
+        g0 = g1 = vec4(0.0);
+      }
+      cur = j;
+      g0 += (1.0 - w) * d;
+      g1 += w * d;
+    }
+    if (cur != 0xFFFFFFFFu) flush(cur, g0, g1);
+    return;
+  }
   // The inner loop marches one run and stops at the first sample of the next, whose terms start
   // the next run (n0, n1); the flush sits outside it, so it runs once per run rather than as
   // code every sample passes. The runs, and so the bits, are those of a flush inside the loop.
-  uint cur = 0xFFFFFFFFu;
-  vec4 g0 = vec4(0.0), g1 = vec4(0.0);
   bool more = true;
   while (more) {
     uint next = 0xFFFFFFFFu;

@@ -30,6 +30,7 @@
 #define TFM_DIFFDVR_SPEC_USE_SHARED 5    // 0: add straight to the global accumulators (large N)
 #define TFM_DIFFDVR_SPEC_PRIVATE_BINS 6  // TFM_DIFFDVR_PRIVATE build: entries of a lane's histogram
 #define TFM_DIFFDVR_SPEC_PIXELS_PER_LANE 7  // TFM_DIFFDVR_PRIVATE build: pixels each lane marches
+#define TFM_DIFFDVR_SPEC_FLAT_RUNS 8  // default build: 1 marches the runs in one loop (devices with a loop limit)
 #define TFM_DIFFDVR_LOSS_L2 0u           // sum over RGBA of (X - R)^2
 #define TFM_DIFFDVR_LOSS_L1 1u           // sum over RGBA of |X - R|
 

@@ -66,11 +66,17 @@ void fx_add(inout uvec2 acc, uvec2 v) {
 
 // Adds float sums `lo` and `hi` (vec4, |.| < 2^31) of TF entries j and j + 1 to the signed slots
 // 4j + c and 4(j + 1) + c (channel c), the gradient layout of every kernel that scatters to a TF.
-#define FX_ADD_TF_PAIR(use_shared, shared_arr, global_arr, j, lo, hi)                                   \
-  for (uint fx_c_ = 0u; fx_c_ < 4u; ++fx_c_) {                                                        \
-    FX_ATOMIC_ADD_TO(use_shared, shared_arr, global_arr, 4u * (j) + fx_c_, fx_from_signed((lo)[fx_c_])) \
-    FX_ATOMIC_ADD_TO(use_shared, shared_arr, global_arr, 4u * ((j) + 1u) + fx_c_, fx_from_signed((hi)[fx_c_])) \
-  }
+// The four channels are written out, not looped: llvmpipe counts a constant loop with a body this
+// large against its limit of loop iterations an invocation (diffdvr_backward.comp flushes at
+// samples of its march).
+#define FX_ADD_TF_PAIR(use_shared, shared_arr, global_arr, j, lo, hi)           \
+  FX_ADD_TF_PAIR_CHANNEL(use_shared, shared_arr, global_arr, j, lo, hi, 0u)   \
+  FX_ADD_TF_PAIR_CHANNEL(use_shared, shared_arr, global_arr, j, lo, hi, 1u)   \
+  FX_ADD_TF_PAIR_CHANNEL(use_shared, shared_arr, global_arr, j, lo, hi, 2u)   \
+  FX_ADD_TF_PAIR_CHANNEL(use_shared, shared_arr, global_arr, j, lo, hi, 3u)
+#define FX_ADD_TF_PAIR_CHANNEL(use_shared, shared_arr, global_arr, j, lo, hi, c)                \
+  FX_ATOMIC_ADD_TO(use_shared, shared_arr, global_arr, 4u * (j) + (c), fx_from_signed((lo)[c])) \
+  FX_ATOMIC_ADD_TO(use_shared, shared_arr, global_arr, 4u * ((j) + 1u) + (c), fx_from_signed((hi)[c]))
 
 // Value of a non-negative 32.32 number (lo, hi) as float.
 float fx_to_float(uvec2 v) { return float(v.y) + float(v.x) * (1.0 / TFM_FIXED_ONE); }

@@ -230,7 +230,52 @@ struct GradientScene {
   TransferFunction ref_tf;
   ImageLoss loss = ImageLoss::L2;
   ReductionMode mode = ReductionMode::RunsShared;  // of the backward kernel
+  RunsMarch march = RunsMarch::Auto;               // of its runs modes
 };
+
+// The target images: the CPU reference's renders of the reference field, as floats in the
+// forward state's layout (C, T), view after view.
+std::vector<float> target_images(const GradientScene& gs) {
+  const Scene& s = gs.field;
+  const size_t pixels = size_t(s.settings.width) * s.settings.height;
+  std::vector<float> target(4 * pixels * s.cameras.size());
+  for (size_t v = 0; v < s.cameras.size(); ++v) {
+    const CpuRender r = render_cpu(gs.reference, gs.ref_tf, s.range, posed(s, v));
+    for (size_t p = 0; p < pixels; ++p) {
+      for (int c = 0; c < 3; ++c) target[4 * (v * pixels + p) + c] = float(r.rgba[4 * p + c]);
+      target[4 * (v * pixels + p) + 3] = float(1.0 - r.rgba[4 * p + 3]);
+    }
+  }
+  return target;
+}
+
+// The backward pass's accumulator words for `gs` against `target` with its runs marched as
+// `march`: the forward pass, then the backward pass, in one submission.
+std::vector<uint32_t> backward_words(Context& ctx, const GradientScene& gs, const std::vector<float>& target,
+                                     RunsMarch march) {
+  const Scene& s = gs.field;
+  const uint32_t n = uint32_t(s.tf.size());
+  DeviceScene d(ctx, s);
+  const DiffDvrForwardKernel forward_kernel(ctx, uint32_t(d.field.chunk_count()));
+  const DiffDvrBackwardKernel backward_kernel(ctx, uint32_t(d.field.chunk_count()), n, gs.loss, gs.mode, march);
+  Buffer target_buffer = make_buffer<float>(ctx, target, "selftest target images");
+  Buffer accum(ctx, uint64_t(backward_kernel.slots()) * 8, MemoryUsage::Device, "selftest DiffDVR accumulators");
+  CommandBatch batch(ctx);
+  batch.fill(accum, 0u);
+  forward_kernel.record(batch, d.field, d.tf, d.views, d.push, d.image, d.stop, 0, s.settings.height);
+  // The forward state and the zeroed accumulators before the backward pass reads them.
+  batch.barrier();
+  backward_kernel.record(batch, d.field, d.tf, d.views, d.push, d.image, d.stop, target_buffer, accum, 0,
+                         s.settings.height);
+  batch.submit_and_wait();
+  return read_words(ctx, accum, size_t(backward_kernel.slots()) * 2);
+}
+
+std::vector<double> fixed_point_totals(const std::vector<uint32_t>& words) {
+  FixedPointTotals totals(words.size() / 2);
+  totals.add(words.data());
+  return totals.values();
+}
 
 // The backward pass's loss and TF gradient against the CPU reverse mode, both from the same
 // target images (the CPU reference's renders of the reference field, uploaded as floats) and
@@ -246,41 +291,22 @@ void backward(Context& ctx, Check& check, const GradientScene& gs) {
     return check.skip(why);
   const size_t pixels = size_t(s.settings.width) * s.settings.height;
   std::vector<double> cpu_gradient(4 * size_t(n), 0.0);
-  std::vector<float> target(4 * pixels * s.cameras.size());
+  const std::vector<float> target = target_images(gs);
   double cpu_loss = 0.0;
   for (size_t v = 0; v < s.cameras.size(); ++v) {
-    const RenderSettings rs = posed(s, v);
-    const CpuRender r = render_cpu(gs.reference, gs.ref_tf, s.range, rs);
+    // The CPU reverse mode against the same (float) targets, opacity = 1 - T.
     std::vector<double> rounded(4 * pixels);
     for (size_t p = 0; p < pixels; ++p) {
-      for (int c = 0; c < 3; ++c) target[4 * (v * pixels + p) + c] = float(r.rgba[4 * p + c]);
-      target[4 * (v * pixels + p) + 3] = float(1.0 - r.rgba[4 * p + 3]);  // the state layout: T
       for (int c = 0; c < 3; ++c) rounded[4 * p + c] = target[4 * (v * pixels + p) + c];
       rounded[4 * p + 3] = 1.0 - double(target[4 * (v * pixels + p) + 3]);
     }
-    const CpuLossGradient cg = image_loss_gradient_cpu(s.volume, s.tf, s.range, rs, rounded, gs.loss);
+    const CpuLossGradient cg = image_loss_gradient_cpu(s.volume, s.tf, s.range, posed(s, v), rounded, gs.loss);
     cpu_loss += cg.loss;
     for (uint32_t j = 0; j < n; ++j)
       for (int c = 0; c < 4; ++c) cpu_gradient[4 * j + c] += cg.gradient[j][c];
   }
 
-  DeviceScene d(ctx, s);
-  const DiffDvrForwardKernel forward_kernel(ctx, uint32_t(d.field.chunk_count()));
-  const DiffDvrBackwardKernel backward_kernel(ctx, uint32_t(d.field.chunk_count()), n, gs.loss, gs.mode);
-  Buffer target_buffer = make_buffer<float>(ctx, target, "selftest target images");
-  Buffer accum(ctx, uint64_t(backward_kernel.slots()) * 8, MemoryUsage::Device, "selftest DiffDVR accumulators");
-  CommandBatch batch(ctx);
-  batch.fill(accum, 0u);
-  forward_kernel.record(batch, d.field, d.tf, d.views, d.push, d.image, d.stop, 0, s.settings.height);
-  // The forward state and the zeroed accumulators before the backward pass reads them.
-  batch.barrier();
-  backward_kernel.record(batch, d.field, d.tf, d.views, d.push, d.image, d.stop, target_buffer, accum, 0,
-                         s.settings.height);
-  batch.submit_and_wait();
-  const std::vector<uint32_t> words = read_words(ctx, accum, size_t(backward_kernel.slots()) * 2);
-  FixedPointTotals totals(backward_kernel.slots());
-  totals.add(words.data());
-  const std::vector<double> sums = totals.values();
+  const std::vector<double> sums = fixed_point_totals(backward_words(ctx, gs, target, gs.march));
 
   double scale = 0.0;
   for (double g : cpu_gradient) scale = std::max(scale, std::abs(g));
@@ -288,6 +314,20 @@ void backward(Context& ctx, Check& check, const GradientScene& gs) {
   for (size_t k = 0; k < cpu_gradient.size(); ++k)
     check.near("gradient (4j+c)", k, sums[k], cpu_gradient[k], 5e-5 * scale);
   check.require(scale > 0.0, "the gradient is zero: the case tests nothing");
+}
+
+// The runs modes' two marches (RunsMarch) on one scene: the same runs and sums, so the same
+// accumulator bits, word for word.
+void backward_marches(Context& ctx, Check& check, const GradientScene& gs) {
+  if (const std::string why = DiffDvrBackwardKernel::unsupported(ctx, uint32_t(gs.field.tf.size()), gs.mode); !why.empty())
+    return check.skip(why);
+  const std::vector<float> target = target_images(gs);
+  const std::vector<uint32_t> nested = backward_words(ctx, gs, target, RunsMarch::Nested);
+  const std::vector<uint32_t> flat = backward_words(ctx, gs, target, RunsMarch::Flat);
+  for (size_t k = 0; k < nested.size(); ++k) check.equal("accumulator word (flat vs nested)", k, flat[k], nested[k]);
+  bool any = false;
+  for (uint32_t w : nested) any = any || w != 0;
+  check.require(any, "the accumulators are zero: the case tests nothing");
 }
 
 std::vector<OrbitCamera> cameras(std::initializer_list<std::pair<double, double>> poses, double distance = 2.4) {
@@ -422,6 +462,11 @@ void add_render_cases(CaseList& cases) {
     GradientScene gs = gradient_scene({10, 8, 7}, 13, 24, 24, 17);
     gs.field.chunk_voxels = gs.reference.voxel_count() / 3 + 1;
     add_backward("l2, NaNs, field in 3 chunks, 24x24 image, 3 views, shared memory", true, gs);
+    gs.march = RunsMarch::Nested;
+    add_backward("l2, NaNs, field in 3 chunks, 24x24 image, 3 views, shared memory, nested march", true, gs);
+    add("diffdvr_backward", "DiffDvrBackwardKernel", "l2, NaNs, 24x24 image, 3 views: flat and nested marches, same bits",
+        true, backward_tile, backward_buffers, backward_marches, gs);
+    gs.march = RunsMarch::Auto;
     gs.mode = ReductionMode::RunsGlobal;
     add_backward("l2, NaNs, field in 3 chunks, 24x24 image, 3 views, global atomics", true, gs);
     gs.mode = ReductionMode::Private;

@@ -13,6 +13,7 @@
 #include "cpu_renderer.h"
 #include "diffdvr_cpu.h"
 #include "gpu_voxel_ops.h"
+#include "render_image.h"
 #include "solver_diffdvr.h"
 #include "test_data.h"
 #include "vk_test_env.h"
@@ -256,33 +257,55 @@ TEST_F(DiffDvrGradientTest, L1MatchesFiniteDifferences) {
   EXPECT_GT(exited, 10u);
 }
 
-// Rays of ~20 000 samples down a 3 x 3 x 1000 column: too long for a CPU device's private lanes
-// (4 rays each past llvmpipe's 65535 loop iterations), so Auto takes the runs path there, as on a
-// GPU, and its gradient matches the CPU reverse mode. The bound: T recovered by ~20 000 divisions
-// drifts by up to ~20 000 float ulps (1e-3 relative) where the short rays above drift by ~30.
+// Rays of ~20 000 and ~65 200 samples down 3 x 3 columns: too long for a CPU device's private
+// lanes (4 rays each past llvmpipe's 65535 loop iterations), so Auto takes a runs path there, as
+// on a GPU, marched flat (one loop iteration a sample; the longer column is within 70 of the
+// limit, where the nested march's bound of 10 a sample is far past it), and its gradient matches
+// the CPU reverse mode. The bound: T recovered by K divisions and the forward pass's C and T
+// drift by up to ~K float ulps each (2K 2^-24 = 7.8e-3 relative at 65 000; 6e-3 on lavapipe)
+// where the short rays above drift by ~30. No ray stops early (opacity scale
+// per length), so every sample is marched.
 TEST_F(DiffDvrGradientTest, LongRaysMatchTheReverseModeOnThePathTheyFit) {
-  Case c;
-  c.ref = wavy_volume({3, 3, 1000}, {1.0, 1.0, 1.0}, 1);
-  c.opt = wavy_volume({3, 3, 1000}, {1.0, 1.0, 1.0}, 2);
-  c.ref_tf = random_tf(9, 3, 0.1, 0.9, 0.1, 0.9);
-  c.tf = random_tf(7, 4, 0.1, 0.9, 0.1, 0.9);
-  c.settings.width = c.settings.height = 3;
-  c.settings.step_voxels = 0.05;
-  c.settings.opacity_scale = 2.0;  // no ray terminates early
-  OrbitCamera down;
-  down.elevation_deg = 90;
-  down.fov_deg = 0.5;
-  c.cameras = {down};
-  const MarchConstants m = march_constants(c.settings, VolumeGeometry::from(c.opt.dims, c.opt.spacing));
-  ASSERT_GT(m.max_steps, 19000u);
-  const ReductionMode chosen = DiffDvrBackwardKernel::choose(ctx(), 7, ReductionMode::Auto, m.max_steps);
-  if (ctx().loop_iteration_limit() != 0) EXPECT_NE(chosen, ReductionMode::Private) << "4 rays a lane do not fit";
-  const CpuSide cpu(c);
-  double cpu_loss = 0;
-  const std::vector<double> reverse = cpu.gradient(&cpu_loss);
-  const ImageLossGradient gpu = gpu_gradient(ctx(), c);
-  expect_close(gpu.gradient, reverse, 1e-2, "GPU backward pass on long rays vs CPU reverse mode");
-  EXPECT_NEAR(gpu.loss, cpu_loss, 1e-3 * cpu_loss);
+  for (const auto& [length, opacity] : {std::pair{uint64_t(1000), 2.0}, std::pair{uint64_t(3260), 0.6}}) {
+    SCOPED_TRACE(length);
+    Case c;
+    c.ref = wavy_volume({3, 3, length}, {1.0, 1.0, 1.0}, 1);
+    c.opt = wavy_volume({3, 3, length}, {1.0, 1.0, 1.0}, 2);
+    c.ref_tf = random_tf(9, 3, 0.1, 0.9, 0.1, 0.9);
+    c.tf = random_tf(7, 4, 0.1, 0.9, 0.1, 0.9);
+    c.settings.width = c.settings.height = 3;
+    c.settings.step_voxels = 0.05;
+    c.settings.opacity_scale = opacity;
+    OrbitCamera down;
+    down.elevation_deg = 90;
+    down.fov_deg = 0.5;
+    c.cameras = {down};
+    const MarchConstants m = march_constants(c.settings, VolumeGeometry::from(c.opt.dims, c.opt.spacing));
+    ASSERT_GT(m.max_steps, uint32_t(length * 19));
+    const ReductionMode chosen = DiffDvrBackwardKernel::choose(ctx(), 7, ReductionMode::Auto, m.max_steps);
+    if (ctx().loop_iteration_limit() != 0) {
+      EXPECT_NE(chosen, ReductionMode::Private) << "4 rays a lane do not fit";
+      const uint64_t other = DiffDvrBackwardKernel::other_loops(chosen, 7);
+      EXPECT_TRUE(march_loops_fit(ctx(), m.max_steps, 1, other));
+      if (length == 3260) {
+        EXPECT_FALSE(march_loops_fit(ctx(), m.max_steps + 100, 1, other)) << "the case should sit at the limit";
+        EXPECT_FALSE(march_loops_fit(ctx(), m.max_steps, DiffDvrBackwardKernel::loops_per_sample(chosen, RunsMarch::Nested), other));
+      }
+    }
+    const CpuSide cpu(c);
+    size_t early = 0, missed = 0, exited = 0;
+    check_case_is_smooth(cpu, &early, &missed, &exited);
+    EXPECT_EQ(early, 0u);
+    EXPECT_GT(exited, 0u);
+    double cpu_loss = 0;
+    const std::vector<double> reverse = cpu.gradient(&cpu_loss);
+    const ImageLossGradient gpu = gpu_gradient(ctx(), c);
+    expect_close(gpu.gradient, reverse, 1e-2, "GPU backward pass on long rays vs CPU reverse mode");
+    // Each float image (the field's and the reference's) may drift by K ulps over K samples, and
+    // the loss by what that makes of sum (X - R)^2 over its n components.
+    const double drift = 2.0 * m.max_steps * 0x1p-24, n = 4.0 * c.settings.width * c.settings.height;
+    EXPECT_NEAR(gpu.loss, cpu_loss, 2 * drift * std::sqrt(n * cpu_loss) + n * drift * drift);
+  }
 }
 
 // Reference images rendered once into the pool and reused give the same loss and gradient bits

@@ -122,23 +122,25 @@ TEST_F(RenderGpu, MarchLoopCheckCountsEveryRayOfAnInvocation) {
   }
 }
 
-// DiffDVR's backward pass marches four rays a lane on a CPU device (private histograms): the demo's
-// 96^3 pair at a step of 0.01 voxels (16 630 samples a ray) is too long for that on llvmpipe, so
-// the pass takes the runs path (a ray a lane, 3 loop iterations a sample at worst) and runs. The
-// 128^3 pair's 22 173 samples are too long for that too: refused before any output, naming the
-// step that fits. Elsewhere both run.
+// DiffDVR's backward pass leaves the private lanes (4 rays each) for the runs path, marched in
+// one loop iteration a sample, where rays are long: the demo's 128^3 pair at a step of 0.01
+// voxels (22 173 samples a ray, refused before 2026-12-06) runs on every device. Beyond what one
+// invocation may loop (an 8 x 8 x 2000 column at 0.02: 100 004 samples) llvmpipe refuses before
+// anything is written, naming the step that fits.
 TEST_F(RenderGpu, DiffDvrTakesThePathItsRaysFitOrRefuses) {
   const test::TempDir dir;
-  auto demo = [&](int size) {
-    return test::run_cli("demo --out " + dir / ("demo" + std::to_string(size)) + " --size " + std::to_string(size) +
-                         " --solver diffdvr --image-size 16 --iterations 1 --no-report --step 0.01");
-  };
-  const test::CliResult fits = demo(96);
+  const test::CliResult fits = test::run_cli("demo --out " + dir / "demo128" +
+                                             " --size 128 --solver diffdvr --image-size 16 --iterations 1 "
+                                             "--no-report --step 0.01");
   EXPECT_EQ(fits.exit_code, 0) << fits.output;
-  expect_refused_where_loops_are_limited(ctx(), demo(128),
-                                         {"diffdvr: rays of up to 22173 samples", "3 loop iterations a sample",
-                                          "use a step of at least 0.0102 voxels"},
-                                         dir / "demo128");
+  std::vector<float> column(8 * 8 * 2000);
+  for (size_t i = 0; i < column.size(); ++i) column[i] = float((i / 64) % 50) / 49.0f;
+  test::write_floats(dir / "column_8x8x2000_float32.raw", column);
+  const test::CliResult r = test::run_cli("optimize --ref " + dir / "column_8x8x2000_float32.raw" +
+                                          " --ref-tf grey --field " + dir / "column_8x8x2000_float32.raw" + " --out " +
+                                          dir / "tf.json" + " --solver diffdvr --image-size 8 --iterations 1 --step 0.02");
+  expect_refused_where_loops_are_limited(
+      ctx(), r, {"diffdvr: rays of up to 100004 samples", "use a step of at least 0.0307 voxels"}, dir / "tf.json");
 }
 
 // The visibility weights march one view per invocation once rays are long: an 8 x 8 x 2000 column
