@@ -86,6 +86,17 @@ void expect_refused_where_loops_are_limited(const Context& ctx, const test::CliR
   EXPECT_FALSE(std::filesystem::exists(output)) << "nothing is written";
 }
 
+// `tfmatch optimize` of an 8 x 8 x 2000 column against itself at a step of 0.02 voxels (rays of
+// 100 004 samples) with `solver_options`, writing dir/tf.json.
+test::CliResult optimize_column(const test::TempDir& dir, const std::string& solver_options) {
+  std::vector<float> column(8 * 8 * 2000);
+  for (size_t i = 0; i < column.size(); ++i) column[i] = float((i / 64) % 50) / 49.0f;
+  const std::string file = dir / "column_8x8x2000_float32.raw";
+  test::write_floats(file, column);
+  return test::run_cli("optimize --ref " + file + " --ref-tf grey --field " + file + " --out " + dir / "tf.json" +
+                       " --step 0.02 " + solver_options);
+}
+
 // The check every marching kernel makes counts all the rays one invocation marches and its other
 // loops: exactly at the limit it passes, one sample more is refused naming the count and a step
 // that fits (which passes); devices without a known limit pass everything.
@@ -133,12 +144,7 @@ TEST_F(RenderGpu, DiffDvrTakesThePathItsRaysFitOrRefuses) {
                                              " --size 128 --solver diffdvr --image-size 16 --iterations 1 "
                                              "--no-report --step 0.01");
   EXPECT_EQ(fits.exit_code, 0) << fits.output;
-  std::vector<float> column(8 * 8 * 2000);
-  for (size_t i = 0; i < column.size(); ++i) column[i] = float((i / 64) % 50) / 49.0f;
-  test::write_floats(dir / "column_8x8x2000_float32.raw", column);
-  const test::CliResult r = test::run_cli("optimize --ref " + dir / "column_8x8x2000_float32.raw" +
-                                          " --ref-tf grey --field " + dir / "column_8x8x2000_float32.raw" + " --out " +
-                                          dir / "tf.json" + " --solver diffdvr --image-size 8 --iterations 1 --step 0.02");
+  const test::CliResult r = optimize_column(dir, "--solver diffdvr --image-size 8 --iterations 1");
   expect_refused_where_loops_are_limited(
       ctx(), r, {"diffdvr: rays of up to 100004 samples", "use a step of at least 0.0307 voxels"}, dir / "tf.json");
 }
@@ -148,12 +154,7 @@ TEST_F(RenderGpu, DiffDvrTakesThePathItsRaysFitOrRefuses) {
 // written, naming the step that fits; elsewhere the fit runs.
 TEST_F(RenderGpu, VisibilityWeightsRefuseRaysTheyCannotMarch) {
   const test::TempDir dir;
-  std::vector<float> column(8 * 8 * 2000);
-  for (size_t i = 0; i < column.size(); ++i) column[i] = float((i / 64) % 50) / 49.0f;
-  test::write_floats(dir / "column_8x8x2000_float32.raw", column);
-  const test::CliResult r = test::run_cli("optimize --ref " + dir / "column_8x8x2000_float32.raw" +
-                                          " --ref-tf grey --field " + dir / "column_8x8x2000_float32.raw" + " --out " +
-                                          dir / "tf.json" + " --solver normal-equations --weights visibility --step 0.02");
+  const test::CliResult r = optimize_column(dir, "--solver normal-equations --weights visibility");
   expect_refused_where_loops_are_limited(
       ctx(), r, {"visibility weights: rays of up to 100004 samples", "use a step of at least 0.0307 voxels"},
       dir / "tf.json");
