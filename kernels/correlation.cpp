@@ -105,8 +105,9 @@ Plan make_plan(const CorrelationParams& params, uint32_t members, uint32_t max_w
     // values, or a voxel whose series spreads far wider than the reference's, when the k nearest
     // in the max norm are decided by y): enough invocations that their ceil(M / T) searches stay
     // within kKraskovSearchBudget, up to the device's largest workgroup (beyond, check_device_fits
-    // refuses devices with a loop limit; others have none and run the plan as it is). Spearman and Kendall comparing every pair likewise (M^2 / T
-    // comparisons an invocation), with room for the voxel's other loops.
+    // refuses devices with a loop limit; others have none and run the plan as it is). Spearman
+    // and Kendall comparing every pair likewise (M^2 / T comparisons an invocation), with room
+    // for the voxel's other loops.
     const bool counting = pairs_compared(measure, members);
     const bool kraskov = measure == CorrelationMeasure::MiKraskov || measure == CorrelationMeasure::MiCoefficient;
     if (kraskov) {
@@ -141,7 +142,8 @@ uint32_t CorrelationKernel::max_workgroup(const Context& ctx) {
   return std::min({kMaxWorkgroup, limits.maxComputeWorkGroupInvocations, limits.maxComputeWorkGroupSize[0]});
 }
 
-std::string CorrelationKernel::strategy(const CorrelationParams& params, uint32_t member_count, uint32_t max_workgroup) {
+std::string CorrelationKernel::strategy(const CorrelationParams& params, uint32_t member_count,
+                                        uint32_t max_workgroup) {
   const Plan p = make_plan(params, member_count, max_workgroup);
   if (params.measure == CorrelationMeasure::Pearson) return "one invocation per voxel, one shifted pass over the members";
   if (params.measure == CorrelationMeasure::MiBinned)
@@ -207,8 +209,9 @@ constexpr uint64_t kRecordChunkAlign = 64;
 }  // namespace
 
 struct CorrelationKernel::Impl {
-  Impl(Context& c, uint32_t max_wg)
-      : ctx(c), max_workgroup(max_wg ? std::min(max_wg, CorrelationKernel::max_workgroup(c)) : CorrelationKernel::max_workgroup(c)) {}
+  Impl(Context& c, uint32_t max_wg) : ctx(c), max_workgroup(CorrelationKernel::max_workgroup(c)) {
+    if (max_wg) max_workgroup = std::min(max_wg, max_workgroup);
+  }
   Context& ctx;
   uint32_t max_workgroup;  // what the plans are made with
   // Pipelines by (shader, strategy, workgroup, region size, coefficient, layout), built on first

@@ -319,8 +319,8 @@ void backward(Context& ctx, Check& check, const GradientScene& gs) {
 // The runs modes' two marches (RunsMarch) on one scene: the same runs and sums, so the same
 // accumulator bits, word for word.
 void backward_marches(Context& ctx, Check& check, const GradientScene& gs) {
-  if (const std::string why = DiffDvrBackwardKernel::unsupported(ctx, uint32_t(gs.field.tf.size()), gs.mode); !why.empty())
-    return check.skip(why);
+  const uint32_t n = uint32_t(gs.field.tf.size());
+  if (const std::string why = DiffDvrBackwardKernel::unsupported(ctx, n, gs.mode); !why.empty()) return check.skip(why);
   const std::vector<float> target = target_images(gs);
   const std::vector<uint32_t> nested = backward_words(ctx, gs, target, RunsMarch::Nested);
   const std::vector<uint32_t> flat = backward_words(ctx, gs, target, RunsMarch::Flat);
@@ -464,8 +464,9 @@ void add_render_cases(CaseList& cases) {
     add_backward("l2, NaNs, field in 3 chunks, 24x24 image, 3 views, shared memory", true, gs);
     gs.march = RunsMarch::Nested;
     add_backward("l2, NaNs, field in 3 chunks, 24x24 image, 3 views, shared memory, nested march", true, gs);
-    add("diffdvr_backward", "DiffDvrBackwardKernel", "l2, NaNs, 24x24 image, 3 views: flat and nested marches, same bits",
-        true, backward_tile, backward_buffers, backward_marches, gs);
+    add("diffdvr_backward", "DiffDvrBackwardKernel",
+        "l2, NaNs, 24x24 image, 3 views: flat and nested marches, same bits", true, backward_tile, backward_buffers,
+        backward_marches, gs);
     gs.march = RunsMarch::Auto;
     gs.mode = ReductionMode::RunsGlobal;
     add_backward("l2, NaNs, field in 3 chunks, 24x24 image, 3 views, global atomics", true, gs);

@@ -289,7 +289,8 @@ TEST_F(DiffDvrGradientTest, LongRaysMatchTheReverseModeOnThePathTheyFit) {
       EXPECT_TRUE(march_loops_fit(ctx(), m.max_steps, 1, other));
       if (length == 3260) {
         EXPECT_FALSE(march_loops_fit(ctx(), m.max_steps + 100, 1, other)) << "the case should sit at the limit";
-        EXPECT_FALSE(march_loops_fit(ctx(), m.max_steps, DiffDvrBackwardKernel::loops_per_sample(chosen, RunsMarch::Nested), other));
+        const uint32_t nested = DiffDvrBackwardKernel::loops_per_sample(chosen, RunsMarch::Nested);
+        EXPECT_FALSE(march_loops_fit(ctx(), m.max_steps, nested, other)) << "nested runs would not fit";
       }
     }
     const CpuSide cpu(c);

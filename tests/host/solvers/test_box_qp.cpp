@@ -226,7 +226,8 @@ TEST(BoxQp, KktResidualReadsTheDistanceUnderHeavySmoothing) {
     if (j + 1 < x.size()) g[j] += h.off[size_t(j)] * x[j + 1];
   }
   double diagonal_step = 0.0;
-  for (Eigen::Index j = 0; j < x.size(); ++j) diagonal_step = std::max(diagonal_step, std::abs(g[j] / h.diag[size_t(j)]));
+  for (Eigen::Index j = 0; j < x.size(); ++j)
+    diagonal_step = std::max(diagonal_step, std::abs(g[j] / h.diag[size_t(j)]));
   EXPECT_LT(diagonal_step, 1e-5) << "the diagonal step should read small here (else the test shows nothing)";
   // On a bound with the multiplier's sign wrong, the component is free and the step moves it in.
   Eigen::VectorXd low = qp.x.col(0);
