@@ -47,7 +47,7 @@ Groups tiles(const gpu::RenderPush& push, uint32_t row_count, uint32_t columns, 
 constexpr auto kBackwardBindingCounts = gpu::binding_counts(
     {TFM_DIFFDVR_BWD_BINDING_FIELD, TFM_DIFFDVR_BWD_BINDING_TF, TFM_DIFFDVR_BWD_BINDING_VIEWS,
      TFM_DIFFDVR_BWD_BINDING_STATE, TFM_DIFFDVR_BWD_BINDING_STOP, TFM_DIFFDVR_BWD_BINDING_TARGET,
-     TFM_DIFFDVR_BWD_BINDING_ACCUM},
+     TFM_DIFFDVR_BWD_BINDING_ACCUM, TFM_DIFFDVR_BWD_BINDING_RESUME},
     TFM_DIFFDVR_BWD_BINDING_FIELD, TFM_RENDER_MAX_CHUNKS);
 
 }  // namespace
@@ -62,12 +62,13 @@ void DiffDvrForwardKernel::record(CommandBatch& batch, const DeviceField& field,
                                   const Buffer& views, gpu::RenderPush push, Buffer& state, Buffer& stop,
                                   uint32_t row_begin, uint32_t row_count) const {
   check_pass(field, chunks_, tf, views, push, state, stop, row_begin, row_count);
-  check_march_loops(ctx_, push, 1, 0, "diffdvr");
   push.row_offset = row_begin;
   push.row_end = row_begin + row_count;
   // Buffers in the binding order of gpu::kRenderBindingCounts; the state is the renderer's image.
-  batch.dispatch(*pipeline_, {march_field_binding(field), march_tf_binding(tf, push.tf_size), views, state, stop}, push,
-                 tiles(push, row_count, TFM_RENDER_TILE, TFM_RENDER_TILE));
+  // Long rays in parts where the device limits an invocation's loops, as the renderer's.
+  dispatch_forward_parts(ctx_, batch, *pipeline_,
+                         {march_field_binding(field), march_tf_binding(tf, push.tf_size), views, state, stop}, push,
+                         tiles(push, row_count, TFM_RENDER_TILE, TFM_RENDER_TILE));
 }
 
 namespace {
@@ -151,24 +152,62 @@ DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks
   pipeline_ = shared_pipeline(ctx, desc);
 }
 
+namespace {
+// The parts in which a kernel of `mode` and `march` marches `push`'s rays back on `ctx`: one
+// (whole rays) unless the runs are marched flat and do not fit one invocation's loops.
+std::vector<std::pair<uint32_t, uint32_t>> backward_parts(const Context& ctx, const gpu::RenderPush& push,
+                                                         ReductionMode mode, RunsMarch march, uint32_t tf_size) {
+  if (mode == ReductionMode::Private || march != RunsMarch::Flat) return {{0u, 0u}};
+  return march_parts(ctx, push.max_steps, DiffDvrBackwardKernel::other_loops(mode, tf_size));
+}
+}  // namespace
+
+uint64_t DiffDvrBackwardKernel::resume_bytes(const gpu::RenderPush& push) const {
+  if (backward_parts(ctx_, push, mode_, march_, tf_size_).size() == 1) return 0;
+  return uint64_t(push.width) * push.height * push.view_count * 32;
+}
+
 void DiffDvrBackwardKernel::record(CommandBatch& batch, const DeviceField& field, const Buffer& tf,
                                    const Buffer& views, gpu::RenderPush push, const Buffer& state, const Buffer& stop,
-                                   const Buffer& target, Buffer& accum, uint32_t row_begin, uint32_t row_count) const {
+                                   const Buffer& target, Buffer& accum, uint32_t row_begin, uint32_t row_count,
+                                   Buffer* resume) const {
   check_pass(field, chunks_, tf, views, push, state, stop, row_begin, row_count);
   if (push.tf_size != tf_size_) throw std::invalid_argument("diffdvr: TF size differs from the kernel's");
   if (target.size() < state.size()) throw std::invalid_argument("diffdvr: target image smaller than the state");
   if (accum.size() < slots() * gpu::kFixedSlotBytes)
     throw std::invalid_argument("diffdvr: accumulator buffer too small");
-  check_march_loops(ctx_, push, loops_per_sample(mode_, march_), other_loops(mode_, tf_size_), "diffdvr");
   push.row_offset = row_begin;
   push.row_end = row_begin + row_count;
-  // Buffers in the binding order of kBackwardBindingCounts.
   // A private-histogram lane marches TFM_DIFFDVR_PRIVATE_PIXELS rows 16 apart.
   const uint32_t rows_per_group =
       TFM_DIFFDVR_BACKWARD_TILE * (mode_ == ReductionMode::Private ? TFM_DIFFDVR_PRIVATE_PIXELS : 1u);
-  batch.dispatch(*pipeline_,
-                 {march_field_binding(field), march_tf_binding(tf, push.tf_size), views, state, stop, target, accum}, push,
-                 tiles(push, row_count, TFM_DIFFDVR_BACKWARD_TILE, rows_per_group));
+  const Groups groups = tiles(push, row_count, TFM_DIFFDVR_BACKWARD_TILE, rows_per_group);
+  // Buffers in the binding order of kBackwardBindingCounts; whole rays never touch the resume
+  // binding, which then takes the accumulators' buffer as a stand-in.
+  auto dispatch = [&](const Buffer& resume_buffer) {
+    batch.dispatch(*pipeline_,
+                   {march_field_binding(field), march_tf_binding(tf, push.tf_size), views, state, stop, target, accum,
+                    resume_buffer},
+                   push, groups);
+  };
+  const auto parts = backward_parts(ctx_, push, mode_, march_, tf_size_);
+  if (parts.size() == 1) {
+    check_march_loops(ctx_, push, loops_per_sample(mode_, march_), other_loops(mode_, tf_size_), "diffdvr");
+    push.first_sample = push.sample_end = 0;
+    dispatch(accum);
+    return;
+  }
+  if (!resume || resume->size() < resume_bytes(push))
+    throw std::invalid_argument("diffdvr: rays of " + std::to_string(push.max_steps) +
+                                " samples are marched back in parts on this device; their resume buffer needs " +
+                                std::to_string(resume_bytes(push)) + " bytes");
+  // From the rays' ends back; each part reads the states the one before stored.
+  for (size_t i = parts.size(); i-- > 0;) {
+    if (i + 1 < parts.size()) batch.barrier();
+    push.first_sample = parts[i].first;
+    push.sample_end = parts[i].second;
+    dispatch(*resume);
+  }
 }
 
 void FixedPointTotals::add(const uint32_t* words) {

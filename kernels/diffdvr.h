@@ -27,10 +27,10 @@ class DiffDvrForwardKernel {
  public:
   // Throws std::runtime_error when the field needs more buffers than the kernel binds.
   DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks);
-  // Records one dispatch over rows [row_begin, row_begin + row_count) of every view of `push`.
-  // `state` holds width*height*views vec4 (C, T), `stop` as many uints. Throws
-  // std::invalid_argument when a buffer or the field's chunking does not fit, std::runtime_error
-  // when the rays are longer than the device lets one invocation march (check_march_loops).
+  // Records the pass over rows [row_begin, row_begin + row_count) of every view of `push`: one
+  // dispatch, or on a device that limits an invocation's loops, rays longer than that in parts
+  // (march_parts), as the renderer's. `state` holds width*height*views vec4 (C, T), `stop` as
+  // many uints. Throws std::invalid_argument when a buffer or the field's chunking does not fit.
   void record(CommandBatch& batch, const DeviceField& field, const Buffer& tf, const Buffer& views,
               gpu::RenderPush push, Buffer& state, Buffer& stop, uint32_t row_begin, uint32_t row_count) const;
 
@@ -82,12 +82,19 @@ class DiffDvrBackwardKernel {
   bool uses_shared_memory() const { return mode_ == ReductionMode::RunsShared; }
   // Adds the loss of (state vs target) over rows [row_begin, row_begin + row_count) of every view
   // and its gradient w.r.t. `tf` to `accum`. `state`/`stop` are the forward pass's output for
-  // (field, tf, views, push); `target` has the same layout. Throws std::invalid_argument when a
-  // buffer, the TF size or the chunking does not fit, std::runtime_error when the rays are longer
-  // than the device lets one invocation march back (check_march_loops).
+  // (field, tf, views, push); `target` has the same layout. On a device that limits an
+  // invocation's loops, a runs mode marches rays longer than that back in parts (march_parts,
+  // from the rays' ends), keeping each ray's state and adjoints between them in `resume`, of at
+  // least resume_bytes() (its runs are flushed at the parts' edges: other float groupings than
+  // whole rays). Throws std::invalid_argument when a buffer (`resume` included), the TF size or
+  // the chunking does not fit, std::runtime_error when Private's rays are longer than the device
+  // lets one invocation march back (check_march_loops).
   void record(CommandBatch& batch, const DeviceField& field, const Buffer& tf, const Buffer& views,
               gpu::RenderPush push, const Buffer& state, const Buffer& stop, const Buffer& target, Buffer& accum,
-              uint32_t row_begin, uint32_t row_count) const;
+              uint32_t row_begin, uint32_t row_count, Buffer* resume = nullptr) const;
+  // The bytes record() needs in `resume` for `push`: 0 where it marches whole rays, else 32 a
+  // pixel of every view (the state (C, T) and its adjoints).
+  uint64_t resume_bytes(const gpu::RenderPush& push) const;
 
  private:
   const Context& ctx_;

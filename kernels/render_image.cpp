@@ -70,6 +70,18 @@ bool march_loops_fit(const Context& ctx, uint32_t max_steps, uint32_t loops_per_
   return limit == 0 || march_loops_needed(max_steps, loops_per_sample, other_loops) <= limit;
 }
 
+std::vector<std::pair<uint32_t, uint32_t>> march_parts(const Context& ctx, uint32_t max_steps, uint64_t other_loops) {
+  const uint64_t limit = ctx.loop_iteration_limit();
+  if (march_loops_fit(ctx, max_steps, 1, other_loops)) return {{0u, 0u}};
+  // P samples cost P + 1 iterations (the loop's entry) beside the others and the reserve.
+  const uint64_t per_part = limit > other_loops + kMarchLoopReserve + 1 ? limit - other_loops - kMarchLoopReserve - 1 : 0;
+  if (per_part == 0) throw std::logic_error("march_parts: the device's loop limit leaves no samples");
+  std::vector<std::pair<uint32_t, uint32_t>> parts;
+  for (uint64_t first = 0; first < max_steps; first += per_part)
+    parts.emplace_back(uint32_t(first), uint32_t(std::min<uint64_t>(first + per_part, max_steps)));
+  return parts;
+}
+
 void check_march_loops(const Context& ctx, const gpu::RenderPush& push, uint32_t loops_per_sample,
                        uint64_t other_loops, const char* who) {
   if (march_loops_fit(ctx, push.max_steps, loops_per_sample, other_loops)) return;
@@ -150,21 +162,26 @@ void RenderImageKernel::record_with(CommandBatch& batch, const Binding& field, c
   // marched in several dispatches, each resuming from the state the one before stored in the
   // image and stop buffers (render_image.comp). The inverse check walks each ray back in the
   // invocation that marched it, so it needs whole rays.
-  const uint64_t limit = ctx_.loop_iteration_limit();
-  const uint64_t per_dispatch = limit > kMarchLoopReserve + 1 ? limit - kMarchLoopReserve - 1 : 0;
-  if (rays_per_pixel_ > 1 || per_dispatch == 0 || push.max_steps <= per_dispatch) {
+  if (rays_per_pixel_ > 1) {
     check_march_loops(ctx_, push, rays_per_pixel_, 0, "render");
     push.first_sample = 0;
     push.sample_end = 0;
     batch.dispatch(*pipeline_, bindings, push, groups);
     return;
   }
-  for (uint64_t first = 0; first < push.max_steps; first += per_dispatch) {
+  dispatch_forward_parts(ctx_, batch, *pipeline_, bindings, push, groups);
+}
+
+void dispatch_forward_parts(const Context& ctx, CommandBatch& batch, const ComputePipeline& pipeline,
+                            const std::vector<Binding>& bindings, gpu::RenderPush push, const Groups& groups) {
+  bool first = true;
+  for (const auto& [begin, end] : march_parts(ctx, push.max_steps, 0)) {
     // The part before has stored every ray's state before this one reads it.
-    if (first > 0) batch.barrier();
-    push.first_sample = uint32_t(first);
-    push.sample_end = uint32_t(std::min<uint64_t>(first + per_dispatch, push.max_steps));
-    batch.dispatch(*pipeline_, bindings, push, groups);
+    if (!first) batch.barrier();
+    first = false;
+    push.first_sample = begin;
+    push.sample_end = end;
+    batch.dispatch(pipeline, bindings, push, groups);
   }
 }
 

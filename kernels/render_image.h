@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "buffer.h"
@@ -41,6 +42,18 @@ void check_march_loops(const Context& ctx, const gpu::RenderPush& push, uint32_t
                        uint64_t other_loops, const char* who);
 // Whether check_march_loops would let rays of `max_steps` samples through.
 bool march_loops_fit(const Context& ctx, uint32_t max_steps, uint32_t loops_per_sample, uint64_t other_loops);
+
+// The sample ranges [first_sample, sample_end) in which a kernel marching one ray an invocation,
+// one loop iteration a sample and `other_loops` besides, records rays of push.max_steps samples:
+// one range {0, 0} (whole rays) where they fit (march_loops_fit), else consecutive ranges of at
+// most what one invocation may loop, in marching order (each dispatch resumes the rays where the
+// one before left them; RenderPush's first_sample, sample_end).
+std::vector<std::pair<uint32_t, uint32_t>> march_parts(const Context& ctx, uint32_t max_steps, uint64_t other_loops);
+
+// Records render_image.comp's `pipeline` (forward or DiffDVR-state mode) for `push`'s rays in
+// march_parts() (other loops 0), with barriers between the parts.
+void dispatch_forward_parts(const Context& ctx, CommandBatch& batch, const ComputePipeline& pipeline,
+                            const std::vector<Binding>& bindings, gpu::RenderPush push, const Groups& groups);
 
 class RenderImageKernel {
  public:

@@ -137,6 +137,23 @@ bool step_back(MarchParams mp, inout Adjoint a, out uint j, out float w, out vec
 
 #ifndef TFM_DIFFDVR_PRIVATE
 
+// Rays marched back in parts (rp.sample_end != 0, devices that limit an invocation's loops): each
+// part marches samples [rp.first_sample, rp.sample_end) and leaves the state and its adjoints here
+// for the part before them, which the next dispatch marches.
+layout(std430, binding = TFM_DIFFDVR_BWD_BINDING_RESUME) buffer Resume { vec4 resume[]; };
+
+// The ray of `pixel` where the part after this one left it.
+void resume_pixel(uvec2 pixel, uint view, MarchParams mp, out Adjoint a) {
+  const uint index = pixel_index(pixel, view);
+  const vec4 s = resume[2u * index], g = resume[2u * index + 1u];
+  a.ray = view_ray(views[view], pixel, mp);
+  a.color = s.rgb;
+  a.transmittance = s.a;
+  a.g_color = g.rgb;
+  a.g_trans = g.a;
+  a.k = stop_index[index];
+}
+
 // Adds the register sums of TF entries j and j + 1 to the accumulators (run sums of one ray are
 // far below fx_from_signed's 2^31).
 void flush(uint j, vec4 g0, vec4 g1) { FX_ADD_TF_PAIR(USE_SHARED, s_acc, accum, j, g0, g1) }
@@ -144,17 +161,26 @@ void flush(uint j, vec4 g0, vec4 g1) { FX_ADD_TF_PAIR(USE_SHARED, s_acc, accum, 
 void backpropagate_runs(uvec2 pixel, uint view) {
   const MarchParams mp = march_params_from_push();
   Adjoint a;
-  const float loss = begin_pixel(pixel, view, mp, a);
-  FX_ATOMIC_ADD_TO(USE_SHARED, s_acc, accum, 4u * mp.tf_size, fx_from_float(loss))
+  // Whole rays (sample_end 0), or the part of a ray that ends at its last sample, begin it: the
+  // loss and its adjoints. Samples below `lo` are another part's.
+  const uint lo = rp.first_sample;
+  if (rp.sample_end == 0u || rp.sample_end >= rp.max_steps) {
+    const float loss = begin_pixel(pixel, view, mp, a);
+    FX_ATOMIC_ADD_TO(USE_SHARED, s_acc, accum, 4u * mp.tf_size, fx_from_float(loss))
+  } else {
+    resume_pixel(pixel, view, mp, a);
+  }
+  if (rp.sample_end != 0u) a.k = min(a.k, rp.sample_end);
   // Runs: consecutive samples in one TF interval sum their gradients in float registers (g0, g1
   // for entries cur, cur + 1); a run is flushed to the accumulators when the interval changes.
   uint cur = 0xFFFFFFFFu;
   vec4 g0 = vec4(0.0), g1 = vec4(0.0);
   if (FLAT_RUNS) {
     // One loop iteration a sample, the flush inside it: devices with a loop limit (llvmpipe),
-    // where the two loops below could cost up to three iterations a sample (a SIMD vector's lanes
+    // where the two loops below could cost up to ten iterations a sample (a SIMD vector's lanes
     // end their runs at different samples). Same runs and sums, so the same bits (0 + x = x).
-    while (a.k > 0u) {
+    // Rays in parts flush their last run at each part's edge and store their state.
+    while (a.k > lo) {
       uint j;
       float w;
       vec4 d;
@@ -168,6 +194,11 @@ void backpropagate_runs(uvec2 pixel, uint view) {
       g1 += w * d;
     }
     if (cur != 0xFFFFFFFFu) flush(cur, g0, g1);
+    if (lo > 0u) {
+      const uint index = pixel_index(pixel, view);
+      resume[2u * index] = vec4(a.color, a.transmittance);
+      resume[2u * index + 1u] = vec4(a.g_color, a.g_trans);
+    }
     return;
   }
   // The inner loop marches one run and stops at the first sample of the next, whose terms start
@@ -178,7 +209,7 @@ void backpropagate_runs(uvec2 pixel, uint view) {
     uint next = 0xFFFFFFFFu;
     vec4 n0 = vec4(0.0), n1 = vec4(0.0);
     more = false;
-    while (a.k > 0u) {
+    while (a.k > lo) {
       uint j;
       float w;
       vec4 d;

@@ -22,6 +22,8 @@
 #define TFM_DIFFDVR_BWD_BINDING_STOP 4    // k_stop per pixel per view
 #define TFM_DIFFDVR_BWD_BINDING_TARGET 5  // target image, forward state layout (C, T)
 #define TFM_DIFFDVR_BWD_BINDING_ACCUM 6   // TFM_DIFFDVR_SLOTS(n) accumulators, 2 uints each
+#define TFM_DIFFDVR_BWD_BINDING_RESUME 7  // runs build, rays in parts: 2 vec4 per pixel per view, the
+                                          // state (C, T) and its adjoints where the part before left them
 
 // Specialization constants: workgroup x, y (TFM_SPEC_WORKGROUP_X/Y, both
 // TFM_DIFFDVR_BACKWARD_TILE), field chunks (TFM_RENDER_SPEC_CHUNKS), then these.

@@ -32,6 +32,7 @@ bool same_cameras(std::span<const OrbitCamera> a, const std::vector<OrbitCamera>
 
 struct DiffDvrGradient::Buffers {
   Buffer tf, ref_state, ref_stop, opt_state, opt_stop, accum;
+  Buffer resume;                // rays marched back in parts (DiffDvrBackwardKernel::resume_bytes)
   Buffer upload;                // host-visible: TF entries, then camera records
   Buffer readback;              // host-visible: the accumulators of every band
   std::vector<Buffer> views;    // camera records of each group
@@ -56,7 +57,11 @@ DiffDvrGradient::DiffDvrGradient(Context& ctx, const DeviceField& ref, const Dev
                 DiffDvrBackwardKernel::choose(ctx, opt_map.tf_size, reduction, march_.max_steps)),
       buffers_(std::make_unique<Buffers>()) {
   const uint64_t pixels = uint64_t(settings.width) * settings.height;
-  const uint64_t by_memory = ctx.max_buffer_bytes() / (pixels * 16);
+  // The largest buffer of a group: its images (16 bytes a pixel), or the states of rays marched
+  // back in parts (32).
+  const uint64_t one_view_resume =
+      backward_.resume_bytes(make_render_push(geometry, march_, opt_map, opt, settings.width, settings.height, 1));
+  const uint64_t by_memory = ctx.max_buffer_bytes() / (pixels * (one_view_resume > 0 ? 32 : 16));
   const uint64_t by_range = uint64_t(kAccumulatorBudget / (double(pixels) * ray_bound(march_)));
   if (by_memory == 0) throw std::runtime_error("diffdvr: one image of this size exceeds the device's buffer limit");
   group_ = uint32_t(std::clamp<uint64_t>(std::min(by_memory, by_range), 1, std::max(max_group_views, 1u)));
@@ -122,7 +127,8 @@ ImageLossGradient DiffDvrGradient::evaluate_views(const TransferFunction& tf, st
   const uint32_t width = settings_.width, height = settings_.height;
   const uint32_t views = uint32_t(cameras.size());
   const uint32_t group = std::min(group_, views), groups = (views + group - 1) / group;
-  // Per-pixel state for one group of views: 2 x (16 + 4) bytes per ray, whatever the steps.
+  // Per-pixel state for one group of views: 2 x (16 + 4) bytes per ray, whatever the steps (and
+  // 32 more where rays are marched back in parts).
   const uint64_t pixels = uint64_t(width) * height * group;
   if (b.opt_state.size() < pixels * 16) {
     b.ref_state = Buffer(ctx_, pixels * 16, MemoryUsage::Device, "diffdvr: reference images");
@@ -132,6 +138,11 @@ ImageLossGradient DiffDvrGradient::evaluate_views(const TransferFunction& tf, st
     b.views.clear();
     cached_cameras_.clear();
   }
+  // Allocated before recording: a buffer replaced while commands use it would be gone.
+  const uint64_t resume_bytes =
+      backward_.resume_bytes(make_render_push(geometry_, march_, opt_map_, opt_, width, height, group));
+  if (b.resume.size() < resume_bytes)
+    b.resume = Buffer(ctx_, resume_bytes, MemoryUsage::Device, "diffdvr: ray states between parts");
   // Backward passes in row bands whose fixed-point sums stay in range (whole images in practice).
   const double band_rays = kAccumulatorBudget / ray_bound(march_) / (double(width) * group);
   const uint32_t band_rows = std::clamp<uint32_t>(
@@ -187,7 +198,7 @@ ImageLossGradient DiffDvrGradient::evaluate_views(const TransferFunction& tf, st
     stamps.push_back(batch.timestamp());
     for (uint32_t row = 0; row < height; row += band_rows, ++band_index) {
       backward_.record(batch, opt_, b.tf, b.views[g], opt_push, b.opt_state, b.opt_stop, b.ref_state, b.accum, row,
-                       std::min(band_rows, height - row));
+                       std::min(band_rows, height - row), &b.resume);
       // The band's sums are complete before they are copied out ...
       batch.barrier();
       batch.copy(b.accum, 0, b.readback, uint64_t(band_index) * slots * 8, uint64_t(slots) * 8);

@@ -257,16 +257,18 @@ TEST_F(DiffDvrGradientTest, L1MatchesFiniteDifferences) {
   EXPECT_GT(exited, 10u);
 }
 
-// Rays of ~20 000 and ~65 200 samples down 3 x 3 columns: too long for a CPU device's private
-// lanes (4 rays each past llvmpipe's 65535 loop iterations), so Auto takes a runs path there, as
-// on a GPU, marched flat (one loop iteration a sample; the longer column is within 70 of the
-// limit, where the nested march's bound of 10 a sample is far past it), and its gradient matches
-// the CPU reverse mode. The bound: T recovered by K divisions and the forward pass's C and T
-// drift by up to ~K float ulps each (2K 2^-24 = 7.8e-3 relative at 65 000; 6e-3 on lavapipe)
-// where the short rays above drift by ~30. No ray stops early (opacity scale
-// per length), so every sample is marched.
+// Rays of ~20 000, ~65 200 and ~80 000 samples down 3 x 3 columns: too long for a CPU device's
+// private lanes (4 rays each past llvmpipe's 65535 loop iterations), so Auto takes a runs path
+// there, as on a GPU, marched flat (one loop iteration a sample; the second column is within 70
+// of the limit, where the nested march's bound of 10 a sample is far past it, and the third is
+// marched back in two parts on llvmpipe, its rays' states kept between them). The gradient
+// matches the CPU reverse mode within what float drift allows: T recovered by K divisions and the
+// forward pass's C and T drift by up to ~K float ulps each (2K 2^-24: 2.4e-3, 7.8e-3 and 9.5e-3;
+// lavapipe 7e-4, 6e-3 and printed), where the short rays above drift by ~30. No ray stops early
+// (opacity scale per length), so every sample is marched.
 TEST_F(DiffDvrGradientTest, LongRaysMatchTheReverseModeOnThePathTheyFit) {
-  for (const auto& [length, opacity] : {std::pair{uint64_t(1000), 2.0}, std::pair{uint64_t(3260), 0.6}}) {
+  const std::pair<uint64_t, double> columns[] = {{1000, 2.0}, {3260, 0.6}, {4000, 0.5}};
+  for (const auto& [length, opacity] : columns) {
     SCOPED_TRACE(length);
     Case c;
     c.ref = wavy_volume({3, 3, length}, {1.0, 1.0, 1.0}, 1);
@@ -286,7 +288,7 @@ TEST_F(DiffDvrGradientTest, LongRaysMatchTheReverseModeOnThePathTheyFit) {
     if (ctx().loop_iteration_limit() != 0) {
       EXPECT_NE(chosen, ReductionMode::Private) << "4 rays a lane do not fit";
       const uint64_t other = DiffDvrBackwardKernel::other_loops(chosen, 7);
-      EXPECT_TRUE(march_loops_fit(ctx(), m.max_steps, 1, other));
+      EXPECT_EQ(march_parts(ctx(), m.max_steps, other).size(), length == 4000 ? 2u : 1u);
       if (length == 3260) {
         EXPECT_FALSE(march_loops_fit(ctx(), m.max_steps + 100, 1, other)) << "the case should sit at the limit";
         const uint32_t nested = DiffDvrBackwardKernel::loops_per_sample(chosen, RunsMarch::Nested);
@@ -301,10 +303,10 @@ TEST_F(DiffDvrGradientTest, LongRaysMatchTheReverseModeOnThePathTheyFit) {
     double cpu_loss = 0;
     const std::vector<double> reverse = cpu.gradient(&cpu_loss);
     const ImageLossGradient gpu = gpu_gradient(ctx(), c);
-    expect_close(gpu.gradient, reverse, 1e-2, "GPU backward pass on long rays vs CPU reverse mode");
-    // Each float image (the field's and the reference's) may drift by K ulps over K samples, and
-    // the loss by what that makes of sum (X - R)^2 over its n components.
+    // Each float image (the field's and the reference's) may drift by K ulps over K samples.
     const double drift = 2.0 * m.max_steps * 0x1p-24, n = 4.0 * c.settings.width * c.settings.height;
+    expect_close(gpu.gradient, reverse, 1.25 * drift + 2e-3, "GPU backward pass on long rays vs CPU reverse mode");
+    // The loss: what that drift makes of sum (X - R)^2 over its n components.
     EXPECT_NEAR(gpu.loss, cpu_loss, 2 * drift * std::sqrt(n * cpu_loss) + n * drift * drift);
   }
 }

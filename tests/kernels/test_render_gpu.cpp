@@ -133,20 +133,14 @@ TEST_F(RenderGpu, MarchLoopCheckCountsEveryRayOfAnInvocation) {
   }
 }
 
-// DiffDVR's backward pass leaves the private lanes (4 rays each) for the runs path, marched in
-// one loop iteration a sample, where rays are long: the demo's 128^3 pair at a step of 0.01
-// voxels (22 173 samples a ray, refused before 2026-12-06) runs on every device. Beyond what one
-// invocation may loop (an 8 x 8 x 2000 column at 0.02: 100 004 samples) llvmpipe refuses before
-// anything is written, naming the step that fits.
-TEST_F(RenderGpu, DiffDvrTakesThePathItsRaysFitOrRefuses) {
+// DiffDVR marches rays of any length: on llvmpipe, rays longer than one invocation may loop (an
+// 8 x 8 x 2000 column at 0.02 voxels: 100 004 samples, refused before 2026-12-06) are marched
+// forward and back in parts; the fit runs and writes its TF on every device.
+TEST_F(RenderGpu, DiffDvrMarchesRaysLongerThanOneInvocationMayLoop) {
   const test::TempDir dir;
-  const test::CliResult fits = test::run_cli("demo --out " + dir / "demo128" +
-                                             " --size 128 --solver diffdvr --image-size 16 --iterations 1 "
-                                             "--no-report --step 0.01");
-  EXPECT_EQ(fits.exit_code, 0) << fits.output;
-  const test::CliResult r = optimize_column(dir, "--solver diffdvr --image-size 8 --iterations 1");
-  expect_refused_where_loops_are_limited(
-      ctx(), r, {"diffdvr: rays of up to 100004 samples", "use a step of at least 0.0307 voxels"}, dir / "tf.json");
+  const test::CliResult r = optimize_column(dir, "--solver diffdvr --image-size 8 --iterations 2");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(dir / "tf.json"));
 }
 
 // The visibility weights march one view per invocation once rays are long: an 8 x 8 x 2000 column
