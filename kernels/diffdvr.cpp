@@ -121,8 +121,13 @@ ReductionMode DiffDvrBackwardKernel::choose(const Context& ctx, uint32_t tf_size
 }
 
 DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks, uint32_t tf_size, ImageLoss loss,
-                                             ReductionMode mode, RunsMarch march)
-    : ctx_(ctx), chunks_(field_chunks), tf_size_(tf_size), mode_(mode), march_(march) {
+                                             ReductionMode mode, RunsMarch march, uint32_t max_part_samples)
+    : ctx_(ctx),
+      chunks_(field_chunks),
+      tf_size_(tf_size),
+      mode_(mode),
+      march_(march),
+      max_part_samples_(max_part_samples) {
   check_chunks(field_chunks);
   if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
   mode_ = choose(ctx, tf_size, mode);
@@ -156,14 +161,15 @@ namespace {
 // The parts in which a kernel of `mode` and `march` marches `push`'s rays back on `ctx`: one
 // (whole rays) unless the runs are marched flat and do not fit one invocation's loops.
 std::vector<std::pair<uint32_t, uint32_t>> backward_parts(const Context& ctx, const gpu::RenderPush& push,
-                                                         ReductionMode mode, RunsMarch march, uint32_t tf_size) {
+                                                         ReductionMode mode, RunsMarch march, uint32_t tf_size,
+                                                         uint32_t max_part_samples) {
   if (mode == ReductionMode::Private || march != RunsMarch::Flat) return {{0u, 0u}};
-  return march_parts(ctx, push.max_steps, DiffDvrBackwardKernel::other_loops(mode, tf_size));
+  return march_parts(ctx, push.max_steps, DiffDvrBackwardKernel::other_loops(mode, tf_size), max_part_samples);
 }
 }  // namespace
 
 uint64_t DiffDvrBackwardKernel::resume_bytes(const gpu::RenderPush& push) const {
-  if (backward_parts(ctx_, push, mode_, march_, tf_size_).size() == 1) return 0;
+  if (backward_parts(ctx_, push, mode_, march_, tf_size_, max_part_samples_).size() == 1) return 0;
   return uint64_t(push.width) * push.height * push.view_count * 32;
 }
 
@@ -190,7 +196,7 @@ void DiffDvrBackwardKernel::record(CommandBatch& batch, const DeviceField& field
                     resume_buffer},
                    push, groups);
   };
-  const auto parts = backward_parts(ctx_, push, mode_, march_, tf_size_);
+  const auto parts = backward_parts(ctx_, push, mode_, march_, tf_size_, max_part_samples_);
   if (parts.size() == 1) {
     check_march_loops(ctx_, push, loops_per_sample(mode_, march_), other_loops(mode_, tf_size_), "diffdvr");
     push.first_sample = push.sample_end = 0;

@@ -58,9 +58,11 @@ class DiffDvrBackwardKernel {
   // device cannot run throws std::runtime_error naming what is missing. The runs modes give the
   // same bits; Private sums in another float grouping (deterministic too).
   // `march`: how a runs mode marches its rays (RunsMarch; Auto: Flat on devices with a loop limit,
-  // else Nested; ignored by Private).
+  // else Nested; ignored by Private). `max_part_samples` > 0: a Flat march takes rays longer than
+  // that back in parts on any device (tests; record()).
   DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks, uint32_t tf_size, ImageLoss loss,
-                        ReductionMode mode = ReductionMode::Auto, RunsMarch march = RunsMarch::Auto);
+                        ReductionMode mode = ReductionMode::Auto, RunsMarch march = RunsMarch::Auto,
+                        uint32_t max_part_samples = 0);
   uint32_t tf_size() const { return tf_size_; }
   uint32_t slots() const { return TFM_DIFFDVR_SLOTS(tf_size_); }  // accumulator bytes: 8 per slot
   ReductionMode mode() const { return mode_; }
@@ -102,6 +104,7 @@ class DiffDvrBackwardKernel {
   uint32_t tf_size_;
   ReductionMode mode_;
   RunsMarch march_;
+  uint32_t max_part_samples_;
   SharedPipeline pipeline_;
 };
 

@@ -70,11 +70,15 @@ bool march_loops_fit(const Context& ctx, uint32_t max_steps, uint32_t loops_per_
   return limit == 0 || march_loops_needed(max_steps, loops_per_sample, other_loops) <= limit;
 }
 
-std::vector<std::pair<uint32_t, uint32_t>> march_parts(const Context& ctx, uint32_t max_steps, uint64_t other_loops) {
+std::vector<std::pair<uint32_t, uint32_t>> march_parts(const Context& ctx, uint32_t max_steps, uint64_t other_loops,
+                                                       uint32_t max_part) {
   const uint64_t limit = ctx.loop_iteration_limit();
-  if (march_loops_fit(ctx, max_steps, 1, other_loops)) return {{0u, 0u}};
   // P samples cost P + 1 iterations (the loop's entry) beside the others and the reserve.
-  const uint64_t per_part = limit > other_loops + kMarchLoopReserve + 1 ? limit - other_loops - kMarchLoopReserve - 1 : 0;
+  uint64_t per_part = max_steps;
+  if (limit != 0)
+    per_part = limit > other_loops + kMarchLoopReserve + 1 ? limit - other_loops - kMarchLoopReserve - 1 : 0;
+  if (max_part > 0) per_part = std::min<uint64_t>(per_part, max_part);
+  if (max_steps <= per_part) return {{0u, 0u}};
   if (per_part == 0) throw std::logic_error("march_parts: the device's loop limit leaves no samples");
   std::vector<std::pair<uint32_t, uint32_t>> parts;
   for (uint64_t first = 0; first < max_steps; first += per_part)

@@ -47,8 +47,10 @@ bool march_loops_fit(const Context& ctx, uint32_t max_steps, uint32_t loops_per_
 // one loop iteration a sample and `other_loops` besides, records rays of push.max_steps samples:
 // one range {0, 0} (whole rays) where they fit (march_loops_fit), else consecutive ranges of at
 // most what one invocation may loop, in marching order (each dispatch resumes the rays where the
-// one before left them; RenderPush's first_sample, sample_end).
-std::vector<std::pair<uint32_t, uint32_t>> march_parts(const Context& ctx, uint32_t max_steps, uint64_t other_loops);
+// one before left them; RenderPush's first_sample, sample_end). `max_part` > 0 caps the parts'
+// samples on any device (tests: parts on short rays).
+std::vector<std::pair<uint32_t, uint32_t>> march_parts(const Context& ctx, uint32_t max_steps, uint64_t other_loops,
+                                                       uint32_t max_part = 0);
 
 // Records render_image.comp's `pipeline` (forward or DiffDVR-state mode) for `push`'s rays in
 // march_parts() (other loops 0), with barriers between the parts.

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -14,17 +15,20 @@
 
 namespace tfm {
 
-static_assert(sizeof(gpu::VisibilityPush) == 80, "VisibilityPush must match the GLSL push-constant block");
+static_assert(sizeof(gpu::VisibilityPush) == 88, "VisibilityPush must match the GLSL push-constant block");
 
 namespace {
 constexpr auto kVisibilityBindingCounts =
     gpu::binding_counts({TFM_VIS_BINDING_FIELD, TFM_VIS_BINDING_TF, TFM_VIS_BINDING_VIEWS, TFM_VIS_BINDING_OUT,
-                         TFM_VIS_BINDING_MAX},
+                         TFM_VIS_BINDING_MAX, TFM_VIS_BINDING_PARTIAL},
                         TFM_VIS_BINDING_FIELD, TFM_RENDER_MAX_CHUNKS);
 constexpr uint32_t kWorkgroup = 64;
 // Samples one invocation marches per dispatch at most: llvmpipe ends an invocation's loops after
-// 65535 iterations in all (shaders/correlation_common.glsl), so the views come in batches.
+// 65535 iterations in all (shaders/correlation_common.glsl), so the views come in batches, and
+// rays longer than that one view at a time in parts.
 constexpr uint64_t kMaxSamplesPerInvocation = 60000;
+// Loop iterations besides the march: the views' loop and its entry.
+constexpr uint64_t kOtherLoops = 2;
 
 SharedPipeline make_pipeline(Context& ctx, uint32_t chunks, uint32_t mode) {
   PipelineDesc desc;
@@ -54,7 +58,8 @@ VisibilityWeightsKernel::~VisibilityWeightsKernel() = default;
 VisibilityWeights VisibilityWeightsKernel::compute(const DeviceField& ref, const VolumeGeometry& geometry,
                                                    const FieldMapping& ref_map, const Buffer& ref_tf,
                                                    const RenderSettings& settings,
-                                                   std::span<const OrbitCamera> cameras) const {
+                                                   std::span<const OrbitCamera> cameras,
+                                                   uint32_t max_part_samples) const {
   if (cameras.empty()) throw std::invalid_argument("visibility weights: no cameras");
   if (ref.chunk_count() != chunks_)
     throw std::invalid_argument("visibility weights: the field's chunk count differs from the kernel's");
@@ -63,8 +68,9 @@ VisibilityWeights VisibilityWeightsKernel::compute(const DeviceField& ref, const
   const MarchConstants march = march_constants(settings, geometry);
   // The renderer's push block carries the grid and marching constants, checked as for a render.
   const gpu::RenderPush rp = make_render_push(geometry, march, ref_map, ref, settings.width, settings.height, 1);
-  // Views come in batches of up to kMaxSamplesPerInvocation samples, but one view's ray is one loop.
-  check_march_loops(ctx_, rp, 1, 2, "visibility weights");
+  // Views come in batches of up to kMaxSamplesPerInvocation samples; longer rays one view at a
+  // time in parts, each voxel's transmittance kept between them in `partial`.
+  const auto parts = march_parts(ctx_, rp.max_steps, kOtherLoops, max_part_samples);
   std::vector<gpu::RenderView> views;
   for (const OrbitCamera& c : cameras) {
     RenderSettings s = settings;
@@ -76,6 +82,9 @@ VisibilityWeights VisibilityWeightsKernel::compute(const DeviceField& ref, const
   if (out.weights.chunk_voxels() != ref.chunk_voxels() || out.weights.chunk_count() != ref.chunk_count())
     throw std::invalid_argument("visibility weights: the reference field's chunking cannot be repeated on this device");
   Buffer max_word(ctx_, 4, MemoryUsage::Device, "visibility weights maximum");
+  std::optional<DeviceField> partial;
+  if (parts.size() > 1)
+    partial.emplace(ctx_, ref.voxel_count(), "visibility weights: rays between parts", ref.chunk_voxels());
 
   gpu::VisibilityPush push{};
   push.dim_x = rp.dim_x;
@@ -102,27 +111,41 @@ VisibilityWeights VisibilityWeightsKernel::compute(const DeviceField& ref, const
   const uint32_t t0 = batch.timestamp();
   batch.fill(max_word, 0u);
   batch.barrier();
-  auto each_range = [&](auto&& dispatch) {
+  // Every range of voxels of every chunk; `partial`'s chunk (or, for whole rays, which never
+  // touch it, the weights' own) at its binding.
+  auto each_range = [&](const ComputePipeline& pipeline) {
     for (size_t c = 0; c < out.weights.chunk_count(); ++c)
       for (uint64_t first = 0; first < out.weights.chunk_size(c); first += range) {
         push.out_first = uint32_t(out.weights.chunk_begin(c));
         push.first_voxel = uint32_t(out.weights.chunk_begin(c) + first);
         push.voxel_count = uint32_t(std::min(range, out.weights.chunk_size(c) - first));
-        dispatch(out.weights.chunk(c), uint32_t((push.voxel_count + kWorkgroup - 1) / kWorkgroup));
+        const Buffer& chunk = out.weights.chunk(c);
+        batch.dispatch(pipeline, {field, tf, view_buffer, chunk, max_word, partial ? partial->chunk(c) : chunk}, push,
+                       Groups{uint32_t((push.voxel_count + kWorkgroup - 1) / kWorkgroup)});
       }
   };
-  for (uint32_t v = 0; v < views.size(); v += batch_views) {
-    push.view_first = v;
-    push.view_count = std::min<uint32_t>(batch_views, uint32_t(views.size()) - v);
-    push.finish = v + push.view_count == views.size() ? 1u : 0u;
-    each_range([&](const Buffer& chunk, uint32_t groups) {
-      batch.dispatch(*sum_, {field, tf, view_buffer, chunk, max_word}, push, Groups{groups});
-    });
-    batch.barrier();  // the next batch of views adds to these sums
+  if (parts.size() == 1) {
+    for (uint32_t v = 0; v < views.size(); v += batch_views) {
+      push.view_first = v;
+      push.view_count = std::min<uint32_t>(batch_views, uint32_t(views.size()) - v);
+      push.finish = v + push.view_count == views.size() ? 1u : 0u;
+      each_range(*sum_);
+      batch.barrier();  // the next batch of views adds to these sums
+    }
+  } else {
+    push.view_count = 1;
+    for (uint32_t v = 0; v < views.size(); ++v)
+      for (size_t i = 0; i < parts.size(); ++i) {
+        push.view_first = v;
+        push.sample_first = parts[i].first;
+        push.sample_end = parts[i].second;
+        push.finish = v + 1 == views.size() && i + 1 == parts.size() ? 1u : 0u;
+        each_range(*sum_);
+        batch.barrier();  // the next part resumes these rays, the next view adds to these sums
+      }
+    push.sample_first = push.sample_end = 0;
   }
-  each_range([&](const Buffer& chunk, uint32_t groups) {
-    batch.dispatch(*quantize_, {field, tf, view_buffer, chunk, max_word}, push, Groups{groups});
-  });
+  each_range(*quantize_);
   const uint32_t t1 = batch.timestamp();
   batch.submit_and_wait();
   out.gpu_ms = batch.elapsed_ms(t0, t1);

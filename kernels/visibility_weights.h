@@ -40,10 +40,13 @@ class VisibilityWeightsKernel {
   // The weights of `ref` (through `ref_map` and the TF table `ref_tf`) over `cameras`, with the
   // optical model of `settings` (step, opacity scale, termination; width and height give the
   // frustum's aspect). Throws std::invalid_argument for no cameras or a field whose chunking
-  // does not fit, std::runtime_error when no voxel is in any camera's view.
+  // does not fit, std::runtime_error when no voxel is in any camera's view. Rays longer than one
+  // invocation may loop (llvmpipe) are marched one view at a time in parts (march_parts), with
+  // the same bits; `max_part_samples` > 0 makes parts of at most that many samples on any device
+  // (tests).
   VisibilityWeights compute(const DeviceField& ref, const VolumeGeometry& geometry, const FieldMapping& ref_map,
-                            const Buffer& ref_tf, const RenderSettings& settings,
-                            std::span<const OrbitCamera> cameras) const;
+                            const Buffer& ref_tf, const RenderSettings& settings, std::span<const OrbitCamera> cameras,
+                            uint32_t max_part_samples = 0) const;
 
  private:
   Context& ctx_;

@@ -16,6 +16,8 @@ namespace tfm::gpu {
 #define TFM_VIS_BINDING_VIEWS 2  // RenderView per camera
 #define TFM_VIS_BINDING_OUT 3    // the weight field's chunk holding the range, float per voxel
 #define TFM_VIS_BINDING_MAX 4    // one uint: the bits of the largest sum (atomicMax)
+#define TFM_VIS_BINDING_PARTIAL 5  // rays in parts: the chunk of a float per voxel, the transmittance
+                                   // of the view's ray where the part before left it
 // Specialization: workgroup size (TFM_SPEC_WORKGROUP_X), the field's chunk count
 // (TFM_RENDER_SPEC_CHUNKS, as every marching kernel), then the mode.
 #define TFM_VIS_SPEC_MODE 3
@@ -48,6 +50,10 @@ TFM_PUSH_CONSTANTS(VisibilityPush) {
   float inv_axis_x;       // world -> index: index = world * inv_axis
   float inv_axis_y;
   float inv_axis_z;
+  // Samples (first_sample, sample_end] of one view's rays, when they are marched in parts
+  // (march_parts: devices that limit an invocation's loops); 0, 0: whole rays.
+  uint sample_first;
+  uint sample_end;
 } TFM_PUSH_INSTANCE(vp);
 
 #ifdef __cplusplus

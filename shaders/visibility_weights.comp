@@ -11,8 +11,8 @@
 //            termination at the renderer's threshold: a hard cut would make the weight jump
 //            where float and double round differently; 1 % of a camera is as good as unseen.
 //   w(x)   = sum over the cameras of T_v(x), in camera order (so the same bits on every run).
-// MODE_SUM writes w into the weight field (batches of views, so no invocation loops longer than
-// llvmpipe allows; later batches add to it) and, in the last batch, the maximum over the voxels:
+// MODE_SUM writes w into the weight field (batches of views, or one view's rays in parts where
+// they are longer, so no invocation loops longer than llvmpipe allows; later batches add to it) and, in the last batch, the maximum over the voxels:
 // atomicMax of the float's bits, which order as the floats do for w >= 0, so it is exact and
 // order-free. MODE_QUANTIZE replaces w by round(2^16 w / max) 2^-16: weights in [0, 1] that are
 // multiples of 2^-16, exact floats the assembly multiplies its terms by.
@@ -29,6 +29,7 @@ TFM_DECLARE_RAYMARCH_BINDINGS(TFM_VIS_BINDING_FIELD, TFM_VIS_BINDING_TF)
 layout(std430, binding = TFM_VIS_BINDING_VIEWS) readonly buffer Views { RenderView views[]; };
 layout(std430, binding = TFM_VIS_BINDING_OUT) buffer Out { float weight[]; };
 layout(std430, binding = TFM_VIS_BINDING_MAX) buffer Max { uint max_bits; };
+layout(std430, binding = TFM_VIS_BINDING_PARTIAL) buffer Partial { float partial[]; };
 
 MarchParams march_params() {
   MarchParams mp;
@@ -45,8 +46,10 @@ MarchParams march_params() {
   return mp;
 }
 
-// T_v(x) of the voxel at index-space point p.
-float transmittance_to_eye(vec3 p, RenderView v, MarchParams mp) {
+// T_v(x) of the voxel at index-space point p: `transmittance` (1 for a whole ray) times the
+// samples k in (k_first, k_end] of its march (k_end 0: to its end).
+float transmittance_to_eye(vec3 p, RenderView v, MarchParams mp, uint k_first, uint k_end, float transmittance) {
+  if (!(transmittance > 0.0)) return 0.0;
   const vec3 x = p / mp.inv_axis;  // world
   const vec3 rel = x - v.eye.xyz;  // eye -> voxel
   const float depth = dot(rel, v.forward.xyz);
@@ -65,8 +68,8 @@ float transmittance_to_eye(vec3 p, RenderView v, MarchParams mp) {
   }
   const float steps = min(t1 / mp.dt, float(mp.max_steps));
   const uint whole = uint(steps);
-  float transmittance = 1.0;
-  for (uint k = 1u; k <= whole + 1u; ++k) {
+  const uint k_last = k_end == 0u ? whole + 1u : min(whole + 1u, k_end);
+  for (uint k = k_first + 1u; k <= k_last; ++k) {
     // The last sample, one step past the whole ones, counts its fraction of a step: the weight
     // is continuous in the segment's length.
     const float part = k <= whole ? 1.0 : steps - float(whole);
@@ -93,8 +96,18 @@ void main() {
   const MarchParams mp = march_params();
   const uint nx = mp.dims.x, ny = mp.dims.y;
   const vec3 p = vec3(uvec3(i % nx, (i / nx) % ny, i / (nx * ny)));
-  float sum = vp.view_first == 0u ? 0.0 : weight[o];
-  for (uint v = vp.view_first; v < vp.view_first + vp.view_count; ++v) sum += transmittance_to_eye(p, views[v], mp);
+  float sum = vp.view_first == 0u && vp.sample_first == 0u ? 0.0 : weight[o];
+  if (vp.sample_end == 0u) {
+    for (uint v = vp.view_first; v < vp.view_first + vp.view_count; ++v)
+      sum += transmittance_to_eye(p, views[v], mp, 0u, 0u, 1.0);
+  } else {
+    // One view's rays in parts: the same samples in the same order, the float product kept
+    // between the parts, so the same bits as whole rays.
+    const float t = transmittance_to_eye(p, views[vp.view_first], mp, vp.sample_first, vp.sample_end,
+                                         vp.sample_first == 0u ? 1.0 : partial[o]);
+    if (vp.sample_end >= vp.max_steps) sum += t;
+    else partial[o] = t;
+  }
   weight[o] = sum;
   if (vp.finish != 0u) atomicMax(max_bits, floatBitsToUint(sum));
 }

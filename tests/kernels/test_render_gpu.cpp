@@ -143,15 +143,14 @@ TEST_F(RenderGpu, DiffDvrMarchesRaysLongerThanOneInvocationMayLoop) {
   EXPECT_TRUE(std::filesystem::exists(dir / "tf.json"));
 }
 
-// The visibility weights march one view per invocation once rays are long: an 8 x 8 x 2000 column
-// at a step of 0.02 voxels (100 004 samples a ray) is refused on llvmpipe before anything is
-// written, naming the step that fits; elsewhere the fit runs.
-TEST_F(RenderGpu, VisibilityWeightsRefuseRaysTheyCannotMarch) {
+// The visibility weights march rays of any length: on llvmpipe, rays longer than one invocation
+// may loop (an 8 x 8 x 2000 column at 0.02 voxels: 100 004 samples, refused before 2026-12-06)
+// one view at a time in parts; the weighted fit runs and writes its TF on every device.
+TEST_F(RenderGpu, VisibilityWeightsMarchRaysLongerThanOneInvocationMayLoop) {
   const test::TempDir dir;
   const test::CliResult r = optimize_column(dir, "--solver normal-equations --weights visibility");
-  expect_refused_where_loops_are_limited(
-      ctx(), r, {"visibility weights: rays of up to 100004 samples", "use a step of at least 0.0307 voxels"},
-      dir / "tf.json");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(dir / "tf.json"));
 }
 
 }  // namespace

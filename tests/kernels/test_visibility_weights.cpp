@@ -4,6 +4,7 @@
 // of the explicit matrix.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <string>
 #include <vector>
@@ -14,6 +15,7 @@
 #include "gpu_voxel_ops.h"
 #include "normal_equations.h"
 #include "normal_equations_cpu.h"
+#include "render_image.h"
 #include "test_data.h"
 #include "visibility_weights.h"
 #include "visibility_weights_cpu.h"
@@ -98,6 +100,45 @@ TEST_F(VisibilityWeightsTest, MatchTheCpuReferenceOnAwkwardGridsAndCameras) {
     // The voxels left out as ambiguous are the few on the edges of NaN cells, not the comparison.
     EXPECT_GT(compared, w.size() * 9 / 10) << compared << " of " << w.size() << " compared";
   }
+}
+
+// Rays marched one view at a time in parts (as on llvmpipe beyond ~65 000 samples), forced here
+// at 7 and 50 samples a part on short rays: the same samples in the same order, the float product
+// kept between parts, so the same bits as whole rays, in chunks too.
+TEST_F(VisibilityWeightsTest, RaysInPartsGiveTheBitsOfWholeRays) {
+  OrbitCamera base;
+  const std::vector<OrbitCamera> ring = fibonacci_cameras(4, base);
+  const Volume vol = blob_field({13, 9, 7}, {1, 1, 1});
+  const TransferFunction tf = test::random_tf(11, 3, 0.0, 1.0, 0.0, 1.0);
+  const FieldMapping map = make_mapping({-1.0, 1.6}, uint32_t(tf.size()));
+  RenderSettings s;
+  s.width = 48;
+  s.height = 40;
+  s.opacity_scale = 12.0;
+  s.step_voxels = 0.25;
+  const DeviceField ref(ctx(), vol.values, "ref", 320);
+  const Buffer tf_buffer = upload_tf(ctx(), tf, "tf");
+  const VolumeGeometry geo = VolumeGeometry::from(vol.dims, vol.spacing, s.z_scale);
+  ASSERT_GT(march_constants(s, geo).max_steps, 50u) << "the parts must split the rays";
+  VisibilityWeightsKernel kernel(ctx(), uint32_t(ref.chunk_count()));
+  auto weights = [&](uint32_t max_part) {
+    const VisibilityWeights w = kernel.compute(ref, geo, map, tf_buffer, s, ring, max_part);
+    std::vector<float> out(vol.values.size());
+    for (size_t k = 0; k < w.weights.chunk_count(); ++k)
+      readback(ctx(), w.weights.chunk(k), out.data() + w.weights.chunk_begin(k), w.weights.chunk_size(k) * 4);
+    return std::pair{w.max_sum, out};
+  };
+  const auto [whole_max, whole] = weights(0);
+  for (const uint32_t part : {7u, 50u}) {
+    SCOPED_TRACE(part);
+    const auto [max_sum, in_parts] = weights(part);
+    EXPECT_EQ(max_sum, whole_max);
+    ASSERT_EQ(in_parts.size(), whole.size());
+    EXPECT_EQ(std::memcmp(in_parts.data(), whole.data(), whole.size() * sizeof(float)), 0);
+  }
+  size_t positive = 0;
+  for (float w : whole) positive += w > 0.0f ? 1 : 0;
+  EXPECT_GT(positive, whole.size() / 2);
 }
 
 void expect_nothing_in_view(const VisibilityWeightsKernel& kernel, const DeviceField& field, const Volume& vol,
