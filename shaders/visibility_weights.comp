@@ -12,10 +12,11 @@
 //            where float and double round differently; 1 % of a camera is as good as unseen.
 //   w(x)   = sum over the cameras of T_v(x), in camera order (so the same bits on every run).
 // MODE_SUM writes w into the weight field (batches of views, or one view's rays in parts where
-// they are longer, so no invocation loops longer than llvmpipe allows; later batches add to it) and, in the last batch, the maximum over the voxels:
-// atomicMax of the float's bits, which order as the floats do for w >= 0, so it is exact and
-// order-free. MODE_QUANTIZE replaces w by round(2^16 w / max) 2^-16: weights in [0, 1] that are
-// multiples of 2^-16, exact floats the assembly multiplies its terms by.
+// they are longer, so no invocation loops longer than llvmpipe allows; later batches add to it)
+// and, in the last batch, the maximum over the voxels: atomicMax of the float's bits, which order
+// as the floats do for w >= 0, so it is exact and order-free. MODE_QUANTIZE replaces w by
+// round(2^16 w / max) 2^-16: weights in [0, 1] that are multiples of 2^-16, exact floats the
+// assembly multiplies its terms by.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "visibility_layout.h"
