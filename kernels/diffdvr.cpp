@@ -52,7 +52,8 @@ constexpr auto kBackwardBindingCounts = gpu::binding_counts(
 
 }  // namespace
 
-DiffDvrForwardKernel::DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks) : ctx_(ctx), chunks_(field_chunks) {
+DiffDvrForwardKernel::DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks, uint32_t max_part_samples)
+    : ctx_(ctx), chunks_(field_chunks), max_part_samples_(max_part_samples) {
   // The renderer's pipeline in the mode that stores (C, T): the same march as every image shown.
   pipeline_ = shared_pipeline(
       ctx, render_image_pipeline_desc(field_chunks, TFM_RENDER_MODE_DIFFDVR_STATE, "diffdvr"));
@@ -68,7 +69,7 @@ void DiffDvrForwardKernel::record(CommandBatch& batch, const DeviceField& field,
   // Long rays in parts where the device limits an invocation's loops, as the renderer's.
   dispatch_forward_parts(ctx_, batch, *pipeline_,
                          {march_field_binding(field), march_tf_binding(tf, push.tf_size), views, state, stop}, push,
-                         tiles(push, row_count, TFM_RENDER_TILE, TFM_RENDER_TILE));
+                         tiles(push, row_count, TFM_RENDER_TILE, TFM_RENDER_TILE), max_part_samples_);
 }
 
 namespace {

@@ -26,7 +26,8 @@ class Context;
 class DiffDvrForwardKernel {
  public:
   // Throws std::runtime_error when the field needs more buffers than the kernel binds.
-  DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks);
+  // `max_part_samples` > 0: rays longer than that are marched in parts on any device (tests).
+  DiffDvrForwardKernel(Context& ctx, uint32_t field_chunks, uint32_t max_part_samples = 0);
   // Records the pass over rows [row_begin, row_begin + row_count) of every view of `push`: one
   // dispatch, or on a device that limits an invocation's loops, rays longer than that in parts
   // (march_parts), as the renderer's. `state` holds width*height*views vec4 (C, T), `stop` as
@@ -37,6 +38,7 @@ class DiffDvrForwardKernel {
  private:
   const Context& ctx_;
   uint32_t chunks_;
+  uint32_t max_part_samples_;
   SharedPipeline pipeline_;
 };
 

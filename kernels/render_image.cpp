@@ -109,8 +109,11 @@ void check_march_loops(const Context& ctx, const gpu::RenderPush& push, uint32_t
                            advice);
 }
 
-RenderImageKernel::RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32_t mode)
-    : ctx_(ctx), chunks_(field_chunks), rays_per_pixel_(mode == TFM_RENDER_MODE_INVERSE_CHECK ? 2u : 1u) {
+RenderImageKernel::RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32_t mode, uint32_t max_part_samples)
+    : ctx_(ctx),
+      chunks_(field_chunks),
+      rays_per_pixel_(mode == TFM_RENDER_MODE_INVERSE_CHECK ? 2u : 1u),
+      max_part_samples_(max_part_samples) {
   pipeline_ = shared_pipeline(ctx, render_image_pipeline_desc(field_chunks, mode, "render"));
 }
 
@@ -173,13 +176,14 @@ void RenderImageKernel::record_with(CommandBatch& batch, const Binding& field, c
     batch.dispatch(*pipeline_, bindings, push, groups);
     return;
   }
-  dispatch_forward_parts(ctx_, batch, *pipeline_, bindings, push, groups);
+  dispatch_forward_parts(ctx_, batch, *pipeline_, bindings, push, groups, max_part_samples_);
 }
 
 void dispatch_forward_parts(const Context& ctx, CommandBatch& batch, const ComputePipeline& pipeline,
-                            const std::vector<Binding>& bindings, gpu::RenderPush push, const Groups& groups) {
+                            const std::vector<Binding>& bindings, gpu::RenderPush push, const Groups& groups,
+                            uint32_t max_part) {
   bool first = true;
-  for (const auto& [begin, end] : march_parts(ctx, push.max_steps, 0)) {
+  for (const auto& [begin, end] : march_parts(ctx, push.max_steps, 0, max_part)) {
     // The part before has stored every ray's state before this one reads it.
     if (!first) batch.barrier();
     first = false;

@@ -53,15 +53,20 @@ std::vector<std::pair<uint32_t, uint32_t>> march_parts(const Context& ctx, uint3
                                                        uint32_t max_part = 0);
 
 // Records render_image.comp's `pipeline` (forward or DiffDVR-state mode) for `push`'s rays in
-// march_parts() (other loops 0), with barriers between the parts.
+// march_parts() (other loops 0; parts of at most `max_part` samples when > 0), with barriers
+// between the parts.
 void dispatch_forward_parts(const Context& ctx, CommandBatch& batch, const ComputePipeline& pipeline,
-                            const std::vector<Binding>& bindings, gpu::RenderPush push, const Groups& groups);
+                            const std::vector<Binding>& bindings, gpu::RenderPush push, const Groups& groups,
+                            uint32_t max_part = 0);
 
 class RenderImageKernel {
  public:
   // `field_chunks`: chunks of the fields this pipeline renders (1..TFM_RENDER_MAX_CHUNKS);
   // `mode`: TFM_RENDER_MODE_FORWARD, or TFM_RENDER_MODE_INVERSE_CHECK (tests).
-  RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32_t mode = TFM_RENDER_MODE_FORWARD);
+  // `max_part_samples` > 0: forward rays longer than that are marched in parts on any device
+  // (tests; as on llvmpipe for rays longer than one invocation may loop).
+  RenderImageKernel(Context& ctx, uint32_t field_chunks, uint32_t mode = TFM_RENDER_MODE_FORWARD,
+                    uint32_t max_part_samples = 0);
   // The TFM_FIELD_IMAGE variant (forward mode): the field is a host's 3D image read in place
   // (record with an ImageFieldView), sampled with the same trilinear weights and bits.
   struct ImageField {};
@@ -83,6 +88,7 @@ class RenderImageKernel {
   Context& ctx_;
   uint32_t chunks_;
   uint32_t rays_per_pixel_ = 1;  // 2 in TFM_RENDER_MODE_INVERSE_CHECK: the march, then its inversion
+  uint32_t max_part_samples_ = 0;
   bool image_field_ = false;
   SharedPipeline pipeline_;
   void record_with(CommandBatch& batch, const Binding& field, const Buffer& tf, const Buffer& views,
