@@ -7,7 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "atomic_file.h"
 #include "color_spaces.h"

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "volume.h"
 #include "volume_io.h"

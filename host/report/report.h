@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "context.h"
 #include "grid_point.h"

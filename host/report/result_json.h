@@ -2,7 +2,7 @@
 // details, `tfmatch optimize`'s summary and `tfmatch solvers`' comparison.
 #pragma once
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "details.h"
 #include "optimize.h"

@@ -5,7 +5,7 @@
 #include <cstddef>
 #include <string>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "tf_formats.h"
 #include "transfer_function.h"

@@ -18,7 +18,7 @@
 #include <thread>
 #include <vector>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "context.h"
 #include "correlation.h"

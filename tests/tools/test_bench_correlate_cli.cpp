@@ -8,7 +8,7 @@
 #include <string>
 
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "cli_runner.h"
 #include "correlation.h"

@@ -4,7 +4,7 @@
 #include <fstream>
 
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "builtin_tf.h"
 #include "cli_runner.h"

@@ -12,7 +12,7 @@
 #include <regex>
 #include <sstream>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "cli_runner.h"
 #include "volume.h"

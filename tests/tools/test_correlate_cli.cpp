@@ -8,7 +8,7 @@
 #include <iterator>
 
 #include <netcdf.h>
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "cli_runner.h"
 #include "correlation_cpu.h"

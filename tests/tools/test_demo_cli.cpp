@@ -9,7 +9,7 @@
 #include <fstream>
 #include <vector>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "cli_runner.h"
 #include "synthetic.h"

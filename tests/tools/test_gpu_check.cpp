@@ -12,7 +12,7 @@
 
 #include <sys/wait.h>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "cli_runner.h"
 

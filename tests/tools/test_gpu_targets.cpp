@@ -10,7 +10,7 @@
 #include <map>
 #include <string>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "cli_runner.h"
 

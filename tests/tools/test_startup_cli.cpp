@@ -9,7 +9,7 @@
 #include <fstream>
 #include <optional>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "cli_runner.h"
 #include "scoped_env.h"

@@ -7,7 +7,7 @@
 #include <fstream>
 #include <string>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "cli_runner.h"
 

@@ -12,7 +12,7 @@
 #include <thread>
 #include <set>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "cli_runner.h"
 #include "png_io.h"

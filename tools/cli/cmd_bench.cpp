@@ -13,7 +13,7 @@
 #include <sstream>
 #include <thread>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "atomic_file.h"
 #include "bench_timing.h"

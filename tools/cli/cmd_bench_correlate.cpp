@@ -11,7 +11,7 @@
 #include <iostream>
 #include <thread>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "atomic_file.h"
 #include "bench_timing.h"

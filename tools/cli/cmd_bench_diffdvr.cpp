@@ -8,7 +8,7 @@
 #include <numeric>
 #include <random>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "atomic_file.h"
 #include "cameras.h"

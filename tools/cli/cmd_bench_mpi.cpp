@@ -18,7 +18,7 @@
 #include <sstream>
 #include <thread>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "atomic_file.h"
 #include "bench_files.h"

@@ -4,7 +4,7 @@
 #include <cstdio>
 #include <iostream>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "atomic_file.h"
 #include "cli.h"

@@ -9,7 +9,7 @@
 
 #include <sys/resource.h>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "atomic_file.h"
 #include "cli.h"

@@ -15,7 +15,7 @@
 #include <iomanip>
 #include <iostream>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "atomic_file.h"
 #include "bench_files.h"

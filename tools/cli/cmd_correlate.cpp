@@ -7,7 +7,7 @@
 #include <iostream>
 #include <span>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "atomic_file.h"
 #include "cli.h"

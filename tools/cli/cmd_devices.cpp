@@ -4,7 +4,7 @@
 #include <iostream>
 #include <optional>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "atomic_file.h"
 #include "cli.h"

@@ -5,7 +5,7 @@
 #include <iostream>
 #include <memory>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "atomic_file.h"
 #include "cli.h"

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "optimize.h"
 #include "volume.h"

@@ -8,7 +8,7 @@
 # without Vulkan and the engine.
 # Run as a script: cmake -DTFMATCH_SOURCE_DIR=<repo> -P check_layers.cmake (exit code 1 and one
 # line per offending include). cuda/ may use engine, shaders, kernels and host/model, and only
-# host/solvers uses it.
+# host/solvers uses it. Every file, tests included, reads nlohmann::json through host/io/json.h.
 
 cmake_policy(SET CMP0057 NEW)
 set(layers shaders host/model engine kernels cuda host/reference host/io host/mpi host/selftest host/solvers
@@ -66,6 +66,21 @@ foreach(layer ${layers})
       endif()
     endforeach()
   endforeach()
+endforeach()
+
+# nlohmann::json comes through host/io/json.h everywhere, tests included: it defines JSON_ASSERT
+# before the library, and one definition must hold in every file (see that header).
+file(GLOB_RECURSE json_users RELATIVE ${TFMATCH_SOURCE_DIR} ${TFMATCH_SOURCE_DIR}/host/*.h ${TFMATCH_SOURCE_DIR}/host/*.cpp
+     ${TFMATCH_SOURCE_DIR}/tools/*.h ${TFMATCH_SOURCE_DIR}/tools/*.cpp ${TFMATCH_SOURCE_DIR}/tests/*.h
+     ${TFMATCH_SOURCE_DIR}/tests/*.cpp ${TFMATCH_SOURCE_DIR}/kernels/*.cpp ${TFMATCH_SOURCE_DIR}/engine/*.cpp)
+foreach(source ${json_users})
+  if(source STREQUAL "host/io/json.h")
+    continue()
+  endif()
+  file(STRINGS ${TFMATCH_SOURCE_DIR}/${source} direct REGEX "^[ \t]*#[ \t]*include[ \t]+<nlohmann/json")
+  if(direct)
+    list(APPEND problems "${source} includes <nlohmann/json.hpp> directly, not \"json.h\" (host/io/json.h)")
+  endif()
 endforeach()
 
 if(problems)

@@ -8,7 +8,7 @@
 #include <cstdlib>
 #include <fstream>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "formats_test_util.h"
 #include "vk_test_env.h"

@@ -7,7 +7,7 @@
 #include <cstring>
 #include <fstream>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "cli_runner.h"
 #include "cube_case.h"

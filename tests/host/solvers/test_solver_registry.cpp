@@ -8,7 +8,7 @@
 #include <limits>
 #include <set>
 
-#include <nlohmann/json.hpp>
+#include "json.h"
 
 #include "cli_runner.h"
 #include "result_json.h"
