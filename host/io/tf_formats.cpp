@@ -9,10 +9,9 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "json.h"
-
 #include "atomic_file.h"
 #include "builtin_tf.h"
+#include "json.h"
 #include "volume_formats.h"
 #include "xml_tree.h"
 #include "tf_json.h"

@@ -7,10 +7,9 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "json.h"
-
 #include "atomic_file.h"
 #include "color_spaces.h"
+#include "json.h"
 
 namespace tfm {
 

@@ -10,7 +10,6 @@
 #include <vector>
 
 #include "json.h"
-
 #include "volume.h"
 #include "volume_io.h"
 

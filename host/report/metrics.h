@@ -5,9 +5,8 @@
 
 #include <string>
 
-#include "json.h"
-
 #include "image.h"
+#include "json.h"
 
 namespace tfm {
 

@@ -5,7 +5,6 @@
 #include <string>
 
 #include "json.h"
-
 #include "report.h"
 
 namespace tfm {

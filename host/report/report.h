@@ -8,11 +8,10 @@
 #include <string>
 #include <vector>
 
-#include "json.h"
-
 #include "context.h"
 #include "grid_point.h"
 #include "image.h"
+#include "json.h"
 #include "metrics.h"
 #include "optimize.h"
 #include "render_settings.h"

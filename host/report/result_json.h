@@ -2,9 +2,8 @@
 // details, `tfmatch optimize`'s summary and `tfmatch solvers`' comparison.
 #pragma once
 
-#include "json.h"
-
 #include "details.h"
+#include "json.h"
 #include "optimize.h"
 #include "solver_comparison.h"
 

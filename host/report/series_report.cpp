@@ -7,10 +7,9 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "json.h"
-
 #include "atomic_file.h"
 #include "font.h"
+#include "json.h"
 #include "png_io.h"
 #include "progress.h"
 #include "render.h"

@@ -6,7 +6,6 @@
 #include <string>
 
 #include "json.h"
-
 #include "tf_formats.h"
 #include "transfer_function.h"
 

@@ -18,14 +18,13 @@
 #include <thread>
 #include <vector>
 
-#include "json.h"
-
 #include "context.h"
 #include "correlation.h"
 #include "device_field.h"
 #include "ensemble.h"
 #include "grid_point.h"
 #include "image.h"
+#include "json.h"
 #include "optimize.h"
 #include "render.h"
 #include "render_settings.h"

@@ -8,10 +8,10 @@
 #include <string>
 
 #include <gtest/gtest.h>
-#include "json.h"
 
 #include "cli_runner.h"
 #include "correlation.h"
+#include "json.h"
 
 namespace tfm {
 namespace {

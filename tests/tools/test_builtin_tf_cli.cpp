@@ -4,10 +4,10 @@
 #include <fstream>
 
 #include <gtest/gtest.h>
-#include "json.h"
 
 #include "builtin_tf.h"
 #include "cli_runner.h"
+#include "json.h"
 #include "png_io.h"
 #include "tf_formats.h"
 #include "tf_json.h"

@@ -12,9 +12,8 @@
 #include <regex>
 #include <sstream>
 
-#include "json.h"
-
 #include "cli_runner.h"
+#include "json.h"
 #include "volume.h"
 #include "volume_io.h"
 

@@ -8,11 +8,11 @@
 #include <iterator>
 
 #include <netcdf.h>
-#include "json.h"
 
 #include "cli_runner.h"
 #include "correlation_cpu.h"
 #include "ensemble.h"
+#include "json.h"
 #include "png_io.h"
 #include "synthetic_ensemble.h"
 #include "vk_test_env.h"

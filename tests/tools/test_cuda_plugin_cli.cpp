@@ -9,9 +9,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include "json.h"
-
 #include "cli_runner.h"
+#include "json.h"
 
 namespace tfm {
 namespace {

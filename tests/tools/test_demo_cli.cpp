@@ -9,9 +9,8 @@
 #include <fstream>
 #include <vector>
 
-#include "json.h"
-
 #include "cli_runner.h"
+#include "json.h"
 #include "synthetic.h"
 
 namespace tfm {

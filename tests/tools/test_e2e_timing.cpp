@@ -8,9 +8,8 @@
 #include <fstream>
 #include <string>
 
-#include "json.h"
-
 #include "cli_runner.h"
+#include "json.h"
 
 namespace tfm {
 namespace {

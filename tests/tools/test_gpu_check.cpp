@@ -12,9 +12,8 @@
 
 #include <sys/wait.h>
 
-#include "json.h"
-
 #include "cli_runner.h"
+#include "json.h"
 
 namespace tfm {
 namespace {

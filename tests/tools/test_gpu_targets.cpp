@@ -10,9 +10,8 @@
 #include <map>
 #include <string>
 
-#include "json.h"
-
 #include "cli_runner.h"
+#include "json.h"
 
 namespace tfm {
 namespace {

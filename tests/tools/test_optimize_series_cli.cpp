@@ -10,9 +10,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include "json.h"
-
 #include "cli_runner.h"
+#include "json.h"
 #include "slab_test_files.h"
 #include "vk_test_env.h"
 

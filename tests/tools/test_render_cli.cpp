@@ -3,9 +3,9 @@
 #include <fstream>
 
 #include <gtest/gtest.h>
-#include "json.h"
 
 #include "cli_runner.h"
+#include "json.h"
 #include "png_io.h"
 
 namespace tfm {
@@ -14,7 +14,6 @@ namespace {
 using test::run_cli;
 using test::TempDir;
 using test::write_floats;
-
 
 class RenderCli : public ::testing::Test {
  protected:

@@ -9,9 +9,8 @@
 #include <fstream>
 #include <optional>
 
-#include "json.h"
-
 #include "cli_runner.h"
+#include "json.h"
 #include "scoped_env.h"
 #include "pipeline_cache_file.h"
 #include "slab_test_files.h"

@@ -7,9 +7,8 @@
 #include <fstream>
 #include <string>
 
-#include "json.h"
-
 #include "cli_runner.h"
+#include "json.h"
 
 namespace tfm {
 namespace {

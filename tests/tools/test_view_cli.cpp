@@ -12,9 +12,8 @@
 #include <thread>
 #include <set>
 
-#include "json.h"
-
 #include "cli_runner.h"
+#include "json.h"
 #include "png_io.h"
 #include "vk_test_env.h"
 // After Eigen (through the project headers): OpenSSL's headers, which httplib.h includes, define

@@ -13,12 +13,11 @@
 #include <sstream>
 #include <thread>
 
-#include "json.h"
-
 #include "atomic_file.h"
 #include "bench_timing.h"
 #include "cli.h"
 #include "commands.h"
+#include "json.h"
 #include "output_check.h"
 #include "output_options.h"
 #include "eigen_baseline.h"

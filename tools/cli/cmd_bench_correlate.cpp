@@ -11,8 +11,6 @@
 #include <iostream>
 #include <thread>
 
-#include "json.h"
-
 #include "atomic_file.h"
 #include "bench_timing.h"
 #include "buffer.h"
@@ -23,6 +21,7 @@
 #include "correlation_reference.h"
 #include "context.h"
 #include "grid_point.h"
+#include "json.h"
 #include "output_check.h"
 #include "output_options.h"
 #include "progress.h"

@@ -8,12 +8,11 @@
 #include <numeric>
 #include <random>
 
-#include "json.h"
-
 #include "atomic_file.h"
 #include "cameras.h"
 #include "cli.h"
 #include "gpu_voxel_ops.h"
+#include "json.h"
 #include "metrics.h"
 #include "optimize.h"
 #include "output_check.h"

@@ -18,12 +18,11 @@
 #include <sstream>
 #include <thread>
 
-#include "json.h"
-
 #include "atomic_file.h"
 #include "bench_files.h"
 #include "cancellation.h"
 #include "cli.h"
+#include "json.h"
 #include "memory_budget.h"
 #include "output_check.h"
 #include "output_options.h"

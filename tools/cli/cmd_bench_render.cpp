@@ -4,12 +4,11 @@
 #include <cstdio>
 #include <iostream>
 
-#include "json.h"
-
 #include "atomic_file.h"
 #include "cli.h"
 #include "cpu_renderer.h"
 #include "gpu_voxel_ops.h"
+#include "json.h"
 #include "output_check.h"
 #include "output_options.h"
 #include "progress.h"

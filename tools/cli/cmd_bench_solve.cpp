@@ -9,12 +9,11 @@
 
 #include <sys/resource.h>
 
-#include "json.h"
-
 #include "atomic_file.h"
 #include "cli.h"
 #include "gpu_voxel_ops.h"
 #include "input_options.h"
+#include "json.h"
 #include "memory_budget.h"
 #include "normal_equations.h"
 #include "output_check.h"

@@ -7,11 +7,10 @@
 #include <iostream>
 #include <span>
 
-#include "json.h"
-
 #include "atomic_file.h"
 #include "cli.h"
 #include "correlation_field.h"
+#include "json.h"
 #include "memory_budget.h"
 #include "ranks.h"
 #include "ensemble_io.h"

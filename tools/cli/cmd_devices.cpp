@@ -4,10 +4,9 @@
 #include <iostream>
 #include <optional>
 
-#include "json.h"
-
 #include "atomic_file.h"
 #include "cli.h"
+#include "json.h"
 #ifdef TFMATCH_HAVE_CUDA
 #include "cuda_backend.h"
 #endif

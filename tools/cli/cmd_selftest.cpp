@@ -5,10 +5,9 @@
 #include <iostream>
 #include <memory>
 
-#include "json.h"
-
 #include "atomic_file.h"
 #include "cli.h"
+#include "json.h"
 #include "output_check.h"
 #include "output_options.h"
 #include "progress.h"

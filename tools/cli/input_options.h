@@ -11,8 +11,8 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
-#include "json.h"
 
+#include "json.h"
 #include "optimize.h"
 #include "volume.h"
 #include "volume_io.h"

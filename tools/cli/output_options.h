@@ -8,6 +8,7 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+
 #include "json.h"
 
 namespace tfm::cli {

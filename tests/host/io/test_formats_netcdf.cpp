@@ -8,9 +8,8 @@
 #include <cstdlib>
 #include <fstream>
 
-#include "json.h"
-
 #include "formats_test_util.h"
+#include "json.h"
 #include "vk_test_env.h"
 #include "volume.h"
 #include "volume_info.h"

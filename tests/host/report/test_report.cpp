@@ -6,9 +6,8 @@
 #include <fstream>
 #include <sstream>
 
-#include "json.h"
-
 #include "cli_runner.h"
+#include "json.h"
 #include "metrics.h"
 #include "png_io.h"
 #include "report.h"

@@ -13,9 +13,9 @@
 #include <vector>
 
 #include <gtest/gtest.h>
-#include "json.h"
 
 #include "cli_runner.h"
+#include "json.h"
 #include "selftest.h"
 #include "vk_test_env.h"
 

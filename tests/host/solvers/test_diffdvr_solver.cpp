@@ -7,10 +7,9 @@
 #include <cstring>
 #include <fstream>
 
-#include "json.h"
-
 #include "cli_runner.h"
 #include "cube_case.h"
+#include "json.h"
 #include "solver_diffdvr.h"
 #include "vk_test_env.h"
 

@@ -6,9 +6,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "json.h"
-
 #include "cli_runner.h"
+#include "json.h"
 #include "result_json.h"
 #include "solver_comparison.h"
 #include "solver_problem.h"

@@ -8,9 +8,8 @@
 #include <limits>
 #include <set>
 
-#include "json.h"
-
 #include "cli_runner.h"
+#include "json.h"
 #include "result_json.h"
 #include "solver.h"
 #include "solver_gradient_descent.h"
