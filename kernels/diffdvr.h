@@ -87,12 +87,13 @@ class DiffDvrBackwardKernel {
   // Adds the loss of (state vs target) over rows [row_begin, row_begin + row_count) of every view
   // and its gradient w.r.t. `tf` to `accum`. `state`/`stop` are the forward pass's output for
   // (field, tf, views, push); `target` has the same layout. On a device that limits an
-  // invocation's loops, a runs mode marches rays longer than that back in parts (march_parts,
-  // from the rays' ends), keeping each ray's state and adjoints between them in `resume`, of at
-  // least resume_bytes() (its runs are flushed at the parts' edges: other float groupings than
-  // whole rays). Throws std::invalid_argument when a buffer (`resume` included), the TF size or
-  // the chunking does not fit, std::runtime_error when Private's rays are longer than the device
-  // lets one invocation march back (check_march_loops).
+  // invocation's loops, a runs mode marched flat (RunsMarch; Auto's choice there) takes rays
+  // longer than that back in parts (march_parts, from the rays' ends), keeping each ray's state
+  // and adjoints between them in `resume`, of at least resume_bytes() (its runs are flushed at the
+  // parts' edges: other float groupings than whole rays). Throws std::invalid_argument when a
+  // buffer (`resume` included), the TF size or the chunking does not fit, std::runtime_error when
+  // the rays of Private or of a nested march are longer than the device lets one invocation
+  // march back (check_march_loops).
   void record(CommandBatch& batch, const DeviceField& field, const Buffer& tf, const Buffer& views,
               gpu::RenderPush push, const Buffer& state, const Buffer& stop, const Buffer& target, Buffer& accum,
               uint32_t row_begin, uint32_t row_count, Buffer* resume = nullptr) const;
