@@ -23,7 +23,7 @@ class NormalEquationsSolver final : public Solver {
  public:
   std::string_view name() const override { return "normal-equations"; }
   std::string_view summary() const override {
-    return "M and S^T b assembled on the GPU, tridiagonal LDL^T or QR on the host (fast, exact up to clamping)";
+    return "M and S^T b assembled on the GPU, tridiagonal LDL^T on the host (fast, exact up to clamping)";
   }
   SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true, true}; }
 
