@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <regex>
+#include <set>
 #include <sstream>
 
 #include "cli_runner.h"
@@ -141,6 +142,24 @@ TEST_F(CliConventions, EveryJsonOptionTakesAJsonFileOrDash) {
     EXPECT_NE(std::find(with_json.begin(), with_json.end(), c), with_json.end()) << c << " has no --json";
 }
 
+// The keys docs/commands.md gives for `--json`'s `timings` object: the `NAME_ms` words of the
+// paragraph that introduces it (up to the list's next item).
+std::set<std::string> documented_timing_keys() {
+  std::ifstream in(std::string(TFMATCH_SOURCE_DIR) + "/docs/commands.md");
+  std::string text, line;
+  bool in_paragraph = false;
+  while (std::getline(in, line)) {
+    if (line.find("carries `timings`") != std::string::npos) in_paragraph = true;
+    else if (in_paragraph && line.rfind("- ", 0) == 0) break;
+    if (in_paragraph) text += line + "\n";
+  }
+  std::set<std::string> keys;
+  const std::regex name("`([a-z]+_ms)`");
+  for (auto it = std::sregex_iterator(text.begin(), text.end(), name); it != std::sregex_iterator(); ++it)
+    keys.insert((*it)[1]);
+  return keys;
+}
+
 TEST_F(CliConventions, JsonDashKeepsStdoutToOneJsonDocument) {
   // Commands that print text (and printf tables) otherwise: stdout must parse as JSON alone.
   const std::string raw = dir / "v_6x5x4_float32.raw";
@@ -167,6 +186,9 @@ TEST_F(CliConventions, JsonDashKeepsStdoutToOneJsonDocument) {
     if (!j.is_object()) continue;
     ASSERT_TRUE(j.contains("timings")) << args;
     EXPECT_GT(j["timings"]["total_ms"].get<double>(), j["timings"]["startup_ms"].get<double>()) << args;
+    std::set<std::string> keys;
+    for (const auto& [key, value] : j["timings"].items()) keys.insert(key);
+    EXPECT_EQ(keys, documented_timing_keys()) << args << ": docs/commands.md's `timings` paragraph names other keys";
     if (args.rfind("bench --", 0) == 0) {
       for (const char* rate : {"upload_staged_bytes_per_s", "host_memcpy_bytes_per_s"})
         EXPECT_GT(j["runs"][0][rate].get<double>(), 0.0) << rate;
