@@ -151,6 +151,7 @@ void check_netcdf_classic_header(const ByteReader& read, uint64_t size, const st
 }
 
 uint64_t netcdf_classic_minimum_size(int nc, int format) {
+  constexpr uint64_t kLimit = uint64_t(1) << 62;
   if (format != NC_FORMAT_CLASSIC && format != NC_FORMAT_64BIT_OFFSET && format != NC_FORMAT_CDF5) return 0;
   const Sizes s{format == NC_FORMAT_CDF5 ? 8u : 4u, format == NC_FORMAT_CLASSIC ? 4u : 8u};
   int ndims = 0, nvars = 0, unlimited = -1;
@@ -182,17 +183,22 @@ uint64_t netcdf_classic_minimum_size(int nc, int format) {
     while (name[len]) ++len;
     size += s.non_neg + pad4(len) + s.non_neg + uint64_t(nd) * s.non_neg + atts + 4 + s.non_neg + s.offset;
     // Data: one value per index, without padding (a lower bound); record variables per record.
+    // A size past 2^62 bytes is more than any file holds: kNetcdfSizeOverflow, never a wrapped
+    // (small) number or 0, which would pass a truncated file.
     uint64_t count = tsize;
     bool is_record = nd > 0 && dims[0] == unlimited;
     for (int i = is_record ? 1 : 0; i < nd; ++i) {
-      if (dim_len[dims[i]] != 0 && count > (uint64_t(1) << 62) / dim_len[dims[i]]) return 0;
+      if (dim_len[dims[i]] != 0 && count > kLimit / dim_len[dims[i]]) return kNetcdfSizeOverflow;
       count *= dim_len[dims[i]];
     }
-    (is_record ? record : data) += count;
+    uint64_t& sum = is_record ? record : data;
+    sum += count;
+    if (sum > kLimit) return kNetcdfSizeOverflow;
   }
   const uint64_t records = unlimited >= 0 ? dim_len[unlimited] : 0;
-  if (records != 0 && record > (uint64_t(1) << 62) / records) return 0;
-  return size + data + records * record;
+  if (records != 0 && record > kLimit / records) return kNetcdfSizeOverflow;
+  const uint64_t total = size + data + records * record;  // each term <= 2^62: no wrap
+  return total > kLimit ? kNetcdfSizeOverflow : total;
 }
 
 }  // namespace tfm

@@ -21,7 +21,9 @@ void check_netcdf_classic_header(const ByteReader& read, uint64_t size, const st
 
 // Exact header size plus every variable's data without alignment padding (a lower bound of the
 // real size). `format` is what nc_inq_format returned. Returns 0 for non-classic formats or when
-// netCDF-C cannot answer.
+// netCDF-C cannot answer, and kNetcdfSizeOverflow when the sizes pass 2^62 bytes (a header
+// with 2^62 records, say): more than any file holds.
+inline constexpr uint64_t kNetcdfSizeOverflow = UINT64_MAX;
 uint64_t netcdf_classic_minimum_size(int ncid, int format);
 
 }  // namespace tfm

@@ -88,8 +88,10 @@ class NcFile {
       if (needed > size_) {
         nc_close(id_);
         id_ = -1;
-        throw std::runtime_error(name_ + ": truncated: its header describes at least " + std::to_string(needed) +
-                                 " bytes, the file has " + std::to_string(size_));
+        throw std::runtime_error(name_ + ": truncated: its header describes " +
+                                 (needed == kNetcdfSizeOverflow ? "more than 2^62 bytes"
+                                                                : "at least " + std::to_string(needed) + " bytes") +
+                                 ", the file has " + std::to_string(size_));
       }
     }
   }

@@ -324,6 +324,30 @@ TEST(NetcdfMalformed, GarbageAndTruncatedFilesFailCleanly) {
   expect_error([&] { load_volume(path.string() + ":A"); }, {"cut.nc"});
 }
 
+// A CDF-5 header may claim 2^62 records: its size (2^62 x 256 bytes) wraps a 64-bit sum, which
+// must still read as "more than the file holds", never as a small size that passes, or the read
+// would walk the records netCDF-C fills with zeros (for ever, for `info`).
+TEST(NetcdfMalformed, RecordCountPastAnyFileIsTruncated) {
+  std::string h = "CDF\x05";
+  const auto u32 = [&](uint32_t v) { for (int b = 3; b >= 0; --b) h += char(v >> (8 * b)); };
+  const auto u64 = [&](uint64_t v) { for (int b = 7; b >= 0; --b) h += char(v >> (8 * b)); };
+  const auto name = [&](const std::string& n) { u64(n.size()); h += n; h.append((4 - n.size() % 4) % 4, '\0'); };
+  u64(uint64_t(1) << 62);  // numrecs
+  u32(0x0A), u64(4);       // four dimensions: t (unlimited), z, y, x
+  for (const auto& [n, len] : std::vector<std::pair<std::string, uint64_t>>{{"t", 0}, {"z", 4}, {"y", 4}, {"x", 4}})
+    name(n), u64(len);
+  u32(0), u64(0);                                     // no global attributes
+  u32(0x0B), u64(1), name("T"), u64(4);               // one variable T(t, z, y, x)
+  for (uint64_t d = 0; d < 4; ++d) u64(d);
+  u32(0), u64(0), u32(5), u64(256), u64(h.size() + 8);  // no attributes; float; 256 bytes a record; begin
+  h.append(256, '\0');                                 // one record of the 2^62
+  TempDir dir;
+  formats_test::write_bytes(dir / "records.nc", h);
+  expect_error([&] { load_volume((dir / "records.nc").string() + ":T,time=7"); },
+               {"records.nc: truncated", "more than 2^62 bytes"});
+  expect_error([&] { describe_file(dir / "records.nc"); }, {"records.nc: truncated"});
+}
+
 TEST(NetcdfInfo, ListsVariablesWithRangesAndNoData) {
   TempDir dir;
   const auto path = make_file(dir, "gen.nc", 0);
