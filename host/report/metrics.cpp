@@ -1,7 +1,9 @@
 // RMSE, PSNR and SSIM of 8-bit RGB images.
 #include "metrics.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <future>
 #include <limits>
@@ -22,77 +24,56 @@ void require_same_size(const Image& a, const Image& b) {
                              std::to_string(b.height) + ")");
 }
 
-// Mirror index for scipy's 'reflect' mode (d c b a | a b c d | d c b a), any offset.
-int reflect(int i, int n) {
-  const int period = 2 * n;
-  i %= period;
-  if (i < 0) i += period;
-  return i < n ? i : period - 1 - i;
-}
-
-// Separable Gaussian filter of an h x w plane with reflected borders. Every output is the same
-// sum in the same order (k = -r..r) whether its taps need reflecting or not; the interior, where
-// none does, runs over whole rows without the index arithmetic (the viewer computes these for
-// every camera: 512² took 110 ms a comparison with reflect() on every tap).
-std::vector<double> gaussian_filter(const std::vector<double>& in, int w, int h) {
+// SSIM of one channel, a row at a time. The mean runs over the pixels at least kRadius from every
+// edge (scikit-image crops the border), and there every tap of the 11x11 Gaussian lies inside the
+// image: the border's filtered values (scipy's 'reflect' mode) never count, so none is computed.
+// Each output row needs the five planes x, y, x², y², xy filtered along columns over its 11 input
+// rows, then along the row; the products are exact in double (at most 255²), so they are formed
+// as the taps read them. Memory: five rows of doubles, not five planes (a 30000² image wanted
+// 24 GB); every value is the same sum in the same order as a whole-plane filter (axis 0 first,
+// as scipy: the order only rounds), and the mean sums the rows in order, so the same bits.
+double channel_ssim(const Image& a, const Image& b, int c) {
+  const int w = int(a.width), h = int(a.height);
   double weights[2 * kRadius + 1], sum = 0;
   for (int k = -kRadius; k <= kRadius; ++k) sum += weights[k + kRadius] = std::exp(-0.5 * k * k / (1.5 * 1.5));
   for (double& v : weights) v /= sum;
-  std::vector<double> tmp(in.size()), out(in.size());
-  for (int y = 0; y < h; ++y) {  // along rows (axis 0 first, as scipy does: the order only rounds)
-    double* row = tmp.data() + size_t(y) * w;
-    if (y >= kRadius && y < h - kRadius) {
-      for (int x = 0; x < w; ++x) row[x] = 0.0;
-      for (int k = -kRadius; k <= kRadius; ++k) {
-        const double* src = in.data() + size_t(y + k) * w;
-        const double wk = weights[k + kRadius];
-        for (int x = 0; x < w; ++x) row[x] += wk * src[x];
-      }
-      continue;
-    }
-    for (int x = 0; x < w; ++x) {
-      double acc = 0;
-      for (int k = -kRadius; k <= kRadius; ++k) acc += weights[k + kRadius] * in[size_t(reflect(y + k, h)) * w + x];
-      row[x] = acc;
-    }
-  }
-  for (int y = 0; y < h; ++y) {
-    const double* src = tmp.data() + size_t(y) * w;
-    double* dst = out.data() + size_t(y) * w;
-    for (int x = 0; x < w; ++x) {
-      double acc = 0;
-      if (x >= kRadius && x < w - kRadius)
-        for (int k = -kRadius; k <= kRadius; ++k) acc += weights[k + kRadius] * src[x + k];
-      else
-        for (int k = -kRadius; k <= kRadius; ++k) acc += weights[k + kRadius] * src[reflect(x + k, w)];
-      dst[x] = acc;
-    }
-  }
-  return out;
-}
-
-double channel_ssim(const Image& a, const Image& b, int c) {
-  const int w = int(a.width), h = int(a.height);
-  const size_t n = size_t(w) * h;
-  std::vector<double> x(n), y(n), xx(n), yy(n), xy(n);
-  for (size_t i = 0; i < n; ++i) {
-    x[i] = a.rgb[3 * i + c];
-    y[i] = b.rgb[3 * i + c];
-    xx[i] = x[i] * x[i];
-    yy[i] = y[i] * y[i];
-    xy[i] = x[i] * y[i];
-  }
-  const auto ux = gaussian_filter(x, w, h), uy = gaussian_filter(y, w, h);
-  const auto uxx = gaussian_filter(xx, w, h), uyy = gaussian_filter(yy, w, h), uxy = gaussian_filter(xy, w, h);
   const double c1 = (0.01 * 255) * (0.01 * 255), c2 = (0.03 * 255) * (0.03 * 255);
+  std::vector<double> col(5 * size_t(w));  // the five planes filtered along columns, one row
+  double* const cx = col.data();
+  double* const cy = cx + w;
+  double* const cxx = cy + w;
+  double* const cyy = cxx + w;
+  double* const cxy = cyy + w;
   double total = 0;
-  for (int py = kRadius; py < h - kRadius; ++py)
-    for (int px = kRadius; px < w - kRadius; ++px) {
-      const size_t i = size_t(py) * w + px;
-      const double vx = uxx[i] - ux[i] * ux[i], vy = uyy[i] - uy[i] * uy[i], vxy = uxy[i] - ux[i] * uy[i];
-      total += ((2 * ux[i] * uy[i] + c1) * (2 * vxy + c2)) /
-               ((ux[i] * ux[i] + uy[i] * uy[i] + c1) * (vx + vy + c2));
+  for (int py = kRadius; py < h - kRadius; ++py) {
+    std::fill(col.begin(), col.end(), 0.0);
+    for (int k = -kRadius; k <= kRadius; ++k) {
+      const uint8_t* ra = a.rgb.data() + 3 * size_t(py + k) * w + c;
+      const uint8_t* rb = b.rgb.data() + 3 * size_t(py + k) * w + c;
+      const double wk = weights[k + kRadius];
+      for (int x = 0; x < w; ++x) {
+        const double vx = ra[3 * x], vy = rb[3 * x];
+        cx[x] += wk * vx;
+        cy[x] += wk * vy;
+        cxx[x] += wk * (vx * vx);
+        cyy[x] += wk * (vy * vy);
+        cxy[x] += wk * (vx * vy);
+      }
     }
+    for (int px = kRadius; px < w - kRadius; ++px) {
+      double ux = 0, uy = 0, uxx = 0, uyy = 0, uxy = 0;
+      for (int k = -kRadius; k <= kRadius; ++k) {
+        const double wk = weights[k + kRadius];
+        ux += wk * cx[px + k];
+        uy += wk * cy[px + k];
+        uxx += wk * cxx[px + k];
+        uyy += wk * cyy[px + k];
+        uxy += wk * cxy[px + k];
+      }
+      const double vx = uxx - ux * ux, vy = uyy - uy * uy, vxy = uxy - ux * uy;
+      total += ((2 * ux * uy + c1) * (2 * vxy + c2)) / ((ux * ux + uy * uy + c1) * (vx + vy + c2));
+    }
+  }
   return total / double((w - 2 * kRadius) * (h - 2 * kRadius));
 }
 

@@ -190,6 +190,18 @@ Image decode_png(std::string_view bytes, const std::string& name) {
   return image;
 }
 
+std::pair<uint32_t, uint32_t> read_png_size(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw std::runtime_error(path.string() + ": no such file");
+  png_image p;
+  std::memset(&p, 0, sizeof p);
+  p.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_file(&p, path.c_str()))  // reads the header only
+    throw std::runtime_error(path.string() + ": not a readable PNG (" + p.message + ")");
+  png_image_free(&p);
+  return {p.width, p.height};
+}
+
 Image read_png(const std::filesystem::path& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw std::runtime_error(path.string() + ": no such file");

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <deque>
 #include <filesystem>
 #include <future>
@@ -46,6 +47,10 @@ class BackgroundPngWriter {
 // pixels than its bytes can hold (zlib expands at most 1032:1) or than the memory budget allows
 // (host/model/memory_budget.h).
 Image read_png(const std::filesystem::path& path);
+// The width and height a PNG's header gives, read without decoding the image (to compare sizes
+// before paying for two decodings). Throws as read_png does for a missing file or one that is
+// not a PNG.
+std::pair<uint32_t, uint32_t> read_png_size(const std::filesystem::path& path);
 // The same for a PNG in memory; `name` starts every message.
 Image decode_png(std::string_view bytes, const std::string& name);
 

@@ -11,8 +11,11 @@
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include "cli_runner.h"
+#include "image.h"
+#include "png_io.h"
 #include "slab_test_files.h"
 
 namespace tfm {
@@ -117,6 +120,34 @@ TEST(CliHostileFiles, PngHeaderClaimingGigapixelsIsRefused) {
   std::ofstream(dir / "small.png", std::ios::binary) << png_claiming(4, 4);
   const test::CliResult ok = test::run_cli("metrics " + dir / "small.png" + " " + dir / "small.png");
   EXPECT_EQ(ok.output.find("header claims"), std::string::npos) << ok.output;
+}
+
+// Real large PNGs: SSIM works a row at a time (a 2000² pair had needed about 1 GB: five
+// filtered planes of doubles per channel), and two images of other sizes are refused from their
+// headers, before either is decoded (12 MB each). Memory is counted above what the program holds
+// refusing two tiny images of other sizes (its libraries; more in a sanitized build).
+TEST(CliHostileFiles, LargePngsAreComparedInLittleMoreThanTheirPixels) {
+  TempDir dir;
+  for (const auto& [name, w, h] : {std::tuple{"a.png", 2000u, 2000u}, {"b.png", 2000u, 2000u}, {"c.png", 1999u, 2000u},
+                                   {"tiny.png", 12u, 12u}, {"tiny2.png", 11u, 12u}}) {
+    Image image(w, h);
+    for (size_t i = 0; i < image.rgb.size(); ++i)
+      image.rgb[i] = uint8_t((i * 2654435761u >> 13) + (name[0] == 'b') * 3 * (i % 5));
+    write_png(dir / name, image);
+  }
+  const test::CliResult base = CliProcess("metrics " + dir / "tiny.png" + " " + dir / "tiny2.png").finish();
+  ASSERT_EQ(base.exit_code, 1) << base.output;
+  constexpr uint64_t kMiB = uint64_t(1) << 20;
+  test::CliResult r = CliProcess("metrics " + dir / "a.png" + " " + dir / "b.png").finish();
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("SSIM 0."), std::string::npos) << r.output;
+  EXPECT_LT(r.peak_rss_bytes, base.peak_rss_bytes + 60 * kMiB)
+      << "metrics of two 2000² images held " << r.peak_rss_bytes << " bytes, " << base.peak_rss_bytes << " without images";
+  r = CliProcess("metrics " + dir / "a.png" + " " + dir / "c.png").finish();
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("c.png: size 1999x2000 differs from"), std::string::npos) << r.output;
+  EXPECT_LT(r.peak_rss_bytes, base.peak_rss_bytes + 6 * kMiB)
+      << "refusing other sizes held " << r.peak_rss_bytes << " bytes, " << base.peak_rss_bytes << " without images";
 }
 
 TEST(CliHostileFiles, SparseRawFileOf120GiBIsRefusedNamingIt) {

@@ -26,11 +26,13 @@ struct MetricsArgs {
 int run(const MetricsArgs& args) {
   const JsonOutput json(args.json);  // first: with '-', stdout holds only the JSON
   FilePlan().input(args.a, "A").input(args.b, "B").output(json.file(), "--json").check();
+  // Sizes from the headers first: two large images of other sizes are refused before decoding.
+  const auto [aw, ah] = read_png_size(args.a);
+  const auto [bw, bh] = read_png_size(args.b);
+  if (aw != bw || ah != bh)
+    throw std::runtime_error(args.b + ": size " + std::to_string(bw) + "x" + std::to_string(bh) + " differs from " +
+                             args.a + " (" + std::to_string(aw) + "x" + std::to_string(ah) + ")");
   const Image a = read_png(args.a), b = read_png(args.b);
-  if (a.width != b.width || a.height != b.height)
-    throw std::runtime_error(args.b + ": size " + std::to_string(b.width) + "x" + std::to_string(b.height) +
-                             " differs from " + args.a + " (" + std::to_string(a.width) + "x" +
-                             std::to_string(a.height) + ")");
   const ImageMetrics m = compare_images(a, b);
   std::cout << "RMSE " << num(m.rmse) << " (0-255)\nPSNR " << (std::isinf(m.psnr) ? "inf" : num(m.psnr))
             << " dB\nSSIM " << (std::isnan(m.ssim) ? "n/a (images under 11x11 pixels)" : num(m.ssim)) << "\n";
