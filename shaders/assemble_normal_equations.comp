@@ -1,6 +1,6 @@
 // Assembles the tridiagonal M = S^T S, S^T b and b^T b of the voxel least-squares problem
 // (DESIGN.md) for one chunk of voxels, adding into 32.32 fixed-point accumulators. b is the
-// reference colour T_r(F_r), evaluated here and never stored as a volume. NaN voxels are skipped.
+// reference colour T_r(F_r), evaluated here and never stored as a volume. Voxels without data (NaN, ±Inf) are skipped.
 //
 // Weights (the TFM_WEIGHTED variant): voxel i's terms are s_i times the terms above, s_i a float
 // in [0, 1] read from a third field (visibility weights: kernels/visibility_weights.h, multiples

@@ -10,7 +10,7 @@
 //   dL/da   = dL/dtau * (-D tau)          (0 where the clamp a D >= MAX is active)
 //   gT     <- (1 - tau) gC.c + tau gT    (the adjoint of T); gC is unchanged (C' is C + ...)
 // The TF lookup is (1 - w) E_j + w E_{j+1}, so E_j receives (1 - w) (dL/dc, dL/da) and E_{j+1}
-// w times it. Empty (NaN) samples left the state unchanged and receive nothing.
+// w times it. Empty samples (a corner without data: NaN, ±Inf) left the state unchanged and receive nothing.
 //
 // Guard near alpha = 1: the inversion T <- T / tau needs T > 0 and tau > 0 in float. The
 // forward pass stops once T <= 1 - termination opacity (validate() keeps that opacity < 1),

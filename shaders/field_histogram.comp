@@ -19,6 +19,7 @@
 #define TFM_WANT_HISTOGRAM_PUSH
 #include "histogram_layout.h"
 #include "quad_segments.glsl"
+#include "tf_common.glsl"  // no_data
 
 layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 layout(constant_id = TFM_HIST_SPEC_SHARED_WORDS) const uint kSharedWords = 1u;
@@ -32,12 +33,12 @@ layout(binding = TFM_HIST_BINDING_QUADS) uniform samplerBuffer quads_in;
 shared uint s_counts[kSharedWords];
 uint priv[kPrivateCounters];
 
-// Selects rather than branches: a NaN fails every comparison, and its bin, computed from a
-// meaningless floor, is never chosen.
+// Selects rather than branches: a value without data (NaN, ±Inf) goes to the no-data counter, and
+// its bin, computed from a meaningless floor, is never chosen.
 uint counter_of(float v) {
   precise float t = (v - pc.lo) * pc.scale;
   const uint in_range = 1u + min(uint(max(floor(t), 0.0)), pc.bins - 1u);
-  return isnan(v) ? TFM_HIST_NAN(pc.bins)
+  return no_data(v) ? TFM_HIST_NAN(pc.bins)
                   : t < 0.0 ? TFM_HIST_BELOW : t > float(pc.bins) ? TFM_HIST_ABOVE(pc.bins) : in_range;
 }
 

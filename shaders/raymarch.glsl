@@ -162,7 +162,8 @@ float field_voxel(uvec3 at, MarchParams mp) {
 #endif
 
 // Trilinear interpolation between voxel centres (at integer index coordinates), clamped to the
-// edge voxels. Returns false when any of the 8 corners is NaN: such samples are empty.
+// edge voxels. Returns false when any of the 8 corners has no data (NaN, ±Inf): such samples are
+// empty.
 bool sample_field(vec3 p, MarchParams mp, out float value) {
   const vec3 top = vec3(mp.dims - 1u);
   const vec3 q = clamp(p, vec3(0.0), top);
@@ -179,8 +180,8 @@ bool sample_field(vec3 p, MarchParams mp, out float value) {
   const float c011 = field_voxel(uvec3(i0.x, i1.y, i1.z), mp);
   const float c111 = field_voxel(uvec3(i1.x, i1.y, i1.z), mp);
   value = 0.0;
-  if (isnan(c000) || isnan(c100) || isnan(c010) || isnan(c110) || isnan(c001) || isnan(c101) ||
-      isnan(c011) || isnan(c111))
+  if (no_data(c000) || no_data(c100) || no_data(c010) || no_data(c110) || no_data(c001) || no_data(c101) ||
+      no_data(c011) || no_data(c111))
     return false;
   const float x00 = mix(c000, c100, w.x), x10 = mix(c010, c110, w.x);
   const float x01 = mix(c001, c101, w.x), x11 = mix(c011, c111, w.x);

@@ -1,9 +1,10 @@
 // Residual map of DESIGN.md over one range of a chunk's voxels: || premul(T_r(F_r)) -
 // premul(T_o(F_o)) ||_2 over RGBA, premul(r, g, b, a) = (a r, a g, a b, a); 0 where either field
-// has no data (NaN). Layout as in assemble_normal_equations.comp: lanes on consecutive quads of
-// voxels (quad_segments.glsl), fields and TFs read as uniform texel buffers (lavapipe turns a
-// storage-buffer load with a per-lane index into a loop over the SIMD lanes), each lane writing
-// its quad's four residuals as one vec4; invocation 0 does the range's last count % 4 voxels.
+// has no data (NaN, ±Inf: no_data() in tf_common.glsl). Layout as in
+// assemble_normal_equations.comp: lanes on consecutive quads of voxels (quad_segments.glsl), fields
+// and TFs read as uniform texel buffers (lavapipe turns a storage-buffer load with a per-lane index
+// into a loop over the SIMD lanes), each lane writing its quad's four residuals as one vec4;
+// invocation 0 does the range's last count % 4 voxels.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_basic : require

@@ -2,6 +2,11 @@
 #ifndef TFMATCH_TF_COMMON_GLSL
 #define TFMATCH_TF_COMMON_GLSL
 
+// "No data" (DESIGN.md): NaN and, as no range maps them, ±Inf (an overflowed scale factor, a
+// division by zero upstream): an exponent of all ones. An integer test, so no compiler setting
+// that assumes finite floats can drop it. Host mirror: no_data() in host/model/field_mapping.h.
+bool no_data(float v) { return (floatBitsToUint(v) & 0x7f800000u) == 0x7f800000u; }
+
 // j = min(floor(x), n-2), w = x - j for a TF coordinate x in [0, n-1]; also splits a coordinate
 // stored by sparse_prepare (TFM_NO_DATA, negative, gives false). `precise` forbids fused or
 // reordered arithmetic, so j and w are bit-identical to the same IEEE float32 operations on the
@@ -16,9 +21,9 @@ bool split_coordinate(float x, uint n, out uint j, out float w) {
 }
 
 // Node-aligned TF coordinate of a field value: x = clamp((v - lo) * scale, 0, n-1), then
-// split_coordinate. Returns false for NaN ("no data").
+// split_coordinate. Returns false for no data (NaN, ±Inf).
 bool tf_coordinate(float v, float lo, float scale, uint n, out uint j, out float w) {
-  if (isnan(v)) { j = 0u; w = 0.0; return false; }
+  if (no_data(v)) { j = 0u; w = 0.0; return false; }
   precise float x = clamp((v - lo) * scale, 0.0, float(n - 1u));
   return split_coordinate(x, n, j, w);
 }

@@ -1,6 +1,6 @@
 // Voxel loss between the reference colours b = T_r(F_r) and T_o(F_o): per channel sums of squared
 // and absolute differences of the clamped colours, and the voxel count, over one range of a chunk,
-// in 32.32 fixed point. Voxels without data (NaN in either field) add nothing, as the optimizers
+// in 32.32 fixed point. Voxels without data (NaN or ±Inf in either field) add nothing, as the optimizers
 // skip them. With WITH_BEFORE the same pass also sums the loss before optimization — the second
 // field shown with the reference TF, mapped onto its entries by before_lo/before_scale — into
 // slots 9-17, so `optimize` measures both losses with one read of the fields.

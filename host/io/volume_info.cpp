@@ -15,9 +15,9 @@ void accumulate_stats(ArrayInfo& a, const float* v, uint64_t n) {
   a.values += n;
   for (uint64_t i = 0; i < n; ++i) {
     const float x = v[i];
-    if (std::isnan(x)) {
-      ++a.nan_count;
-    } else if (std::isfinite(x)) {
+    if (!std::isfinite(x)) {
+      ++a.nan_count;  // no data: NaN and ±Inf (DESIGN.md)
+    } else {
       if (!a.min || x < *a.min) a.min = x;
       if (!a.max || x > *a.max) a.max = x;
     }
@@ -91,7 +91,7 @@ std::string format_file_info(const FileInfo& info) {
       os << "      range ";
       if (a.min) os << "[" << *a.min << ", " << *a.max << "]";
       else os << "(no finite values)";
-      os << ", no data (NaN/fill/missing) " << a.nan_count << " of " << a.values << "\n";
+      os << ", no data (NaN/Inf/fill/missing) " << a.nan_count << " of " << a.values << "\n";
     }
     for (const auto& n : a.notes) os << "      " << n << "\n";
   }

@@ -28,7 +28,7 @@ struct ArrayInfo {
   std::vector<std::string> choices;       // e.g. "time: 4 (--time 0..3)"
   std::vector<std::string> notes;         // units, long name, fill value, packing, ...
   uint64_t values = 0;                    // values examined (all times and members)
-  uint64_t nan_count = 0;                 // no-data values among them (NaN, fill values, GRIB missing)
+  uint64_t nan_count = 0;                 // no-data values among them (NaN, ±Inf, fill values, GRIB missing)
   std::optional<double> min, max;         // finite range
 };
 

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "field_mapping.h"  // no_data
 #include "histogram_layout.h"
 
 namespace tfm {
@@ -15,7 +16,7 @@ namespace tfm {
 struct FieldHistogram {
   double lo = 0.0, hi = 1.0;    // the range the bins divide
   std::vector<uint64_t> bins;   // B counts; bin k holds [lo + k w, lo + (k+1) w), the last also hi
-  uint64_t below = 0, above = 0, nan = 0;
+  uint64_t below = 0, above = 0, nan = 0;  // nan: values without data (NaN, ±Inf)
   uint64_t finite() const;      // below + above + all bins
 };
 
@@ -23,7 +24,7 @@ struct FieldHistogram {
 // [lo, hi] and the counter (histogram_layout.h) a value goes to.
 inline float histogram_scale(double lo, double hi, uint32_t bins) { return float(double(bins) / (hi - lo)); }
 inline uint32_t histogram_counter(float v, float lo, float scale, uint32_t bins) {
-  if (std::isnan(v)) return TFM_HIST_NAN(bins);
+  if (no_data(v)) return TFM_HIST_NAN(bins);
   volatile float t = (v - lo) * scale;  // volatile: no contraction or excess precision, as `precise`
   if (t < 0.0f) return TFM_HIST_BELOW;
   if (t > float(bins)) return TFM_HIST_ABOVE(bins);

@@ -80,9 +80,14 @@ struct ValueMapping {
 // std::invalid_argument unless scale is finite and > 0, and as make_mapping otherwise.
 FieldMapping make_mapping(const FieldRange& range, uint32_t tf_size, const ValueMapping& stored);
 
-// Bit-identical CPU mirror of tf_coordinate() in shaders/tf_common.glsl. Returns false for NaN.
+// "No data" (DESIGN.md): NaN and ±Inf, which no range maps. Mirror of no_data() in
+// shaders/tf_common.glsl.
+inline bool no_data(float v) { return !std::isfinite(v); }
+
+// Bit-identical CPU mirror of tf_coordinate() in shaders/tf_common.glsl. Returns false for no
+// data (NaN, ±Inf).
 inline bool tf_coordinate(float v, const FieldMapping& m, uint32_t& j, float& w) {
-  if (std::isnan(v)) return false;
+  if (no_data(v)) return false;
   // volatile-free: this file is compiled with -ffp-contract=off (host/CMakeLists.txt).
   float x = (v - m.lo) * m.scale;
   float top = float(m.tf_size - 1);

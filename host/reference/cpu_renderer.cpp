@@ -5,6 +5,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "field_mapping.h"
+
 namespace tfm {
 
 Rgba classify_cpu(const TransferFunction& tf, const FieldRange& range, double v) {
@@ -46,7 +48,7 @@ bool sample_trilinear(const Volume& vol, const glm::dvec3& p, double& value) {
     for (int dy = 0; dy < 2; ++dy)
       for (int dx = 0; dx < 2; ++dx) {
         const float f = vol.at(dx ? i1[0] : i0[0], dy ? i1[1] : i0[1], dz ? i1[2] : i0[2]);
-        if (std::isnan(f)) return false;
+        if (no_data(f)) return false;
         c[dz][dy][dx] = f;
       }
   auto lerp = [](double a, double b, double t) { return a + t * (b - a); };
@@ -64,7 +66,7 @@ CpuRender render_cpu(const Volume& vol, const TransferFunction& tf, const FieldR
   const MarchConstants march = march_constants(s, geo);
   const CameraFrame frame = orbit_frame(s.camera, geo, s.width, s.height);
   const bool has_nan = o.track_ambiguity && std::any_of(vol.values.begin(), vol.values.end(),
-                                                        [](float v) { return std::isnan(v); });
+                                                        [](float v) { return no_data(v); });
   const double tol = o.ambiguity_tolerance;
   CpuRender out;
   out.width = s.width;

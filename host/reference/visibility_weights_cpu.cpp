@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "cpu_renderer.h"
+#include "field_mapping.h"
 
 namespace tfm {
 
@@ -62,7 +63,7 @@ CpuVisibilityWeights visibility_weights_cpu(const Volume& vol, const TransferFun
   CpuVisibilityWeights out;
   out.weights.assign(vol.values.size(), 0.0);
   const bool has_nan =
-      track_ambiguity && std::any_of(vol.values.begin(), vol.values.end(), [](float v) { return std::isnan(v); });
+      track_ambiguity && std::any_of(vol.values.begin(), vol.values.end(), [](float v) { return no_data(v); });
   if (track_ambiguity) out.ambiguous.assign(vol.values.size(), 0);
   const uint64_t nx = vol.dims[0], ny = vol.dims[1];
   for (uint64_t i = 0; i < vol.values.size(); ++i) {

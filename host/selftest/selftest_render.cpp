@@ -41,6 +41,7 @@ Volume wavy_volume(std::array<uint64_t, 3> dims, std::array<double, 3> spacing, 
         v.values[i] = 0.5f + 0.35f * std::sin(0.7f * x + 0.3f * y + 0.1f * seed) * std::cos(0.5f * z - 0.2f * x) +
                       noise(rng);
         if (nan_every && i % nan_every == 3) v.values[i] = NAN;
+        if (nan_every && i % (3 * nan_every) == 5) v.values[i] = i % 2 ? INFINITY : -INFINITY;  // no data too
       }
   return v;
 }

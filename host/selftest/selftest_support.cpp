@@ -53,6 +53,8 @@ FieldPair random_pair(size_t voxels, uint32_t seed, const FieldRange& opt_range,
     if (i % 7 == 3) p.opt[i] = lo + width * float(rng() % opt_tf_size) / float(opt_tf_size - 1);  // on a node
     if (i % 11 == 5) p.ref[i] = NAN;
     if (i % 13 == 6) p.opt[i] = NAN;
+    if (i % 17 == 8) p.opt[i] = i % 34 == 8 ? INFINITY : -INFINITY;  // no data too (no_data())
+    if (i % 19 == 2) p.ref[i] = INFINITY;
   }
   return p;
 }

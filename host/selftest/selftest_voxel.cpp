@@ -171,6 +171,7 @@ void residual(Context& ctx, Check& check, size_t voxels, uint64_t chunk_voxels) 
 void histogram(Context& ctx, Check& check, size_t voxels, uint32_t bins, HistogramMode mode, uint64_t chunk_voxels) {
   std::vector<float> values = random_floats(voxels, 91u + uint32_t(voxels) + bins, -0.5f, 10.5f);
   for (size_t i = 3; i < voxels; i += 11) values[i] = NAN;
+  for (size_t i = 8; i < voxels; i += 31) values[i] = i % 2 ? INFINITY : -INFINITY;  // no data, as NaN
   for (size_t i = 7; i < voxels; i += 23) values[i] = 10.0f;
   for (size_t i = 4; i < voxels; i += 29) values[i] = 0.0f;
   std::unique_ptr<FieldHistogramKernel> made;

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "cancellation.h"
+#include "field_mapping.h"
 
 namespace tfm {
 
@@ -19,7 +20,7 @@ ExplicitSystem build_explicit_system(std::span<const float> ref, std::span<const
   std::vector<uint8_t> keep(ref.size());
   size_t rows_voxels = 0;
   for (size_t i = 0; i < ref.size(); ++i) {
-    keep[i] = !std::isnan(ref[i]) && !std::isnan(opt[i]);
+    keep[i] = !no_data(ref[i]) && !no_data(opt[i]);
     rows_voxels += keep[i];
   }
   ExplicitSystem sys;

@@ -217,18 +217,19 @@ TEST(FormatsIoRealFiles, InfoDescribesVtkVtiNrrdAndRawFiles) {
 
 TEST(FormatsIoCli, InfoAndConvertCommands) {
   TempDir dir;
-  std::string vtk = "# vtk DataFile Version 3.0\nt\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 3 1 1\nPOINT_DATA 3\n"
-                    "SCALARS density float\nLOOKUP_TABLE default\n1 nan 2\n";
+  std::string vtk = "# vtk DataFile Version 3.0\nt\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 5 1 1\nPOINT_DATA 5\n"
+                    "SCALARS density float\nLOOKUP_TABLE default\n1 nan 2 inf -inf\n";
   formats_test::write_bytes(dir / "f.vtk", vtk);
   const std::string f = (dir / "f.vtk").string();
   test::CliResult r = test::run_cli("info " + f);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("density"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("range [1, 2]"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("1 of 3"), std::string::npos) << r.output;
+  // ±Inf is no data, as NaN (DESIGN.md): outside the range and counted with the NaN.
+  EXPECT_NE(r.output.find("no data (NaN/Inf/fill/missing) 3 of 5"), std::string::npos) << r.output;
   r = test::run_cli("info " + f + " --json -");
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_EQ(nlohmann::json::parse(r.output)["arrays"][0]["nan_count"], 1);
+  EXPECT_EQ(nlohmann::json::parse(r.output)["arrays"][0]["nan_count"], 3);
   // Errors: non-zero exit and the file named.
   r = test::run_cli("info " + (dir / "nothing.nc").string());
   EXPECT_NE(r.exit_code, 0);
