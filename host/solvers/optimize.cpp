@@ -106,6 +106,7 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   if (!assembled.empty()) out.phases.push_back({"assemble for loss", assembled[0].wall_ms, assembled[0].gpu_ms});
   if (eq.voxels == 0)
     throw std::runtime_error("no voxel has data in both " + req.ref->name + " and " + req.field->name);
+  if (auto w = unreferenced_entries_warning(eq, out.tf, args.solve, out.warnings)) out.warnings.push_back(*w);
   t0 = std::chrono::steady_clock::now();
   out.before = voxel_loss_before(eq, req.ref_tf.as_floats());
   out.phases.push_back({"loss before", ms_since(t0), -1.0});

@@ -203,6 +203,7 @@ SeriesResult shared(Context& ctx, const SeriesRequest& req) {
   out.details = solved.details;
   out.tf = solved.tf;
   out.tf.range = range;
+  if (auto w = unreferenced_entries_warning(*problem.system, out.tf, args.solve, warnings)) warnings.push_back(*w);
 
   const std::vector<float> ref_rgba = req.ref_tf.as_floats(), tf_rgba = out.tf.as_floats();
   for (size_t i = 0; i < systems.size(); ++i) {

@@ -8,6 +8,7 @@
 
 #include "cameras.h"
 #include "gpu_voxel_ops.h"
+#include "parameter_names.h"
 
 namespace tfm {
 
@@ -105,6 +106,23 @@ SolveResult solve_and_record(const NormalEquations& eq, const SolveOptions& opti
   out.details["clamped_values"] = r.clamped_values;
   out.details["unreferenced_entries"] = r.unreferenced_entries;
   return r;
+}
+
+std::optional<std::string> unreferenced_entries_warning(const NormalEquations& eq, const TransferFunction& tf,
+                                                        const SolveOptions& solve,
+                                                        const std::vector<std::string>& warnings) {
+  if (solve.smooth > 0 || eq.n != tf.size()) return std::nullopt;
+  for (const std::string& w : warnings)
+    if (w.find("touched by no voxel") != std::string::npos) return std::nullopt;
+  const std::vector<float> rgba = tf.as_floats();
+  uint32_t unreferenced = 0;
+  for (uint32_t j = 0; j < eq.n; ++j)
+    if (eq.diag[j] == 0.0 && std::all_of(rgba.begin() + 4 * j, rgba.begin() + 4 * j + 4, [](float v) { return v == 0.0f; }))
+      ++unreferenced;
+  if (unreferenced == 0) return std::nullopt;
+  return std::to_string(unreferenced) + " of the " + std::to_string(eq.n) +
+         " TF entries are touched by no voxel: nothing in the data decides them, and the fit left them at 0 "
+         "(transparent black); " + parameter("smooth") + " fills them from their neighbours";
 }
 
 TransferFunction clamp_to_tf(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x, uint32_t* clamped) {

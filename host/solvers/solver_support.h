@@ -65,6 +65,15 @@ DetailValue cond_detail(double cond);
 // solver reports: the TF, the warnings, the factorization, cond, clamped and unreferenced entries.
 SolveResult solve_and_record(const NormalEquations& eq, const SolveOptions& options, SolverOutput& out);
 
+// Entries of the fitted `tf` that no voxel touches (diag(M) = 0) and that the fit left at 0: the
+// voxel solvers start there and nothing in the data moves them, so they are transparent black by
+// default, not by the data. A warning naming how many (and --smooth, which fills them from their
+// neighbours), unless smoothing is on or `warnings` already say so (normal-equations' "M is
+// singular"); nullopt otherwise. Every optimize path (whole, streamed, series) asks it.
+std::optional<std::string> unreferenced_entries_warning(const NormalEquations& eq, const TransferFunction& tf,
+                                                        const SolveOptions& solve,
+                                                        const std::vector<std::string>& warnings);
+
 // x (N x 4) clamped to [0,1] as a TF; counts the components that moved.
 TransferFunction clamp_to_tf(const Eigen::Matrix<double, Eigen::Dynamic, 4>& x, uint32_t* clamped = nullptr);
 // A TF of N float RGBA entries (as read back from the device) clamped to [0,1].

@@ -410,6 +410,7 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
   out.details["slab_slices"] = s.slab_slices;
   out.tf = solved.tf;
   out.tf.range = out.field_range;
+  if (auto w = unreferenced_entries_warning(eq, out.tf, args.solve, out.warnings)) out.warnings.push_back(*w);
 
   t0 = std::chrono::steady_clock::now();
   const std::vector<float> ref_entries = req.ref_tf.as_floats();

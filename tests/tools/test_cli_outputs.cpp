@@ -227,6 +227,36 @@ TEST_F(CliOutputs, EmptyNanAndNegativeNumbersAreUsageErrors) {
   }
 }
 
+// A second field with data in four voxels leaves most TF entries touched by no voxel: every
+// voxel solver leaves them at 0 and says so once (normal-equations in its own words, "M is
+// singular"), the streamed and the shared-TF paths too; --smooth fills them, so no warning. The
+// solvers but normal-equations had said nothing.
+TEST_F(CliOutputs, EveryVoxelSolverSaysWhichEntriesNoVoxelTouches) {
+  std::vector<float> sparse(512, std::numeric_limits<float>::quiet_NaN());
+  sparse[3] = 5.0f, sparse[100] = 6.0f, sparse[200] = 7.5f, sparse[300] = 8.0f;
+  write_floats(dir / "sparse_8x8x8_float32.raw", sparse);
+  const std::string base = "optimize --ref " + dir / "ref_8x8x8_float32.raw" + " --field " +
+                           dir / "sparse_8x8x8_float32.raw" + " --ref-tf " + dir / "tf.json" + " --tf-size 16 --out " +
+                           dir / "o.json";
+  const std::string says = "of the 16 TF entries are touched by no voxel";
+  const std::string twice = " --field " + dir / "sparse_8x8x8_float32.raw" + " --shared-tf";
+  for (const std::string solver : {"qp", "cgls", "irls", "eigen-cgls", "gradient-descent --iterations 20"}) {
+    for (const std::string more : {std::string(), std::string(" --stream on"), twice}) {
+      if (solver != "qp" && !more.empty()) continue;  // streamed and shared: the solvers of M only
+      const test::CliResult r = run_cli(base + " --solver " + solver + more);
+      ASSERT_EQ(r.exit_code, 0) << solver << more << "\n" << r.output;
+      EXPECT_NE(r.output.find("11 " + says), std::string::npos) << solver << more << "\n" << r.output;
+    }
+    const test::CliResult smooth = run_cli(base + " --solver " + solver + " --smooth 1");
+    ASSERT_EQ(smooth.exit_code, 0) << solver << "\n" << smooth.output;
+    EXPECT_EQ(smooth.output.find("touched by no voxel"), std::string::npos) << solver << "\n" << smooth.output;
+  }
+  const test::CliResult ne = run_cli(base);
+  ASSERT_EQ(ne.exit_code, 0) << ne.output;
+  EXPECT_NE(ne.output.find("M is singular: 11 TF entries are touched by no voxel"), std::string::npos) << ne.output;
+  EXPECT_EQ(ne.output.find(says), std::string::npos) << "said twice:\n" << ne.output;
+}
+
 // A field without a finite value is refused when a range is given too (a TF file's, --range), as
 // it is without one: an all-infinite reference with a TF file's range wrote a constant TF with
 // exit 0, and `render --range` drew an all-NaN field as an empty picture. A residual of two fields
