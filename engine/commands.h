@@ -124,7 +124,8 @@ class CommandBatch {
   void copy_from_image(VkImage image, VkExtent3D extent, VkImageLayout layout, VkPipelineStageFlags src_stages,
                        VkAccessFlags src_access, VkPipelineStageFlags dst_stages, VkAccessFlags dst_access,
                        const Buffer& dst, uint64_t dst_offset);
-  // Writes a GPU timestamp after all earlier work; returns its slot.
+  // Writes a GPU timestamp after all earlier work; returns its slot. A batch holds 128: later
+  // ones (and all on a device without timestamps) are not written, and their times are -1.
   uint32_t timestamp();
   // Submits, waits for completion (device writes then visible to the host) and resets nothing:
   // a batch is submitted once.

@@ -70,6 +70,21 @@ TEST_F(DiffDvrSolver, RejectsBadOptions) {
   }
 }
 
+// The largest --views-per-iteration (4096) runs: three timestamps a group of views had run the
+// batch's 128 out at about 2100 views of 8² pixels ("too many timestamps in one batch").
+TEST_F(DiffDvrSolver, TheMostViewsAnIterationTakesRun) {
+  const CubeCase c;
+  OptimizeRequest req;
+  req.ref = &c.ref;
+  req.field = &c.field;
+  req.ref_tf = c.ref_tf;
+  req.tf_size = 16;
+  req.solver = "diffdvr";
+  req.settings.extra = {{"iterations", "1"}, {"image-size", "8"}, {"views-per-iteration", "4096"}};
+  const OptimizeResult r = run_optimize(ctx(), req);
+  EXPECT_EQ(r.tf.size(), 16u);
+}
+
 // --smooth is diffdvr's own absolute prior: up to 1e9 it holds the TF's neighbours together (at 1e9
 // a constant TF, the limit of heavier weights); beyond, it is refused naming the flag and the limit.
 TEST_F(DiffDvrSolver, SmoothnessUpToItsLimitAndNoFurther) {
