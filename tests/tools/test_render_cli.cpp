@@ -68,6 +68,23 @@ TEST_F(RenderCli, ThinGridsRenderAsAMapFromAboveByDefault) {
   EXPECT_EQ(read_png(dir / "spelled.png").rgb, map.rgb);
 }
 
+// A grid of one voxel in two axes is a line: at a small size no ray meets its box and the
+// picture is the background alone, which the command says (it said nothing, exit 0); a picture
+// that shows it does not warn.
+TEST_F(RenderCli, APictureNoRayOfWhichMetTheVolumeWarns) {
+  std::vector<float> line(64);
+  for (size_t i = 0; i < line.size(); ++i) line[i] = float(i);
+  write_floats(dir / "line_64x1x1_float32.raw", line);
+  const std::string common = "render --volume " + dir / "line_64x1x1_float32.raw" + " --tf " + dir / "tf.json";
+  auto r = run_cli(common + " --out " + dir / "small.png" + " --width 64 --height 64");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("warning: no ray of the 64x64 picture met the volume's box (64x1x1 voxels)"),
+            std::string::npos) << r.output;
+  r = run_cli(common + " --out " + dir / "large.png" + " --width 512 --height 512");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find("no ray"), std::string::npos) << r.output;
+}
+
 // A ParaView preset holds sRGB colours; rendered fully opaque over black, its colour must come
 // out as the same 8-bit sRGB value ParaView would show (the TF table itself is linear).
 TEST_F(RenderCli, PresetColoursRenderAsParaViewShowsThem) {

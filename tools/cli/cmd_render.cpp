@@ -55,6 +55,13 @@ int run(RenderArgs a) {
   draw_markers(picture, geometry, a.settings, markers);
   write_png(a.out, picture);
   outputs.commit();
+  // No ray met the box (a grid of one voxel in two axes is a line thinner than a pixel at a
+  // small size): a picture of the background only is not the volume, so say so.
+  if (image.samples() == 0)
+    std::cerr << "tfmatch: warning: no ray of the " << a.settings.width << "x" << a.settings.height
+              << " picture met the volume's box (" << volume.dims[0] << "x" << volume.dims[1] << "x" << volume.dims[2]
+              << " voxels), so it shows only the background; a larger --width/--height, a smaller --distance or "
+                 "another --azimuth/--elevation shows it\n";
   if (!globals().quiet)
     std::cout << "rendered " << volume.name << " (" << volume.dims[0] << "x" << volume.dims[1] << "x"
               << volume.dims[2] << ", range [" << range.lo << ", " << range.hi << "]) at " << a.settings.width
