@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <sstream>
 #include <stdexcept>
 
 #include "render_layout.h"  // TFM_MAX_SAMPLE_OPTICAL_DEPTH, the shaders' clamp
@@ -95,7 +96,18 @@ MarchConstants march_constants(const RenderSettings& s, const VolumeGeometry& g)
   m.stop_transmittance = 1.0 - s.termination_opacity;
   const double diagonal = 2.0 * g.radius();
   const double steps = std::ceil(diagonal / m.dt) + 2.0;
-  if (steps > 1e8) throw std::runtime_error("render settings: step too small for this volume (over 10^8 samples per ray)");
+  if (steps > 1e8) {
+    // Mostly a grid whose axes' spacings differ by orders of magnitude (a file's spacing or
+    // coordinates in other units than each other): say which, since --step cannot help there.
+    const glm::dvec3 extent = 2.0 * g.half_extent();
+    std::ostringstream os;
+    os << "render settings: rays would take over 10^8 samples: the box is " << extent.x << " x " << extent.y << " x "
+       << extent.z << " steps of its finest spacing (grid " << g.dims[0] << "x" << g.dims[1] << "x" << g.dims[2]
+       << ", each axis's spacing " << g.axis_scale.x << ", " << g.axis_scale.y << ", " << g.axis_scale.z
+       << " times the finest), marched every " << m.dt
+       << " of them; check the file's spacing or coordinates (--z-scale scales the vertical one)";
+    throw std::runtime_error(os.str());
+  }
   m.max_steps = static_cast<uint32_t>(steps);
   return m;
 }

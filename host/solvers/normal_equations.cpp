@@ -15,6 +15,13 @@ Regularization absolute_regularization(const NormalEquations& eq, const SolveOpt
   for (const auto& [name, value] : {std::pair{"ridge", options.ridge}, std::pair{"smooth", options.smooth}})
     if (!(value >= 0) || !std::isfinite(value))
       throw std::invalid_argument(parameter(name) + ": regularization weights must be finite and >= 0");
+  if (options.ridge > kMaxRelativeRidge) {
+    std::ostringstream os;
+    os << parameter("ridge") << " " << options.ridge << " is beyond " << kMaxRelativeRidge
+       << ", where the regularized matrix leaves double's range; at " << kMaxRelativeRidge
+       << " the TF is already 0 to within 1e-100, which heavier ridges tend to";
+    throw std::invalid_argument(os.str());
+  }
   if (options.smooth > kMaxRelativeSmooth) {
     std::ostringstream os;
     os << parameter("smooth") << " " << options.smooth << " is beyond " << kMaxRelativeSmooth

@@ -48,8 +48,14 @@ struct Regularization {
 // per entry already.
 constexpr double kMaxRelativeSmooth = 1e9;
 
+// The largest relative ridge weight. A ridge only shrinks x towards 0, without cancellation, so
+// any weight is resolved; but times M's diagonal a weight near double's range overflows M + R
+// (--ridge 1e307 failed as "tridiagonal eigenvalues: non-finite entries"). At 1e100 x is below
+// 1e-100 of the colours: zero to any precision that matters.
+constexpr double kMaxRelativeRidge = 1e100;
+
 // Throws std::invalid_argument, naming the flag, for a weight that is negative, not finite, or
-// (smooth) above kMaxRelativeSmooth.
+// above kMaxRelativeSmooth (smooth) or kMaxRelativeRidge (ridge).
 Regularization absolute_regularization(const NormalEquations& eq, const SolveOptions& options);
 
 // M + R.

@@ -128,6 +128,16 @@ TEST(RenderCamera, InvalidSettingsAreRejectedWithTheirName) {
   s = {};
   s.z_scale = 0.0;
   expect_rejected(s, "z scale");
+  // Spacings ten orders apart (a file's coordinates in other units per axis): the message says so,
+  // with the grid and the spacings' ratios, not only "step too small" (which --step cannot mend).
+  const VolumeGeometry uneven = VolumeGeometry::from({4, 3, 2}, {1e-10, 1, 1});
+  try {
+    march_constants(RenderSettings{}, uneven);
+    ADD_FAILURE() << "rays of 10^10 samples accepted";
+  } catch (const std::runtime_error& e) {
+    for (const char* word : {"over 10^8 samples", "grid 4x3x2", "each axis's spacing 1, 1e+10, 1e+10", "spacing or coordinates"})
+      EXPECT_NE(std::string(e.what()).find(word), std::string::npos) << e.what();
+  }
 }
 
 TEST(RenderCamera, ZScaleStretchesTheVerticalOnly) {

@@ -215,9 +215,12 @@ TEST(NormalEquationsSolver, WeightsBeyondWhatDoublesResolveAreRefused) {
   refused(0.0, -1.0, "--smooth");
   refused(std::nan(""), 0.0, "--ridge");
   refused(INFINITY, 0.0, "--ridge");
+  refused(1e307, 0.0, "--ridge 1e+307 is beyond 1e+100");
   SolveOptions huge_ridge;  // a ridge only shrinks x towards 0, with no cancellation: any finite one
   huge_ridge.ridge = 1e30;
   EXPECT_LE(solve_normal_equations(eq, huge_ridge).x.cwiseAbs().maxCoeff(), 1e-29);
+  huge_ridge.ridge = kMaxRelativeRidge;
+  EXPECT_LE(solve_normal_equations(eq, huge_ridge).x.cwiseAbs().maxCoeff(), 1e-99);
 }
 
 // The warning measures how much M's float32 error can move x: cond(M) without regularization, and
