@@ -130,6 +130,9 @@ void check_range(const FieldRange& r, const std::string& what) {
        << std::numeric_limits<float>::max() << ")";
   else if (!(fhi > flo) || !std::isfinite(1.0 / (double(fhi) - double(flo))))
     os << " is too narrow: lo and hi are the same number in float32, in which the kernels map values";
+  else if (!std::isfinite(static_cast<float>(65535.0 / (double(fhi) - double(flo)))))
+    // make_mapping's float32 scale (N - 1) / (hi - lo) for TFs of up to 65536 entries.
+    os << " is too narrow: 1 / (hi - lo) leaves float32, in which the kernels map values";
   else
     return;
   throw std::runtime_error(os.str());

@@ -22,7 +22,7 @@ std::vector<uint64_t> field_histogram(std::span<const float> values, const Field
   std::vector<uint64_t> counts(bins, 0);
   const double scale = double(bins) / (range.hi - range.lo);
   for (float v : values) {
-    if (std::isnan(v)) continue;
+    if (no_data(v)) continue;  // NaN and ±Inf (an infinite value clamped into an end bin was counted)
     const double x = std::clamp((double(v) - range.lo) * scale, 0.0, double(bins) - 1.0);
     ++counts[static_cast<size_t>(x)];
   }

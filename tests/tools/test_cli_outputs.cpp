@@ -217,6 +217,12 @@ TEST_F(CliOutputs, EmptyNanAndNegativeNumbersAreUsageErrors) {
       {"correlate --members " + dir / "ref_8x8x8_float32.raw" + " --point 1,1,1 --time -2 --out " + dir / "out.vti",
        "--time: expected a number >= 0, got '-2'"},
       {"view --demo --k 0", "--k: expected a number > 0, got '0'"},
+      // A range whose 1 / (hi - lo) leaves float32: named as the option's (it failed after the
+      // fields were read, as "range 0,1e-45 cannot be mapped ...").
+      {"residual --ref " + dir / "ref_8x8x8_float32.raw" + " --ref-tf " + dir / "tf.json" + " --field " +
+           dir / "field_8x8x8_float32.raw" + " --field-tf " + dir / "tf.json" + " --out " + dir / "out.vti" +
+           " --image " + dir / "out.png" + " --display-range 0,1e-45",
+       "--display-range: range 0,1e-45 is too narrow"},
   };
   for (const auto& c : cases) {
     const test::CliResult r = run_cli(c.args, test::kQuickCliTimeout);

@@ -7,6 +7,7 @@
 
 #include "atomic_file.h"
 #include "cli.h"
+#include "field_mapping.h"  // no_data
 #include "input_options.h"
 #include "output_check.h"
 #include "output_options.h"
@@ -58,7 +59,7 @@ int run(ResidualArgs a) {
 
   // A map of zeros would read as a perfect match (optimize refuses such a pair the same way).
   bool both = false;
-  for (size_t i = 0; i < ref.values.size() && !both; ++i) both = !std::isnan(ref.values[i]) && !std::isnan(field.values[i]);
+  for (size_t i = 0; i < ref.values.size() && !both; ++i) both = !no_data(ref.values[i]) && !no_data(field.values[i]);
   if (!both) throw std::runtime_error("no voxel has data in both " + ref.name + " and " + field.name);
   Volume residual = residual_map(*ctx, ref, ref_tf, ref_range, field, field_tf, field_range);
   // .vti opens in ParaView with its grid and spacing; anything else is float32 raw.
