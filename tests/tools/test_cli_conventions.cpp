@@ -314,6 +314,13 @@ TEST_F(CliConventions, OutputNamesMustNameTheFormatWritten) {
   const std::string head((std::istreambuf_iterator<char>(vti)), std::istreambuf_iterator<char>());
   EXPECT_NE(head.find("<VTKFile"), std::string::npos) << "R.VTI was not written as VTK ImageData";
   EXPECT_EQ(run_cli("convert-tf " + tf + " " + dir / "t.paraview.json").exit_code, 0);
+  // The two-part extension too: T.PARAVIEW.JSON is a ParaView preset (a list of one object with
+  // "RGBPoints"), not a tfmatch table (it was).
+  ASSERT_EQ(run_cli("convert-tf " + tf + " " + dir / "T.PARAVIEW.JSON").exit_code, 0);
+  const nlohmann::json preset = nlohmann::json::parse(std::ifstream(dir / "T.PARAVIEW.JSON"));
+  ASSERT_TRUE(preset.is_array()) << preset.dump();
+  EXPECT_TRUE(preset[0].contains("RGBPoints")) << preset.dump();
+  EXPECT_EQ(preset[0]["Name"], "T") << preset.dump();
 }
 
 TEST_F(CliConventions, ProgressInALogIsPeriodicPlainLines) {

@@ -203,8 +203,7 @@ std::string indexed_path(const std::string& out, size_t index, size_t count) {
   const std::filesystem::path p(out);
   std::string name = p.filename().string();
   const std::string paraview = ".paraview.json";
-  const size_t ext = name.size() >= paraview.size() && name.ends_with(paraview) ? name.size() - paraview.size()
-                                                                                : name.rfind('.');
+  const size_t ext = has_extension(name, paraview) ? name.size() - paraview.size() : name.rfind('.');
   const std::string digits = std::to_string(count - 1);
   std::string number = std::to_string(index);
   number.insert(0, std::max<size_t>(3, digits.size()) - number.size(), '0');
