@@ -169,6 +169,13 @@ ControlPointTf parse_tf_xml(std::string_view text, const std::string& name, std:
   if (clamped && notes)
     notes->push_back(name + ": " + std::to_string(clamped) + " opacity or colour value" + (clamped > 1 ? "s" : "") +
                      " outside [0,1] clamped to it");
+  // Positions outside [0, 1] are clamped too (sort_points): points there collapse onto the ends.
+  size_t outside = 0;
+  for (const auto& p : cp.opacity) outside += p.position < 0.0 || p.position > 1.0;
+  for (const auto& p : cp.color) outside += p.position < 0.0 || p.position > 1.0;
+  if (outside && notes)
+    notes->push_back(name + ": " + std::to_string(outside) + " point position" + (outside > 1 ? "s" : "") +
+                     " outside [0,1] clamped to it (such points collapse onto the TF's ends)");
   if (cp.opacity.empty()) throw std::runtime_error(name + ": no <OpacityPoint> in <OpacityPoints>");
   if (cp.color.empty()) throw std::runtime_error(name + ": no <ColorPoint> in <ColorPoints>");
   auto lo = root->attribute("range_min"), hi = root->attribute("range_max");  // tfmatch's addition

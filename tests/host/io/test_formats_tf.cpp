@@ -60,6 +60,12 @@ TEST(TfFormats, XmlBlendsInSrgbOrLinearAndReadsEveryColorDataMode) {
   notes.clear();
   parse_transfer_function(xml("", "", bw), "f.xml", {2, ""}, &notes);
   EXPECT_TRUE(notes.empty());
+  // Positions outside [0, 1] are clamped as well, and said (they were not).
+  parse_transfer_function(xml("", "", "<ColorPoint position=\"-0.5\" r=\"0\" g=\"0\" b=\"0\"/>\n"
+                                      "<ColorPoint position=\"1.5\" r=\"255\" g=\"0\" b=\"0\"/>\n"),
+                          "f.xml", {2, ""}, &notes);
+  ASSERT_EQ(notes.size(), 1u);
+  EXPECT_NE(notes[0].find("f.xml: 2 point positions outside [0,1] clamped to it"), std::string::npos) << notes[0];
   // Points in any order; a single colour point is constant.
   TransferFunction u = parse(xml("", "", "<ColorPoint position=\"1\" r=\"255\" g=\"0\" b=\"0\"/>\n"
                                          "<ColorPoint position=\"0\" r=\"0\" g=\"0\" b=\"255\"/>\n"), 2);
