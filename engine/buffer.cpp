@@ -155,6 +155,15 @@ Buffer Buffer::adopt(Context& ctx, VkBuffer buffer, uint64_t offset, uint64_t by
   if (offset % align)
     throw std::invalid_argument(what + ": offset " + std::to_string(offset) + " is not a multiple of " +
                                 std::to_string(align) + " (the device's storage/texel buffer offset alignment)");
+  // Vulkan does not tell a buffer's size from its handle, but its memory requirement is at least
+  // that size: a range past it is past the buffer (a field of 4096 voxels over a buffer of 1000
+  // floats had been recorded, and read out of bounds).
+  VkMemoryRequirements req{};
+  ctx.vk().vkGetBufferMemoryRequirements(ctx.device(), buffer, &req);
+  if (offset > req.size || bytes > req.size - offset)
+    throw std::invalid_argument(what + ": bytes " + std::to_string(offset) + " to " + std::to_string(offset + bytes) +
+                                " pass the end of the buffer (its memory requirement is " + std::to_string(req.size) +
+                                " bytes)");
   Buffer b;
   b.ctx_ = &ctx;
   b.buffer_ = buffer;

@@ -39,8 +39,10 @@ class Buffer {
   // already on the device): kernels bind that range and copies address it, nothing is allocated,
   // and destroying the view leaves the caller's buffer alone. The buffer needs the usages the
   // kernels read it with (storage and uniform texel buffer for fields; transfer dst for a TF
-  // written by record_tf_upload). Throws std::invalid_argument for a null buffer, no bytes, or an
-  // offset that is not a multiple of the device's storage- and texel-buffer offset alignments.
+  // written by record_tf_upload). Throws std::invalid_argument for a null buffer, no bytes, an
+  // offset that is not a multiple of the device's storage- and texel-buffer offset alignments, or
+  // a range past the buffer's memory requirement (at least its size: the check catches a range
+  // past the end by more than the driver's rounding, not every one; the validation layer does).
   static Buffer adopt(Context& ctx, VkBuffer buffer, uint64_t offset, uint64_t bytes, const std::string& what);
   ~Buffer();
   Buffer(Buffer&& other) noexcept;

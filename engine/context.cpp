@@ -391,6 +391,14 @@ std::unique_ptr<Context> Context::create(const ContextOptions& options_in) {
 std::unique_ptr<Context> Context::adopt(const ExternalDevice& external) {
   if (!external.instance || !external.physical_device || !external.device || !external.queue)
     throw std::invalid_argument("Context::adopt: instance, physical device, device and queue are required");
+  if (external.api_version < VK_API_VERSION_1_2)
+    throw std::invalid_argument(
+        "Context::adopt: ExternalDevice::api_version is " +
+        (external.api_version ? std::to_string(VK_API_VERSION_MAJOR(external.api_version)) + "." +
+                                    std::to_string(VK_API_VERSION_MINOR(external.api_version))
+                              : std::string("not given")) +
+        ": give the VkApplicationInfo::apiVersion the instance was created with, VK_API_VERSION_1_2 or later "
+        "(tfmatch's shaders need Vulkan 1.2)");
   PFN_vkGetInstanceProcAddr get =
       external.get_instance_proc_addr ? external.get_instance_proc_addr : loader_get_instance_proc_addr();
   std::unique_ptr<Context> ctx(new Context());
@@ -405,6 +413,13 @@ std::unique_ptr<Context> Context::adopt(const ExternalDevice& external) {
   load_device_functions(vk, external.device);
   // Debug names work only if the host enabled VK_EXT_debug_utils; the entry point says so.
   ctx->debug_utils_ = vk.vkSetDebugUtilsObjectNameEXT != nullptr;
+  VkPhysicalDeviceProperties device_properties{};
+  vk.vkGetPhysicalDeviceProperties(external.physical_device, &device_properties);
+  if (device_properties.apiVersion < VK_API_VERSION_1_2)
+    throw std::invalid_argument("Context::adopt: the device (" + std::string(device_properties.deviceName) +
+                                ") supports Vulkan " + std::to_string(VK_API_VERSION_MAJOR(device_properties.apiVersion)) +
+                                "." + std::to_string(VK_API_VERSION_MINOR(device_properties.apiVersion)) +
+                                "; tfmatch needs 1.2");
   ctx->int64_atomics_ = external.int64_atomics_enabled && supports_int64_atomics(vk, external.physical_device);
   ctx->load_device_info(external.external_memory_host_enabled);
   ctx->create_pipeline_cache(external.pipeline_cache);

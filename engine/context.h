@@ -53,6 +53,12 @@ struct ExternalDevice {
   // Set when the host enabled VK_EXT_external_memory_host on `device`: large transfers then copy
   // straight from and to the caller's host memory (buffer.h).
   bool external_memory_host_enabled = false;
+  // The VkApplicationInfo::apiVersion the host created `instance` with. Required, at least
+  // VK_API_VERSION_1_2: tfmatch's shaders are SPIR-V for Vulkan 1.2 (subgroup operations) and it
+  // calls 1.1 commands. Vulkan cannot tell an instance's version from its handle, and an instance
+  // made without VkApplicationInfo is 1.0, where every pipeline is invalid (undefined behaviour
+  // without the validation layer), so adopt() refuses 0 and anything below 1.2.
+  uint32_t api_version = 0;
 };
 
 struct DeviceSummary {

@@ -110,6 +110,18 @@ const char* field_format_name(FieldFormat format) {
   return "unknown";
 }
 
+FieldFormat field_format_of(VkFormat format, const char* what) {
+  switch (format) {
+    case VK_FORMAT_R32_SFLOAT: return FieldFormat::Float32;
+    case VK_FORMAT_R16_SFLOAT: return FieldFormat::Float16;
+    case VK_FORMAT_R16_UNORM: return FieldFormat::Unorm16;
+    case VK_FORMAT_R8_UNORM: return FieldFormat::Unorm8;
+    default:
+      throw std::invalid_argument(std::string(what) + ": image format " + std::to_string(int(format)) +
+                                  " is not a field format (R32_SFLOAT, R16_SFLOAT, R16_UNORM or R8_UNORM)");
+  }
+}
+
 DeviceField::DeviceField(Context& ctx, std::span<const float> values, const std::string& name,
                          uint64_t max_chunk_voxels)
     : DeviceField(ctx, values.size(), name, max_chunk_voxels) {

@@ -24,6 +24,10 @@ uint32_t field_format_bytes(FieldFormat format);
 VkFormat voxel_texel_format(FieldFormat format);  // one voxel a texel: R32_SFLOAT, R16_SFLOAT, R16_UNORM, R8_UNORM
 VkFormat quad_texel_format(FieldFormat format);   // four voxels a texel: the RGBA formats of the same
 const char* field_format_name(FieldFormat format);
+// The FieldFormat of a one-channel image format the kernels read a field from (R32_SFLOAT,
+// R16_SFLOAT, R16_UNORM, R8_UNORM); std::invalid_argument naming `what` and the format for any
+// other.
+FieldFormat field_format_of(VkFormat format, const char* what);
 
 class DeviceField {
  public:

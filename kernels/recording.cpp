@@ -101,6 +101,7 @@ void NormalEquationsRecorder::record_assemble(VkCommandBuffer cmd, const DeviceF
 void NormalEquationsRecorder::record_assemble(VkCommandBuffer cmd, const ImageFieldView& ref, const ImageFieldView& opt,
                                               const FieldMapping& ref_map, const FieldMapping& opt_map,
                                               std::span<const float> ref_tf_rgba) {
+  check_image_pair(ref, opt, "record_assemble");  // before anything is recorded into the host's buffer
   record_with(cmd, opt_map, ref_map, ref_tf_rgba,
               [&](CommandBatch& batch) { kernel_->record(batch, ref, opt, ref_map, opt_map, ref_tf_, accum_); });
 }
@@ -183,6 +184,9 @@ void ResidualMapRecorder::record_residual_map(VkCommandBuffer cmd, const ImageFi
                                               DeviceField& out) {
   check_table_for(ref_tf_rgba, ref_map, "record_residual_map: reference TF");
   check_table_for(opt_tf_rgba, opt_map, "record_residual_map: second TF");
+  // Checked before anything is recorded into the host's buffer, as the buffer overload does.
+  if (out.voxel_count() != check_image_pair(ref, opt, "record_residual_map"))
+    throw std::invalid_argument("record_residual_map: the output field differs from the images in voxel count");
   record_residual(restart(recording_, ctx_, cmd), ctx_, *kernel_, ref_tf_, opt_tf_, ref, opt, ref_map, opt_map,
                   ref_tf_rgba, opt_tf_rgba, out);
 }
@@ -213,6 +217,11 @@ void RenderRecorder::record_render(VkCommandBuffer cmd, const DeviceField& field
 
 void RenderRecorder::record_render(VkCommandBuffer cmd, const ImageFieldView& field, const FieldMapping& mapping,
                                    std::span<const float> tf_rgba, const RenderSettings& settings, Buffer& image) {
+  // Checked before anything is recorded into the host's buffer.
+  check_image_field(field, "record_render");
+  if (field.extent.width != geometry_.dims[0] || field.extent.height != geometry_.dims[1] ||
+      field.extent.depth != geometry_.dims[2])
+    throw std::invalid_argument("record_render: the image's extent differs from the recorder's grid");
   if (!image_kernel_) image_kernel_ = std::make_unique<RenderImageKernel>(ctx_, RenderImageKernel::ImageField{});
   record_picture(cmd, *image_kernel_, field, mapping, tf_rgba, settings, image);
 }
@@ -346,6 +355,7 @@ void VoxelLossRecorder::record_voxel_loss(VkCommandBuffer cmd, const DeviceField
 void VoxelLossRecorder::record_voxel_loss(VkCommandBuffer cmd, const ImageFieldView& ref, const ImageFieldView& opt,
                                           const FieldMapping& ref_map, const FieldMapping& opt_map,
                                           std::span<const float> ref_tf_rgba, std::span<const float> opt_tf_rgba) {
+  check_image_pair(ref, opt, "record_voxel_loss");  // before anything is recorded into the host's buffer
   record_loss(cmd, ref, opt, ref_map, opt_map, ref_tf_rgba, opt_tf_rgba);
 }
 
@@ -412,7 +422,10 @@ TfUploadRecorder::~TfUploadRecorder() = default;
 void TfUploadRecorder::record_tf_upload(VkCommandBuffer cmd, std::span<const float> rgba, const TfBufferTarget& target) {
   check_tf_table(rgba, "record_tf_upload");
   const uint64_t bytes = rgba.size_bytes();
-  if (target.size != VK_WHOLE_SIZE && target.size < bytes)
+  if (target.size == 0 || target.size == VK_WHOLE_SIZE)
+    throw std::invalid_argument("record_tf_upload: TfBufferTarget::size: give the bytes of the host's range (the "
+                                "table needs " + std::to_string(bytes) + ")");
+  if (target.size < bytes)
     throw std::invalid_argument("record_tf_upload: the table needs " + std::to_string(bytes) +
                                 " bytes, the target range holds " + std::to_string(target.size));
   if (target.offset % 4) throw std::invalid_argument("record_tf_upload: the target offset is not a multiple of 4");
@@ -433,18 +446,6 @@ void TfUploadRecorder::record_tf_upload(VkCommandBuffer cmd, std::span<const flo
   batch.update(staging_, 0, texels.data(), bytes);
   batch.copy_to_image(staging_, target.image, uint32_t(rgba.size() / 4), target.old_layout, target.new_layout,
                       target.dst_stages, target.dst_access);
-}
-
-FieldFormat field_format_of(VkFormat format, const char* what) {
-  switch (format) {
-    case VK_FORMAT_R32_SFLOAT: return FieldFormat::Float32;
-    case VK_FORMAT_R16_SFLOAT: return FieldFormat::Float16;
-    case VK_FORMAT_R16_UNORM: return FieldFormat::Unorm16;
-    case VK_FORMAT_R8_UNORM: return FieldFormat::Unorm8;
-    default:
-      throw std::invalid_argument(std::string(what) + ": image format " + std::to_string(int(format)) +
-                                  " is not a field format (R32_SFLOAT, R16_SFLOAT, R16_UNORM or R8_UNORM)");
-  }
 }
 
 namespace {

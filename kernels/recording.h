@@ -207,10 +207,6 @@ struct ImageFieldSource {
   VkAccessFlags dst_access = VK_ACCESS_SHADER_READ_BIT;
 };
 
-// The FieldFormat of an image format ImageFieldSource accepts; std::invalid_argument naming
-// `what` for any other.
-FieldFormat field_format_of(VkFormat format, const char* what);
-
 // A host's 3D image as a field every recorder above reads (the assembly, voxel loss, residual map
 // and rendering also read images in place, their record_* with ImageFieldView; an ensemble of
 // member images goes to CorrelationRecorder's image overload). tfmatch's voxel kernels read fields as texel
@@ -358,7 +354,9 @@ class VoxelLossRecorder {
 struct TfBufferTarget {
   VkBuffer buffer = VK_NULL_HANDLE;  // with VK_BUFFER_USAGE_TRANSFER_DST_BIT
   uint64_t offset = 0;               // a multiple of 4
-  uint64_t size = VK_WHOLE_SIZE;     // of the host's range, to check the table fits
+  // Bytes of the host's range from `offset`, required (0: std::invalid_argument): the table must
+  // fit it. Unchecked, a 128-byte table written into a 64-byte buffer corrupted the driver's heap.
+  uint64_t size = 0;
 };
 struct TfImageTarget {
   VkImage image = VK_NULL_HANDLE;  // with VK_IMAGE_USAGE_TRANSFER_DST_BIT, width N, mip 0, layer 0 written

@@ -143,7 +143,7 @@ void RenderImageKernel::record(CommandBatch& batch, const ImageFieldView& field,
                                gpu::RenderPush push, Buffer& image, Buffer& stop, uint32_t row_begin,
                                uint32_t row_count) const {
   if (!image_field_) throw std::invalid_argument("render: this pipeline reads a field's buffers, not a 3D image");
-  if (field.view == VK_NULL_HANDLE) throw std::invalid_argument("render: an image field without a view (VK_NULL_HANDLE)");
+  check_image_field(field, "render");
   if (field.extent.width != push.dim_x || field.extent.height != push.dim_y || field.extent.depth != push.dim_z)
     throw std::invalid_argument("render: the image's extent differs from the grid");
   record_with(batch, Binding::image(field.view, field.layout), tf, views, push, image, stop, row_begin, row_count);

@@ -113,9 +113,18 @@ void bind_fields_as_images(PipelineDesc& desc, std::initializer_list<uint32_t> f
   for (uint32_t b : field_bindings) desc.binding_kinds.at(b) = DescriptorKind::SampledImage;
 }
 
-uint64_t check_image_pair(const ImageFieldView& ref, const ImageFieldView& opt, const char* kernel) {
-  if (ref.view == VK_NULL_HANDLE || opt.view == VK_NULL_HANDLE)
+void check_image_field(const ImageFieldView& field, const char* kernel) {
+  if (field.view == VK_NULL_HANDLE)
     throw std::invalid_argument(std::string(kernel) + ": an image field without a view (VK_NULL_HANDLE)");
+  if (field.format == VK_FORMAT_UNDEFINED)
+    throw std::invalid_argument(std::string(kernel) + ": an image field without its view's format "
+                                "(ImageFieldView::format: R32_SFLOAT, R16_SFLOAT, R16_UNORM or R8_UNORM)");
+  field_format_of(field.format, kernel);
+}
+
+uint64_t check_image_pair(const ImageFieldView& ref, const ImageFieldView& opt, const char* kernel) {
+  check_image_field(ref, kernel);
+  check_image_field(opt, kernel);
   const VkExtent3D& e = ref.extent;
   if (e.width != opt.extent.width || e.height != opt.extent.height || e.depth != opt.extent.depth)
     throw std::invalid_argument(std::string(kernel) + ": the two images differ in extent");

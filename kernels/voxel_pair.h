@@ -83,15 +83,21 @@ Binding voxel_texels(const DeviceField& field, size_t c);
 struct ImageFieldView {
   VkImageView view = VK_NULL_HANDLE;
   VkImageLayout layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
-  VkExtent3D extent{0, 0, 0};
+  VkExtent3D extent{0, 0, 0};  // the image's, which Vulkan cannot tell from a view: the host's word
+  // The view's format: one of field_format_of()'s (R32_SFLOAT, R16_SFLOAT, R16_UNORM, R8_UNORM).
+  // Required: any other format (a colour volume's RGBA8, an integer format) would read as some
+  // other number, silently or as undefined behaviour.
+  VkFormat format = VK_FORMAT_UNDEFINED;
 };
 
 // The TFM_FIELD_IMAGE variant of a voxel-pair kernel: its four field bindings (the voxels and
 // the quads of both fields) hold sampled images.
 void bind_fields_as_images(PipelineDesc& desc, std::initializer_list<uint32_t> field_bindings);
 
-// Throws std::invalid_argument (naming `kernel`) unless both images have views and one extent of
-// 1 to 2^32 - 1 voxels; returns the voxel count.
+// Throws std::invalid_argument (naming `kernel`) unless the image has a view and a field format.
+void check_image_field(const ImageFieldView& field, const char* kernel);
+// Throws std::invalid_argument (naming `kernel`) unless both images have views of a field format
+// and one extent of 1 to 2^32 - 1 voxels; returns the voxel count.
 uint64_t check_image_pair(const ImageFieldView& ref, const ImageFieldView& opt, const char* kernel);
 
 // Throws std::invalid_argument (naming `kernel`) unless the two fields have the same voxel count

@@ -95,7 +95,9 @@ void HostDevice::create() {
 }
 
 ExternalDevice HostDevice::external(PFN_vkGetInstanceProcAddr get_instance_proc_addr) const {
-  return ExternalDevice{instance_, physical_, device_, queue_, family_, get_instance_proc_addr};
+  ExternalDevice external{instance_, physical_, device_, queue_, family_, get_instance_proc_addr};
+  external.api_version = VK_API_VERSION_1_2;  // as the instance above was made
+  return external;
 }
 
 VkResult HostDevice::wait_idle() const { return vkDeviceWaitIdle(device_); }

@@ -361,6 +361,25 @@ TEST_F(EmbeddingRecording, BadArgumentsAreClearErrors) {
     VkBuffer volume = host.buffer(1 << 16, &map);
     EXPECT_THROW(DeviceField::adopt(ctx, VK_NULL_HANDLE, 0, 100, "f"), std::invalid_argument);
     EXPECT_THROW(DeviceField::adopt(ctx, volume, 4, 100, "f"), std::invalid_argument);  // misaligned
+    // Past the end of the host's 64 KiB buffer (its memory requirement bounds its size).
+    try {
+      DeviceField::adopt(ctx, volume, 0, 1 << 16, "f");
+      ADD_FAILURE() << "a field of 256 KiB over a buffer of 64 KiB was adopted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("pass the end of the buffer"), std::string::npos) << e.what();
+    }
+    // A host that does not say its instance's Vulkan version, or one below 1.2: refused, since
+    // tfmatch's SPIR-V is for 1.2 (an instance made without VkApplicationInfo is 1.0).
+    for (const uint32_t version : {0u, uint32_t(VK_API_VERSION_1_0), uint32_t(VK_API_VERSION_1_1)}) {
+      ExternalDevice e = device_.external();
+      e.api_version = version;
+      try {
+        Context::adopt(e);
+        ADD_FAILURE() << "adopted with api_version " << version;
+      } catch (const std::invalid_argument& error) {
+        EXPECT_NE(std::string(error.what()).find("VK_API_VERSION_1_2"), std::string::npos) << error.what();
+      }
+    }
     DeviceField f = DeviceField::adopt(ctx, volume, 0, 1000, "f");
     NormalEquationsRecorder recorder(ctx, 8);
     EXPECT_THROW(recorder.result(), std::logic_error);  // nothing recorded yet

@@ -235,8 +235,9 @@ TEST_F(EmbeddingRecording, VolumesAsImagesOfEveryFormatGiveTheirBufferBits) {
         render.record_render(cmd, copier.field(), om, opt_floats, s, picture_view);
         // The assembly reading both images in place (no copy).
         const ImageFieldView ref_view{host.view_3d(ref_image, VK_FORMAT_R32_SFLOAT), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
-                                      extent};
-        const ImageFieldView opt_view{host.view_3d(image, vk_format), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, extent};
+                                      extent, VK_FORMAT_R32_SFLOAT};
+        const ImageFieldView opt_view{host.view_3d(image, vk_format), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, extent,
+                                      vk_format};
         in_place.record_assemble(cmd, ref_view, opt_view, rm, om, ref_floats);
         residual_in_place.record_residual_map(cmd, ref_view, opt_view, rm, om, ref_floats, opt_floats, residual2_field);
         loss_in_place.record_voxel_loss(cmd, ref_view, opt_view, rm, om, ref_floats, opt_floats);

@@ -98,6 +98,7 @@ int main() {
   try {
     // tfmatch borrows the handles: the application still owns and destroys them.
     tfm::ExternalDevice external{app.instance, app.physical, app.device, app.queue, app.family, nullptr};
+    external.api_version = VK_API_VERSION_1_2;  // what the instance was created with
     auto ctx = tfm::Context::adopt(external);
     tfm::DeviceField ref_field(*ctx, ref, "reference"), opt_field(*ctx, opt, "second field");
     tfm::Buffer tf_buffer = tfm::upload_tf(*ctx, ref_tf, "reference TF");

@@ -335,6 +335,7 @@ int main() {
   int status = 0;
   {
     tfm::ExternalDevice lent{app.instance, app.physical, app.device, app.queue, app.family};
+    lent.api_version = VK_API_VERSION_1_2;  // what the instance was created with
     lent.int64_atomics_enabled = app.int64_atomics;
     auto ctx = tfm::Context::adopt(lent);
 
@@ -562,9 +563,9 @@ int main() {
             slot.recorder->record_assemble(cmd, ref_field, opt_field, ref_map, opt_map, ref_floats);
           } else {  // the renderer's images read in place
             const VkImageLayout sampled = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
-            slot.recorder->record_assemble(cmd, tfm::ImageFieldView{ref_volume.view, sampled, extent},
-                                           tfm::ImageFieldView{opt_volume.view, sampled, extent}, ref_map, opt_map,
-                                           ref_floats);
+            slot.recorder->record_assemble(cmd, tfm::ImageFieldView{ref_volume.view, sampled, extent, VK_FORMAT_R32_SFLOAT},
+                                           tfm::ImageFieldView{opt_volume.view, sampled, extent, VK_FORMAT_R16_UNORM},
+                                           ref_map, opt_map, ref_floats);
           }
           slot.assembled = true;
           slot.assembled_tf = ref_tf;
@@ -624,8 +625,10 @@ int main() {
     begin(cmds[0]);
     memory_barrier(cmds[0], VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, VK_PIPELINE_STAGE_TRANSFER_BIT, 0);
     slots[0].uploader->record_tf_upload(cmds[0], last_fit, tfm::TfBufferTarget{fit_tf_buffer.buffer, 0, kFitEntries * 16});
-    const tfm::ImageFieldView ref_in_place{ref_volume.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, extent};
-    const tfm::ImageFieldView opt_in_place{opt_volume.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, extent};
+    const tfm::ImageFieldView ref_in_place{ref_volume.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, extent,
+                                           VK_FORMAT_R32_SFLOAT};
+    const tfm::ImageFieldView opt_in_place{opt_volume.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, extent,
+                                           VK_FORMAT_R16_UNORM};
     residual_recorder_before.record_residual_map(cmds[0], ref_in_place, opt_in_place, ref_map, opt_map,
                                                  last_reference_floats, grey_ramp, residual_before_field);
     residual_recorder_after.record_residual_map(cmds[0], ref_in_place, opt_in_place, ref_map, opt_map,
