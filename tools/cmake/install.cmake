@@ -66,7 +66,9 @@ if(TFMATCH_CUDA)
   install(TARGETS tfmatch_cuda LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}/tfmatch)  # the plugin
   install(EXPORT tfmatchCudaTargets NAMESPACE tfmatch:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/tfmatch)
 endif()
-install(TARGETS tfmatch RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+if(TFMATCH_BUILD_PROGRAM)
+  install(TARGETS tfmatch RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+endif()
 install(TARGETS tfmatch-netcdf4-probe RUNTIME DESTINATION ${CMAKE_INSTALL_LIBEXECDIR}/tfmatch)
 
 # Public headers: every header of the library layers but the internal ones, which stay in the
