@@ -15,20 +15,19 @@ Regularization absolute_regularization(const NormalEquations& eq, const SolveOpt
   for (const auto& [name, value] : {std::pair{"ridge", options.ridge}, std::pair{"smooth", options.smooth}})
     if (!(value >= 0) || !std::isfinite(value))
       throw std::invalid_argument(parameter(name) + ": regularization weights must be finite and >= 0");
-  if (options.ridge > kMaxRelativeRidge) {
+  // "--smooth 2e+09 is beyond 1e+09, where <why>; at 1e+09 the TF is already <limit>".
+  const auto refuse_above = [](const char* name, double value, double max, const char* why, const char* limit) {
+    if (value <= max) return;
     std::ostringstream os;
-    os << parameter("ridge") << " " << options.ridge << " is beyond " << kMaxRelativeRidge
-       << ", where the regularized matrix leaves double's range; at " << kMaxRelativeRidge
-       << " the TF is already 0 to within 1e-100, which heavier ridges tend to";
+    os << parameter(name) << " " << value << " is beyond " << max << ", where " << why << "; at " << max
+       << " the TF is already " << limit;
     throw std::invalid_argument(os.str());
-  }
-  if (options.smooth > kMaxRelativeSmooth) {
-    std::ostringstream os;
-    os << parameter("smooth") << " " << options.smooth << " is beyond " << kMaxRelativeSmooth
-       << ", where double precision no longer resolves the data under the smoothness term; at " << kMaxRelativeSmooth
-       << " the TF is already the constant mean reference colour that heavier smoothing tends to";
-    throw std::invalid_argument(os.str());
-  }
+  };
+  refuse_above("ridge", options.ridge, kMaxRelativeRidge, "the regularized matrix leaves double's range",
+               "0 to within 1e-100, which heavier ridges tend to");
+  refuse_above("smooth", options.smooth, kMaxRelativeSmooth,
+               "double precision no longer resolves the data under the smoothness term",
+               "the constant mean reference colour that heavier smoothing tends to");
   double mean_diag = 0.0;
   for (double d : eq.diag) mean_diag += d;
   if (eq.n > 0) mean_diag /= eq.n;

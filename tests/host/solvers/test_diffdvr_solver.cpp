@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <map>
+#include <string>
 
 #include "cli_runner.h"
 #include "cube_case.h"
@@ -19,6 +21,18 @@ namespace {
 using test::CubeCase;
 
 class DiffDvrSolver : public test::GpuTest {};
+
+// diffdvr on the cube case: a 16-entry TF with the solver options `extra`.
+OptimizeRequest cube_request(const CubeCase& c, std::map<std::string, std::string> extra) {
+  OptimizeRequest req;
+  req.ref = &c.ref;
+  req.field = &c.field;
+  req.ref_tf = c.ref_tf;
+  req.tf_size = 16;
+  req.solver = "diffdvr";
+  req.settings.extra = std::move(extra);
+  return req;
+}
 
 TEST_F(DiffDvrSolver, CubeCaseBeatsVoxelLeastSquaresOnImages) {
   const CubeCase c;
@@ -74,14 +88,8 @@ TEST_F(DiffDvrSolver, RejectsBadOptions) {
 // batch's 128 out at about 2100 views of 8² pixels ("too many timestamps in one batch").
 TEST_F(DiffDvrSolver, TheMostViewsAnIterationTakesRun) {
   const CubeCase c;
-  OptimizeRequest req;
-  req.ref = &c.ref;
-  req.field = &c.field;
-  req.ref_tf = c.ref_tf;
-  req.tf_size = 16;
-  req.solver = "diffdvr";
-  req.settings.extra = {{"iterations", "1"}, {"image-size", "8"}, {"views-per-iteration", "4096"}};
-  const OptimizeResult r = run_optimize(ctx(), req);
+  const OptimizeResult r =
+      run_optimize(ctx(), cube_request(c, {{"iterations", "1"}, {"image-size", "8"}, {"views-per-iteration", "4096"}}));
   EXPECT_EQ(r.tf.size(), 16u);
 }
 
@@ -89,13 +97,7 @@ TEST_F(DiffDvrSolver, TheMostViewsAnIterationTakesRun) {
 // a constant TF, the limit of heavier weights); beyond, it is refused naming the flag and the limit.
 TEST_F(DiffDvrSolver, SmoothnessUpToItsLimitAndNoFurther) {
   const CubeCase c;
-  OptimizeRequest req;
-  req.ref = &c.ref;
-  req.field = &c.field;
-  req.ref_tf = c.ref_tf;
-  req.tf_size = 16;
-  req.solver = "diffdvr";
-  req.settings.extra = {{"iterations", "200"}, {"image-size", "16"}, {"views-per-iteration", "2"}};
+  OptimizeRequest req = cube_request(c, {{"iterations", "200"}, {"image-size", "16"}, {"views-per-iteration", "2"}});
   auto spread = [](const TransferFunction& tf) {  // largest difference of neighbouring entries
     double worst = 0.0;
     for (size_t j = 0; j + 1 < tf.size(); ++j)
