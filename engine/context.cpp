@@ -416,10 +416,10 @@ std::unique_ptr<Context> Context::adopt(const ExternalDevice& external) {
   VkPhysicalDeviceProperties device_properties{};
   vk.vkGetPhysicalDeviceProperties(external.physical_device, &device_properties);
   if (device_properties.apiVersion < VK_API_VERSION_1_2)
-    throw std::invalid_argument("Context::adopt: the device (" + std::string(device_properties.deviceName) +
-                                ") supports Vulkan " + std::to_string(VK_API_VERSION_MAJOR(device_properties.apiVersion)) +
-                                "." + std::to_string(VK_API_VERSION_MINOR(device_properties.apiVersion)) +
-                                "; tfmatch needs 1.2");
+    throw std::invalid_argument(
+        "Context::adopt: the device (" + std::string(device_properties.deviceName) + ") supports Vulkan " +
+        std::to_string(VK_API_VERSION_MAJOR(device_properties.apiVersion)) + "." +
+        std::to_string(VK_API_VERSION_MINOR(device_properties.apiVersion)) + "; tfmatch needs 1.2");
   ctx->int64_atomics_ = external.int64_atomics_enabled && supports_int64_atomics(vk, external.physical_device);
   ctx->load_device_info(external.external_memory_host_enabled);
   ctx->create_pipeline_cache(external.pipeline_cache);

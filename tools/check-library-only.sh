@@ -19,7 +19,8 @@ if [ -e "$build/tfmatch" ]; then
   exit 1
 fi
 cmake --install "$build" --prefix "$work/prefix" >/dev/null
-for f in lib/cmake/tfmatch/tfmatchConfig.cmake libexec/tfmatch/tfmatch-netcdf4-probe include/tfmatch/kernels/recording.h; do
+for f in lib/cmake/tfmatch/tfmatchConfig.cmake libexec/tfmatch/tfmatch-netcdf4-probe \
+  include/tfmatch/kernels/recording.h; do
   if [ ! -e "$work/prefix/$f" ]; then
     echo "check-library-only: $f not installed" >&2
     exit 1

@@ -365,7 +365,8 @@ void write_transfer_function(const std::filesystem::path& path, const TransferFu
   // Extensions compare without case (commands.md), the two-part one too: NAME.PARAVIEW.JSON had
   // been written as a tfmatch table.
   std::string lower_file = file;
-  std::transform(lower_file.begin(), lower_file.end(), lower_file.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(lower_file.begin(), lower_file.end(), lower_file.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
   if (file.size() > 14 && lower_file.ends_with(".paraview.json"))
     return write_file_atomically(path, tf_to_paraview_json(tf, file.substr(0, file.size() - 14)));
   if (ext == ".json") return write_tf_json(path, tf);

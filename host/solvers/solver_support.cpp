@@ -117,7 +117,8 @@ std::optional<std::string> unreferenced_entries_warning(const NormalEquations& e
   const std::vector<float> rgba = tf.as_floats();
   uint32_t unreferenced = 0;
   for (uint32_t j = 0; j < eq.n; ++j)
-    if (eq.diag[j] == 0.0 && std::all_of(rgba.begin() + 4 * j, rgba.begin() + 4 * j + 4, [](float v) { return v == 0.0f; }))
+    if (eq.diag[j] == 0.0 &&
+        std::all_of(rgba.begin() + 4 * j, rgba.begin() + 4 * j + 4, [](float v) { return v == 0.0f; }))
       ++unreferenced;
   if (unreferenced == 0) return std::nullopt;
   return std::to_string(unreferenced) + " of the " + std::to_string(eq.n) +

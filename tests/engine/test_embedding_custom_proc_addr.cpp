@@ -122,7 +122,8 @@ TEST(EmbeddingCustomProcAddr, RefusedArgumentsRecordNothing) {
     VkCommandBuffer cmd = host.begin();
     const VkExtent3D extent{4, 4, 4};
     VkBuffer staging = VK_NULL_HANDLE;
-    const VkImage image = host.volume_image(cmd, VK_FORMAT_R32_SFLOAT, extent, std::vector<uint8_t>(64 * 4, 0), staging);
+    const VkImage image =
+        host.volume_image(cmd, VK_FORMAT_R32_SFLOAT, extent, std::vector<uint8_t>(64 * 4, 0), staging);
     const VkImageView view = host.view_3d(image, VK_FORMAT_R32_SFLOAT);
     const ImageFieldView good{view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, extent, VK_FORMAT_R32_SFLOAT};
     ImageFieldView no_format = good, colour = good;

@@ -119,7 +119,8 @@ TEST_F(NoData, InfinitiesAreEmptySamplesInRendersAndVisibility) {
   s.height = 29;
   s.step_voxels = 0.41;
   s.opacity_scale = 9.0;
-  const RenderedImage g_nan = render_volume(ctx(), nan, tf, {0, 1}, s), g_inf = render_volume(ctx(), inf, tf, {0, 1}, s);
+  const RenderedImage g_nan = render_volume(ctx(), nan, tf, {0, 1}, s);
+  const RenderedImage g_inf = render_volume(ctx(), inf, tf, {0, 1}, s);
   EXPECT_EQ(bits_of(g_inf.rgba), bits_of(g_nan.rgba)) << "GPU renderer";
   const CpuRender c_nan = render_cpu(nan, tf, {0, 1}, s), c_inf = render_cpu(inf, tf, {0, 1}, s);
   EXPECT_EQ(c_inf.rgba, c_nan.rgba) << "CPU renderer";

@@ -142,7 +142,8 @@ TEST(CliHostileFiles, LargePngsAreComparedInLittleMoreThanTheirPixels) {
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("SSIM 0."), std::string::npos) << r.output;
   EXPECT_LT(r.peak_rss_bytes, base.peak_rss_bytes + 60 * kMiB)
-      << "metrics of two 2000² images held " << r.peak_rss_bytes << " bytes, " << base.peak_rss_bytes << " without images";
+      << "metrics of two 2000² images held " << r.peak_rss_bytes << " bytes, " << base.peak_rss_bytes
+      << " without images";
   r = CliProcess("metrics " + dir / "a.png" + " " + dir / "c.png").finish();
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("c.png: size 1999x2000 differs from"), std::string::npos) << r.output;

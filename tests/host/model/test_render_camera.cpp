@@ -135,7 +135,8 @@ TEST(RenderCamera, InvalidSettingsAreRejectedWithTheirName) {
     march_constants(RenderSettings{}, uneven);
     ADD_FAILURE() << "rays of 10^10 samples accepted";
   } catch (const std::runtime_error& e) {
-    for (const char* word : {"over 10^8 samples", "grid 4x3x2", "each axis's spacing 1, 1e+10, 1e+10", "spacing or coordinates"})
+    for (const char* word :
+         {"over 10^8 samples", "grid 4x3x2", "each axis's spacing 1, 1e+10, 1e+10", "spacing or coordinates"})
       EXPECT_NE(std::string(e.what()).find(word), std::string::npos) << e.what();
   }
 }

@@ -563,9 +563,9 @@ int main() {
             slot.recorder->record_assemble(cmd, ref_field, opt_field, ref_map, opt_map, ref_floats);
           } else {  // the renderer's images read in place
             const VkImageLayout sampled = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
-            slot.recorder->record_assemble(cmd, tfm::ImageFieldView{ref_volume.view, sampled, extent, VK_FORMAT_R32_SFLOAT},
-                                           tfm::ImageFieldView{opt_volume.view, sampled, extent, VK_FORMAT_R16_UNORM},
-                                           ref_map, opt_map, ref_floats);
+            const tfm::ImageFieldView ref_image{ref_volume.view, sampled, extent, VK_FORMAT_R32_SFLOAT};
+            const tfm::ImageFieldView opt_image{opt_volume.view, sampled, extent, VK_FORMAT_R16_UNORM};
+            slot.recorder->record_assemble(cmd, ref_image, opt_image, ref_map, opt_map, ref_floats);
           }
           slot.assembled = true;
           slot.assembled_tf = ref_tf;
