@@ -6,6 +6,7 @@
 
 #include "buffer.h"
 #include "context.h"
+#include "device_field.h"  // vk_format_name
 #include "pipeline.h"
 #include "phase_timer.h"
 #include "vk_check.h"
@@ -56,7 +57,7 @@ static uint32_t texel_bytes(VkFormat format) {
     case VK_FORMAT_R32G32_UINT: return 8;
     case VK_FORMAT_R32G32B32A32_SFLOAT:
     case VK_FORMAT_R32G32B32A32_UINT: return 16;
-    default: throw std::logic_error("texel binding: unsupported format " + std::to_string(int(format)));
+    default: throw std::logic_error("texel binding: unsupported format " + vk_format_name(format));
   }
 }
 

@@ -110,6 +110,28 @@ const char* field_format_name(FieldFormat format) {
   return "unknown";
 }
 
+std::string vk_format_name(VkFormat format) {
+  switch (format) {
+    case VK_FORMAT_UNDEFINED: return "UNDEFINED";
+    case VK_FORMAT_R8_UNORM: return "R8_UNORM";
+    case VK_FORMAT_R8_UINT: return "R8_UINT";
+    case VK_FORMAT_R16_UNORM: return "R16_UNORM";
+    case VK_FORMAT_R16_UINT: return "R16_UINT";
+    case VK_FORMAT_R16_SFLOAT: return "R16_SFLOAT";
+    case VK_FORMAT_R32_UINT: return "R32_UINT";
+    case VK_FORMAT_R32_SINT: return "R32_SINT";
+    case VK_FORMAT_R32_SFLOAT: return "R32_SFLOAT";
+    case VK_FORMAT_R8G8B8A8_UNORM: return "R8G8B8A8_UNORM";
+    case VK_FORMAT_R8G8B8A8_SRGB: return "R8G8B8A8_SRGB";
+    case VK_FORMAT_B8G8R8A8_UNORM: return "B8G8R8A8_UNORM";
+    case VK_FORMAT_R16G16B16A16_UNORM: return "R16G16B16A16_UNORM";
+    case VK_FORMAT_R16G16B16A16_SFLOAT: return "R16G16B16A16_SFLOAT";
+    case VK_FORMAT_R32G32B32A32_SFLOAT: return "R32G32B32A32_SFLOAT";
+    case VK_FORMAT_R64_SFLOAT: return "R64_SFLOAT";
+    default: return "VkFormat " + std::to_string(int(format));
+  }
+}
+
 FieldFormat field_format_of(VkFormat format, const char* what) {
   switch (format) {
     case VK_FORMAT_R32_SFLOAT: return FieldFormat::Float32;
@@ -117,7 +139,7 @@ FieldFormat field_format_of(VkFormat format, const char* what) {
     case VK_FORMAT_R16_UNORM: return FieldFormat::Unorm16;
     case VK_FORMAT_R8_UNORM: return FieldFormat::Unorm8;
     default:
-      throw std::invalid_argument(std::string(what) + ": image format " + std::to_string(int(format)) +
+      throw std::invalid_argument(std::string(what) + ": image format " + vk_format_name(format) +
                                   " is not a field format (R32_SFLOAT, R16_SFLOAT, R16_UNORM or R8_UNORM)");
   }
 }

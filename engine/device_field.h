@@ -24,6 +24,9 @@ uint32_t field_format_bytes(FieldFormat format);
 VkFormat voxel_texel_format(FieldFormat format);  // one voxel a texel: R32_SFLOAT, R16_SFLOAT, R16_UNORM, R8_UNORM
 VkFormat quad_texel_format(FieldFormat format);   // four voxels a texel: the RGBA formats of the same
 const char* field_format_name(FieldFormat format);
+// "R8G8B8A8_UNORM" for the formats a host is likely to hand tfmatch (the field and TF formats,
+// their multi-channel and integer neighbours), else "VkFormat N": for messages.
+std::string vk_format_name(VkFormat format);
 // The FieldFormat of a one-channel image format the kernels read a field from (R32_SFLOAT,
 // R16_SFLOAT, R16_UNORM, R8_UNORM); std::invalid_argument naming `what` and the format for any
 // other.

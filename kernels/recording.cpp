@@ -410,7 +410,7 @@ std::vector<uint8_t> encode_tf_texels(std::span<const float> rgba, VkFormat form
         out[i] = uint8_t(std::lround(std::clamp(rgba[i], 0.0f, 1.0f) * 255.0f));
       break;
     default:
-      throw std::invalid_argument("record_tf_upload: TF image format " + std::to_string(int(format)) +
+      throw std::invalid_argument("record_tf_upload: TF image format " + vk_format_name(format) +
                                   " (supported: R32G32B32A32_SFLOAT, R16G16B16A16_SFLOAT, R8G8B8A8_UNORM)");
   }
   return out;
