@@ -2,7 +2,7 @@
 // calls. The loader (host/solvers/cuda/cuda_backend.cpp) finds it by name with dlsym.
 #include <stdexcept>
 
-#include "cuda_common.cuh"
+#include "tfmatch/cuda/cuda_common.cuh"
 
 #ifndef TFMATCH_CUDA_INTERFACE_TAG
 #error "TFMATCH_CUDA_INTERFACE_TAG (the hash of cuda_solvers.h) is set by cuda/CMakeLists.txt"

@@ -7,7 +7,7 @@
 #include <chrono>
 #include <cmath>
 
-#include "cuda_common.cuh"
+#include "tfmatch/cuda/cuda_common.cuh"
 
 namespace tfm::cuda {
 namespace {

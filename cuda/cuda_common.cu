@@ -1,5 +1,5 @@
 // Device discovery, the CSR transposition and the channel reductions shared by the CUDA paths.
-#include "cuda_common.cuh"
+#include "tfmatch/cuda/cuda_common.cuh"
 
 namespace tfm::cuda {
 

@@ -11,7 +11,7 @@
 #include <cuda_runtime.h>
 #include <cusparse.h>
 
-#include "cuda_solvers.h"
+#include "tfmatch/cuda/cuda_solvers.h"
 
 namespace tfm::cuda {
 

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "field_mapping.h"
+#include "tfmatch/model/field_mapping.h"
 
 namespace tfm::cuda {
 

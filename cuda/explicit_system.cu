@@ -10,7 +10,7 @@
 
 #include <cub/device/device_scan.cuh>
 
-#include "cuda_common.cuh"
+#include "tfmatch/cuda/cuda_common.cuh"
 
 namespace tfm::cuda {
 namespace {

@@ -5,7 +5,7 @@
 // forming A^T A itself.
 #include <chrono>
 
-#include "cuda_common.cuh"
+#include "tfmatch/cuda/cuda_common.cuh"
 
 namespace tfm::cuda {
 

@@ -1,5 +1,5 @@
 // Buffer allocation and staged transfers.
-#include "buffer.h"
+#include "tfmatch/engine/buffer.h"
 
 #include <algorithm>
 #include <cstring>
@@ -7,11 +7,11 @@
 #include <stdexcept>
 #include <utility>
 
-#include "commands.h"
-#include "context.h"
-#include "phase_timer.h"
-#include "vk_check.h"
-#include "vk_dispatch.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/model/phase_timer.h"
+#include "tfmatch/engine/vk_check.h"
+#include "tfmatch/engine/vk_dispatch.h"
 
 namespace tfm {
 namespace {

@@ -1,16 +1,16 @@
 // Command batches: one command buffer, fence, descriptor pools and timestamp queries each.
-#include "commands.h"
+#include "tfmatch/engine/commands.h"
 
 #include <algorithm>
 #include <stdexcept>
 
-#include "buffer.h"
-#include "context.h"
-#include "device_field.h"  // vk_format_name
-#include "pipeline.h"
-#include "phase_timer.h"
-#include "vk_check.h"
-#include "vk_dispatch.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/engine/device_field.h"  // vk_format_name
+#include "tfmatch/engine/pipeline.h"
+#include "tfmatch/model/phase_timer.h"
+#include "tfmatch/engine/vk_check.h"
+#include "tfmatch/engine/vk_dispatch.h"
 
 namespace tfm {
 namespace {

@@ -1,5 +1,5 @@
 // Instance/device creation, device selection, adoption of host handles, validation capture.
-#include "context.h"
+#include "tfmatch/engine/context.h"
 
 #include <algorithm>
 #include <cctype>
@@ -11,10 +11,10 @@
 #include <stdexcept>
 #include <utility>
 
-#include "phase_timer.h"
-#include "pipeline.h"
-#include "vk_check.h"
-#include "vk_dispatch.h"
+#include "tfmatch/model/phase_timer.h"
+#include "tfmatch/engine/pipeline.h"
+#include "tfmatch/engine/vk_check.h"
+#include "tfmatch/engine/vk_dispatch.h"
 
 namespace tfm {
 namespace {

@@ -16,7 +16,7 @@
 
 #include <vulkan/vulkan_core.h>
 
-#include "buffer.h"
+#include "tfmatch/engine/buffer.h"
 
 namespace tfm {
 

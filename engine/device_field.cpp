@@ -1,12 +1,12 @@
 // Chunked device fields.
-#include "device_field.h"
+#include "tfmatch/engine/device_field.h"
 
 #include <unistd.h>
 
 #include <algorithm>
 #include <stdexcept>
 
-#include "context.h"
+#include "tfmatch/engine/context.h"
 
 namespace tfm {
 

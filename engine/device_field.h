@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "buffer.h"
+#include "tfmatch/engine/buffer.h"
 
 namespace tfm {
 

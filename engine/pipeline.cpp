@@ -1,15 +1,15 @@
 // Shader module, descriptor-set layout, pipeline layout and pipeline for one compute kernel.
-#include "pipeline.h"
+#include "tfmatch/engine/pipeline.h"
 
 #include <mutex>
 #include <shared_mutex>
 #include <span>
 #include <stdexcept>
 
-#include "context.h"
-#include "phase_timer.h"
-#include "vk_check.h"
-#include "vk_dispatch.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/model/phase_timer.h"
+#include "tfmatch/engine/vk_check.h"
+#include "tfmatch/engine/vk_dispatch.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // VkResult names and the error thrown by VK_CHECK.
-#include "vk_check.h"
+#include "tfmatch/engine/vk_check.h"
 
 namespace tfm {
 

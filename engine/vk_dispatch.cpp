@@ -1,9 +1,9 @@
 // Loading the loader and one context's entry points (engine/vk_dispatch.h).
-#include "vk_dispatch.h"
+#include "tfmatch/engine/vk_dispatch.h"
 
 #include <mutex>
 
-#include "vk_check.h"
+#include "tfmatch/engine/vk_check.h"
 
 namespace tfm {
 

@@ -1,11 +1,11 @@
 // Pipelines and dispatches of the normal-equation assembly (kernels/assemble_normal_equations.h).
-#include "assemble_normal_equations.h"
+#include "tfmatch/kernels/assemble_normal_equations.h"
 
 #include <algorithm>
 #include <stdexcept>
 
-#include "context.h"
-#include "shader_registry.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/shaders/shader_registry.h"
 
 namespace tfm {
 

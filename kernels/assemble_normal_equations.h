@@ -9,13 +9,13 @@
 #include <tuple>
 #include <vector>
 
-#include "buffer.h"
-#include "commands.h"
-#include "device_field.h"
-#include "field_mapping.h"
-#include "pipeline.h"
-#include "reduction.h"
-#include "voxel_pair.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/engine/pipeline.h"
+#include "tfmatch/kernels/reduction.h"
+#include "tfmatch/kernels/voxel_pair.h"
 
 namespace tfm {
 

@@ -1,11 +1,11 @@
 // Pipeline and dispatch of the CGLS vector stages.
-#include "cgls_vectors.h"
+#include "tfmatch/kernels/cgls_vectors.h"
 
-#include "shader_registry.h"
+#include "tfmatch/shaders/shader_registry.h"
 
 #include <stdexcept>
 
-#include "sparse_ops.h"
+#include "tfmatch/kernels/sparse_ops.h"
 
 namespace tfm {
 

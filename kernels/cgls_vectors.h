@@ -5,10 +5,10 @@
 #include <cstdint>
 #include <memory>
 
-#include "buffer.h"
-#include "commands.h"
-#include "pipeline.h"
-#include "solver_layout.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/pipeline.h"
+#include "tfmatch/shaders/solver_layout.h"
 
 namespace tfm {
 

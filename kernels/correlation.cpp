@@ -1,8 +1,8 @@
 // Correlation fields on the device: measure names and parameter checks, the strategy per member
 // count, and CorrelationKernel, which streams the ensemble through the kernels in chunks of voxels.
-#include "correlation.h"
+#include "tfmatch/kernels/correlation.h"
 
-#include "shader_registry.h"
+#include "tfmatch/shaders/shader_registry.h"
 
 #include <algorithm>
 #include <bit>
@@ -15,13 +15,13 @@
 #include <stdexcept>
 #include <tuple>
 
-#include "buffer.h"
-#include "commands.h"
-#include "context.h"
-#include "device_field.h"
-#include "correlation_layout.h"
-#include "correlation_reference.h"
-#include "pipeline.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/shaders/correlation_layout.h"
+#include "tfmatch/model/correlation_reference.h"
+#include "tfmatch/engine/pipeline.h"
 
 namespace tfm {
 

@@ -21,11 +21,11 @@
 #include <string>
 #include <vector>
 
-#include "correlation_measure.h"  // the measures, their parameters, EnsembleView
+#include "tfmatch/model/correlation_measure.h"  // the measures, their parameters, EnsembleView
 
-#include "buffer.h"
-#include "commands.h"
-#include "device_field.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/device_field.h"
 
 namespace tfm {
 

@@ -1,13 +1,13 @@
 // Correlation fields of reference points: the kernel once or twice, then difference and magnitude.
-#include "correlation_field.h"
+#include "tfmatch/kernels/correlation_field.h"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
-#include "cancellation.h"
-#include "memory_budget.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/memory_budget.h"
 
 namespace tfm {
 

@@ -9,10 +9,10 @@
 #include <span>
 #include <vector>
 
-#include "context.h"
-#include "correlation.h"
-#include "ensemble.h"
-#include "volume_slabs.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/correlation.h"
+#include "tfmatch/model/ensemble.h"
+#include "tfmatch/model/volume_slabs.h"
 
 namespace tfm {
 

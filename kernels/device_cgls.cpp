@@ -1,5 +1,5 @@
 // The recording of preconditioned CGLS on the device (see device_cgls.h).
-#include "device_cgls.h"
+#include "tfmatch/kernels/device_cgls.h"
 
 #include <algorithm>
 #include <stdexcept>

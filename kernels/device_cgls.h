@@ -9,10 +9,10 @@
 #include <span>
 #include <vector>
 
-#include "buffer.h"
-#include "cgls_vectors.h"
-#include "commands.h"
-#include "sparse_ops.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/kernels/cgls_vectors.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/sparse_ops.h"
 
 namespace tfm {
 

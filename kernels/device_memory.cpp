@@ -1,11 +1,11 @@
 // The device-memory check (kernels/device_memory.h).
-#include "device_memory.h"
+#include "tfmatch/kernels/device_memory.h"
 
 #include <algorithm>
 #include <stdexcept>
 
-#include "context.h"
-#include "memory_budget.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/model/memory_budget.h"
 
 namespace tfm {
 

@@ -1,14 +1,14 @@
 // Pipelines and dispatch recording of the DiffDVR passes: the forward pass is render_image.comp in
 // its DiffDVR state mode, the backward pass diffdvr_backward.comp.
-#include "diffdvr.h"
+#include "tfmatch/kernels/diffdvr.h"
 
-#include "shader_registry.h"
+#include "tfmatch/shaders/shader_registry.h"
 
 #include <stdexcept>
 #include <string>
 
-#include "context.h"
-#include "render_image.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/render_image.h"
 
 namespace tfm {
 

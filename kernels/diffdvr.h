@@ -9,13 +9,13 @@
 #include <string>
 #include <vector>
 
-#include "buffer.h"
-#include "commands.h"
-#include "device_field.h"
-#include "diffdvr_layout.h"
-#include "image_loss.h"
-#include "pipeline.h"
-#include "reduction.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/shaders/diffdvr_layout.h"
+#include "tfmatch/model/image_loss.h"
+#include "tfmatch/engine/pipeline.h"
+#include "tfmatch/kernels/reduction.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // GPU normal-equation assembly and voxel loss over device fields.
-#include "gpu_voxel_ops.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
 
 #include <cmath>
 #include <limits>
@@ -7,8 +7,8 @@
 #include <stdexcept>
 #include <vector>
 
-#include "commands.h"
-#include "voxel_loss.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/voxel_loss.h"
 
 namespace tfm {
 

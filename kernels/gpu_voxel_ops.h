@@ -7,12 +7,12 @@
 #include <string>
 #include <vector>
 
-#include "context.h"
-#include "device_field.h"
-#include "normal_equations_system.h"
-#include "transfer_function.h"
-#include "assemble_normal_equations.h"
-#include "voxel_loss.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/model/normal_equations_system.h"
+#include "tfmatch/model/transfer_function.h"
+#include "tfmatch/kernels/assemble_normal_equations.h"
+#include "tfmatch/kernels/voxel_loss.h"
 
 namespace tfm {
 

@@ -1,13 +1,13 @@
 // Pipelines and dispatch of the gradient-descent kernels.
-#include "gradient_descent.h"
+#include "tfmatch/kernels/gradient_descent.h"
 
-#include "shader_registry.h"
+#include "tfmatch/shaders/shader_registry.h"
 
 #include <stdexcept>
 
-#include "context.h"
-#include "sparse_ops.h"
-#include "voxel_pair.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/sparse_ops.h"
+#include "tfmatch/kernels/voxel_pair.h"
 
 namespace tfm {
 

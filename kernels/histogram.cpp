@@ -1,14 +1,14 @@
 // Pipeline and dispatches of the field-histogram kernel.
-#include "histogram.h"
+#include "tfmatch/kernels/histogram.h"
 
 #include <algorithm>
 #include <limits>
 #include <stdexcept>
 
-#include "commands.h"
-#include "context.h"
-#include "shader_registry.h"
-#include "voxel_pair.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/shaders/shader_registry.h"
+#include "tfmatch/kernels/voxel_pair.h"
 
 namespace tfm {
 

@@ -10,10 +10,10 @@
 #include <memory>
 #include <vector>
 
-#include "buffer.h"
-#include "device_field.h"
-#include "field_histogram.h"  // FieldHistogram, the bin arithmetic
-#include "pipeline.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/model/field_histogram.h"  // FieldHistogram, the bin arithmetic
+#include "tfmatch/engine/pipeline.h"
 
 namespace tfm {
 

@@ -1,12 +1,12 @@
 // Pipelines, dispatch and decoding of the IRLS pass (irls_assemble).
-#include "irls.h"
+#include "tfmatch/kernels/irls.h"
 
 #include <stdexcept>
 #include <string>
 
-#include "solver_layout.h"
-#include "sparse_ops.h"
-#include "voxel_pair.h"
+#include "tfmatch/shaders/solver_layout.h"
+#include "tfmatch/kernels/sparse_ops.h"
+#include "tfmatch/kernels/voxel_pair.h"
 
 namespace tfm {
 

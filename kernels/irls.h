@@ -7,11 +7,11 @@
 #include <cstdint>
 #include <vector>
 
-#include "buffer.h"
-#include "commands.h"
-#include "device_field.h"
-#include "reduction.h"
-#include "tf_residual_pass.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/kernels/reduction.h"
+#include "tfmatch/kernels/tf_residual_pass.h"
 
 namespace tfm {
 

@@ -1,14 +1,14 @@
 // Pipeline and single dispatch of the loop probe.
-#include "loop_probe.h"
+#include "tfmatch/kernels/loop_probe.h"
 
 #include <vector>
 
-#include "buffer.h"
-#include "commands.h"
-#include "context.h"
-#include "loop_probe_layout.h"
-#include "pipeline.h"
-#include "shader_registry.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/shaders/loop_probe_layout.h"
+#include "tfmatch/engine/pipeline.h"
+#include "tfmatch/shaders/shader_registry.h"
 
 namespace tfm {
 

@@ -1,16 +1,16 @@
 // Pipeline and dispatches of the assembly's read bound.
-#include "read_bound.h"
+#include "tfmatch/kernels/read_bound.h"
 
 #include <algorithm>
 #include <bit>
 #include <stdexcept>
 
-#include "buffer.h"
-#include "commands.h"
-#include "context.h"
-#include "read_bound_layout.h"
-#include "shader_registry.h"
-#include "voxel_pair.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/shaders/read_bound_layout.h"
+#include "tfmatch/shaders/shader_registry.h"
+#include "tfmatch/kernels/voxel_pair.h"
 
 namespace tfm {
 

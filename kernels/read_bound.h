@@ -9,8 +9,8 @@
 #include <memory>
 #include <span>
 
-#include "device_field.h"
-#include "pipeline.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/engine/pipeline.h"
 
 namespace tfm {
 

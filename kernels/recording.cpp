@@ -1,5 +1,5 @@
 // Recording the assembly and the TF upload into a host's command buffers (kernels/recording.h).
-#include "recording.h"
+#include "tfmatch/kernels/recording.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,15 +9,15 @@
 
 #include <glm/gtc/packing.hpp>
 
-#include "assemble_normal_equations.h"
-#include "commands.h"
-#include "context.h"
-#include "correlation_reference.h"
-#include "render.h"
-#include "render_image.h"
-#include "residual_map.h"
-#include "shared_layout.h"
-#include "voxel_loss.h"
+#include "tfmatch/kernels/assemble_normal_equations.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/model/correlation_reference.h"
+#include "tfmatch/kernels/render.h"
+#include "tfmatch/kernels/render_image.h"
+#include "tfmatch/kernels/residual_map.h"
+#include "tfmatch/shaders/shared_layout.h"
+#include "tfmatch/kernels/voxel_loss.h"
 
 namespace tfm {
 

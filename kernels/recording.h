@@ -25,15 +25,15 @@
 
 #include <vulkan/vulkan_core.h>
 
-#include "assemble_normal_equations.h"
-#include "buffer.h"
-#include "camera.h"
-#include "correlation.h"
-#include "device_field.h"
-#include "field_mapping.h"
-#include "gpu_voxel_ops.h"
-#include "normal_equations_system.h"
-#include "reduction.h"
+#include "tfmatch/kernels/assemble_normal_equations.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/kernels/correlation.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/model/normal_equations_system.h"
+#include "tfmatch/kernels/reduction.h"
 
 namespace tfm {
 

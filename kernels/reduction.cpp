@@ -1,15 +1,15 @@
 // Choosing how the voxel-reducing kernels sum their terms.
-#include "reduction.h"
+#include "tfmatch/kernels/reduction.h"
 
 #include <algorithm>
 #include <stdexcept>
 #include <string>
 #include <utility>
 
-#include "context.h"
-#include "shader_registry.h"
-#include "shared_layout.h"
-#include "voxel_pair.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/shaders/shader_registry.h"
+#include "tfmatch/shaders/shared_layout.h"
+#include "tfmatch/kernels/voxel_pair.h"
 
 namespace tfm {
 

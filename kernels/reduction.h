@@ -7,8 +7,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "pipeline.h"
-#include "shared_layout.h"  // TFM_VOXEL_WORKGROUP
+#include "tfmatch/engine/pipeline.h"
+#include "tfmatch/shaders/shared_layout.h"  // TFM_VOXEL_WORKGROUP
 
 namespace tfm {
 

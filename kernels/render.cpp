@@ -1,5 +1,5 @@
 // GPU rendering of a device field into a host image.
-#include "render.h"
+#include "tfmatch/kernels/render.h"
 
 #include <chrono>
 
@@ -8,11 +8,11 @@
 #include <cstring>
 #include <mutex>
 
-#include "cancellation.h"
-#include "commands.h"
-#include "gpu_voxel_ops.h"
-#include "device_memory.h"
-#include "memory_budget.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/kernels/device_memory.h"
+#include "tfmatch/model/memory_budget.h"
 
 namespace tfm {
 

@@ -6,16 +6,16 @@
 #include <memory>
 #include <vector>
 
-#include "camera.h"
-#include "context.h"
-#include "device_field.h"
-#include "field_mapping.h"
-#include "image.h"
-#include "progress.h"
-#include "render_image.h"
-#include "render_settings.h"
-#include "transfer_function.h"
-#include "volume.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/model/image.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/kernels/render_image.h"
+#include "tfmatch/model/render_settings.h"
+#include "tfmatch/model/transfer_function.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

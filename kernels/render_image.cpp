@@ -1,14 +1,14 @@
 // Pipeline and dispatch recording of the direct volume renderer.
-#include "render_image.h"
+#include "tfmatch/kernels/render_image.h"
 
-#include "shader_registry.h"
+#include "tfmatch/shaders/shader_registry.h"
 
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
 
-#include "context.h"
+#include "tfmatch/engine/context.h"
 
 namespace tfm {
 

@@ -8,13 +8,13 @@
 #include <utility>
 #include <vector>
 
-#include "buffer.h"
-#include "camera.h"
-#include "commands.h"
-#include "device_field.h"
-#include "pipeline.h"
-#include "render_layout.h"
-#include "voxel_pair.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/engine/pipeline.h"
+#include "tfmatch/shaders/render_layout.h"
+#include "tfmatch/kernels/voxel_pair.h"
 
 namespace tfm {
 

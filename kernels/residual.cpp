@@ -1,14 +1,14 @@
 // Residual maps on the device.
-#include "residual.h"
+#include "tfmatch/kernels/residual.h"
 
 #include <algorithm>
 #include <cmath>
 
-#include "commands.h"
-#include "gpu_voxel_ops.h"
-#include "device_memory.h"
-#include "memory_budget.h"
-#include "residual_map.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/kernels/device_memory.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/kernels/residual_map.h"
 
 namespace tfm {
 

@@ -2,11 +2,11 @@
 // they are rendered with.
 #pragma once
 
-#include "context.h"
-#include "device_field.h"
-#include "field_mapping.h"
-#include "transfer_function.h"
-#include "volume.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/model/transfer_function.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

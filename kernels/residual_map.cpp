@@ -1,13 +1,13 @@
 // Pipeline and dispatch recording of the residual-map kernel.
-#include "residual_map.h"
+#include "tfmatch/kernels/residual_map.h"
 
-#include "shader_registry.h"
+#include "tfmatch/shaders/shader_registry.h"
 
 #include <stdexcept>
 
-#include "context.h"
-#include "render_layout.h"
-#include "voxel_pair.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/shaders/render_layout.h"
+#include "tfmatch/kernels/voxel_pair.h"
 
 namespace tfm {
 

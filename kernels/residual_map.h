@@ -6,12 +6,12 @@
 #include <memory>
 #include <utility>
 
-#include "buffer.h"
-#include "commands.h"
-#include "device_field.h"
-#include "pipeline.h"
-#include "voxel_pair.h"
-#include "shared_layout.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/engine/pipeline.h"
+#include "tfmatch/kernels/voxel_pair.h"
+#include "tfmatch/shaders/shared_layout.h"
 
 namespace tfm {
 

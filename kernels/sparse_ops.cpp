@@ -1,15 +1,15 @@
 // Voxel vectors and the prepare / gather / scatter kernels of the matrix-free solvers.
-#include "sparse_ops.h"
+#include "tfmatch/kernels/sparse_ops.h"
 
-#include "shader_registry.h"
+#include "tfmatch/shaders/shader_registry.h"
 
 #include <algorithm>
 #include <stdexcept>
 #include <string>
 
-#include "context.h"
-#include "diffdvr.h"  // FixedPointTotals, the decoder of signed accumulators
-#include "voxel_pair.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/diffdvr.h"  // FixedPointTotals, the decoder of signed accumulators
+#include "tfmatch/kernels/voxel_pair.h"
 
 namespace tfm {
 

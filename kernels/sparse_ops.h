@@ -8,12 +8,12 @@
 #include <memory>
 #include <vector>
 
-#include "buffer.h"
-#include "commands.h"
-#include "device_field.h"
-#include "pipeline.h"
-#include "reduction.h"
-#include "solver_layout.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/engine/pipeline.h"
+#include "tfmatch/kernels/reduction.h"
+#include "tfmatch/shaders/solver_layout.h"
 
 namespace tfm {
 

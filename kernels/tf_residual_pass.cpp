@@ -1,12 +1,12 @@
 // Pipelines and dispatch of the tf_residual.glsl kernels (gd_gradient, irls_assemble).
-#include "tf_residual_pass.h"
+#include "tfmatch/kernels/tf_residual_pass.h"
 
 #include <stdexcept>
 #include <string>
 
-#include "context.h"
-#include "solver_layout.h"
-#include "voxel_pair.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/shaders/solver_layout.h"
+#include "tfmatch/kernels/voxel_pair.h"
 
 namespace tfm {
 

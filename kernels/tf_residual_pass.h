@@ -10,11 +10,11 @@
 #include <utility>
 #include <vector>
 
-#include "buffer.h"
-#include "commands.h"
-#include "device_field.h"
-#include "pipeline.h"
-#include "reduction.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/engine/pipeline.h"
+#include "tfmatch/kernels/reduction.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // Pipelines and dispatches of the visibility weights (kernels/visibility_weights.h).
-#include "visibility_weights.h"
+#include "tfmatch/kernels/visibility_weights.h"
 
 #include <algorithm>
 #include <cstring>
@@ -8,10 +8,10 @@
 #include <string>
 #include <vector>
 
-#include "context.h"
-#include "render_image.h"
-#include "shader_registry.h"
-#include "visibility_layout.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/render_image.h"
+#include "tfmatch/shaders/shader_registry.h"
+#include "tfmatch/shaders/visibility_layout.h"
 
 namespace tfm {
 

@@ -13,13 +13,13 @@
 #include <memory>
 #include <span>
 
-#include "buffer.h"
-#include "camera.h"
-#include "commands.h"
-#include "device_field.h"
-#include "field_mapping.h"
-#include "pipeline.h"
-#include "render_settings.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/engine/pipeline.h"
+#include "tfmatch/model/render_settings.h"
 
 namespace tfm {
 

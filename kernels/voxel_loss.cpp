@@ -1,10 +1,10 @@
 // Pipelines and dispatches of the voxel loss (kernels/voxel_loss.h).
-#include "voxel_loss.h"
+#include "tfmatch/kernels/voxel_loss.h"
 
 #include <stdexcept>
 
-#include "context.h"
-#include "shader_registry.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/shaders/shader_registry.h"
 
 namespace tfm {
 

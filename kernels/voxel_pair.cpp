@@ -1,10 +1,10 @@
 // What the voxel-pair kernels share (kernels/voxel_pair.h).
-#include "voxel_pair.h"
+#include "tfmatch/kernels/voxel_pair.h"
 
 #include <algorithm>
 #include <stdexcept>
 
-#include "context.h"
+#include "tfmatch/engine/context.h"
 
 namespace tfm {
 

@@ -11,12 +11,12 @@
 #include <vector>
 #include <memory>
 
-#include "buffer.h"
-#include "commands.h"
-#include "device_field.h"
-#include "pipeline.h"
-#include "reduction.h"
-#include "shared_layout.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/engine/pipeline.h"
+#include "tfmatch/kernels/reduction.h"
+#include "tfmatch/shaders/shared_layout.h"
 
 namespace tfm {
 

@@ -1,6 +1,6 @@
 // Atomic outputs: temporary files renamed into place, output batches, and the registry of
 // temporary paths an interrupt removes.
-#include "atomic_file.h"
+#include "tfmatch/io/atomic_file.h"
 
 #include <algorithm>
 #include <atomic>
@@ -15,8 +15,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "cancellation.h"
-#include "phase_timer.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/phase_timer.h"
 
 namespace fs = std::filesystem;
 

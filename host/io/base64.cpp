@@ -1,5 +1,5 @@
 // Base64 decoding (segment-tolerant, see base64.h) and encoding.
-#include "base64.h"
+#include "tfmatch/io/base64.h"
 
 #include <array>
 #include <stdexcept>

@@ -2,7 +2,7 @@
 // matches eccodes.h's declaration (the compiler checks it) and forwards to the library's own.
 #include <eccodes.h>
 
-#include "lazy_library.h"
+#include "tfmatch/io/lazy_library.h"
 
 namespace {
 tfm::LazyLibrary& eccodes() {

@@ -1,6 +1,6 @@
 // Ensembles read member by member through the format table (volume_format_table.h): each format
 // knows how to select one member, so an ensemble needs no reader of its own.
-#include "ensemble_io.h"
+#include "tfmatch/io/ensemble_io.h"
 
 #include <glob.h>
 #include <sys/resource.h>
@@ -10,11 +10,11 @@
 #include <memory>
 #include <stdexcept>
 
-#include "memory_budget.h"
-#include "parameter_names.h"
-#include "phase_timer.h"
-#include "volume_format_table.h"
-#include "volume_formats.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/model/parameter_names.h"
+#include "tfmatch/model/phase_timer.h"
+#include "tfmatch/io/volume_format_table.h"
+#include "tfmatch/io/volume_formats.h"
 
 namespace tfm {
 namespace {

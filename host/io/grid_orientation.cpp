@@ -1,6 +1,6 @@
 // Which axes of a geographic grid to reverse so that x points east, y north and z up, and the
 // reversal itself (see grid_orientation.h).
-#include "grid_orientation.h"
+#include "tfmatch/io/grid_orientation.h"
 
 #include <algorithm>
 #include <cctype>

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "volume.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

@@ -1,6 +1,6 @@
 // A shared library opened on first use (lazy_library.h). By hand: glibc has no lazy loading of a
 // program's dependencies, and Debian packages no stub generator for it.
-#include "lazy_library.h"
+#include "tfmatch/io/lazy_library.h"
 
 #include <dlfcn.h>
 

@@ -1,5 +1,5 @@
 // netCDF-4 metadata read first in a child process (netcdf4_probe.h).
-#include "netcdf4_probe.h"
+#include "tfmatch/io/netcdf4_probe.h"
 
 #include <netcdf.h>
 #include <netcdf_mem.h>
@@ -23,7 +23,7 @@
 #include <tuple>
 #include <vector>
 
-#include "cancellation.h"
+#include "tfmatch/model/cancellation.h"
 
 namespace tfm {
 namespace {

@@ -1,6 +1,6 @@
 // Size of a classic NetCDF file's header and data (layout from the NetCDF classic format
 // specification: magic, numrecs, dim_list, gatt_list, var_list, then the data).
-#include "netcdf_classic.h"
+#include "tfmatch/io/netcdf_classic.h"
 
 #include <netcdf.h>
 

@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <string>
 
-#include "volume_formats.h"  // ByteReader
+#include "tfmatch/io/volume_formats.h"  // ByteReader
 
 namespace tfm {
 

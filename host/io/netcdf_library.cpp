@@ -3,7 +3,7 @@
 #include <netcdf.h>
 #include <netcdf_mem.h>
 
-#include "lazy_library.h"
+#include "tfmatch/io/lazy_library.h"
 
 namespace {
 tfm::LazyLibrary& netcdf() {

@@ -1,5 +1,5 @@
 // The up-front check of a command's inputs and outputs.
-#include "output_check.h"
+#include "tfmatch/io/output_check.h"
 
 #include <optional>
 #include <stdexcept>

@@ -1,5 +1,5 @@
 // The on-disk pipeline cache: an 8-byte magic, the data's length and CRC-32 (zlib), the data.
-#include "pipeline_cache_file.h"
+#include "tfmatch/io/pipeline_cache_file.h"
 
 #include <algorithm>
 #include <array>

@@ -1,6 +1,6 @@
 // Transfer-function file formats of other tools (see tf_formats.h): control points <-> tables,
 // the framework's XML, ParaView presets, and dispatch by content / extension.
-#include "tf_formats.h"
+#include "tfmatch/io/tf_formats.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,12 +9,12 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "atomic_file.h"
-#include "builtin_tf.h"
-#include "json.h"
-#include "volume_formats.h"
-#include "xml_tree.h"
-#include "tf_json.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/model/builtin_tf.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/io/volume_formats.h"
+#include "tfmatch/io/xml_tree.h"
+#include "tfmatch/io/tf_json.h"
 
 namespace tfm {
 namespace {

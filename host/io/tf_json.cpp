@@ -1,15 +1,15 @@
 // tfmatch's TF JSON format: {"rgba": [[r,g,b,a], ...], "range": [lo, hi]?, "colorspace":
 // "linear-rgb" (the default) | "srgb"?}.
-#include "tf_json.h"
+#include "tfmatch/io/tf_json.h"
 
 #include <cmath>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
 
-#include "atomic_file.h"
-#include "color_spaces.h"
-#include "json.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/model/color_spaces.h"
+#include "tfmatch/io/json.h"
 
 namespace tfm {
 

@@ -1,12 +1,12 @@
 // The table of volume formats (one row per format) and what iterates it: detection and the lists
 // in messages and help text.
-#include "volume_format_table.h"
+#include "tfmatch/io/volume_format_table.h"
 
 #include <algorithm>
 #include <cctype>
 #include <fstream>
 
-#include "volume_formats.h"
+#include "tfmatch/io/volume_formats.h"
 
 namespace tfm {
 namespace {

@@ -9,10 +9,10 @@
 #include <string_view>
 #include <vector>
 
-#include "volume.h"
-#include "volume_info.h"
-#include "volume_io.h"
-#include "volume_slabs.h"
+#include "tfmatch/model/volume.h"
+#include "tfmatch/io/volume_info.h"
+#include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/volume_slabs.h"
 
 namespace tfm {
 

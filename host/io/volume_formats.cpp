@@ -1,6 +1,6 @@
 // Helpers shared by the volume-format readers: element decoding, checked sizes, component
 // selection, number parsing.
-#include "volume_formats.h"
+#include "tfmatch/io/volume_formats.h"
 
 #include <algorithm>
 #include <bit>
@@ -11,8 +11,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "cancellation.h"
-#include "memory_budget.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/memory_budget.h"
 
 namespace tfm {
 namespace {

@@ -14,9 +14,9 @@
 #include <string_view>
 #include <vector>
 
-#include "volume_info.h"
-#include "volume_io.h"
-#include "volume_slabs.h"
+#include "tfmatch/io/volume_info.h"
+#include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/volume_slabs.h"
 
 namespace tfm {
 

@@ -1,13 +1,13 @@
 // describe_file(): the describer of the file's row of the format table; text and JSON renderings of
 // the result.
-#include "volume_info.h"
+#include "tfmatch/io/volume_info.h"
 
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
 
-#include "volume_format_table.h"
-#include "volume_formats.h"
+#include "tfmatch/io/volume_format_table.h"
+#include "tfmatch/io/volume_formats.h"
 
 namespace tfm {
 

@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "json.h"
-#include "volume.h"
-#include "volume_io.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/model/volume.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm {
 

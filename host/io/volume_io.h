@@ -8,8 +8,8 @@
 #include <optional>
 #include <string>
 
-#include "volume.h"
-#include "volume_slabs.h"
+#include "tfmatch/model/volume.h"
+#include "tfmatch/model/volume_slabs.h"
 
 namespace tfm {
 

@@ -12,14 +12,14 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "atomic_file.h"
-#include "cancellation.h"
-#include "memory_budget.h"
-#include "parameter_names.h"
-#include "volume.h"
-#include "volume_formats.h"
-#include "volume_info.h"
-#include "volume_io.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/model/parameter_names.h"
+#include "tfmatch/model/volume.h"
+#include "tfmatch/io/volume_formats.h"
+#include "tfmatch/io/volume_info.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm {
 namespace {

@@ -1,6 +1,6 @@
 // VTK XML ImageData (.vti): reading ascii, inline base64 and appended (raw or base64) arrays,
 // zlib-compressed or not, UInt32 or UInt64 headers, either byte order; writing Float32 arrays.
-#include "volume_vti.h"
+#include "tfmatch/io/volume_vti.h"
 
 #include <algorithm>
 #include <cctype>
@@ -16,14 +16,14 @@
 
 #include <zlib.h>
 
-#include "atomic_file.h"
-#include "base64.h"
-#include "cancellation.h"
-#include "memory_budget.h"
-#include "volume_formats.h"
-#include "volume_info.h"
-#include "xml_tree.h"
-#include "volume_io.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/base64.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/io/volume_formats.h"
+#include "tfmatch/io/volume_info.h"
+#include "tfmatch/io/xml_tree.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm {
 namespace {

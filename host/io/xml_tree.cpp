@@ -1,5 +1,5 @@
 // XML element tree from expat's callbacks (see xml_tree.h for why expat).
-#include "xml_tree.h"
+#include "tfmatch/io/xml_tree.h"
 
 #include <limits>
 #include <stdexcept>

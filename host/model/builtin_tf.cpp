@@ -1,5 +1,5 @@
 // Built-in transfer functions: names and options, opacity shapes, tables from colormap_tables.
-#include "builtin_tf.h"
+#include "tfmatch/model/builtin_tf.h"
 
 #include <algorithm>
 #include <cctype>
@@ -7,8 +7,8 @@
 #include <span>
 #include <stdexcept>
 
-#include "color_spaces.h"
-#include "colormap_tables.h"
+#include "tfmatch/model/color_spaces.h"
+#include "tfmatch/model/colormap_tables.h"
 
 namespace tfm {
 namespace {

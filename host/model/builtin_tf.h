@@ -22,8 +22,8 @@
 #include <string_view>
 #include <vector>
 
-#include "field_mapping.h"
-#include "transfer_function.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/model/transfer_function.h"
 
 namespace tfm {
 

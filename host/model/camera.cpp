@@ -1,5 +1,5 @@
 // Orbit camera frames, marching constants and double-precision ray setup.
-#include "camera.h"
+#include "tfmatch/model/camera.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,7 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "render_layout.h"  // TFM_MAX_SAMPLE_OPTICAL_DEPTH, the shaders' clamp
+#include "tfmatch/shaders/render_layout.h"  // TFM_MAX_SAMPLE_OPTICAL_DEPTH, the shaders' clamp
 
 namespace tfm {
 

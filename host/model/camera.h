@@ -8,9 +8,9 @@
 
 #include <glm/glm.hpp>
 
-#include "field_mapping.h"
-#include "image.h"
-#include "render_settings.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/model/image.h"
+#include "tfmatch/model/render_settings.h"
 
 namespace tfm {
 

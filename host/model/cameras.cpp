@@ -1,5 +1,5 @@
 // Random and Fibonacci-sphere camera poses.
-#include "cameras.h"
+#include "tfmatch/model/cameras.h"
 
 #include <cmath>
 #include <numbers>

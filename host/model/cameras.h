@@ -7,7 +7,7 @@
 #include <random>
 #include <vector>
 
-#include "render_settings.h"
+#include "tfmatch/model/render_settings.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // The cancellation flag and the phase checkpoints.
-#include "cancellation.h"
+#include "tfmatch/model/cancellation.h"
 
 #include <algorithm>
 #include <atomic>

@@ -1,5 +1,5 @@
 // Colour conversions (sRGB curve, XYZ/Lab with D65 white, Msh, HSV) and interpolation in them.
-#include "color_spaces.h"
+#include "tfmatch/model/color_spaces.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,6 +1,6 @@
 // The published colour tables behind the built-in transfer functions (builtin_tf.h), as sRGB
 // control points. The digits are the sources' own; which entries were kept is said per table.
-#include "colormap_tables.h"
+#include "tfmatch/model/colormap_tables.h"
 
 namespace tfm {
 namespace {

@@ -4,7 +4,7 @@
 
 #include <span>
 
-#include "transfer_function.h"
+#include "tfmatch/model/transfer_function.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // The correlation measures as data (host/model/correlation_measure.h).
-#include "correlation_measure.h"
+#include "tfmatch/model/correlation_measure.h"
 
 #include <algorithm>
 #include <stdexcept>

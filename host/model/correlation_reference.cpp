@@ -1,5 +1,5 @@
 // Host-side preparation of a correlation field's reference series.
-#include "correlation_reference.h"
+#include "tfmatch/model/correlation_reference.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,5 @@
 // One member of an ensemble as a volume.
-#include "ensemble.h"
+#include "tfmatch/model/ensemble.h"
 
 #include <stdexcept>
 

@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "correlation_measure.h"
-#include "volume.h"
+#include "tfmatch/model/correlation_measure.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

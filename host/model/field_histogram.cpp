@@ -1,5 +1,5 @@
 // A histogram as data (host/model/field_histogram.h).
-#include "field_histogram.h"
+#include "tfmatch/model/field_histogram.h"
 
 namespace tfm {
 

@@ -8,8 +8,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "field_mapping.h"  // no_data
-#include "histogram_layout.h"
+#include "tfmatch/model/field_mapping.h"  // no_data
+#include "tfmatch/shaders/histogram_layout.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // Field range resolution and the float32 TF mapping.
-#include "field_mapping.h"
+#include "tfmatch/model/field_mapping.h"
 
 #include <algorithm>
 #include <iomanip>
@@ -9,8 +9,8 @@
 #include <utility>
 #include <vector>
 
-#include "parallel_parts.h"
-#include "parameter_names.h"
+#include "tfmatch/model/parallel_parts.h"
+#include "tfmatch/model/parameter_names.h"
 
 namespace tfm {
 

@@ -7,7 +7,7 @@
 #include <span>
 #include <string>
 
-#include "shared_layout.h"  // FieldMapping, the record the kernels take
+#include "tfmatch/shaders/shared_layout.h"  // FieldMapping, the record the kernels take
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // Grid points from text: indices or coordinates matched to the volume's axes.
-#include "grid_point.h"
+#include "tfmatch/model/grid_point.h"
 
 #include <algorithm>
 #include <charconv>

@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <string>
 
-#include "volume.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

@@ -1,12 +1,12 @@
 // Image compositing, drawing primitives, the built-in 5x7 font and labelled panels.
-#include "image.h"
+#include "tfmatch/model/image.h"
 
 #include <algorithm>
 #include <bit>
 #include <cmath>
 #include <stdexcept>
 
-#include "color_spaces.h"
+#include "tfmatch/model/color_spaces.h"
 
 namespace tfm {
 namespace {

@@ -1,9 +1,9 @@
 // The image losses of DiffDVR (host/model/image_loss.h).
-#include "image_loss.h"
+#include "tfmatch/model/image_loss.h"
 
 #include <stdexcept>
 
-#include "parameter_names.h"
+#include "tfmatch/model/parameter_names.h"
 
 namespace tfm {
 

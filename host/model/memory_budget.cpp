@@ -1,6 +1,6 @@
 // The memory budget: resident memory from /proc, available memory from /proc/meminfo and the
 // cgroup limit, and the check made before large allocations.
-#include "memory_budget.h"
+#include "tfmatch/model/memory_budget.h"
 
 #include <algorithm>
 #include <cctype>
@@ -13,7 +13,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
-#include "parameter_names.h"
+#include "tfmatch/model/parameter_names.h"
 
 namespace tfm {
 namespace {

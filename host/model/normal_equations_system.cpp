@@ -1,10 +1,10 @@
 // The decoded normal equations: from fixed-point slots, dense M, and the residual from the system alone.
-#include "normal_equations_system.h"
+#include "tfmatch/model/normal_equations_system.h"
 
 #include <algorithm>
 #include <stdexcept>
 
-#include "shared_layout.h"  // TFM_ASSEMBLE_SLOTS
+#include "tfmatch/shaders/shared_layout.h"  // TFM_ASSEMBLE_SLOTS
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // Parameter names in library messages (host/model/parameter_names.h).
-#include "parameter_names.h"
+#include "tfmatch/model/parameter_names.h"
 
 #include <utility>
 

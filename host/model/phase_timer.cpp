@@ -1,5 +1,5 @@
 // Process-wide per-phase wall-clock accounting (host/model/phase_timer.h).
-#include "phase_timer.h"
+#include "tfmatch/model/phase_timer.h"
 
 #include <atomic>
 #include <chrono>

@@ -1,5 +1,5 @@
 // Progress lines: updating on a terminal, periodic plain lines elsewhere.
-#include "progress.h"
+#include "tfmatch/model/progress.h"
 
 #include <atomic>
 #include <cmath>

@@ -1,5 +1,5 @@
 // This process as the only rank, and the split of z-slices over ranks (host/model/ranks.h).
-#include "ranks.h"
+#include "tfmatch/model/ranks.h"
 
 #include <algorithm>
 

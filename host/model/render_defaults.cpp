@@ -1,10 +1,10 @@
 // Grid-dependent picture defaults (render_defaults.h).
-#include "render_defaults.h"
+#include "tfmatch/model/render_defaults.h"
 
 #include <algorithm>
 #include <cmath>
 
-#include "camera.h"
+#include "tfmatch/model/camera.h"
 
 namespace tfm {
 

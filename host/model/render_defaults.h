@@ -6,7 +6,7 @@
 #include <array>
 #include <cstdint>
 
-#include "render_settings.h"
+#include "tfmatch/model/render_settings.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // Axis-aligned slices as pictures.
-#include "slice.h"
+#include "tfmatch/model/slice.h"
 
 #include <algorithm>
 #include <cmath>

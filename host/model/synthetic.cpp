@@ -1,5 +1,5 @@
 // Deterministic synthetic volumes for the demo and tests.
-#include "synthetic.h"
+#include "tfmatch/model/synthetic.h"
 
 #include <algorithm>
 #include <cmath>

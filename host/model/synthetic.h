@@ -4,8 +4,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "transfer_function.h"
-#include "volume.h"
+#include "tfmatch/model/transfer_function.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

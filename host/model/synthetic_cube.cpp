@@ -1,5 +1,5 @@
 // The synthetic cube pair.
-#include "synthetic_cube.h"
+#include "tfmatch/model/synthetic_cube.h"
 
 #include <cmath>
 #include <stdexcept>

@@ -1,6 +1,6 @@
 // The synthetic ensemble: hidden factors per member, spatial blobs that say how each voxel
 // depends on them, and smooth member noise.
-#include "synthetic_ensemble.h"
+#include "tfmatch/model/synthetic_ensemble.h"
 
 #include <algorithm>
 #include <cmath>

@@ -4,9 +4,9 @@
 
 #include <cstdint>
 
-#include "ensemble.h"
-#include "grid_point.h"
-#include "transfer_function.h"
+#include "tfmatch/model/ensemble.h"
+#include "tfmatch/model/grid_point.h"
+#include "tfmatch/model/transfer_function.h"
 
 namespace tfm {
 

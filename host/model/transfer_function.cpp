@@ -1,5 +1,5 @@
 // Transfer-function evaluation and resampling.
-#include "transfer_function.h"
+#include "tfmatch/model/transfer_function.h"
 
 #include <algorithm>
 #include <cmath>

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "field_mapping.h"
+#include "tfmatch/model/field_mapping.h"
 
 namespace tfm {
 

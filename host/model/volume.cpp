@@ -1,5 +1,5 @@
 // Grid checks of volumes.
-#include "volume.h"
+#include "tfmatch/model/volume.h"
 
 #include <sstream>
 #include <stdexcept>

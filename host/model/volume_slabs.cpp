@@ -1,5 +1,5 @@
 // The in-memory slab reader and the bounds check every reader shares.
-#include "volume_slabs.h"
+#include "tfmatch/model/volume_slabs.h"
 
 #include <algorithm>
 #include <stdexcept>

@@ -8,7 +8,7 @@
 #include <memory>
 #include <string>
 
-#include "volume.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

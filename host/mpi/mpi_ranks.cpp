@@ -1,5 +1,5 @@
 // MPI_COMM_WORLD as Ranks (host/mpi/mpi_ranks.h).
-#include "mpi_ranks.h"
+#include "tfmatch/mpi/mpi_ranks.h"
 
 #include <mpi.h>
 

@@ -6,7 +6,7 @@
 #include <functional>
 #include <string>
 
-#include "ranks.h"
+#include "tfmatch/model/ranks.h"
 
 namespace tfm {
 

@@ -1,7 +1,7 @@
 // Double-precision references of the correlation measures, each written from its textbook
 // definition (pair counting, O(M^2) neighbour searches) and sharing no code with the kernels'
 // algorithms, so that tests compare two independent computations.
-#include "correlation_cpu.h"
+#include "tfmatch/reference/correlation_cpu.h"
 
 #include <algorithm>
 #include <cmath>
@@ -11,7 +11,7 @@
 #include <string>
 #include <utility>
 
-#include "correlation_reference.h"
+#include "tfmatch/model/correlation_reference.h"
 
 namespace tfm {
 namespace {

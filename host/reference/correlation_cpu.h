@@ -7,7 +7,7 @@
 #include <span>
 #include <vector>
 
-#include "correlation_measure.h"
+#include "tfmatch/model/correlation_measure.h"
 
 namespace tfm {
 

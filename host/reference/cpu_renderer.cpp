@@ -1,11 +1,11 @@
 // The CPU reference renderer.
-#include "cpu_renderer.h"
+#include "tfmatch/reference/cpu_renderer.h"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
-#include "field_mapping.h"
+#include "tfmatch/model/field_mapping.h"
 
 namespace tfm {
 

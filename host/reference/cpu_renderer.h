@@ -8,11 +8,11 @@
 #include <limits>
 #include <vector>
 
-#include "camera.h"
-#include "field_mapping.h"
-#include "render_settings.h"
-#include "transfer_function.h"
-#include "volume.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/model/render_settings.h"
+#include "tfmatch/model/transfer_function.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

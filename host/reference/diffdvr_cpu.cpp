@@ -1,12 +1,12 @@
 // Reverse-mode DiffDVR in double precision, storing every sample.
-#include "diffdvr_cpu.h"
+#include "tfmatch/reference/diffdvr_cpu.h"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
-#include "camera.h"
-#include "cpu_renderer.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/reference/cpu_renderer.h"
 
 namespace tfm {
 namespace {

@@ -1,5 +1,5 @@
 // CPU reference of the field histogram.
-#include "histogram_cpu.h"
+#include "tfmatch/reference/histogram_cpu.h"
 
 #include <stdexcept>
 #include <vector>

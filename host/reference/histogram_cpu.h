@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <span>
 
-#include "field_histogram.h"
+#include "tfmatch/model/field_histogram.h"
 
 namespace tfm {
 

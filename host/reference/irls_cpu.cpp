@@ -1,10 +1,10 @@
-#include "irls_cpu.h"
+#include "tfmatch/reference/irls_cpu.h"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
-#include "residual_map_cpu.h"
+#include "tfmatch/reference/residual_map_cpu.h"
 
 namespace tfm {
 

@@ -7,7 +7,7 @@
 #include <span>
 #include <vector>
 
-#include "field_mapping.h"
+#include "tfmatch/model/field_mapping.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // Double-precision CPU reference of the GPU normal-equation assembly.
-#include "normal_equations_cpu.h"
+#include "tfmatch/reference/normal_equations_cpu.h"
 
 #include <algorithm>
 #include <exception>

@@ -7,9 +7,9 @@
 #include <span>
 #include <vector>
 
-#include "field_mapping.h"
-#include "normal_equations_system.h"
-#include "transfer_function.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/model/normal_equations_system.h"
+#include "tfmatch/model/transfer_function.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // CPU reference of the residual-map kernel (host/reference/residual_map_cpu.h).
-#include "residual_map_cpu.h"
+#include "tfmatch/reference/residual_map_cpu.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,12 +1,12 @@
 // The CPU reference of the visibility weights.
-#include "visibility_weights_cpu.h"
+#include "tfmatch/reference/visibility_weights_cpu.h"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
-#include "cpu_renderer.h"
-#include "field_mapping.h"
+#include "tfmatch/reference/cpu_renderer.h"
+#include "tfmatch/model/field_mapping.h"
 
 namespace tfm {
 

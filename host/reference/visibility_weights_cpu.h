@@ -12,10 +12,10 @@
 #include <span>
 #include <vector>
 
-#include "camera.h"
-#include "render_settings.h"
-#include "transfer_function.h"
-#include "volume.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/model/render_settings.h"
+#include "tfmatch/model/transfer_function.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

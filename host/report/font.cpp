@@ -1,5 +1,5 @@
 // FreeType rendering of the report font (see font.h).
-#include "font.h"
+#include "tfmatch/report/font.h"
 
 #include <algorithm>
 #include <cmath>

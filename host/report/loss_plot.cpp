@@ -1,5 +1,5 @@
 // Loss-curve plot.
-#include "loss_plot.h"
+#include "tfmatch/report/loss_plot.h"
 
 #include <algorithm>
 #include <cmath>

@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "image.h"
-#include "optimize.h"
-#include "report.h"
+#include "tfmatch/model/image.h"
+#include "tfmatch/solvers/optimize.h"
+#include "tfmatch/report/report.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // RMSE, PSNR and SSIM of 8-bit RGB images.
-#include "metrics.h"
+#include "tfmatch/report/metrics.h"
 
 #include <algorithm>
 #include <cmath>

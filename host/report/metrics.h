@@ -5,8 +5,8 @@
 
 #include <string>
 
-#include "image.h"
-#include "json.h"
+#include "tfmatch/model/image.h"
+#include "tfmatch/io/json.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // PNG encoding and decoding through libpng's simplified (png_image) API.
-#include "png_io.h"
+#include "tfmatch/report/png_io.h"
 
 #include <algorithm>
 #include <cstring>
@@ -10,10 +10,10 @@
 #include <png.h>
 #include <zlib.h>
 
-#include "atomic_file.h"
-#include "memory_budget.h"
-#include "phase_timer.h"
-#include "volume_formats.h"  // read_file_bytes, kMaxDeflateRatio
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/model/phase_timer.h"
+#include "tfmatch/io/volume_formats.h"  // read_file_bytes, kMaxDeflateRatio
 
 namespace tfm {
 namespace {

@@ -10,7 +10,7 @@
 #include <string_view>
 #include <utility>
 
-#include "image.h"
+#include "tfmatch/model/image.h"
 
 namespace tfm {
 

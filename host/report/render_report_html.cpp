@@ -1,5 +1,5 @@
 // index.html of a report: pictures in a grid, metrics in a table, settings at the end.
-#include "render_report_html.h"
+#include "tfmatch/report/render_report_html.h"
 
 #include <cmath>
 #include <cstdio>

@@ -4,8 +4,8 @@
 
 #include <string>
 
-#include "json.h"
-#include "report.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/report/report.h"
 
 namespace tfm {
 

@@ -1,27 +1,27 @@
 // Report generation: renders and plots on the device, measures the images, writes PNGs,
 // metrics.json, overview.png and index.html (host/report/render_report_html.cpp).
-#include "report.h"
+#include "tfmatch/report/report.h"
 
 #include <algorithm>
 #include <cmath>
 #include <sstream>
 
-#include "atomic_file.h"
-#include "camera.h"
-#include "cancellation.h"
-#include "font.h"
-#include "gpu_voxel_ops.h"
-#include "device_memory.h"
-#include "memory_budget.h"
-#include "png_io.h"
-#include "progress.h"
-#include "render.h"
-#include "render_report_html.h"
-#include "slice.h"
-#include "result_json.h"
-#include "residual.h"
-#include "tf_json.h"
-#include "tf_plot.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/report/font.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/kernels/device_memory.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/report/png_io.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/kernels/render.h"
+#include "tfmatch/report/render_report_html.h"
+#include "tfmatch/model/slice.h"
+#include "tfmatch/report/result_json.h"
+#include "tfmatch/kernels/residual.h"
+#include "tfmatch/io/tf_json.h"
+#include "tfmatch/report/tf_plot.h"
 
 namespace tfm {
 namespace {

@@ -8,15 +8,15 @@
 #include <string>
 #include <vector>
 
-#include "context.h"
-#include "grid_point.h"
-#include "image.h"
-#include "json.h"
-#include "metrics.h"
-#include "optimize.h"
-#include "render_settings.h"
-#include "transfer_function.h"
-#include "volume.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/model/grid_point.h"
+#include "tfmatch/model/image.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/report/metrics.h"
+#include "tfmatch/solvers/optimize.h"
+#include "tfmatch/model/render_settings.h"
+#include "tfmatch/model/transfer_function.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // JSON of solver details, optimize results and solver comparisons.
-#include "result_json.h"
+#include "tfmatch/report/result_json.h"
 
 namespace tfm {
 namespace {

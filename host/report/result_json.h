@@ -2,10 +2,10 @@
 // details, `tfmatch optimize`'s summary and `tfmatch solvers`' comparison.
 #pragma once
 
-#include "details.h"
-#include "json.h"
-#include "optimize.h"
-#include "solver_comparison.h"
+#include "tfmatch/solvers/details.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/solvers/optimize.h"
+#include "tfmatch/solvers/solver_comparison.h"
 
 namespace tfm {
 

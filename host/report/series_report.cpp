@@ -1,5 +1,5 @@
 // The report of a series fit: renderings, plots over the series, the TFs overlaid, index.html.
-#include "series_report.h"
+#include "tfmatch/report/series_report.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,14 +7,14 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "atomic_file.h"
-#include "font.h"
-#include "json.h"
-#include "png_io.h"
-#include "progress.h"
-#include "render.h"
-#include "render_report_html.h"
-#include "tf_plot.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/report/font.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/report/png_io.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/kernels/render.h"
+#include "tfmatch/report/render_report_html.h"
+#include "tfmatch/report/tf_plot.h"
 
 namespace tfm {
 namespace {

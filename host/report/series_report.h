@@ -9,12 +9,12 @@
 #include <string>
 #include <vector>
 
-#include "context.h"
-#include "image.h"
-#include "metrics.h"
-#include "render_settings.h"
-#include "series_optimize.h"
-#include "volume.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/model/image.h"
+#include "tfmatch/report/metrics.h"
+#include "tfmatch/model/render_settings.h"
+#include "tfmatch/solvers/series_optimize.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

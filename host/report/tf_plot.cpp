@@ -1,5 +1,5 @@
 // Transfer-function plot: histogram, opacity curve and colour bar.
-#include "tf_plot.h"
+#include "tfmatch/report/tf_plot.h"
 
 #include <algorithm>
 #include <cmath>

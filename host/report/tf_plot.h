@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
-#include "field_mapping.h"
-#include "image.h"
-#include "transfer_function.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/model/image.h"
+#include "tfmatch/model/transfer_function.h"
 
 namespace tfm {
 

@@ -1,6 +1,6 @@
 // The self-test runner: selects the cases, checks each one's device needs, runs it, attributes
 // validation messages and exceptions to it, and formats the report as a table.
-#include "selftest.h"
+#include "tfmatch/selftest/selftest.h"
 
 #include <algorithm>
 #include <chrono>
@@ -10,7 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "selftest_support.h"
+#include "tfmatch/selftest/selftest_support.h"
 
 namespace tfm {
 namespace {

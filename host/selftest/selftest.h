@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "context.h"
+#include "tfmatch/engine/context.h"
 
 namespace tfm {
 

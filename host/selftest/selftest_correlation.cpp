@@ -7,10 +7,10 @@
 #include <cmath>
 #include <string>
 
-#include "correlation.h"
-#include "correlation_cpu.h"
-#include "correlation_layout.h"
-#include "selftest_support.h"
+#include "tfmatch/kernels/correlation.h"
+#include "tfmatch/reference/correlation_cpu.h"
+#include "tfmatch/shaders/correlation_layout.h"
+#include "tfmatch/selftest/selftest_support.h"
 
 namespace tfm::selftest {
 namespace {

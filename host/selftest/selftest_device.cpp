@@ -6,9 +6,9 @@
 #include <algorithm>
 #include <string>
 
-#include "context.h"
-#include "loop_probe.h"
-#include "selftest_support.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/loop_probe.h"
+#include "tfmatch/selftest/selftest_support.h"
 
 namespace tfm::selftest {
 namespace {

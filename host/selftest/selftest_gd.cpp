@@ -6,11 +6,11 @@
 #include <random>
 #include <string>
 
-#include "commands.h"
-#include "gpu_voxel_ops.h"
-#include "gradient_descent.h"
-#include "selftest_support.h"
-#include "sparse_ops.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/kernels/gradient_descent.h"
+#include "tfmatch/selftest/selftest_support.h"
+#include "tfmatch/kernels/sparse_ops.h"
 
 namespace tfm::selftest {
 namespace {

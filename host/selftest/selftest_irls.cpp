@@ -2,12 +2,12 @@
 // every reduction mode and atomic width) against its double CPU reference (irls_cpu.h).
 #include <string>
 
-#include "commands.h"
-#include "gpu_voxel_ops.h"
-#include "irls.h"
-#include "irls_cpu.h"
-#include "selftest_support.h"
-#include "solver_layout.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/kernels/irls.h"
+#include "tfmatch/reference/irls_cpu.h"
+#include "tfmatch/selftest/selftest_support.h"
+#include "tfmatch/shaders/solver_layout.h"
 
 namespace tfm::selftest {
 namespace {

@@ -9,17 +9,17 @@
 #include <string>
 #include <vector>
 
-#include "camera.h"
-#include "commands.h"
-#include "cpu_renderer.h"
-#include "diffdvr.h"
-#include "diffdvr_cpu.h"
-#include "gpu_voxel_ops.h"
-#include "render_image.h"
-#include "selftest_support.h"
-#include "visibility_weights.h"
-#include "visibility_weights_cpu.h"
-#include "volume.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/reference/cpu_renderer.h"
+#include "tfmatch/kernels/diffdvr.h"
+#include "tfmatch/reference/diffdvr_cpu.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/kernels/render_image.h"
+#include "tfmatch/selftest/selftest_support.h"
+#include "tfmatch/kernels/visibility_weights.h"
+#include "tfmatch/reference/visibility_weights_cpu.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm::selftest {
 namespace {

@@ -10,12 +10,12 @@
 #include <Eigen/Dense>
 #include <Eigen/Sparse>
 
-#include "commands.h"
-#include "device_cgls.h"
-#include "gpu_voxel_ops.h"
-#include "normal_equations_cpu.h"
-#include "selftest_support.h"
-#include "sparse_ops.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/device_cgls.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/reference/normal_equations_cpu.h"
+#include "tfmatch/selftest/selftest_support.h"
+#include "tfmatch/kernels/sparse_ops.h"
 
 namespace tfm::selftest {
 namespace {

@@ -1,5 +1,5 @@
 // The self-test's comparison record and shared test data.
-#include "selftest_support.h"
+#include "tfmatch/selftest/selftest_support.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,9 +8,9 @@
 #include <random>
 #include <sstream>
 
-#include "correlation_layout.h"
-#include "gpu_voxel_ops.h"  // upload_tf
-#include "residual_map_cpu.h"
+#include "tfmatch/shaders/correlation_layout.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"  // upload_tf
+#include "tfmatch/reference/residual_map_cpu.h"
 
 namespace tfm::selftest {
 

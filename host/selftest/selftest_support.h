@@ -7,13 +7,13 @@
 #include <string>
 #include <vector>
 
-#include "buffer.h"
-#include "context.h"
-#include "correlation.h"
-#include "device_field.h"
-#include "field_mapping.h"
-#include "reduction.h"
-#include "transfer_function.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/correlation.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/kernels/reduction.h"
+#include "tfmatch/model/transfer_function.h"
 
 namespace tfm::selftest {
 

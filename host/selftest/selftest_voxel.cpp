@@ -6,18 +6,18 @@
 #include <cmath>
 #include <string>
 
-#include "commands.h"
-#include "gpu_voxel_ops.h"
-#include "histogram.h"
-#include "histogram_cpu.h"
-#include "assemble_normal_equations.h"
-#include "normal_equations_cpu.h"
-#include "read_bound.h"
-#include "render_layout.h"
-#include "residual_map.h"
-#include "residual_map_cpu.h"
-#include "selftest_support.h"
-#include "voxel_loss.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/kernels/histogram.h"
+#include "tfmatch/reference/histogram_cpu.h"
+#include "tfmatch/kernels/assemble_normal_equations.h"
+#include "tfmatch/reference/normal_equations_cpu.h"
+#include "tfmatch/kernels/read_bound.h"
+#include "tfmatch/shaders/render_layout.h"
+#include "tfmatch/kernels/residual_map.h"
+#include "tfmatch/reference/residual_map_cpu.h"
+#include "tfmatch/selftest/selftest_support.h"
+#include "tfmatch/kernels/voxel_loss.h"
 
 namespace tfm::selftest {
 namespace {

@@ -1,5 +1,5 @@
 // Projected Adam.
-#include "adam.h"
+#include "tfmatch/solvers/adam.h"
 
 #include <algorithm>
 #include <cmath>

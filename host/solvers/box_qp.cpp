@@ -1,5 +1,5 @@
 // Primal active-set method for the box-constrained tridiagonal least-squares problem.
-#include "box_qp.h"
+#include "tfmatch/solvers/box_qp.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,7 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "cancellation.h"
+#include "tfmatch/model/cancellation.h"
 
 namespace tfm {
 namespace {

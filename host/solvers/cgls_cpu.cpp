@@ -1,10 +1,10 @@
 // Preconditioned CGLS on an explicit sparse matrix, in double.
-#include "cgls_cpu.h"
+#include "tfmatch/solvers/cgls_cpu.h"
 
 #include <cmath>
 #include <stdexcept>
 
-#include "cancellation.h"
+#include "tfmatch/model/cancellation.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // Details and DetailValue: lookup by name, sizes, comparison.
-#include "details.h"
+#include "tfmatch/solvers/details.h"
 
 #include <algorithm>
 #include <stdexcept>

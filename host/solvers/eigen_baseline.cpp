@@ -1,12 +1,12 @@
 // Explicit sparse A and its normal equations with Eigen (the paper's CPU baseline).
-#include "eigen_baseline.h"
+#include "tfmatch/solvers/eigen_baseline.h"
 
 #include <algorithm>
 #include <stdexcept>
 #include <vector>
 
-#include "cancellation.h"
-#include "field_mapping.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/field_mapping.h"
 
 namespace tfm {
 

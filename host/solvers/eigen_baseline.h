@@ -7,9 +7,9 @@
 
 #include <Eigen/SparseCore>
 
-#include "field_mapping.h"
-#include "normal_equations.h"
-#include "transfer_function.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/solvers/normal_equations.h"
+#include "tfmatch/model/transfer_function.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // Quantile functions of histograms and the histogram-matching TF.
-#include "histogram_matching.h"
+#include "tfmatch/solvers/histogram_matching.h"
 
 #include <algorithm>
 #include <stdexcept>

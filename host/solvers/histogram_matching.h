@@ -11,9 +11,9 @@
 // out of each field's own distribution.
 #pragma once
 
-#include "field_mapping.h"
-#include "histogram.h"
-#include "transfer_function.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/kernels/histogram.h"
+#include "tfmatch/model/transfer_function.h"
 
 namespace tfm {
 

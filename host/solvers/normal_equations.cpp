@@ -1,5 +1,5 @@
 // The host solver of the tridiagonal normal equations: regularization, cond(M), the O(N) solve.
-#include "normal_equations.h"
+#include "tfmatch/solvers/normal_equations.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,7 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "parameter_names.h"
+#include "tfmatch/model/parameter_names.h"
 
 namespace tfm {
 

@@ -11,10 +11,10 @@
 
 #include <Eigen/Core>
 
-#include "field_mapping.h"
-#include "normal_equations_system.h"
-#include "transfer_function.h"
-#include "tridiagonal.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/model/normal_equations_system.h"
+#include "tfmatch/model/transfer_function.h"
+#include "tfmatch/solvers/tridiagonal.h"
 
 namespace tfm {
 

@@ -1,5 +1,5 @@
 // run_optimize(): the shared pipeline of every solver.
-#include "optimize.h"
+#include "tfmatch/solvers/optimize.h"
 
 #include <chrono>
 #include <cmath>
@@ -8,12 +8,12 @@
 #include <optional>
 #include <stdexcept>
 
-#include "cancellation.h"
-#include "device_memory.h"
-#include "memory_budget.h"
-#include "parameter_names.h"
-#include "phase_timer.h"
-#include "solver_support.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/kernels/device_memory.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/model/parameter_names.h"
+#include "tfmatch/model/phase_timer.h"
+#include "tfmatch/solvers/solver_support.h"
 
 namespace tfm {
 

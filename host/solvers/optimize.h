@@ -8,11 +8,11 @@
 #include <string>
 #include <vector>
 
-#include "context.h"
-#include "gpu_voxel_ops.h"
-#include "solver.h"
-#include "transfer_function.h"
-#include "volume.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/solvers/solver.h"
+#include "tfmatch/model/transfer_function.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

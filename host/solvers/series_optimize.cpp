@@ -1,15 +1,15 @@
 // run_optimize_series(): many fields against one reference (series_optimize.h).
-#include "series_optimize.h"
+#include "tfmatch/solvers/series_optimize.h"
 
 #include <algorithm>
 #include <chrono>
 #include <optional>
 #include <stdexcept>
 
-#include "cancellation.h"
-#include "device_memory.h"
-#include "parameter_names.h"
-#include "solver_support.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/kernels/device_memory.h"
+#include "tfmatch/model/parameter_names.h"
+#include "tfmatch/solvers/solver_support.h"
 
 namespace tfm {
 

@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "optimize.h"
-#include "streamed_optimize.h"
+#include "tfmatch/solvers/optimize.h"
+#include "tfmatch/solvers/streamed_optimize.h"
 
 namespace tfm {
 

@@ -1,6 +1,6 @@
 // Solver options: declaration helpers, help text, the central parser and checks; lookups in the
 // registry (the list itself is solver_registry.cpp).
-#include "solver.h"
+#include "tfmatch/solvers/solver.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,7 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "parameter_names.h"
+#include "tfmatch/model/parameter_names.h"
 
 namespace tfm {
 namespace {

@@ -19,14 +19,14 @@
 #include <variant>
 #include <vector>
 
-#include "context.h"
-#include "details.h"
-#include "device_field.h"
-#include "field_mapping.h"
-#include "normal_equations.h"
-#include "render_settings.h"
-#include "transfer_function.h"
-#include "volume.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/solvers/details.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/solvers/normal_equations.h"
+#include "tfmatch/model/render_settings.h"
+#include "tfmatch/model/transfer_function.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

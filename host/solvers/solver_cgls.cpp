@@ -2,19 +2,19 @@
 // Per iteration: ||S p||^2 (sparse_gather), alpha and x (cgls_vectors), r -= alpha S p with
 // s = S^T r (sparse_scatter), beta and p (cgls_vectors). Iterations are recorded in batches; the
 // stop test runs on the GPU per channel, so a stopped channel's later iterations change nothing.
-#include "solver_cgls.h"
+#include "tfmatch/solvers/solver_cgls.h"
 
 #include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
 
-#include "cancellation.h"
-#include "commands.h"
-#include "parameter_names.h"
-#include "solver_support.h"
-#include "sparse_ops.h"
-#include "tridiagonal.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/model/parameter_names.h"
+#include "tfmatch/solvers/solver_support.h"
+#include "tfmatch/kernels/sparse_ops.h"
+#include "tfmatch/solvers/tridiagonal.h"
 
 namespace tfm {
 namespace {

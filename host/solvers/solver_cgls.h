@@ -6,9 +6,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "device_cgls.h"
-#include "normal_equations.h"
-#include "solver.h"
+#include "tfmatch/kernels/device_cgls.h"
+#include "tfmatch/solvers/normal_equations.h"
+#include "tfmatch/solvers/solver.h"
 
 namespace tfm {
 

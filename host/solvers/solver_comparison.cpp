@@ -1,14 +1,14 @@
 // Runs every solver on one problem and tabulates the results.
-#include "normal_equations_cpu.h"
-#include "solver_comparison.h"
+#include "tfmatch/reference/normal_equations_cpu.h"
+#include "tfmatch/solvers/solver_comparison.h"
 
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
 #include <sstream>
 
-#include "box_qp.h"
-#include "normal_equations.h"
+#include "tfmatch/solvers/box_qp.h"
+#include "tfmatch/solvers/normal_equations.h"
 
 namespace tfm {
 namespace {

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "optimize.h"
+#include "tfmatch/solvers/optimize.h"
 
 namespace tfm {
 

@@ -1,12 +1,12 @@
 // DiffDvrGradient: the forward and backward passes of one iteration, recorded in one submission.
-#include "solver_diffdvr.h"
+#include "tfmatch/solvers/solver_diffdvr.h"
 
 #include <algorithm>
 #include <cstring>
 #include <stdexcept>
 
-#include "commands.h"
-#include "render_image.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/render_image.h"
 
 namespace tfm {
 namespace {

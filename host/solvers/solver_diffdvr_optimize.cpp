@@ -8,14 +8,14 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "adam.h"
-#include "cameras.h"
-#include "cancellation.h"
-#include "parameter_names.h"
-#include "progress.h"
-#include "solver_diffdvr.h"
-#include "solver_normal_equations.h"
-#include "solver_support.h"
+#include "tfmatch/solvers/adam.h"
+#include "tfmatch/model/cameras.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/parameter_names.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/solvers/solver_diffdvr.h"
+#include "tfmatch/solvers/solver_normal_equations.h"
+#include "tfmatch/solvers/solver_support.h"
 
 namespace tfm {
 namespace {

@@ -5,10 +5,10 @@
 #include <cmath>
 #include <sstream>
 
-#include "cgls_cpu.h"
-#include "eigen_baseline.h"
-#include "parameter_names.h"
-#include "solver_support.h"
+#include "tfmatch/solvers/cgls_cpu.h"
+#include "tfmatch/solvers/eigen_baseline.h"
+#include "tfmatch/model/parameter_names.h"
+#include "tfmatch/solvers/solver_support.h"
 
 namespace tfm {
 namespace {

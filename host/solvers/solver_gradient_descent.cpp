@@ -2,7 +2,7 @@
 // loss, Jacobi-scaled SGD or Adam, from x = 0 (so unreferenced entries stay 0, as in the other
 // solvers). The learning rate follows a cosine schedule from --lr down to 1% of it at the last
 // iteration, which lets the l1 iteration (a subgradient method) settle on its minimizer.
-#include "solver_gradient_descent.h"
+#include "tfmatch/solvers/solver_gradient_descent.h"
 
 #include <algorithm>
 #include <cmath>
@@ -11,15 +11,15 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "box_qp.h"
-#include "cancellation.h"
-#include "commands.h"
-#include "gradient_descent.h"
-#include "parameter_names.h"
-#include "progress.h"
-#include "solver_support.h"
-#include "sparse_ops.h"
-#include "voxel_pair.h"
+#include "tfmatch/solvers/box_qp.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/gradient_descent.h"
+#include "tfmatch/model/parameter_names.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/solvers/solver_support.h"
+#include "tfmatch/kernels/sparse_ops.h"
+#include "tfmatch/kernels/voxel_pair.h"
 
 namespace tfm {
 namespace {

@@ -5,9 +5,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "normal_equations.h"
-#include "solver.h"
-#include "solver_layout.h"
+#include "tfmatch/solvers/normal_equations.h"
+#include "tfmatch/solvers/solver.h"
+#include "tfmatch/shaders/solver_layout.h"
 
 namespace tfm {
 

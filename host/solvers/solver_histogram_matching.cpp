@@ -3,9 +3,9 @@
 // and cannot match). No least-squares objective, so --ridge and --smooth do not apply.
 #include <chrono>
 
-#include "cancellation.h"
-#include "histogram_matching.h"
-#include "solver_support.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/solvers/histogram_matching.h"
+#include "tfmatch/solvers/solver_support.h"
 
 namespace tfm {
 namespace {

@@ -6,20 +6,20 @@
 // the Huber objective never increases at a fixed delta. delta shrinks from 1/shrink to its floor
 // (continuation), then the passes go on, over-relaxed (IrlsOptions::overrelax_max), until one
 // gains less than the tolerance.
-#include "solver_irls.h"
+#include "tfmatch/solvers/solver_irls.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 
-#include "box_qp.h"
-#include "cancellation.h"
-#include "commands.h"
-#include "irls.h"
-#include "progress.h"
-#include "solver_support.h"
-#include "voxel_pair.h"
+#include "tfmatch/solvers/box_qp.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/irls.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/solvers/solver_support.h"
+#include "tfmatch/kernels/voxel_pair.h"
 
 namespace tfm {
 namespace {

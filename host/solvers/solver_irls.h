@@ -7,8 +7,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "normal_equations.h"
-#include "solver.h"
+#include "tfmatch/solvers/normal_equations.h"
+#include "tfmatch/solvers/solver.h"
 
 namespace tfm {
 

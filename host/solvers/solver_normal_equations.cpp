@@ -1,10 +1,10 @@
 // The `normal-equations` solver: GPU assembly of M and S^T b, tridiagonal solve on the host.
-#include "solver_normal_equations.h"
+#include "tfmatch/solvers/solver_normal_equations.h"
 
 #include <cmath>
 
-#include "gpu_voxel_ops.h"
-#include "solver_support.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/solvers/solver_support.h"
 
 namespace tfm {
 

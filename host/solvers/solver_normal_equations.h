@@ -4,8 +4,8 @@
 
 #include <vector>
 
-#include "normal_equations.h"
-#include "solver.h"
+#include "tfmatch/solvers/normal_equations.h"
+#include "tfmatch/solvers/solver.h"
 
 namespace tfm {
 

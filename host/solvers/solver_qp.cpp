@@ -2,9 +2,9 @@
 // (box_qp.h) per channel.
 #include <algorithm>
 
-#include "box_qp.h"
-#include "gpu_voxel_ops.h"
-#include "solver_support.h"
+#include "tfmatch/solvers/box_qp.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/solvers/solver_support.h"
 
 namespace tfm {
 namespace {

@@ -8,8 +8,8 @@
 #include <set>
 #include <stdexcept>
 
-#include "parameter_names.h"
-#include "solver.h"
+#include "tfmatch/model/parameter_names.h"
+#include "tfmatch/solvers/solver.h"
 
 namespace tfm {
 

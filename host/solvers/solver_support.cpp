@@ -1,14 +1,14 @@
 // Helpers shared by the solvers.
-#include "solver_support.h"
+#include "tfmatch/solvers/solver_support.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 
-#include "cameras.h"
-#include "gpu_voxel_ops.h"
-#include "parameter_names.h"
+#include "tfmatch/model/cameras.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/model/parameter_names.h"
 
 namespace tfm {
 

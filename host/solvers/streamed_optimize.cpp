@@ -1,5 +1,5 @@
 // run_optimize_streamed(): run_optimize() for fields read from disk slab by slab.
-#include "streamed_optimize.h"
+#include "tfmatch/solvers/streamed_optimize.h"
 
 #include <algorithm>
 #include <chrono>
@@ -9,12 +9,12 @@
 #include <stdexcept>
 #include <tuple>
 
-#include "cancellation.h"
-#include "device_memory.h"
-#include "memory_budget.h"
-#include "parameter_names.h"
-#include "phase_timer.h"
-#include "solver_support.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/kernels/device_memory.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/model/parameter_names.h"
+#include "tfmatch/model/phase_timer.h"
+#include "tfmatch/solvers/solver_support.h"
 
 namespace tfm {
 namespace {

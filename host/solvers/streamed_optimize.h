@@ -12,11 +12,11 @@
 #include <string_view>
 #include <vector>
 
-#include "context.h"
-#include "gpu_voxel_ops.h"
-#include "optimize.h"
-#include "ranks.h"
-#include "volume_slabs.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/solvers/optimize.h"
+#include "tfmatch/model/ranks.h"
+#include "tfmatch/model/volume_slabs.h"
 
 namespace tfm {
 

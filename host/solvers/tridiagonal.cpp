@@ -1,5 +1,5 @@
 // O(N) solves and extreme eigenvalues of symmetric (semi-)definite tridiagonal matrices.
-#include "tridiagonal.h"
+#include "tfmatch/solvers/tridiagonal.h"
 
 #include <algorithm>
 #include <cfloat>
@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "cancellation.h"
+#include "tfmatch/model/cancellation.h"
 
 namespace tfm {
 namespace {

@@ -1,5 +1,5 @@
 // One thread per open connection, up to a cap (connection_workers.h).
-#include "connection_workers.h"
+#include "tfmatch/viewer/connection_workers.h"
 
 namespace tfm {
 namespace {

@@ -1,5 +1,5 @@
 // One producer, many event streams, newest value per topic (event_hub.h).
-#include "event_hub.h"
+#include "tfmatch/viewer/event_hub.h"
 
 #include <algorithm>
 

@@ -1,5 +1,5 @@
 // The producer and the streams of GET /api/progress (progress_events.h).
-#include "progress_events.h"
+#include "tfmatch/viewer/progress_events.h"
 
 namespace tfm {
 namespace {

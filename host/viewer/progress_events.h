@@ -9,8 +9,8 @@
 #include <string>
 #include <thread>
 
-#include "event_hub.h"
-#include "view_session.h"
+#include "tfmatch/viewer/event_hub.h"
+#include "tfmatch/viewer/view_session.h"
 
 namespace tfm {
 

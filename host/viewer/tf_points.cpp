@@ -1,5 +1,5 @@
 // Editor control points of a TF table, and back.
-#include "tf_points.h"
+#include "tfmatch/viewer/tf_points.h"
 
 #include <algorithm>
 #include <array>
@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "color_spaces.h"
+#include "tfmatch/model/color_spaces.h"
 
 namespace tfm {
 namespace {

@@ -5,9 +5,9 @@
 #include <cstddef>
 #include <string>
 
-#include "json.h"
-#include "tf_formats.h"
-#include "transfer_function.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/io/tf_formats.h"
+#include "tfmatch/model/transfer_function.h"
 
 namespace tfm {
 

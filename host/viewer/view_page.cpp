@@ -1,5 +1,5 @@
 // The viewer page, assembled from index.html, viewer.css and the script's parts.
-#include "view_page.h"
+#include "tfmatch/viewer/view_page.h"
 
 #include <filesystem>
 #include <fstream>

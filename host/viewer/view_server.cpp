@@ -1,5 +1,5 @@
 // The viewer's HTTP endpoints (host/viewer/http_api.md) on cpp-httplib.
-#include "view_server.h"
+#include "tfmatch/viewer/view_server.h"
 
 #include <httplib.h>
 #include <sys/socket.h>
@@ -14,13 +14,13 @@
 #include <random>
 #include <thread>
 
-#include "cancellation.h"
-#include "connection_workers.h"
-#include "png_io.h"
-#include "progress_events.h"
-#include "tf_points.h"
-#include "view_page.h"
-#include "vk_check.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/viewer/connection_workers.h"
+#include "tfmatch/report/png_io.h"
+#include "tfmatch/viewer/progress_events.h"
+#include "tfmatch/viewer/tf_points.h"
+#include "tfmatch/viewer/view_page.h"
+#include "tfmatch/engine/vk_check.h"
 
 namespace tfm {
 namespace {

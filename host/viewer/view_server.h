@@ -7,7 +7,7 @@
 #include <memory>
 #include <string>
 
-#include "view_session.h"
+#include "tfmatch/viewer/view_session.h"
 
 namespace tfm {
 

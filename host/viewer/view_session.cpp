@@ -1,27 +1,27 @@
 // The viewer's session: fields and TFs on the device, pictures on request, jobs on a thread.
-#include "view_session.h"
+#include "tfmatch/viewer/view_session.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
 
-#include "camera.h"
-#include "cancellation.h"
-#include "color_spaces.h"
-#include "correlation_field.h"
-#include "font.h"
-#include "gpu_voxel_ops.h"
-#include "metrics.h"
-#include "progress.h"
-#include "residual.h"
-#include "result_json.h"
-#include "slice.h"
-#include "tf_json.h"
-#include "tf_plot.h"
-#include "tf_points.h"
-#include "view_session_derived.h"
-#include "volume_vti.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/color_spaces.h"
+#include "tfmatch/kernels/correlation_field.h"
+#include "tfmatch/report/font.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/report/metrics.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/kernels/residual.h"
+#include "tfmatch/report/result_json.h"
+#include "tfmatch/model/slice.h"
+#include "tfmatch/io/tf_json.h"
+#include "tfmatch/report/tf_plot.h"
+#include "tfmatch/viewer/tf_points.h"
+#include "tfmatch/viewer/view_session_derived.h"
+#include "tfmatch/io/volume_vti.h"
 
 namespace tfm {
 

@@ -18,21 +18,21 @@
 #include <thread>
 #include <vector>
 
-#include "context.h"
-#include "correlation.h"
-#include "device_field.h"
-#include "ensemble.h"
-#include "grid_point.h"
-#include "image.h"
-#include "json.h"
-#include "optimize.h"
-#include "render.h"
-#include "render_settings.h"
-#include "slice.h"
-#include "solver.h"
-#include "tf_formats.h"
-#include "transfer_function.h"
-#include "volume.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/correlation.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/model/ensemble.h"
+#include "tfmatch/model/grid_point.h"
+#include "tfmatch/model/image.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/solvers/optimize.h"
+#include "tfmatch/kernels/render.h"
+#include "tfmatch/model/render_settings.h"
+#include "tfmatch/model/slice.h"
+#include "tfmatch/solvers/solver.h"
+#include "tfmatch/io/tf_formats.h"
+#include "tfmatch/model/transfer_function.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

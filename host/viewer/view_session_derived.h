@@ -5,10 +5,10 @@
 #include <memory>
 #include <optional>
 
-#include "camera.h"
-#include "device_field.h"
-#include "render.h"
-#include "view_session.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/kernels/render.h"
+#include "tfmatch/viewer/view_session.h"
 
 namespace tfm {
 

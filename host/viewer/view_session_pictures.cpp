@@ -2,11 +2,11 @@
 #include <algorithm>
 #include <chrono>
 
-#include "camera.h"
-#include "metrics.h"
-#include "tf_plot.h"
-#include "view_session.h"
-#include "view_session_derived.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/report/metrics.h"
+#include "tfmatch/report/tf_plot.h"
+#include "tfmatch/viewer/view_session.h"
+#include "tfmatch/viewer/view_session_derived.h"
 
 namespace tfm {
 

@@ -8,10 +8,10 @@
 
 #include <gtest/gtest.h>
 
-#include "buffer.h"
-#include "device_field.h"
-#include "gpu_voxel_ops.h"
-#include "normal_equations_cpu.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/device_field.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/reference/normal_equations_cpu.h"
 
 namespace tfm::test {
 

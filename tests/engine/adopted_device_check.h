@@ -2,7 +2,7 @@
 // both ways and runs a real kernel on it, and lets go without destroying anything.
 #pragma once
 
-#include "context.h"
+#include "tfmatch/engine/context.h"
 
 namespace tfm::test {
 

@@ -9,7 +9,7 @@
 
 #include <vulkan/vulkan_core.h>
 
-#include "context.h"
+#include "tfmatch/engine/context.h"
 
 namespace tfm::test {
 

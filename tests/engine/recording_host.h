@@ -12,10 +12,10 @@
 
 #include <gtest/gtest.h>
 
-#include "context.h"
+#include "tfmatch/engine/context.h"
 #include "host_device.h"
-#include "recording.h"
-#include "transfer_function.h"
+#include "tfmatch/kernels/recording.h"
+#include "tfmatch/model/transfer_function.h"
 
 namespace tfm::test {
 

@@ -4,7 +4,7 @@
 // the commands tfmatch records into its command buffer: a recorder that refuses its arguments
 // records none (the image overloads had recorded barriers, a table update and a fill first).
 #include "adopted_device_check.h"
-#include "context.h"
+#include "tfmatch/engine/context.h"
 #include "host_device.h"
 #include "recording_host.h"
 

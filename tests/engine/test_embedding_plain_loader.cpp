@@ -10,13 +10,13 @@
 #include <gtest/gtest.h>
 
 #include "adopted_device_check.h"
-#include "buffer.h"
-#include "commands.h"
-#include "context.h"
-#include "device_field.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/engine/device_field.h"
 #include "host_device.h"
-#include "pipeline.h"
-#include "vk_check.h"
+#include "tfmatch/engine/pipeline.h"
+#include "tfmatch/engine/vk_check.h"
 
 namespace tfm {
 namespace {

@@ -13,10 +13,10 @@
 #include <glm/gtc/packing.hpp>
 #include <gtest/gtest.h>
 
-#include "buffer.h"
-#include "correlation.h"
-#include "correlation_reference.h"
-#include "device_field.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/kernels/correlation.h"
+#include "tfmatch/model/correlation_reference.h"
+#include "tfmatch/engine/device_field.h"
 #include "recording_host.h"
 
 namespace tfm {

@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "shader_registry.h"
+#include "tfmatch/shaders/shader_registry.h"
 
 namespace tfm {
 namespace {

@@ -1,7 +1,7 @@
 // libFuzzer target: the .dat descriptor parser.
 #include <stdexcept>
 
-#include "volume_formats.h"
+#include "tfmatch/io/volume_formats.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {

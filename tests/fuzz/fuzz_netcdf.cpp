@@ -3,7 +3,7 @@
 // packing, coordinate spacing, ranges over every time and member), then loading each variable it
 // lists with time and member indices 0 and 1.
 #include "fuzz_support.h"
-#include "volume_formats.h"
+#include "tfmatch/io/volume_formats.h"
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   tfm::fuzz::limit_memory();

@@ -2,7 +2,7 @@
 // multi-file paths (formats, LIST, skips, encodings) see arbitrary bytes too.
 #include <stdexcept>
 
-#include "volume_formats.h"
+#include "tfmatch/io/volume_formats.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string input(reinterpret_cast<const char*>(data), size);

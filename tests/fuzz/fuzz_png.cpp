@@ -4,7 +4,7 @@
 #include <string_view>
 
 #include "fuzz_support.h"
-#include "png_io.h"
+#include "tfmatch/report/png_io.h"
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   tfm::fuzz::limit_memory();

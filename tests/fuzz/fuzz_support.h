@@ -7,9 +7,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "memory_budget.h"
-#include "volume_info.h"
-#include "volume_io.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/io/volume_info.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm::fuzz {
 

@@ -1,8 +1,8 @@
 // libFuzzer target: VTK XML ImageData parser (expat, base64, zlib blocks, appended data).
 #include <stdexcept>
 
-#include "volume_formats.h"
-#include "volume_io.h"
+#include "tfmatch/io/volume_formats.h"
+#include "tfmatch/io/volume_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string_view bytes(reinterpret_cast<const char*>(data), size);

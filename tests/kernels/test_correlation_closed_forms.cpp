@@ -13,7 +13,7 @@
 
 #include <gtest/gtest.h>
 
-#include "correlation.h"
+#include "tfmatch/kernels/correlation.h"
 #include "vk_test_env.h"
 
 namespace tfm {

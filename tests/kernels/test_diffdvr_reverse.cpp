@@ -9,10 +9,10 @@
 #include <random>
 #include <vector>
 
-#include "cpu_renderer.h"
-#include "diffdvr_cpu.h"
-#include "gpu_voxel_ops.h"
-#include "solver_diffdvr.h"
+#include "tfmatch/reference/cpu_renderer.h"
+#include "tfmatch/reference/diffdvr_cpu.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/solvers/solver_diffdvr.h"
 #include "test_data.h"
 #include "vk_test_env.h"
 

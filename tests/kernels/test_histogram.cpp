@@ -7,9 +7,9 @@
 #include <random>
 #include <vector>
 
-#include "histogram.h"
-#include "histogram_cpu.h"
-#include "reduction.h"
+#include "tfmatch/kernels/histogram.h"
+#include "tfmatch/reference/histogram_cpu.h"
+#include "tfmatch/kernels/reduction.h"
 #include "vk_test_env.h"
 
 namespace tfm {

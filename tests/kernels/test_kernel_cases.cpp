@@ -11,7 +11,7 @@
 
 #include <gtest/gtest.h>
 
-#include "selftest.h"
+#include "tfmatch/selftest/selftest.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -9,19 +9,19 @@
 #include <random>
 #include <vector>
 
-#include "cameras.h"
-#include "commands.h"
-#include "cpu_renderer.h"
-#include "gpu_voxel_ops.h"
-#include "histogram.h"
-#include "histogram_cpu.h"
-#include "normal_equations_cpu.h"
-#include "render.h"
-#include "residual_map.h"
-#include "residual_map_cpu.h"
+#include "tfmatch/model/cameras.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/reference/cpu_renderer.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/kernels/histogram.h"
+#include "tfmatch/reference/histogram_cpu.h"
+#include "tfmatch/reference/normal_equations_cpu.h"
+#include "tfmatch/kernels/render.h"
+#include "tfmatch/kernels/residual_map.h"
+#include "tfmatch/reference/residual_map_cpu.h"
 #include "test_data.h"
-#include "visibility_weights.h"
-#include "visibility_weights_cpu.h"
+#include "tfmatch/kernels/visibility_weights.h"
+#include "tfmatch/reference/visibility_weights_cpu.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -8,8 +8,8 @@
 #include <random>
 #include <vector>
 
-#include "read_bound.h"
-#include "shared_layout.h"
+#include "tfmatch/kernels/read_bound.h"
+#include "tfmatch/shaders/shared_layout.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -13,11 +13,11 @@
 #include <vector>
 
 #include "cli_runner.h"
-#include "context.h"
-#include "cpu_renderer.h"
-#include "diffdvr.h"
-#include "render.h"
-#include "render_image.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/reference/cpu_renderer.h"
+#include "tfmatch/kernels/diffdvr.h"
+#include "tfmatch/kernels/render.h"
+#include "tfmatch/kernels/render_image.h"
 #include "test_data.h"
 #include "vk_test_env.h"
 

@@ -7,13 +7,13 @@
 #include <random>
 #include <vector>
 
-#include "commands.h"
-#include "gpu_voxel_ops.h"
-#include "residual.h"
-#include "render_layout.h"
-#include "residual_map.h"
-#include "residual_map_cpu.h"
-#include "shared_layout.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/kernels/residual.h"
+#include "tfmatch/shaders/render_layout.h"
+#include "tfmatch/kernels/residual_map.h"
+#include "tfmatch/reference/residual_map_cpu.h"
+#include "tfmatch/shaders/shared_layout.h"
 #include "test_data.h"
 #include "vk_test_env.h"
 

@@ -1,7 +1,7 @@
 // The test program lists the CUDA solvers as the `tfmatch` program does (tools/cli/main.cpp): the
 // optional component joins the solver registry before any test asks for it.
 #ifdef TFMATCH_HAVE_CUDA
-#include "cuda_solver_registration.h"
+#include "tfmatch/cuda/cuda_solver_registration.h"
 
 namespace {
 // Static initialisation runs before main(), so before any test builds the registry.

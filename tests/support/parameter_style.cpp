@@ -4,7 +4,7 @@
 #include <string>
 #include <string_view>
 
-#include "parameter_names.h"
+#include "tfmatch/model/parameter_names.h"
 
 namespace {
 // Static initialisation runs before main(), so before any test builds a message.

@@ -7,8 +7,8 @@
 #include <functional>
 #include <string>
 
-#include "transfer_function.h"
-#include "volume.h"
+#include "tfmatch/model/transfer_function.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm::test {
 

@@ -16,7 +16,7 @@
 #include <thread>
 #include <vector>
 
-#include "ranks.h"
+#include "tfmatch/model/ranks.h"
 
 namespace tfm::test {
 

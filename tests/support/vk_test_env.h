@@ -4,7 +4,7 @@
 
 #include <gtest/gtest.h>
 
-#include "context.h"
+#include "tfmatch/engine/context.h"
 
 namespace tfm::test {
 

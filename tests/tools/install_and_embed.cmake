@@ -52,7 +52,8 @@ list(LENGTH libraries count)
 message(STATUS "${count} installed libraries define no global vk*/volk* symbol")
 
 # Headers by layer, none flat, and every installed one compiles (its includes resolve among the
-# installed headers: no public header includes an internal one).
+# installed headers: no public header includes an internal one, and none reaches another by a
+# bare name that a host's header could take).
 foreach(header engine/context.h kernels/gpu_voxel_ops.h kernels/recording.h model/volume.h solvers/normal_equations.h
                io/volume_io.h)
   if(NOT EXISTS ${prefix}/include/tfmatch/${header})
@@ -74,16 +75,24 @@ foreach(header ${installed_headers})
   string(APPEND all_headers_source "#include <${header}>\n")
 endforeach()
 file(WRITE ${WORK_DIR}/all_headers/all_headers.cpp "${all_headers_source}int main() { return 0; }\n")
+# A host's own headers of the same names, first on its include path: every one is an #error, so a
+# header of ours that reached another by bare name ("camera.h") would pick the host's and fail.
+file(REMOVE_RECURSE ${WORK_DIR}/all_headers/host_headers)
+foreach(header ${installed_headers})
+  get_filename_component(name ${header} NAME)
+  file(WRITE ${WORK_DIR}/all_headers/host_headers/${name} "#error \"the host's ${name}, not tfmatch's\"\n")
+endforeach()
 file(WRITE ${WORK_DIR}/all_headers/CMakeLists.txt "cmake_minimum_required(VERSION 3.20)
 project(tfmatch_all_headers LANGUAGES CXX)
 set(CMAKE_CXX_STANDARD 20)
 find_package(tfmatch REQUIRED)
 add_executable(all_headers all_headers.cpp)
+target_include_directories(all_headers BEFORE PRIVATE \${CMAKE_CURRENT_SOURCE_DIR}/host_headers)
 target_link_libraries(all_headers PRIVATE tfmatch::tfmatch tfmatch::io tfmatch::report)
 ")
 build_against_package(${WORK_DIR}/all_headers ${WORK_DIR}/all_headers/build)
 list(LENGTH installed_headers header_count)
-message(STATUS "${header_count} installed headers, by layer, compile together")
+message(STATUS "${header_count} installed headers, by layer, compile together beside host headers of their names")
 
 # CUDA is the `cuda` component's alone: the main targets name no CUDA library. Where the package
 # has it, a program asking for the component gets the CUDA solvers in the registry.
@@ -146,7 +155,7 @@ if(PKG_CONFIG)
   set(ENV{PKG_CONFIG_PATH} ${prefix}/lib/pkgconfig)
   run(${PKG_CONFIG} --cflags --libs tfmatch)
   file(REAL_PATH ${prefix} real_prefix)
-  string(REGEX MATCH "-I([^ ]+)/include/tfmatch" include_flag "${run_output}")
+  string(REGEX MATCH "-I([^ ]+)/include( |$)" include_flag "${run_output}")
   file(REAL_PATH "${CMAKE_MATCH_1}" pc_prefix)
   if(NOT pc_prefix STREQUAL real_prefix OR NOT run_output MATCHES "-ltfmatch_engine")
     message(FATAL_ERROR "tfmatch.pc does not point into ${prefix}: ${run_output}")

@@ -10,8 +10,8 @@
 #include <gtest/gtest.h>
 
 #include "cli_runner.h"
-#include "correlation.h"
-#include "json.h"
+#include "tfmatch/kernels/correlation.h"
+#include "tfmatch/io/json.h"
 
 namespace tfm {
 namespace {

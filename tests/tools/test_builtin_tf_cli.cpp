@@ -5,12 +5,12 @@
 
 #include <gtest/gtest.h>
 
-#include "builtin_tf.h"
+#include "tfmatch/model/builtin_tf.h"
 #include "cli_runner.h"
-#include "json.h"
-#include "png_io.h"
-#include "tf_formats.h"
-#include "tf_json.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/report/png_io.h"
+#include "tfmatch/io/tf_formats.h"
+#include "tfmatch/io/tf_json.h"
 
 namespace tfm {
 namespace {

@@ -14,9 +14,9 @@
 #include <sstream>
 
 #include "cli_runner.h"
-#include "json.h"
-#include "volume.h"
-#include "volume_io.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/model/volume.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm {
 namespace {

@@ -14,8 +14,8 @@
 #include <tuple>
 
 #include "cli_runner.h"
-#include "image.h"
-#include "png_io.h"
+#include "tfmatch/model/image.h"
+#include "tfmatch/report/png_io.h"
 #include "slab_test_files.h"
 
 namespace tfm {

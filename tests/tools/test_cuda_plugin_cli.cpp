@@ -10,7 +10,7 @@
 #include <fstream>
 
 #include "cli_runner.h"
-#include "json.h"
+#include "tfmatch/io/json.h"
 
 namespace tfm {
 namespace {

@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "cli_runner.h"
-#include "json.h"
-#include "synthetic.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/model/synthetic.h"
 
 namespace tfm {
 namespace {

@@ -13,7 +13,7 @@
 #include <sys/wait.h>
 
 #include "cli_runner.h"
-#include "json.h"
+#include "tfmatch/io/json.h"
 
 namespace tfm {
 namespace {

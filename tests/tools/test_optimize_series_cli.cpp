@@ -11,7 +11,7 @@
 #include <fstream>
 
 #include "cli_runner.h"
-#include "json.h"
+#include "tfmatch/io/json.h"
 #include "slab_test_files.h"
 #include "vk_test_env.h"
 

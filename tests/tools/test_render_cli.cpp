@@ -5,8 +5,8 @@
 #include <gtest/gtest.h>
 
 #include "cli_runner.h"
-#include "json.h"
-#include "png_io.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/report/png_io.h"
 
 namespace tfm {
 namespace {

@@ -10,9 +10,9 @@
 #include <optional>
 
 #include "cli_runner.h"
-#include "json.h"
+#include "tfmatch/io/json.h"
 #include "scoped_env.h"
-#include "pipeline_cache_file.h"
+#include "tfmatch/io/pipeline_cache_file.h"
 #include "slab_test_files.h"
 
 namespace tfm {

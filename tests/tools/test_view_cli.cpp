@@ -13,8 +13,8 @@
 #include <set>
 
 #include "cli_runner.h"
-#include "json.h"
-#include "png_io.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/report/png_io.h"
 #include "vk_test_env.h"
 // After Eigen (through the project headers): OpenSSL's headers, which httplib.h includes, define
 // macros that break Eigen's product kernels when they come first.

@@ -8,7 +8,7 @@
 #include <string>
 
 #include "cli_runner.h"
-#include "json.h"
+#include "tfmatch/io/json.h"
 
 namespace tfm {
 namespace {

@@ -15,7 +15,7 @@
 #include <stdexcept>
 #include <thread>
 
-#include "cancellation.h"
+#include "tfmatch/model/cancellation.h"
 
 namespace tfm::cli {
 

@@ -9,9 +9,9 @@
 
 #include <CLI/CLI.hpp>
 
-#include "context.h"
-#include "field_mapping.h"
-#include "ranks.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/model/ranks.h"
 
 namespace tfm::cli {
 

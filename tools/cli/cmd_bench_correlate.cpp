@@ -11,22 +11,22 @@
 #include <iostream>
 #include <thread>
 
-#include "atomic_file.h"
+#include "tfmatch/io/atomic_file.h"
 #include "bench_timing.h"
-#include "buffer.h"
-#include "cancellation.h"
+#include "tfmatch/engine/buffer.h"
+#include "tfmatch/model/cancellation.h"
 #include "cli.h"
-#include "correlation.h"
-#include "correlation_cpu.h"
-#include "correlation_reference.h"
-#include "context.h"
-#include "grid_point.h"
-#include "json.h"
-#include "output_check.h"
+#include "tfmatch/kernels/correlation.h"
+#include "tfmatch/reference/correlation_cpu.h"
+#include "tfmatch/model/correlation_reference.h"
+#include "tfmatch/engine/context.h"
+#include "tfmatch/model/grid_point.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/io/output_check.h"
 #include "output_options.h"
-#include "progress.h"
-#include "read_bound.h"
-#include "synthetic_ensemble.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/kernels/read_bound.h"
+#include "tfmatch/model/synthetic_ensemble.h"
 
 namespace tfm::cli {
 namespace {

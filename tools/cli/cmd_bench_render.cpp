@@ -4,17 +4,17 @@
 #include <cstdio>
 #include <iostream>
 
-#include "atomic_file.h"
+#include "tfmatch/io/atomic_file.h"
 #include "cli.h"
-#include "cpu_renderer.h"
-#include "gpu_voxel_ops.h"
-#include "json.h"
-#include "output_check.h"
+#include "tfmatch/reference/cpu_renderer.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/io/output_check.h"
 #include "output_options.h"
-#include "progress.h"
-#include "render.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/kernels/render.h"
 #include "render_options.h"
-#include "synthetic.h"
+#include "tfmatch/model/synthetic.h"
 
 namespace tfm::cli {
 namespace {

@@ -9,16 +9,16 @@
 
 #include <sys/resource.h>
 
-#include "atomic_file.h"
+#include "tfmatch/io/atomic_file.h"
 #include "cli.h"
-#include "gpu_voxel_ops.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "input_options.h"
-#include "json.h"
-#include "memory_budget.h"
-#include "normal_equations.h"
-#include "output_check.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/solvers/normal_equations.h"
+#include "tfmatch/io/output_check.h"
 #include "output_options.h"
-#include "synthetic.h"
+#include "tfmatch/model/synthetic.h"
 
 namespace tfm::cli {
 namespace {

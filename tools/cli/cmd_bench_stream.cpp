@@ -15,13 +15,13 @@
 #include <iomanip>
 #include <iostream>
 
-#include "atomic_file.h"
+#include "tfmatch/io/atomic_file.h"
 #include "bench_files.h"
-#include "cancellation.h"
+#include "tfmatch/model/cancellation.h"
 #include "cli.h"
-#include "json.h"
-#include "memory_budget.h"
-#include "output_check.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/io/output_check.h"
 #include "output_options.h"
 
 namespace tfm::cli {

@@ -7,20 +7,20 @@
 #include <iostream>
 #include <span>
 
-#include "atomic_file.h"
+#include "tfmatch/io/atomic_file.h"
 #include "cli.h"
-#include "correlation_field.h"
-#include "json.h"
-#include "memory_budget.h"
-#include "ranks.h"
-#include "ensemble_io.h"
-#include "grid_point.h"
+#include "tfmatch/kernels/correlation_field.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/model/ranks.h"
+#include "tfmatch/io/ensemble_io.h"
+#include "tfmatch/model/grid_point.h"
 #include "input_options.h"
-#include "output_check.h"
+#include "tfmatch/io/output_check.h"
 #include "output_options.h"
-#include "progress.h"
+#include "tfmatch/model/progress.h"
 #include "render_options.h"
-#include "volume_vti.h"
+#include "tfmatch/io/volume_vti.h"
 
 namespace tfm::cli {
 namespace {

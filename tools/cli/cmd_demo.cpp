@@ -6,23 +6,23 @@
 #include <optional>
 #include <string_view>
 
-#include "atomic_file.h"
-#include "correlation_field.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/kernels/correlation_field.h"
 #include "cli.h"
-#include "optimize.h"
-#include "output_check.h"
-#include "progress.h"
-#include "render.h"
+#include "tfmatch/solvers/optimize.h"
+#include "tfmatch/io/output_check.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/kernels/render.h"
 #include "render_options.h"
-#include "report.h"
-#include "loss_plot.h"
-#include "result_json.h"
+#include "tfmatch/report/report.h"
+#include "tfmatch/report/loss_plot.h"
+#include "tfmatch/report/result_json.h"
 #include "solver_options.h"
-#include "synthetic.h"
-#include "synthetic_ensemble.h"
-#include "volume_vti.h"
-#include "volume_io.h"
-#include "tf_json.h"
+#include "tfmatch/model/synthetic.h"
+#include "tfmatch/model/synthetic_ensemble.h"
+#include "tfmatch/io/volume_vti.h"
+#include "tfmatch/io/volume_io.h"
+#include "tfmatch/io/tf_json.h"
 
 namespace tfm::cli {
 namespace {

@@ -4,13 +4,13 @@
 #include <iostream>
 #include <optional>
 
-#include "atomic_file.h"
+#include "tfmatch/io/atomic_file.h"
 #include "cli.h"
-#include "json.h"
+#include "tfmatch/io/json.h"
 #ifdef TFMATCH_HAVE_CUDA
-#include "cuda_backend.h"
+#include "tfmatch/cuda/cuda_backend.h"
 #endif
-#include "output_check.h"
+#include "tfmatch/io/output_check.h"
 #include "output_options.h"
 
 namespace tfm::cli {

@@ -5,11 +5,11 @@
 
 #include "cli.h"
 #include "input_options.h"
-#include "output_check.h"
+#include "tfmatch/io/output_check.h"
 #include "output_options.h"
-#include "volume_format_table.h"
-#include "volume_info.h"
-#include "volume_io.h"
+#include "tfmatch/io/volume_format_table.h"
+#include "tfmatch/io/volume_info.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm::cli {
 namespace {

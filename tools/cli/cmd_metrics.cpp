@@ -4,10 +4,10 @@
 #include <iostream>
 
 #include "cli.h"
-#include "metrics.h"
-#include "output_check.h"
+#include "tfmatch/report/metrics.h"
+#include "tfmatch/io/output_check.h"
 #include "output_options.h"
-#include "png_io.h"
+#include "tfmatch/report/png_io.h"
 
 namespace tfm::cli {
 namespace {

@@ -5,13 +5,13 @@
 #include <iostream>
 #include <memory>
 
-#include "atomic_file.h"
+#include "tfmatch/io/atomic_file.h"
 #include "cli.h"
-#include "json.h"
-#include "output_check.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/io/output_check.h"
 #include "output_options.h"
-#include "progress.h"
-#include "selftest.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/selftest/selftest.h"
 #include "tfmatch_version.h"
 
 namespace tfm::cli {

@@ -5,15 +5,15 @@
 #include <map>
 #include <sstream>
 
-#include "atomic_file.h"
+#include "tfmatch/io/atomic_file.h"
 #include "cli.h"
 #include "input_options.h"
-#include "output_check.h"
+#include "tfmatch/io/output_check.h"
 #include "output_options.h"
-#include "result_json.h"
-#include "solver_comparison.h"
+#include "tfmatch/report/result_json.h"
+#include "tfmatch/solvers/solver_comparison.h"
 #include "solver_options.h"
-#include "synthetic.h"
+#include "tfmatch/model/synthetic.h"
 
 namespace tfm::cli {
 namespace {

@@ -10,9 +10,9 @@
 #include <tuple>
 
 #include "cli.h"
-#include "tf_formats.h"
-#include "volume_format_table.h"
-#include "volume_io.h"
+#include "tfmatch/io/tf_formats.h"
+#include "tfmatch/io/volume_format_table.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm::cli {
 

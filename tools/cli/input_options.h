@@ -12,10 +12,10 @@
 
 #include <CLI/CLI.hpp>
 
-#include "json.h"
-#include "optimize.h"
-#include "volume.h"
-#include "volume_io.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/solvers/optimize.h"
+#include "tfmatch/model/volume.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm::cli {
 

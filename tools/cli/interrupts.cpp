@@ -12,8 +12,8 @@
 #include <poll.h>
 #include <unistd.h>
 
-#include "atomic_file.h"
-#include "cancellation.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/model/cancellation.h"
 
 namespace tfm::cli {
 namespace {

@@ -13,23 +13,23 @@
 #include <sstream>
 #include <string_view>
 
-#include "cancellation.h"
+#include "tfmatch/model/cancellation.h"
 #include "cli.h"
 #ifdef TFMATCH_HAVE_CUDA
-#include "cuda_solver_registration.h"
+#include "tfmatch/cuda/cuda_solver_registration.h"
 #endif
 #include "interrupts.h"
-#include "memory_budget.h"
+#include "tfmatch/model/memory_budget.h"
 #ifdef TFMATCH_HAVE_MPI
-#include "mpi_ranks.h"
+#include "tfmatch/mpi/mpi_ranks.h"
 #endif
-#include "parameter_names.h"
-#include "phase_timer.h"
-#include "pipeline_cache_file.h"
-#include "progress.h"
-#include "shader_registry.h"
+#include "tfmatch/model/parameter_names.h"
+#include "tfmatch/model/phase_timer.h"
+#include "tfmatch/io/pipeline_cache_file.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/shaders/shader_registry.h"
 #include "tfmatch_version.h"  // generated in the build directory (top-level CMakeLists.txt)
-#include "vk_check.h"
+#include "tfmatch/engine/vk_check.h"
 
 namespace tfm::cli {
 

@@ -12,8 +12,8 @@
 #include <fcntl.h>
 #include <unistd.h>
 
-#include "atomic_file.h"
-#include "phase_timer.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/model/phase_timer.h"
 
 namespace tfm::cli {
 namespace {

@@ -9,7 +9,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "json.h"
+#include "tfmatch/io/json.h"
 
 namespace tfm::cli {
 

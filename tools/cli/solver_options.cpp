@@ -5,7 +5,7 @@
 #include <cctype>
 #include <vector>
 
-#include "solver.h"
+#include "tfmatch/solvers/solver.h"
 
 namespace tfm::cli {
 namespace {

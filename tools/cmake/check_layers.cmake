@@ -9,12 +9,22 @@
 # Run as a script: cmake -DTFMATCH_SOURCE_DIR=<repo> -P check_layers.cmake (exit code 1 and one
 # line per offending include). cuda/ may use engine, shaders, kernels and host/model, and only
 # host/solvers uses it. Every file, tests included, reads nlohmann::json through host/io/json.h.
+# Every include of a library header names its folder (tools/cmake/header_folders.cmake):
+# "tfmatch/model/camera.h", never "camera.h", which would resolve through the include path to
+# whatever camera.h comes first there. The shaders' layout headers alone include each other by
+# name: glslang reads them too, and a quoted name is found first beside the including file.
 
 cmake_policy(SET CMP0057 NEW)
 set(layers shaders host/model engine kernels cuda host/reference host/io host/mpi host/selftest host/solvers
     host/report host/viewer tools)
 set(gpu_free_layers shaders host/model host/reference host/io host/mpi)
 set(allowed_exceptions "")
+include(${CMAKE_CURRENT_LIST_DIR}/header_folders.cmake)
+foreach(entry ${TFMATCH_HEADER_FOLDERS})
+  string(REGEX REPLACE ":.*" "" folder ${entry})
+  string(REGEX REPLACE "^[^:]*:" "" source ${entry})
+  set(folder_of_${source} ${folder})
+endforeach()
 
 # Which layer owns each header name (basenames are unique across the tree; a duplicate is an
 # error too, because quoted includes resolve by name through the include path).
@@ -30,6 +40,12 @@ foreach(layer ${layers})
     set(owner_${name} ${rank})
     set(path_${name} ${header})
     set(layer_of_${name} ${layer})
+    get_filename_component(dir ${header} DIRECTORY)
+    set(dir_of_${name} ${dir})
+    set(spelling_of_${name} ${name})  # the program's own (tools/cli) include each other by name
+    if(DEFINED folder_of_${dir})
+      set(spelling_of_${name} tfmatch/${folder_of_${dir}}/${name})
+    endif()
   endforeach()
   set(rank_${layer} ${rank})
   math(EXPR rank "${rank} + 1")
@@ -57,6 +73,13 @@ foreach(layer ${layers})
       if(NOT DEFINED owner_${name})
         continue()  # generated (build dir) or system header
       endif()
+      get_filename_component(source_dir ${source} DIRECTORY)
+      get_filename_component(source_ext ${source} LAST_EXT)
+      if(NOT target STREQUAL spelling_of_${name}
+         AND NOT (source_dir STREQUAL "shaders" AND dir_of_${name} STREQUAL "shaders" AND target STREQUAL name
+                  AND source_ext MATCHES "^\\.(h|comp|glsl)$"))
+        list(APPEND problems "${source} includes \"${target}\": write \"${spelling_of_${name}}\"")
+      endif()
       if(owner_${name} GREATER rank_${layer})
         if(NOT "${layer}:${path_${name}}" IN_LIST allowed_exceptions)
           list(APPEND problems "${source} (${layer}) includes ${path_${name}} (${layer_of_${name}}, a later layer)")
@@ -79,7 +102,7 @@ foreach(source ${json_users})
   endif()
   file(STRINGS ${TFMATCH_SOURCE_DIR}/${source} direct REGEX "^[ \t]*#[ \t]*include[ \t]+<nlohmann/json")
   if(direct)
-    list(APPEND problems "${source} includes <nlohmann/json.hpp> directly, not \"json.h\" (host/io/json.h)")
+    list(APPEND problems "${source} includes <nlohmann/json.hpp> directly, not \"tfmatch/io/json.h\"")
   endif()
 endforeach()
 
@@ -87,4 +110,4 @@ if(problems)
   list(JOIN problems "\n  " text)
   message(FATAL_ERROR "layer rule broken (DESIGN.md; tools/cmake/check_layers.cmake):\n  ${text}")
 endif()
-message(STATUS "layers: every include points to the same or an earlier layer")
+message(STATUS "layers: every include points to the same or an earlier layer and names its folder")

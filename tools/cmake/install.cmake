@@ -22,23 +22,17 @@ if(TFMATCH_CUDA)
   set(tfm_cuda_libraries tfmatch_cuda_solvers)
   set_target_properties(tfmatch_cuda_solvers PROPERTIES EXPORT_NAME cuda)
 endif()
-# Header folders: "<folder in the install>:<source folder>". The headers include each other by
-# name ("buffer.h", as in the tree), so every layer folder is on the targets' include path too;
-# embedders name the layer (<tfmatch/kernels/recording.h>).
-set(tfm_header_layers engine:engine shaders:shaders kernels:kernels model:host/model reference:host/reference
-    selftest:host/selftest solvers:host/solvers io:host/io report:host/report)
-if(TFMATCH_CUDA)
-  list(APPEND tfm_header_layers cuda:cuda cuda:host/solvers/cuda)
+# Header folders: those of tools/cmake/include_tree.cmake but the program's own layers (mpi,
+# viewer) and, without TFMATCH_CUDA, cuda. Headers include each other by their layer-qualified
+# names ("tfmatch/model/camera.h"), so <prefix>/include is the one folder on an embedder's include
+# path, and a host header of the same bare name cannot be picked instead of one of ours.
+set(tfm_header_layers ${TFMATCH_HEADER_FOLDERS})
+list(FILTER tfm_header_layers EXCLUDE REGEX "^(mpi|viewer):")
+if(NOT TFMATCH_CUDA)
+  list(FILTER tfm_header_layers EXCLUDE REGEX "^cuda:")
 endif()
-set(tfm_header_folders ${tfm_header_layers})
-list(TRANSFORM tfm_header_folders REPLACE ":.*" "")
-list(REMOVE_DUPLICATES tfm_header_folders)
 set(tfm_install_include_dirs $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
 set(tfm_pc_include_flags "-I\${includedir}")
-foreach(folder ${tfm_header_folders})
-  list(APPEND tfm_install_include_dirs $<INSTALL_INTERFACE:${tfm_install_include}/${folder}>)
-  string(APPEND tfm_pc_include_flags " -I\${includedir}/tfmatch/${folder}")
-endforeach()
 foreach(lib ${tfm_layer_libraries})
   string(REPLACE "tfmatch_" "" short ${lib})
   set_target_properties(${lib} PROPERTIES EXPORT_NAME ${short})

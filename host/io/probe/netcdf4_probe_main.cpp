@@ -15,7 +15,7 @@
 #include <cstring>
 #include <string>
 
-#include "netcdf4_probe.h"
+#include "tfmatch/io/netcdf4_probe.h"
 
 namespace {
 

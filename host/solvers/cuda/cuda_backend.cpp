@@ -1,7 +1,7 @@
 // Loading the CUDA solvers' plugin (cuda_backend.h). dlopen by hand: there is no lazy loading of
 // a shared library's dependencies on Linux, and linking libcudart/libcusparse/libnvJitLink into
 // the program cost every process ~24 ms of start-up for solvers few commands use.
-#include "cuda_backend.h"
+#include "tfmatch/cuda/cuda_backend.h"
 
 #include <dlfcn.h>
 #include <unistd.h>

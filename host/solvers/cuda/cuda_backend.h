@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "cuda_solvers.h"
+#include "tfmatch/cuda/cuda_solvers.h"
 
 namespace tfm::cuda {
 

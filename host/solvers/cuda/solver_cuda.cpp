@@ -5,7 +5,7 @@
 // a CUDA device they throw on use. Their own library (tfmatch_cuda_solvers, the package's `cuda`
 // component), added to the registry by register_cuda_solvers(): tfmatch::tfmatch itself needs no
 // CUDA. The CUDA code is a plugin, loaded when a CUDA solver first runs (cuda_backend.h).
-#include "cuda_solver_registration.h"
+#include "tfmatch/cuda/cuda_solver_registration.h"
 
 #include <algorithm>
 #include <cmath>
@@ -13,9 +13,9 @@
 
 #include <Eigen/SparseCore>
 
-#include "cuda_backend.h"
-#include "parameter_names.h"
-#include "solver_support.h"
+#include "tfmatch/cuda/cuda_backend.h"
+#include "tfmatch/model/parameter_names.h"
+#include "tfmatch/solvers/solver_support.h"
 
 namespace tfm {
 namespace {

@@ -8,9 +8,9 @@
 
 #include "formats_test_util.h"
 #include "vk_test_env.h"
-#include "volume.h"
-#include "volume_info.h"
-#include "volume_io.h"
+#include "tfmatch/model/volume.h"
+#include "tfmatch/io/volume_info.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm {
 namespace {

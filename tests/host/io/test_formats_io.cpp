@@ -7,17 +7,17 @@
 #include <utility>
 #include <vector>
 
-#include "base64.h"
+#include "tfmatch/io/base64.h"
 #include "cli_runner.h"
 #include "formats_test_util.h"
-#include "memory_budget.h"
+#include "tfmatch/model/memory_budget.h"
 #include "slab_test_files.h"
-#include "volume.h"
-#include "volume_format_table.h"
-#include "volume_formats.h"
-#include "volume_info.h"
+#include "tfmatch/model/volume.h"
+#include "tfmatch/io/volume_format_table.h"
+#include "tfmatch/io/volume_formats.h"
+#include "tfmatch/io/volume_info.h"
 #include "vk_test_env.h"
-#include "volume_io.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm {
 namespace {

@@ -9,12 +9,12 @@
 #include <fstream>
 
 #include "formats_test_util.h"
-#include "json.h"
+#include "tfmatch/io/json.h"
 #include "vk_test_env.h"
-#include "volume.h"
-#include "volume_info.h"
-#include "volume_io.h"
-#include "volume_vti.h"
+#include "tfmatch/model/volume.h"
+#include "tfmatch/io/volume_info.h"
+#include "tfmatch/io/volume_io.h"
+#include "tfmatch/io/volume_vti.h"
 
 namespace tfm {
 namespace {

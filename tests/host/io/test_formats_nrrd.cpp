@@ -8,10 +8,10 @@
 #include <map>
 
 #include "formats_test_util.h"
-#include "volume.h"
-#include "volume_formats.h"
+#include "tfmatch/model/volume.h"
+#include "tfmatch/io/volume_formats.h"
 #include "vk_test_env.h"
-#include "volume_io.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm {
 namespace {

@@ -10,9 +10,9 @@
 
 #include "cli_runner.h"
 #include "formats_test_util.h"
-#include "volume_format_table.h"
-#include "volume_info.h"
-#include "volume_io.h"
+#include "tfmatch/io/volume_format_table.h"
+#include "tfmatch/io/volume_info.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm {
 namespace {

@@ -7,8 +7,8 @@
 #include <random>
 
 #include "formats_test_util.h"
-#include "tf_formats.h"
-#include "tf_json.h"
+#include "tfmatch/io/tf_formats.h"
+#include "tfmatch/io/tf_json.h"
 
 namespace tfm {
 namespace {

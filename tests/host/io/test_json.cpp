@@ -6,7 +6,7 @@
 
 #include <gtest/gtest.h>
 
-#include "json.h"
+#include "tfmatch/io/json.h"
 
 namespace tfm {
 namespace {

@@ -8,7 +8,7 @@
 #include <filesystem>
 
 #include "cli_runner.h"
-#include "lazy_library.h"
+#include "tfmatch/io/lazy_library.h"
 
 namespace tfm {
 namespace {

@@ -13,11 +13,11 @@
 #include <fstream>
 #include <thread>
 
-#include "cancellation.h"
+#include "tfmatch/model/cancellation.h"
 #include "formats_test_util.h"
-#include "netcdf4_probe.h"
+#include "tfmatch/io/netcdf4_probe.h"
 #include "scoped_env.h"
-#include "volume_io.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm {
 namespace {

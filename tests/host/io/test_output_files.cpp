@@ -10,10 +10,10 @@
 #include <fstream>
 #include <string>
 
-#include "atomic_file.h"
-#include "cancellation.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/model/cancellation.h"
 #include "cli_runner.h"
-#include "output_check.h"
+#include "tfmatch/io/output_check.h"
 
 namespace tfm {
 namespace {

@@ -13,7 +13,7 @@
 
 #include "cli_runner.h"
 #include "scoped_env.h"
-#include "pipeline_cache_file.h"
+#include "tfmatch/io/pipeline_cache_file.h"
 
 namespace tfm {
 namespace {

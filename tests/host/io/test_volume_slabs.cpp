@@ -8,7 +8,7 @@
 
 #include "formats_test_util.h"
 #include "slab_test_files.h"
-#include "volume_io.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm {
 namespace {

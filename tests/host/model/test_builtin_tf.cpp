@@ -8,8 +8,8 @@
 #include <cstdio>
 #include <string>
 
-#include "builtin_tf.h"
-#include "color_spaces.h"
+#include "tfmatch/model/builtin_tf.h"
+#include "tfmatch/model/color_spaces.h"
 
 namespace tfm {
 namespace {

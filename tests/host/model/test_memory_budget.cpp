@@ -5,8 +5,8 @@
 
 #include <string>
 
-#include "cancellation.h"
-#include "memory_budget.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/memory_budget.h"
 
 namespace tfm {
 namespace {

@@ -5,7 +5,7 @@
 #include <chrono>
 #include <thread>
 
-#include "phase_timer.h"
+#include "tfmatch/model/phase_timer.h"
 
 namespace tfm {
 namespace {

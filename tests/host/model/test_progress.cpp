@@ -9,7 +9,7 @@
 #include <thread>
 #include <vector>
 
-#include "progress.h"
+#include "tfmatch/model/progress.h"
 
 namespace tfm {
 namespace {

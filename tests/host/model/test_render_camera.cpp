@@ -4,8 +4,8 @@
 
 #include <cmath>
 
-#include "camera.h"
-#include "cpu_renderer.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/reference/cpu_renderer.h"
 
 namespace tfm {
 namespace {

@@ -2,8 +2,8 @@
 // default to (from above, north up, opacity per box height, the map's aspect) unless chosen.
 #include <gtest/gtest.h>
 
-#include "camera.h"
-#include "render_defaults.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/model/render_defaults.h"
 
 namespace tfm {
 namespace {

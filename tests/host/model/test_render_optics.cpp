@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "cpu_renderer.h"
-#include "render.h"
+#include "tfmatch/reference/cpu_renderer.h"
+#include "tfmatch/kernels/render.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -6,7 +6,7 @@
 
 #include <gtest/gtest.h>
 
-#include "slice.h"
+#include "tfmatch/model/slice.h"
 
 namespace tfm {
 namespace {

@@ -4,8 +4,8 @@
 
 #include <cmath>
 
-#include "correlation_cpu.h"
-#include "synthetic_ensemble.h"
+#include "tfmatch/reference/correlation_cpu.h"
+#include "tfmatch/model/synthetic_ensemble.h"
 
 namespace tfm {
 namespace {

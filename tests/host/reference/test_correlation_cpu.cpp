@@ -11,10 +11,10 @@
 
 #include <gtest/gtest.h>
 
-#include "correlation.h"
-#include "correlation_cpu.h"
+#include "tfmatch/kernels/correlation.h"
+#include "tfmatch/reference/correlation_cpu.h"
 #include "correlation_expected.h"
-#include "selftest_support.h"
+#include "tfmatch/selftest/selftest_support.h"
 
 namespace tfm {
 namespace {

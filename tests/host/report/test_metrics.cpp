@@ -5,7 +5,7 @@
 #include <cmath>
 #include <string>
 
-#include "metrics.h"
+#include "tfmatch/report/metrics.h"
 
 namespace tfm {
 namespace {

@@ -7,9 +7,9 @@
 #include <random>
 
 #include "cli_runner.h"
-#include "font.h"
-#include "png_io.h"
-#include "tf_plot.h"
+#include "tfmatch/report/font.h"
+#include "tfmatch/report/png_io.h"
+#include "tfmatch/report/tf_plot.h"
 
 namespace tfm {
 namespace {

@@ -7,12 +7,12 @@
 #include <sstream>
 
 #include "cli_runner.h"
-#include "json.h"
-#include "metrics.h"
-#include "png_io.h"
-#include "report.h"
-#include "synthetic.h"
-#include "tf_formats.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/report/metrics.h"
+#include "tfmatch/report/png_io.h"
+#include "tfmatch/report/report.h"
+#include "tfmatch/model/synthetic.h"
+#include "tfmatch/io/tf_formats.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -15,8 +15,8 @@
 #include <gtest/gtest.h>
 
 #include "cli_runner.h"
-#include "json.h"
-#include "selftest.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/selftest/selftest.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -9,7 +9,7 @@
 
 #include <Eigen/Dense>
 
-#include "box_qp.h"
+#include "tfmatch/solvers/box_qp.h"
 
 namespace tfm {
 namespace {

@@ -15,9 +15,9 @@
 #include <filesystem>
 #include <fstream>
 
-#include "cuda_backend.h"
+#include "tfmatch/cuda/cuda_backend.h"
 #include "cli_runner.h"
-#include "eigen_baseline.h"
+#include "tfmatch/solvers/eigen_baseline.h"
 #include "scoped_env.h"
 #include "solver_problem.h"
 #include "vk_test_env.h"

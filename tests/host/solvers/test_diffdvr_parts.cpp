@@ -8,11 +8,11 @@
 #include <glm/glm.hpp>
 #include <gtest/gtest.h>
 
-#include "adam.h"
-#include "cameras.h"
-#include "diffdvr.h"
-#include "diffdvr_cpu.h"
-#include "loss_plot.h"
+#include "tfmatch/solvers/adam.h"
+#include "tfmatch/model/cameras.h"
+#include "tfmatch/kernels/diffdvr.h"
+#include "tfmatch/reference/diffdvr_cpu.h"
+#include "tfmatch/report/loss_plot.h"
 
 namespace tfm {
 namespace {

@@ -11,8 +11,8 @@
 
 #include "cli_runner.h"
 #include "cube_case.h"
-#include "json.h"
-#include "solver_diffdvr.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/solvers/solver_diffdvr.h"
 #include "vk_test_env.h"
 
 namespace tfm {

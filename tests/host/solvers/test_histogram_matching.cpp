@@ -6,9 +6,9 @@
 #include <cmath>
 #include <vector>
 
-#include "gpu_voxel_ops.h"
-#include "histogram_matching.h"
-#include "histogram_cpu.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/solvers/histogram_matching.h"
+#include "tfmatch/reference/histogram_cpu.h"
 #include "solver_problem.h"
 #include "vk_test_env.h"
 

@@ -5,9 +5,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "image_loss.h"
-#include "normal_equations.h"
-#include "parameter_names.h"
+#include "tfmatch/model/image_loss.h"
+#include "tfmatch/solvers/normal_equations.h"
+#include "tfmatch/model/parameter_names.h"
 
 namespace tfm {
 namespace {

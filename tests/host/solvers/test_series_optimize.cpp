@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "formats_test_util.h"
-#include "series_optimize.h"
+#include "tfmatch/solvers/series_optimize.h"
 #include "test_data.h"
 #include "vk_test_env.h"
 

@@ -9,10 +9,10 @@
 #include <mutex>
 #include <thread>
 
-#include "cancellation.h"
+#include "tfmatch/model/cancellation.h"
 #include "interrupts.h"
-#include "normal_equations.h"
-#include "progress.h"
+#include "tfmatch/solvers/normal_equations.h"
+#include "tfmatch/model/progress.h"
 #include "solver_problem.h"
 #include "vk_test_env.h"
 

@@ -9,12 +9,12 @@
 
 #include <Eigen/Dense>
 
-#include "cgls_cpu.h"
-#include "device_cgls.h"
-#include "eigen_baseline.h"
-#include "solver_cgls.h"
+#include "tfmatch/solvers/cgls_cpu.h"
+#include "tfmatch/kernels/device_cgls.h"
+#include "tfmatch/solvers/eigen_baseline.h"
+#include "tfmatch/solvers/solver_cgls.h"
 #include "solver_problem.h"
-#include "tridiagonal.h"
+#include "tfmatch/solvers/tridiagonal.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -7,9 +7,9 @@
 #include <cmath>
 
 #include "cli_runner.h"
-#include "json.h"
-#include "result_json.h"
-#include "solver_comparison.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/report/result_json.h"
+#include "tfmatch/solvers/solver_comparison.h"
 #include "solver_problem.h"
 #include "vk_test_env.h"
 

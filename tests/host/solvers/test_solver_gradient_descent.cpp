@@ -8,11 +8,11 @@
 #include <cmath>
 #include <random>
 
-#include "box_qp.h"
-#include "commands.h"
-#include "gradient_descent.h"
-#include "solver_gradient_descent.h"
-#include "sparse_ops.h"
+#include "tfmatch/solvers/box_qp.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/gradient_descent.h"
+#include "tfmatch/solvers/solver_gradient_descent.h"
+#include "tfmatch/kernels/sparse_ops.h"
 #include "solver_problem.h"
 #include "vk_test_env.h"
 

@@ -12,10 +12,10 @@
 
 #include <Eigen/Dense>
 
-#include "box_qp.h"
-#include "commands.h"
-#include "irls.h"
-#include "solver_irls.h"
+#include "tfmatch/solvers/box_qp.h"
+#include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/irls.h"
+#include "tfmatch/solvers/solver_irls.h"
 #include "solver_problem.h"
 #include "vk_test_env.h"
 

@@ -9,10 +9,10 @@
 #include <set>
 
 #include "cli_runner.h"
-#include "json.h"
-#include "result_json.h"
-#include "solver.h"
-#include "solver_gradient_descent.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/report/result_json.h"
+#include "tfmatch/solvers/solver.h"
+#include "tfmatch/solvers/solver_gradient_descent.h"
 #include "solver_problem.h"
 #include "vk_test_env.h"
 

@@ -8,15 +8,15 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "cancellation.h"
+#include "tfmatch/model/cancellation.h"
 #include "formats_test_util.h"
-#include "gpu_voxel_ops.h"
-#include "optimize.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/solvers/optimize.h"
 #include "slab_test_files.h"
-#include "streamed_optimize.h"
-#include "synthetic.h"
+#include "tfmatch/solvers/streamed_optimize.h"
+#include "tfmatch/model/synthetic.h"
 #include "vk_test_env.h"
-#include "volume_io.h"
+#include "tfmatch/io/volume_io.h"
 
 namespace tfm {
 namespace {

@@ -10,9 +10,9 @@
 
 #include <Eigen/Dense>
 
-#include "box_qp.h"
-#include "normal_equations.h"
-#include "tridiagonal.h"
+#include "tfmatch/solvers/box_qp.h"
+#include "tfmatch/solvers/normal_equations.h"
+#include "tfmatch/solvers/tridiagonal.h"
 
 namespace tfm {
 namespace {

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "cube_case.h"
-#include "gpu_voxel_ops.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -9,8 +9,8 @@
 #include <mutex>
 #include <thread>
 
-#include "connection_workers.h"
-#include "event_hub.h"
+#include "tfmatch/viewer/connection_workers.h"
+#include "tfmatch/viewer/event_hub.h"
 
 namespace tfm {
 namespace {

@@ -10,17 +10,17 @@
 #include <fstream>
 #include <thread>
 
-#include "camera.h"
+#include "tfmatch/model/camera.h"
 #include "cli_runner.h"
-#include "cancellation.h"
-#include "png_io.h"
-#include "render.h"
-#include "synthetic.h"
-#include "synthetic_ensemble.h"
-#include "tf_points.h"
-#include "view_page.h"
-#include "view_server.h"
-#include "view_session.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/report/png_io.h"
+#include "tfmatch/kernels/render.h"
+#include "tfmatch/model/synthetic.h"
+#include "tfmatch/model/synthetic_ensemble.h"
+#include "tfmatch/viewer/tf_points.h"
+#include "tfmatch/viewer/view_page.h"
+#include "tfmatch/viewer/view_server.h"
+#include "tfmatch/viewer/view_session.h"
 #include "view_server_fixture.h"
 #include "vk_test_env.h"
 // After Eigen (through the project headers): OpenSSL's headers, which httplib.h includes, define

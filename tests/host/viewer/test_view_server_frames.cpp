@@ -5,7 +5,7 @@
 
 #include <map>
 
-#include "png_io.h"
+#include "tfmatch/report/png_io.h"
 #include "view_server_fixture.h"
 
 namespace tfm {

@@ -13,9 +13,9 @@
 #include <chrono>
 #include <thread>
 
-#include "synthetic.h"
-#include "view_server.h"
-#include "view_session.h"
+#include "tfmatch/model/synthetic.h"
+#include "tfmatch/viewer/view_server.h"
+#include "tfmatch/viewer/view_session.h"
 #include "vk_test_env.h"
 // After Eigen (through the project headers): see test_view_server.cpp.
 #include <httplib.h>

@@ -5,9 +5,9 @@
 #include <memory>
 #include <string>
 
-#include "synthetic.h"
-#include "view_server.h"
-#include "view_session.h"
+#include "tfmatch/model/synthetic.h"
+#include "tfmatch/viewer/view_server.h"
+#include "tfmatch/viewer/view_session.h"
 #include "vk_test_env.h"
 // After Eigen (through the project headers): OpenSSL's headers, which httplib.h includes, define
 // macros that break Eigen's product kernels when they come first.
