@@ -416,6 +416,10 @@ struct NrrdData {
   uint64_t components = 1;
   uint64_t per_chunk = 0;
   std::vector<std::string> chunks, where;
+  // Raw data past what the sizes need (byte skip >= 0, no line skip), per data file: read from the
+  // start and the rest left, as teem reads it; `info` names it, since it is how a header with
+  // wrong sizes shows.
+  std::vector<uint64_t> excess;
 
   // Decodes every data file into `reducer`, in order.
   void decode(TupleReducer& reducer) const {
@@ -478,6 +482,8 @@ NrrdData resolve_nrrd(std::string_view bytes, const std::string& file, const Dat
       throw std::runtime_error(d.where[i] + " has " + std::to_string(n) + " bytes, too few for " +
                                std::to_string(d.per_chunk) + " " + h.type_text + " values (" + h.encoding +
                                "; truncated, or wrong sizes in the header)");
+    const uint64_t used = uint64_t(std::max<int64_t>(h.byte_skip, 0)) + d.per_chunk * elem;
+    d.excess.push_back(h.encoding == "raw" && h.byte_skip >= 0 && h.line_skip == 0 && n > used ? n - used : 0);
   }
   return d;
 }
@@ -535,6 +541,11 @@ FileInfo describe_nrrd(const std::filesystem::path& path, const VolumeOptions&) 
   if (!h.data_files.empty())
     a.notes.push_back(std::to_string(h.data_files.size()) + " data file(s): " + h.data_files.front() +
                       (h.data_files.size() > 1 ? " ... " + h.data_files.back() : ""));
+  for (size_t i = 0; i < d.chunks.size(); ++i)
+    if (d.excess[i])
+      a.notes.push_back(d.where[i].substr(file.size() + 2) + " holds " + std::to_string(d.excess[i]) + " bytes more than sizes " + sizes +
+                        " of " + h.type_text + " need: the first are read, the rest left (as teem does); "
+                        "wrong sizes in the header would show this way");
   a.grid = d.dims;
   a.spacing = d.spacing;
   if (h.dimension == 4) {

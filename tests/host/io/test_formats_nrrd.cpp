@@ -11,6 +11,7 @@
 #include "tfmatch/model/volume.h"
 #include "tfmatch/io/volume_formats.h"
 #include "vk_test_env.h"
+#include "tfmatch/io/volume_info.h"
 #include "tfmatch/io/volume_io.h"
 
 namespace tfm {
@@ -105,6 +106,29 @@ TEST(Nrrd, DetachedFilesSkipsAndComponents) {
   EXPECT_EQ(m.values, (std::vector<float>{5, 10}));
   EXPECT_EQ(m.spacing, (std::array<double, 3>{5, 1, 2}));
   EXPECT_EQ(parse_nrrd(vec, "v.nrrd", VolumeOptions{.variable = "[1]"}, {}).values, (std::vector<float>{4, 8}));
+}
+
+// More raw data than the sizes need is read from the start, as teem reads it, and `info` says so
+// (it is how wrong sizes in a header show); data read from the end (byte skip -1) are not extra.
+TEST(Nrrd, InfoNamesDataBeyondWhatTheSizesNeed) {
+  formats_test::TempDir dir;
+  auto notes_of = [&](const std::string& name, const std::string& bytes) {
+    formats_test::write_bytes(dir / name, bytes);
+    const FileInfo info = describe_file(dir / name);
+    std::string all;
+    for (const auto& n : info.arrays.at(0).notes) all += n + "\n";
+    return all;
+  };
+  const std::string head = kHead + "endian: little\nencoding: raw\n";
+  expect_values(parse(head + "\n" + shorts(false) + "1234"));
+  EXPECT_NE(notes_of("extra.nrrd", head + "\n" + shorts(false) + "1234")
+                .find("attached data holds 4 bytes more than sizes 3 2 2 of short need: the first are read"),
+            std::string::npos);
+  EXPECT_EQ(notes_of("exact.nrrd", head + "\n" + shorts(false)).find("more than"), std::string::npos);
+  formats_test::write_bytes(dir / "d.raw", "header of another tool" + shorts(false));
+  EXPECT_EQ(notes_of("end.nhdr", head + "data file: d.raw\nbyte skip: -1\n").find("more than"), std::string::npos);
+  EXPECT_NE(notes_of("skip.nhdr", head + "data file: d.raw\nbyte skip: 2\n").find("data file d.raw holds 20 bytes more"),
+            std::string::npos);
 }
 
 TEST(Nrrd, MalformedInputGivesClearErrors) {
