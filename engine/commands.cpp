@@ -8,9 +8,9 @@
 #include "tfmatch/engine/context.h"
 #include "tfmatch/engine/device_field.h"  // vk_format_name
 #include "tfmatch/engine/pipeline.h"
-#include "tfmatch/model/phase_timer.h"
 #include "tfmatch/engine/vk_check.h"
 #include "tfmatch/engine/vk_dispatch.h"
+#include "tfmatch/model/phase_timer.h"
 
 namespace tfm {
 namespace {

@@ -11,10 +11,10 @@
 #include <stdexcept>
 #include <utility>
 
-#include "tfmatch/model/phase_timer.h"
 #include "tfmatch/engine/pipeline.h"
 #include "tfmatch/engine/vk_check.h"
 #include "tfmatch/engine/vk_dispatch.h"
+#include "tfmatch/model/phase_timer.h"
 
 namespace tfm {
 namespace {

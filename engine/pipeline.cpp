@@ -7,9 +7,9 @@
 #include <stdexcept>
 
 #include "tfmatch/engine/context.h"
-#include "tfmatch/model/phase_timer.h"
 #include "tfmatch/engine/vk_check.h"
 #include "tfmatch/engine/vk_dispatch.h"
+#include "tfmatch/model/phase_timer.h"
 
 namespace tfm {
 

@@ -19,9 +19,9 @@
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/engine/context.h"
 #include "tfmatch/engine/device_field.h"
-#include "tfmatch/shaders/correlation_layout.h"
-#include "tfmatch/model/correlation_reference.h"
 #include "tfmatch/engine/pipeline.h"
+#include "tfmatch/model/correlation_reference.h"
+#include "tfmatch/shaders/correlation_layout.h"
 
 namespace tfm {
 

@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "tfmatch/engine/buffer.h"
-#include "tfmatch/kernels/cgls_vectors.h"
 #include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/cgls_vectors.h"
 #include "tfmatch/kernels/sparse_ops.h"
 
 namespace tfm {

@@ -12,10 +12,10 @@
 #include "tfmatch/engine/buffer.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/engine/device_field.h"
-#include "tfmatch/shaders/diffdvr_layout.h"
-#include "tfmatch/model/image_loss.h"
 #include "tfmatch/engine/pipeline.h"
 #include "tfmatch/kernels/reduction.h"
+#include "tfmatch/model/image_loss.h"
+#include "tfmatch/shaders/diffdvr_layout.h"
 
 namespace tfm {
 

@@ -9,10 +9,10 @@
 
 #include "tfmatch/engine/context.h"
 #include "tfmatch/engine/device_field.h"
-#include "tfmatch/model/normal_equations_system.h"
-#include "tfmatch/model/transfer_function.h"
 #include "tfmatch/kernels/assemble_normal_equations.h"
 #include "tfmatch/kernels/voxel_loss.h"
+#include "tfmatch/model/normal_equations_system.h"
+#include "tfmatch/model/transfer_function.h"
 
 namespace tfm {
 

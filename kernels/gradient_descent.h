@@ -10,8 +10,8 @@
 #include "tfmatch/engine/device_field.h"
 #include "tfmatch/engine/pipeline.h"
 #include "tfmatch/kernels/reduction.h"
-#include "tfmatch/shaders/solver_layout.h"
 #include "tfmatch/kernels/tf_residual_pass.h"
+#include "tfmatch/shaders/solver_layout.h"
 
 namespace tfm {
 

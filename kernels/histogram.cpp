@@ -7,8 +7,8 @@
 
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/engine/context.h"
-#include "tfmatch/shaders/shader_registry.h"
 #include "tfmatch/kernels/voxel_pair.h"
+#include "tfmatch/shaders/shader_registry.h"
 
 namespace tfm {
 

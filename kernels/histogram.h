@@ -12,8 +12,8 @@
 
 #include "tfmatch/engine/buffer.h"
 #include "tfmatch/engine/device_field.h"
-#include "tfmatch/model/field_histogram.h"  // FieldHistogram, the bin arithmetic
 #include "tfmatch/engine/pipeline.h"
+#include "tfmatch/model/field_histogram.h"  // FieldHistogram, the bin arithmetic
 
 namespace tfm {
 

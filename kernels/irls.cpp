@@ -4,9 +4,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "tfmatch/shaders/solver_layout.h"
 #include "tfmatch/kernels/sparse_ops.h"
 #include "tfmatch/kernels/voxel_pair.h"
+#include "tfmatch/shaders/solver_layout.h"
 
 namespace tfm {
 

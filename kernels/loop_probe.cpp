@@ -6,8 +6,8 @@
 #include "tfmatch/engine/buffer.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/engine/context.h"
-#include "tfmatch/shaders/loop_probe_layout.h"
 #include "tfmatch/engine/pipeline.h"
+#include "tfmatch/shaders/loop_probe_layout.h"
 #include "tfmatch/shaders/shader_registry.h"
 
 namespace tfm {

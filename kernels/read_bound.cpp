@@ -8,9 +8,9 @@
 #include "tfmatch/engine/buffer.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/voxel_pair.h"
 #include "tfmatch/shaders/read_bound_layout.h"
 #include "tfmatch/shaders/shader_registry.h"
-#include "tfmatch/kernels/voxel_pair.h"
 
 namespace tfm {
 

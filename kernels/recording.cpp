@@ -9,15 +9,15 @@
 
 #include <glm/gtc/packing.hpp>
 
-#include "tfmatch/kernels/assemble_normal_equations.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/engine/context.h"
-#include "tfmatch/model/correlation_reference.h"
+#include "tfmatch/kernels/assemble_normal_equations.h"
 #include "tfmatch/kernels/render.h"
 #include "tfmatch/kernels/render_image.h"
 #include "tfmatch/kernels/residual_map.h"
-#include "tfmatch/shaders/shared_layout.h"
 #include "tfmatch/kernels/voxel_loss.h"
+#include "tfmatch/model/correlation_reference.h"
+#include "tfmatch/shaders/shared_layout.h"
 
 namespace tfm {
 

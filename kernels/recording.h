@@ -25,15 +25,15 @@
 
 #include <vulkan/vulkan_core.h>
 
-#include "tfmatch/kernels/assemble_normal_equations.h"
 #include "tfmatch/engine/buffer.h"
-#include "tfmatch/model/camera.h"
-#include "tfmatch/kernels/correlation.h"
 #include "tfmatch/engine/device_field.h"
-#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/kernels/assemble_normal_equations.h"
+#include "tfmatch/kernels/correlation.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
-#include "tfmatch/model/normal_equations_system.h"
 #include "tfmatch/kernels/reduction.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/model/normal_equations_system.h"
 
 namespace tfm {
 

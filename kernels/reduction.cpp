@@ -7,9 +7,9 @@
 #include <utility>
 
 #include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/voxel_pair.h"
 #include "tfmatch/shaders/shader_registry.h"
 #include "tfmatch/shaders/shared_layout.h"
-#include "tfmatch/kernels/voxel_pair.h"
 
 namespace tfm {
 

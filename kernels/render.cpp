@@ -8,10 +8,10 @@
 #include <cstring>
 #include <mutex>
 
-#include "tfmatch/model/cancellation.h"
 #include "tfmatch/engine/commands.h"
-#include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/device_memory.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/model/cancellation.h"
 #include "tfmatch/model/memory_budget.h"
 
 namespace tfm {

@@ -6,13 +6,13 @@
 #include <memory>
 #include <vector>
 
-#include "tfmatch/model/camera.h"
 #include "tfmatch/engine/context.h"
 #include "tfmatch/engine/device_field.h"
+#include "tfmatch/kernels/render_image.h"
+#include "tfmatch/model/camera.h"
 #include "tfmatch/model/field_mapping.h"
 #include "tfmatch/model/image.h"
 #include "tfmatch/model/progress.h"
-#include "tfmatch/kernels/render_image.h"
 #include "tfmatch/model/render_settings.h"
 #include "tfmatch/model/transfer_function.h"
 #include "tfmatch/model/volume.h"

@@ -9,12 +9,12 @@
 #include <vector>
 
 #include "tfmatch/engine/buffer.h"
-#include "tfmatch/model/camera.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/engine/device_field.h"
 #include "tfmatch/engine/pipeline.h"
-#include "tfmatch/shaders/render_layout.h"
 #include "tfmatch/kernels/voxel_pair.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/shaders/render_layout.h"
 
 namespace tfm {
 

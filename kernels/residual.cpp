@@ -5,10 +5,10 @@
 #include <cmath>
 
 #include "tfmatch/engine/commands.h"
-#include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/device_memory.h"
-#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/residual_map.h"
+#include "tfmatch/model/memory_budget.h"
 
 namespace tfm {
 

@@ -6,8 +6,8 @@
 #include <stdexcept>
 
 #include "tfmatch/engine/context.h"
-#include "tfmatch/shaders/render_layout.h"
 #include "tfmatch/kernels/voxel_pair.h"
+#include "tfmatch/shaders/render_layout.h"
 
 namespace tfm {
 

@@ -5,8 +5,8 @@
 #include <string>
 
 #include "tfmatch/engine/context.h"
-#include "tfmatch/shaders/solver_layout.h"
 #include "tfmatch/kernels/voxel_pair.h"
+#include "tfmatch/shaders/solver_layout.h"
 
 namespace tfm {
 

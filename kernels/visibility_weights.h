@@ -14,11 +14,11 @@
 #include <span>
 
 #include "tfmatch/engine/buffer.h"
-#include "tfmatch/model/camera.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/engine/device_field.h"
-#include "tfmatch/model/field_mapping.h"
 #include "tfmatch/engine/pipeline.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/model/field_mapping.h"
 #include "tfmatch/model/render_settings.h"
 
 namespace tfm {

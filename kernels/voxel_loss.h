@@ -11,10 +11,10 @@
 #include "tfmatch/engine/buffer.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/engine/device_field.h"
-#include "tfmatch/model/field_mapping.h"
 #include "tfmatch/engine/pipeline.h"
 #include "tfmatch/kernels/reduction.h"
 #include "tfmatch/kernels/voxel_pair.h"
+#include "tfmatch/model/field_mapping.h"
 
 namespace tfm {
 

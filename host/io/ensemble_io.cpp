@@ -10,11 +10,11 @@
 #include <memory>
 #include <stdexcept>
 
+#include "tfmatch/io/volume_format_table.h"
+#include "tfmatch/io/volume_formats.h"
 #include "tfmatch/model/memory_budget.h"
 #include "tfmatch/model/parameter_names.h"
 #include "tfmatch/model/phase_timer.h"
-#include "tfmatch/io/volume_format_table.h"
-#include "tfmatch/io/volume_formats.h"
 
 namespace tfm {
 namespace {

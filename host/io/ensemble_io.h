@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "tfmatch/model/ensemble.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/ensemble.h"
 
 namespace tfm {
 

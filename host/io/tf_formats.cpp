@@ -10,11 +10,11 @@
 #include <stdexcept>
 
 #include "tfmatch/io/atomic_file.h"
-#include "tfmatch/model/builtin_tf.h"
 #include "tfmatch/io/json.h"
+#include "tfmatch/io/tf_json.h"
 #include "tfmatch/io/volume_formats.h"
 #include "tfmatch/io/xml_tree.h"
-#include "tfmatch/io/tf_json.h"
+#include "tfmatch/model/builtin_tf.h"
 
 namespace tfm {
 namespace {

@@ -15,10 +15,10 @@
 #include <string>
 #include <vector>
 
+#include "tfmatch/io/tf_json.h"
 #include "tfmatch/model/builtin_tf.h"
 #include "tfmatch/model/color_spaces.h"
 #include "tfmatch/model/transfer_function.h"
-#include "tfmatch/io/tf_json.h"
 
 namespace tfm {
 

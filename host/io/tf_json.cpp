@@ -8,8 +8,8 @@
 #include <stdexcept>
 
 #include "tfmatch/io/atomic_file.h"
-#include "tfmatch/model/color_spaces.h"
 #include "tfmatch/io/json.h"
+#include "tfmatch/model/color_spaces.h"
 
 namespace tfm {
 

@@ -9,9 +9,9 @@
 #include <string_view>
 #include <vector>
 
-#include "tfmatch/model/volume.h"
 #include "tfmatch/io/volume_info.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/volume.h"
 #include "tfmatch/model/volume_slabs.h"
 
 namespace tfm {

@@ -29,13 +29,13 @@
 #include <stdexcept>
 #include <tuple>
 
-#include "tfmatch/model/cancellation.h"
-#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/io/grid_orientation.h"
-#include "tfmatch/model/parameter_names.h"
 #include "tfmatch/io/volume_formats.h"
 #include "tfmatch/io/volume_info.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/model/parameter_names.h"
 
 namespace tfm {
 namespace {

@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "tfmatch/io/json.h"
-#include "tfmatch/model/volume.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

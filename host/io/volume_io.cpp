@@ -7,13 +7,13 @@
 #include <stdexcept>
 #include <utility>
 
+#include "tfmatch/io/volume_format_table.h"
+#include "tfmatch/io/volume_formats.h"
+#include "tfmatch/io/volume_io.h"
 #include "tfmatch/model/memory_budget.h"
 #include "tfmatch/model/parameter_names.h"
 #include "tfmatch/model/phase_timer.h"
 #include "tfmatch/model/volume.h"
-#include "tfmatch/io/volume_format_table.h"
-#include "tfmatch/io/volume_formats.h"
-#include "tfmatch/io/volume_io.h"
 
 namespace tfm {
 namespace {

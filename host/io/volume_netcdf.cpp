@@ -33,15 +33,15 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "tfmatch/model/cancellation.h"
-#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/io/grid_orientation.h"
-#include "tfmatch/io/netcdf_classic.h"
 #include "tfmatch/io/netcdf4_probe.h"
-#include "tfmatch/model/parameter_names.h"
+#include "tfmatch/io/netcdf_classic.h"
 #include "tfmatch/io/volume_formats.h"
 #include "tfmatch/io/volume_info.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/model/parameter_names.h"
 
 namespace tfm {
 namespace {

@@ -12,11 +12,11 @@
 
 #include <zlib.h>
 
-#include "tfmatch/model/cancellation.h"
-#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/io/volume_formats.h"
 #include "tfmatch/io/volume_info.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/memory_budget.h"
 
 namespace tfm {
 namespace {

@@ -13,13 +13,13 @@
 #include <stdexcept>
 
 #include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/volume_formats.h"
+#include "tfmatch/io/volume_info.h"
+#include "tfmatch/io/volume_io.h"
 #include "tfmatch/model/cancellation.h"
 #include "tfmatch/model/memory_budget.h"
 #include "tfmatch/model/parameter_names.h"
 #include "tfmatch/model/volume.h"
-#include "tfmatch/io/volume_formats.h"
-#include "tfmatch/io/volume_info.h"
-#include "tfmatch/io/volume_io.h"
 
 namespace tfm {
 namespace {

@@ -18,12 +18,12 @@
 
 #include "tfmatch/io/atomic_file.h"
 #include "tfmatch/io/base64.h"
-#include "tfmatch/model/cancellation.h"
-#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/io/volume_formats.h"
 #include "tfmatch/io/volume_info.h"
-#include "tfmatch/io/xml_tree.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/io/xml_tree.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/memory_budget.h"
 
 namespace tfm {
 namespace {

@@ -9,8 +9,8 @@
 #include <utility>
 #include <vector>
 
-#include "tfmatch/model/volume.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 

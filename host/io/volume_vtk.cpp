@@ -8,10 +8,10 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/io/volume_formats.h"
 #include "tfmatch/io/volume_info.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/memory_budget.h"
 
 namespace tfm {
 namespace {

@@ -10,9 +10,9 @@
 #include <limits>
 #include <thread>
 
+#include "tfmatch/model/correlation_reference.h"
 #include "tfmatch/reference/correlation_cpu.h"
 #include "tfmatch/shaders/correlation_layout.h"
-#include "tfmatch/model/correlation_reference.h"
 
 namespace tfm {
 namespace {

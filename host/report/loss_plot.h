@@ -8,8 +8,8 @@
 #include <vector>
 
 #include "tfmatch/model/image.h"
-#include "tfmatch/solvers/optimize.h"
 #include "tfmatch/report/report.h"
+#include "tfmatch/solvers/optimize.h"
 
 namespace tfm {
 

@@ -5,8 +5,8 @@
 
 #include <string>
 
-#include "tfmatch/model/image.h"
 #include "tfmatch/io/json.h"
+#include "tfmatch/model/image.h"
 
 namespace tfm {
 

@@ -11,9 +11,9 @@
 #include <zlib.h>
 
 #include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/volume_formats.h"  // read_file_bytes, kMaxDeflateRatio
 #include "tfmatch/model/memory_budget.h"
 #include "tfmatch/model/phase_timer.h"
-#include "tfmatch/io/volume_formats.h"  // read_file_bytes, kMaxDeflateRatio
 
 namespace tfm {
 namespace {

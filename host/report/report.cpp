@@ -7,20 +7,20 @@
 #include <sstream>
 
 #include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/tf_json.h"
+#include "tfmatch/kernels/device_memory.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/kernels/render.h"
+#include "tfmatch/kernels/residual.h"
 #include "tfmatch/model/camera.h"
 #include "tfmatch/model/cancellation.h"
-#include "tfmatch/report/font.h"
-#include "tfmatch/kernels/gpu_voxel_ops.h"
-#include "tfmatch/kernels/device_memory.h"
 #include "tfmatch/model/memory_budget.h"
-#include "tfmatch/report/png_io.h"
 #include "tfmatch/model/progress.h"
-#include "tfmatch/kernels/render.h"
-#include "tfmatch/report/render_report_html.h"
 #include "tfmatch/model/slice.h"
+#include "tfmatch/report/font.h"
+#include "tfmatch/report/png_io.h"
+#include "tfmatch/report/render_report_html.h"
 #include "tfmatch/report/result_json.h"
-#include "tfmatch/kernels/residual.h"
-#include "tfmatch/io/tf_json.h"
 #include "tfmatch/report/tf_plot.h"
 
 namespace tfm {

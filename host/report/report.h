@@ -9,14 +9,14 @@
 #include <vector>
 
 #include "tfmatch/engine/context.h"
+#include "tfmatch/io/json.h"
 #include "tfmatch/model/grid_point.h"
 #include "tfmatch/model/image.h"
-#include "tfmatch/io/json.h"
-#include "tfmatch/report/metrics.h"
-#include "tfmatch/solvers/optimize.h"
 #include "tfmatch/model/render_settings.h"
 #include "tfmatch/model/transfer_function.h"
 #include "tfmatch/model/volume.h"
+#include "tfmatch/report/metrics.h"
+#include "tfmatch/solvers/optimize.h"
 
 namespace tfm {
 

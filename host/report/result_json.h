@@ -2,8 +2,8 @@
 // details, `tfmatch optimize`'s summary and `tfmatch solvers`' comparison.
 #pragma once
 
-#include "tfmatch/solvers/details.h"
 #include "tfmatch/io/json.h"
+#include "tfmatch/solvers/details.h"
 #include "tfmatch/solvers/optimize.h"
 #include "tfmatch/solvers/solver_comparison.h"
 

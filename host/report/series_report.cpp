@@ -8,11 +8,11 @@
 #include <stdexcept>
 
 #include "tfmatch/io/atomic_file.h"
-#include "tfmatch/report/font.h"
 #include "tfmatch/io/json.h"
-#include "tfmatch/report/png_io.h"
-#include "tfmatch/model/progress.h"
 #include "tfmatch/kernels/render.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/report/font.h"
+#include "tfmatch/report/png_io.h"
 #include "tfmatch/report/render_report_html.h"
 #include "tfmatch/report/tf_plot.h"
 

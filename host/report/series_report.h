@@ -11,10 +11,10 @@
 
 #include "tfmatch/engine/context.h"
 #include "tfmatch/model/image.h"
-#include "tfmatch/report/metrics.h"
 #include "tfmatch/model/render_settings.h"
-#include "tfmatch/solvers/series_optimize.h"
 #include "tfmatch/model/volume.h"
+#include "tfmatch/report/metrics.h"
+#include "tfmatch/solvers/series_optimize.h"
 
 namespace tfm {
 

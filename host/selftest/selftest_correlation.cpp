@@ -9,8 +9,8 @@
 
 #include "tfmatch/kernels/correlation.h"
 #include "tfmatch/reference/correlation_cpu.h"
-#include "tfmatch/shaders/correlation_layout.h"
 #include "tfmatch/selftest/selftest_support.h"
+#include "tfmatch/shaders/correlation_layout.h"
 
 namespace tfm::selftest {
 namespace {

@@ -9,8 +9,8 @@
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/gradient_descent.h"
-#include "tfmatch/selftest/selftest_support.h"
 #include "tfmatch/kernels/sparse_ops.h"
+#include "tfmatch/selftest/selftest_support.h"
 
 namespace tfm::selftest {
 namespace {

@@ -9,17 +9,17 @@
 #include <string>
 #include <vector>
 
-#include "tfmatch/model/camera.h"
 #include "tfmatch/engine/commands.h"
-#include "tfmatch/reference/cpu_renderer.h"
 #include "tfmatch/kernels/diffdvr.h"
-#include "tfmatch/reference/diffdvr_cpu.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/render_image.h"
-#include "tfmatch/selftest/selftest_support.h"
 #include "tfmatch/kernels/visibility_weights.h"
-#include "tfmatch/reference/visibility_weights_cpu.h"
+#include "tfmatch/model/camera.h"
 #include "tfmatch/model/volume.h"
+#include "tfmatch/reference/cpu_renderer.h"
+#include "tfmatch/reference/diffdvr_cpu.h"
+#include "tfmatch/reference/visibility_weights_cpu.h"
+#include "tfmatch/selftest/selftest_support.h"
 
 namespace tfm::selftest {
 namespace {

@@ -13,9 +13,9 @@
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/kernels/device_cgls.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/kernels/sparse_ops.h"
 #include "tfmatch/reference/normal_equations_cpu.h"
 #include "tfmatch/selftest/selftest_support.h"
-#include "tfmatch/kernels/sparse_ops.h"
 
 namespace tfm::selftest {
 namespace {

@@ -8,9 +8,9 @@
 #include <random>
 #include <sstream>
 
-#include "tfmatch/shaders/correlation_layout.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"  // upload_tf
 #include "tfmatch/reference/residual_map_cpu.h"
+#include "tfmatch/shaders/correlation_layout.h"
 
 namespace tfm::selftest {
 

@@ -9,10 +9,10 @@
 
 #include "tfmatch/engine/buffer.h"
 #include "tfmatch/engine/context.h"
-#include "tfmatch/kernels/correlation.h"
 #include "tfmatch/engine/device_field.h"
-#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/kernels/correlation.h"
 #include "tfmatch/kernels/reduction.h"
+#include "tfmatch/model/field_mapping.h"
 #include "tfmatch/model/transfer_function.h"
 
 namespace tfm::selftest {

@@ -7,17 +7,17 @@
 #include <string>
 
 #include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/assemble_normal_equations.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/histogram.h"
-#include "tfmatch/reference/histogram_cpu.h"
-#include "tfmatch/kernels/assemble_normal_equations.h"
-#include "tfmatch/reference/normal_equations_cpu.h"
 #include "tfmatch/kernels/read_bound.h"
-#include "tfmatch/shaders/render_layout.h"
 #include "tfmatch/kernels/residual_map.h"
+#include "tfmatch/kernels/voxel_loss.h"
+#include "tfmatch/reference/histogram_cpu.h"
+#include "tfmatch/reference/normal_equations_cpu.h"
 #include "tfmatch/reference/residual_map_cpu.h"
 #include "tfmatch/selftest/selftest_support.h"
-#include "tfmatch/kernels/voxel_loss.h"
+#include "tfmatch/shaders/render_layout.h"
 
 namespace tfm::selftest {
 namespace {

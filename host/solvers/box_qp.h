@@ -10,8 +10,8 @@
 
 #include <Eigen/Core>
 
-#include "tfmatch/solvers/normal_equations.h"
 #include "tfmatch/model/transfer_function.h"
+#include "tfmatch/solvers/normal_equations.h"
 
 namespace tfm {
 

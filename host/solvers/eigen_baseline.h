@@ -8,8 +8,8 @@
 #include <Eigen/SparseCore>
 
 #include "tfmatch/model/field_mapping.h"
-#include "tfmatch/solvers/normal_equations.h"
 #include "tfmatch/model/transfer_function.h"
+#include "tfmatch/solvers/normal_equations.h"
 
 namespace tfm {
 

@@ -11,8 +11,8 @@
 // out of each field's own distribution.
 #pragma once
 
-#include "tfmatch/model/field_mapping.h"
 #include "tfmatch/kernels/histogram.h"
+#include "tfmatch/model/field_mapping.h"
 #include "tfmatch/model/transfer_function.h"
 
 namespace tfm {

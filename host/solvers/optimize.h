@@ -10,9 +10,9 @@
 
 #include "tfmatch/engine/context.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
-#include "tfmatch/solvers/solver.h"
 #include "tfmatch/model/transfer_function.h"
 #include "tfmatch/model/volume.h"
+#include "tfmatch/solvers/solver.h"
 
 namespace tfm {
 

@@ -6,8 +6,8 @@
 #include <optional>
 #include <stdexcept>
 
-#include "tfmatch/model/cancellation.h"
 #include "tfmatch/kernels/device_memory.h"
+#include "tfmatch/model/cancellation.h"
 #include "tfmatch/model/parameter_names.h"
 #include "tfmatch/solvers/solver_support.h"
 

@@ -20,13 +20,13 @@
 #include <vector>
 
 #include "tfmatch/engine/context.h"
-#include "tfmatch/solvers/details.h"
 #include "tfmatch/engine/device_field.h"
 #include "tfmatch/model/field_mapping.h"
-#include "tfmatch/solvers/normal_equations.h"
 #include "tfmatch/model/render_settings.h"
 #include "tfmatch/model/transfer_function.h"
 #include "tfmatch/model/volume.h"
+#include "tfmatch/solvers/details.h"
+#include "tfmatch/solvers/normal_equations.h"
 
 namespace tfm {
 

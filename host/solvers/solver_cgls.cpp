@@ -9,11 +9,11 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "tfmatch/model/cancellation.h"
 #include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/sparse_ops.h"
+#include "tfmatch/model/cancellation.h"
 #include "tfmatch/model/parameter_names.h"
 #include "tfmatch/solvers/solver_support.h"
-#include "tfmatch/kernels/sparse_ops.h"
 #include "tfmatch/solvers/tridiagonal.h"
 
 namespace tfm {

@@ -9,16 +9,16 @@
 #include <string>
 #include <vector>
 
-#include "tfmatch/model/camera.h"
 #include "tfmatch/engine/context.h"
 #include "tfmatch/engine/device_field.h"
 #include "tfmatch/kernels/diffdvr.h"
-#include "tfmatch/reference/diffdvr_cpu.h"
+#include "tfmatch/model/camera.h"
 #include "tfmatch/model/field_mapping.h"
-#include "tfmatch/solvers/normal_equations.h"
 #include "tfmatch/model/render_settings.h"
-#include "tfmatch/solvers/solver.h"
 #include "tfmatch/model/transfer_function.h"
+#include "tfmatch/reference/diffdvr_cpu.h"
+#include "tfmatch/solvers/normal_equations.h"
+#include "tfmatch/solvers/solver.h"
 
 namespace tfm {
 

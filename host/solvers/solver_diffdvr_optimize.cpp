@@ -8,11 +8,11 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "tfmatch/solvers/adam.h"
 #include "tfmatch/model/cameras.h"
 #include "tfmatch/model/cancellation.h"
 #include "tfmatch/model/parameter_names.h"
 #include "tfmatch/model/progress.h"
+#include "tfmatch/solvers/adam.h"
 #include "tfmatch/solvers/solver_diffdvr.h"
 #include "tfmatch/solvers/solver_normal_equations.h"
 #include "tfmatch/solvers/solver_support.h"

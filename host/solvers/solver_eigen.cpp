@@ -5,9 +5,9 @@
 #include <cmath>
 #include <sstream>
 
+#include "tfmatch/model/parameter_names.h"
 #include "tfmatch/solvers/cgls_cpu.h"
 #include "tfmatch/solvers/eigen_baseline.h"
-#include "tfmatch/model/parameter_names.h"
 #include "tfmatch/solvers/solver_support.h"
 
 namespace tfm {

@@ -11,15 +11,15 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "tfmatch/solvers/box_qp.h"
-#include "tfmatch/model/cancellation.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/kernels/gradient_descent.h"
-#include "tfmatch/model/parameter_names.h"
-#include "tfmatch/model/progress.h"
-#include "tfmatch/solvers/solver_support.h"
 #include "tfmatch/kernels/sparse_ops.h"
 #include "tfmatch/kernels/voxel_pair.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/parameter_names.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/solvers/box_qp.h"
+#include "tfmatch/solvers/solver_support.h"
 
 namespace tfm {
 namespace {

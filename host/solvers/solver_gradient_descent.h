@@ -5,9 +5,9 @@
 #include <cstdint>
 #include <vector>
 
+#include "tfmatch/shaders/solver_layout.h"
 #include "tfmatch/solvers/normal_equations.h"
 #include "tfmatch/solvers/solver.h"
-#include "tfmatch/shaders/solver_layout.h"
 
 namespace tfm {
 

@@ -13,13 +13,13 @@
 #include <limits>
 #include <stdexcept>
 
-#include "tfmatch/solvers/box_qp.h"
-#include "tfmatch/model/cancellation.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/kernels/irls.h"
-#include "tfmatch/model/progress.h"
-#include "tfmatch/solvers/solver_support.h"
 #include "tfmatch/kernels/voxel_pair.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/solvers/box_qp.h"
+#include "tfmatch/solvers/solver_support.h"
 
 namespace tfm {
 namespace {

@@ -2,8 +2,8 @@
 // (box_qp.h) per channel.
 #include <algorithm>
 
-#include "tfmatch/solvers/box_qp.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/solvers/box_qp.h"
 #include "tfmatch/solvers/solver_support.h"
 
 namespace tfm {

@@ -6,8 +6,8 @@
 #include <limits>
 #include <stdexcept>
 
-#include "tfmatch/model/cameras.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/model/cameras.h"
 #include "tfmatch/model/parameter_names.h"
 
 namespace tfm {

@@ -10,10 +10,10 @@
 
 #include <Eigen/Core>
 
+#include "tfmatch/kernels/visibility_weights.h"
+#include "tfmatch/model/transfer_function.h"
 #include "tfmatch/solvers/normal_equations.h"
 #include "tfmatch/solvers/solver.h"
-#include "tfmatch/model/transfer_function.h"
-#include "tfmatch/kernels/visibility_weights.h"
 
 namespace tfm {
 

@@ -14,9 +14,9 @@
 
 #include "tfmatch/engine/context.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
-#include "tfmatch/solvers/optimize.h"
 #include "tfmatch/model/ranks.h"
 #include "tfmatch/model/volume_slabs.h"
+#include "tfmatch/solvers/optimize.h"
 
 namespace tfm {
 

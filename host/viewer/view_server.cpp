@@ -14,13 +14,13 @@
 #include <random>
 #include <thread>
 
+#include "tfmatch/engine/vk_check.h"
 #include "tfmatch/model/cancellation.h"
-#include "tfmatch/viewer/connection_workers.h"
 #include "tfmatch/report/png_io.h"
+#include "tfmatch/viewer/connection_workers.h"
 #include "tfmatch/viewer/progress_events.h"
 #include "tfmatch/viewer/tf_points.h"
 #include "tfmatch/viewer/view_page.h"
-#include "tfmatch/engine/vk_check.h"
 
 namespace tfm {
 namespace {

@@ -6,22 +6,22 @@
 #include <cstdio>
 #include <sstream>
 
+#include "tfmatch/io/tf_json.h"
+#include "tfmatch/io/volume_vti.h"
+#include "tfmatch/kernels/correlation_field.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/kernels/residual.h"
 #include "tfmatch/model/camera.h"
 #include "tfmatch/model/cancellation.h"
 #include "tfmatch/model/color_spaces.h"
-#include "tfmatch/kernels/correlation_field.h"
-#include "tfmatch/report/font.h"
-#include "tfmatch/kernels/gpu_voxel_ops.h"
-#include "tfmatch/report/metrics.h"
 #include "tfmatch/model/progress.h"
-#include "tfmatch/kernels/residual.h"
-#include "tfmatch/report/result_json.h"
 #include "tfmatch/model/slice.h"
-#include "tfmatch/io/tf_json.h"
+#include "tfmatch/report/font.h"
+#include "tfmatch/report/metrics.h"
+#include "tfmatch/report/result_json.h"
 #include "tfmatch/report/tf_plot.h"
 #include "tfmatch/viewer/tf_points.h"
 #include "tfmatch/viewer/view_session_derived.h"
-#include "tfmatch/io/volume_vti.h"
 
 namespace tfm {
 

@@ -19,20 +19,20 @@
 #include <vector>
 
 #include "tfmatch/engine/context.h"
-#include "tfmatch/kernels/correlation.h"
 #include "tfmatch/engine/device_field.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/io/tf_formats.h"
+#include "tfmatch/kernels/correlation.h"
+#include "tfmatch/kernels/render.h"
 #include "tfmatch/model/ensemble.h"
 #include "tfmatch/model/grid_point.h"
 #include "tfmatch/model/image.h"
-#include "tfmatch/io/json.h"
-#include "tfmatch/solvers/optimize.h"
-#include "tfmatch/kernels/render.h"
 #include "tfmatch/model/render_settings.h"
 #include "tfmatch/model/slice.h"
-#include "tfmatch/solvers/solver.h"
-#include "tfmatch/io/tf_formats.h"
 #include "tfmatch/model/transfer_function.h"
 #include "tfmatch/model/volume.h"
+#include "tfmatch/solvers/optimize.h"
+#include "tfmatch/solvers/solver.h"
 
 namespace tfm {
 

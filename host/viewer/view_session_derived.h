@@ -5,9 +5,9 @@
 #include <memory>
 #include <optional>
 
-#include "tfmatch/model/camera.h"
 #include "tfmatch/engine/device_field.h"
 #include "tfmatch/kernels/render.h"
+#include "tfmatch/model/camera.h"
 #include "tfmatch/viewer/view_session.h"
 
 namespace tfm {

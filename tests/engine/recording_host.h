@@ -12,8 +12,8 @@
 
 #include <gtest/gtest.h>
 
-#include "tfmatch/engine/context.h"
 #include "host_device.h"
+#include "tfmatch/engine/context.h"
 #include "tfmatch/kernels/recording.h"
 #include "tfmatch/model/transfer_function.h"
 

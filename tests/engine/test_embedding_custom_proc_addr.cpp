@@ -4,9 +4,9 @@
 // the commands tfmatch records into its command buffer: a recorder that refuses its arguments
 // records none (the image overloads had recorded barriers, a table update and a fill first).
 #include "adopted_device_check.h"
-#include "tfmatch/engine/context.h"
 #include "host_device.h"
 #include "recording_host.h"
+#include "tfmatch/engine/context.h"
 
 #include <vulkan/vulkan.h>  // after tfmatch's headers: the loader's prototypes are still declared
 

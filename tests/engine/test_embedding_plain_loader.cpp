@@ -10,11 +10,11 @@
 #include <gtest/gtest.h>
 
 #include "adopted_device_check.h"
+#include "host_device.h"
 #include "tfmatch/engine/buffer.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/engine/context.h"
 #include "tfmatch/engine/device_field.h"
-#include "host_device.h"
 #include "tfmatch/engine/pipeline.h"
 #include "tfmatch/engine/vk_check.h"
 

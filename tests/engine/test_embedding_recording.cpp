@@ -14,19 +14,19 @@
 #include <glm/gtc/packing.hpp>
 #include <gtest/gtest.h>
 
+#include "recording_host.h"
 #include "tfmatch/engine/buffer.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/engine/context.h"
 #include "tfmatch/engine/device_field.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
-#include "recording_host.h"
-#include "tfmatch/model/memory_budget.h"
-#include "tfmatch/solvers/normal_equations.h"
 #include "tfmatch/kernels/recording.h"
 #include "tfmatch/kernels/render.h"
-#include "tfmatch/model/render_settings.h"
 #include "tfmatch/kernels/residual.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/model/render_settings.h"
 #include "tfmatch/model/volume.h"
+#include "tfmatch/solvers/normal_equations.h"
 
 namespace tfm {
 namespace {

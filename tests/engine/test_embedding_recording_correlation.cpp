@@ -13,11 +13,11 @@
 #include <glm/gtc/packing.hpp>
 #include <gtest/gtest.h>
 
+#include "recording_host.h"
 #include "tfmatch/engine/buffer.h"
+#include "tfmatch/engine/device_field.h"
 #include "tfmatch/kernels/correlation.h"
 #include "tfmatch/model/correlation_reference.h"
-#include "tfmatch/engine/device_field.h"
-#include "recording_host.h"
 
 namespace tfm {
 namespace {

@@ -12,20 +12,20 @@
 #include <glm/gtc/packing.hpp>
 #include <gtest/gtest.h>
 
+#include "recording_host.h"
 #include "tfmatch/engine/buffer.h"
 #include "tfmatch/engine/commands.h"
-#include "tfmatch/kernels/correlation.h"
 #include "tfmatch/engine/device_field.h"
+#include "tfmatch/kernels/correlation.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/gradient_descent.h"
 #include "tfmatch/kernels/histogram.h"
-#include "tfmatch/solvers/normal_equations.h"
-#include "recording_host.h"
 #include "tfmatch/kernels/render.h"
-#include "tfmatch/model/render_settings.h"
 #include "tfmatch/kernels/residual.h"
 #include "tfmatch/kernels/sparse_ops.h"
+#include "tfmatch/model/render_settings.h"
 #include "tfmatch/model/volume.h"
+#include "tfmatch/solvers/normal_equations.h"
 
 namespace tfm {
 namespace {

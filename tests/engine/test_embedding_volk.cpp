@@ -2,9 +2,9 @@
 // program links without duplicate symbols, tfmatch runs on the adopted device, and the host's
 // volk globals stay exactly as the host set them, also while tfmatch owns a device of its own.
 #include "adopted_device_check.h"
+#include "host_device.h"
 #include "tfmatch/engine/buffer.h"
 #include "tfmatch/engine/context.h"
-#include "host_device.h"
 
 // After tfmatch's headers: fine, because this host defines VK_NO_PROTOTYPES, as volk asks.
 #include <volk.h>

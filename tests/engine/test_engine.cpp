@@ -6,16 +6,16 @@
 #include <thread>
 #include <vector>
 
-#include "tfmatch/reference/normal_equations_cpu.h"
-#include "tfmatch/shaders/shader_registry.h"
 #include "tfmatch/engine/buffer.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/engine/device_field.h"
-#include "tfmatch/model/phase_timer.h"
 #include "tfmatch/engine/pipeline.h"
-#include "tfmatch/shaders/render_layout.h"
-#include "tfmatch/shaders/shared_layout.h"
 #include "tfmatch/engine/vk_check.h"
+#include "tfmatch/model/phase_timer.h"
+#include "tfmatch/reference/normal_equations_cpu.h"
+#include "tfmatch/shaders/render_layout.h"
+#include "tfmatch/shaders/shader_registry.h"
+#include "tfmatch/shaders/shared_layout.h"
 #include "vk_test_env.h"
 
 namespace tfm {

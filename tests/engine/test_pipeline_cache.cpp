@@ -7,8 +7,8 @@
 #include <regex>
 #include <vector>
 
-#include "tfmatch/kernels/cgls_vectors.h"
 #include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/cgls_vectors.h"
 #include "vk_test_env.h"
 
 namespace tfm {

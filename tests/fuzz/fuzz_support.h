@@ -7,9 +7,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/io/volume_info.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/memory_budget.h"
 
 namespace tfm::fuzz {
 

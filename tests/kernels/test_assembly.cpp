@@ -14,12 +14,12 @@
 #include <thread>
 #include <vector>
 
-#include "tfmatch/reference/normal_equations_cpu.h"
-#include "tfmatch/kernels/gpu_voxel_ops.h"
-#include "tfmatch/solvers/normal_equations.h"
 #include "test_data.h"
-#include "vk_test_env.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/voxel_loss.h"
+#include "tfmatch/reference/normal_equations_cpu.h"
+#include "tfmatch/solvers/normal_equations.h"
+#include "vk_test_env.h"
 
 namespace tfm {
 namespace {

@@ -15,12 +15,12 @@
 
 #include <gtest/gtest.h>
 
-#include "tfmatch/kernels/correlation.h"
-#include "tfmatch/reference/correlation_cpu.h"
-#include "tfmatch/kernels/correlation_field.h"
 #include "correlation_expected.h"
-#include "tfmatch/shaders/correlation_layout.h"
+#include "tfmatch/kernels/correlation.h"
+#include "tfmatch/kernels/correlation_field.h"
+#include "tfmatch/reference/correlation_cpu.h"
 #include "tfmatch/selftest/selftest_support.h"
+#include "tfmatch/shaders/correlation_layout.h"
 #include "vk_test_env.h"
 
 namespace tfm {

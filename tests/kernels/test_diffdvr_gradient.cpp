@@ -10,12 +10,12 @@
 #include <string>
 #include <vector>
 
-#include "tfmatch/reference/cpu_renderer.h"
-#include "tfmatch/reference/diffdvr_cpu.h"
+#include "test_data.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/render_image.h"
+#include "tfmatch/reference/cpu_renderer.h"
+#include "tfmatch/reference/diffdvr_cpu.h"
 #include "tfmatch/solvers/solver_diffdvr.h"
-#include "test_data.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -8,8 +8,8 @@
 #include <vector>
 
 #include "tfmatch/kernels/histogram.h"
-#include "tfmatch/reference/histogram_cpu.h"
 #include "tfmatch/kernels/reduction.h"
+#include "tfmatch/reference/histogram_cpu.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -9,18 +9,18 @@
 #include <random>
 #include <vector>
 
-#include "tfmatch/model/cameras.h"
+#include "test_data.h"
 #include "tfmatch/engine/commands.h"
-#include "tfmatch/reference/cpu_renderer.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/histogram.h"
-#include "tfmatch/reference/histogram_cpu.h"
-#include "tfmatch/reference/normal_equations_cpu.h"
 #include "tfmatch/kernels/render.h"
 #include "tfmatch/kernels/residual_map.h"
-#include "tfmatch/reference/residual_map_cpu.h"
-#include "test_data.h"
 #include "tfmatch/kernels/visibility_weights.h"
+#include "tfmatch/model/cameras.h"
+#include "tfmatch/reference/cpu_renderer.h"
+#include "tfmatch/reference/histogram_cpu.h"
+#include "tfmatch/reference/normal_equations_cpu.h"
+#include "tfmatch/reference/residual_map_cpu.h"
 #include "tfmatch/reference/visibility_weights_cpu.h"
 #include "vk_test_env.h"
 

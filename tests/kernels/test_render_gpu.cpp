@@ -13,12 +13,12 @@
 #include <vector>
 
 #include "cli_runner.h"
+#include "test_data.h"
 #include "tfmatch/engine/context.h"
-#include "tfmatch/reference/cpu_renderer.h"
 #include "tfmatch/kernels/diffdvr.h"
 #include "tfmatch/kernels/render.h"
 #include "tfmatch/kernels/render_image.h"
-#include "test_data.h"
+#include "tfmatch/reference/cpu_renderer.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -7,14 +7,14 @@
 #include <random>
 #include <vector>
 
+#include "test_data.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/residual.h"
-#include "tfmatch/shaders/render_layout.h"
 #include "tfmatch/kernels/residual_map.h"
 #include "tfmatch/reference/residual_map_cpu.h"
+#include "tfmatch/shaders/render_layout.h"
 #include "tfmatch/shaders/shared_layout.h"
-#include "test_data.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -12,11 +12,11 @@
 #include <string>
 #include <vector>
 
-#include "tfmatch/model/field_mapping.h"
-#include "tfmatch/model/transfer_function.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/sparse_ops.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/model/transfer_function.h"
 #include "vk_test_env.h"
 
 namespace tfm {

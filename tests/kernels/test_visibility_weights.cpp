@@ -11,14 +11,14 @@
 
 #include <Eigen/Dense>
 
-#include "tfmatch/model/cameras.h"
-#include "tfmatch/kernels/gpu_voxel_ops.h"
-#include "tfmatch/solvers/normal_equations.h"
-#include "tfmatch/reference/normal_equations_cpu.h"
-#include "tfmatch/kernels/render_image.h"
 #include "test_data.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/kernels/render_image.h"
 #include "tfmatch/kernels/visibility_weights.h"
+#include "tfmatch/model/cameras.h"
+#include "tfmatch/reference/normal_equations_cpu.h"
 #include "tfmatch/reference/visibility_weights_cpu.h"
+#include "tfmatch/solvers/normal_equations.h"
 #include "vk_test_env.h"
 
 namespace tfm {

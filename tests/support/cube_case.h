@@ -8,10 +8,10 @@
 #include <map>
 #include <string>
 
-#include "tfmatch/report/metrics.h"
-#include "tfmatch/solvers/optimize.h"
 #include "tfmatch/kernels/render.h"
 #include "tfmatch/model/synthetic_cube.h"
+#include "tfmatch/report/metrics.h"
+#include "tfmatch/solvers/optimize.h"
 
 namespace tfm::test {
 

@@ -14,9 +14,9 @@
 #include <vector>
 
 #include "formats_test_util.h"
-#include "tfmatch/model/volume.h"
 #include "tfmatch/io/volume_io.h"
 #include "tfmatch/io/volume_vti.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm::slab_test {
 

@@ -10,12 +10,12 @@
 #include <string>
 #include <vector>
 
-#include "tfmatch/reference/normal_equations_cpu.h"
-#include "tfmatch/model/field_mapping.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/model/field_mapping.h"
+#include "tfmatch/model/volume.h"
+#include "tfmatch/reference/normal_equations_cpu.h"
 #include "tfmatch/solvers/normal_equations.h"
 #include "tfmatch/solvers/solver.h"
-#include "tfmatch/model/volume.h"
 
 namespace tfm::test {
 

@@ -10,8 +10,8 @@
 #include <gtest/gtest.h>
 
 #include "cli_runner.h"
-#include "tfmatch/kernels/correlation.h"
 #include "tfmatch/io/json.h"
+#include "tfmatch/kernels/correlation.h"
 
 namespace tfm {
 namespace {

@@ -5,12 +5,12 @@
 
 #include <gtest/gtest.h>
 
-#include "tfmatch/model/builtin_tf.h"
 #include "cli_runner.h"
 #include "tfmatch/io/json.h"
-#include "tfmatch/report/png_io.h"
 #include "tfmatch/io/tf_formats.h"
 #include "tfmatch/io/tf_json.h"
+#include "tfmatch/model/builtin_tf.h"
+#include "tfmatch/report/png_io.h"
 
 namespace tfm {
 namespace {

@@ -15,8 +15,8 @@
 
 #include "cli_runner.h"
 #include "tfmatch/io/json.h"
-#include "tfmatch/model/volume.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 namespace {

@@ -6,9 +6,9 @@
 #include <gtest/gtest.h>
 
 #include "cli_runner.h"
+#include "tfmatch/io/tf_json.h"
 #include "tfmatch/model/transfer_function.h"
 #include "tfmatch/model/volume.h"
-#include "tfmatch/io/tf_json.h"
 
 namespace tfm {
 namespace {

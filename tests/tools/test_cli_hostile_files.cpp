@@ -14,9 +14,9 @@
 #include <tuple>
 
 #include "cli_runner.h"
+#include "slab_test_files.h"
 #include "tfmatch/model/image.h"
 #include "tfmatch/report/png_io.h"
-#include "slab_test_files.h"
 
 namespace tfm {
 namespace {

@@ -10,14 +10,14 @@
 #include <netcdf.h>
 
 #include "cli_runner.h"
-#include "tfmatch/reference/correlation_cpu.h"
-#include "tfmatch/model/ensemble.h"
 #include "tfmatch/io/json.h"
-#include "tfmatch/report/png_io.h"
-#include "tfmatch/model/synthetic_ensemble.h"
-#include "vk_test_env.h"
 #include "tfmatch/io/volume_io.h"
 #include "tfmatch/io/volume_vti.h"
+#include "tfmatch/model/ensemble.h"
+#include "tfmatch/model/synthetic_ensemble.h"
+#include "tfmatch/reference/correlation_cpu.h"
+#include "tfmatch/report/png_io.h"
+#include "vk_test_env.h"
 
 namespace tfm {
 namespace {

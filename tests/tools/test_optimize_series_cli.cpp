@@ -11,8 +11,8 @@
 #include <fstream>
 
 #include "cli_runner.h"
-#include "tfmatch/io/json.h"
 #include "slab_test_files.h"
+#include "tfmatch/io/json.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -10,10 +10,10 @@
 #include <optional>
 
 #include "cli_runner.h"
-#include "tfmatch/io/json.h"
 #include "scoped_env.h"
-#include "tfmatch/io/pipeline_cache_file.h"
 #include "slab_test_files.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/io/pipeline_cache_file.h"
 
 namespace tfm {
 namespace {

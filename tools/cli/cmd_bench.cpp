@@ -13,19 +13,19 @@
 #include <sstream>
 #include <thread>
 
-#include "tfmatch/io/atomic_file.h"
 #include "bench_timing.h"
 #include "cli.h"
+#include "output_options.h"
 #include "tfmatch/engine/commands.h"
+#include "tfmatch/io/atomic_file.h"
 #include "tfmatch/io/json.h"
 #include "tfmatch/io/output_check.h"
-#include "output_options.h"
-#include "tfmatch/solvers/eigen_baseline.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
-#include "tfmatch/reference/normal_equations_cpu.h"
 #include "tfmatch/kernels/read_bound.h"
-#include "tfmatch/model/synthetic.h"
 #include "tfmatch/kernels/voxel_pair.h"  // kVoxelLaneVoxels, TFM_VOXEL_WORKGROUP
+#include "tfmatch/model/synthetic.h"
+#include "tfmatch/reference/normal_equations_cpu.h"
+#include "tfmatch/solvers/eigen_baseline.h"
 
 namespace tfm::cli {
 namespace {

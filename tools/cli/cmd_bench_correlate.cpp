@@ -11,22 +11,22 @@
 #include <iostream>
 #include <thread>
 
-#include "tfmatch/io/atomic_file.h"
 #include "bench_timing.h"
-#include "tfmatch/engine/buffer.h"
-#include "tfmatch/model/cancellation.h"
 #include "cli.h"
-#include "tfmatch/kernels/correlation.h"
-#include "tfmatch/reference/correlation_cpu.h"
-#include "tfmatch/model/correlation_reference.h"
+#include "output_options.h"
+#include "tfmatch/engine/buffer.h"
 #include "tfmatch/engine/context.h"
-#include "tfmatch/model/grid_point.h"
+#include "tfmatch/io/atomic_file.h"
 #include "tfmatch/io/json.h"
 #include "tfmatch/io/output_check.h"
-#include "output_options.h"
-#include "tfmatch/model/progress.h"
+#include "tfmatch/kernels/correlation.h"
 #include "tfmatch/kernels/read_bound.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/correlation_reference.h"
+#include "tfmatch/model/grid_point.h"
+#include "tfmatch/model/progress.h"
 #include "tfmatch/model/synthetic_ensemble.h"
+#include "tfmatch/reference/correlation_cpu.h"
 
 namespace tfm::cli {
 namespace {

@@ -8,21 +8,21 @@
 #include <numeric>
 #include <random>
 
-#include "tfmatch/io/atomic_file.h"
-#include "tfmatch/model/cameras.h"
 #include "cli.h"
-#include "tfmatch/kernels/gpu_voxel_ops.h"
-#include "tfmatch/io/json.h"
-#include "tfmatch/report/metrics.h"
-#include "tfmatch/solvers/optimize.h"
-#include "tfmatch/io/output_check.h"
 #include "output_options.h"
-#include "tfmatch/model/progress.h"
-#include "tfmatch/kernels/render.h"
 #include "render_options.h"
-#include "tfmatch/solvers/solver_diffdvr.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/io/output_check.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/kernels/render.h"
+#include "tfmatch/model/cameras.h"
+#include "tfmatch/model/progress.h"
 #include "tfmatch/model/synthetic.h"
 #include "tfmatch/model/synthetic_cube.h"
+#include "tfmatch/report/metrics.h"
+#include "tfmatch/solvers/optimize.h"
+#include "tfmatch/solvers/solver_diffdvr.h"
 
 namespace tfm::cli {
 namespace {

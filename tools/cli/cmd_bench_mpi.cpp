@@ -18,14 +18,14 @@
 #include <sstream>
 #include <thread>
 
-#include "tfmatch/io/atomic_file.h"
 #include "bench_files.h"
-#include "tfmatch/model/cancellation.h"
 #include "cli.h"
-#include "tfmatch/io/json.h"
-#include "tfmatch/model/memory_budget.h"
-#include "tfmatch/io/output_check.h"
 #include "output_options.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/io/output_check.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/memory_budget.h"
 
 namespace tfm::cli {
 namespace {

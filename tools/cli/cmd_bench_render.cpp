@@ -4,17 +4,17 @@
 #include <cstdio>
 #include <iostream>
 
-#include "tfmatch/io/atomic_file.h"
 #include "cli.h"
-#include "tfmatch/reference/cpu_renderer.h"
-#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "output_options.h"
+#include "render_options.h"
+#include "tfmatch/io/atomic_file.h"
 #include "tfmatch/io/json.h"
 #include "tfmatch/io/output_check.h"
-#include "output_options.h"
-#include "tfmatch/model/progress.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/render.h"
-#include "render_options.h"
+#include "tfmatch/model/progress.h"
 #include "tfmatch/model/synthetic.h"
+#include "tfmatch/reference/cpu_renderer.h"
 
 namespace tfm::cli {
 namespace {

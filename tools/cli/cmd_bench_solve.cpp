@@ -9,16 +9,16 @@
 
 #include <sys/resource.h>
 
-#include "tfmatch/io/atomic_file.h"
 #include "cli.h"
-#include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "input_options.h"
-#include "tfmatch/io/json.h"
-#include "tfmatch/model/memory_budget.h"
-#include "tfmatch/solvers/normal_equations.h"
-#include "tfmatch/io/output_check.h"
 #include "output_options.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/io/output_check.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/model/synthetic.h"
+#include "tfmatch/solvers/normal_equations.h"
 
 namespace tfm::cli {
 namespace {

@@ -2,11 +2,11 @@
 // ParaView presets (formats by content and extension, host/io/tf_formats.h).
 #include <iostream>
 
-#include "tfmatch/model/builtin_tf.h"
 #include "cli.h"
-#include "tfmatch/io/output_check.h"
 #include "output_options.h"
+#include "tfmatch/io/output_check.h"
 #include "tfmatch/io/tf_formats.h"
+#include "tfmatch/model/builtin_tf.h"
 
 namespace tfm::cli {
 namespace {

@@ -3,15 +3,15 @@
 #include <iostream>
 #include <set>
 
-#include "tfmatch/io/atomic_file.h"
 #include "cli.h"
 #include "input_options.h"
-#include "tfmatch/io/output_check.h"
 #include "output_options.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/output_check.h"
 #include "tfmatch/io/volume_format_table.h"
 #include "tfmatch/io/volume_formats.h"
-#include "tfmatch/io/volume_vti.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/io/volume_vti.h"
 
 namespace tfm::cli {
 namespace {

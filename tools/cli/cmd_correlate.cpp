@@ -7,20 +7,20 @@
 #include <iostream>
 #include <span>
 
-#include "tfmatch/io/atomic_file.h"
 #include "cli.h"
-#include "tfmatch/kernels/correlation_field.h"
-#include "tfmatch/io/json.h"
-#include "tfmatch/model/memory_budget.h"
-#include "tfmatch/model/ranks.h"
-#include "tfmatch/io/ensemble_io.h"
-#include "tfmatch/model/grid_point.h"
 #include "input_options.h"
-#include "tfmatch/io/output_check.h"
 #include "output_options.h"
-#include "tfmatch/model/progress.h"
 #include "render_options.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/ensemble_io.h"
+#include "tfmatch/io/json.h"
+#include "tfmatch/io/output_check.h"
 #include "tfmatch/io/volume_vti.h"
+#include "tfmatch/kernels/correlation_field.h"
+#include "tfmatch/model/grid_point.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/model/ranks.h"
 
 namespace tfm::cli {
 namespace {

@@ -6,23 +6,23 @@
 #include <optional>
 #include <string_view>
 
-#include "tfmatch/io/atomic_file.h"
-#include "tfmatch/kernels/correlation_field.h"
 #include "cli.h"
-#include "tfmatch/solvers/optimize.h"
-#include "tfmatch/io/output_check.h"
-#include "tfmatch/model/progress.h"
-#include "tfmatch/kernels/render.h"
 #include "render_options.h"
-#include "tfmatch/report/report.h"
-#include "tfmatch/report/loss_plot.h"
-#include "tfmatch/report/result_json.h"
 #include "solver_options.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/output_check.h"
+#include "tfmatch/io/tf_json.h"
+#include "tfmatch/io/volume_io.h"
+#include "tfmatch/io/volume_vti.h"
+#include "tfmatch/kernels/correlation_field.h"
+#include "tfmatch/kernels/render.h"
+#include "tfmatch/model/progress.h"
 #include "tfmatch/model/synthetic.h"
 #include "tfmatch/model/synthetic_ensemble.h"
-#include "tfmatch/io/volume_vti.h"
-#include "tfmatch/io/volume_io.h"
-#include "tfmatch/io/tf_json.h"
+#include "tfmatch/report/loss_plot.h"
+#include "tfmatch/report/report.h"
+#include "tfmatch/report/result_json.h"
+#include "tfmatch/solvers/optimize.h"
 
 namespace tfm::cli {
 namespace {

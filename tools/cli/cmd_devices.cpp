@@ -4,14 +4,14 @@
 #include <iostream>
 #include <optional>
 
-#include "tfmatch/io/atomic_file.h"
 #include "cli.h"
+#include "tfmatch/io/atomic_file.h"
 #include "tfmatch/io/json.h"
 #ifdef TFMATCH_HAVE_CUDA
 #include "tfmatch/cuda/cuda_backend.h"
 #endif
-#include "tfmatch/io/output_check.h"
 #include "output_options.h"
+#include "tfmatch/io/output_check.h"
 
 namespace tfm::cli {
 namespace {

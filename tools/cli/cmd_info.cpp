@@ -5,8 +5,8 @@
 
 #include "cli.h"
 #include "input_options.h"
-#include "tfmatch/io/output_check.h"
 #include "output_options.h"
+#include "tfmatch/io/output_check.h"
 #include "tfmatch/io/volume_format_table.h"
 #include "tfmatch/io/volume_info.h"
 #include "tfmatch/io/volume_io.h"

@@ -4,9 +4,9 @@
 #include <iostream>
 
 #include "cli.h"
-#include "tfmatch/report/metrics.h"
-#include "tfmatch/io/output_check.h"
 #include "output_options.h"
+#include "tfmatch/io/output_check.h"
+#include "tfmatch/report/metrics.h"
 #include "tfmatch/report/png_io.h"
 
 namespace tfm::cli {

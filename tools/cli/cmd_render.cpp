@@ -2,19 +2,19 @@
 #include <chrono>
 #include <iostream>
 
-#include "tfmatch/io/atomic_file.h"
-#include "tfmatch/model/builtin_tf.h"
 #include "cli.h"
 #include "input_options.h"
-#include "tfmatch/io/output_check.h"
 #include "output_options.h"
-#include "tfmatch/report/png_io.h"
-#include "tfmatch/model/progress.h"
-#include "tfmatch/kernels/render.h"
 #include "render_options.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/output_check.h"
 #include "tfmatch/io/tf_formats.h"
-#include "tfmatch/model/transfer_function.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/kernels/render.h"
+#include "tfmatch/model/builtin_tf.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/model/transfer_function.h"
+#include "tfmatch/report/png_io.h"
 
 namespace tfm::cli {
 namespace {

@@ -5,20 +5,20 @@
 #include <optional>
 #include <regex>
 
-#include "tfmatch/io/atomic_file.h"
 #include "cli.h"
-#include "tfmatch/model/field_mapping.h"  // no_data
 #include "input_options.h"
-#include "tfmatch/io/output_check.h"
 #include "output_options.h"
-#include "tfmatch/report/png_io.h"
-#include "tfmatch/kernels/render.h"
 #include "render_options.h"
-#include "tfmatch/kernels/residual.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/output_check.h"
 #include "tfmatch/io/tf_formats.h"
-#include "tfmatch/io/volume_vti.h"
-#include "tfmatch/model/transfer_function.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/io/volume_vti.h"
+#include "tfmatch/kernels/render.h"
+#include "tfmatch/kernels/residual.h"
+#include "tfmatch/model/field_mapping.h"  // no_data
+#include "tfmatch/model/transfer_function.h"
+#include "tfmatch/report/png_io.h"
 
 namespace tfm::cli {
 namespace {

@@ -5,11 +5,11 @@
 #include <iostream>
 #include <memory>
 
-#include "tfmatch/io/atomic_file.h"
 #include "cli.h"
+#include "output_options.h"
+#include "tfmatch/io/atomic_file.h"
 #include "tfmatch/io/json.h"
 #include "tfmatch/io/output_check.h"
-#include "output_options.h"
 #include "tfmatch/model/progress.h"
 #include "tfmatch/selftest/selftest.h"
 #include "tfmatch_version.h"

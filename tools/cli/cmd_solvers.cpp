@@ -5,15 +5,15 @@
 #include <map>
 #include <sstream>
 
-#include "tfmatch/io/atomic_file.h"
 #include "cli.h"
 #include "input_options.h"
-#include "tfmatch/io/output_check.h"
 #include "output_options.h"
+#include "solver_options.h"
+#include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/output_check.h"
+#include "tfmatch/model/synthetic.h"
 #include "tfmatch/report/result_json.h"
 #include "tfmatch/solvers/solver_comparison.h"
-#include "solver_options.h"
-#include "tfmatch/model/synthetic.h"
 
 namespace tfm::cli {
 namespace {

@@ -9,23 +9,23 @@
 #include <thread>
 #include <tuple>
 
-#include "tfmatch/model/builtin_tf.h"
-#include "tfmatch/model/cancellation.h"
 #include "cli.h"
-#include "tfmatch/kernels/correlation.h"
-#include "tfmatch/kernels/correlation_field.h"
-#include "tfmatch/io/ensemble_io.h"
 #include "input_options.h"
 #include "interrupts.h"
-#include "tfmatch/io/output_check.h"
 #include "render_options.h"
 #include "solver_options.h"
+#include "tfmatch/io/ensemble_io.h"
+#include "tfmatch/io/output_check.h"
+#include "tfmatch/io/tf_formats.h"
+#include "tfmatch/io/volume_io.h"
+#include "tfmatch/kernels/correlation.h"
+#include "tfmatch/kernels/correlation_field.h"
+#include "tfmatch/model/builtin_tf.h"
+#include "tfmatch/model/cancellation.h"
 #include "tfmatch/model/synthetic.h"
 #include "tfmatch/model/synthetic_ensemble.h"
-#include "tfmatch/io/tf_formats.h"
 #include "tfmatch/viewer/view_server.h"
 #include "tfmatch/viewer/view_session.h"
-#include "tfmatch/io/volume_io.h"
 
 namespace tfm::cli {
 namespace {

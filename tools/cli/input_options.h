@@ -13,9 +13,9 @@
 #include <CLI/CLI.hpp>
 
 #include "tfmatch/io/json.h"
-#include "tfmatch/solvers/optimize.h"
-#include "tfmatch/model/volume.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/volume.h"
+#include "tfmatch/solvers/optimize.h"
 
 namespace tfm::cli {
 

@@ -13,8 +13,8 @@
 #include <sstream>
 #include <string_view>
 
-#include "tfmatch/model/cancellation.h"
 #include "cli.h"
+#include "tfmatch/model/cancellation.h"
 #ifdef TFMATCH_HAVE_CUDA
 #include "tfmatch/cuda/cuda_solver_registration.h"
 #endif
@@ -23,13 +23,13 @@
 #ifdef TFMATCH_HAVE_MPI
 #include "tfmatch/mpi/mpi_ranks.h"
 #endif
+#include "tfmatch/engine/vk_check.h"
+#include "tfmatch/io/pipeline_cache_file.h"
 #include "tfmatch/model/parameter_names.h"
 #include "tfmatch/model/phase_timer.h"
-#include "tfmatch/io/pipeline_cache_file.h"
 #include "tfmatch/model/progress.h"
 #include "tfmatch/shaders/shader_registry.h"
 #include "tfmatch_version.h"  // generated in the build directory (top-level CMakeLists.txt)
-#include "tfmatch/engine/vk_check.h"
 
 namespace tfm::cli {
 

@@ -8,9 +8,9 @@
 #include <stdexcept>
 
 #include "cli.h"
+#include "tfmatch/io/volume_io.h"
 #include "tfmatch/model/color_spaces.h"
 #include "tfmatch/model/field_mapping.h"
-#include "tfmatch/io/volume_io.h"
 
 namespace tfm::cli {
 

@@ -10,12 +10,12 @@
 
 #include <CLI/CLI.hpp>
 
+#include "tfmatch/io/volume_io.h"
 #include "tfmatch/model/grid_point.h"
 #include "tfmatch/model/render_defaults.h"
 #include "tfmatch/model/render_settings.h"
 #include "tfmatch/model/transfer_function.h"
 #include "tfmatch/model/volume.h"
-#include "tfmatch/io/volume_io.h"
 
 namespace tfm::cli {
 

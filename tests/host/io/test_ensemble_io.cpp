@@ -6,13 +6,13 @@
 #include <bit>
 #include <cmath>
 
-#include "tfmatch/io/ensemble_io.h"
 #include "formats_test_util.h"
 #include "slab_test_files.h"
 #include "test_data.h"
-#include "vk_test_env.h"
+#include "tfmatch/io/ensemble_io.h"
 #include "tfmatch/io/volume_io.h"
 #include "tfmatch/io/volume_vti.h"
+#include "vk_test_env.h"
 
 namespace tfm {
 namespace {

@@ -7,10 +7,10 @@
 #include <cmath>
 
 #include "formats_test_util.h"
-#include "vk_test_env.h"
-#include "tfmatch/model/volume.h"
 #include "tfmatch/io/volume_info.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/volume.h"
+#include "vk_test_env.h"
 
 namespace tfm {
 namespace {

@@ -10,9 +10,9 @@
 #include <string>
 
 #include "cli_runner.h"
-#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/io/volume_formats.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/memory_budget.h"
 
 namespace tfm {
 namespace {

@@ -7,17 +7,17 @@
 #include <utility>
 #include <vector>
 
-#include "tfmatch/io/base64.h"
 #include "cli_runner.h"
 #include "formats_test_util.h"
-#include "tfmatch/model/memory_budget.h"
 #include "slab_test_files.h"
-#include "tfmatch/model/volume.h"
+#include "tfmatch/io/base64.h"
 #include "tfmatch/io/volume_format_table.h"
 #include "tfmatch/io/volume_formats.h"
 #include "tfmatch/io/volume_info.h"
-#include "vk_test_env.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/memory_budget.h"
+#include "tfmatch/model/volume.h"
+#include "vk_test_env.h"
 
 namespace tfm {
 namespace {

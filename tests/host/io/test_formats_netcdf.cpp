@@ -10,11 +10,11 @@
 
 #include "formats_test_util.h"
 #include "tfmatch/io/json.h"
-#include "vk_test_env.h"
-#include "tfmatch/model/volume.h"
 #include "tfmatch/io/volume_info.h"
 #include "tfmatch/io/volume_io.h"
 #include "tfmatch/io/volume_vti.h"
+#include "tfmatch/model/volume.h"
+#include "vk_test_env.h"
 
 namespace tfm {
 namespace {

@@ -8,11 +8,11 @@
 #include <map>
 
 #include "formats_test_util.h"
-#include "tfmatch/model/volume.h"
 #include "tfmatch/io/volume_formats.h"
-#include "vk_test_env.h"
 #include "tfmatch/io/volume_info.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/volume.h"
+#include "vk_test_env.h"
 
 namespace tfm {
 namespace {

@@ -7,13 +7,13 @@
 #include <cmath>
 #include <numeric>
 
-#include "tfmatch/io/base64.h"
 #include "formats_test_util.h"
-#include "tfmatch/model/volume.h"
+#include "tfmatch/io/base64.h"
 #include "tfmatch/io/volume_formats.h"
-#include "tfmatch/io/volume_vti.h"
-#include "vk_test_env.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/io/volume_vti.h"
+#include "tfmatch/model/volume.h"
+#include "vk_test_env.h"
 
 namespace tfm {
 namespace {

@@ -6,11 +6,11 @@
 #include <cmath>
 
 #include "formats_test_util.h"
-#include "tfmatch/model/volume.h"
 #include "tfmatch/io/volume_formats.h"
 #include "tfmatch/io/volume_info.h"
-#include "vk_test_env.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/volume.h"
+#include "vk_test_env.h"
 
 namespace tfm {
 namespace {

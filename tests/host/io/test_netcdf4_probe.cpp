@@ -13,11 +13,11 @@
 #include <fstream>
 #include <thread>
 
-#include "tfmatch/model/cancellation.h"
 #include "formats_test_util.h"
-#include "tfmatch/io/netcdf4_probe.h"
 #include "scoped_env.h"
+#include "tfmatch/io/netcdf4_probe.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/cancellation.h"
 
 namespace tfm {
 namespace {

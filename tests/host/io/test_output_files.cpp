@@ -10,10 +10,10 @@
 #include <fstream>
 #include <string>
 
-#include "tfmatch/io/atomic_file.h"
-#include "tfmatch/model/cancellation.h"
 #include "cli_runner.h"
+#include "tfmatch/io/atomic_file.h"
 #include "tfmatch/io/output_check.h"
+#include "tfmatch/model/cancellation.h"
 
 namespace tfm {
 namespace {

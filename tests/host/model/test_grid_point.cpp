@@ -4,10 +4,10 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "tfmatch/kernels/render.h"
 #include "tfmatch/model/camera.h"
 #include "tfmatch/model/grid_point.h"
 #include "tfmatch/model/image.h"
-#include "tfmatch/kernels/render.h"
 
 namespace tfm {
 namespace {

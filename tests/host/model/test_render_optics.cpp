@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "tfmatch/reference/cpu_renderer.h"
 #include "tfmatch/kernels/render.h"
+#include "tfmatch/reference/cpu_renderer.h"
 #include "vk_test_env.h"
 
 namespace tfm {

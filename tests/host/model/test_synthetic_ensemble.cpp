@@ -4,8 +4,8 @@
 
 #include <cmath>
 
-#include "tfmatch/reference/correlation_cpu.h"
 #include "tfmatch/model/synthetic_ensemble.h"
+#include "tfmatch/reference/correlation_cpu.h"
 
 namespace tfm {
 namespace {

@@ -8,11 +8,11 @@
 #include <gtest/gtest.h>
 
 #include "cli_runner.h"
+#include "tfmatch/io/tf_json.h"
+#include "tfmatch/io/volume_io.h"
 #include "tfmatch/model/field_mapping.h"
 #include "tfmatch/model/transfer_function.h"
 #include "tfmatch/model/volume.h"
-#include "tfmatch/io/volume_io.h"
-#include "tfmatch/io/tf_json.h"
 
 namespace tfm {
 namespace {

@@ -11,9 +11,9 @@
 
 #include <gtest/gtest.h>
 
+#include "correlation_expected.h"
 #include "tfmatch/kernels/correlation.h"
 #include "tfmatch/reference/correlation_cpu.h"
-#include "correlation_expected.h"
 #include "tfmatch/selftest/selftest_support.h"
 
 namespace tfm {

@@ -8,11 +8,11 @@
 
 #include "cli_runner.h"
 #include "tfmatch/io/json.h"
+#include "tfmatch/io/tf_formats.h"
+#include "tfmatch/model/synthetic.h"
 #include "tfmatch/report/metrics.h"
 #include "tfmatch/report/png_io.h"
 #include "tfmatch/report/report.h"
-#include "tfmatch/model/synthetic.h"
-#include "tfmatch/io/tf_formats.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -8,11 +8,11 @@
 #include <glm/glm.hpp>
 #include <gtest/gtest.h>
 
-#include "tfmatch/solvers/adam.h"
-#include "tfmatch/model/cameras.h"
 #include "tfmatch/kernels/diffdvr.h"
+#include "tfmatch/model/cameras.h"
 #include "tfmatch/reference/diffdvr_cpu.h"
 #include "tfmatch/report/loss_plot.h"
+#include "tfmatch/solvers/adam.h"
 
 namespace tfm {
 namespace {

@@ -6,10 +6,10 @@
 #include <cmath>
 #include <vector>
 
-#include "tfmatch/kernels/gpu_voxel_ops.h"
-#include "tfmatch/solvers/histogram_matching.h"
-#include "tfmatch/reference/histogram_cpu.h"
 #include "solver_problem.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/reference/histogram_cpu.h"
+#include "tfmatch/solvers/histogram_matching.h"
 #include "vk_test_env.h"
 
 namespace tfm {

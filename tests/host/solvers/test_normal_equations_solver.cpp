@@ -7,13 +7,13 @@
 
 #include <Eigen/Dense>
 
+#include "solver_problem.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/model/synthetic.h"
 #include "tfmatch/reference/normal_equations_cpu.h"
 #include "tfmatch/solvers/eigen_baseline.h"
-#include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/solvers/normal_equations.h"
 #include "tfmatch/solvers/optimize.h"
-#include "solver_problem.h"
-#include "tfmatch/model/synthetic.h"
 #include "vk_test_env.h"
 
 namespace tfm {

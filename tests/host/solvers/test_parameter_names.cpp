@@ -6,8 +6,8 @@
 #include <string>
 
 #include "tfmatch/model/image_loss.h"
-#include "tfmatch/solvers/normal_equations.h"
 #include "tfmatch/model/parameter_names.h"
+#include "tfmatch/solvers/normal_equations.h"
 
 namespace tfm {
 namespace {

@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "formats_test_util.h"
-#include "tfmatch/solvers/series_optimize.h"
 #include "test_data.h"
+#include "tfmatch/solvers/series_optimize.h"
 #include "vk_test_env.h"
 
 namespace tfm {

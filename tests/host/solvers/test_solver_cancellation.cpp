@@ -9,11 +9,11 @@
 #include <mutex>
 #include <thread>
 
-#include "tfmatch/model/cancellation.h"
 #include "interrupts.h"
-#include "tfmatch/solvers/normal_equations.h"
-#include "tfmatch/model/progress.h"
 #include "solver_problem.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/progress.h"
+#include "tfmatch/solvers/normal_equations.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -9,11 +9,11 @@
 
 #include <Eigen/Dense>
 
-#include "tfmatch/solvers/cgls_cpu.h"
+#include "solver_problem.h"
 #include "tfmatch/kernels/device_cgls.h"
+#include "tfmatch/solvers/cgls_cpu.h"
 #include "tfmatch/solvers/eigen_baseline.h"
 #include "tfmatch/solvers/solver_cgls.h"
-#include "solver_problem.h"
 #include "tfmatch/solvers/tridiagonal.h"
 #include "vk_test_env.h"
 

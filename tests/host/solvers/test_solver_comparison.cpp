@@ -7,10 +7,10 @@
 #include <cmath>
 
 #include "cli_runner.h"
+#include "solver_problem.h"
 #include "tfmatch/io/json.h"
 #include "tfmatch/report/result_json.h"
 #include "tfmatch/solvers/solver_comparison.h"
-#include "solver_problem.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -8,12 +8,12 @@
 #include <cmath>
 #include <random>
 
-#include "tfmatch/solvers/box_qp.h"
+#include "solver_problem.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/kernels/gradient_descent.h"
-#include "tfmatch/solvers/solver_gradient_descent.h"
 #include "tfmatch/kernels/sparse_ops.h"
-#include "solver_problem.h"
+#include "tfmatch/solvers/box_qp.h"
+#include "tfmatch/solvers/solver_gradient_descent.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -12,11 +12,11 @@
 
 #include <Eigen/Dense>
 
-#include "tfmatch/solvers/box_qp.h"
+#include "solver_problem.h"
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/kernels/irls.h"
+#include "tfmatch/solvers/box_qp.h"
 #include "tfmatch/solvers/solver_irls.h"
-#include "solver_problem.h"
 #include "vk_test_env.h"
 
 namespace tfm {

@@ -9,11 +9,11 @@
 #include <set>
 
 #include "cli_runner.h"
+#include "solver_problem.h"
 #include "tfmatch/io/json.h"
 #include "tfmatch/report/result_json.h"
 #include "tfmatch/solvers/solver.h"
 #include "tfmatch/solvers/solver_gradient_descent.h"
-#include "solver_problem.h"
 #include "vk_test_env.h"
 
 namespace tfm {

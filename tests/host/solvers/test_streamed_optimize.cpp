@@ -8,15 +8,15 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "tfmatch/model/cancellation.h"
 #include "formats_test_util.h"
-#include "tfmatch/kernels/gpu_voxel_ops.h"
-#include "tfmatch/solvers/optimize.h"
 #include "slab_test_files.h"
-#include "tfmatch/solvers/streamed_optimize.h"
-#include "tfmatch/model/synthetic.h"
-#include "vk_test_env.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/synthetic.h"
+#include "tfmatch/solvers/optimize.h"
+#include "tfmatch/solvers/streamed_optimize.h"
+#include "vk_test_env.h"
 
 namespace tfm {
 namespace {

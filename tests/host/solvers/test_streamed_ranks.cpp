@@ -14,13 +14,13 @@
 #include <vector>
 
 #include "formats_test_util.h"
-#include "tfmatch/model/ranks.h"
 #include "slab_test_files.h"
-#include "tfmatch/solvers/streamed_optimize.h"
+#include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/ranks.h"
 #include "tfmatch/model/synthetic.h"
+#include "tfmatch/solvers/streamed_optimize.h"
 #include "thread_ranks.h"
 #include "vk_test_env.h"
-#include "tfmatch/io/volume_io.h"
 
 namespace tfm {
 namespace {

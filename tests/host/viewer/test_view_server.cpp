@@ -10,13 +10,13 @@
 #include <fstream>
 #include <thread>
 
-#include "tfmatch/model/camera.h"
 #include "cli_runner.h"
-#include "tfmatch/model/cancellation.h"
-#include "tfmatch/report/png_io.h"
 #include "tfmatch/kernels/render.h"
+#include "tfmatch/model/camera.h"
+#include "tfmatch/model/cancellation.h"
 #include "tfmatch/model/synthetic.h"
 #include "tfmatch/model/synthetic_ensemble.h"
+#include "tfmatch/report/png_io.h"
 #include "tfmatch/viewer/tf_points.h"
 #include "tfmatch/viewer/view_page.h"
 #include "tfmatch/viewer/view_server.h"
