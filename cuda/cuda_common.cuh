@@ -134,10 +134,14 @@ DirectAssembly assemble_direct(const FieldsOnDevice& fields, const FieldMapping&
                                std::span<const float> ref_tf_rgba);
 CglsOutcome cgls(const SystemOnDevice& system, const CglsParams& params);
 
+// "No data" (DESIGN.md): NaN and ±Inf, as no_data() of shaders/tf_common.glsl and
+// host/model/field_mapping.h: an exponent of all ones, tested on the bits.
+__device__ inline bool no_data(float v) { return (__float_as_uint(v) & 0x7f800000u) == 0x7f800000u; }
+
 // tf_coordinate() of host/model/field_mapping.h with explicitly rounded float operations (the _rn
 // intrinsics are never fused into FMAs), so j and w are bit-identical to the host's.
 __device__ inline bool tf_coordinate(float v, float lo, float scale, uint32_t n, uint32_t& j, float& w) {
-  if (isnan(v)) return false;
+  if (no_data(v)) return false;
   float x = __fmul_rn(__fsub_rn(v, lo), scale);
   const float top = float(n - 1);
   x = x < 0.0f ? 0.0f : (x > top ? top : x);

@@ -19,10 +19,10 @@ constexpr int kThreads = kReduceThreads;  // grid_for() counts blocks of it
 // 2 non-zeros of S per voxel in 32-bit CSR indices (cuSPARSE's csr2csc takes int).
 constexpr uint64_t kMaxVoxels = uint64_t(INT_MAX) / 2;
 
-// flags[i] = 1 where both fields have data (NaN is "no data", as everywhere).
+// flags[i] = 1 where both fields have data (NaN and ±Inf are "no data", as everywhere).
 __global__ void count_kernel(const float* ref, const float* opt, uint64_t count, uint32_t* flags) {
   for (uint64_t i = uint64_t(blockIdx.x) * blockDim.x + threadIdx.x; i < count; i += uint64_t(gridDim.x) * blockDim.x)
-    flags[i] = (!isnan(ref[i]) && !isnan(opt[i])) ? 1u : 0u;
+    flags[i] = (!no_data(ref[i]) && !no_data(opt[i])) ? 1u : 0u;
 }
 
 struct Mappings {

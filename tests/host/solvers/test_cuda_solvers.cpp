@@ -15,11 +15,11 @@
 #include <filesystem>
 #include <fstream>
 
-#include "tfmatch/cuda/cuda_backend.h"
 #include "cli_runner.h"
-#include "tfmatch/solvers/eigen_baseline.h"
 #include "scoped_env.h"
 #include "solver_problem.h"
+#include "tfmatch/cuda/cuda_backend.h"
+#include "tfmatch/solvers/eigen_baseline.h"
 #include "vk_test_env.h"
 
 namespace tfm {
@@ -117,7 +117,10 @@ TEST_F(CudaSolvers, WithoutADeviceTheSolversSayWhy) {
 TEST(CudaAssembly, DirectKernelMatchesCpuReference) {
   REQUIRE_CUDA_DEVICE();
   for (size_t voxels : {size_t(1), size_t(13), size_t(127), size_t(4097), size_t(300001)}) {
-    const test::SolverProblem p = test::make_solver_problem(voxels, 16, 9, 0.0, 1.0, uint32_t(voxels), 0.1, 7);
+    test::SolverProblem p = test::make_solver_problem(voxels, 16, 9, 0.0, 1.0, uint32_t(voxels), 0.1, 7);
+    // Holes of every kind of no data (DESIGN.md: NaN and ±Inf) in either field.
+    for (size_t i = 2; i < voxels; i += 7) p.ref_volume.values[i] = (i % 3 == 0) ? NAN : (i % 3 == 1) ? INFINITY : -INFINITY;
+    for (size_t i = 4; i < voxels; i += 9) p.opt_volume.values[i] = (i % 2) ? INFINITY : -INFINITY;
     const NormalEquations cpu = p.cpu_equations();
     const auto fields = plugin().upload(p.ref_volume.values, p.opt_volume.values);
     const cuda::DirectAssembly d = plugin().assemble_direct(*fields, p.ref_map, p.opt_map, p.ref_tf.as_floats());
@@ -156,13 +159,15 @@ cuda::DeviceSystem::Host expand_to_a(const cuda::DeviceSystem::Host& s) {
 
 // S and b built on the device (count, scan, fill), S expanded to A = S (x) I_4, are the host's
 // build_explicit_system() bit for bit: awkward sizes (one past a block of 256, several blocks),
-// NaN voxels in either field, values outside both ranges (clamped coordinates), a reference TF
-// that leaves [0, 1] (clamped b).
+// NaN and ±Inf voxels in either field, values outside both ranges (clamped coordinates), a
+// reference TF that leaves [0, 1] (clamped b).
 TEST(CudaAssembly, DeviceBuiltSystemIsTheHostSystemBitForBit) {
   REQUIRE_CUDA_DEVICE();
   for (size_t voxels : {size_t(1), size_t(13), size_t(257), size_t(4097), size_t(300001)}) {
     test::SolverProblem p = test::make_solver_problem(voxels, 12, 7, -0.2, 1.2, uint32_t(voxels) + 5, 0.1, 9);
     for (size_t i = 3; i < voxels; i += 11) p.ref_volume.values[i] = NAN;
+    for (size_t i = 6; i < voxels; i += 23) p.opt_volume.values[i] = (i % 2) ? INFINITY : -INFINITY;
+    for (size_t i = 8; i < voxels; i += 29) p.ref_volume.values[i] = INFINITY;
     for (size_t i = 5; i < voxels; i += 17) p.opt_volume.values[i] = (i % 2) ? 25.0f : 5.0f;  // outside [10, 20]
     for (size_t i = 7; i < voxels; i += 19) p.ref_volume.values[i] = (i % 2) ? 1.5f : -0.5f;
     ExplicitSystem host =
