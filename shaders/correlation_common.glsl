@@ -27,6 +27,7 @@
 
 #define TFM_WANT_CORRELATION_PUSH
 #include "correlation_layout.h"
+#include "tf_common.glsl"  // no_data
 
 layout(local_size_x_id = TFM_SPEC_WORKGROUP_X) in;
 layout(constant_id = TFM_CORR_SPEC_GROUP_PER_VOXEL) const bool GROUP_PER_VOXEL = false;
@@ -126,17 +127,20 @@ uvec4 corr_count_total(uvec4 v) {
   return uvec4(s_counts[0], s_counts[1], s_counts[2], s_counts[3]);
 }
 
+// NaN, tested on the bits as no_data() is (tf_common.glsl), so no driver setting that assumes
+// ordinary floats can drop it: an exponent of all ones and a mantissa that is not zero.
+bool corr_is_nan(float y) { return (floatBitsToUint(y) & 0x7fffffffu) > 0x7f800000u; }
+
 // Partial (unused, min, max, has no value) of one value; a value it flags takes no part in min and
-// max. corr_stats_term flags NaN.
+// max. corr_stats_term flags NaN (the rank measures order ±Inf as values).
 vec4 corr_value_stats(bool no_value, float y) {
   return no_value ? vec4(0.0, CORR_INF, -CORR_INF, 1.0) : vec4(0.0, y, y, 0.0);
 }
-vec4 corr_stats_term(float y) { return corr_value_stats(isnan(y), y); }
+vec4 corr_stats_term(float y) { return corr_value_stats(corr_is_nan(y), y); }
 #define CORR_STATS_EMPTY vec4(0.0, CORR_INF, -CORR_INF, 0.0)
 // The same where an infinite member has no value either (needs_finite_members: mi-binned's bins
-// over the range, mi-kraskov's neighbour distances; pearson keeps its own flags). any(), not ||,
-// which glslang compiles to a branch.
-vec4 corr_finite_stats_term(float y) { return corr_value_stats(any(bvec2(isnan(y), isinf(y))), y); }
+// over the range, mi-kraskov's neighbour distances; pearson keeps its own flags).
+vec4 corr_finite_stats_term(float y) { return corr_value_stats(no_data(y), y); }
 
 // Writes the voxel's result once (by the first invocation of its workgroup).
 void corr_write(uint v, float value) {

@@ -36,11 +36,11 @@ void main() {
   // the double reference), and a member unlike the first (else the series is constant): two
   // flags, cheaper than the other measures' min/max statistics (on lavapipe 4 % fewer of this
   // kernel's instructions, docs/benchmarks.md). any(), not ||, which glslang compiles to a branch.
-  bool no_value = any(bvec2(isnan(y0), isinf(y0))), varies = false;
+  bool no_value = no_data(y0), varies = false;
   float sd = 0.0, sd_carry = 0.0, sdd = 0.0, sdd_carry = 0.0, sxd = 0.0, sxd_carry = 0.0;
   for (uint m = 1u; m < m_count; ++m) {
     const float y = series_value(v, m);
-    no_value = any(bvec3(no_value, isnan(y), isinf(y)));
+    no_value = any(bvec2(no_value, no_data(y)));
     varies = any(bvec2(varies, y != y0));
     precise float d = y - y0;
     precise float dd = d * d;
