@@ -7,6 +7,8 @@
 #include <thread>
 #include <vector>
 
+#include "tfmatch/shaders/shared_layout.h"  // TFM_FIXED_ONE
+
 namespace tfm {
 
 void accumulate_normal_equations_cpu(NormalEquations& eq, std::span<const float> ref, std::span<const float> opt,
@@ -89,7 +91,7 @@ std::vector<uint64_t> assemble_normal_equations_fixed_point(std::span<const floa
   const uint32_t n = opt_map.tf_size, stb = 2 * n - 1;
   const std::vector<float> tf = ref_tf.as_floats();
   // floor(c 2^32) of a float c in [0, 1]: c 2^32 is exact in float, the conversion truncates.
-  auto fixed = [](float c) { return static_cast<uint64_t>(c * 4294967296.0f); };
+  auto fixed = [](float c) { return static_cast<uint64_t>(c * float(TFM_FIXED_ONE)); };
   std::vector<uint64_t> slots(6 * n + 8, 0);  // TFM_ASSEMBLE_SLOTS(n)
   for (size_t i = 0; i < ref.size(); ++i) {
     uint32_t jr, jo;

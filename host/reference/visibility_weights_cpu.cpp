@@ -5,8 +5,9 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "tfmatch/reference/cpu_renderer.h"
 #include "tfmatch/model/field_mapping.h"
+#include "tfmatch/reference/cpu_renderer.h"
+#include "tfmatch/shaders/visibility_layout.h"
 
 namespace tfm {
 
@@ -44,7 +45,7 @@ double transmittance_to_eye(const Volume& vol, const TransferFunction& tf, const
     if (!sample_trilinear(vol, q, value)) continue;
     const double a = classify_cpu(tf, range, value)[3];
     transmittance *= std::exp(-std::min(a * march.depth_per_alpha, kMaxSampleOpticalDepth) * part);
-    if (transmittance < 0x1p-24) return 0.0;
+    if (transmittance < double(float(TFM_VIS_MIN_TRANSMITTANCE))) return 0.0;
   }
   return transmittance;
 }
