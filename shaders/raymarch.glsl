@@ -86,22 +86,15 @@ bool setup_ray(vec3 eye, vec3 forward, vec3 right, vec3 up, float tan_half_fov, 
   return ray.steps > 0u;
 }
 
+// The marching constants of a push block that carries them under their names (RenderPush,
+// VisibilityPush; the host fills them from one make_render_push).
+#define TFM_MARCH_PARAMS_OF(p) \
+  MarchParams(uvec3(p.dim_x, p.dim_y, p.dim_z), p.chunk_voxels, vec3(p.inv_axis_x, p.inv_axis_y, p.inv_axis_z), \
+              p.dt, p.depth_per_alpha, p.stop_transmittance, p.max_steps, p.tf_lo, p.tf_scale, p.tf_size)
+
 #ifdef TFM_WANT_RENDER_PUSH
 // The marching constants of the render push block (make_render_push fills it on the host).
-MarchParams march_params_from_push() {
-  MarchParams mp;
-  mp.dims = uvec3(rp.dim_x, rp.dim_y, rp.dim_z);
-  mp.chunk_voxels = rp.chunk_voxels;
-  mp.inv_axis = vec3(rp.inv_axis_x, rp.inv_axis_y, rp.inv_axis_z);
-  mp.dt = rp.dt;
-  mp.depth_per_alpha = rp.depth_per_alpha;
-  mp.stop_transmittance = rp.stop_transmittance;
-  mp.max_steps = rp.max_steps;
-  mp.tf_lo = rp.tf_lo;
-  mp.tf_scale = rp.tf_scale;
-  mp.tf_size = rp.tf_size;
-  return mp;
-}
+MarchParams march_params_from_push() { return TFM_MARCH_PARAMS_OF(rp); }
 
 // The ray of `pixel` seen from camera `v` (steps = 0 on a miss).
 Ray view_ray(RenderView v, uvec2 pixel, MarchParams mp) {

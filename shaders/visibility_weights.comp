@@ -32,20 +32,7 @@ layout(std430, binding = TFM_VIS_BINDING_OUT) buffer Out { float weight[]; };
 layout(std430, binding = TFM_VIS_BINDING_MAX) buffer Max { uint max_bits; };
 layout(std430, binding = TFM_VIS_BINDING_PARTIAL) buffer Partial { float partial[]; };
 
-MarchParams march_params() {
-  MarchParams mp;
-  mp.dims = uvec3(vp.dim_x, vp.dim_y, vp.dim_z);
-  mp.chunk_voxels = vp.chunk_voxels;
-  mp.inv_axis = vec3(vp.inv_axis_x, vp.inv_axis_y, vp.inv_axis_z);
-  mp.dt = vp.dt;
-  mp.depth_per_alpha = vp.depth_per_alpha;
-  mp.stop_transmittance = vp.stop_transmittance;
-  mp.max_steps = vp.max_steps;
-  mp.tf_lo = vp.tf_lo;
-  mp.tf_scale = vp.tf_scale;
-  mp.tf_size = vp.tf_size;
-  return mp;
-}
+MarchParams march_params() { return TFM_MARCH_PARAMS_OF(vp); }
 
 // T_v(x) of the voxel at index-space point p: `transmittance` (1 for a whole ray) times the
 // samples k in (k_first, k_end] of its march (k_end 0: to its end).
