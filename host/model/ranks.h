@@ -19,6 +19,8 @@
 #include <utility>
 #include <vector>
 
+#include "tfmatch/model/volume.h"
+
 namespace tfm {
 
 // What every rank throws when a rank failed (after agree()).
@@ -58,6 +60,14 @@ class Ranks {
 
 // This process alone: rank 0 of 1; collectives leave the values as they are.
 Ranks& single_rank();
+
+// Collective, and the first one a command calls on its files: unless every rank reads the grid
+// rank 0 reads (dims, spacing, origin) and, where `members` is given, as many members, every rank
+// throws the RankFailure of the first rank that differs, naming `what` (the files) and both grids.
+// A node with another copy of a file would otherwise compute its share of another field and the
+// job would write a mixture of the two. It agrees first, so a rank that failed before it stops
+// every rank there. Nothing to compare with one rank.
+void require_same_grid_on_every_rank(Ranks& ranks, const Volume& grid, const std::string& what, uint64_t members = 0);
 
 // The z-slices [first, end) rank `rank` of `size` takes of `slices`: contiguous, in rank order,
 // as even as whole blocks of `block` slices allow (the last block may be short); a rank beyond

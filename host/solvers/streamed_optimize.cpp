@@ -264,6 +264,7 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
   out.voxels_total = grid.voxel_count();
   s.streamed = ref.streams() && field.streams();
   Ranks& ranks = req.ranks ? *req.ranks : single_rank();
+  require_same_grid_on_every_rank(ranks, grid, ref.grid().name + " and " + field.grid().name);
   // This rank's work, then the agreement: a failure on any rank stops every rank (ranks.h).
   auto on_every_rank = [&](auto&& work) {
     std::exception_ptr failed;

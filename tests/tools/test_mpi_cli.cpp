@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -251,6 +252,42 @@ TEST_F(MpiCli, CommandsThatDoNotSplitSaySo) {
   EXPECT_EQ(off.exit_code, 2) << off.output;
   EXPECT_NE(off.output.find("--stream on or auto"), std::string::npos) << off.output;
   EXPECT_FALSE(fs::exists(dir / "off.json"));
+#endif
+}
+
+// Ranks that read other files under the same names (a node with a stale copy): every rank stops
+// before any work, naming the rank and both grids, and nothing is written. Each rank runs in a
+// folder of its own (OpenMPI names the rank in OMPI_COMM_WORLD_RANK); rank 1's grid is a slice
+// shorter.
+TEST_F(MpiCli, RanksThatReadDifferentGridsStopBeforeAnyWork) {
+#ifdef TFMATCH_MPIEXEC
+  for (int rank : {0, 1}) {
+    const fs::path folder = dir / ("rank" + std::to_string(rank));
+    fs::create_directories(folder);
+    const std::array<uint64_t, 3> dims{37, 29, uint64_t(rank == 0 ? 23 : 22)};
+    for (int m = 0; m < 3; ++m)
+      fs::rename(slab_test::write_vti_file(folder, "m", slab_test::test_field(dims, m), false),
+                 folder / ("m" + std::to_string(m) + ".vti"));
+  }
+  const fs::path wrapper = dir / "in_rank_folder.sh";
+  std::ofstream(wrapper) << "#!/bin/sh\ncd '" << dir.path().string() << "/rank'\"$OMPI_COMM_WORLD_RANK\" && exec "
+                         << TFMATCH_CLI_PATH << " \"$@\"\n";
+  fs::permissions(wrapper, fs::perms::owner_all);
+  const std::string launch = std::string(TFMATCH_MPIEXEC) + " --oversubscribe -n 2 " + wrapper.string() + " ";
+  const auto opt = run_shell(launch + "optimize --ref m0.vti --field m1.vti --ref-tf viridis --stream on --out " +
+                             (dir / "tf.json").string());
+  const auto cor = run_shell(launch + "correlate --members m0.vti m1.vti m2.vti --point 1,1,1 --out " +
+                             (dir / "c.raw").string());
+  for (const auto* r : {&opt, &cor}) {
+    EXPECT_EQ(r->exit_code, 1) << r->output;
+    EXPECT_NE(r->output.find("tfmatch: rank 1: "), std::string::npos) << r->output;
+    EXPECT_NE(r->output.find("reads a grid 37x29x22 (spacing 0.5, 2, 1.5; origin -1, 3, 7)"), std::string::npos)
+        << r->output;
+    EXPECT_NE(r->output.find("where rank 0 reads 37x29x23"), std::string::npos) << r->output;
+  }
+  EXPECT_NE(cor.output.find("of 3 members"), std::string::npos) << cor.output;
+  EXPECT_FALSE(fs::exists(dir / "tf.json"));
+  EXPECT_FALSE(fs::exists(dir / "c.raw"));
 #endif
 }
 

@@ -217,6 +217,7 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
   const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   auto ctx = starting.get();
   Ranks& ranks = *globals().ranks;
+  require_same_grid_on_every_rank(ranks, grid, source, members);
   const auto [first, end] = rank_slices(grid.dims[2], ranks.rank(), ranks.size());
   const uint64_t slice = grid.dims[0] * grid.dims[1];
   // A slab of every member within a quarter of what the budget leaves (under MPI the smallest

@@ -162,5 +162,46 @@ TEST(StreamedOptimizeRanks, AFailingRankStopsEveryRankWithItsMessage) {
   }
 }
 
+// A rank that reads another grid (a node with another copy of the files) stops every rank before
+// any work, with both grids in the message, instead of adding its share of another field.
+TEST(StreamedOptimizeRanks, ARankReadingAnotherGridStopsEveryRank) {
+  const RankedProblem p;
+  TempDir other;
+  const std::string ref2 = slab_test::write_raw(other.path(), "ref", slab_test::test_field({37, 29, 24}, 0)).string();
+  const std::string opt2 = slab_test::write_raw(other.path(), "opt", slab_test::test_field({37, 29, 24}, 5)).string();
+  const int size = 3;
+  auto contexts = devices(size);
+  std::vector<std::string> messages(size);
+  std::vector<int> failing(size, -1);
+  test::ThreadRanks::run(size, [&](test::ThreadRanks& ranks) {
+    const size_t r = size_t(ranks.rank());
+    auto rs = open_volume_slabs(r == 2 ? ref2 : p.ref_file), os = open_volume_slabs(r == 2 ? opt2 : p.opt_file);
+    try {
+      run_optimize_streamed(*contexts[r], p.request(*rs, *os, &ranks));
+    } catch (const RankFailure& f) {
+      messages[r] = f.what();
+      failing[r] = f.failing_rank();
+    } catch (const std::exception& e) {
+      messages[r] = std::string("not a RankFailure: ") + e.what();
+    }
+  });
+  for (int r = 0; r < size; ++r) {
+    EXPECT_EQ(failing[size_t(r)], 2) << "rank " << r;
+    EXPECT_NE(messages[size_t(r)].find("rank 2: "), std::string::npos) << messages[size_t(r)];
+    EXPECT_NE(messages[size_t(r)].find("reads a grid 37x29x24 (spacing 1, 1, 1; origin 0, 0, 0) where rank 0 reads "
+                                       "37x29x23"),
+              std::string::npos)
+        << messages[size_t(r)];
+  }
+  // The same grid everywhere passes, with one rank or several.
+  Volume grid = slab_test::test_field({3, 4, 5}, 0);
+  EXPECT_NO_THROW(require_same_grid_on_every_rank(single_rank(), grid, "x"));
+  test::ThreadRanks::run(2, [&](test::ThreadRanks& ranks) {
+    Volume mine = grid;
+    mine.origin[0] = ranks.rank() == 0 ? -0.0 : 0.0;  // equal values
+    EXPECT_NO_THROW(require_same_grid_on_every_rank(ranks, mine, "x", 7));
+  });
+}
+
 }  // namespace
 }  // namespace tfm
