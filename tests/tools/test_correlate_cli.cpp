@@ -3,9 +3,13 @@
 // the ERA5 recipe of the README works on the shared data.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <string>
+#include <vector>
 
 #include <netcdf.h>
 
@@ -148,6 +152,31 @@ TEST_F(CorrelateCli, SlabBySlabGivesTheLoadedField) {
     std::ifstream(dir / "on.json") >> j;
     EXPECT_TRUE(j.contains("stream")) << j.dump();
   }
+}
+
+// --out x.pvti writes its pieces into the folder x beside it: a file named x is refused before any
+// work, naming the option; pieces an earlier run with more ranks left there (x_3.vti) go, while
+// files that are not this run's pieces stay.
+TEST_F(CorrelateCli, ParallelImageDataChecksAndTidiesItsPiecesFolder) {
+  const std::string args = "correlate --members " + members + " --point 3,4,2 --quiet --out " + dir / "x.pvti";
+  { std::ofstream(dir / "x") << "a file"; }
+  const auto clash = run_cli(args + " --json " + dir / "clash.json");
+  EXPECT_EQ(clash.exit_code, 1) << clash.output;
+  EXPECT_NE(clash.output.find("--out (its pieces' folder) " + dir / "x" + ": exists and is not a directory"),
+            std::string::npos)
+      << clash.output;
+  EXPECT_EQ(clash.output.find("ensemble"), std::string::npos) << clash.output;  // nothing was read
+  EXPECT_FALSE(std::filesystem::exists(dir / "clash.json"));
+  std::filesystem::remove(dir / "x");
+  std::filesystem::create_directories(dir / "x");
+  for (const char* name : {"x_3.vti", "x_1.vti", "x_01.vti", "x_b.vti", "notes.txt"})
+    std::ofstream(std::filesystem::path(dir / "x") / name) << "old";
+  const auto r = run_cli(args);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::vector<std::string> left;
+  for (const auto& e : std::filesystem::directory_iterator(dir / "x")) left.push_back(e.path().filename().string());
+  std::sort(left.begin(), left.end());
+  EXPECT_EQ(left, (std::vector<std::string>{"notes.txt", "x_0.vti", "x_01.vti", "x_b.vti"}));
 }
 
 // A NetCDF variable with a member dimension, read slab by slab (each member through its own

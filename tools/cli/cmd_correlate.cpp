@@ -1,11 +1,14 @@
 // `tfmatch correlate`: the correlation field of an ensemble for a reference point (or the
 // difference of two points' fields), written as a field that `optimize`, `render` and `residual`
 // read like any other.
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <filesystem>
 #include <iostream>
 #include <span>
+#include <string>
+#include <vector>
 
 #include "cli.h"
 #include "input_options.h"
@@ -115,6 +118,24 @@ std::string piece_source(const std::filesystem::path& out, int rank) {
   return stem + "/" + stem + "_" + std::to_string(rank) + ".vti";
 }
 
+// Pieces an earlier run with more ranks left (<stem>_<N>.vti for N >= `pieces`), which no .pvti
+// lists any more: removed once the new files are in place. Other files in the folder are kept.
+void remove_stale_pieces(const std::filesystem::path& out, int pieces) {
+  namespace fs = std::filesystem;
+  const std::string prefix = out.stem().string() + "_";
+  std::vector<fs::path> stale;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(out.parent_path() / out.stem(), ec)) {
+    const std::string name = entry.path().filename().string();
+    if (!name.starts_with(prefix) || !name.ends_with(".vti")) continue;
+    const std::string digits = name.substr(prefix.size(), name.size() - prefix.size() - 4);
+    if (digits.empty() || digits.size() > 9 || !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; })) continue;
+    const int rank = std::stoi(digits);
+    if (rank >= pieces && std::to_string(rank) == digits) stale.push_back(entry.path());
+  }
+  for (const auto& path : stale) fs::remove(path, ec);
+}
+
 // ParaView's parallel image data (write_pvti): every rank writes its piece, z-slices [first, end)
 // and the next rank's first slice (`values` holds them: slices [first, computed_end)), then rank 0
 // the .pvti naming every rank's piece. Collective (ranks.h). The files are staged in `outputs`:
@@ -179,7 +200,8 @@ void write_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch& ou
                  const Volume& grid, const std::string& source, uint32_t members, const CorrelationParams& params,
                  const GridIndex& p1, const std::optional<GridIndex>& p2, const std::string& device, double load_s,
                  double compute_s, const nlohmann::json& extra) {
-  if (has_extension(a.out, ".pvti")) {
+  const bool pvti = has_extension(a.out, ".pvti");
+  if (pvti) {
     write_pieces(a, field.values, grid, field.name, single_rank(), outputs, 0, grid.dims[2], grid.dims[2]);
   } else if (has_extension(a.out, ".vti")) {
     write_vti(a.out, field, field.name);
@@ -189,6 +211,7 @@ void write_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch& ou
   FieldStats stats;
   stats.add(field.values);
   summarize_field(a, json, outputs, stats, grid, source, members, params, p1, p2, device, load_s, compute_s, extra);
+  if (pvti) remove_stale_pieces(a.out, 1);
 }
 
 int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const JsonOutput& json, OutputBatch& outputs,
@@ -304,6 +327,7 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
       stream["pieces"] = ranks.size();
       summarize_field(a, json, outputs, stats, grid, source, members, params, p1, p2, ctx->device_name(), load_s,
                       compute_s, {{"stream", stream}});
+      remove_stale_pieces(a.out, ranks.size());
     }
     return 0;
   }
@@ -337,7 +361,17 @@ int run(const CorrelateArgs& a) {
   FilePlan files;
   files.input_spec(a.ensemble, "--ensemble");
   for (const std::string& m : member_files) files.input_spec(m, "--members");
-  files.output(a.out, "--out").output(json.file(), "--json").check();
+  files.output(a.out, "--out").output(json.file(), "--json");
+  if (has_extension(a.out, ".pvti")) {
+    // The pieces' folder beside it, checked with the rest before any work (a file of that name
+    // failed the run once the field was computed).
+    std::vector<std::string> pieces;
+    for (int r = 0; r < globals().ranks->size(); ++r)
+      pieces.push_back(std::filesystem::path(piece_source(a.out, r)).filename().string());
+    const std::filesystem::path out = a.out;
+    files.output_directory(out.parent_path() / out.stem(), "--out (its pieces' folder)", pieces);
+  }
+  files.check();
   OutputBatch outputs;
 
   VolumeOptions vo = a.volume_flags.options();
