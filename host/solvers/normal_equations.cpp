@@ -105,16 +105,18 @@ SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions
     os << "; " << parameter("smooth") << " fills them from their neighbours";
     result.warnings.push_back(os.str());
   } else if (result.error_amplification > options.cond_warning) {
+    const std::string cgls = parameter("solver") + " cgls" +
+                             (options.streamed ? " (" + parameter("stream") + " off, in one process)" : "");
     std::ostringstream os;
     if (regularized)
       os << "lambda_max(M) / lambda_min(M + regularization) = " << result.error_amplification << " exceeds "
          << options.cond_warning << ": M carries ~1e-7 relative error from float32 data, so x may be wrong by that "
-         << "ratio * 1e-7; consider " << parameter("solver") << " cgls or a larger " << parameter("ridge") << " or "
+         << "ratio * 1e-7; consider " << cgls << " or a larger " << parameter("ridge") << " or "
          << parameter("smooth");
     else
       os << "cond(M) = " << result.cond << " exceeds " << options.cond_warning
          << ": M carries ~1e-7 relative error from float32 data, so x may be wrong by cond*1e-7; consider "
-         << parameter("solver") << " cgls or " << parameter("smooth");
+         << cgls << " or " << parameter("smooth");
     result.warnings.push_back(os.str());
   }
 

@@ -31,6 +31,9 @@ struct SolveOptions {
   Factorization factorization = Factorization::Auto;
   // cond(M) above which the result is flagged as unreliable (see condition_warning_threshold()).
   double cond_warning = 1e4;
+  // The system was assembled slab by slab: advice that names cgls (which reads the fields) says
+  // it needs them in memory, in one process.
+  bool streamed = false;
 };
 
 // Absolute weights of the regularization R = ridge I + smooth D^T D (D: first differences),

@@ -247,11 +247,13 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
     throw std::runtime_error("solver " + req.solver + " needs both fields in memory; the solvers that stream from "
                              "disk are normal-equations and qp (they work from the assembled system alone)");
   const Solver& solver = require_solver(req.solver);
-  const SolverArgs args = parse_solver_args(solver, req.settings);
+  SolverSettings settings = req.settings;
+  settings.solve.streamed = true;
+  const SolverArgs args = parse_solver_args(solver, settings);
   if (args.has("weights") && args.text("weights") != "none")
     throw std::runtime_error(parameter("weights") + " " + args.text("weights") +
                              " renders the whole reference field on the device: it does not stream from disk "
-                             "(the fields must fit in memory, " + parameter("stream") + " off)");
+                             "(the fields must fit in memory, " + parameter("stream") + " off, in one process)");
   VolumeSlabReader& ref = *req.ref;
   VolumeSlabReader& field = *req.field;
   require_same_grid(ref.grid(), field.grid());
@@ -310,6 +312,8 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
   if (req.preview_voxels) s.preview_factor = box_factor(grid.dims, req.preview_voxels);
   std::tie(s.first_slice, s.end_slice) =
       rank_slices(grid.dims[2], ranks.rank(), ranks.size(), req.preview_voxels ? s.preview_factor : 1);
+  // Slabs of at most this rank's share (what it reads; the reads end at end_slice either way).
+  s.slab_slices = std::min(s.slab_slices, std::max<uint64_t>(1, s.end_slice - s.first_slice));
   s.slabs = (s.end_slice - s.first_slice + s.slab_slices - 1) / s.slab_slices;
 
   const FieldRange* ref_user = req.ref_range ? &*req.ref_range : (req.ref_tf.range ? &*req.ref_tf.range : nullptr);

@@ -96,6 +96,13 @@ std::optional<Streams> open_streams(const OptimizeArgs& a) {
 
 // What a report records to be read and reproduced: its histogram scale, the command line, the
 // version and the inputs (`tfmatch view --report` reopens them).
+// The z-slices [first, end) in words: "z-slices 0–20", "z-slice 7", "no z-slice".
+std::string slice_span(uint64_t first, uint64_t end) {
+  if (first >= end) return "no z-slice";
+  if (end - first == 1) return "z-slice " + std::to_string(first);
+  return "z-slices " + std::to_string(first) + "–" + std::to_string(end - 1);
+}
+
 void add_provenance(ReportInputs& inputs, const OptimizeArgs& a) {
   inputs.histogram_log = a.histogram == "log";
   inputs.command_line = globals().command_line;
@@ -140,9 +147,8 @@ int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const So
                           " in " + std::to_string(s.slabs) + (s.slabs == 1 ? " slab of " : " slabs of ") +
                           std::to_string(s.slab_slices) + " z-slices, " + std::to_string(s.passes) + (s.passes == 1 ? " pass" : " passes") +
                           " over the files" +
-                          (ranks > 1 ? " (rank 0's share: z-slices " + std::to_string(s.first_slice) + "–" +
-                                           std::to_string(s.end_slice) + " of " + std::to_string(d[2]) + ", " +
-                                           std::to_string(ranks) + " MPI ranks)"
+                          (ranks > 1 ? " (rank 0's share: " + slice_span(s.first_slice, s.end_slice) + " of " +
+                                           std::to_string(d[2]) + ", " + std::to_string(ranks) + " MPI ranks)"
                                      : "");
   if (!globals().quiet) {
     result.print_summary(std::cout);

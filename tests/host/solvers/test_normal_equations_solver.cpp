@@ -247,6 +247,25 @@ TEST(NormalEquationsSolver, ErrorAmplificationMatchesDenseEigenvalues) {
   EXPECT_LT(r.error_amplification, r.cond);
 }
 
+// The warning's advice names what can run: cgls reads the fields, so after a streamed assembly it
+// says that cgls needs them in memory, in one process (not --stream on, not under MPI).
+TEST(NormalEquationsSolver, ConditionAdviceNamesWhatCanRun) {
+  Problem p = small_problem(300, 10, 5);
+  const NormalEquations eq = assemble_normal_equations_cpu(p.ref, p.opt, p.rm, p.om, p.ref_tf);
+  SolveOptions o;
+  o.cond_warning = 1.0;  // every system warns
+  const SolveResult whole = solve_normal_equations(eq, o);
+  ASSERT_EQ(whole.warnings.size(), 1u);
+  EXPECT_NE(whole.warnings[0].find("consider --solver cgls or --smooth"), std::string::npos) << whole.warnings[0];
+  o.streamed = true;
+  const SolveResult streamed = solve_normal_equations(eq, o);
+  ASSERT_EQ(streamed.warnings.size(), 1u);
+  EXPECT_NE(streamed.warnings[0].find("consider --solver cgls (--stream off, in one process) or --smooth"),
+            std::string::npos)
+      << streamed.warnings[0];
+  EXPECT_EQ(streamed.x, whole.x);
+}
+
 using SolverGpuTest = test::GpuTest;
 
 // The solver's details carry what the warning weighs beside cond(M + R): smoothing raises cond,

@@ -189,7 +189,12 @@ TEST_F(StreamedOptimizeTest, SameResultAsTheWholeFields) {
         EXPECT_EQ(s.result.field_range.hi, whole.field_range.hi);
         EXPECT_EQ(s.result.before.rmse(), whole.before.rmse());
         EXPECT_EQ(s.result.after.rmse(), whole.after.rmse());
-        EXPECT_EQ(s.result.warnings, whole.warnings);
+        // The same warnings, but advice naming cgls says it needs the fields in memory.
+        std::vector<std::string> expected = whole.warnings;
+        for (std::string& w : expected)
+          if (const size_t at = w.find("--solver cgls or"); at != std::string::npos)
+            w.replace(at, 16, "--solver cgls (--stream off, in one process) or");
+        EXPECT_EQ(s.result.warnings, expected);
         EXPECT_TRUE(std::isnan(s.result.after.mae()));
       }
     }
