@@ -26,8 +26,9 @@ foreach(entry ${TFMATCH_HEADER_FOLDERS})
   set(folder_of_${source} ${folder})
 endforeach()
 
-# Which layer owns each header name (basenames are unique across the tree; a duplicate is an
-# error too, because quoted includes resolve by name through the include path).
+# Which layer owns each header name (basenames are unique across the tree, a duplicate is an
+# error: this check finds a header's layer by its name, and the cuda folder joins two source
+# folders).
 set(rank 0)
 foreach(layer ${layers})
   file(GLOB_RECURSE headers RELATIVE ${TFMATCH_SOURCE_DIR} ${TFMATCH_SOURCE_DIR}/${layer}/*.h
