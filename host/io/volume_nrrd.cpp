@@ -543,9 +543,10 @@ FileInfo describe_nrrd(const std::filesystem::path& path, const VolumeOptions&) 
                       (h.data_files.size() > 1 ? " ... " + h.data_files.back() : ""));
   for (size_t i = 0; i < d.chunks.size(); ++i)
     if (d.excess[i])
-      a.notes.push_back(d.where[i].substr(file.size() + 2) + " holds " + std::to_string(d.excess[i]) + " bytes more than sizes " + sizes +
-                        " of " + h.type_text + " need: the first are read, the rest left (as teem does); "
-                        "wrong sizes in the header would show this way");
+      a.notes.push_back(d.where[i].substr(file.size() + 2) + " holds " + std::to_string(d.excess[i]) +
+                        " bytes more than sizes " + sizes + " of " + h.type_text +
+                        " need: the first are read, the rest left (as teem does); wrong sizes in the header would "
+                        "show this way");
   a.grid = d.dims;
   a.spacing = d.spacing;
   if (h.dimension == 4) {

@@ -129,7 +129,8 @@ void remove_stale_pieces(const std::filesystem::path& out, int pieces) {
     const std::string name = entry.path().filename().string();
     if (!name.starts_with(prefix) || !name.ends_with(".vti")) continue;
     const std::string digits = name.substr(prefix.size(), name.size() - prefix.size() - 4);
-    if (digits.empty() || digits.size() > 9 || !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; })) continue;
+    const bool number = std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; });
+    if (digits.empty() || digits.size() > 9 || !number) continue;
     const int rank = std::stoi(digits);
     if (rank >= pieces && std::to_string(rank) == digits) stale.push_back(entry.path());
   }

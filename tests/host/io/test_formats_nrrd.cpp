@@ -127,7 +127,8 @@ TEST(Nrrd, InfoNamesDataBeyondWhatTheSizesNeed) {
   EXPECT_EQ(notes_of("exact.nrrd", head + "\n" + shorts(false)).find("more than"), std::string::npos);
   formats_test::write_bytes(dir / "d.raw", "header of another tool" + shorts(false));
   EXPECT_EQ(notes_of("end.nhdr", head + "data file: d.raw\nbyte skip: -1\n").find("more than"), std::string::npos);
-  EXPECT_NE(notes_of("skip.nhdr", head + "data file: d.raw\nbyte skip: 2\n").find("data file d.raw holds 20 bytes more"),
+  EXPECT_NE(notes_of("skip.nhdr", head + "data file: d.raw\nbyte skip: 2\n")
+                .find("data file d.raw holds 20 bytes more"),
             std::string::npos);
 }
 

@@ -119,7 +119,8 @@ TEST(CudaAssembly, DirectKernelMatchesCpuReference) {
   for (size_t voxels : {size_t(1), size_t(13), size_t(127), size_t(4097), size_t(300001)}) {
     test::SolverProblem p = test::make_solver_problem(voxels, 16, 9, 0.0, 1.0, uint32_t(voxels), 0.1, 7);
     // Holes of every kind of no data (DESIGN.md: NaN and ±Inf) in either field.
-    for (size_t i = 2; i < voxels; i += 7) p.ref_volume.values[i] = (i % 3 == 0) ? NAN : (i % 3 == 1) ? INFINITY : -INFINITY;
+    for (size_t i = 2; i < voxels; i += 7)
+      p.ref_volume.values[i] = (i % 3 == 0) ? NAN : (i % 3 == 1) ? INFINITY : -INFINITY;
     for (size_t i = 4; i < voxels; i += 9) p.opt_volume.values[i] = (i % 2) ? INFINITY : -INFINITY;
     const NormalEquations cpu = p.cpu_equations();
     const auto fields = plugin().upload(p.ref_volume.values, p.opt_volume.values);
