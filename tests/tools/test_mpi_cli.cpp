@@ -64,6 +64,44 @@ std::string launcher_problem() {
 }
 #endif
 
+#ifdef TFMATCH_MPIEXEC
+// Runs the launcher command `cmd` with its output in `log`, sends SIGINT to the launcher (Ctrl-C)
+// 1.5 s after `started` appears in the log (at once when empty: after 1.5 s), and returns its
+// wait status; fails the test when the job has not stopped within 20 s.
+int interrupt_job(const std::string& cmd, const fs::path& log, const std::string& started) {
+  mpi_environment();
+  const pid_t pid = fork();
+  if (pid < 0) {
+    ADD_FAILURE() << "fork failed";
+    return -1;
+  }
+  if (pid == 0) {
+    const std::string shell = "exec " + cmd + " > " + log.string() + " 2>&1";
+    execl("/bin/sh", "sh", "-c", shell.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  const auto begun = std::chrono::steady_clock::now();
+  while (!started.empty() && read_text(log).find(started) == std::string::npos &&
+         std::chrono::steady_clock::now() - begun < std::chrono::seconds(60))
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  kill(pid, SIGINT);
+  int status = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  while (waitpid(pid, &status, WNOHANG) == 0) {
+    if (std::chrono::steady_clock::now() - t0 > std::chrono::seconds(60)) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      ADD_FAILURE() << "the job did not stop within 60 s of SIGINT:\n" << read_text(log);
+      return status;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(20));
+  return status;
+}
+#endif
+
 class MpiCli : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -217,33 +255,36 @@ TEST_F(MpiCli, AnInterruptStopsEveryRankAndWritesNothing) {
                                                 std::streamsize(values.size() * sizeof(float)));
     members += " " + path.string();
   }
-  mpi_environment();
   const fs::path out = dir.path() / "interrupted.pvti", log = dir.path() / "log.txt";
-  const std::string cmd = "exec " + std::string(TFMATCH_MPIEXEC) + " --oversubscribe -n 2 " + TFMATCH_CLI_PATH +
+  const std::string cmd = std::string(TFMATCH_MPIEXEC) + " --oversubscribe -n 2 " + TFMATCH_CLI_PATH +
                           " correlate --members" + members + " --point 5,6,7 --measure mi-kraskov --slab-slices 1 --out " +
-                          out.string() + " > " + log.string() + " 2>&1";
-  const pid_t pid = fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
-    _exit(127);
-  }
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
-  kill(pid, SIGINT);
-  int status = 0;
-  const auto t0 = std::chrono::steady_clock::now();
-  while (waitpid(pid, &status, WNOHANG) == 0) {
-    if (std::chrono::steady_clock::now() - t0 > std::chrono::seconds(60)) {
-      kill(pid, SIGKILL);
-      waitpid(pid, &status, 0);
-      FAIL() << "the job did not stop within 60 s of SIGINT:\n" << read_text(log);
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(20));
+                          out.string();
+  const int status = interrupt_job(cmd, log, "");
   EXPECT_FALSE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << read_text(log);
   EXPECT_FALSE(fs::exists(out)) << read_text(log);
   EXPECT_FALSE(fs::exists(dir.path() / "interrupted")) << "the pieces' directory";
+#endif
+}
+
+// Ctrl-C while rank 1 is held in a step (TFMATCH_PAUSE_AT, set for it alone by a wrapper) and
+// rank 0 waits for it where the ranks meet: one message, rank 1's, and not also rank 0's watchdog
+// line while the job's teardown waits for rank 1.
+TEST_F(MpiCli, AnInterruptIsReportedOnce) {
+#ifdef TFMATCH_MPIEXEC
+  const fs::path wrapper = dir / "hold_rank_1.sh", log = dir / "log.txt";
+  std::ofstream(wrapper) << "#!/bin/sh\n[ \"$OMPI_COMM_WORLD_RANK\" = 1 ] && export TFMATCH_PAUSE_AT='stream#2'\n"
+                         << "exec " << TFMATCH_CLI_PATH << " \"$@\"\n";
+  fs::permissions(wrapper, fs::perms::owner_all);
+  setenv("TFMATCH_TRACE_PHASES", "1", 1);
+  const int status = interrupt_job(std::string(TFMATCH_MPIEXEC) + " --oversubscribe -x TFMATCH_TRACE_PHASES -n 2 " +
+                                       wrapper.string() + " " + args("held.json"),
+                                   log, "tfmatch: phase stream");
+  unsetenv("TFMATCH_TRACE_PHASES");
+  const std::string output = read_text(log);
+  EXPECT_FALSE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << output;
+  EXPECT_NE(output.find("tfmatch: rank 1: interrupted (SIGTERM)"), std::string::npos) << output;
+  EXPECT_EQ(output.find("stopped without waiting"), std::string::npos) << output;
+  EXPECT_FALSE(fs::exists(dir / "held.json"));
 #endif
 }
 

@@ -20,6 +20,7 @@ namespace {
 
 int g_wake[2] = {-1, -1};
 std::atomic<int64_t> g_grace_ms{kGrace.count()};  // the handler writes the signal number; the watchdog reads it
+std::atomic<bool> g_ending_reported{false};
 
 // Async-signal-safe: an atomic store and a write(2).
 void on_signal(int signal) {
@@ -47,9 +48,11 @@ void watchdog() {
     while (::poll(&wake, 1, int(kTeardownGrace.count())) < 0 && errno == EINTR) {
     }
   abandon_temporary_paths(signal);
-  std::fprintf(stderr, "\ntfmatch: interrupted (%s): stopped without waiting for the current step; "
-                       "temporary files removed, no output written\n", signal_name(signal));
-  std::fflush(stderr);
+  if (!g_ending_reported.load()) {
+    std::fprintf(stderr, "\ntfmatch: interrupted (%s): stopped without waiting for the current step; "
+                         "temporary files removed, no output written\n", signal_name(signal));
+    std::fflush(stderr);
+  }
   ::_exit(128 + signal);
 }
 
@@ -64,6 +67,8 @@ const char* signal_name(int signal) {
 }
 
 void set_interrupt_grace(std::chrono::milliseconds grace) { g_grace_ms = grace.count(); }
+
+void note_ending_reported() { g_ending_reported = true; }
 
 void install_interrupt_handlers() {
   if (::pipe2(g_wake, O_CLOEXEC) != 0) return;  // no watchdog: checkpoints still stop the work

@@ -23,6 +23,11 @@ void install_interrupt_handlers();
 // its next checkpoint) before it exits on its own. A second signal still ends it at once.
 void set_interrupt_grace(std::chrono::milliseconds grace);
 
+// main() has printed how the command ended (an interrupt's message among them): should the
+// watchdog still end the process (a teardown that outlasts its grace, such as MPI_Finalize waiting
+// for a rank that has not stopped yet), it exits without a second message.
+void note_ending_reported();
+
 // "SIGINT", "SIGTERM" or "signal N".
 const char* signal_name(int signal);
 

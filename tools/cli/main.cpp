@@ -415,11 +415,13 @@ int main(int argc, char** argv) {
       }
     } catch (const tfm::RankFailure& f) {
       if (ranks.rank() == 0) std::cerr << "tfmatch: " << f.what() << "\n";
+      note_ending_reported();  // the MPI teardown may wait for a rank still stopping
       return f.exit_code();
     }
   } else if (failure) {
     const Failure f = describe_failure(failure);
     std::cerr << (f.interrupted ? "\n" : "") << "tfmatch: " << f.message << "\n";
+    note_ending_reported();
     return f.exit_code;
   }
   if (validation_failed()) return kExitValidation;
