@@ -178,6 +178,47 @@ EnsembleSlabs open_ensemble_member_slabs(const std::vector<std::string>& specs, 
   return e;
 }
 
+namespace {
+
+// a < b with runs of digits compared as numbers (leading zeros aside), the rest as bytes; names
+// equal that way fall back to plain text order, so the order is total.
+bool natural_less(const std::string& a, const std::string& b) {
+  auto digit = [](char c) { return c >= '0' && c <= '9'; };
+  size_t i = 0, j = 0;
+  while (i < a.size() && j < b.size()) {
+    if (digit(a[i]) && digit(b[j])) {
+      size_t ie = i, je = j;
+      while (ie < a.size() && digit(a[ie])) ++ie;
+      while (je < b.size() && digit(b[je])) ++je;
+      size_t is = i, js = j;  // past leading zeros
+      while (is + 1 < ie && a[is] == '0') ++is;
+      while (js + 1 < je && b[js] == '0') ++js;
+      if (ie - is != je - js) return ie - is < je - js;
+      if (const int c = a.compare(is, ie - is, b, js, je - js); c != 0) return c < 0;
+      i = ie, j = je;
+    } else {
+      if (a[i] != b[j]) return static_cast<unsigned char>(a[i]) < static_cast<unsigned char>(b[j]);
+      ++i, ++j;
+    }
+  }
+  if (i < a.size() || j < b.size()) return j < b.size();  // one is a prefix of the other
+  return a < b;
+}
+
+}  // namespace
+
+std::vector<std::string> match_files(const std::string& pattern) {
+  // glob(3) from the C library: the shell's own pattern rules.
+  glob_t g{};
+  const int rc = ::glob(pattern.c_str(), GLOB_ERR, nullptr, &g);
+  std::unique_ptr<glob_t, void (*)(glob_t*)> guard(&g, ::globfree);
+  if (rc == GLOB_NOMATCH) return {};
+  if (rc != 0) throw std::runtime_error(pattern + ": cannot expand the pattern (a directory is unreadable)");
+  std::vector<std::string> out(g.gl_pathv, g.gl_pathv + g.gl_pathc);
+  std::sort(out.begin(), out.end(), natural_less);
+  return out;
+}
+
 std::vector<std::string> expand_member_patterns(const std::vector<std::string>& args) {
   std::vector<std::string> out;
   for (const auto& a : args) {
@@ -185,13 +226,9 @@ std::vector<std::string> expand_member_patterns(const std::vector<std::string>& 
       out.push_back(a);
       continue;
     }
-    // glob(3) from the C library: the shell's own pattern rules, sorted results.
-    glob_t g{};
-    const int rc = ::glob(a.c_str(), GLOB_ERR, nullptr, &g);
-    std::unique_ptr<glob_t, void (*)(glob_t*)> guard(&g, ::globfree);
-    if (rc == GLOB_NOMATCH) throw std::runtime_error(a + ": the pattern matches no file");
-    if (rc != 0) throw std::runtime_error(a + ": cannot expand the pattern (a directory is unreadable)");
-    for (size_t i = 0; i < g.gl_pathc; ++i) out.emplace_back(g.gl_pathv[i]);
+    const std::vector<std::string> files = match_files(a);
+    if (files.empty()) throw std::runtime_error(a + ": the pattern matches no file");
+    out.insert(out.end(), files.begin(), files.end());
   }
   return out;
 }

@@ -42,8 +42,14 @@ EnsembleSlabs open_ensemble_slabs(const std::string& spec, const VolumeOptions& 
 EnsembleSlabs open_ensemble_member_slabs(const std::vector<std::string>& specs, const VolumeOptions& options = {},
                                          bool streaming_only = false);
 
-// Expands shell patterns (*, ?, [...]) among `args` into the files they match, sorted; other
-// arguments are kept as given. Throws std::runtime_error when a pattern matches no file.
+// The files a shell pattern (*, ?, [...]; glob(3)'s rules) matches, in natural order: runs of
+// digits compare as numbers, so step2 comes before step10, as ParaView orders a file series (the
+// shell orders them as text). Empty when nothing matches; throws std::runtime_error when a
+// directory on the way cannot be read.
+std::vector<std::string> match_files(const std::string& pattern);
+
+// Expands shell patterns among `args` into the files they match (match_files); other arguments
+// are kept as given. Throws std::runtime_error when a pattern matches no file.
 std::vector<std::string> expand_member_patterns(const std::vector<std::string>& args);
 
 }  // namespace tfm

@@ -69,6 +69,18 @@ TEST_F(OptimizeSeriesCli, OneTfPerFieldEachAsItsOwnRun) {
   EXPECT_NE(csv.find("index,field,tf_file,field_lo,field_hi,voxels,rmse_before,rmse_after"), std::string::npos);
 }
 
+// Each row names the field as loaded: a time chosen by the global --time shows in the table, the
+// report's labels and the printed summary, not only in the JSON's "name".
+TEST_F(OptimizeSeriesCli, RowsNameTheTimeTheGlobalSelectionChose) {
+  const auto r = run_cli("optimize --ref " + nc + ":T --ref-tf " + (dir / "tf.json").string() + " --tf-size 24 --out " +
+                         (dir / "t.json").string() + " --field " + nc + ":T --field " + nc + ":T,time=0 --time 1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string csv = read_text(dir / "t_series.csv");
+  EXPECT_NE(csv.find("0,\"" + nc + ":T,time=1\""), std::string::npos) << csv;
+  EXPECT_NE(csv.find("1,\"" + nc + ":T,time=0\""), std::string::npos) << csv;
+  EXPECT_NE(r.output.find(fs::path(nc).filename().string() + ":T,time=1"), std::string::npos) << r.output;
+}
+
 TEST_F(OptimizeSeriesCli, SharedTfForAllFields) {
   const auto r = run_cli(base("shared.json") + " --field " + nc + ":T,time=0..1 --field " + steps[0] +
                          " --shared-tf --solver qp");

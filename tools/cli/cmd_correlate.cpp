@@ -454,7 +454,7 @@ CommandRegistration reg(23, [](CLI::App& app) {
                   "Ensemble: a NetCDF variable with a member dimension (member, members, ensemble, realization, number, "
                   "or --member-dim) or GRIB messages differing in `number`, as FILE[:VAR]");
   sub->add_option("--members", args->members, "Ensemble as one file per member (FILE[:VAR] ...; quoted patterns such as "
-                                              "'run*/t.vti' are expanded, sorted)");
+                                              "'run*/t.vti' are expanded in natural order: run2 before run10)");
   sub->add_option("--point", args->point,
                   "Reference point: I,J,K grid indices (I along x, the fastest axis) or lon=..,lat=..,level=.. "
                   "(nearest grid point, printed)")->required();

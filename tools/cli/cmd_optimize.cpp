@@ -316,7 +316,8 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
   if (!a.report.empty()) {
     set_progress_enabled(!globals().quiet);
     SeriesReportInputs inputs{ref, req.ref_tf, s, render};
-    for (const std::string& f : a.fields) inputs.labels.push_back(std::filesystem::path(f).filename().string());
+    // Each field as loaded: its name carries the time or member --time/--member chose.
+    for (const SeriesFieldResult& f : s.fields) inputs.labels.push_back(std::filesystem::path(f.name).filename().string());
     inputs.load_field = [&](size_t i) { return load_volume(a.fields[i], vo); };
     inputs.title = "tfmatch: " + std::to_string(count) + " fields matched to " + ref.name;
     inputs.command_line = globals().command_line;
@@ -331,7 +332,7 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
   for (size_t i = 0; i < count; ++i) {
     const SeriesFieldResult& f = s.fields[i];
     const std::string& tf_file = tf_files[a.shared_tf ? 0 : i];
-    csv << i << "," << csv_quoted(a.fields[i]) << "," << csv_quoted(tf_file) << "," << std::setprecision(9) << f.field_range.lo << ","
+    csv << i << "," << csv_quoted(f.name) << "," << csv_quoted(tf_file) << "," << std::setprecision(9) << f.field_range.lo << ","
         << f.field_range.hi << "," << f.after.voxels << "," << f.before.rmse() << "," << f.after.rmse() << "\n";
     rows.push_back({{"index", i},
                     {"field", a.fields[i]},
@@ -361,7 +362,7 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
               << s.solver << (s.shared_tf ? ", one shared TF" : ", one TF per field") << "\n"
               << "  field                                     voxel RMSE: reference TF -> optimized\n";
     for (size_t i = 0; i < count; ++i)
-      std::cout << "  " << std::left << std::setw(40) << std::filesystem::path(a.fields[i]).filename().string() << std::right << std::fixed << std::setprecision(5)
+      std::cout << "  " << std::left << std::setw(40) << std::filesystem::path(s.fields[i].name).filename().string() << std::right << std::fixed << std::setprecision(5)
                 << std::setw(10) << s.fields[i].before.rmse() << " -> " << s.fields[i].after.rmse() << std::defaultfloat
                 << "\n";
     for (const std::string& w : s.warnings) std::cout << "  warning: " << w << "\n";
@@ -462,8 +463,9 @@ CommandRegistration reg(10, [](CLI::App& app) {
   // --field takes several fields here: one TF each, or one shared TF.
   sub->remove_option(sub->get_option("--field"));
   sub->add_option("--field", args->fields, "Field whose transfer function is optimized; several (repeat --field, "
-                  "FILE:VAR,time=A..B or member=A..B, or a quoted pattern 'dir/*.vti'): one TF each, written to --out "
-                  "with an index (tf_000.json, ...), or one for all with --shared-tf; a table <out>_series.csv")
+                  "FILE:VAR,time=A..B or member=A..B, or a quoted pattern 'dir/*.vti', in natural order): one TF "
+                  "each, written to --out with an index (tf_000.json, ...), or one for all with --shared-tf; a table "
+                  "<out>_series.csv")
       ->required();
   sub->add_flag("--shared-tf", args->shared_tf, "Several fields: fit one TF to all of them together (normal-equations, "
                 "qp), written to --out");

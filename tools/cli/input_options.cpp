@@ -1,8 +1,6 @@
 // Input flags of the TF-fitting subcommands and their loading.
 #include "input_options.h"
 
-#include <glob.h>
-
 #include <charconv>
 #include <iostream>
 #include <optional>
@@ -10,6 +8,7 @@
 #include <tuple>
 
 #include "cli.h"
+#include "tfmatch/io/ensemble_io.h"
 #include "tfmatch/io/tf_formats.h"
 #include "tfmatch/io/volume_format_table.h"
 #include "tfmatch/io/volume_io.h"
@@ -106,18 +105,6 @@ std::string absolute_tf_spec(const std::string& spec, const std::filesystem::pat
 
 namespace {
 
-// The files `pattern` matches, in name order. glob(3): the POSIX matcher of shell patterns, which
-// the standard library lacks.
-std::vector<std::string> glob_files(const std::string& pattern) {
-  glob_t g{};
-  const int rc = ::glob(pattern.c_str(), 0, nullptr, &g);
-  std::vector<std::string> out;
-  if (rc == 0)
-    for (size_t i = 0; i < g.gl_pathc; ++i) out.emplace_back(g.gl_pathv[i]);
-  globfree(&g);
-  return out;
-}
-
 // "key=A..B" as (key, A, B), or nothing when `part` is not a range.
 std::optional<std::tuple<std::string, uint64_t, uint64_t>> selection_range(const std::string& part,
                                                                           const std::string& spec,
@@ -152,7 +139,7 @@ std::vector<std::string> expand_field_specs(const std::vector<std::string>& spec
     }
     std::vector<std::string> paths{path};
     if (path.find_first_of("*?[") != std::string::npos && !std::filesystem::exists(path)) {
-      paths = glob_files(path);
+      paths = match_files(path);
       if (paths.empty()) throw CLI::ValidationError(flag, "'" + path + "' matches no file");
     }
     // The selection's parts, one of which may be a range.

@@ -5,6 +5,10 @@
 
 #include <bit>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
 
 #include "formats_test_util.h"
 #include "slab_test_files.h"
@@ -126,6 +130,22 @@ TEST(EnsembleIo, MemberFilesAndPatterns) {
                {"different grids", "member_0.vti", "4x3x2", "odd.vti", "3x3x2"});
   expect_error([&] { expand_member_patterns({(dir / "none_*.vti").string()}); }, {"none_*.vti", "matches no file"});
   expect_error([&] { load_ensemble(files[0]); }, {"member_0.vti", "no member axis", "--members"});
+}
+
+// A pattern's files in natural order (numbers as numbers: step2 before step10, as ParaView orders a
+// file series), leading zeros aside, and in text order where numbers are equal.
+TEST(EnsembleIo, PatternsMatchInNaturalOrder) {
+  TempDir dir;
+  for (const char* name :
+       {"step10.raw", "step2.raw", "step1.raw", "step02.raw", "step100a.raw", "step100.raw", "stepx.raw"})
+    std::ofstream(dir / name) << "x";
+  std::vector<std::string> names;
+  for (const std::string& f : match_files((dir / "step*.raw").string()))
+    names.push_back(std::filesystem::path(f).filename().string());
+  EXPECT_EQ(names, (std::vector<std::string>{"step1.raw", "step02.raw", "step2.raw", "step10.raw", "step100.raw",
+                                             "step100a.raw", "stepx.raw"}));
+  EXPECT_TRUE(match_files((dir / "none*.raw").string()).empty());
+  EXPECT_EQ(expand_member_patterns({(dir / "step1*.raw").string()}).size(), 4u);
 }
 
 // Members after the first are read straight into the ensemble where their format streams, and
