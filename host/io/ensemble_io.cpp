@@ -75,7 +75,12 @@ struct MemberAxis {
   std::string file;
   VolumeOptions options;
   uint64_t count = 0;
-  std::string name() const { return file + (options.variable.empty() ? "" : ":" + options.variable); }
+  // The ensemble as named in messages and outputs, with the time step read where one was chosen.
+  std::string name() const {
+    std::string n = file + (options.variable.empty() ? "" : ":" + options.variable);
+    if (options.time_index) n += (options.variable.empty() ? ":time=" : ",time=") + std::to_string(*options.time_index);
+    return n;
+  }
 };
 MemberAxis member_axis(const std::string& spec, const VolumeOptions& defaults) {
   const VolumeSpec s = parse_volume_spec(spec, defaults);
@@ -91,7 +96,16 @@ MemberAxis member_axis(const std::string& spec, const VolumeOptions& defaults) {
   const uint64_t count = format->count_members(s.path, s.options);
   if (count > std::numeric_limits<uint32_t>::max())
     throw std::runtime_error(file + ": " + std::to_string(count) + " members are more than tfmatch handles");
-  return {file, s.options, count};
+  MemberAxis axis{file, s.options, count};
+  if (count == 1)
+    throw std::runtime_error(
+        axis.name() + ": one member only" +
+        (s.options.member_dim.empty() && format->title == "NetCDF"
+             ? ": the variable has no dimension besides time and the grid's (" + parameter("member-dim") +
+                   " names the one that holds the members, e.g. " + parameter("member-dim") + " Time)"
+             : "") +
+        "; an ensemble needs at least 3 (or give one file per member with " + parameter("members") + ")");
+  return axis;
 }
 
 }  // namespace

@@ -205,6 +205,24 @@ TEST(EnsembleIo, Era5GribMembersWithCoordinates) {
   EXPECT_EQ(e.grid.axes[1].coordinates.back(), 90.0);
   EXPECT_EQ(e.grid.axes[2].coordinates, (std::vector<double>{850, 500}));
   EXPECT_EQ(e.grid.axes[2].units, "hPa");
+  // The name carries the time step read, however it was chosen.
+  EXPECT_EQ(load_ensemble(file + ":t,time=3").grid.name, file + ":t,time=3");
+  VolumeOptions at3;
+  at3.time_index = 3;
+  EXPECT_EQ(open_ensemble_slabs(file + ":t", at3).name, file + ":t,time=3");
+  EXPECT_EQ(e.grid.name, file + ":t");
+}
+
+// A NetCDF variable without a member dimension (time and the grid only) is one member: the error
+// says so and names --member-dim, not only "fewer than 3 members" later.
+TEST(EnsembleIo, AVariableWithoutMembersNamesMemberDim) {
+  TempDir dir;
+  const std::string nc = slab_test::write_netcdf(dir.path(), "t", slab_test::test_field({5, 4, 3}, 1)).string();
+  expect_error([&] { load_ensemble(nc + ":T"); },
+               {nc + ":T: one member only", "--member-dim names the one that holds the members", "--members"});
+  VolumeOptions by_time;
+  by_time.member_dim = "time";
+  EXPECT_EQ(load_ensemble(nc + ":T", by_time).member_count, 2u);  // the two time steps as members
 }
 
 }  // namespace
