@@ -120,7 +120,8 @@ Image plot_tf_overlay(const std::vector<TransferFunction>& tfs, uint32_t width, 
     const std::string label = t == 0.0 ? "0" : t == 1.0 ? "1.0" : "0.5";
     draw_text(img, left - 6 - text_width(label), y - text_height(1) / 2, label, kText);
   }
-  const std::string axis = "opacity over the TF coordinate (0: each field's range's low end, 1: its high end)";
+  const std::string axis = tfs.size() == 1 ? "opacity over the TF coordinate (0: the range's low end, 1: its high end)"
+                                           : "opacity over the TF coordinate (0: each field's range's low end, 1: its high end)";
   draw_text(img, left, bottom + 4, axis, kText);
   // The value of TF `tf` at coordinate x in [0, 1] (node-aligned, as the renderer reads it).
   auto at = [](const TransferFunction& tf, double x, int channel) {
@@ -243,12 +244,24 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
     << " &middot; solver " << html_escape(r.solver) << (r.shared_tf ? ", one TF shared by all fields" : ", one TF per field")
     << " &middot; " << html_escape(r.device) << "</div>\n";
   for (const std::string& w : r.warnings) h << "<div class=\"warn\">" << html_escape(w) << "</div>\n";
+  // Each field's own, by field; more than a few fold under one line so the page still opens on the
+  // series.
+  size_t field_warnings = 0;
+  for (const SeriesFieldResult& f : r.fields) field_warnings += f.warnings.size();
+  if (field_warnings > 6) h << "<details><summary>" << field_warnings << " warnings about single fields</summary>\n";
+  for (size_t i = 0; i < n; ++i)
+    for (const std::string& w : r.fields[i].warnings)
+      h << "<div class=\"warn\">" << i << ": " << html_escape(in.labels[i]) << ": " << html_escape(w) << "</div>\n";
+  if (field_warnings > 6) h << "</details>\n";
   h << "<h2>Over the series</h2>\n<div class=\"grid g2\">\n"
     << "<figure><img src=\"rmse.png\" alt=\"voxel RMSE per field\"><figcaption>voxel RMSE per field, with the reference TF "
        "and with the fitted TF</figcaption></figure>\n";
   if (any_psnr)
     h << "<figure><img src=\"psnr.png\" alt=\"image PSNR per field\"><figcaption>image PSNR of each field's rendering "
          "against the reference rendering</figcaption></figure>\n";
+  else
+    h << "<div class=\"note\">No PSNR plot: every field's rendering equals the reference rendering (PSNR infinite, "
+         "\"inf\" in series.json).</div>\n";
   h << "</div>\n<h2>Transfer functions</h2>\n<div class=\"grid g2\"><figure><img src=\"tfs.png\" alt=\"the TFs "
        "overlaid\"><figcaption>"
     << (r.shared_tf ? "the shared TF" : "every field's TF: opacity curves overlaid, colours as strips (by field index)")

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <map>
 #include <optional>
 #include <stdexcept>
 
@@ -228,7 +229,17 @@ SeriesResult run_optimize_series(Context& ctx, const SeriesRequest& req) {
     throw std::invalid_argument("run_optimize_series: the reference and the fields are required");
   if (req.field_count == 0) throw std::runtime_error("no fields to fit");
   if (req.tf_size < 2) throw std::runtime_error(parameter("tf-size") + " must be at least 2");
-  return req.shared_tf ? shared(ctx, req) : per_field(ctx, req);
+  SeriesResult out = req.shared_tf ? shared(ctx, req) : per_field(ctx, req);
+  // A field given twice (a pattern and a file it matches, a range overlapping another) is fitted
+  // twice: said once per repeated field, not an error (the rows stay as the fields were given).
+  std::map<std::string, size_t> first;
+  for (size_t i = 0; i < out.fields.size(); ++i) {
+    const auto [at, inserted] = first.emplace(out.fields[i].name, i);
+    if (!inserted)
+      out.warnings.push_back("field " + std::to_string(i) + " is field " + std::to_string(at->second) + " again (" +
+                             out.fields[i].name + "): it is fitted twice");
+  }
+  return out;
 }
 
 }  // namespace tfm

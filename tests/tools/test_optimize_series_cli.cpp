@@ -134,6 +134,35 @@ TEST_F(OptimizeSeriesCli, ReportShowsEveryFieldAndTheSeries) {
   const std::string html = read_text(dir / "rep" / "index.html");
   EXPECT_NE(html.find("field_002.png"), std::string::npos);
   EXPECT_NE(html.find("one TF per field"), std::string::npos);
+  EXPECT_EQ(html.find("No PSNR plot"), std::string::npos);
+}
+
+// A field given twice is fitted twice, with a warning naming both indices.
+TEST_F(OptimizeSeriesCli, AFieldGivenTwiceIsNamed) {
+  const std::string pattern = "'" + (dir / "runs" / "step*.raw").string() + "'";
+  const auto r = run_cli(base("tf.json") + " --field " + pattern + " --field " + steps[1] + " --json " +
+                         (dir / "twice.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(read_text(dir / "twice.json"));
+  ASSERT_EQ(j["fields"].size(), 4u);
+  ASSERT_EQ(j["warnings"].size(), 1u) << j.dump();
+  EXPECT_EQ(j["warnings"][0], "field 3 is field 1 again (" + steps[1] + "): it is fitted twice");
+  EXPECT_NE(r.output.find("warning: field 3 is field 1 again"), std::string::npos) << r.output;
+}
+
+// Each field's warnings are on the series page, named by field, as the summary prints them (here
+// a field range that leaves part of every field outside).
+TEST_F(OptimizeSeriesCli, ReportShowsEachFieldsWarnings) {
+  const auto r = run_cli(base("tf.json") + " --field " + steps[0] + " --field " + steps[1] + " --field-range 300,360" +
+                         " --report " + (dir / "rep").string() + " --width 32 --height 24");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string html = read_text(dir / "rep" / "index.html");
+  for (int i : {0, 1}) {
+    const std::string label = std::to_string(i) + ": " + fs::path(steps[size_t(i)]).filename().string() + ": ";
+    const size_t at = html.find("<div class=\"warn\">" + label);
+    ASSERT_NE(at, std::string::npos) << label << "\n" << html;
+    EXPECT_NE(html.find("outside the given field range", at), std::string::npos) << html;
+  }
 }
 
 TEST_F(OptimizeSeriesCli, RefusalsNameTheProblemAndWriteNothing) {
