@@ -8,9 +8,12 @@
 
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <stdexcept>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "formats_test_util.h"
@@ -135,29 +138,38 @@ class BrokenReader final : public VolumeSlabReader {
   }
 };
 
-TEST(StreamedOptimizeRanks, AFailingRankStopsEveryRankWithItsMessage) {
-  const RankedProblem p;
-  const int size = 3;
+// Runs the streamed optimize on `size` ranks (threads), each with the readers `open(rank)` gives,
+// and returns what each caught: the failing rank and message of its RankFailure (-1 and "not a
+// RankFailure: ..." for any other exception).
+using Readers = std::pair<std::unique_ptr<VolumeSlabReader>, std::unique_ptr<VolumeSlabReader>>;
+std::vector<std::pair<int, std::string>> failures_of_ranks(const RankedProblem& p, int size,
+                                                           const std::function<Readers(size_t)>& open) {
   auto contexts = devices(size);
-  std::vector<std::string> messages(size);
-  std::vector<int> failing(size, -1);
+  std::vector<std::pair<int, std::string>> caught(size_t(size), {-1, ""});
   test::ThreadRanks::run(size, [&](test::ThreadRanks& ranks) {
     const size_t r = size_t(ranks.rank());
-    auto rs = open_volume_slabs(p.ref_file), os = open_volume_slabs(p.opt_file);
-    std::unique_ptr<VolumeSlabReader> broken;
-    if (r == 1) broken = std::make_unique<BrokenReader>(os->grid());
+    Readers readers = open(r);
     try {
-      run_optimize_streamed(*contexts[r], p.request(*rs, broken ? *broken : *os, &ranks));
+      run_optimize_streamed(*contexts[r], p.request(*readers.first, *readers.second, &ranks));
     } catch (const RankFailure& f) {
-      messages[r] = f.what();
-      failing[r] = f.failing_rank();
+      caught[r] = {f.failing_rank(), f.what()};
     } catch (const std::exception& e) {
-      messages[r] = std::string("not a RankFailure: ") + e.what();
+      caught[r] = {-1, std::string("not a RankFailure: ") + e.what()};
     }
   });
-  for (int r = 0; r < size; ++r) {
-    EXPECT_EQ(failing[size_t(r)], 1) << "rank " << r;
-    EXPECT_EQ(messages[size_t(r)], "rank 1: broken_37x29x23_float32.raw: expected 4 bytes more, the file ends")
+  return caught;
+}
+
+TEST(StreamedOptimizeRanks, AFailingRankStopsEveryRankWithItsMessage) {
+  const RankedProblem p;
+  const auto caught = failures_of_ranks(p, 3, [&](size_t r) {
+    Readers readers{open_volume_slabs(p.ref_file), open_volume_slabs(p.opt_file)};
+    if (r == 1) readers.second = std::make_unique<BrokenReader>(readers.second->grid());
+    return readers;
+  });
+  for (size_t r = 0; r < caught.size(); ++r) {
+    EXPECT_EQ(caught[r].first, 1) << "rank " << r;
+    EXPECT_EQ(caught[r].second, "rank 1: broken_37x29x23_float32.raw: expected 4 bytes more, the file ends")
         << "rank " << r;
   }
 }
@@ -169,29 +181,16 @@ TEST(StreamedOptimizeRanks, ARankReadingAnotherGridStopsEveryRank) {
   TempDir other;
   const std::string ref2 = slab_test::write_raw(other.path(), "ref", slab_test::test_field({37, 29, 24}, 0)).string();
   const std::string opt2 = slab_test::write_raw(other.path(), "opt", slab_test::test_field({37, 29, 24}, 5)).string();
-  const int size = 3;
-  auto contexts = devices(size);
-  std::vector<std::string> messages(size);
-  std::vector<int> failing(size, -1);
-  test::ThreadRanks::run(size, [&](test::ThreadRanks& ranks) {
-    const size_t r = size_t(ranks.rank());
-    auto rs = open_volume_slabs(r == 2 ? ref2 : p.ref_file), os = open_volume_slabs(r == 2 ? opt2 : p.opt_file);
-    try {
-      run_optimize_streamed(*contexts[r], p.request(*rs, *os, &ranks));
-    } catch (const RankFailure& f) {
-      messages[r] = f.what();
-      failing[r] = f.failing_rank();
-    } catch (const std::exception& e) {
-      messages[r] = std::string("not a RankFailure: ") + e.what();
-    }
+  const auto caught = failures_of_ranks(p, 3, [&](size_t r) {
+    return Readers{open_volume_slabs(r == 2 ? ref2 : p.ref_file), open_volume_slabs(r == 2 ? opt2 : p.opt_file)};
   });
-  for (int r = 0; r < size; ++r) {
-    EXPECT_EQ(failing[size_t(r)], 2) << "rank " << r;
-    EXPECT_NE(messages[size_t(r)].find("rank 2: "), std::string::npos) << messages[size_t(r)];
-    EXPECT_NE(messages[size_t(r)].find("reads a grid 37x29x24 (spacing 1, 1, 1; origin 0, 0, 0) where rank 0 reads "
-                                       "37x29x23"),
+  for (size_t r = 0; r < caught.size(); ++r) {
+    EXPECT_EQ(caught[r].first, 2) << "rank " << r;
+    EXPECT_NE(caught[r].second.find("rank 2: "), std::string::npos) << caught[r].second;
+    EXPECT_NE(caught[r].second.find("reads a grid 37x29x24 (spacing 1, 1, 1; origin 0, 0, 0) where rank 0 reads "
+                                    "37x29x23"),
               std::string::npos)
-        << messages[size_t(r)];
+        << caught[r].second;
   }
   // The same grid everywhere passes, with one rank or several.
   Volume grid = slab_test::test_field({3, 4, 5}, 0);
