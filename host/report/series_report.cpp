@@ -120,8 +120,8 @@ Image plot_tf_overlay(const std::vector<TransferFunction>& tfs, uint32_t width, 
     const std::string label = t == 0.0 ? "0" : t == 1.0 ? "1.0" : "0.5";
     draw_text(img, left - 6 - text_width(label), y - text_height(1) / 2, label, kText);
   }
-  const std::string axis = tfs.size() == 1 ? "opacity over the TF coordinate (0: the range's low end, 1: its high end)"
-                                           : "opacity over the TF coordinate (0: each field's range's low end, 1: its high end)";
+  const std::string axis = std::string("opacity over the TF coordinate (0: ") +
+                           (tfs.size() == 1 ? "the range's" : "each field's range's") + " low end, 1: its high end)";
   draw_text(img, left, bottom + 4, axis, kText);
   // The value of TF `tf` at coordinate x in [0, 1] (node-aligned, as the renderer reads it).
   auto at = [](const TransferFunction& tf, double x, int channel) {

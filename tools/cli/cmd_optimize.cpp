@@ -317,7 +317,8 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
     set_progress_enabled(!globals().quiet);
     SeriesReportInputs inputs{ref, req.ref_tf, s, render};
     // Each field as loaded: its name carries the time or member --time/--member chose.
-    for (const SeriesFieldResult& f : s.fields) inputs.labels.push_back(std::filesystem::path(f.name).filename().string());
+    for (const SeriesFieldResult& f : s.fields)
+      inputs.labels.push_back(std::filesystem::path(f.name).filename().string());
     inputs.load_field = [&](size_t i) { return load_volume(a.fields[i], vo); };
     inputs.title = "tfmatch: " + std::to_string(count) + " fields matched to " + ref.name;
     inputs.command_line = globals().command_line;
@@ -332,8 +333,8 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
   for (size_t i = 0; i < count; ++i) {
     const SeriesFieldResult& f = s.fields[i];
     const std::string& tf_file = tf_files[a.shared_tf ? 0 : i];
-    csv << i << "," << csv_quoted(f.name) << "," << csv_quoted(tf_file) << "," << std::setprecision(9) << f.field_range.lo << ","
-        << f.field_range.hi << "," << f.after.voxels << "," << f.before.rmse() << "," << f.after.rmse() << "\n";
+    csv << i << "," << csv_quoted(f.name) << "," << csv_quoted(tf_file) << "," << std::setprecision(9)
+        << f.field_range.lo << "," << f.field_range.hi << "," << f.after.voxels << "," << f.before.rmse() << "," << f.after.rmse() << "\n";
     rows.push_back({{"index", i},
                     {"field", a.fields[i]},
                     {"name", f.name},
@@ -362,9 +363,9 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
               << s.solver << (s.shared_tf ? ", one shared TF" : ", one TF per field") << "\n"
               << "  field                                     voxel RMSE: reference TF -> optimized\n";
     for (size_t i = 0; i < count; ++i)
-      std::cout << "  " << std::left << std::setw(40) << std::filesystem::path(s.fields[i].name).filename().string() << std::right << std::fixed << std::setprecision(5)
-                << std::setw(10) << s.fields[i].before.rmse() << " -> " << s.fields[i].after.rmse() << std::defaultfloat
-                << "\n";
+      std::cout << "  " << std::left << std::setw(40) << std::filesystem::path(s.fields[i].name).filename().string()
+                << std::right << std::fixed << std::setprecision(5) << std::setw(10) << s.fields[i].before.rmse()
+                << " -> " << s.fields[i].after.rmse() << std::defaultfloat << "\n";
     for (const std::string& w : s.warnings) std::cout << "  warning: " << w << "\n";
     for (const SeriesFieldResult& f : s.fields)
       for (const std::string& w : f.warnings) std::cout << "  warning (" << f.name << "): " << w << "\n";
