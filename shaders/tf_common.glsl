@@ -6,6 +6,8 @@
 // division by zero upstream): an exponent of all ones. An integer test, so no compiler setting
 // that assumes finite floats can drop it. Host mirror: no_data() in host/model/field_mapping.h.
 bool no_data(float v) { return (floatBitsToUint(v) & 0x7f800000u) == 0x7f800000u; }
+// no_data() of four values at once, without a branch per value (the renderer's eight corners).
+bvec4 no_data4(vec4 v) { return equal(floatBitsToUint(v) & uvec4(0x7f800000u), uvec4(0x7f800000u)); }
 
 // j = min(floor(x), n-2), w = x - j for a TF coordinate x in [0, n-1]; also splits a coordinate
 // stored by sparse_prepare (TFM_NO_DATA, negative, gives false). `precise` forbids fused or
