@@ -6,10 +6,15 @@
 #include <map>
 #include <optional>
 #include <stdexcept>
+#include <string>
+#include <utility>
 
+#include "tfmatch/engine/vk_check.h"
 #include "tfmatch/kernels/device_memory.h"
 #include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/model/parameter_names.h"
+#include "tfmatch/model/ranks.h"
 #include "tfmatch/solvers/solver_support.h"
 
 namespace tfm {
@@ -25,13 +30,38 @@ void add_loss(VoxelLoss& total, const VoxelLoss& part) {
   total.voxels += part.voxels;
 }
 
+// "field k of n": how messages name a field of the series (its first is field 1; its TF file and
+// table row are numbered from 0).
+std::string field_label(const SeriesRequest& req, size_t i) {
+  return "field " + std::to_string(i + 1) + " of " + std::to_string(req.field_count);
+}
+
+// Runs the work of field i: an error it raises names the field ("field 2 of 5: f.nc:T,time=1: the
+// field has no finite value"), since a series may read every field from one file. Errors that the
+// command line reports by their kind (the driver's, the memory budget's, another rank's) pass as
+// they are; so does a cancellation (not a std::exception).
+template <class Work>
+auto for_field(const SeriesRequest& req, size_t i, Work&& work) {
+  try {
+    return work();
+  } catch (const VulkanError&) {
+    throw;
+  } catch (const MemoryBudgetExceeded&) {
+    throw;
+  } catch (const RankFailure&) {
+    throw;
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(field_label(req, i) + ": " + e.what());
+  }
+}
+
+// Field i, loaded, on the reference's grid (else the error says every field needs it).
 Volume load_checked(const SeriesRequest& req, size_t i) {
   Volume v = req.load_field(i);
   try {
     require_same_grid(*req.ref, v);
   } catch (const std::runtime_error& e) {
-    throw std::runtime_error("field " + std::to_string(i + 1) + " of " + std::to_string(req.field_count) + " (" +
-                             v.name + "): " + e.what() + " (every field is fitted against the one reference)");
+    throw std::runtime_error(std::string(e.what()) + " (every field is fitted against the one reference)");
   }
   return v;
 }
@@ -42,8 +72,7 @@ std::unique_ptr<VolumeSlabReader> open_checked(const SeriesRequest& req, const V
   try {
     require_same_grid(ref.grid(), f->grid());
   } catch (const std::runtime_error& e) {
-    throw std::runtime_error("field " + std::to_string(i + 1) + " of " + std::to_string(req.field_count) + " (" +
-                             f->grid().name + "): " + e.what() + " (every field is fitted against the one reference)");
+    throw std::runtime_error(std::string(e.what()) + " (every field is fitted against the one reference)");
   }
   return f;
 }
@@ -61,15 +90,17 @@ SeriesResult per_field(Context& ctx, const SeriesRequest& req) {
     for (size_t i = 0; i < req.field_count; ++i) {
       checkpoint("series");
       std::unique_ptr<VolumeSlabReader> ref = req.open_ref_slabs();
-      std::unique_ptr<VolumeSlabReader> field = open_checked(req, *ref, i);
-      StreamedOptimizeRequest r;
-      static_cast<FitSettings&>(r) = req;
-      r.ref = ref.get();
-      r.field = field.get();
-      r.slab_voxels = req.slab_voxels;
-      const OptimizeResult one = run_optimize_streamed(ctx, r).result;
+      const auto [name, one] = for_field(req, i, [&] {
+        std::unique_ptr<VolumeSlabReader> field = open_checked(req, *ref, i);
+        StreamedOptimizeRequest r;
+        static_cast<FitSettings&>(r) = req;
+        r.ref = ref.get();
+        r.field = field.get();
+        r.slab_voxels = req.slab_voxels;
+        return std::pair{field->grid().name, run_optimize_streamed(ctx, r).result};
+      });
       out.ref_range = one.ref_range;
-      out.fields.push_back({field->grid().name, one.field_range, one.tf, one.before, one.after, one.warnings});
+      out.fields.push_back({name, one.field_range, one.tf, one.before, one.after, one.warnings});
       add_loss(out.before, one.before);
       add_loss(out.after, one.after);
     }
@@ -77,14 +108,16 @@ SeriesResult per_field(Context& ctx, const SeriesRequest& req) {
   }
   for (size_t i = 0; i < req.field_count; ++i) {
     checkpoint("series");
-    const Volume field = load_checked(req, i);
-    OptimizeRequest r;
-    static_cast<FitSettings&>(r) = req;
-    r.ref = req.ref;
-    r.field = &field;
-    const OptimizeResult one = run_optimize(ctx, r);
+    const auto [name, one] = for_field(req, i, [&] {
+      const Volume field = load_checked(req, i);
+      OptimizeRequest r;
+      static_cast<FitSettings&>(r) = req;
+      r.ref = req.ref;
+      r.field = &field;
+      return std::pair{field.name, run_optimize(ctx, r)};
+    });
     out.ref_range = one.ref_range;
-    out.fields.push_back({field.name, one.field_range, one.tf, one.before, one.after, one.warnings});
+    out.fields.push_back({name, one.field_range, one.tf, one.before, one.after, one.warnings});
     add_loss(out.before, one.before);
     add_loss(out.after, one.after);
   }
@@ -129,14 +162,14 @@ SeriesResult shared(Context& ctx, const SeriesRequest& req) {
   } else {
     for (size_t i = 0; i < req.field_count; ++i) {
       checkpoint("series");
-      FieldRange r;
-      if (ref_reader) {
-        std::unique_ptr<VolumeSlabReader> field = open_checked(req, *ref_reader, i);
-        r = resolve_range(streamed_finite_stats(*field, slices), nullptr, field->grid().name);
-      } else {
+      const FieldRange r = for_field(req, i, [&] {
+        if (ref_reader) {
+          std::unique_ptr<VolumeSlabReader> field = open_checked(req, *ref_reader, i);
+          return resolve_range(streamed_finite_stats(*field, slices), nullptr, field->grid().name);
+        }
         const Volume field = load_checked(req, i);
-        r = resolve_range(field.values, nullptr, field.name);
-      }
+        return resolve_range(field.values, nullptr, field.name);
+      });
       range = i == 0 ? r : FieldRange{std::min(range.lo, r.lo), std::max(range.hi, r.hi)};
     }
     out.phases.push_back({"ranges", ms_since(t0), -1.0});
@@ -161,31 +194,31 @@ SeriesResult shared(Context& ctx, const SeriesRequest& req) {
     checkpoint("series");
     SeriesFieldResult fr;
     fr.field_range = range;
-    std::vector<uint64_t> slots;
-    if (ref_reader) {
-      std::unique_ptr<VolumeSlabReader> reference = req.open_ref_slabs();
-      std::unique_ptr<VolumeSlabReader> field = open_checked(req, *reference, i);
-      fr.name = field->grid().name;
-      slots = assemble_streamed_slots(ctx, gpu, *reference, *field, ref_map, opt_map, ref_tf_buffer, slices, before,
-                                      req.max_chunk_voxels);
-    } else {
+    const std::vector<uint64_t> slots = for_field(req, i, [&] {
+      if (ref_reader) {
+        std::unique_ptr<VolumeSlabReader> reference = req.open_ref_slabs();
+        std::unique_ptr<VolumeSlabReader> field = open_checked(req, *reference, i);
+        fr.name = field->grid().name;
+        return assemble_streamed_slots(ctx, gpu, *reference, *field, ref_map, opt_map, ref_tf_buffer, slices, before,
+                                       req.max_chunk_voxels);
+      }
       const Volume field = load_checked(req, i);
       fr.name = field.name;
       if (req.field_range) {
-        std::string w = check_range_coverage(field.values, range, field.name, "the given field range",
-                                             req.allow_out_of_range);
+        std::string w =
+            check_range_coverage(field.values, range, field.name, "the given field range", req.allow_out_of_range);
         if (!w.empty()) fr.warnings.push_back(std::move(w));
       }
       const DeviceField opt(ctx, field.values, "series field", req.max_chunk_voxels);
       gpu.reset();
       gpu.add(*ref, opt, ref_map, opt_map, ref_tf_buffer, before);
-      slots = gpu.fixed_point_slots();
-    }
+      return gpu.fixed_point_slots();
+    });
     if (total.empty()) total.assign(slots.size(), 0);
     for (size_t k = 0; k < slots.size(); ++k) total[k] += slots[k];  // modulo 2^64, as on the device
     systems.push_back(gpu.decode(slots, before != nullptr));
     if (systems.back().voxels == 0)
-      throw std::runtime_error("no voxel has data in both " + ref_grid.name + " and " + fr.name);
+      throw std::runtime_error(field_label(req, i) + ": no voxel has data in both " + ref_grid.name + " and " + fr.name);
     out.fields.push_back(std::move(fr));
   }
   out.phases.push_back({"assemble", ms_since(t0), -1.0});
@@ -236,7 +269,7 @@ SeriesResult run_optimize_series(Context& ctx, const SeriesRequest& req) {
   for (size_t i = 0; i < out.fields.size(); ++i) {
     const auto [at, inserted] = first.emplace(out.fields[i].name, i);
     if (!inserted)
-      out.warnings.push_back("field " + std::to_string(i) + " is field " + std::to_string(at->second) + " again (" +
+      out.warnings.push_back(field_label(req, i) + " is field " + std::to_string(at->second + 1) + " again (" +
                              out.fields[i].name + "): it is fitted twice");
   }
   return out;

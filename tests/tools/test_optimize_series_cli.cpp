@@ -137,7 +137,7 @@ TEST_F(OptimizeSeriesCli, ReportShowsEveryFieldAndTheSeries) {
   EXPECT_EQ(html.find("No PSNR plot"), std::string::npos);
 }
 
-// A field given twice is fitted twice, with a warning naming both indices.
+// A field given twice is fitted twice, with a warning naming both places ("field k of n").
 TEST_F(OptimizeSeriesCli, AFieldGivenTwiceIsNamed) {
   const std::string pattern = "'" + (dir / "runs" / "step*.raw").string() + "'";
   const auto r = run_cli(base("tf.json") + " --field " + pattern + " --field " + steps[1] + " --json " +
@@ -146,8 +146,8 @@ TEST_F(OptimizeSeriesCli, AFieldGivenTwiceIsNamed) {
   const nlohmann::json j = nlohmann::json::parse(read_text(dir / "twice.json"));
   ASSERT_EQ(j["fields"].size(), 4u);
   ASSERT_EQ(j["warnings"].size(), 1u) << j.dump();
-  EXPECT_EQ(j["warnings"][0], "field 3 is field 1 again (" + steps[1] + "): it is fitted twice");
-  EXPECT_NE(r.output.find("warning: field 3 is field 1 again"), std::string::npos) << r.output;
+  EXPECT_EQ(j["warnings"][0], "field 4 of 4 is field 2 again (" + steps[1] + "): it is fitted twice");
+  EXPECT_NE(r.output.find("warning: field 4 of 4 is field 2 again"), std::string::npos) << r.output;
 }
 
 // Each field's warnings are on the series page, named by field, as the summary prints them (here

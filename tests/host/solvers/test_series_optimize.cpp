@@ -1,6 +1,7 @@
 // Many fields against one reference (series_optimize.h): per-field fits are run_optimize's fits
 // field by field; the shared fit is, bit for bit, the fit of the fields stacked into one volume
 // against the reference stacked as often (the summed systems are exact); misuse is refused.
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -164,6 +165,24 @@ TEST_F(SeriesOptimize, RefusesMixedGridsAndWhatASharedFitCannotDo) {
   formats_test::expect_error([&] { run_optimize_series(ctx(), r); }, {"weights visibility"});
   r = request(ref, tf, 0);
   EXPECT_THROW(run_optimize_series(ctx(), r), std::runtime_error);
+}
+
+// A field without data stops the series with an error that says which field it is (a series may
+// read every step from one file), in per-field and shared fits alike.
+TEST_F(SeriesOptimize, AFieldWithoutDataIsNamedByItsPlace) {
+  const Volume ref = reference();
+  const TransferFunction tf = test::random_tf(16, 7);
+  for (const bool shared : {false, true}) {
+    SeriesRequest r = request(ref, tf, 3);
+    r.shared_tf = shared;
+    r.load_field = [](size_t i) {
+      Volume v = field(int(i));
+      if (i == 1) std::fill(v.values.begin(), v.values.end(), NAN);
+      return v;
+    };
+    formats_test::expect_error([&] { run_optimize_series(ctx(), r); },
+                               {"field 2 of 3", "field 1", "no finite value"});
+  }
 }
 
 }  // namespace
