@@ -1,6 +1,7 @@
 // Grid checks of volumes.
 #include "tfmatch/model/volume.h"
 
+#include <algorithm>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -28,6 +29,11 @@ void require_same_grid(const Volume& a, const Volume& b) {
     std::ostringstream os;
     os << "fields are on different grids: " << a.name << " is " << a.dims[0] << "x" << a.dims[1] << "x"
        << a.dims[2] << ", " << b.name << " is " << b.dims[0] << "x" << b.dims[1] << "x" << b.dims[2];
+    // The likely slip with a file of many variables: a 2-D one (a surface field) beside 3-D ones.
+    const bool same_plane = a.dims[0] == b.dims[0] && a.dims[1] == b.dims[1];
+    if (same_plane && (a.dims[2] == 1) != (b.dims[2] == 1))
+      os << " (" << (a.dims[2] == 1 ? a.name : b.name) << " has one level: a 2-D field on the other's horizontal grid"
+         << " of " << std::max(a.dims[2], b.dims[2]) << " levels)";
     throw std::runtime_error(os.str());
   }
 }
