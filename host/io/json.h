@@ -24,3 +24,13 @@ namespace tfm::detail {
 #define JSON_ASSERT(x) ((x) ? void(0) : ::tfm::detail::json_assert_failed(#x))
 
 #include <nlohmann/json.hpp>
+
+namespace tfm {
+// The text of `j` as every file and response of tfmatch writes it: indented by `indent` spaces
+// (-1: on one line). Names in it come from the file system, where they need not be UTF-8 (a
+// Latin-1 "lat\xe9.raw"), and JSON text must be: a byte that is not UTF-8 becomes U+FFFD instead of
+// nlohmann's default, a throw at the end of the run that loses every output.
+inline std::string json_text(const nlohmann::json& j, int indent = -1) {
+  return j.dump(indent, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+}  // namespace tfm

@@ -292,7 +292,7 @@ std::string tf_to_paraview_json(const TransferFunction& tf, const std::string& p
   }
   p["RGBPoints"] = rgb;
   p["Points"] = pts;
-  return nlohmann::json::array({p}).dump(1) + "\n";
+  return json_text(nlohmann::json::array({p}), 1) + "\n";
 }
 
 TransferFunction parse_transfer_function(std::string_view text, const std::string& name, const TfReadOptions& options,

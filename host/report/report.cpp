@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/json.h"
 #include "tfmatch/io/tf_json.h"
 #include "tfmatch/kernels/device_memory.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
@@ -346,7 +347,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   metrics["slices"] = {{"point", out.slice_point}, {"files", nlohmann::json::array()}};
   for (const auto& sl : out.slices) metrics["slices"]["files"].push_back({{"file", sl.file}, {"plane", sl.caption}});
   if (!in.extra_metrics.is_null()) metrics["extra"] = in.extra_metrics;
-  write_file_atomically(dir / "metrics.json", metrics.dump(2) + "\n");
+  write_file_atomically(dir / "metrics.json", json_text(metrics, 2) + "\n");
   out.files.push_back("metrics.json");
 
   // What reproduces the page: the command, the version, and both TFs as used (linear tables).
@@ -356,7 +357,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   write_file_atomically(dir / "optimized_tf.json", tf_to_json(r.tf));
   for (const char* f : {"command.txt", "reference_tf.json", "optimized_tf.json"}) out.files.push_back(f);
   if (!in.inputs.is_null()) {
-    write_file_atomically(dir / "inputs.json", in.inputs.dump(2) + "\n");
+    write_file_atomically(dir / "inputs.json", json_text(in.inputs, 2) + "\n");
     out.files.push_back("inputs.json");
   }
 

@@ -233,7 +233,7 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
                                   {"fields", fields},          {"voxel_rmse_before", r.before.rmse()},
                                   {"voxel_rmse_after", r.after.rmse()}, {"version", in.version}};
   pngs.finish();
-  write_file_atomically(out / "series.json", metrics.dump(2) + "\n");
+  write_file_atomically(out / "series.json", json_text(metrics, 2) + "\n");
   summary.files.push_back("series.json");
 
   std::ostringstream h;

@@ -1,6 +1,8 @@
 // The producer and the streams of GET /api/progress (progress_events.h).
 #include "tfmatch/viewer/progress_events.h"
 
+#include "tfmatch/io/json.h"
+
 namespace tfm {
 namespace {
 
@@ -54,7 +56,7 @@ void ProgressPublisher::run() {
   while (!stopping_) {
     poked_ = false;
     lock.unlock();
-    std::string job = session_.job().dump();
+    std::string job = json_text(session_.job());
     if (job != last_job) hub_.publish("job", last_job = std::move(job));
     const uint64_t version = session_.version();
     if (version != last_version) hub_.publish("version", version_json(last_version = version));

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "tfmatch/engine/vk_check.h"
+#include "tfmatch/io/json.h"
 #include "tfmatch/model/cancellation.h"
 #include "tfmatch/report/png_io.h"
 #include "tfmatch/viewer/connection_workers.h"
@@ -34,7 +35,7 @@ HttpError bad_request(const std::string& what) { return {400, what}; }
 
 void send_json(httplib::Response& res, const nlohmann::json& body, int status = 200) {
   res.status = status;
-  res.set_content(body.dump(), "application/json");
+  res.set_content(json_text(body), "application/json");
 }
 
 void send_error(httplib::Response& res, int status, const std::string& message) {

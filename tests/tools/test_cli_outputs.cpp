@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "cli_runner.h"
+#include "tfmatch/io/json.h"
 
 namespace tfm {
 namespace {
@@ -115,6 +116,28 @@ TEST_F(CliOutputs, ReportGoesIntoANewNestedDirectoryWhole) {
   // Nothing hidden (temporary files, staged directories) is left anywhere.
   for (const std::string& f : files_under(dir.path)) EXPECT_EQ(f.find("/."), std::string::npos) << f;
   for (const std::string& f : files_under(dir.path)) EXPECT_NE(f[0], '.') << f;
+}
+
+// A file name that is not UTF-8 (Latin-1 "é": byte E9) is written into the JSON files as U+FFFD:
+// JSON must be UTF-8, and a strict writer threw at the end of the run and lost every output.
+TEST_F(CliOutputs, FileNamesThatAreNotUtf8StillGiveEveryOutput) {
+  const std::string latin1 = "lat\xe9_8x8x8_float32.raw";
+  fs::copy_file(dir / "field_8x8x8_float32.raw", dir / latin1);
+  const std::string field = dir / latin1;
+  for (const std::string& series : std::vector<std::string>{"", " --field " + dir / "field_8x8x8_float32.raw"}) {
+    const fs::path report = dir / (series.empty() ? "rep" : "rep_series");
+    const fs::path json = dir / (series.empty() ? "one.json" : "series.json");
+    const fs::path tf = dir / (series.empty() ? "t.json" : "s.json");
+    test::CliResult r = run_cli("optimize --ref " + dir / "ref_8x8x8_float32.raw" + " --field " + field + series +
+                                " --ref-tf " + dir / "tf.json" + " --tf-size 16 --out " + tf.string() + " --report " +
+                                report.string() + " --json " + json.string() + " --width 24 --height 24");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_TRUE(fs::exists(report / "index.html"));
+    EXPECT_TRUE(nlohmann::json::accept(read_bytes(json)));
+    const std::string page_json = read_bytes(report / (series.empty() ? "metrics.json" : "series.json"));
+    EXPECT_NE(page_json.find("lat\xef\xbf\xbd_8x8x8"), std::string::npos) << page_json;  // U+FFFD
+    EXPECT_TRUE(nlohmann::json::accept(page_json));
+  }
 }
 
 // Every other command that writes files declares them in the same check (FilePlan) before any

@@ -10,6 +10,7 @@
 #include "render_options.h"
 #include "solver_options.h"
 #include "tfmatch/io/atomic_file.h"
+#include "tfmatch/io/json.h"
 #include "tfmatch/io/output_check.h"
 #include "tfmatch/io/tf_json.h"
 #include "tfmatch/io/volume_io.h"
@@ -192,7 +193,7 @@ int run(const DemoArgs& args) {
   req.voxel_mae = true;  // the report shows the mean absolute error
   OptimizeResult result = run_optimize(*ctx, req);
   if (!report_in_out_dir(a)) write_tf_json(dir / "optimized_tf.json", result.tf);
-  write_file_atomically(dir / "summary.json", to_json(result).dump(2) + "\n");
+  write_file_atomically(dir / "summary.json", json_text(to_json(result), 2) + "\n");
   if (!globals().quiet) {
     std::cout << in.description;
     result.print_summary(std::cout);

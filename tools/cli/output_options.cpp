@@ -123,7 +123,7 @@ void JsonOutput::write(const nlohmann::json& j) const {
   if (!wanted()) return;
   nlohmann::json out = j;
   if (out.is_object()) out["timings"] = timings_json();
-  const std::string text = out.dump(2) + "\n";
+  const std::string text = json_text(out, 2) + "\n";
   if (!to_stdout()) return write_file_atomically(target_, text);
   for (size_t done = 0; done < text.size();) {
     const ssize_t n = ::write(stdout_fd_, text.data() + done, text.size() - done);
