@@ -41,8 +41,9 @@ class BackgroundPngWriter {
   std::size_t max_pending_;
   std::deque<std::pair<std::filesystem::path, std::future<std::string>>> pending_;
 };
-// Reads any PNG as 8-bit RGB: grey and palette images are expanded, 16-bit reduced, and an
-// alpha channel is composited over white. Throws std::runtime_error naming the path when the
+// Reads any PNG as 8-bit RGB, the values as stored: grey and palette images are expanded, 16-bit
+// values reduced to their high byte, no gamma conversion (a gAMA chunk is not applied), and an
+// alpha channel is composited over white on those values (c a + 255 (1 - a)), as viewers show it. Throws std::runtime_error naming the path when the
 // file is missing or not a PNG, and before allocating the image when its header claims more
 // pixels than its bytes can hold (zlib expands at most 1032:1) or than the memory budget allows
 // (host/model/memory_budget.h).

@@ -49,7 +49,8 @@ add_json_option(sub, args->json, "{\"rmse\", \"psnr\" (\"inf\" when identical), 
   sub->footer("SSIM: Wang et al. 2004 (11x11 Gaussian window, sigma 1.5, K1 0.01, K2 0.03) on RGB, as "
               "scikit-image's structural_similarity(gaussian_weights=True, use_sample_covariance=False, "
               "data_range=255), on the 8-bit values as stored (tfmatch writes sRGB PNGs, so these are the pixels "
-              "people see). Alpha in a PNG is composited over white. LPIPS is not available.");
+              "people see; 16-bit values by their high byte, no gamma conversion by a gAMA chunk). Alpha in a PNG "
+              "is composited over white on those values, as image viewers show it. LPIPS is not available.");
   sub->callback([args] { exit_code() = run(*args); });
 });
 

@@ -5,6 +5,11 @@
 #include <cmath>
 #include <fstream>
 #include <random>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <zlib.h>
 
 #include "cli_runner.h"
 #include "tfmatch/report/font.h"
@@ -127,6 +132,76 @@ TEST(RenderPng, ReadingANonPngNamesTheFile) {
     EXPECT_NE(std::string(e.what()).find("x.png"), std::string::npos) << e.what();
   }
   EXPECT_THROW(read_png(dir / "missing.png"), std::runtime_error);
+}
+
+// A PNG written chunk by chunk (PNG spec: signature, IHDR, optional chunks, one IDAT, IEND), so
+// the reader meets what other programs write: 16-bit samples, gAMA, palettes with tRNS, alpha.
+std::string png_file(uint32_t w, uint32_t h, uint8_t depth, uint8_t colour_type, const std::string& raw_rows,
+                     const std::vector<std::pair<std::string, std::string>>& extra = {}) {
+  auto be32 = [](uint32_t v) {
+    return std::string{char(v >> 24), char(v >> 16), char(v >> 8), char(v)};
+  };
+  std::string out = "\x89PNG\r\n\x1a\n";
+  auto chunk = [&](const std::string& type, const std::string& data) {
+    std::string body = type + data;
+    out += be32(uint32_t(data.size())) + body +
+           be32(uint32_t(crc32(0, reinterpret_cast<const Bytef*>(body.data()), uInt(body.size()))));
+  };
+  chunk("IHDR", be32(w) + be32(h) + std::string{char(depth), char(colour_type), 0, 0, 0});
+  for (const auto& [type, data] : extra) chunk(type, data);
+  uLongf size = compressBound(uLong(raw_rows.size()));
+  std::string z(size, '\0');
+  compress(reinterpret_cast<Bytef*>(z.data()), &size, reinterpret_cast<const Bytef*>(raw_rows.data()),
+           uLong(raw_rows.size()));
+  chunk("IDAT", z.substr(0, size));
+  chunk("IEND", "");
+  return out;
+}
+
+// Metrics compare the values as stored: a 16-bit image (v * 257, no colour chunk) and an image
+// with a gAMA chunk read as the same 8-bit values (the simplified libpng API converted both, by
+// the chunk and by taking 16-bit data as linear: RMSE 53 against themselves); palettes, grey and
+// alpha expand, alpha over white on the stored values ((255, 0, 0) at alpha 128: (255, 127, 127)).
+TEST(RenderPng, ReadsTheValuesAsStoredWhateverTheEncoding) {
+  const uint32_t w = 5, h = 3;
+  std::string rgb8, rgb16, grey16, rows8, rows16, grey_rows;
+  Image expected;
+  expected.width = w;
+  expected.height = h;
+  for (uint32_t y = 0; y < h; ++y) {
+    rows8 += '\0';
+    rows16 += '\0';
+    grey_rows += '\0';
+    for (uint32_t x = 0; x < w; ++x) {
+      const uint8_t v[3] = {uint8_t(17 * x + 40 * y), uint8_t(250 - 31 * x), uint8_t(3 + 60 * y)};
+      for (uint8_t c : v) {
+        rows8 += char(c);
+        rows16 += std::string{char(c), char(c)};  // 257 c, big-endian
+        expected.rgb.push_back(c);
+      }
+      grey_rows += std::string{char(v[0]), char(0x80)};  // 16-bit grey, low byte not 0
+    }
+  }
+  const Image plain = decode_png(png_file(w, h, 8, 2, rows8), "plain");
+  EXPECT_EQ(plain.rgb, expected.rgb);
+  EXPECT_EQ(decode_png(png_file(w, h, 16, 2, rows16), "16-bit").rgb, expected.rgb);
+  EXPECT_EQ(decode_png(png_file(w, h, 8, 2, rows8, {{"gAMA", std::string{0, 1, char(0x86), char(0xa0)}}}), "gAMA 1").rgb,
+            expected.rgb);  // gamma 1.0 (100000)
+  const Image grey = decode_png(png_file(w, h, 16, 0, grey_rows), "grey");
+  for (size_t i = 0; i < size_t(w) * h; ++i)
+    for (size_t c = 0; c < 3; ++c) EXPECT_EQ(grey.rgb[3 * i + c], expected.rgb[3 * i]) << i;
+  // A palette of two entries, the second half transparent (tRNS): red over white.
+  const std::string palette{char(255), 0, 0, 0, 0, char(255)};
+  const std::string alpha{char(128), char(255)};
+  const Image indexed =
+      decode_png(png_file(2, 1, 8, 3, std::string{0, 0, 1}, {{"PLTE", palette}, {"tRNS", alpha}}), "palette");
+  EXPECT_EQ(indexed.rgb, (std::vector<uint8_t>{255, 127, 127, 0, 0, 255}));
+  // RGBA: the same, and fully transparent is white.
+  const Image rgba = decode_png(png_file(2, 1, 8, 6, std::string{0, char(255), 0, 0, char(128), 0, 0, 0, 0}), "rgba");
+  EXPECT_EQ(rgba.rgb, (std::vector<uint8_t>{255, 127, 127, 255, 255, 255}));
+  // Truncated image data is named, not read as garbage.
+  const std::string whole = png_file(w, h, 8, 2, rows8);
+  EXPECT_THROW(decode_png(whole.substr(0, whole.size() - 20), "cut"), std::runtime_error);
 }
 
 TEST(RenderPng, CompositesPremultipliedColourOverTheBackground) {
