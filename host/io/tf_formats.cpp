@@ -113,18 +113,26 @@ size_t auto_table_size(const ControlPointTf& cp) {
   std::vector<double> pos;
   for (const auto& p : cp.opacity) pos.push_back(std::clamp(p.position, 0.0, 1.0));
   for (const auto& p : cp.color) pos.push_back(std::clamp(p.position, 0.0, 1.0));
-  for (size_t d = 1; d <= 4096; ++d) {
-    bool on_grid = true;
+  auto on_grid = [&](size_t d) {
     for (double p : pos) {
       const double x = p * double(d);
-      if (std::abs(x - std::round(x)) > 1e-6) {
-        on_grid = false;
-        break;
-      }
+      if (std::abs(x - std::round(x)) > 1e-6) return false;
     }
-    if (on_grid) return d * ((255 + d - 1) / d) + 1;
-  }
-  return 256;
+    return true;
+  };
+  for (size_t d = 1; d <= 4096; ++d)
+    if (on_grid(d)) return d * ((255 + d - 1) / d) + 1;
+  // A finer grid: a table written by tfmatch (--tf-size up to 65536) has its points at j/(n-1),
+  // so the closest two points give d. Trying every d up to 65535 would cost d times the points.
+  std::sort(pos.begin(), pos.end());
+  pos.erase(std::unique(pos.begin(), pos.end()), pos.end());
+  double gap = 1.0;
+  for (size_t k = 1; k < pos.size(); ++k) gap = std::min(gap, pos[k] - pos[k - 1]);
+  const double d = std::round(1.0 / gap);
+  if (d > 4096 && d <= double(kMaxTableSize - 1) && on_grid(size_t(d))) return size_t(d) + 1;
+  // On no grid: 256 entries, or 4 a point for many points (up to the largest table), so that a
+  // table's detail is not lost between its points.
+  return std::clamp<size_t>(4 * pos.size(), 256, kMaxTableSize);
 }
 
 ControlPointTf parse_tf_xml(std::string_view text, const std::string& name, std::vector<std::string>* notes) {

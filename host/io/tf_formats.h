@@ -43,7 +43,9 @@ TransferFunction table_from_control_points(const ControlPointTf& cp, size_t n = 
 ControlPointTf control_points_from_table(const TransferFunction& tf);
 // 256 entries (the framework's own table size), refined so that every control point lies on a
 // node when the points sit on a grid k/d with d <= 4096 (then the table is exact for linear-RGB
-// blending): n - 1 = d * ceil(255 / d).
+// blending): n - 1 = d * ceil(255 / d); points on a finer grid up to d = kMaxTableSize - 1 (a
+// large table written by tfmatch) give n = d + 1; points on no grid give 4 entries a point, 256 to
+// kMaxTableSize.
 size_t auto_table_size(const ControlPointTf& cp);
 
 // XML of the framework. Throws std::runtime_error "<name>: ..." for malformed XML, a missing

@@ -14,6 +14,10 @@ namespace tfm {
 
 using Rgba = std::array<double, 4>;
 
+// The most entries a TF of tfmatch has: the command line's --tf-size bound, and the largest table
+// read from control points (2^16).
+inline constexpr size_t kMaxTableSize = size_t(1) << 16;
+
 struct TransferFunction {
   std::vector<Rgba> rgba;             // entry j at t = j/(N-1), values in [0,1]
   std::optional<FieldRange> range;    // data range the table was made for, if the file says

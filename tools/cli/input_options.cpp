@@ -26,7 +26,7 @@ void add_input_options(CLI::App* sub, InputArgs& a, bool required) {
     tf->required();
     field->required();
   }
-  sub->add_option("--tf-size", a.tf_size, "Entries N of the optimized TF")->check(CLI::Range(2u, 1u << 16))
+  sub->add_option("--tf-size", a.tf_size, "Entries N of the optimized TF")->check(CLI::Range(2u, uint32_t(kMaxTableSize)))
       ->capture_default_str();
   sub->add_option("--ref-range", a.ref_range, "Reference field range lo,hi (default: TF file's, else finite min/max)");
   sub->add_option("--field-range", a.field_range, "Field range lo,hi (default: finite min/max)");

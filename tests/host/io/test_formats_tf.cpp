@@ -98,6 +98,21 @@ TEST(TfFormats, TableSizeFollowsTheControlPoints) {
   EXPECT_EQ(auto_table_size(cp), 316u);  // 63 * 5 + 1
   cp.opacity[1].position = std::sqrt(2.0) / 3.0;  // on no grid k/d with d <= 4096
   EXPECT_EQ(auto_table_size(cp), 256u);
+  // Tables larger than 4097 entries keep their size through control points (an XML or ParaView
+  // file of a --tf-size 5000 fit read back as 256 entries); many points on no grid: 4 a point.
+  for (size_t n : {4098u, 5000u, 65536u}) {
+    TransferFunction tf;
+    tf.rgba.resize(n);
+    for (size_t j = 0; j < n; ++j) tf.rgba[j] = {double(j % 7) / 6, 0.5, double(j % 3) / 2, double(j % 5) / 4};
+    const ControlPointTf points = control_points_from_table(tf);
+    EXPECT_EQ(auto_table_size(points), n);
+    const TransferFunction back = table_from_control_points(points);
+    ASSERT_EQ(back.size(), n);
+    for (size_t j = 0; j < n; j += 997) EXPECT_NEAR(back.rgba[j][3], tf.rgba[j][3], 1e-12) << n << " " << j;
+  }
+  cp.opacity.clear();
+  for (int k = 0; k < 1000; ++k) cp.opacity.push_back({std::sqrt(2.0) * k / 1415.0, 0.5});
+  EXPECT_EQ(auto_table_size(cp), 4 * 1001u);  // the colour point at 0.75 too (0 is one of them)
 }
 
 TransferFunction random_table(size_t n, unsigned seed) {
