@@ -19,6 +19,10 @@
 namespace tfm {
 namespace {
 
+// The key of a preset tfmatch writes that says whether the TF has a range ([lo, hi], the points'
+// span) or not (null).
+constexpr const char* kTfmatchRangeKey = "tfmatchRange";
+
 std::string num(double v) {
   char buf[32];
   std::snprintf(buf, sizeof(buf), "%.17g", v);
@@ -278,6 +282,20 @@ ControlPointTf parse_paraview_preset(std::string_view text, const std::string& n
     if (notes) notes->push_back(name + ": the preset has no opacity \"Points\"; using a ramp from 0 to 1");
   }
   if (!(lo == 0.0 && hi == 1.0)) cp.range = FieldRange{lo, hi};
+  // tfmatch's own key (ParaView ignores keys it does not know): the range stated, so a TF whose
+  // range is [0, 1] is told apart from one without a range, which the points' span cannot say.
+  // It is the range exactly as written (the points' span may differ from it by rounding).
+  if (obj->contains(kTfmatchRangeKey)) {
+    const nlohmann::json& r = (*obj)[kTfmatchRangeKey];
+    const bool pair = r.is_array() && r.size() == 2 && r[0].is_number() && r[1].is_number();
+    if (r.is_null())
+      cp.range.reset();
+    else if (pair && std::isfinite(r[0].get<double>()) && r[1].get<double>() > r[0].get<double>() &&
+             std::isfinite(r[1].get<double>()))
+      cp.range = FieldRange{r[0].get<double>(), r[1].get<double>()};
+    else
+      throw std::runtime_error(name + ": \"" + kTfmatchRangeKey + "\" must be null or [lo, hi] with lo < hi");
+  }
   return cp;
 }
 
@@ -300,6 +318,7 @@ std::string tf_to_paraview_json(const TransferFunction& tf, const std::string& p
   }
   p["RGBPoints"] = rgb;
   p["Points"] = pts;
+  p[kTfmatchRangeKey] = tf.range ? nlohmann::json{lo, hi} : nlohmann::json(nullptr);
   return json_text(nlohmann::json::array({p}), 1) + "\n";
 }
 

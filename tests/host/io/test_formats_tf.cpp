@@ -150,6 +150,21 @@ TEST(TfFormats, TablesRoundTripThroughXmlAndParaView) {
   const TransferFunction tf = random_table(8, 1);
   EXPECT_EQ(parse(tf_to_json(tf), 0).rgba, tf.rgba);
   EXPECT_EQ(parse(tf_to_json(tf), 15).size(), 15u);
+  // A range of exactly [0, 1] and no range are told apart in every format (a ParaView preset's
+  // points span [0, 1] in both cases: its "tfmatchRange" key says which).
+  TransferFunction unit = tf;
+  unit.range = FieldRange{0.0, 1.0};
+  TransferFunction none = tf;
+  none.range.reset();
+  for (const auto& write : {tf_to_json, tf_to_xml}) {
+    EXPECT_TRUE(parse(write(unit)).range);
+    EXPECT_FALSE(parse(write(none)).range);
+  }
+  const TransferFunction unit_back = parse(tf_to_paraview_json(unit, "u"));
+  ASSERT_TRUE(unit_back.range);
+  EXPECT_EQ(unit_back.range->lo, 0.0);
+  EXPECT_EQ(unit_back.range->hi, 1.0);
+  EXPECT_FALSE(parse(tf_to_paraview_json(none, "n")).range);
 }
 
 std::string preset(const std::string& space, const std::string& rgb, const std::string& points, const std::string& name = "p") {
@@ -170,6 +185,8 @@ TEST(TfFormats, ParaViewColourSpacesOpacityShapeAndRange) {
   EXPECT_EQ(st.rgba[1][3], 0.0);
   EXPECT_EQ(st.rgba[3][3], 1.0);
   EXPECT_FALSE(st.range);  // [0,1]: a normalized preset
+  expect_error([] { parse(preset("RGB", "0, 0,0,0, 1, 1,1,1", "").insert(1, "\"tfmatchRange\": [2, 1], ")); },
+               {"tfmatchRange", "lo < hi"});
   // Step colour space: the left point's colour.
   EXPECT_EQ(parse(preset("Step", "0, 1,0,0, 1, 0,0,1", "0,1,0.5,0, 1,1,0.5,0"), 3).rgba[1][0], 1.0);
   // Diverging: distinct saturated ends pass through Msh (88, 0, 0): L* = 88, a neutral grey of
