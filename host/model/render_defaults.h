@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <string>
 
 #include "tfmatch/model/render_settings.h"
 
@@ -27,7 +28,10 @@ bool is_thin_grid(const std::array<uint64_t, 3>& dims, const std::array<double, 
 // with the plain default (opacity is per box length: through two levels of a 120 x 61 grid a
 // default ray reached about 1/180 of it, and the picture stayed white); looking down, the image
 // takes the map's aspect (its longer side the larger of width and height). Other grids are left as they are.
-void apply_grid_defaults(RenderSettings& s, const std::array<uint64_t, 3>& dims, const std::array<double, 3>& spacing,
-                         const RenderChoices& chosen);
+// Returns what it set, for a note ("a thin grid (120x61x2): seen from above, north up; opacity scale
+// 20 x box length / height 180 = 3600 (...)"), or "" when it set nothing. A scale the user gives is
+// used as it is: the factor is printed so that it can be given scaled.
+std::string apply_grid_defaults(RenderSettings& s, const std::array<uint64_t, 3>& dims,
+                                const std::array<double, 3>& spacing, const RenderChoices& chosen);
 
 }  // namespace tfm

@@ -37,8 +37,11 @@ int run(RenderArgs a) {
   check_render_size(*ctx, a.settings);  // before loading: a too-large image fails in a second
   OutputBatch outputs;
   Volume volume = load_volume(a.volume, a.volume_flags.options());
-  apply_grid_defaults(a.settings, volume.dims, volume.spacing, a.chosen);
-  TransferFunction tf = read_transfer_function(a.tf);
+  if (const std::string note = apply_grid_defaults(a.settings, volume.dims, volume.spacing, a.chosen); !note.empty())
+    print_note(note);
+  std::vector<std::string> notes;
+  TransferFunction tf = read_transfer_function(a.tf, {}, &notes);
+  for (const std::string& n : notes) print_note(n);
   const FieldRange range = field_range_for(volume, tf, a.range, "--range", a.allow_out_of_range);
   const std::vector<GridIndex> markers = resolve_markers(volume, a.markers);
 

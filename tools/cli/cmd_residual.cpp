@@ -51,9 +51,13 @@ int run(ResidualArgs a) {
   const VolumeOptions vo = a.volume_flags.options();
   auto [ref, field] = load_volume_pair(a.ref, a.field, vo);
   require_same_grid(ref, field);
-  apply_grid_defaults(a.settings, ref.dims, ref.spacing, a.chosen);
-  TransferFunction ref_tf = read_transfer_function(a.ref_tf);
-  TransferFunction field_tf = read_transfer_function(a.field_tf);
+  if (!a.image.empty())  // the render settings shape --image alone
+    if (const std::string note = apply_grid_defaults(a.settings, ref.dims, ref.spacing, a.chosen); !note.empty())
+      print_note(note);
+  std::vector<std::string> notes;
+  TransferFunction ref_tf = read_transfer_function(a.ref_tf, {}, &notes);
+  TransferFunction field_tf = read_transfer_function(a.field_tf, {}, &notes);
+  for (const std::string& n : notes) print_note(n);
   const FieldRange ref_range = field_range_for(ref, ref_tf, a.ref_range, "--ref-range", a.allow_out_of_range);
   const FieldRange field_range = field_range_for(field, field_tf, a.field_range, "--field-range", a.allow_out_of_range);
 

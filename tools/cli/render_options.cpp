@@ -142,7 +142,8 @@ void add_render_options(CLI::App* sub, RenderSettings& s) {
       ->check(CLI::Range(0.01, 64.0))->capture_default_str()->group(g);
   sub->add_option("--opacity-scale", s.opacity_scale,
                   "Extinction of TF opacity 1 per box length (sigma = a * scale); thin grids (<= 4 levels, or 8 "
-                  "times wider than tall): times box length / height")
+                  "times wider than tall): the default times box length / height (a note gives the factor; a "
+                  "scale given is used as it is)")
       ->check(non_negative())->capture_default_str()->group(g);
   sub->add_option("--termination", s.termination_opacity, "Stop a ray once its opacity reaches this (< 1)")
       ->check(CLI::Range(0.01, 0.9999))->capture_default_str()->group(g);

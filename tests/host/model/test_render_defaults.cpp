@@ -2,6 +2,8 @@
 // default to (from above, north up, opacity per box height, the map's aspect) unless chosen.
 #include <gtest/gtest.h>
 
+#include <string>
+
 #include "tfmatch/model/camera.h"
 #include "tfmatch/model/render_defaults.h"
 
@@ -19,7 +21,10 @@ TEST(RenderDefaults, ThinGridsAreFewLevelsOrFlatBoxes) {
 
 TEST(RenderDefaults, AThinGridIsAMapFromAboveWithOpacityPerHeight) {
   RenderSettings s;
-  apply_grid_defaults(s, {120, 61, 2}, {3.0, 3.0, 1.0}, {});
+  const std::string note = apply_grid_defaults(s, {120, 61, 2}, {3.0, 3.0, 1.0}, {});
+  // The note says what was set and the factor, so that a user's own scale can be given scaled.
+  EXPECT_EQ(note, "a thin grid (120x61x2): seen from above, north up; opacity scale 20 x box length / height 180 = "
+                  "3600 (--opacity-scale sets the scale itself); 512x260 pixels, the map's aspect");
   EXPECT_EQ(s.camera.elevation_deg, 90.0);
   EXPECT_EQ(s.camera.azimuth_deg, -90.0);
   // A ray down through the two levels meets the optical depth of a ray through a cube: the
@@ -39,7 +44,7 @@ TEST(RenderDefaults, ChosenSettingsAndOtherGridsStayAsTheyAre) {
   chosen.camera.elevation_deg = 35.0;
   chosen.opacity_scale = 7.0;
   chosen.width = 300;
-  apply_grid_defaults(chosen, {120, 61, 2}, {3.0, 3.0, 1.0}, {true, true, true});
+  EXPECT_EQ(apply_grid_defaults(chosen, {120, 61, 2}, {3.0, 3.0, 1.0}, {true, true, true}), "");
   EXPECT_EQ(chosen.camera.elevation_deg, 35.0);
   EXPECT_EQ(chosen.camera.azimuth_deg, 30.0);
   EXPECT_EQ(chosen.opacity_scale, 7.0);
@@ -52,7 +57,7 @@ TEST(RenderDefaults, ChosenSettingsAndOtherGridsStayAsTheyAre) {
   EXPECT_EQ(angles.height, 512u);
   EXPECT_DOUBLE_EQ(angles.opacity_scale, 3600.0);
   RenderSettings cube;
-  apply_grid_defaults(cube, {96, 96, 96}, {1.0, 1.0, 1.0}, {});
+  EXPECT_EQ(apply_grid_defaults(cube, {96, 96, 96}, {1.0, 1.0, 1.0}, {}), "");
   EXPECT_EQ(cube.camera.elevation_deg, RenderSettings{}.camera.elevation_deg);
   EXPECT_EQ(cube.opacity_scale, RenderSettings{}.opacity_scale);
   EXPECT_EQ(cube.height, 512u);
