@@ -128,6 +128,11 @@ void check_range(const FieldRange& r, const std::string& what) {
   else if (!std::isfinite(flo) || !std::isfinite(fhi))
     os << " lies beyond float32, in which the kernels map values (|lo| and |hi| must stay below "
        << std::numeric_limits<float>::max() << ")";
+  else if (!std::isfinite(fhi - flo))
+    // The kernels take v - lo in float32: over a wider span every value above lo + FLT_MAX became
+    // +Inf there and took the TF's top entry (a field in [-3e38, 3e38] rendered mostly one colour).
+    os << " is too wide: hi - lo leaves float32, in which the kernels map values (the span must stay below "
+       << std::numeric_limits<float>::max() << ")";
   else if (!(fhi > flo) || !std::isfinite(1.0 / (double(fhi) - double(flo))))
     os << " is too narrow: lo and hi are the same number in float32, in which the kernels map values";
   else if (!std::isfinite(static_cast<float>(65535.0 / (double(fhi) - double(flo)))))
@@ -164,6 +169,10 @@ FieldRange resolve_range(const FiniteStats& s, const FieldRange* user, const std
        << "); a transfer function cannot be fitted to it (give a range with --*-range to map it anyway)";
     throw std::runtime_error(os.str());
   }
+  // The data's own range must be one the kernels can map too (a field of values near 1e-40 is too
+  // narrow, one spanning [-3e38, 3e38] too wide): said here, with the field's name, rather than
+  // by make_mapping without it.
+  check_range({s.lo, s.hi}, what + " (its finite min/max; give it a range to map it)");
   return {s.lo, s.hi};
 }
 

@@ -29,14 +29,15 @@ FiniteStats finite_stats(std::span<const float> values);
 FiniteStats merge(const FiniteStats& a, const FiniteStats& b);
 
 // Range of a field: `user` if given (checked by check_range), else the finite min/max. Throws
-// std::runtime_error naming `what` when the field has no finite value or is constant (hi == lo).
+// std::runtime_error naming `what` when the field has no finite value, is constant (hi == lo), or
+// has a min/max check_range refuses.
 FieldRange resolve_range(std::span<const float> values, const FieldRange* user, const std::string& what);
 // The same from the field's finite_stats() (a field streamed from disk).
 FieldRange resolve_range(const FiniteStats& stats, const FieldRange* user, const std::string& what);
 
 // Throws std::runtime_error "<what>: range lo,hi ..." saying what is wrong with a given range:
 // an end that is not a finite number, lo >= hi, an end beyond float32 (the kernels map values in
-// float32), or ends float32 cannot tell apart.
+// float32), a span hi - lo beyond float32, or ends float32 cannot tell apart.
 void check_range(const FieldRange& range, const std::string& what);
 
 // A range that does not come from the field (a TF file's, or given) may leave values outside;

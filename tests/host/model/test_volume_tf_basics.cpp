@@ -229,6 +229,39 @@ TEST(FieldMapping, CoordinatesAtTheEdgesAndOutside) {
   EXPECT_THROW(make_mapping({0, 1}, 1), std::invalid_argument);
 }
 
+// Ranges the float32 mapping cannot take are refused with the field's name, given or from the
+// data: a span wider than FLT_MAX (v - lo would overflow to +Inf in the kernels) and one too
+// narrow for 1 / (hi - lo); the widest span that still fits maps its ends to the TF's ends.
+TEST(FieldMapping, RangesFloat32CannotMapAreRefusedWithTheFieldsName) {
+  const auto message = [](auto f) {
+    try {
+      f();
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const std::vector<float> wide = {-3e38f, 0.0f, 3e38f}, tiny = {0.0f, 1e-40f, 5e-41f};
+  std::string m = message([&] { resolve_range(wide, nullptr, "s3e38.raw"); });
+  EXPECT_NE(m.find("s3e38.raw (its finite min/max"), std::string::npos) << m;
+  EXPECT_NE(m.find("too wide: hi - lo leaves float32"), std::string::npos) << m;
+  const FieldRange given{-3e38, 3e38};
+  m = message([&] { resolve_range(tiny, &given, "--range"); });
+  EXPECT_NE(m.find("--range: range -3e+38,3e+38 is too wide"), std::string::npos) << m;
+  m = message([&] { resolve_range(tiny, nullptr, "tiny.raw"); });
+  EXPECT_NE(m.find("tiny.raw (its finite min/max"), std::string::npos) << m;
+  EXPECT_NE(m.find("too narrow"), std::string::npos) << m;
+  const FieldRange widest{-1.7e38, 1.7e38};
+  EXPECT_NO_THROW(check_range(widest, "w"));
+  const FieldMapping map = make_mapping(widest, 64);
+  uint32_t j;
+  float w;
+  ASSERT_TRUE(tf_coordinate(1.7e38f, map, j, w));
+  EXPECT_EQ(float(j) + w, 63.0f);
+  ASSERT_TRUE(tf_coordinate(0.0f, map, j, w));
+  EXPECT_NEAR(float(j) + w, 31.5f, 1e-4f);
+}
+
 TEST(FieldMapping, RangeCoverageWarnsAbove5AndFailsAbove95Percent) {
   // 0..99 and two NaNs (not counted): a value is outside when below lo or above hi.
   std::vector<float> v(100);
