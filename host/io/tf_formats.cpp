@@ -191,6 +191,9 @@ ControlPointTf parse_tf_xml(std::string_view text, const std::string& name, std:
   if (cp.opacity.empty()) throw std::runtime_error(name + ": no <OpacityPoint> in <OpacityPoints>");
   if (cp.color.empty()) throw std::runtime_error(name + ": no <ColorPoint> in <ColorPoints>");
   auto lo = root->attribute("range_min"), hi = root->attribute("range_max");  // tfmatch's addition
+  if (bool(lo) != bool(hi))  // half a range is a mistake, not no range
+    throw std::runtime_error(name + ": " + (lo ? "range_min without range_max" : "range_max without range_min") +
+                             " (give both, or neither for a TF without a range)");
   if (lo && hi) {
     auto a = parse_number(*lo), b = parse_number(*hi);
     if (!a || !b || !std::isfinite(*a) || !std::isfinite(*b) || !(*b > *a))

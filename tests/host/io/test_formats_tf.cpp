@@ -224,6 +224,9 @@ TEST(TfFormats, MalformedFilesGiveClearErrors) {
   expect_error([&] { parse(xml("", "", "<ColorPoint position=\"0\" r=\"0\" g=\"nan\" b=\"0\"/>")); }, {"finite number in 'g'"});
   expect_error([&] { parse(xml("", "rgb16", pt)); }, {"unknown color_data 'rgb16'"});
   expect_error([&] { parse(xml("HSL", "", pt)); }, {"unknown interpolation_colorspace 'HSL'"});
+  std::string half_range = xml("", "", pt);
+  half_range.insert(half_range.find('>'), " range_min=\"2\"");
+  expect_error([&] { parse(half_range); }, {"mem.tf", "range_min without range_max"});
   expect_error([&] { parse(preset("RGB", "0,0,0", "")); }, {"\"RGBPoints\" must be an array of 4 numbers per point"});
   expect_error([&] { parse(preset("RGB", "0,0,0,2, 1,0,0,0", "")); }, {"colour 2 outside [0,1]"});
   expect_error([&] { parse(preset("RGB", "0.5,0,0,0, 0.5,1,1,1", "")); }, {"one position"});
