@@ -348,7 +348,9 @@ TransferFunction parse_transfer_function(std::string_view text, const std::strin
 
 std::optional<BuiltinTf> builtin_tf_named_by(const std::string& spec) {
   std::error_code ec;
-  if (spec.empty() || std::filesystem::exists(spec, ec)) return std::nullopt;
+  // A file of that name is read as a file; a directory is not one (an output folder viridis/).
+  if (spec.empty() || (std::filesystem::exists(spec, ec) && !std::filesystem::is_directory(spec, ec)))
+    return std::nullopt;
   try {
     return parse_builtin_tf(spec);
   } catch (const std::invalid_argument& e) {

@@ -4,11 +4,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <random>
 
 #include "formats_test_util.h"
 #include "tfmatch/io/tf_formats.h"
 #include "tfmatch/io/tf_json.h"
+#include "tfmatch/model/builtin_tf.h"
 
 namespace tfm {
 namespace {
@@ -254,6 +256,16 @@ TEST(TfFormats, WriteDispatchesByExtensionAndReadsBack) {
   // FILE:PRESET names a preset; 16 nodes at j/15 refine to 15 * 17 + 1 entries.
   EXPECT_EQ(read_transfer_function((dir / "c.paraview.json").string() + ":c").size(), 256u);
   expect_error([&] { read_transfer_function((dir / "c.paraview.json").string() + ":nope"); }, {"no preset named 'nope'"});
+  // A built-in name is a file's only when a file has it: a folder named viridis (an output folder)
+  // leaves the built-in map as it is; a file of that name is read.
+  const std::filesystem::path before = std::filesystem::current_path();
+  std::filesystem::current_path(dir.path());
+  std::filesystem::create_directory("viridis");
+  EXPECT_EQ(read_transfer_function("viridis").size(), kDefaultBuiltinTfSize);
+  write_transfer_function("grey.json", random_table(5, 3));
+  std::filesystem::rename("grey.json", "grey");
+  EXPECT_EQ(read_transfer_function("grey").size(), 5u);
+  std::filesystem::current_path(before);
 }
 
 }  // namespace
