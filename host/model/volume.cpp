@@ -2,6 +2,7 @@
 #include "tfmatch/model/volume.h"
 
 #include <algorithm>
+#include <cmath>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -36,6 +37,32 @@ void require_same_grid(const Volume& a, const Volume& b) {
          << " of " << std::max(a.dims[2], b.dims[2]) << " levels)";
     throw std::runtime_error(os.str());
   }
+}
+
+std::string grid_geometry_warning(const Volume& a, const Volume& b) {
+  // Relative to the grid's extent, so that a coordinate's rounding in a file is no difference.
+  auto differs = [](const std::array<double, 3>& p, const std::array<double, 3>& q, const std::array<double, 3>& scale) {
+    for (int i = 0; i < 3; ++i)
+      if (std::abs(p[i] - q[i]) > 1e-6 * std::max({std::abs(p[i]), std::abs(q[i]), std::abs(scale[i])})) return true;
+    return false;
+  };
+  std::array<double, 3> extent;
+  for (int i = 0; i < 3; ++i) extent[i] = std::max(std::abs(a.spacing[i]), std::abs(b.spacing[i])) * double(a.dims[i]);
+  const bool spacing = differs(a.spacing, b.spacing, a.spacing), origin = differs(a.origin, b.origin, extent);
+  if (!spacing && !origin) return "";
+  auto triple = [](const std::array<double, 3>& t) {
+    std::ostringstream os;
+    os << t[0] << " " << t[1] << " " << t[2];
+    return os.str();
+  };
+  std::ostringstream os;
+  os << a.name << " and " << b.name << " have the same " << a.dims[0] << "x" << a.dims[1] << "x" << a.dims[2]
+     << " voxels but not the same geometry (";
+  if (spacing) os << "spacing " << triple(a.spacing) << " against " << triple(b.spacing);
+  if (spacing && origin) os << "; ";
+  if (origin) os << "origin " << triple(a.origin) << " against " << triple(b.origin);
+  os << "): voxels are compared index by index, and what is written takes " << a.name << "'s";
+  return os.str();
 }
 
 }  // namespace tfm

@@ -38,4 +38,10 @@ Volume empty_like(const Volume& like);
 // Throws std::runtime_error when the two volumes are not on one grid.
 void require_same_grid(const Volume& a, const Volume& b);
 
+// For two volumes with the same dims: "" when their spacing and origin agree (to 1e-6 of the
+// spacing and of the grid's extent), else a warning naming both and the difference. Voxels are
+// compared index by index whatever the geometry, and outputs take `a`'s, so a copy of a field
+// written with another spacing (or the wrong file of a similar grid) is said, not refused.
+std::string grid_geometry_warning(const Volume& a, const Volume& b);
+
 }  // namespace tfm

@@ -28,6 +28,7 @@ OptimizeResult run_optimize(Context& ctx, const OptimizeRequest& req) {
   out.solver = req.solver;
   out.device = ctx.device_name();
   out.voxels_total = req.ref->voxel_count();
+  if (std::string w = grid_geometry_warning(*req.ref, *req.field); !w.empty()) out.warnings.push_back(std::move(w));
   const FieldRange* ref_user = req.ref_range ? &*req.ref_range : (req.ref_tf.range ? &*req.ref_tf.range : nullptr);
   // The two fields' min/max side by side (a read of each field from memory).
   std::future<FieldRange> field_range = std::async(std::launch::async, [&] {

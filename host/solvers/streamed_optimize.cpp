@@ -264,6 +264,7 @@ StreamedOptimizeResult run_optimize_streamed(Context& ctx, const StreamedOptimiz
   out.solver = req.solver;
   out.device = ctx.device_name();
   out.voxels_total = grid.voxel_count();
+  if (std::string w = grid_geometry_warning(grid, field.grid()); !w.empty()) out.warnings.push_back(std::move(w));
   s.streamed = ref.streams() && field.streams();
   Ranks& ranks = req.ranks ? *req.ranks : single_rank();
   require_same_grid_on_every_rank(ranks, grid, ref.grid().name + " and " + field.grid().name);

@@ -152,6 +152,28 @@ TEST(RangeCoverage, MatchesAPlainDoubleLoopOnAwkwardSizesAndEnds) {
   }
 }
 
+// Same dims, other spacing or origin: compared index by index, with a warning naming both files
+// and the difference; rounding in the files' numbers (1e-9 of the spacing or extent) is no difference.
+TEST(GridGeometry, SameDimsOtherSpacingOrOriginIsSaid) {
+  Volume a, b;
+  a.dims = b.dims = {100, 100, 90};
+  a.name = "isabel_30.vti", b.name = "copy.vti";
+  a.spacing = {4.008, 4.008, 0.2};
+  b.spacing = {4.008 * (1 + 1e-9), 4.008, 0.2};
+  a.origin = b.origin = {-200.0, -200.0, 0.0};
+  EXPECT_EQ(grid_geometry_warning(a, b), "");
+  b.origin[2] = 1e-7;  // 1e-7 against an extent of 18
+  EXPECT_EQ(grid_geometry_warning(a, b), "");
+  b.spacing = {1, 1, 1};
+  EXPECT_EQ(grid_geometry_warning(a, b),
+            "isabel_30.vti and copy.vti have the same 100x100x90 voxels but not the same geometry (spacing 4.008 4.008 "
+            "0.2 against 1 1 1): voxels are compared index by index, and what is written takes isabel_30.vti's");
+  b.spacing = a.spacing;
+  b.origin = {0, 0, 0};
+  const std::string w = grid_geometry_warning(a, b);
+  EXPECT_NE(w.find("(origin -200 -200 0 against 0 0 0)"), std::string::npos) << w;
+}
+
 TEST(RawVolume, ErrorsNameTheFileAndTheProblem) {
   TempDir dir;
   write_values(dir / "x_2x2x2_complex64.raw", std::vector<float>(8));
