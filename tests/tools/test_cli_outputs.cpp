@@ -232,6 +232,9 @@ TEST_F(CliOutputs, EmptyNanAndNegativeNumbersAreUsageErrors) {
       {"render" + volume + " --azimuth ''", "--azimuth: expected a number, got ''"},
       {"render" + volume + " --elevation NaN", "--elevation: expected a number, got 'NaN'"},
       {"render" + volume + " --step nan", "--step: expected a number, got 'nan'"},
+      // An infinity too (--azimuth inf failed after reading, exit 1, where nan was a usage error).
+      {"render" + volume + " --azimuth inf", "--azimuth: expected a finite number, got 'inf'"},
+      {"optimize " + inputs() + out + " --smooth -infinity", "--smooth: expected a finite number, got '-infinity'"},
       {"info " + dir / "ref_8x8x8_float32.raw" + " --time -1", "--time: expected a number >= 0, got '-1'"},
       {"bench --tf-sizes 16,-4", "--tf-sizes: Value -4 not in range 2 to 1048576"},
       // not "Value  not in range 2 to 65536"

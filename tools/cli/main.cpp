@@ -244,6 +244,10 @@ void require_numbers(CLI::App& app) {
           if (text.find_first_not_of(" \t") == std::string::npos ||
               (is_float && CLI::detail::lexical_cast(text, v) && std::isnan(v)))
             return "expected a number, got '" + text + "'";
+          // No option takes an infinity (limits are numbers, angles finite): a usage error as NaN
+          // is, not a failure of the run after the inputs were read.
+          if (is_float && CLI::detail::lexical_cast(text, v) && std::isinf(v))
+            return "expected a finite number, got '" + text + "'";
           return {};
         },
         ""));
