@@ -25,11 +25,17 @@ void check_render_size(const Context& ctx, const RenderSettings& s) {
   const uint64_t device_limit = std::min<uint64_t>(ctx.limits().maxStorageBufferRange, largest_heap);
   const std::string size = std::to_string(s.width) + "x" + std::to_string(s.height);
   if (image_bytes > device_limit) {
+    // In bytes where the rounded sizes read alike ("128 MiB, more than ... 128 MiB").
+    const bool alike = format_bytes(image_bytes) == format_bytes(device_limit);
+    const auto bytes = [&](uint64_t b) {
+      const bool exact = alike && (b == image_bytes || b == device_limit);
+      return format_bytes(b) + (exact ? " (" + std::to_string(b) + " bytes)" : "");
+    };
     const uint64_t side = uint64_t(std::sqrt(double(device_limit / 16)));
-    throw std::runtime_error("render settings: a " + size + " image needs a " + format_bytes(image_bytes) +
+    throw std::runtime_error("render settings: a " + size + " image needs a " + bytes(image_bytes) +
                              " image buffer, more than " + ctx.device_name() + " can bind (maxStorageBufferRange " +
-                             format_bytes(ctx.limits().maxStorageBufferRange) + ", largest memory heap " +
-                             format_bytes(largest_heap) + "); at most about " + std::to_string(side) + "x" +
+                             bytes(ctx.limits().maxStorageBufferRange) + ", largest memory heap " +
+                             bytes(largest_heap) + "); at most about " + std::to_string(side) + "x" +
                              std::to_string(side) + " pixels fit");
   }
   check_memory(pixels * 20 + pixels * 3, "render settings: reading back a " + size + " image");
