@@ -83,6 +83,14 @@ TEST_F(RenderCli, APictureNoRayOfWhichMetTheVolumeWarns) {
   r = run_cli(common + " --out " + dir / "large.png" + " --width 512 --height 512");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(r.output.find("no ray"), std::string::npos) << r.output;
+  // Rays that meet a box but step across it between two samples: the step is named, not the
+  // picture's size.
+  write_floats(dir / "cube_16x16x16_float32.raw", std::vector<float>(16 * 16 * 16, 0.5f));
+  r = run_cli("render --volume " + dir / "cube_16x16x16_float32.raw" + " --tf " + dir / "tf.json" + " --range 0,1" +
+              " --out " + dir / "steps.png" + " --width 64 --height 64 --step 64");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("the step (--step 64 voxels) is as long as the volume's box is thin (16 voxels)"),
+            std::string::npos) << r.output;
 }
 
 // A ParaView preset holds sRGB colours; rendered fully opaque over black, its colour must come

@@ -60,7 +60,16 @@ int run(RenderArgs a) {
   outputs.commit();
   // No ray met the box (a grid of one voxel in two axes is a line thinner than a pixel at a
   // small size): a picture of the background only is not the volume, so say so.
-  if (image.samples() == 0)
+  // A step longer than the box's thinnest side can carry every ray across it without a sample.
+  const double finest = std::min({geometry.axis_scale.x, geometry.axis_scale.y, geometry.axis_scale.z});
+  const glm::dvec3 extent = 2.0 * geometry.half_extent();
+  const double thinnest = std::min({extent.x, extent.y, extent.z}) / finest;
+  if (image.samples() == 0 && a.settings.step_voxels >= thinnest)
+    std::cerr << "tfmatch: warning: no sample was taken, so the picture shows only the background: the step (--step "
+              << a.settings.step_voxels << " voxels) is as long as the volume's box is thin (" << thinnest
+              << " voxels), so rays can cross it between two samples; a smaller --step shows it (or, if no ray met "
+                 "the box, a larger --width/--height or another --azimuth/--elevation)\n";
+  else if (image.samples() == 0)
     std::cerr << "tfmatch: warning: no ray of the " << a.settings.width << "x" << a.settings.height
               << " picture met the volume's box (" << volume.dims[0] << "x" << volume.dims[1] << "x" << volume.dims[2]
               << " voxels), so it shows only the background; a larger --width/--height, a smaller --distance or "
