@@ -337,7 +337,7 @@ TransferFunction parse_transfer_function(std::string_view text, const std::strin
     throw std::runtime_error(name + ": not a transfer function (expected XML, tfmatch JSON or a ParaView preset)");
   if (text[p] == '{') {
     nlohmann::json doc = nlohmann::json::parse(text, nullptr, false);
-    if (doc.is_discarded()) throw std::runtime_error(name + ": not valid JSON");
+    if (doc.is_discarded()) parse_tf_json(std::string(text), name);  // throws, saying where
     if (doc.contains("rgba")) {
       TransferFunction tf = parse_tf_json(std::string(text), name);
       return options.table_size ? tf.resampled(options.table_size) : tf;

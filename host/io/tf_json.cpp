@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <iomanip>
 #include <sstream>
 #include <stdexcept>
 
@@ -41,8 +42,13 @@ TransferFunction parse_tf_json(const std::string& text, const std::string& sourc
         throw std::runtime_error(source + ": rgba row " + std::to_string(row) + " has a non-number");
       v[c] = e[c].get<double>();
       if (!std::isfinite(v[c]) || v[c] < 0.0 || v[c] > 1.0)
-        throw std::runtime_error(source + ": rgba row " + std::to_string(row) + " has value " +
-                                 std::to_string(v[c]) + " outside [0,1]");
+      {
+        // Ten digits: 1.0000001 and -1e-09 as such (std::to_string showed 1.000000 and -0.000000).
+        std::ostringstream value;
+        value << std::setprecision(10) << v[c];
+        throw std::runtime_error(source + ": rgba row " + std::to_string(row) + " has value " + value.str() +
+                                 " outside [0,1]");
+      }
     }
     if (srgb)
       for (int c = 0; c < 3; ++c) v[c] = srgb_to_linear(v[c]);

@@ -235,6 +235,9 @@ TEST(TfFormats, MalformedFilesGiveClearErrors) {
   expect_error([&] { parse(preset("XYZ", "0,0,0,0, 1,1,1,1", "")); }, {"unknown ColorSpace 'XYZ'"});
   expect_error([&] { parse("{\"Name\": \"x\"}"); }, {"no \"RGBPoints\""});
   expect_error([&] { parse("[1, 2"); }, {"not valid JSON"});
+  expect_error([&] { parse("{\"rgba\": [[0,0,0,0],[1,1,1"); }, {"mem.tf", "not valid JSON", "line 1, column"});
+  expect_error([&] { parse("{\"rgba\": [[0,0,0,0],[1.0000001,1,1,1]]}"); }, {"row 1 has value 1.0000001 outside"});
+  expect_error([&] { parse("{\"rgba\": [[0,0,0,-1e-9],[1,1,1,1]]}"); }, {"row 0 has value -1e-09 outside"});
   expect_error([&] { parse("{\"rgba\": [[0,0,0,0]]}"); }, {"at least 2 entries"});
   expect_error([&] { parse("{\"colorspace\": \"cmyk\", \"rgba\": [[0,0,0,0],[1,1,1,1]]}"); },
                {"unknown \"colorspace\" \"cmyk\" (linear-rgb, the default, or srgb)"});
