@@ -41,27 +41,37 @@ std::string metric_row(const std::string& name, double before, double after, int
 
 const char* kStyle = R"(
 body { font-family: sans-serif; margin: 24px; color: #222; background: #fafafa; }
-h1 { font-size: 22px; margin-bottom: 4px; }
+h1 { font-size: 22px; margin-bottom: 4px; overflow-wrap: anywhere; }
 h2 { font-size: 17px; margin-top: 28px; border-bottom: 1px solid #ddd; padding-bottom: 4px; }
-.sub { color: #666; font-size: 13px; }
+.sub { color: #666; font-size: 13px; overflow-wrap: anywhere; }
 .grid { display: grid; gap: 14px; align-items: start; }
 .g3 { grid-template-columns: repeat(3, minmax(0, 1fr)); }
 .g2 { grid-template-columns: repeat(2, minmax(0, 1fr)); }
 figure { margin: 0; background: #fff; border: 1px solid #e2e2e2; padding: 6px; }
 figure img { width: 100%; height: auto; display: block; image-rendering: auto; }
-figcaption { font-size: 13px; color: #444; padding-top: 4px; text-align: center; }
-table { border-collapse: collapse; background: #fff; font-size: 14px; }
+figcaption { font-size: 13px; color: #444; padding-top: 4px; text-align: center; overflow-wrap: anywhere; }
+table { border-collapse: collapse; background: #fff; font-size: 14px; display: block; max-width: 100%; overflow-x: auto; }
 td, th { border: 1px solid #ddd; padding: 5px 12px; text-align: right; }
-td:first-child, th:first-child { text-align: left; }
+td:first-child, th:first-child { text-align: left; overflow-wrap: anywhere; min-width: 14em; }
 td.better { background: #e6f4e6; font-weight: bold; }
 pre.cmd { background: #fff; border: 1px solid #e2e2e2; padding: 6px; white-space: pre-wrap; word-break: break-all; }
-div.warn { background: #fff4d6; border: 1px solid #e0b84a; padding: 4px 12px; margin: 12px 0; }
-.note { font-size: 12px; color: #666; max-width: 60em; }
+div.warn { background: #fff4d6; border: 1px solid #e0b84a; padding: 4px 12px; margin: 12px 0; overflow-wrap: anywhere; }
+.note { font-size: 12px; color: #666; max-width: 60em; overflow-wrap: anywhere; }
+@media (max-width: 700px) {
+  body { margin: 10px; }
+  .g2, .g3 { grid-template-columns: minmax(0, 1fr); }
+}
 )";
 
 }  // namespace
 
-const char* report_css() { return kStyle; }
+std::string report_head(const std::string& title) {
+  // A viewport: without it a phone lays the page out 980 px wide and shrinks it; with it the grids
+  // stack into one column below 700 px (kStyle).
+  return "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
+         "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n<title>" +
+         html_escape(title) + "</title>\n<style>" + kStyle + "</style></head><body>\n";
+}
 
 std::string report_number(double v, int digits) {
   if (std::isinf(v)) return "inf";
@@ -74,8 +84,7 @@ std::string report_number(double v, int digits) {
 std::string report_html(const ReportInputs& in, const ReportSummary& s, const nlohmann::json& metrics) {
   const OptimizeResult& r = in.result;
   std::ostringstream h;
-  h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<title>" << escape(in.title)
-    << "</title>\n<style>" << kStyle << "</style></head><body>\n";
+  h << report_head(in.title);
   h << "<h1>" << escape(in.title) << "</h1>\n<div class=\"sub\">reference: " << escape(in.ref.name)
     << " &middot; field: " << escape(in.field.name) << " &middot; grid " << in.ref.dims[0] << "&times;"
     << in.ref.dims[1] << "&times;" << in.ref.dims[2] << " &middot; solver: " << escape(r.solver)

@@ -16,7 +16,8 @@ std::string report_html(const ReportInputs& inputs, const ReportSummary& summary
 std::string report_number(double v, int digits);
 // `text` with &, <, > and " as HTML entities.
 std::string html_escape(const std::string& text);
-// The style sheet of the report pages (figures in grids, tables, notes).
-const char* report_css();
+// The start of a report page up to <body>: doctype, charset, viewport, the title (escaped) and
+// the style sheet (figures in grids that stack on narrow screens, tables, notes).
+std::string report_head(const std::string& title);
 
 }  // namespace tfm

@@ -237,8 +237,7 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
   summary.files.push_back("series.json");
 
   std::ostringstream h;
-  h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<title>" << html_escape(in.title)
-    << "</title>\n<style>" << report_css() << "</style></head><body>\n";
+  h << report_head(in.title);
   h << "<h1>" << html_escape(in.title) << "</h1>\n<div class=\"sub\">reference: " << html_escape(in.ref.name) << " &middot; "
     << n << " fields &middot; grid " << in.ref.dims[0] << "&times;" << in.ref.dims[1] << "&times;" << in.ref.dims[2]
     << " &middot; solver " << html_escape(r.solver) << (r.shared_tf ? ", one TF shared by all fields" : ", one TF per field")
