@@ -130,7 +130,8 @@ SolveResult solve_normal_equations(const NormalEquations& eq, const SolveOptions
     }
   if (result.clamped_values > 0) {
     std::ostringstream os;
-    os << result.clamped_values << " TF components fell outside [0,1] and were clamped; "
+    os << result.clamped_values << (result.clamped_values == 1 ? " TF component fell" : " TF components fell")
+       << " outside [0,1] and " << (result.clamped_values == 1 ? "was" : "were") << " clamped; "
        << parameter("solver") << " qp gives the exact box-constrained optimum";
     result.warnings.push_back(os.str());
   }

@@ -170,6 +170,11 @@ TEST(BoxQp, ActiveConstraintsBeatClampingAndSatisfyKkt) {
   const NormalEquations eq = equations_of(d);
   const SolveResult ne = solve_normal_equations(eq);
   ASSERT_GT(ne.clamped_values, 0u) << "the step should push the unconstrained fit out of [0,1]";
+  const std::string said = std::to_string(ne.clamped_values) +
+                          (ne.clamped_values == 1 ? " TF component fell outside [0,1] and was clamped"
+                                                  : " TF components fell outside [0,1] and were clamped");
+  ASSERT_EQ(ne.warnings.size(), 1u);
+  EXPECT_EQ(ne.warnings[0].find(said), 0u) << ne.warnings[0];
   const BoxQpResult qp = solve_box_constrained(eq);
   const Tridiagonal h = regularized_matrix(eq, {});
   double clamped_total = 0.0, qp_total = 0.0;
