@@ -6,6 +6,9 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "tfmatch/report/font.h"
+#include "tfmatch/report/tf_plot.h"
+
 namespace tfm {
 namespace {
 
@@ -29,14 +32,16 @@ Image plot_loss_curve(std::span<const double> curve, uint32_t width, uint32_t he
   if (!(hi > 0)) lo = hi = 1.0;
   double l0 = std::floor(std::log10(lo)), l1 = std::ceil(std::log10(hi));
   if (l1 <= l0) l1 = l0 + 1;
-  const std::string top_label = short_number(std::pow(10.0, l1)), bottom_label = short_number(std::pow(10.0, l0));
-  const int left = 10 + std::max(text_width(top_label), text_width(bottom_label)), right = int(width) - 10;
+  // Every decade labelled where the labels fit one above another, else every k-th.
+  const int decades = int(l1 - l0), line_height = text_height(1) + 4;
+  int label_width = 0;
+  for (int d = 0; d <= decades; ++d) label_width = std::max(label_width, text_width(short_number(std::pow(10.0, l0 + d))));
+  const int left = 10 + label_width, right = int(width) - 10;
   const int top = 8 + text_height(1) + 6, bottom = int(height) - 8 - text_height(1) - 4;
-  draw_text(img, 10, 6, title, text);
-  for (double d = l0 + 1; d < l1; d += 1) {
-    const int y = int(std::lround(bottom - (d - l0) / (l1 - l0) * (bottom - top)));
-    fill_rect(img, left, y, right - left, 1, grid);
-  }
+  draw_text(img, 10, 6, title + " (log scale)", text);
+  const int every = std::max(1, int(std::ceil(double(decades) * line_height / std::max(1, bottom - top))));
+  auto decade_y = [&](double d) { return int(std::lround(bottom - d / (l1 - l0) * (bottom - top))); };
+  for (int d = 1; d < decades; ++d) fill_rect(img, left, decade_y(d), right - left, 1, grid);
   auto px = [&](size_t i) { return left + (curve.size() < 2 ? 0.0 : double(i) / double(curve.size() - 1)) * (right - left); };
   auto py = [&](double v) {
     const double l = v > 0 && std::isfinite(v) ? std::log10(v) : l0;
@@ -48,15 +53,30 @@ Image plot_loss_curve(std::span<const double> curve, uint32_t width, uint32_t he
   fill_rect(img, left, bottom, right - left, 1, frame);
   fill_rect(img, left, top, 1, bottom - top, frame);
   fill_rect(img, right - 1, top, 1, bottom - top, frame);
-  draw_text(img, 6, top - text_height(1) / 2, top_label, text);
-  draw_text(img, 6, bottom - text_height(1) / 2, bottom_label, text);
-  const std::string last = "iteration " + std::to_string(curve.size() - 1);
-  draw_text(img, left, bottom + 4, "0", text);
-  draw_text(img, right - text_width(last), bottom + 4, last, text);
+  for (int d = 0; d <= decades; d += every)
+    draw_text(img, 6, decade_y(d) - text_height(1) / 2, short_number(std::pow(10.0, l0 + d)), text);
+  // Iterations on round ticks, the last one named.
+  const double last = double(curve.size() - 1);
+  const std::string last_label = "iteration " + short_number(last);
+  const int last_x = right - text_width(last_label);
+  int free_from = left;
+  for (double t : nice_ticks(0.0, std::max(last, 1.0), 6)) {
+    if (t > last) continue;
+    const int x = int(std::lround(px(size_t(t))));
+    const std::string label = short_number(t);
+    const int lx = std::max(x - text_width(label) / 2, left);
+    fill_rect(img, x, bottom, 1, 3, frame);
+    if (lx >= free_from && lx + text_width(label) + 6 < last_x) {
+      draw_text(img, lx, bottom + 4, label, text);
+      free_from = lx + text_width(label) + 6;
+    }
+  }
+  draw_text(img, last_x, bottom + 4, last_label, text);
   return img;
 }
 
 std::vector<ReportFigure> solver_report_figures(const OptimizeResult& r, uint32_t width) {
+  install_report_font();  // the reports' font, whoever calls first (the CLI draws this before the report)
   const DetailValue* curve_value = r.details.find("loss_curve");
   if (!curve_value || !curve_value->is_list() || curve_value->size() == 0) return {};
   const std::vector<double> curve = curve_value->get<std::vector<double>>();

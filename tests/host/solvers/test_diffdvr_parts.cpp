@@ -11,6 +11,7 @@
 #include "tfmatch/kernels/diffdvr.h"
 #include "tfmatch/model/cameras.h"
 #include "tfmatch/reference/diffdvr_cpu.h"
+#include "tfmatch/report/font.h"
 #include "tfmatch/report/loss_plot.h"
 #include "tfmatch/solvers/adam.h"
 
@@ -144,7 +145,13 @@ TEST(DiffDvrPlot, DrawsTheCurveAndRejectsEmptyInput) {
   EXPECT_TRUE(solver_report_figures(r).empty());
   r.solver = "diffdvr";
   r.details["loss_curve"] = curve;
+  // Drawn in the reports' font even before a report installs it (the CLI draws it first: the
+  // bitmap font's "l2" read "12").
+  set_text_face(nullptr);
   ASSERT_EQ(solver_report_figures(r).size(), 1u);
+  if (!report_font_file().empty()) {
+    EXPECT_NE(text_face(), nullptr) << "the loss plot was drawn in the bitmap font";
+  }
   EXPECT_EQ(solver_report_figures(r)[0].file, "loss.png");
 }
 
