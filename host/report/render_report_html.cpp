@@ -1,6 +1,7 @@
 // index.html of a report: pictures in a grid, metrics in a table, settings at the end.
 #include "tfmatch/report/render_report_html.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -31,9 +32,11 @@ std::string figure(const std::string& file, const std::string& caption) {
 }
 
 // A row of the metrics table; `better` says which direction improves, and the after cell is
-// marked when it moved that way.
+// marked when it moved that way by more than 1 % (a residual max of 1.213 -> 1.212 is no gain).
 std::string metric_row(const std::string& name, double before, double after, int digits, bool higher_is_better) {
-  const bool improved = higher_is_better ? after > before : after < before;
+  const double margin = std::isfinite(before) && std::isfinite(after) ? 0.01 * std::max(std::abs(before), std::abs(after))
+                                                                      : 0.0;
+  const bool improved = higher_is_better ? after > before + margin : after < before - margin;
   return "<tr><td>" + name + "</td><td>" + report_number(before, digits) + "</td><td" +
          (improved ? " class=\"better\"" : "") + ">" + report_number(after, digits) + "</td><td>" +
          (higher_is_better ? "higher is better" : "lower is better") + "</td></tr>\n";
@@ -99,7 +102,7 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
   }
   h << "<h2>Renderings</h2>\n";
   if (!in.markers.empty()) {
-    h << "<p class=\"note\">Red dots: reference point" << (in.markers.size() > 1 ? "s" : "");
+    h << "<p class=\"note\">" << (in.markers.size() > 1 ? "Red dots: reference points" : "Red dot: reference point");
     for (size_t i = 0; i < in.markers.size(); ++i)
       h << (i ? ", " : " ") << escape(describe_grid_point(in.ref, in.markers[i]));
     h << " (drawn over the volume, visible from every side).</p>\n";

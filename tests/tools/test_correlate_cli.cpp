@@ -277,7 +277,7 @@ TEST(EnsembleDemo, WritesCorrelationFieldsAndAReportWithTheMarker) {
   ASSERT_EQ(j["markers"].size(), 1u);
   std::ifstream html(dir / "demo/index.html");
   const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
-  EXPECT_NE(page.find("Red dots: reference point"), std::string::npos);
+  EXPECT_NE(page.find("Red dot: reference point ("), std::string::npos);  // one marker: one dot
 }
 
 // The README's ERA5 recipe (temperature, 10 members): MI and Pearson fields of one point, the

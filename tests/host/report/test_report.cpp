@@ -86,6 +86,18 @@ TEST_F(Report, WritesPicturesMetricsAndPage) {
   EXPECT_NE(html.find("tfmatch optimize --ref 'a b.nc:T' --out x.json"), std::string::npos) << html;
   EXPECT_NE(html.find("tfmatch 9.9.9 (commit test)"), std::string::npos);
   EXPECT_NE(html.find("histograms linear counts"), std::string::npos);
+  // An after cell is marked better only past 1 % of the larger value (1.213 -> 1.212 was marked).
+  const auto row = [&](const std::string& name) {
+    const size_t at = html.find("<tr><td>" + name + "</td>");
+    return at == std::string::npos ? std::string() : html.substr(at, html.find("</tr>", at) - at);
+  };
+  ASSERT_FALSE(row("Residual max").empty()) << html;
+  const bool rmse_better = after.rmse < before.rmse - 0.01 * std::max(before.rmse, after.rmse);
+  EXPECT_EQ(row("Image RMSE (0&ndash;255)").find("class=\"better\"") != std::string::npos, rmse_better)
+      << row("Image RMSE (0&ndash;255)");
+  const double rb = s.residual_max_before, ra = s.residual_max_after;
+  EXPECT_EQ(row("Residual max").find("class=\"better\"") != std::string::npos, ra < rb - 0.01 * std::max(rb, ra))
+      << row("Residual max");
   EXPECT_EQ(read_text(dir / "command.txt"), in.command_line + "\n" + in.version + "\n");
   EXPECT_EQ(read_transfer_function(dir / "reference_tf.json").rgba, ref_tf.rgba);
   const TransferFunction saved = read_transfer_function(dir / "optimized_tf.json");
