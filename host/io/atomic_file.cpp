@@ -156,7 +156,14 @@ fs::path OutputBatch::directory(const fs::path& dir) {
   while (top.has_parent_path() && top.parent_path() != top && !fs::exists(top.parent_path(), ec)) top = top.parent_path();
   const fs::path rest = full.lexically_relative(top);
   for (const auto& [staged, final] : state_->directories)
-    if (final == top) return rest.empty() || rest == "." ? staged : staged / rest;
+    if (final == top) {
+      // A level below a directory this batch already stages (demo --out D --report D/rep): made
+      // inside it.
+      if (rest.empty() || rest == ".") return staged;
+      fs::create_directories(staged / rest, ec);
+      if (ec) throw std::runtime_error(dir.string() + ": cannot create the directory (" + ec.message() + ")");
+      return staged / rest;
+    }
   const fs::path parent = top.parent_path();
   if (!fs::is_directory(parent, ec)) throw std::runtime_error(dir.string() + ": " + parent.string() + " is not a directory");
   const fs::path staged = temporary_name(top);

@@ -134,12 +134,15 @@ TEST(AtomicFile, BatchCommitsTogetherOrLeavesNothing) {
   {
     OutputBatch batch;
     write_file_atomically(dir / "old.txt", "new");
+    write_file_atomically(batch.directory(dir / "made") / "top.txt", "t");
+    // A level below the staged directory that nothing made yet (demo --out D --report D/rep).
     write_file_atomically(batch.directory(dir / "made/deeper") / "inside.txt", "x");
     batch.commit();
   }
   EXPECT_EQ(read_text(dir / "old.txt"), "new");
   EXPECT_EQ(read_text(dir / "made/deeper/inside.txt"), "x");
-  EXPECT_EQ(files_under(dir.path), (std::vector<std::string>{"made", "made/deeper", "made/deeper/inside.txt", "old.txt"}));
+  EXPECT_EQ(files_under(dir.path),
+            (std::vector<std::string>{"made", "made/deeper", "made/deeper/inside.txt", "made/top.txt", "old.txt"}));
   EXPECT_TRUE(pending_temporary_paths().empty());
 }
 
