@@ -240,6 +240,18 @@ int text_width(const std::string& text, int scale) {
 
 int text_height(int scale) { return g_face ? g_face->height(scale) : 7 * scale; }
 
+std::string fit_text(const std::string& text, int max_width, int scale) {
+  if (text_width(text, scale) <= max_width) return text;
+  const std::string dots = "...";
+  if (text_width(dots, scale) > max_width) return "";
+  for (size_t start = 1; start < text.size(); ++start) {
+    if ((static_cast<unsigned char>(text[start]) & 0xC0) == 0x80) continue;  // inside a UTF-8 character
+    const std::string candidate = dots + text.substr(start);
+    if (text_width(candidate, scale) <= max_width) return candidate;
+  }
+  return dots;
+}
+
 void blit(Image& dst, const Image& src, int x, int y) {
   for (uint32_t yy = 0; yy < src.height; ++yy)
     for (uint32_t xx = 0; xx < src.width; ++xx) {

@@ -62,6 +62,10 @@ void draw_line(Image& img, double x0, double y0, double x1, double y1, Rgb8 c, d
 int draw_text(Image& img, int x, int y, const std::string& text, Rgb8 c, int scale = 1);
 int text_width(const std::string& text, int scale = 1);
 int text_height(int scale = 1);
+// `text` when it is at most `max_width` pixels wide, else "..." and the longest end of it that
+// fits (a path's end names the file and variable; its start is the least telling), cut at a
+// character, not inside a UTF-8 sequence. "" when not even "..." fits.
+std::string fit_text(const std::string& text, int max_width, int scale = 1);
 
 // A real font for the pictures people read (host/report/font.h installs one rendered with
 // FreeType). Core keeps no font dependency: without a face, text falls back to the bitmap font.

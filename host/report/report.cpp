@@ -73,7 +73,6 @@ double fraction_inside(const Volume& residual, const std::vector<uint8_t>& mask)
 }
 
 Image metrics_panel(const ReportSummary& s, const OptimizeResult& r, uint32_t width, uint32_t height) {
-  Image img(width, height);
   const Rgb8 ink{30, 30, 30}, muted{110, 110, 110}, warn{150, 80, 0};
   struct Row {
     std::string name, before, after;
@@ -98,10 +97,20 @@ Image metrics_panel(const ReportSummary& s, const OptimizeResult& r, uint32_t wi
       c = std::max(c, text_width(x.after, scale));
     return std::array<int, 3>{a, b, c};
   };
-  const int scale = [&] {
-    const auto w = widths(2);
-    return w[0] + w[1] + w[2] + 2 * 16 + 24 <= int(width) ? 2 : 1;
-  }();
+  // The table and the solver line: scale 2 where they fit the picture's width and height, else 1
+  // (small pictures), and the panel grows to hold them at scale 1 (at 240 x 120 the last rows
+  // were cut through).
+  auto table_size = [&](int scale) {
+    const auto w = widths(scale);
+    const int line = text_height(scale) + 3 * scale;
+    return std::pair{w[0] + w[1] + w[2] + 2 * 8 * scale + 24, 12 + int(rows.size() + 1) * line + 4};
+  };
+  const auto [w2, h2] = table_size(2);
+  const int scale = w2 <= int(width) && h2 <= int(height) ? 2 : 1;
+  const auto [needed_w, needed_h] = table_size(scale);
+  width = std::max<uint32_t>(width, uint32_t(needed_w));
+  height = std::max<uint32_t>(height, uint32_t(needed_h));
+  Image img(width, height);
   const auto w = widths(scale);
   const int gap = 8 * scale, line = text_height(scale) + 3 * scale;
   int y = 12;
@@ -114,23 +123,35 @@ Image metrics_panel(const ReportSummary& s, const OptimizeResult& r, uint32_t wi
   }
   draw_text(img, 12, y, "solver: " + r.solver, muted, scale);
   y += line + 4;
-  // Warnings, word-wrapped at scale 1, as many as fit.
-  for (const std::string& text : r.warnings) {
+  // Warnings, word-wrapped at scale 1, whole ones as many as fit; the rest are counted on the last
+  // line (the page lists them all).
+  const int th = text_height(1);
+  for (size_t k = 0; k < r.warnings.size(); ++k) {
+    std::vector<std::string> lines;
     std::string current = "warning:";
-    std::istringstream words(text);
+    std::istringstream words(r.warnings[k]);
     for (std::string word; words >> word;) {
       if (text_width(current + " " + word, 1) > int(width) - 24) {
-        if (y + text_height(1) > int(height)) return img;
-        draw_text(img, 12, y, current, warn, 1);
-        y += text_height(1) + 2;
+        lines.push_back(current);
         current = "  " + word;
       } else {
         current += " " + word;
       }
     }
-    if (y + text_height(1) > int(height)) return img;
-    draw_text(img, 12, y, current, warn, 1);
-    y += text_height(1) + 6;
+    lines.push_back(current);
+    const bool last = k + 1 == r.warnings.size();
+    const int room_for_note = last ? 0 : th + 2;
+    if (y + int(lines.size()) * (th + 2) + room_for_note > int(height)) {
+      const size_t left = r.warnings.size() - k;
+      draw_text(img, 12, y, fit_text(std::to_string(left) + (left == 1 ? " more warning" : " more warnings") +
+                                         " on the report page", int(width) - 24), warn, 1);
+      return img;
+    }
+    for (const std::string& l : lines) {
+      draw_text(img, 12, y, l, warn, 1);
+      y += th + 2;
+    }
+    y += 4;
   }
   return img;
 }

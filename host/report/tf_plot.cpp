@@ -54,7 +54,12 @@ Image plot_transfer_function(const TransferFunction& tf, std::span<const float> 
   const int plot_bottom = int(o.height) - bottom_block;
   const int plot_w = right - left, plot_h = plot_bottom - top;
   if (plot_h < 20) throw std::invalid_argument("plot_transfer_function: plot too small for its labels");
-  if (!o.title.empty()) draw_text(img, 8, 6, o.title, text);
+  // Which histogram this is: beside the title, right-aligned, where the title leaves room; else
+  // on a white patch in the plot's top-right corner (the opacity curve of a ramp ends there).
+  const std::string scale = o.log_counts ? "histogram: log(1 + count)" : "histogram: count";
+  const bool scale_beside_title =
+      !o.title.empty() && 8 + text_width(o.title) + 12 + text_width(scale) <= right;
+  if (!o.title.empty()) draw_text(img, 8, 6, fit_text(o.title, right - 8), text);
 
   // Histogram: one bar per pixel column.
   const auto counts = field_histogram(values, range, uint32_t(plot_w));
@@ -86,9 +91,14 @@ Image plot_transfer_function(const TransferFunction& tf, std::span<const float> 
   fill_rect(img, left, plot_bottom, plot_w, 1, frame);
   fill_rect(img, left, top, 1, plot_h, frame);
   fill_rect(img, right - 1, top, 1, plot_h, frame);
-  // Which histogram this is, in the plot's top-right corner.
-  const std::string scale = o.log_counts ? "histogram: log(1 + count)" : "histogram: count";
-  draw_text(img, right - 4 - text_width(scale), top + 3, scale, muted);
+  if (scale_beside_title) {
+    draw_text(img, right - text_width(scale), 6, scale, muted);
+  } else {
+    const std::string fitted = fit_text(scale, plot_w - 10);
+    const int sx = right - 4 - text_width(fitted);
+    fill_rect(img, sx - 3, top + 1, text_width(fitted) + 6, th + 4, {255, 255, 255});
+    draw_text(img, sx, top + 3, fitted, muted);
+  }
   const int bar_top = plot_bottom + 3;
   for (int x = 0; x < plot_w; ++x) {
     const Rgba c = tf.eval((x + 0.5) / plot_w);
@@ -107,8 +117,12 @@ Image plot_transfer_function(const TransferFunction& tf, std::span<const float> 
     draw_text(img, lx, label_y, label, text);
     last_right = lx + w;
   }
-  if (!o.axis_label.empty())
-    draw_text(img, left + (plot_w - text_width(o.axis_label)) / 2, label_y + th + 2, o.axis_label, muted);
+  if (!o.axis_label.empty()) {
+    // Centred under the plot, or as much of its end as the picture holds ("...grib:t,member=0").
+    const std::string label = fit_text(o.axis_label, int(o.width) - 8);
+    const int lx = std::clamp(left + (plot_w - text_width(label)) / 2, 4, std::max(4, int(o.width) - 4 - text_width(label)));
+    draw_text(img, lx, label_y + th + 2, label, muted);
+  }
   return img;
 }
 

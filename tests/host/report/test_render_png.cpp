@@ -320,6 +320,40 @@ TEST(RenderPng, TfPlotShowsHistogramCurveAndColourBar) {
   EXPECT_NO_THROW(plot_transfer_function(tf, values, {0, 1}, o));
 }
 
+// Labels longer than their room keep their end ("...grib:t,member=3") and stay whole characters;
+// a TF plot's axis label is drawn inside the picture whatever its length.
+TEST(RenderPng, LongLabelsKeepTheirEndInsideThePicture) {
+  TextFaceGuard guard;
+  for (const TextFace* face : {static_cast<const TextFace*>(nullptr), report_face()}) {
+    set_text_face(face);
+    SCOPED_TRACE(face ? "FreeType" : "bitmap font");
+    const std::string path = "/data/era5/levels-members.grib:t@isobaricInhPa,time=0,member=3";
+    EXPECT_EQ(fit_text(path, text_width(path)), path);
+    const std::string fitted = fit_text(path, 120);
+    EXPECT_LE(text_width(fitted), 120);
+    ASSERT_GT(fitted.size(), 3u);
+    EXPECT_EQ(fitted.substr(0, 3), "...");
+    EXPECT_TRUE(path.ends_with(fitted.substr(3))) << fitted;
+    EXPECT_GT(text_width(fitted), 120 - text_width("WW")) << "as much of the end as fits";
+    // UTF-8: never half a character.
+    const std::string greek = "\xce\xb8\xce\xb8\xce\xb8\xce\xb8\xce\xb8\xce\xb8 potential temperature";
+    const std::string g = fit_text(greek, text_width(greek) - 1);
+    EXPECT_NE(static_cast<unsigned char>(g[3]) & 0xC0, 0x80u) << g;
+    EXPECT_EQ(fit_text(path, 2), "");
+    // The axis label of a 240-pixel plot: no dark pixel in the outermost columns.
+    TransferFunction tf;
+    tf.rgba = {{0, 0, 1, 0}, {1, 0, 0, 1}};
+    std::vector<float> values(100, 0.5f);
+    TfPlotOptions o;
+    o.width = 240;
+    o.height = 170;
+    o.axis_label = path + path;
+    const Image img = plot_transfer_function(tf, values, {0, 1}, o);
+    for (uint32_t y = 0; y < img.height; ++y)
+      for (uint32_t x : {0u, 1u, img.width - 2, img.width - 1}) ASSERT_GT(img.at(x, y)[0], 200) << x << "," << y;
+  }
+}
+
 TEST(RenderPng, NiceTicksAreRoundAndInside) {
   const std::vector<double> unit = nice_ticks(0, 1, 5);
   ASSERT_EQ(unit.size(), 6u);
