@@ -95,9 +95,10 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
   for (const std::string& n : in.notes) h << "<p class=\"note\">" << escape(n) << "</p>\n";
 
   // Every warning of the run (ranges that miss a field, cond(M), clamping) where it is read first.
-  if (!r.warnings.empty()) {
+  if (!r.warnings.empty() || !s.warnings.empty()) {
     h << "<div class=\"warn\"><b>Warnings</b><ul>\n";
     for (const std::string& w : r.warnings) h << "<li>" << escape(w) << "</li>\n";
+    for (const std::string& w : s.warnings) h << "<li>" << escape(w) << "</li>\n";
     h << "</ul></div>\n";
   }
   h << "<h2>Renderings</h2>\n";

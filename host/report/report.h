@@ -73,7 +73,17 @@ struct ReportSummary {
   std::vector<Slice> slices;    // one per axis whose plane is at least 2 x 2 voxels
   GridIndex slice_point{};
   std::vector<std::string> files;  // every file written, relative to the report directory
+  // What the pictures themselves say is wrong (renderings nearly all background: their metrics
+  // compare empty pictures), on the page beside the run's warnings.
+  std::vector<std::string> warnings;
 };
+
+// The fraction of `img`'s pixels within 16 of 255 levels of `background` (linear RGB, as the
+// renderer's) in every channel: the background and colour too faint to tell from it (a picture of
+// pale pink haze on white is nearly empty to a reader).
+double background_fraction(const Image& img, const std::array<double, 3>& background);
+// Above this background fraction a rendering counts as nearly empty.
+inline constexpr double kNearlyEmptyFraction = 0.9;
 
 // Renders, measures and writes the report into `dir` (created if missing; other files there are
 // kept). Its files appear together when it is complete (host/io/atomic_file.h: an OutputBatch of

@@ -31,6 +31,8 @@ GlobalOptions& globals();
 // (a cache ignored, a file loaded whole, a TF clamped), never that a result may be wrong; a
 // warning does that, and -q keeps warnings.
 void print_note(const std::string& text, const std::string& prefix = "tfmatch");
+// Prints "tfmatch: warning: <text>" on stderr, with -q too.
+void print_warning(const std::string& text);
 
 // A subcommand adds itself to the app; its callback sets the exit code through `exit_code()`.
 using CommandSetup = std::function<void(CLI::App& app)>;

@@ -219,6 +219,8 @@ int run(const DemoArgs& args) {
     summary = write_report(*ctx, inputs, report_dir);
   }
   outputs.commit();
+  if (summary)
+    for (const std::string& w : summary->warnings) print_warning(w);
   if (!globals().quiet) {
     std::cout << "  wrote " << a.out << "/{";
     for (const auto& f : in.written) std::cout << f << ", ";

@@ -192,6 +192,8 @@ int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const So
     summary = write_report(ctx, inputs, a.report);
   }
   outputs.commit();
+  if (summary)
+    for (const std::string& w : summary->warnings) print_warning(w);
   if (!globals().quiet) {
     std::cout << "  wrote " << a.out << (json.file().empty() ? "" : " and " + a.json) << "\n";
     if (summary)
@@ -447,6 +449,8 @@ int run(const OptimizeArgs& a) {
     summary = write_report(*ctx, inputs, a.report);
   }
   outputs.commit();
+  if (summary)
+    for (const std::string& w : summary->warnings) print_warning(w);
   if (!globals().quiet) {
     std::cout << "  wrote " << a.out << (json.file().empty() ? "" : " and " + a.json) << "\n";
     if (summary)

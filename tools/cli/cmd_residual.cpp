@@ -51,7 +51,7 @@ int run(ResidualArgs a) {
   const VolumeOptions vo = a.volume_flags.options();
   auto [ref, field] = load_volume_pair(a.ref, a.field, vo);
   require_same_grid(ref, field);
-  if (const std::string w = grid_geometry_warning(ref, field); !w.empty()) std::cerr << "tfmatch: warning: " << w << "\n";
+  if (const std::string w = grid_geometry_warning(ref, field); !w.empty()) print_warning(w);
   if (!a.image.empty())  // the render settings shape --image alone
     if (const std::string note = apply_grid_defaults(a.settings, ref.dims, ref.spacing, a.chosen); !note.empty())
       print_note(note);

@@ -42,6 +42,8 @@ void print_note(const std::string& text, const std::string& prefix) {
   if (!globals().quiet) std::cerr << prefix << ": note: " << text << "\n";
 }
 
+void print_warning(const std::string& text) { std::cerr << "tfmatch: warning: " << text << "\n"; }
+
 std::vector<std::pair<int, CommandSetup>>& registered_commands() {
   static std::vector<std::pair<int, CommandSetup>> list;
   return list;

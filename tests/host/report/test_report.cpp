@@ -170,6 +170,24 @@ TEST_F(Report, PicturesCarryTheBoxOutline) {
     }
   EXPECT_GT(grey, 20u) << "outline pixels";
   EXPECT_FALSE(s.files.empty());
+  EXPECT_TRUE(s.warnings.empty()) << s.warnings[0];  // the demo pair shows its colours
+
+  // Nearly no opacity: pictures of the background, whose metrics agree whatever the TF. Said on
+  // the page and in metrics.json, with the fraction and the way out.
+  in.settings.opacity_scale = 0.01;
+  test::TempDir faint;
+  const ReportSummary f = write_report(ctx(), in, faint.path);
+  ASSERT_EQ(f.warnings.size(), 1u);
+  EXPECT_NE(f.warnings[0].find("nearly empty renderings: background, or colour too faint to tell from it, covers the reference ("), std::string::npos)
+      << f.warnings[0];
+  EXPECT_NE(f.warnings[0].find("--opacity-scale (now 0.01)"), std::string::npos) << f.warnings[0];
+  // The fraction on a picture: a white one is all background, a black one none of it.
+  EXPECT_EQ(background_fraction(Image(4, 3, {255, 255, 255}), {1.0, 1.0, 1.0}), 1.0);
+  EXPECT_EQ(background_fraction(Image(4, 3, {0, 0, 0}), {1.0, 1.0, 1.0}), 0.0);
+  EXPECT_EQ(background_fraction(Image(4, 3, {239, 239, 255}), {1.0, 1.0, 1.0}), 1.0);  // faint haze
+  EXPECT_EQ(background_fraction(Image(4, 3, {238, 255, 255}), {1.0, 1.0, 1.0}), 0.0);
+  EXPECT_NE(read_text(faint / "index.html").find("nearly empty renderings"), std::string::npos);
+  EXPECT_EQ(nlohmann::json::parse(read_text(faint / "metrics.json"))["report_warnings"][0], f.warnings[0]);
 }
 
 TEST_F(Report, RejectsFieldsOnDifferentGrids) {
