@@ -46,7 +46,12 @@ Image slice_image(const Volume& v, const SliceValues& s, const TransferFunction&
   auto extent = [&](int a) { return v.spacing[size_t(a)] * (a == 2 ? style.z_scale : 1.0); };
   const double w_phys = double(s.width) * extent(s.across), h_phys = double(s.height) * extent(s.up);
   const double px_per_unit = double(style.max_size) / std::max(w_phys, h_phys);
-  const double cell_w = std::max(1.0, extent(s.across) * px_per_unit), cell_h = std::max(1.0, extent(s.up) * px_per_unit);
+  double cell_w = std::max(1.0, extent(s.across) * px_per_unit), cell_h = std::max(1.0, extent(s.up) * px_per_unit);
+  // The shorter side at least a quarter of the longer: a plane through two pressure levels of a
+  // 120-wide grid was a strip 4 pixels tall, its tick labels printed over each other.
+  const double min_side = double(style.max_size) / 4.0;
+  cell_w = std::max(cell_w, min_side / double(s.width));
+  cell_h = std::max(cell_h, min_side / double(s.height));
   Image img(uint32_t(std::max(1.0, std::round(cell_w * double(s.width)))),
             uint32_t(std::max(1.0, std::round(cell_h * double(s.height)))));
   const FieldMapping m = make_mapping(range, uint32_t(tf.size()));
@@ -113,12 +118,15 @@ Image label_slice_axes(const Image& picture, const Volume& v, const SliceValues&
   draw_line(out, x0 - 4, bottom_y, x0 - 1, bottom_y, tick);
   const std::string across_first = coordinate_text(v, s.across, 0), across_last = coordinate_text(v, s.across, s.width - 1);
   const int ty = y1 + 4 + pad / 2;
-  draw_text(out, std::max(0, int(first_x) - text_width(across_first) / 2), ty, across_first, ink);
-  draw_text(out, int(last_x) - text_width(across_last) / 2, ty, across_last, ink);
+  const int first_left = std::max(0, int(first_x) - text_width(across_first) / 2);
+  draw_text(out, first_left, ty, across_first, ink);
+  if (int(last_x) - text_width(across_last) / 2 > first_left + text_width(across_first) + 4)
+    draw_text(out, int(last_x) - text_width(across_last) / 2, ty, across_last, ink);
   const std::string across_name = axis_label(v, s.across);
   draw_text(out, x0 + (int(picture.width) - text_width(across_name)) / 2, ty + line, across_name, ink);
   draw_text(out, x0 - 4 - pad - text_width(up_last), int(top_y) - line / 2, up_last, ink);
-  draw_text(out, x0 - 4 - pad - text_width(up_first), int(bottom_y) - line / 2, up_first, ink);
+  if (bottom_y - top_y >= line + 2)  // else the two labels would print over each other
+    draw_text(out, x0 - 4 - pad - text_width(up_first), int(bottom_y) - line / 2, up_first, ink);
   draw_text(out, std::max(0, x0 - text_width(up_name) / 2), 1, up_name, ink);
   return out;
 }

@@ -44,7 +44,9 @@ struct SliceStyle {
   // as it gets".
   double opacity_scale = 1.0;
   double z_scale = 1.0;       // vertical exaggeration of z (RenderSettings::z_scale)
-  uint32_t max_size = 384;    // longer side of the picture, pixels (at least one per voxel)
+  // Longer side of the picture, pixels (at least one per voxel); the shorter side is at least a
+  // quarter of it, whatever the plane's aspect (a slice through few levels is not a thin strip).
+  uint32_t max_size = 384;
 };
 
 // T(v) of every voxel of the slice as style.shading says (linear RGB), sRGB-encoded.

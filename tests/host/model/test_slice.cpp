@@ -66,6 +66,27 @@ TEST(Slice, PictureKeepsThePhysicalAspectWithVerticalExaggeration) {
   EXPECT_EQ(img.height, 20u);
 }
 
+// A plane through few levels is not a strip: its shorter side is at least a quarter of the longer
+// (two ERA5 levels across 120 longitudes were 4 pixels tall), each level drawn alike, and the
+// vertical axis's two tick labels no longer print over each other.
+TEST(Slice, FewLevelsStillMakeAPictureTallEnoughToRead) {
+  Volume v = numbered(120, 61, 2);
+  v.spacing = {3.0, 3.0, 1.0};
+  TransferFunction tf;
+  tf.rgba = {{0, 0, 0, 1}, {1, 1, 1, 1}};
+  SliceStyle style;
+  style.max_size = 480;
+  const SliceValues y = extract_slice(v, 1, 30);  // 120 x 2 voxels, 360 x 2 units
+  const Image img = slice_image(v, y, tf, {0.0, 120.0 * 61 * 2}, style);
+  EXPECT_EQ(img.width, 480u);
+  EXPECT_EQ(img.height, 120u);
+  // The two levels split the height evenly: the row above the middle is level 1, below level 0.
+  EXPECT_NE(img.at(5, 59)[0], img.at(5, 60)[0]);
+  EXPECT_EQ(img.at(5, 0)[0], img.at(5, 59)[0]);
+  const Image labelled = label_slice_axes(img, v, y);
+  EXPECT_GT(labelled.height, img.height);
+}
+
 TEST(Slice, ColoursAreTheTfsAtFullStrengthOrOverTheBackgroundByOpacity) {
   Volume v;
   v.dims = {2, 2, 1};
