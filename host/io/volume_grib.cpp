@@ -443,6 +443,8 @@ Volume read_grib(const GribSource& source, const VolumeOptions& options) {
   v.axes[2] = level_axis(want_level);
   for (const auto& m : msgs) v.axes[2].coordinates.push_back(m.level);
   v.name = file + ":" + want + "@" + want_level;
+  v.units = get_string(msgs[0].handle.get(), "units").value_or("");
+  if (v.units == "unknown" || v.units == "~") v.units.clear();  // ecCodes' words for none
   if (times.size() > 1) v.name += ",time=" + std::to_string(t);
   if (members.size() > 1) v.name += ",member=" + std::to_string(k);
   check_memory(v.voxel_count() * sizeof(float), what + ": " + std::to_string(v.dims[0]) + "x" + std::to_string(v.dims[1]) +

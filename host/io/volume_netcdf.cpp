@@ -532,6 +532,7 @@ Volume read_netcdf(const NcFile& f, const VolumeOptions& options) {
   const auto [axes, orientation] = oriented_axes(f, L);
   v.axes = axes;
   v.name = file + ":" + var;
+  v.units = att_text(f.id(), L.varid, "units").value_or("");
   if (L.time_axis >= 0 && L.dim_sizes[L.time_axis] > 1) v.name += ",time=" + std::to_string(t);
   if (member_axis >= 0) v.name += ",member=" + std::to_string(m);
   check_memory(voxels * sizeof(float), file + ": variable " + var + " " + L.shape());
@@ -569,6 +570,7 @@ class NetcdfSlabs final : public VolumeSlabReader {
     orientation_ = orientation;
     orient_axes(grid_.axes, grid_.origin, orientation_);
     grid_.name = file + ":" + layout_.name;
+    grid_.units = att_text(file_.id(), layout_.varid, "units").value_or("");
     if (layout_.time_axis >= 0 && layout_.dim_sizes[layout_.time_axis] > 1) grid_.name += ",time=" + std::to_string(t);
     if (sel.member_axis >= 0) grid_.name += ",member=" + std::to_string(m);
     unpack_ = unpacker_of(file_, layout_);

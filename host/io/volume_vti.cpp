@@ -389,6 +389,7 @@ Volume parse_vti(std::string_view bytes, const std::string& file, const VolumeOp
   v.spacing = doc.spacing;
   v.origin = origin_of(doc.origin, doc.spacing, pick.section);
   v.name = file + ":" + pick.name + (sel.component ? "[" + std::to_string(*sel.component) + "]" : "");
+  v.units = pick.units;
   v.values = select_component(decode_array(bytes, doc, pick, file), pick.components, sel.component, v.name);
   // Axis coordinates tfmatch wrote as field data (x_coordinates, ...), when they fit the grid.
   static const char* kAxes[3] = {"x", "y", "z"};
@@ -514,6 +515,7 @@ std::unique_ptr<VolumeSlabReader> open_vti_slabs(const std::filesystem::path& pa
   grid.spacing = doc.spacing;
   grid.origin = origin_of(doc.origin, doc.spacing, pick.section);
   grid.name = name;
+  grid.units = pick.units;
   return std::make_unique<VtiSlabs>(path, std::move(grid), header_at + header, pick.type, doc.big_endian,
                                     pick.components, sel.component);
 }
@@ -634,6 +636,8 @@ std::string vti_bytes(const std::vector<std::pair<std::string, const Volume*>>& 
       if (std::isfinite(x)) lo = std::min(lo, x), hi = std::max(hi, x);
     xml << "        <DataArray type=\"Float32\" Name=\"" << xml_escape(name) << "\" NumberOfComponents=\"1\" format=\"appended\"";
     if (lo <= hi) xml << " RangeMin=\"" << format_double(lo) << "\" RangeMax=\"" << format_double(hi) << "\"";
+    // The values' units as an extra attribute (VTK ignores it; tfmatch reads it back).
+    if (!v->units.empty()) xml << " units=\"" << xml_escape(v->units) << "\"";
     xml << " offset=\"" << offset << "\"/>\n";
   }
   xml << "      </PointData>\n      <CellData>\n      </CellData>\n    </Piece>\n  </ImageData>\n"

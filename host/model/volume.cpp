@@ -21,7 +21,7 @@ Volume empty_like(const Volume& like) {
   v.spacing = like.spacing;
   v.origin = like.origin;
   v.axes = like.axes;
-  v.name = like.name;
+  v.name = like.name;  // not the units: the new values are another quantity (a residual, a correlation)
   return v;
 }
 

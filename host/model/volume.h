@@ -23,6 +23,7 @@ struct Volume {
   std::array<GridAxis, 3> axes;                   // names, units, coordinates where the file has them
   std::vector<float> values;                      // NaN = no data
   std::string name;                               // where it came from, for messages
+  std::string units;                              // the values' units where the file says ("K"), else ""
 
   uint64_t voxel_count() const { return dims[0] * dims[1] * dims[2]; }
   float at(uint64_t x, uint64_t y, uint64_t z) const { return values[(z * dims[1] + y) * dims[0] + x]; }
@@ -32,7 +33,7 @@ struct Volume {
 // origin + i * spacing.
 double axis_coordinate(const Volume& v, int axis, uint64_t i);
 
-// A volume with the grid (dims, spacing, origin, axes) and name of `like` and no values.
+// A volume with the grid (dims, spacing, origin, axes) and name of `like`, no values, no units.
 Volume empty_like(const Volume& like);
 
 // Throws std::runtime_error when the two volumes are not on one grid.

@@ -237,6 +237,7 @@ TEST(GribRealFiles, Era5MembersAndTimesAndMultiParamSteps) {
   // point (90 N) is y = 60, -90 at y = 0.
   Volume t = load_volume(data("era5_ensemble_grib1/era5-levels-members.grib:t,member=3,time=2"));
   EXPECT_EQ(t.dims, (std::array<uint64_t, 3>{120, 61, 2}));
+  EXPECT_EQ(t.units, "K");  // ecCodes' units key
   EXPECT_EQ(t.axes[1].coordinates.front(), -90.0);
   EXPECT_EQ(t.axes[2].coordinates, (std::vector<double>{850, 500}));
   EXPECT_NEAR(t.at(0, 60, 0), 250.8110352, 1e-4);

@@ -415,6 +415,8 @@ TEST(NetcdfRealFiles, WrfNetcdf4TimeStepsAndStaggeredGrids) {
   EXPECT_FLOAT_EQ(q3.at(0, 0, 0), 0.02134872f);
   EXPECT_FLOAT_EQ(q3.at(30, 20, 5), 0.01894741f);
   EXPECT_FLOAT_EQ(load_volume(data("wrf_katrina/ci_test_file.nc:QVAPOR")).at(47, 47, 13), 0.006199233f);
+  EXPECT_EQ(q3.units, "kg kg-1");  // the variable's units attribute (report plots label with it)
+  EXPECT_EQ(open_volume_slabs(data("wrf_katrina/ci_test_file.nc:T"))->grid().units, "K");
   // U is staggered in x: a clear error against a mass-grid field.
   Volume u = load_volume(data("wrf_katrina/ci_test_file.nc:U"));
   EXPECT_EQ(u.dims, (std::array<uint64_t, 3>{49, 48, 14}));

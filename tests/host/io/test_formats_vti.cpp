@@ -137,12 +137,15 @@ TEST(Vti, WriterRoundTripsThroughTheReader) {
   a.values[7] = NAN;
   Volume b = a;
   for (float& x : b.values) x *= 2;
+  a.units = "kg m-3 <dry>";  // written as the array's units attribute, read back
   for (bool compress : {true, false}) {
     const auto path = dir / (compress ? "z.vti" : "raw.vti");
     write_vti(path, {{"first & <one>", &a}, {"second", &b}}, VtiWriteOptions{compress});
     Volume ra = load_volume(path.string());  // active scalars: the first
     EXPECT_EQ(ra.dims, a.dims);
     EXPECT_EQ(ra.spacing, a.spacing);
+    EXPECT_EQ(ra.units, a.units);
+    EXPECT_EQ(load_volume(path.string() + ":second").units, "");
     ASSERT_EQ(ra.values.size(), a.values.size());
     for (size_t i = 0; i < a.values.size(); ++i)
       if (i == 7) EXPECT_TRUE(std::isnan(ra.values[i]));
