@@ -8,6 +8,7 @@
 #include <string>
 
 #include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/device_memory.h"
 #include "tfmatch/kernels/diffdvr.h"  // FixedPointTotals, the decoder of signed accumulators
 #include "tfmatch/kernels/voxel_pair.h"
 
@@ -99,6 +100,10 @@ VoxelVectors::VoxelVectors(Context& ctx, const DeviceField& ref, const DeviceFie
     throw std::runtime_error("voxel vectors: no chunk size fits " + std::to_string(voxels_) +
                              " voxels in storage buffers of " + std::to_string(ctx.max_buffer_bytes()) + " bytes");
   const size_t count = size_t((voxels_ + chunk_voxels_ - 1) / chunk_voxels_);
+  // A coordinate and an RGBA row per voxel (and a scale when weighted): the largest buffers of a
+  // CGLS solve, checked as the fields were (cgls at 150 MiB of budget took 548 MiB unchecked).
+  check_device_memory(ctx, voxels_ * (sizeof(float) + kRgbaBytes + (weighted ? sizeof(float) : 0)),
+                      "CGLS: per-voxel vectors of " + std::to_string(voxels_) + " voxels");
   coord_.reserve(count);
   rgba_.reserve(count);
   for (size_t c = 0; c < count; ++c) {
