@@ -69,6 +69,16 @@ std::optional<double> get_double(codes_handle* h, const char* key) {
   return v;
 }
 
+// GRIB2 stores a fixed surface's scaled value in sign-and-magnitude (the top bit the sign, as -2
+// PVU is 0x800007D0); ecCodes' level keys read it unsigned (2147486 for -2 PVU). `level` as
+// ecCodes gives it, negated and rescaled to the magnitude when the sign bit of `scaled_key` is set.
+double signed_level(codes_handle* h, double level, const char* scaled_key) {
+  constexpr long kSign = long(1) << 31;
+  const std::optional<long> scaled = get_long(h, scaled_key);
+  if (!scaled || *scaled <= kSign || *scaled >= 2 * kSign - 1) return level;  // no key, positive, or missing
+  return -level * double(*scaled - kSign) / double(*scaled);
+}
+
 struct Message {
   Handle handle;
   int index = 0;  // 1-based position in the file
@@ -265,8 +275,10 @@ std::vector<Message> scan(const GribSource& source, Keep keep) {
     m.short_name = get_string(h.get(), "shortName").value_or("unknown");
     if (!keep(m.short_name)) continue;
     m.level_type = get_string(h.get(), "typeOfLevel").value_or("unknown");
-    m.level = get_double(h.get(), "level").value_or(0);
-    m.bottom = get_double(h.get(), "bottomLevel").value_or(m.level);
+    m.level = signed_level(h.get(), get_double(h.get(), "level").value_or(0), "scaledValueOfFirstFixedSurface");
+    m.bottom = get_double(h.get(), "bottomLevel").has_value()
+                   ? signed_level(h.get(), *get_double(h.get(), "bottomLevel"), "scaledValueOfSecondFixedSurface")
+                   : m.level;
     m.time = {get_long(h.get(), "dataDate").value_or(0), get_long(h.get(), "dataTime").value_or(0),
               get_long(h.get(), "startStep").value_or(0), get_long(h.get(), "endStep").value_or(0)};
     m.member = get_long(h.get(), "number").value_or(0);

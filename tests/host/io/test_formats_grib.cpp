@@ -222,6 +222,12 @@ TEST(GribRealFiles, GfsWindsStackedOver26Levels) {
     EXPECT_EQ(a.origin, u.origin);
   }
   EXPECT_TRUE(found);
+  // GRIB2 levels in sign and magnitude: -2 PVU is scaled value 0x800007D0 (ecCodes' level key
+  // read it as 2147486), +2 PVU is 2000.
+  const Volume pv = load_volume(data("gfs_grib2/gfs.t12z.pgrbf120.2p5deg.grib2:u@potentialVorticity"));
+  std::vector<double> levels = pv.axes[2].coordinates;
+  std::sort(levels.begin(), levels.end());
+  EXPECT_EQ(levels, (std::vector<double>{-2.0, 2.0}));
   // Bitmap: `grib_get -p numberOfMissing -w shortName=u,typeOfLevel=heightAboveSea` = 1161+794+452.
   Volume h = load_volume(data("gfs_grib2/gfs.t12z.pgrbf120.2p5deg.grib2:u@heightAboveSea"));
   size_t nan = 0;
