@@ -374,6 +374,7 @@ FileInfo describe_vtk_legacy(const std::filesystem::path& path, const VolumeOpti
     if (a.section != "field data") {
       ai.grid = grid_of(doc, a);
       ai.spacing = doc.spacing;
+      ai.origin = origin_of(doc.origin, doc.spacing, a.section);  // as load_volume() places it
     }
     if (a.components > 1) ai.notes.push_back("loads as the magnitude; NAME[k] picks component k");
     std::vector<float> v = select_component(decode_array(bytes, doc, a, file), a.components, std::nullopt, file);

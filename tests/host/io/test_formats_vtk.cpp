@@ -145,6 +145,9 @@ TEST(VtkLegacyRealFiles, IronProteinAndCarotid) {
   Volume v = load_volume(data("vtk_carotid/carotid.vtk:vectors"));
   ASSERT_EQ(s.dims, (std::array<uint64_t, 3>{76, 49, 45}));
   EXPECT_NO_THROW(require_same_grid(s, v));
+  // ORIGIN 100 80 1, in the volume and in what `info` says of each array.
+  EXPECT_EQ(s.origin, (std::array<double, 3>{100, 80, 1}));
+  for (const ArrayInfo& a : describe_file(data("vtk_carotid/carotid.vtk")).arrays) EXPECT_EQ(a.origin, s.origin) << a.name;
   EXPECT_EQ(s.at(40, 25, 20), 51.0f);
   EXPECT_EQ(*std::max_element(s.values.begin(), s.values.end()), 580.0f);
   EXPECT_NEAR(*std::max_element(v.values.begin(), v.values.end()), 22.694928, 1e-5);
