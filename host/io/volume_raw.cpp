@@ -102,6 +102,8 @@ Volume read_elements(const std::filesystem::path& path, std::array<uint64_t, 3> 
   v.dims = dims;
   v.name = path.string();
   const uint64_t count = checked_voxel_count(dims, v.name);
+  // The file first: a small file that claims a huge grid is short, not a matter of --max-memory.
+  check_file_size(path, dims, type, offset, allow_trailing);
   check_memory(count * sizeof(float), v.name + ": " + std::to_string(dims[0]) + "x" + std::to_string(dims[1]) + "x" +
                                           std::to_string(dims[2]) + " volume (decoded as float32)");
   const size_t size = scalar_bytes(type);
@@ -181,13 +183,13 @@ class RawSlabs final : public VolumeSlabReader {
 // The one array of a raw or .dat file, for `tfmatch info`: statistics as the values stream by,
 // so `info` never holds the decoded volume.
 FileInfo describe_one_array(const std::filesystem::path& path, const std::string& format, const std::filesystem::path& data,
-                            std::array<uint64_t, 3> dims, ScalarType type, bool big_endian, std::array<double, 3> spacing,
-                            const VolumeOptions& options) {
+                            std::array<uint64_t, 3> dims, ScalarType type, bool big_endian,
+                            std::array<double, 3> spacing) {
   FileInfo info{path.string(), format, {}, {}};
   ArrayInfo a;
   a.name = "(the only array)";
   a.kind = "volume";
-  a.type = options.type != ScalarType::Unknown ? scalar_type_name(options.type) : "from the file name / descriptor";
+  a.type = scalar_type_name(type);  // as resolved from --type, the file name or the descriptor
   a.grid = dims;
   a.spacing = spacing;
   a.shape = std::to_string(dims[0]) + "x" + std::to_string(dims[1]) + "x" + std::to_string(dims[2]);
@@ -394,13 +396,13 @@ FileInfo describe_raw(const std::filesystem::path& path, const VolumeOptions& op
       return describe_headerless(path, "dimensions or element type unknown");
     throw;
   }
-  return describe_one_array(path, "raw", path, layout.first, layout.second, options.big_endian, {1, 1, 1}, options);
+  return describe_one_array(path, "raw", path, layout.first, layout.second, options.big_endian, {1, 1, 1});
 }
 
 FileInfo describe_dat(const std::filesystem::path& path, const VolumeOptions& options) {
   const DatDescriptor d = read_dat_descriptor(path, options);
   return describe_one_array(path, ".dat descriptor + raw data", path.parent_path() / d.object_file, d.dims, d.type,
-                            d.big_endian, d.spacing, options);
+                            d.big_endian, d.spacing);
 }
 
 void write_raw_float32(const std::filesystem::path& path, const Volume& v) {

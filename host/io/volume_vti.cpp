@@ -307,12 +307,17 @@ void read_binary(ByteSource& src, const VtiDocument& doc, uint64_t expected, con
 std::vector<float> decode_array(std::string_view bytes, const VtiDocument& doc, const VtiArray& a, const std::string& file) {
   const std::string where = file + ": array '" + a.name + "'";
   const uint64_t count = checked_mul(a.tuples, a.components, kMaxVoxels, file, "array '" + a.name + "'");
-  check_memory(count * sizeof(float), where + ": " + std::to_string(count) + " values");
+  // The budget is checked where the values are allocated, after the data were found to hold them:
+  // a 400-byte file claiming 10^12 values is short, not a matter of --max-memory.
+  const auto allocate = [&](std::vector<float>& values) {
+    check_memory(count * sizeof(float), where + ": " + std::to_string(count) + " values");
+    values.resize(count);
+  };
   std::vector<float> v;
   if (a.format == "ascii") {
     std::string_view text = bytes.substr(a.content_begin, a.content_end - a.content_begin);
     if (count > (text.size() + 1) / 2) throw std::runtime_error(where + ": needs " + std::to_string(count) + " values, the text is too short");
-    v.resize(count);
+    allocate(v);
     size_t p = 0;
     auto space = [&](char c) { return std::isspace(static_cast<unsigned char>(c)) != 0; };
     for (uint64_t i = 0; i < count; ++i) {
@@ -338,7 +343,7 @@ std::vector<float> decode_array(std::string_view bytes, const VtiDocument& doc, 
   std::string carry;
   auto decode = [&](std::string_view bytes) {
     // Allocated with the first bytes, once read_binary has checked the sizes its header claims.
-    if (v.size() != count) v.resize(count);
+    if (v.size() != count) allocate(v);
     if (!carry.empty()) {
       const size_t take = std::min<size_t>(elem - carry.size(), bytes.size());
       carry.append(bytes.substr(0, take));

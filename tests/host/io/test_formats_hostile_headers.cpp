@@ -8,9 +8,11 @@
 
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "cli_runner.h"
 #include "tfmatch/io/volume_formats.h"
+#include "tfmatch/io/volume_info.h"
 #include "tfmatch/io/volume_io.h"
 #include "tfmatch/model/memory_budget.h"
 
@@ -45,6 +47,35 @@ std::string netcdf_claiming_name(uint32_t name_length) {
   s += "x";
   s.resize(64, '\0');
   return s;
+}
+
+// A tiny file that claims a huge grid is short; that is the error, whatever the memory budget
+// (it read "needs 3.64 TiB ... raise it with --max-memory"), for raw files and VTI arrays alike.
+// `info` names a raw file's element type as resolved ("float32", not "from the file name").
+TEST(FormatsHostileHeaders, ATinyFileClaimingAHugeGridIsShortNotTooLarge) {
+  test::TempDir dir;
+  std::ofstream(dir / "s_10000x10000x10000_float32.raw", std::ios::binary) << "abcdefgh";
+  try {
+    load_volume(dir / "s_10000x10000x10000_float32.raw");
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("file has 8 bytes"), std::string::npos) << e.what();
+    EXPECT_EQ(std::string(e.what()).find("--max-memory"), std::string::npos) << e.what();
+  }
+  std::ofstream(dir / "huge.vti") << "<VTKFile type=\"ImageData\" version=\"1.0\" byte_order=\"LittleEndian\">"
+                                     "<ImageData WholeExtent=\"0 9999 0 9999 0 9999\" Origin=\"0 0 0\" Spacing=\"1 1 1\">"
+                                     "<Piece Extent=\"0 9999 0 9999 0 9999\"><PointData Scalars=\"a\">"
+                                     "<DataArray type=\"Float32\" Name=\"a\" format=\"ascii\">1 2 3</DataArray>"
+                                     "</PointData></Piece></ImageData></VTKFile>";
+  try {
+    load_volume(dir / "huge.vti");
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("the text is too short"), std::string::npos) << e.what();
+  }
+  std::vector<char> bytes(4 * 8, 0);
+  std::ofstream(dir / "t_2x2x2_float32.raw", std::ios::binary).write(bytes.data(), std::streamsize(bytes.size()));
+  EXPECT_EQ(describe_file(dir / "t_2x2x2_float32.raw").arrays.at(0).type, "float32");
 }
 
 TEST(FormatsHostileHeaders, NetcdfClassicHeaderClaimingGigabytesIsRefused) {
