@@ -8,6 +8,7 @@
 #include <numeric>
 
 #include "formats_test_util.h"
+#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/io/base64.h"
 #include "tfmatch/io/volume_formats.h"
 #include "tfmatch/io/volume_io.h"
@@ -157,6 +158,15 @@ TEST(Vti, WriterRoundTripsThroughTheReader) {
   c.dims = {5, 4, 2};
   c.values.resize(40);
   expect_error([&] { write_vti(dir / "bad.vti", {{"a", &a}, {"c", &c}}); }, {"bad.vti", "different grids"});
+  // The file is built in memory once, after a check against the budget that names it (payload
+  // and its compressed blocks: 2 x 16 MiB).
+  Volume big;
+  big.dims = {256, 256, 64};
+  big.values.assign(big.voxel_count(), 0.5f);
+  set_memory_budget(resident_memory() + (uint64_t(8) << 20), "--max-memory test");
+  expect_error([&] { write_vti(dir / "big.vti", {{"v", &big}}); }, {"big.vti", "needs 32.0 MiB", "--max-memory test"});
+  set_memory_budget(0, "");
+  EXPECT_FALSE(std::filesystem::exists(dir / "big.vti"));
 }
 
 TEST(Vti, MalformedInputGivesClearErrors) {
