@@ -453,6 +453,10 @@ void Context::load_device_info(bool external_memory_host) {
   // Mesa's llvmpipe counts every loop iteration of a shader invocation against one limit of
   // 65535 (LP_MAX_TGSI_LOOP_ITERATIONS, "shared between every loop") and then ends every loop.
   loop_iteration_limit_ = driver.driverID == VK_DRIVER_ID_MESA_LLVMPIPE ? 65535u : 0u;
+  driver_description_ = std::string(driver.driverName) + " " + driver.driverInfo + ", Vulkan " +
+                        std::to_string(VK_API_VERSION_MAJOR(properties_.apiVersion)) + "." +
+                        std::to_string(VK_API_VERSION_MINOR(properties_.apiVersion)) + "." +
+                        std::to_string(VK_API_VERSION_PATCH(properties_.apiVersion));
   subgroup_size_ = subgroup.subgroupSize;
   subgroup_operations_ = compute_subgroup_operations(subgroup);
   max_allocation_bytes_ = maint3.maxMemoryAllocationSize;

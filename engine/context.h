@@ -121,6 +121,9 @@ class Context {
   const VkPhysicalDeviceLimits& limits() const { return properties_.limits; }
   const VkPhysicalDeviceMemoryProperties& memory_properties() const { return memory_; }
   std::string device_name() const { return properties_.deviceName; }
+  // The driver and the Vulkan version it reports, as `tfmatch devices` shows them: "llvmpipe Mesa
+  // 22.3.6, Vulkan 1.3.230" (figures and reports name the driver beside the device).
+  const std::string& driver_description() const { return driver_description_; }
   bool timestamps_supported() const { return timestamp_valid_bits_ > 0; }
   uint32_t subgroup_size() const { return subgroup_size_; }
   // VkSubgroupFeatureFlags supported in compute shaders (0 when compute has no subgroup ops).
@@ -213,6 +216,7 @@ class Context {
   VkPhysicalDeviceMemoryProperties memory_{};
   uint32_t timestamp_valid_bits_ = 0;
   uint32_t subgroup_size_ = 0;
+  std::string driver_description_;
   uint32_t subgroup_operations_ = 0;
   uint32_t loop_iteration_limit_ = 0;
   bool int64_atomics_ = false;

@@ -174,6 +174,7 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
   h << "<h2>Reproduce</h2>\n<pre class=\"cmd\">"
     << escape(in.command_line.empty() ? std::string("(written by a library call)") : in.command_line) << "</pre>\n"
     << "<p class=\"note\">" << escape(in.version.empty() ? std::string("tfmatch") : in.version)
+    << (metrics.contains("made") ? ". " + escape(report_made_text(metrics["made"])) : std::string())
     << ". Saved here: <a href=\"command.txt\">command.txt</a>, the reference TF as used "
        "(<a href=\"reference_tf.json\">reference_tf.json</a>) and the optimized TF "
        "(<a href=\"optimized_tf.json\">optimized_tf.json</a>), linear RGB tables with their ranges.</p>\n";

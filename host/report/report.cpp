@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <ctime>
 #include <sstream>
 
 #include "tfmatch/io/atomic_file.h"
@@ -220,6 +221,20 @@ std::vector<std::string> report_file_names() {
           "slices_y.png",        "slices_z.png",           "inputs.json",            "index.html"};
 }
 
+nlohmann::json report_made(const Context& ctx) {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char when[32];
+  std::strftime(when, sizeof when, "%Y-%m-%d %H:%M UTC", &utc);
+  return {{"time_utc", when}, {"device", ctx.device_name()}, {"driver", ctx.driver_description()}};
+}
+
+std::string report_made_text(const nlohmann::json& made) {
+  return "Made " + made.value("time_utc", std::string("?")) + " on " + made.value("device", std::string("?")) + " (" +
+         made.value("driver", std::string("?")) + ")";
+}
+
 double background_fraction(const Image& img, const std::array<double, 3>& background) {
   const Rgb8 bg = srgb8(background[0], background[1], background[2]);
   const size_t n = size_t(img.width) * img.height;
@@ -397,6 +412,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
                                                               {"optimized_tf", *out.residual_inside_after}};
   metrics["render_settings"] = settings_json(s);
   metrics["histogram"] = in.histogram_log ? "log" : "linear";
+  metrics["made"] = report_made(ctx);
   if (!out.warnings.empty()) metrics["report_warnings"] = out.warnings;
   metrics["font"] = font.empty() ? "built-in 5x7 bitmap (DejaVu Sans not found)" : font;
   if (!in.command_line.empty()) metrics["command_line"] = in.command_line;

@@ -82,6 +82,12 @@ struct ReportSummary {
 // renderer's) in every channel: the background and colour too faint to tell from it (a picture of
 // pale pink haze on white is nearly empty to a reader).
 double background_fraction(const Image& img, const std::array<double, 3>& background);
+// When and where a report was made: {"time_utc": "2026-12-07 13:05 UTC", "device": ...,
+// "driver": "llvmpipe Mesa 22.3.6, Vulkan 1.3.230"}, so that its figures can be dated and placed.
+nlohmann::json report_made(const Context& ctx);
+// The same as a sentence for a page: "Made 2026-12-07 13:05 UTC on <device> (<driver>)".
+std::string report_made_text(const nlohmann::json& made);
+
 // Above this background fraction a rendering counts as nearly empty.
 inline constexpr double kNearlyEmptyFraction = 0.9;
 

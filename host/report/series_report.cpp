@@ -231,7 +231,8 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
   const nlohmann::json metrics = {{"solver", r.solver},        {"device", r.device},
                                   {"shared_tf", r.shared_tf},  {"reference", in.ref.name},
                                   {"fields", fields},          {"voxel_rmse_before", r.before.rmse()},
-                                  {"voxel_rmse_after", r.after.rmse()}, {"version", in.version}};
+                                  {"voxel_rmse_after", r.after.rmse()}, {"version", in.version},
+                                  {"made", report_made(ctx)}};
   pngs.finish();
   write_file_atomically(out / "series.json", json_text(metrics, 2) + "\n");
   summary.files.push_back("series.json");
@@ -285,7 +286,8 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
   }
   h << "</div>\n";
   if (!in.command_line.empty()) h << "<h2>Command</h2>\n<pre class=\"cmd\">" << html_escape(in.command_line) << "</pre>\n";
-  h << "<div class=\"note\">" << html_escape(in.version) << "</div>\n</body></html>\n";
+  h << "<div class=\"note\">" << html_escape(in.version) << ". " << html_escape(report_made_text(metrics["made"]))
+    << "</div>\n</body></html>\n";
   write_file_atomically(out / "index.html", h.str());
   summary.files.push_back("index.html");
   batch.commit();

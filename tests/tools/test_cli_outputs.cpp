@@ -137,6 +137,9 @@ TEST_F(CliOutputs, FileNamesThatAreNotUtf8StillGiveEveryOutput) {
     const std::string page_json = read_bytes(report / (series.empty() ? "metrics.json" : "series.json"));
     EXPECT_NE(page_json.find("lat\xef\xbf\xbd_8x8x8"), std::string::npos) << page_json;  // U+FFFD
     EXPECT_TRUE(nlohmann::json::accept(page_json));
+    // Both pages say when and on which device and driver they were made.
+    EXPECT_TRUE(nlohmann::json::parse(page_json)["made"].contains("driver")) << page_json;
+    EXPECT_NE(read_bytes(report / "index.html").find("Made 20"), std::string::npos);
   }
 }
 

@@ -105,6 +105,12 @@ TEST_F(Report, WritesPicturesMetricsAndPage) {
   ASSERT_TRUE(saved.range);
   EXPECT_EQ(saved.range->lo, result.field_range.lo);
   EXPECT_EQ(m["histogram"], "linear");
+  // When and where, on the page and in the JSON: the date, the device, the driver.
+  EXPECT_EQ(m["made"]["device"], ctx().device_name());
+  EXPECT_EQ(m["made"]["driver"], ctx().driver_description());
+  EXPECT_NE(ctx().driver_description().find(", Vulkan 1."), std::string::npos) << ctx().driver_description();
+  EXPECT_EQ(m["made"]["time_utc"].get<std::string>().size(), std::string("2026-12-07 13:05 UTC").size());
+  EXPECT_NE(html.find(report_made_text(m["made"])), std::string::npos);
   EXPECT_EQ(m["command_line"], in.command_line);
 
   // Slices through the middle, one picture per axis, four panels each, on the page.
