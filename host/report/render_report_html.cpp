@@ -32,11 +32,9 @@ std::string figure(const std::string& file, const std::string& caption) {
 }
 
 // A row of the metrics table; `better` says which direction improves, and the after cell is
-// marked when it moved that way by more than 1 % (a residual max of 1.213 -> 1.212 is no gain).
+// marked when it moved that way (improved_by_a_margin).
 std::string metric_row(const std::string& name, double before, double after, int digits, bool higher_is_better) {
-  const double margin = std::isfinite(before) && std::isfinite(after) ? 0.01 * std::max(std::abs(before), std::abs(after))
-                                                                      : 0.0;
-  const bool improved = higher_is_better ? after > before + margin : after < before - margin;
+  const bool improved = improved_by_a_margin(before, after, higher_is_better);
   return "<tr><td>" + name + "</td><td>" + report_number(before, digits) + "</td><td" +
          (improved ? " class=\"better\"" : "") + ">" + report_number(after, digits) + "</td><td>" +
          (higher_is_better ? "higher is better" : "lower is better") + "</td></tr>\n";
@@ -67,6 +65,12 @@ div.warn { background: #fff4d6; border: 1px solid #e0b84a; padding: 4px 12px; ma
 )";
 
 }  // namespace
+
+bool improved_by_a_margin(double before, double after, bool higher_is_better) {
+  const double margin = std::isfinite(before) && std::isfinite(after) ? 0.01 * std::max(std::abs(before), std::abs(after))
+                                                                      : 0.0;
+  return higher_is_better ? after > before + margin : after < before - margin;
+}
 
 std::string report_head(const std::string& title) {
   // A viewport: without it a phone lays the page out 980 px wide and shrinks it; with it the grids

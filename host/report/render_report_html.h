@@ -19,5 +19,8 @@ std::string html_escape(const std::string& text);
 // The start of a report page up to <body>: doctype, charset, viewport, the title (escaped) and
 // the style sheet (figures in grids that stack on narrow screens, tables, notes).
 std::string report_head(const std::string& title);
+// Whether a metric moved the better way by more than 1 % of the larger value (a residual max of
+// 1.213 -> 1.212 is no gain): the cells the pages mark.
+bool improved_by_a_margin(double before, double after, bool higher_is_better);
 
 }  // namespace tfm

@@ -237,6 +237,9 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
   write_file_atomically(out / "series.json", json_text(metrics, 2) + "\n");
   summary.files.push_back("series.json");
 
+  const auto better = [](double before, double after, bool higher_is_better) {
+    return improved_by_a_margin(before, after, higher_is_better) ? " class=\"better\"" : "";
+  };
   std::ostringstream h;
   h << report_head(in.title);
   h << "<h1>" << html_escape(in.title) << "</h1>\n<div class=\"sub\">reference: " << html_escape(in.ref.name) << " &middot; "
@@ -268,15 +271,18 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
     << "</figcaption></figure></div>\n";
   h << "<h2>Renderings</h2>\n<div class=\"grid g3\">\n<figure><img src=\"reference.png\" alt=\"reference\"><figcaption>"
        "reference with its TF</figcaption></figure>\n</div>\n<table>\n<tr><th>field</th><th>range</th><th>voxel RMSE "
-       "before</th><th>after</th><th>PSNR before (dB)</th><th>after</th><th>SSIM after</th></tr>\n";
+       "before</th><th>after</th><th>PSNR before (dB)</th><th>after</th><th>SSIM before</th><th>after</th></tr>\n";
   for (size_t i = 0; i < n; ++i)
     h << "<tr><td>" << i << ": " << html_escape(in.labels[i]) << "</td><td>" << report_number(r.fields[i].field_range.lo, 5)
       << " .. " << report_number(r.fields[i].field_range.hi, 5) << "</td><td>" << report_number(rmse_before[i], 4)
-      << "</td><td" << (rmse_after[i] < rmse_before[i] ? " class=\"better\"" : "") << ">" << report_number(rmse_after[i], 4)
+      << "</td><td" << better(rmse_before[i], rmse_after[i], false) << ">" << report_number(rmse_after[i], 4)
       << "</td><td>" << report_number(summary.before[i].psnr, 4) << "</td><td"
-      << (summary.after[i].psnr > summary.before[i].psnr ? " class=\"better\"" : "") << ">"
-      << report_number(summary.after[i].psnr, 4) << "</td><td>" << report_number(summary.after[i].ssim, 4) << "</td></tr>\n";
-  h << "</table>\n<div class=\"grid g2\">\n";
+      << better(summary.before[i].psnr, summary.after[i].psnr, true) << ">" << report_number(summary.after[i].psnr, 4)
+      << "</td><td>" << report_number(summary.before[i].ssim, 4) << "</td><td"
+      << better(summary.before[i].ssim, summary.after[i].ssim, true) << ">" << report_number(summary.after[i].ssim, 4)
+      << "</td></tr>\n";
+  h << "</table>\n<p class=\"note\">Every number of this page, and each field's in full: <a href=\"series.json\">"
+       "series.json</a>.</p>\n<div class=\"grid g2\">\n";
   for (size_t i = 0; i < n; ++i) {
     const std::string before = indexed("field_%03u_before.png", i), after = indexed("field_%03u.png", i);
     h << "<figure><img src=\"" << before << "\" alt=\"field " << i << " with the reference TF\"><figcaption>" << i << ": "

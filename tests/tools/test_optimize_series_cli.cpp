@@ -135,6 +135,9 @@ TEST_F(OptimizeSeriesCli, ReportShowsEveryFieldAndTheSeries) {
   EXPECT_NE(html.find("field_002.png"), std::string::npos);
   EXPECT_NE(html.find("one TF per field"), std::string::npos);
   EXPECT_EQ(html.find("No PSNR plot"), std::string::npos);
+  // SSIM before beside after, and the page's numbers linked.
+  EXPECT_NE(html.find("<th>SSIM before</th><th>after</th>"), std::string::npos);
+  EXPECT_NE(html.find("<a href=\"series.json\">"), std::string::npos);
 }
 
 // A field given twice is fitted twice, with a warning naming both places ("field k of n").
