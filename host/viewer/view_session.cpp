@@ -9,11 +9,13 @@
 #include "tfmatch/io/tf_json.h"
 #include "tfmatch/io/volume_vti.h"
 #include "tfmatch/kernels/correlation_field.h"
+#include "tfmatch/kernels/device_memory.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/residual.h"
 #include "tfmatch/model/camera.h"
 #include "tfmatch/model/cancellation.h"
 #include "tfmatch/model/color_spaces.h"
+#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/model/progress.h"
 #include "tfmatch/model/slice.h"
 #include "tfmatch/report/font.h"
@@ -162,6 +164,14 @@ std::unique_ptr<ViewSession::Derived> ViewSession::derive(const Volume& ref, con
                                                           const Derived* same_fields) {
   auto d = std::make_unique<Derived>();
   d->geometry = VolumeGeometry::from(ref.dims, ref.spacing, config_.render.z_scale);
+  // What the session holds beside the loaded fields, checked before any of it is made (the view
+  // of two 64 MiB fields held 610 MiB at a budget of 210 MiB): both fields and both residual maps
+  // on the device, and the residual maps on the host.
+  const uint64_t volume_bytes = uint64_t(ref.values.size()) * sizeof(float);
+  check_device_memory(ctx_, (same_fields ? 2 : 4) * volume_bytes,
+                      "view: " + std::string(same_fields ? "the residual maps" : "both fields and the residual maps") +
+                          " on the device");
+  check_memory(2 * volume_bytes, "view: the residual maps");
   if (same_fields) {
     d->ref = same_fields->ref;
     d->field = same_fields->field;

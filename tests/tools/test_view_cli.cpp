@@ -151,6 +151,26 @@ TEST(ViewCli, ReopensAReportsInputs) {
   EXPECT_NE(missing.output.find("inputs.json"), std::string::npos) << missing.output;
 }
 
+// The session's own buffers (both fields and both residual maps on the device, the residual maps
+// on the host) are checked against --max-memory before they are made: a budget that holds the two
+// loaded fields but not the session stops with the size, not a process at three times the budget.
+TEST(ViewCli, ASessionBeyondTheBudgetIsRefusedBeforeItIsMade) {
+  test::TempDir dir;
+  std::vector<float> v(size_t(256) * 256 * 128);
+  for (size_t i = 0; i < v.size(); ++i) v[i] = float(i % 1000) / 999.0f;
+  const std::string a = (dir.path / "a_256x256x128_float32.raw").string(), b = (dir.path / "b_256x256x128_float32.raw").string();
+  test::write_floats(a, v);
+  test::write_floats(b, v);
+  const test::CliResult r = run_cli("--max-memory 230M view --port 0 --ref " + a + " --ref-tf viridis --field " + b);
+  ASSERT_EQ(r.exit_code, 1) << r.output;
+  if (r.output.find("both fields and the residual maps on the device") == std::string::npos)
+    // A machine whose start-up takes more leaves less: the load itself may be what is refused.
+    EXPECT_NE(r.output.find("needs 64.0 MiB"), std::string::npos) << r.output;
+  else
+    EXPECT_NE(r.output.find("needs 128 MiB"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("http://"), std::string::npos) << r.output;
+}
+
 // How much of a picture shows data: the share of pixels away from the white background, and how
 // many colours (5 bits a channel) they take.
 struct Visibility {
