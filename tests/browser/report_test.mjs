@@ -17,26 +17,9 @@ import os from 'node:os';
 import path from 'node:path';
 import { pathToFileURL } from 'node:url';
 
-const SKIP = 77;
-const binary = process.argv[2];
-if (!binary || !fs.existsSync(binary)) {
-  console.error('usage: node report_test.mjs PATH/TO/tfmatch');
-  process.exit(2);
-}
-const chromium = process.env.TFMATCH_CHROMIUM || '/usr/bin/chromium';
-if (!fs.existsSync(chromium)) {
-  console.log(`SKIPPED: no Chromium at ${chromium} (Debian package chromium); the browser test of the reports did not run`);
-  process.exit(SKIP);
-}
-let puppeteer;
-try {
-  puppeteer = (await import('puppeteer-core')).default;
-} catch (e) {
-  console.log('SKIPPED: puppeteer-core is not installed (run `npm ci` in tests/browser); the browser test of the reports did not run');
-  process.exit(SKIP);
-}
-const screenshotDir = process.env.TFMATCH_SCREENSHOT_DIR || '';
-if (screenshotDir) fs.mkdirSync(screenshotDir, { recursive: true });
+import { browserEnvironment } from './browser_env.mjs';
+
+const { binary, chromium, puppeteer, screenshotDir } = await browserEnvironment('report_test.mjs', 'the report pages');
 
 let passed = 0, failed = 0;
 function check(name, ok, detail = '') {

@@ -15,31 +15,9 @@ import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
 
-const SKIP = 77;
-const binary = process.argv[2];
-if (!binary) {
-  console.error('usage: node view_test.mjs PATH/TO/tfmatch');
-  process.exit(2);
-}
-if (!fs.existsSync(binary)) {
-  console.error(`view browser test: no tfmatch binary at ${binary}`);
-  process.exit(2);
-}
-const chromium = process.env.TFMATCH_CHROMIUM || '/usr/bin/chromium';
-if (!fs.existsSync(chromium)) {
-  console.log(`SKIPPED: no Chromium at ${chromium} (Debian package chromium); the browser test of tfmatch view did not run`);
-  process.exit(SKIP);
-}
-let puppeteer;
-try {
-  puppeteer = (await import('puppeteer-core')).default;
-} catch (e) {
-  console.log('SKIPPED: puppeteer-core is not installed (run `npm ci` in tests/browser); the browser test of tfmatch view did not run');
-  process.exit(SKIP);
-}
+import { browserEnvironment } from './browser_env.mjs';
 
-const screenshotDir = process.env.TFMATCH_SCREENSHOT_DIR || '';
-if (screenshotDir) fs.mkdirSync(screenshotDir, { recursive: true });
+const { binary, chromium, puppeteer, screenshotDir } = await browserEnvironment('view_test.mjs', 'tfmatch view');
 
 // ---- checks ---------------------------------------------------------------------------------------
 let passed = 0, failed = 0;
