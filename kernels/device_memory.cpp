@@ -16,8 +16,12 @@ void check_device_memory(const Context& ctx, uint64_t bytes, const std::string& 
   if (bytes > largest_heap)
     throw std::runtime_error(what + ": needs " + format_bytes(bytes) + " of device memory, more than the largest memory heap of " +
                              ctx.device_name() + " (" + format_bytes(largest_heap) + ")");
+  if (device_memory_is_host(ctx)) check_memory(bytes, what);
+}
+
+bool device_memory_is_host(const Context& ctx) {
   const VkPhysicalDeviceType type = ctx.properties().deviceType;
-  if (type == VK_PHYSICAL_DEVICE_TYPE_CPU || type == VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU) check_memory(bytes, what);
+  return type == VK_PHYSICAL_DEVICE_TYPE_CPU || type == VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU;
 }
 
 }  // namespace tfm

@@ -14,4 +14,8 @@ class Context;
 // (CPU and integrated devices, lavapipe among them).
 void check_device_memory(const Context& ctx, uint64_t bytes, const std::string& what);
 
+// Whether the device's memory is the host's (CPU and integrated devices, lavapipe among them): its
+// buffers count against the budget beside the host's own.
+bool device_memory_is_host(const Context& ctx);
+
 }  // namespace tfm

@@ -9,9 +9,11 @@
 
 #include "test_data.h"
 #include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/device_memory.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/residual.h"
 #include "tfmatch/kernels/residual_map.h"
+#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/reference/residual_map_cpu.h"
 #include "tfmatch/shaders/render_layout.h"
 #include "tfmatch/shaders/shared_layout.h"
@@ -88,6 +90,25 @@ TEST_F(ResidualMap, FieldAgainstItselfIsZeroAndGridMismatchThrows) {
   Volume w = v;
   w.dims = {7, 13, 5};
   EXPECT_THROW(residual_map(ctx(), v, tf, {0, 1}, w, tf, {0, 1}), std::runtime_error);
+}
+
+// Where device buffers are host memory, the two fields and the map on the device and the map read
+// back are checked as one sum: a budget with room for three volumes but not four is refused
+// before anything is made (each part fitted alone, and a run went 18-30 % over).
+TEST_F(ResidualMap, DeviceBuffersAndTheReadBackAreCheckedTogether) {
+  if (!device_memory_is_host(ctx())) GTEST_SKIP() << "device memory is not the host's here";
+  Volume v;
+  v.dims = {256, 256, 64};  // 16 MiB a volume
+  v.values.assign(v.voxel_count(), 0.5f);
+  const TransferFunction tf = random_tf(16, 5);
+  set_memory_budget(resident_memory() + (uint64_t(56) << 20), "--max-memory test");
+  try {
+    residual_map(ctx(), v, tf, {0, 1}, v, tf, {0, 1});
+    ADD_FAILURE() << "four volumes of 16 MiB passed a budget with 56 MiB left";
+  } catch (const MemoryBudgetExceeded& e) {
+    EXPECT_NE(std::string(e.what()).find("needs 64.0 MiB"), std::string::npos) << e.what();
+  }
+  set_memory_budget(0, "");
 }
 
 }  // namespace
