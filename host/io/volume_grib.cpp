@@ -75,7 +75,8 @@ std::optional<double> get_double(codes_handle* h, const char* key) {
 double signed_level(codes_handle* h, double level, const char* scaled_key) {
   constexpr long kSign = long(1) << 31;
   const std::optional<long> scaled = get_long(h, scaled_key);
-  if (!scaled || *scaled <= kSign || *scaled >= 2 * kSign - 1) return level;  // no key, positive, or missing
+  if (!scaled || *scaled < kSign || *scaled >= 2 * kSign - 1) return level;  // no key, positive, or missing
+  if (*scaled == kSign) return 0.0;  // minus zero
   return -level * double(*scaled - kSign) / double(*scaled);
 }
 
