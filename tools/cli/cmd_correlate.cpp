@@ -250,7 +250,8 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
   // it, the peak passed a budget of 240 MiB by 14 MB).
   CorrelationKernel kernel(*ctx);
   kernel.prepare(params, members);
-  const uint64_t held = resident_memory(), budget = memory_budget().bytes;
+  // The field this rank computes is held whole beside the slabs, so it comes off first.
+  const uint64_t held = resident_memory() + (end - first + 1) * slice * sizeof(float), budget = memory_budget().bytes;
   uint64_t slab = a.slab_slices ? a.slab_slices
                                 : correlation_slab_slices(members, slice, (budget > held ? budget - held : 0) / 4);
   if (ranks.size() > 1) {
@@ -332,7 +333,8 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
     }
     return 0;
   }
-  std::vector<float> all = ranks.gather(part);
+  // One rank keeps its field: a gather would hold it twice.
+  std::vector<float> all = ranks.size() == 1 ? std::move(part) : ranks.gather(part);
   const double compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   if (ranks.rank() != 0) return 0;
   Volume field = empty_like(grid);
