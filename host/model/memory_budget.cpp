@@ -9,6 +9,7 @@
 #include <fstream>
 #include <mutex>
 #include <sstream>
+#include <utility>
 
 #include <sys/resource.h>
 #include <unistd.h>
@@ -20,6 +21,8 @@ namespace {
 
 std::mutex g_mutex;
 std::optional<MemoryBudget> g_budget;  // guarded by g_mutex; empty until set or first asked
+uint64_t g_reserved = 0;                // MemoryReservation's, guarded by g_mutex
+std::string g_reserved_for;             // what the reservations are for, for messages
 
 std::optional<uint64_t> read_number(const char* path) {
   std::ifstream in(path);
@@ -95,13 +98,33 @@ MemoryBudget memory_budget() {
   return *g_budget;
 }
 
+MemoryReservation::MemoryReservation(uint64_t bytes, std::string what) : bytes_(bytes), what_(std::move(what)) {
+  std::lock_guard lock(g_mutex);
+  g_reserved += bytes_;
+  g_reserved_for = what_;
+}
+
+void MemoryReservation::release() {
+  std::lock_guard lock(g_mutex);
+  g_reserved -= std::exchange(bytes_, 0);
+}
+
 void check_memory(uint64_t bytes, const std::string& what) {
   const MemoryBudget budget = memory_budget();
-  const uint64_t in_use = resident_memory();
+  uint64_t reserved = 0;
+  std::string reserved_for;
+  {
+    std::lock_guard lock(g_mutex);
+    reserved = g_reserved;
+    if (reserved) reserved_for = g_reserved_for;
+  }
+  const uint64_t resident = resident_memory(), in_use = resident + reserved;
   if (bytes <= budget.bytes && in_use <= budget.bytes - bytes) return;
+  const std::string aside = reserved ? " (" + format_bytes(reserved) + " of them set aside for " + reserved_for + ")" : "";
   throw MemoryBudgetExceeded(what + ": needs " + format_bytes(bytes) + ", but the memory budget is " +
                              format_bytes(budget.bytes) + " (" + budget.source + ") and " + format_bytes(in_use) +
-                             " are in use; raise it with " + parameter("max-memory") + " if the machine has the memory");
+                             " are in use" + aside + "; raise it with " + parameter("max-memory") +
+                             " if the machine has the memory");
 }
 
 std::string format_bytes(uint64_t bytes) {

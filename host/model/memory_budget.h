@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <utility>
 
 namespace tfm {
 
@@ -34,6 +35,23 @@ MemoryBudget memory_budget();
 // plus `bytes` exceeds the budget. Cheap (one read of /proc/self/statm): call it right before
 // each large allocation.
 void check_memory(uint64_t bytes, const std::string& what);
+
+// Memory that work running now on another thread is about to take (a device starting while the
+// inputs are read): check_memory() counts it as in use until release() or destruction, so that a
+// check made meanwhile leaves room for it (optimize's load check saw 13.5 MiB in use, and the
+// device's ~60 MiB arrived after it).
+class MemoryReservation {
+ public:
+  MemoryReservation(uint64_t bytes, std::string what);
+  ~MemoryReservation() { release(); }
+  MemoryReservation(const MemoryReservation&) = delete;
+  MemoryReservation& operator=(const MemoryReservation&) = delete;
+  void release();
+
+ private:
+  uint64_t bytes_;
+  std::string what_;
+};
 
 // MemAvailable of /proc/meminfo, capped by the cgroup (v2 or v1) memory limit; 0 when unknown.
 uint64_t available_memory();

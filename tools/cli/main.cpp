@@ -153,9 +153,12 @@ std::shared_ptr<Context> make_context(bool validation_when_installed) {
 }
 
 StartingContext::StartingContext()
-    : started_(std::async(std::launch::async, [] {
+    : reservation_(std::make_unique<MemoryReservation>(kStartingContextBytes, "the Vulkan device starting")),
+      started_(std::async(std::launch::async, [this] {
         const UntimedThread overlapped;  // counted as the wait in get()
-        return make_context();
+        std::shared_ptr<Context> ctx = make_context();
+        reservation_->release();  // in the process's resident memory now
+        return ctx;
       })) {}
 
 std::shared_ptr<Context> StartingContext::get() {

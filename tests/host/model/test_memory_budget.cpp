@@ -52,6 +52,33 @@ TEST(MemoryBudget, RefusesBeforeAllocatingAndSaysWhy) {
   EXPECT_GT(available_memory(), 0u);
 }
 
+// Memory that work on another thread is about to take counts as in use until released.
+TEST(MemoryBudget, ReservationsCountUntilReleased) {
+  set_memory_budget(resident_memory() + (uint64_t(64) << 20), "--max-memory test");
+  const uint64_t need = uint64_t(16) << 20;
+  EXPECT_NO_THROW(check_memory(need, "a field"));
+  {
+    MemoryReservation device(uint64_t(56) << 20, "the device starting");
+    try {
+      check_memory(need, "a field");
+      ADD_FAILURE() << "16 MiB passed with 8 MiB left beside a reservation";
+    } catch (const MemoryBudgetExceeded& e) {
+      EXPECT_NE(std::string(e.what()).find("56.0 MiB of them set aside for the device starting"), std::string::npos)
+          << e.what();
+    }
+    device.release();
+    EXPECT_NO_THROW(check_memory(need, "a field"));
+    device.release();  // once only
+    EXPECT_NO_THROW(check_memory(need, "a field"));
+  }
+  {
+    const MemoryReservation held(uint64_t(56) << 20, "the device starting");
+    EXPECT_THROW(check_memory(need, "a field"), MemoryBudgetExceeded);
+  }
+  EXPECT_NO_THROW(check_memory(need, "a field"));  // released by its destructor
+  set_memory_budget(0, "");
+}
+
 TEST(Cancellation, PassesStdExceptionHandlersAndResets) {
   EXPECT_FALSE(cancel_requested());
   EXPECT_NO_THROW(check_cancelled());

@@ -1,0 +1,46 @@
+// `tfmatch optimize` under --max-memory: what comes after the load is counted before the work. The
+// Vulkan device that starts while the fields are read, and a report's fields, residual maps and
+// pictures, are refused before the solve with a message that names them, and nothing is written.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+#include "cli_runner.h"
+#include "slab_test_files.h"
+
+namespace tfm {
+namespace {
+
+namespace fs = std::filesystem;
+using test::run_cli;
+
+class OptimizeMemoryCli : public ::testing::Test {
+ protected:
+  // A pair of `side`^3 float32 fields.
+  void write_pair(uint64_t side) {
+    ref = slab_test::write_raw(dir.path(), "ref", slab_test::test_field({side, side, side}, 0)).string();
+    field = slab_test::write_raw(dir.path(), "field", slab_test::test_field({side, side, side}, 4)).string();
+  }
+  std::string args() const {
+    return "optimize --stream off --ref " + ref + " --ref-tf viridis --field " + field + " --out " +
+           (dir / "tf.json").string();
+  }
+  formats_test::TempDir dir;
+  std::string ref, field;
+};
+
+// Two 8 MiB fields fit 60 MiB beside tfmatch's own ~12 MiB, but not beside the device's ~62 MiB
+// (lavapipe), which starts meanwhile: the load's check saw 12 MiB in use, passed, and the run
+// went on to ~100 MiB.
+TEST_F(OptimizeMemoryCli, TheStartingDeviceCountsInTheLoadCheck) {
+  write_pair(128);
+  const test::CliResult r = run_cli("--max-memory 60M " + args());
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("reading both"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("set aside for the Vulkan device starting"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "tf.json"));
+}
+
+}  // namespace
+}  // namespace tfm
