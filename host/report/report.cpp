@@ -248,6 +248,22 @@ double background_fraction(const Image& img, const std::array<double, 3>& backgr
   return double(same) / double(n);
 }
 
+void check_report_memory(const Context& ctx, uint64_t voxels, const RenderSettings& s) {
+  check_render_size(ctx, s);
+  // At most: both fields, a residual map being made and one being rendered on the device; both
+  // maps on the host. Pictures: a rendering's read-back (check_render_size) and about a dozen
+  // RGBA images kept for the overview and the encoder.
+  const uint64_t volume = voxels * sizeof(float), device = 3 * volume, host = 2 * volume;
+  const uint64_t pictures = uint64_t(s.width) * s.height * (23 + 12 * 4);
+  const std::string what = "report: both fields and a residual map on the device, two residual maps and the pictures";
+  if (device_memory_is_host(ctx)) {
+    check_device_memory(ctx, device + host + pictures, what);
+  } else {
+    check_device_memory(ctx, device, what);
+    check_memory(host + pictures, what);
+  }
+}
+
 ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::filesystem::path& final_dir) {
   require_same_grid(in.ref, in.field);
   const OptimizeResult& r = in.result;
@@ -258,7 +274,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
       if ((*in.slice_point)[size_t(k)] >= in.ref.dims[size_t(k)])
         throw std::runtime_error("report: slice point " + describe_grid_point(in.ref, *in.slice_point) +
                                  " is outside the grid");
-  check_render_size(ctx, s);
+  check_report_memory(ctx, in.ref.values.size(), s);
   // Everything goes to temporary names (a staged directory when `final_dir` is new) that appear
   // together when the report is complete, or, inside a command's batch, when the command is.
   OutputBatch batch;
@@ -281,9 +297,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   };
 
   // Both fields and the three TF tables on the device once; every picture below reuses them, and
-  // the residual maps (host and device copies) come on top.
-  check_device_memory(ctx, 3 * in.ref.values.size() * sizeof(float), "report: uploading both fields");
-  check_memory(2 * in.ref.values.size() * sizeof(float), "report: residual maps");
+  // the residual maps (host and device copies) come on top (check_report_memory).
   const VolumeGeometry geometry = VolumeGeometry::from(in.ref.dims, in.ref.spacing, s.z_scale);
   DeviceField ref(ctx, in.ref.values, "report: reference field");
   DeviceField field(ctx, in.field.values, "report: second field", ref.chunk_voxels());

@@ -98,6 +98,13 @@ inline constexpr double kNearlyEmptyFraction = 0.9;
 // too large for the device) or when a file cannot be written.
 ReportSummary write_report(Context& ctx, const ReportInputs& inputs, const std::filesystem::path& dir);
 
+// Checks what write_report() takes beyond its inputs for fields of `voxels` at `settings`' size,
+// against the device and the memory budget (one sum where device memory is the host's): both
+// fields and a residual map on the device, two residual maps on the host, the pictures. Throws
+// MemoryBudgetExceeded or std::runtime_error naming the report; write_report() calls it first, a
+// command before its solve so that a report that cannot fit fails before the work.
+void check_report_memory(const Context& ctx, uint64_t voxels, const RenderSettings& settings);
+
 // The names write_report() may write inside its directory (for FilePlan::output_directory).
 std::vector<std::string> report_file_names();
 

@@ -42,5 +42,21 @@ TEST_F(OptimizeMemoryCli, TheStartingDeviceCountsInTheLoadCheck) {
   EXPECT_FALSE(fs::exists(dir / "tf.json"));
 }
 
+// The report's needs (here 5 volumes of 27 MiB where device memory is the host's) are checked
+// before the solve: the run used to solve, then fail in the report blaming a 5.75 MiB read-back.
+TEST_F(OptimizeMemoryCli, AReportThatCannotFitIsRefusedBeforeTheSolve) {
+  write_pair(192);
+  const test::CliResult r = run_cli("--max-memory 230M " + args() + " --report " + (dir / "report").string());
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("report: both fields and a residual map on the device, two residual maps and the pictures"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("reading back"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("assembl"), std::string::npos) << r.output;  // no solver progress
+  EXPECT_LT(r.peak_rss_bytes, uint64_t(230) << 20) << "peak RSS " << r.peak_rss_bytes;
+  EXPECT_FALSE(fs::exists(dir / "tf.json"));
+  EXPECT_FALSE(fs::exists(dir / "report"));
+}
+
 }  // namespace
 }  // namespace tfm

@@ -425,7 +425,8 @@ int run(const OptimizeArgs& a) {
   RenderSettings render = a.render;
   apply_grid_defaults(render, ref.dims, ref.spacing, a.render_chosen);
   settings.render = render;
-  if (!a.report.empty()) check_render_size(*ctx, render);
+  // The report's needs on top of the loaded fields, before the solve rather than after it.
+  if (!a.report.empty()) check_report_memory(*ctx, ref.voxel_count(), render);
   const std::vector<GridIndex> markers = resolve_markers(ref, a.markers);
   const std::optional<GridIndex> slice_point = resolve_slice_point(ref, a.slice_point);
   const Volume& field = loaded.field;
