@@ -2,10 +2,13 @@
 // forms "data file: name.%d min max step [subdim]" and "data file: LIST"); raw, gzip, ASCII and
 // hex encodings; either byte order; dimension 1-3, or 4 with the fastest axis as components.
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <functional>
 #include <sstream>
 #include <stdexcept>
@@ -407,6 +410,39 @@ class TupleReducer {
   std::vector<float> tuple_, out_;
 };
 
+// One data file's bytes: in memory (a view of the header file's bytes, or of a data file read
+// whole), or, for raw data read in blocks (`info`), a range of a file on disk.
+struct NrrdChunk {
+  std::string_view bytes;
+  std::filesystem::path file;  // set when the bytes stay on disk
+  uint64_t offset = 0, size = 0;
+  bool on_disk() const { return !file.empty(); }
+  uint64_t byte_count() const { return on_disk() ? size : bytes.size(); }
+};
+
+// Raw data of a range of a file, `skip` bytes in (-1: the last count elements), decoded a block at
+// a time into `sink`: the bytes are never held whole.
+void stream_raw_chunk(const NrrdChunk& c, const NrrdHeader& h, uint64_t count, const ValueSink& sink,
+                      const std::string& where) {
+  const uint64_t elem = element_bytes(*h.type), need = count * elem;
+  const uint64_t skip = h.byte_skip < 0 ? (c.size >= need ? c.size - need : 0) : uint64_t(h.byte_skip);
+  if (skip > c.size || c.size - skip < need)
+    throw std::runtime_error(where + ": has " + std::to_string(c.size) + " bytes, " + std::to_string(skip + need) +
+                             " needed (truncated, or wrong sizes/type in the header)");
+  std::ifstream in(c.file, std::ios::binary);
+  if (!in) throw std::runtime_error(where + ": cannot open " + c.file.string());
+  in.seekg(std::streamoff(c.offset + skip));
+  std::vector<char> bytes(std::min(count, kBlock) * elem);
+  std::vector<float> values(std::min(count, kBlock));
+  for (uint64_t done = 0; done < count; done += kBlock) {
+    checkpoint("load");
+    const uint64_t n = std::min(kBlock, count - done);
+    if (!in.read(bytes.data(), std::streamsize(n * elem))) throw std::runtime_error(where + ": read failed");
+    decode_elements(bytes.data(), n, *h.type, h.big_endian.value_or(false), values.data());
+    sink(values.data(), n);
+  }
+}
+
 // A NRRD file resolved: its header, grid, and the bytes of each data file (checked against what
 // the header promises before anything proportional to the grid is allocated).
 struct NrrdData {
@@ -415,7 +451,9 @@ struct NrrdData {
   std::array<double, 3> spacing{1, 1, 1};
   uint64_t components = 1;
   uint64_t per_chunk = 0;
-  std::vector<std::string> chunks, where;
+  std::vector<std::string> owned;  // data files read whole (reserved before: the views stay valid)
+  std::vector<NrrdChunk> chunks;
+  std::vector<std::string> where;
   // Raw data past what the sizes need (byte skip >= 0, no line skip), per data file: read from the
   // start and the rest left, as teem reads it; `info` names it, since it is how a header with
   // wrong sizes shows.
@@ -423,13 +461,29 @@ struct NrrdData {
 
   // Decodes every data file into `reducer`, in order.
   void decode(TupleReducer& reducer) const {
+    const ValueSink add = [&](const float* v, uint64_t n) { reducer.add(v, n); };
     for (size_t i = 0; i < chunks.size(); ++i)
-      decode_chunk(chunks[i], h, per_chunk, [&](const float* v, uint64_t n) { reducer.add(v, n); }, where[i]);
+      if (chunks[i].on_disk()) stream_raw_chunk(chunks[i], h, per_chunk, add, where[i]);
+      else decode_chunk(chunks[i].bytes, h, per_chunk, add, where[i]);
     reducer.flush();
   }
 };
 
-NrrdData resolve_nrrd(std::string_view bytes, const std::string& file, const DataFileLoader& open_data_file) {
+// Where data file `name` of `header` is: relative names are beside the header.
+std::filesystem::path data_file_path(const std::filesystem::path& header, const std::string& name) {
+  std::filesystem::path p = name;
+  if (p.is_relative()) p = header.parent_path() / p;
+  if (!std::filesystem::exists(p)) throw std::runtime_error(header.string() + ": data file " + p.string() + " does not exist");
+  return p;
+}
+
+// Whether raw data can be read from disk a block at a time (no lines to skip first).
+bool streams_from_disk(const NrrdHeader& h) { return h.encoding == "raw" && h.line_skip == 0; }
+
+// `bytes`: the header file's bytes, whole, or (with `on_disk`) at least its header; with
+// `on_disk`, the header file's path, and raw data is left on disk (streams_from_disk).
+NrrdData resolve_nrrd(std::string_view bytes, const std::string& file, const DataFileLoader& open_data_file,
+                      const std::filesystem::path* on_disk = nullptr) {
   NrrdData d;
   d.h = parse_header(bytes, file);
   const NrrdHeader& h = d.h;
@@ -452,8 +506,14 @@ NrrdData resolve_nrrd(std::string_view bytes, const std::string& file, const Dat
   const uint64_t voxels = checked_voxel_count(d.dims, file);
   const uint64_t count = checked_mul(voxels, d.components, kMaxVoxels, file, "number of values");
   // Which files hold which part: each file holds the axes below `subdim`.
+  const bool stream = on_disk && streams_from_disk(h);
   if (h.data_files.empty()) {
-    d.chunks.emplace_back(bytes.substr(h.data_begin));
+    if (stream) {
+      const uint64_t size = std::filesystem::file_size(*on_disk);
+      d.chunks.push_back({{}, *on_disk, h.data_begin, size > h.data_begin ? size - h.data_begin : 0});
+    } else {
+      d.chunks.push_back({bytes.substr(h.data_begin)});
+    }
     d.where.push_back(file + ": attached data");
   } else {
     const uint64_t subdim = h.subdim ? h.subdim : (h.data_files.size() == 1 ? uint64_t(h.dimension) : uint64_t(h.dimension - 1));
@@ -463,8 +523,14 @@ NrrdData resolve_nrrd(std::string_view bytes, const std::string& file, const Dat
     if (files_needed != h.data_files.size())
       throw std::runtime_error(file + ": " + std::to_string(h.data_files.size()) + " data files for sizes needing " +
                                std::to_string(files_needed));
+    d.owned.reserve(h.data_files.size());
     for (const auto& f : h.data_files) {
-      d.chunks.push_back(open_data_file(f));
+      if (stream) {
+        const std::filesystem::path p = data_file_path(*on_disk, f);
+        d.chunks.push_back({{}, p, 0, std::filesystem::file_size(p)});
+      } else {
+        d.chunks.push_back({d.owned.emplace_back(open_data_file(f))});
+      }
       d.where.push_back(file + ": data file " + f);
     }
   }
@@ -473,7 +539,7 @@ NrrdData resolve_nrrd(std::string_view bytes, const std::string& file, const Dat
   // allocating the volume (raw/hex/ASCII are bounded by their bytes, gzip by zlib's ratio).
   const uint64_t elem = element_bytes(*h.type);
   for (size_t i = 0; i < d.chunks.size(); ++i) {
-    const uint64_t n = d.chunks[i].size();
+    const uint64_t n = d.chunks[i].byte_count();
     const uint64_t bound = h.encoding == "raw"    ? n / elem
                            : h.encoding == "gzip" ? (kMaxDeflateRatio * n + 1024) / elem
                            : h.encoding == "hex"  ? n / 2 / elem
@@ -488,14 +554,31 @@ NrrdData resolve_nrrd(std::string_view bytes, const std::string& file, const Dat
   return d;
 }
 
+// The start of a NRRD file through its header: up to the first empty line of an attached file,
+// the whole file when there is none (a detached header, whose data file LIST may hold empty lines).
+std::string read_nrrd_head(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return read_file_bytes(path);  // which says why
+  std::string head;
+  std::array<char, 1 << 16> block;
+  while (in) {
+    in.read(block.data(), std::streamsize(block.size()));
+    head.append(block.data(), size_t(in.gcount()));
+    const size_t end = head.find("\n\n") != std::string::npos ? head.find("\n\n") : head.find("\n\r\n");
+    if (end != std::string::npos) {
+      // A data file LIST reads to the end of the file, past empty lines.
+      if (head.find("data file: LIST") != std::string::npos || head.find("datafile: LIST") != std::string::npos)
+        return read_file_bytes(path);
+      return head;
+    }
+    if (head.size() > (uint64_t(64) << 20)) break;  // no header is this long: the whole file says what is wrong
+  }
+  return read_file_bytes(path);
+}
+
 // Detached data files, relative to the header's directory.
 DataFileLoader data_file_loader(const std::filesystem::path& header) {
-  return [header](const std::string& name) {
-    std::filesystem::path p = name;
-    if (p.is_relative()) p = header.parent_path() / p;
-    if (!std::filesystem::exists(p)) throw std::runtime_error(header.string() + ": data file " + p.string() + " does not exist");
-    return read_file_bytes(p);
-  };
+  return [header](const std::string& name) { return read_file_bytes(data_file_path(header, name)); };
 }
 
 }  // namespace
@@ -527,7 +610,13 @@ Volume read_nrrd_volume(const std::filesystem::path& path, const VolumeOptions& 
 
 FileInfo describe_nrrd(const std::filesystem::path& path, const VolumeOptions&) {
   const std::string file = path.string();
-  const NrrdData d = resolve_nrrd(read_file_bytes(path), file, data_file_loader(path));
+  // Raw data stays on disk and streams through the statistics (a 64 MiB file was read whole, and
+  // its attached data copied once more); other encodings are decoded a block at a time from the
+  // file's bytes in memory.
+  std::string bytes = read_nrrd_head(path);
+  const bool stream = streams_from_disk(parse_header(bytes, file));
+  if (!stream) bytes = read_file_bytes(path);
+  const NrrdData d = resolve_nrrd(bytes, file, data_file_loader(path), stream ? &path : nullptr);
   const NrrdHeader& h = d.h;
   FileInfo info{file, "NRRD", {}, {}};
   ArrayInfo a;

@@ -6,11 +6,13 @@
 
 #include <cmath>
 #include <map>
+#include <tuple>
 
 #include "formats_test_util.h"
 #include "tfmatch/io/volume_formats.h"
 #include "tfmatch/io/volume_info.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/model/volume.h"
 #include "vk_test_env.h"
 
@@ -130,6 +132,42 @@ TEST(Nrrd, InfoNamesDataBeyondWhatTheSizesNeed) {
   EXPECT_NE(notes_of("skip.nhdr", head + "data file: d.raw\nbyte skip: 2\n")
                 .find("data file d.raw holds 20 bytes more"),
             std::string::npos);
+}
+
+// `info` reads raw data from disk a block at a time (attached or detached, any byte skip, either
+// byte order), other encodings from the file's bytes: the same statistics as the loaded volume,
+// the same errors for short data, and a raw file larger than the memory budget is described.
+TEST(Nrrd, InfoStreamsRawDataFromDisk) {
+  formats_test::TempDir dir;
+  auto stats = [&](const std::string& name, const std::string& bytes) {
+    formats_test::write_bytes(dir / name, bytes);
+    const ArrayInfo a = describe_file(dir / name).arrays.at(0);
+    return std::tuple{a.values, a.min.value_or(NAN), a.max.value_or(NAN)};
+  };
+  const auto expected = std::tuple{uint64_t(12), -5.0, 50.0};
+  const std::string head = kHead + "endian: little\nencoding: raw\n";
+  EXPECT_EQ(stats("a.nrrd", head + "\n" + shorts(false)), expected);
+  EXPECT_EQ(stats("big.nrrd", kHead + "endian: big\nencoding: raw\n\n" + shorts(true)), expected);
+  EXPECT_EQ(stats("skip.nrrd", head + "byte skip: 5\n\nabcde" + shorts(false)), expected);
+  formats_test::write_bytes(dir / "d.raw", "another tool's header" + shorts(false));
+  EXPECT_EQ(stats("end.nhdr", head + "data file: d.raw\nbyte skip: -1\n"), expected);
+  EXPECT_EQ(stats("gz.nrrd", kHead + "endian: little\nencoding: gzip\n\n" + gzip(shorts(false))), expected);
+  formats_test::write_bytes(dir / "l.raw", "a line to skip\n" + shorts(false));
+  EXPECT_EQ(stats("lines.nhdr", head + "data file: l.raw\nline skip: 1\n"), expected);
+  formats_test::write_bytes(dir / "short.nrrd", head + "\n" + shorts(false).substr(0, 20));
+  expect_error([&] { describe_file(dir / "short.nrrd"); }, {"attached data has 20 bytes", "too few for 12"});
+  // 4 Mi floats (16 MiB) under a budget with 8 MiB left: described; loading it is refused.
+  std::string body = "NRRD0004\ntype: float\ndimension: 3\nsizes: 256 256 64\nendian: little\nencoding: raw\n\n";
+  for (uint32_t i = 0; i < 256 * 256 * 64; ++i) put(body, float(i % 1000) - 1.5f, false);
+  formats_test::write_bytes(dir / "large.nrrd", body);
+  body = {};
+  set_memory_budget(resident_memory() + (uint64_t(8) << 20), "--max-memory test");
+  const ArrayInfo a = describe_file(dir / "large.nrrd").arrays.at(0);
+  EXPECT_THROW(load_volume((dir / "large.nrrd").string()), MemoryBudgetExceeded);
+  set_memory_budget(0, "");
+  EXPECT_EQ(a.values, uint64_t(256 * 256 * 64));
+  EXPECT_EQ(a.min, -1.5);
+  EXPECT_EQ(a.max, 997.5);
 }
 
 TEST(Nrrd, MalformedInputGivesClearErrors) {
