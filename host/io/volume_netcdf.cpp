@@ -406,25 +406,45 @@ size_t pick_index(const Layout& L, int axis, std::optional<uint64_t> requested, 
   return static_cast<size_t>(i);
 }
 
-// Calls fn(values, n) for each 2D (or 1D) slab of the variable at the given leading indices;
-// `fixed` holds an index for every axis that is not one of the last two spatial axes.
+// Values read per call at most (12 bytes each: as double, then unpacked to float), unless one row
+// of the fastest spatial axis is longer.
+constexpr uint64_t kSlabReadValues = uint64_t(1) << 20;
+
+// Calls fn(values, n) for each 2D (or 1D) slab of the variable at the given leading indices, in
+// order, a block of rows of the slab at a time (an 8192 x 8192 slab took 768 MiB read whole);
+// `iterate` holds the axes that are not one of the last two spatial axes, slowest first.
 template <class Fn>
 void for_each_slab(const NcFile& f, const Layout& L, std::vector<size_t> start, const std::vector<int>& iterate, Fn fn) {
   const size_t nd = L.dim_sizes.size();
   std::vector<size_t> count(nd, 1);
   for (int k = 0; k < 2; ++k)
     if (L.spatial[k] >= 0) count[L.spatial[k]] = L.dim_sizes[L.spatial[k]];
-  size_t slab = 1;
-  for (size_t c : count) slab *= c;
-  check_memory(uint64_t(slab) * (sizeof(double) + sizeof(float)), f.name() + ": reading variable " + L.name + " " + L.shape());
-  std::vector<double> buf(slab);
+  // The slab's slower spatial axis is read a block of rows at a time: each block is the next
+  // values of the slab in its order.
+  const int rows_axis = L.spatial[0] >= 0 && L.spatial[1] >= 0 ? std::min(L.spatial[0], L.spatial[1]) : -1;
+  const size_t rows = rows_axis >= 0 ? L.dim_sizes[rows_axis] : 1;
+  size_t row = 1;
+  for (size_t a = 0; a < nd; ++a)
+    if (int(a) != rows_axis) row *= count[a];
+  const size_t block_rows = rows_axis >= 0 ? std::clamp<size_t>(kSlabReadValues / std::max<size_t>(row, 1), 1, rows) : 1;
+  const size_t block = row * block_rows;
+  check_memory(uint64_t(block) * (sizeof(double) + sizeof(float)), f.name() + ": reading variable " + L.name + " " + L.shape());
+  std::vector<double> buf(block);
   const Unpacker u = unpacker_of(f, L);
-  std::vector<float> out(slab);
+  std::vector<float> out(block);
   while (true) {
-    checkpoint("load");
-    f.check(nc_get_vara_double(f.id(), L.varid, start.data(), count.data(), buf.data()), "cannot read variable " + L.name);
-    for (size_t i = 0; i < slab; ++i) out[i] = u(buf[i]);
-    fn(out.data(), slab);
+    for (size_t r0 = 0; r0 < rows; r0 += block_rows) {
+      checkpoint("load");
+      if (rows_axis >= 0) {
+        start[rows_axis] = r0;
+        count[rows_axis] = std::min(block_rows, rows - r0);
+      }
+      const size_t n = row * (rows_axis >= 0 ? count[rows_axis] : 1);
+      f.check(nc_get_vara_double(f.id(), L.varid, start.data(), count.data(), buf.data()), "cannot read variable " + L.name);
+      for (size_t i = 0; i < n; ++i) out[i] = u(buf[i]);
+      fn(out.data(), n);
+    }
+    if (rows_axis >= 0) start[rows_axis] = 0;
     // Odometer over the axes to iterate (last one fastest).
     int k = static_cast<int>(iterate.size()) - 1;
     for (; k >= 0; --k) {
@@ -607,6 +627,11 @@ class NetcdfSlabs final : public VolumeSlabReader {
   std::vector<double> buffer_;
 };
 
+// The most values `info` reads of one variable for its range: 16 GiB of float data, tens of
+// seconds from a fast disk. A netCDF-4 file of a few KiB can declare an unwritten 10 x 10^5 x 10^5
+// variable, which would otherwise stream 10^11 fill values for a quarter of an hour.
+constexpr uint64_t kInfoMaxValues = uint64_t(1) << 32;
+
 FileInfo describe_netcdf(const NcFile& f, const VolumeOptions& options) {
   FileInfo info;
   info.path = f.name();
@@ -653,10 +678,27 @@ FileInfo describe_netcdf(const NcFile& f, const VolumeOptions& options) {
     for (size_t i = 0; i < L.dim_sizes.size(); ++i)
       if (int(i) != L.spatial[0] && int(i) != L.spatial[1]) iterate.push_back(int(i));
     bool empty = false;
-    for (size_t s : L.dim_sizes) empty |= s == 0;
-    if (!empty)
-      for_each_slab(f, L, std::vector<size_t>(L.dim_sizes.size(), 0), iterate,
-                    [&](const float* s, size_t n) { accumulate_stats(a, s, n); });
+    uint64_t values = 1;
+    for (size_t s : L.dim_sizes) {
+      empty |= s == 0;
+      values = values > kInfoMaxValues ? values : values * s;
+    }
+    if (!empty && values > kInfoMaxValues) {
+      a.notes.push_back("range not computed: " + std::to_string(values) +
+                        " values, more than info reads of one variable (2^32)");
+      info.arrays.push_back(std::move(a));
+      continue;
+    }
+    // A variable whose rows do not fit the memory budget is described without its range, not the
+    // end of the whole listing.
+    if (!empty) try {
+        for_each_slab(f, L, std::vector<size_t>(L.dim_sizes.size(), 0), iterate,
+                      [&](const float* s, size_t n) { accumulate_stats(a, s, n); });
+      } catch (const MemoryBudgetExceeded& e) {
+        a.values = a.nan_count = 0;
+        a.min = a.max = std::nullopt;
+        a.notes.push_back(std::string("range not computed: ") + e.what());
+      }
     info.arrays.push_back(std::move(a));
   }
   return info;

@@ -13,6 +13,7 @@
 #include "tfmatch/io/volume_info.h"
 #include "tfmatch/io/volume_io.h"
 #include "tfmatch/io/volume_vti.h"
+#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/model/volume.h"
 #include "vk_test_env.h"
 
@@ -363,6 +364,49 @@ TEST(NetcdfInfo, ListsVariablesWithRangesAndNoData) {
   EXPECT_EQ(*a->min, 0.0);
   EXPECT_EQ(*a->max, 1000 + 200 + 30 + 3);  // the largest value is the fill's neighbour
   EXPECT_NE(format_file_info(info).find("time = 2 (--time)"), std::string::npos);
+}
+
+// `info` reads a variable's slabs a block of rows at a time (a 2048 x 1024 one under a budget
+// with 16 MiB left: whole slabs of double and float took 24 MiB), and lists a variable too large to
+// scan (an unwritten 10 x 10^5 x 10^5 one in a netCDF-4 file of a few KiB) without its range
+// instead of streaming 10^11 fill values or failing the whole file.
+TEST(NetcdfInfo, ReadsRowsAndSkipsVariablesTooLargeToScan) {
+  TempDir dir;
+  const auto path = dir / "wide.nc";
+  int nc;
+  ASSERT_EQ(nc_create(path.c_str(), NC_CLOBBER | NC_NETCDF4, &nc), NC_NOERR);
+  int y, x, Z, Y, X;
+  ok(nc_def_dim(nc, "y", 1024, &y));
+  ok(nc_def_dim(nc, "x", 2048, &x));
+  ok(nc_def_dim(nc, "Z", 10, &Z));
+  ok(nc_def_dim(nc, "Y", 100000, &Y));
+  ok(nc_def_dim(nc, "X", 100000, &X));
+  const int wide = def_var(nc, "wide", NC_FLOAT, {y, x});
+  def_var(nc, "huge", NC_FLOAT, {Z, Y, X});
+  ok(nc_enddef(nc));
+  std::vector<float> values(1024 * 2048);
+  for (size_t i = 0; i < values.size(); ++i) values[i] = float(i % 3001) - 7.0f;
+  values[1024 * 2048 - 1] = 5000.0f;  // in the last block of rows
+  ok(nc_put_var_float(nc, wide, values.data()));
+  ok(nc_close(nc));
+  set_memory_budget(resident_memory() + (uint64_t(16) << 20), "--max-memory test");
+  FileInfo info;
+  ASSERT_NO_THROW(info = describe_file(path));
+  set_memory_budget(0, "");
+  ASSERT_EQ(info.arrays.size(), 2u);
+  const ArrayInfo& w = info.arrays[0];
+  EXPECT_EQ(w.values, 1024u * 2048u);
+  EXPECT_EQ(w.min, -7.0);
+  EXPECT_EQ(w.max, 5000.0);
+  const ArrayInfo& h = info.arrays[1];
+  EXPECT_FALSE(h.min.has_value());
+  ASSERT_FALSE(h.notes.empty());
+  EXPECT_NE(h.notes.back().find("range not computed: 100000000000 values"), std::string::npos) << h.notes.back();
+  // Loaded, the rows arrive in order: the same values as written.
+  const Volume v = load_volume(path.string() + ":wide");
+  ASSERT_EQ(v.values.size(), values.size());
+  EXPECT_EQ(v.at(2047, 1023, 0), 5000.0f);
+  EXPECT_EQ(v.at(5, 700, 0), values[700 * 2048 + 5]);
 }
 
 // ---- real files (../shared/data/SOURCES.md) ----
