@@ -140,11 +140,17 @@ std::string format_bytes(uint64_t bytes) {
 
 std::optional<uint64_t> parse_byte_size(std::string_view text) {
   std::string s(text);
+  // Digits with at most one decimal point: std::stod alone also reads "0x10" (hex) and "1e3".
   size_t used = 0;
+  bool point = false;
+  for (; used < s.size(); ++used) {
+    if (s[used] == '.' && !point) point = true;
+    else if (!std::isdigit(static_cast<unsigned char>(s[used]))) break;
+  }
+  if (used == 0 || (used == 1 && point)) return std::nullopt;
   double number = 0;
   try {
-    if (s.empty() || !(std::isdigit(static_cast<unsigned char>(s[0])) || s[0] == '.')) return std::nullopt;
-    number = std::stod(s, &used);
+    number = std::stod(s.substr(0, used));
   } catch (const std::exception&) {
     return std::nullopt;
   }

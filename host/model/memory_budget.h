@@ -25,6 +25,9 @@ struct MemoryBudget {
   std::string source;  // where the number comes from, as messages say it ("--max-memory 1G")
 };
 
+// The smallest budget a user may set: tfmatch holds about 12 MiB before it reads anything.
+inline constexpr uint64_t kMinMemoryBudget = uint64_t(16) << 20;
+
 // Sets the budget; `bytes` = 0 goes back to the default. `source` is what messages quote.
 void set_memory_budget(uint64_t bytes, std::string source);
 // The budget now. The default is fixed on first use: the memory available then

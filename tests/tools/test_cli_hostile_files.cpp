@@ -168,9 +168,28 @@ TEST(CliHostileFiles, SparseRawFileOf120GiBIsRefusedNamingIt) {
 }
 
 TEST(CliHostileFiles, MaxMemoryRejectsNonsense) {
-  const test::CliResult r = test::run_cli("info x.raw --max-memory lots");
-  EXPECT_NE(r.exit_code, 0) << r.output;
-  EXPECT_NE(r.output.find("expected a size such as 512M"), std::string::npos) << r.output;
+  for (const char* size : {"lots", "0x10G", "1e3M"}) {
+    const test::CliResult r = test::run_cli(std::string("info x.raw --max-memory ") + size);
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find("expected a size such as 512M"), std::string::npos) << r.output;
+  }
+  // Below what tfmatch holds before reading anything: said as such, not blamed on a later request.
+  const test::CliResult tiny = test::run_cli("info x.raw --max-memory 1k");
+  EXPECT_EQ(tiny.exit_code, 2) << tiny.output;
+  EXPECT_NE(tiny.output.find("--max-memory 1k is below 16.0 MiB"), std::string::npos) << tiny.output;
+  // A budget from the environment is quoted as such.
+  const test::CliEnvironment env{{"TFMATCH_MAX_MEMORY", "2x"}};
+  const test::CliResult bad_env = test::run_cli("info x.raw", test::kCliTimeout, env);
+  EXPECT_EQ(bad_env.exit_code, 2) << bad_env.output;
+  EXPECT_NE(bad_env.output.find("TFMATCH_MAX_MEMORY: expected a size"), std::string::npos) << bad_env.output;
+  TempDir dir;
+  const std::string big = dir / "big_512x512x64_float32.raw";
+  std::ofstream(big, std::ios::binary).write(std::string(512 * 512 * 64 * 4, '\0').data(), 512 * 512 * 64 * 4);
+  const test::CliResult over = test::run_cli("convert-volume " + big + " " + dir / "x.vti", test::kCliTimeout,
+                                             {{"TFMATCH_MAX_MEMORY", "40M"}});
+  EXPECT_EQ(over.exit_code, 1) << over.output;
+  EXPECT_NE(over.output.find("(TFMATCH_MAX_MEMORY=40M)"), std::string::npos) << over.output;
+  EXPECT_EQ(over.output.find("(--max-memory"), std::string::npos) << over.output;
 }
 
 // The build tree's tfmatch once ended its library search path with an empty entry (CMake's room

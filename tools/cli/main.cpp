@@ -373,12 +373,26 @@ int main(int argc, char** argv) {
       },
       "Print only errors and warnings (no summaries, notes or progress)");
   app.footer(exit_code_help());
+  // The budget's source as messages quote it: the flag, or the environment when it is not given.
+  bool max_memory_flag = false;
+  for (int i = 1; i < argc; ++i)
+    max_memory_flag |= std::string_view(argv[i]) == "--max-memory" || std::string_view(argv[i]).starts_with("--max-memory=");
   app.add_option_function<std::string>(
          "--max-memory",
-         [](const std::string& text) {
+         [max_memory_flag](const std::string& text) {
+           const std::string source = max_memory_flag ? "--max-memory " + text : "TFMATCH_MAX_MEMORY=" + text;
            const auto bytes = tfm::parse_byte_size(text);
-           if (!bytes) throw CLI::ValidationError("--max-memory", "expected a size such as 512M, 2G or 1.5GiB, got '" + text + "'");
-           tfm::set_memory_budget(*bytes, "--max-memory " + text);
+           if (!bytes)
+             throw CLI::ValidationError(max_memory_flag ? "--max-memory" : "TFMATCH_MAX_MEMORY",
+                                        "expected a size such as 512M, 2G or 1.5GiB, got '" + text + "'");
+           // Below what tfmatch holds before reading anything every command would fail, each
+           // blaming whatever it asked for first.
+           if (*bytes < tfm::kMinMemoryBudget)
+             throw CLI::ValidationError(max_memory_flag ? "--max-memory" : "TFMATCH_MAX_MEMORY",
+                                        source + " is below " + tfm::format_bytes(tfm::kMinMemoryBudget) +
+                                            ": tfmatch holds about 12 MiB before reading anything, and a "
+                                            "Vulkan device 60 MiB or more");
+           tfm::set_memory_budget(*bytes, source);
          },
          "Most memory tfmatch may hold, e.g. 2G or 512M (env TFMATCH_MAX_MEMORY; default: the memory available at "
          "start). Inputs that would need more fail before loading, naming the file and the size")

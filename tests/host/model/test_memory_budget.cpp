@@ -19,7 +19,8 @@ TEST(MemoryBudget, ParsesSizesAsUsersWriteThem) {
   EXPECT_EQ(parse_byte_size("2G"), uint64_t(2) << 30);
   EXPECT_EQ(parse_byte_size("1.5GiB"), uint64_t(3) << 29);
   EXPECT_EQ(parse_byte_size("1t"), uint64_t(1) << 40);
-  for (const char* bad : {"", "G", "-1G", "0", "0.1", "12X", "1e30G", "inf", "nan", " 1G"})
+  EXPECT_EQ(parse_byte_size(".5G"), uint64_t(1) << 29);
+  for (const char* bad : {"", "G", "-1G", "0", "0.1", "12X", "1e30G", "inf", "nan", " 1G", "0x10G", "1e3M", ".", "1.2.3G"})
     EXPECT_FALSE(parse_byte_size(bad)) << bad;
 }
 
