@@ -15,6 +15,7 @@
 #include "tfmatch/io/volume_formats.h"
 #include "tfmatch/io/xml_tree.h"
 #include "tfmatch/model/builtin_tf.h"
+#include "tfmatch/model/color_spaces.h"
 
 namespace tfm {
 namespace {
@@ -22,6 +23,9 @@ namespace {
 // The key of a preset tfmatch writes that says whether the TF has a range ([lo, hi], the points'
 // span) or not (null).
 constexpr const char* kTfmatchRangeKey = "tfmatchRange";
+// And the size of the table it was written from: its nodes are among the points, so a table of
+// that size reads back exactly (the points between the nodes are for ParaView's blending).
+constexpr const char* kTfmatchTableSizeKey = "tfmatchTableSize";
 
 std::string num(double v) {
   char buf[32];
@@ -260,7 +264,10 @@ ControlPointTf parse_paraview_preset(std::string_view text, const std::string& n
   const std::vector<double> rgb = numbers("RGBPoints", 4), pts = numbers("Points", 4);
   if (rgb.empty()) throw std::runtime_error(name + ": the preset has no \"RGBPoints\"");
   ControlPointTf cp;
-  const std::string space = obj->contains("ColorSpace") && (*obj)["ColorSpace"].is_string() ? (*obj)["ColorSpace"].get<std::string>() : "RGB";
+  if (obj->contains("ColorSpace") && !(*obj)["ColorSpace"].is_string())
+    throw std::runtime_error(name + ": \"ColorSpace\" must be a name such as \"RGB\" or \"Diverging\", not " +
+                             (*obj)["ColorSpace"].dump());
+  const std::string space = obj->contains("ColorSpace") ? (*obj)["ColorSpace"].get<std::string>() : "RGB";
   try {
     cp.interpolation = parse_paraview_color_space(space);
   } catch (const std::invalid_argument& e) {
@@ -299,13 +306,50 @@ ControlPointTf parse_paraview_preset(std::string_view text, const std::string& n
     else
       throw std::runtime_error(name + ": \"" + kTfmatchRangeKey + "\" must be null or [lo, hi] with lo < hi");
   }
+  if (obj->contains(kTfmatchTableSizeKey)) {
+    const nlohmann::json& k = (*obj)[kTfmatchTableSizeKey];
+    if (!k.is_number_unsigned() || k.get<uint64_t>() < 2 || k.get<uint64_t>() > kMaxTableSize)
+      throw std::runtime_error(name + ": \"" + kTfmatchTableSizeKey + "\" must be a whole number from 2 to " +
+                               std::to_string(kMaxTableSize));
+    cp.table_size = size_t(k.get<uint64_t>());
+  }
   return cp;
 }
 
+namespace {
+
+// How far ParaView's blend of a preset's sRGB values may stray from tfmatch's linear blend between
+// a table's nodes, per channel (linear RGB): half a level of 8 bits.
+constexpr double kPresetBlendTolerance = 1.0 / 512;
+
+// Points per table interval for a preset: the fewest m = 2^i <= 256 such that blending the sRGB values of
+// the interval cut in m equal pieces stays within kPresetBlendTolerance of the linear blend.
+uint32_t preset_pieces(const Rgb& a, const Rgb& b) {
+  auto lerp = [](const Rgb& x, const Rgb& y, double t) {
+    return Rgb{x[0] + t * (y[0] - x[0]), x[1] + t * (y[1] - x[1]), x[2] + t * (y[2] - x[2])};
+  };
+  for (uint32_t m = 1;; m *= 2) {
+    double worst = 0.0;
+    for (uint32_t k = 0; k < m; ++k) {
+      const Rgb p0 = lerp(a, b, double(k) / m), p1 = lerp(a, b, double(k + 1) / m);
+      const Rgb s0 = linear_to_srgb(p0), s1 = linear_to_srgb(p1);
+      for (double t : {0.25, 0.5, 0.75}) {
+        const Rgb blended = srgb_to_linear(lerp(s0, s1, t)), exact = lerp(p0, p1, t);
+        for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(blended[c] - exact[c]));
+      }
+    }
+    if (worst <= kPresetBlendTolerance || m == 256) return m;
+  }
+}
+
+}  // namespace
+
 std::string tf_to_paraview_json(const TransferFunction& tf, const std::string& preset_name) {
-  // Colours go out as sRGB with ColorSpace "RGB": exact at the nodes; between nodes ParaView
-  // blends sRGB values where tfmatch blends linear ones (a small difference for fine tables).
-  const ControlPointTf cp = control_points_from_table(tf);
+  // Colours go out as sRGB with ColorSpace "RGB", which ParaView blends as sRGB values where
+  // tfmatch blends linear ones: exact at the nodes, and points between the nodes where the two
+  // blends part by more than kPresetBlendTolerance (a black-to-white table of two entries was
+  // 0.29 off midway). "tfmatchTableSize" gives tfmatch back the table's own nodes.
+  const size_t n = tf.size();
   const double lo = tf.range ? tf.range->lo : 0.0, hi = tf.range ? tf.range->hi : 1.0;
   nlohmann::json p;
   p["Name"] = preset_name;
@@ -314,14 +358,28 @@ std::string tf_to_paraview_json(const TransferFunction& tf, const std::string& p
   p["NanColor"] = {0.0, 0.0, 0.0};
   p["NanOpacity"] = 0.0;
   auto rgb = nlohmann::json::array(), pts = nlohmann::json::array();
-  for (size_t j = 0; j < cp.color.size(); ++j) {
-    const double x = lo + cp.color[j].position * (hi - lo);
-    for (double v : {x, cp.color[j].srgb[0], cp.color[j].srgb[1], cp.color[j].srgb[2]}) rgb.push_back(v);
-    for (double v : {x, cp.opacity[j].opacity, 0.5, 0.0}) pts.push_back(v);
+  auto point = [&](double t, const Rgb& linear, double opacity) {
+    const double x = lo + t * (hi - lo);
+    const Rgb srgb = linear_to_srgb(linear);
+    for (double v : {x, srgb[0], srgb[1], srgb[2]}) rgb.push_back(v);
+    for (double v : {x, opacity, 0.5, 0.0}) pts.push_back(v);
+  };
+  const auto colour = [&](size_t j) { return Rgb{tf.rgba[j][0], tf.rgba[j][1], tf.rgba[j][2]}; };
+  for (size_t j = 0; j < n; ++j) {
+    point(n > 1 ? double(j) / double(n - 1) : 0.0, colour(j), tf.rgba[j][3]);
+    if (j + 1 == n) break;
+    const uint32_t m = preset_pieces(colour(j), colour(j + 1));
+    for (uint32_t k = 1; k < m; ++k) {
+      const double f = double(k) / m;
+      const Rgb c{colour(j)[0] + f * (colour(j + 1)[0] - colour(j)[0]), colour(j)[1] + f * (colour(j + 1)[1] - colour(j)[1]),
+                  colour(j)[2] + f * (colour(j + 1)[2] - colour(j)[2])};
+      point((double(j) + f) / double(n - 1), c, tf.rgba[j][3] + f * (tf.rgba[j + 1][3] - tf.rgba[j][3]));
+    }
   }
   p["RGBPoints"] = rgb;
   p["Points"] = pts;
   p[kTfmatchRangeKey] = tf.range ? nlohmann::json{lo, hi} : nlohmann::json(nullptr);
+  p[kTfmatchTableSizeKey] = n;
   return json_text(nlohmann::json::array({p}), 1) + "\n";
 }
 
@@ -343,7 +401,8 @@ TransferFunction parse_transfer_function(std::string_view text, const std::strin
       return options.table_size ? tf.resampled(options.table_size) : tf;
     }
   }
-  return table_from_control_points(parse_paraview_preset(text, name, options.preset, notes), options.table_size);
+  const ControlPointTf cp = parse_paraview_preset(text, name, options.preset, notes);
+  return table_from_control_points(cp, options.table_size ? options.table_size : cp.table_size.value_or(0));
 }
 
 std::optional<BuiltinTf> builtin_tf_named_by(const std::string& spec) {

@@ -35,6 +35,8 @@ struct ControlPointTf {
   std::vector<ColorPoint> color;
   ColorInterpolation interpolation = ColorInterpolation::SRgb;
   std::optional<FieldRange> range;
+  // The table size the file states (a preset tfmatch wrote): its entries are among the points.
+  std::optional<size_t> table_size;
 };
 
 // The table of `n` entries (n = 0: auto_table_size) at t = j/(n-1), RGB linear.

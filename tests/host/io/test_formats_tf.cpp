@@ -146,6 +146,17 @@ TEST(TfFormats, TablesRoundTripThroughXmlAndParaView) {
       // The XML blends in linear RGB like the table: equal between nodes too.
       if (text[0] == '<') {
         for (double t = 0; t <= 1.0; t += 0.0137) EXPECT_NEAR(back.eval(t)[1], tf.eval(t)[1], 1e-12);
+      } else {
+        // The preset says its table size: the same table comes back, not a refined one.
+        EXPECT_EQ(back.size(), tf.size());
+        // ParaView blends the points' sRGB values (what a fine table read from them holds):
+        // within half an 8-bit level of the table's linear blend between its nodes too.
+        const TransferFunction paraview = parse_transfer_function(text, "rt.json", {4001, ""});
+        double worst = 0;
+        for (size_t k = 0; k < paraview.size(); ++k)
+          for (int c = 0; c < 4; ++c)
+            worst = std::max(worst, std::abs(paraview.rgba[k][c] - tf.eval(double(k) / 4000)[c]));
+        EXPECT_LE(worst, 1.0 / 512 + 1e-9) << n;
       }
     }
   }
@@ -167,6 +178,14 @@ TEST(TfFormats, TablesRoundTripThroughXmlAndParaView) {
   EXPECT_EQ(unit_back.range->lo, 0.0);
   EXPECT_EQ(unit_back.range->hi, 1.0);
   EXPECT_FALSE(parse(tf_to_paraview_json(none, "n")).range);
+  // Black to white in two entries, the widest gap between the two blends (0.29 midway).
+  TransferFunction ramp;
+  ramp.rgba = {{0, 0, 0, 0}, {1, 1, 1, 1}};
+  const std::string ramp_preset = tf_to_paraview_json(ramp, "ramp");
+  EXPECT_EQ(parse(ramp_preset).rgba, ramp.rgba);
+  const TransferFunction ramp_paraview = parse_transfer_function(ramp_preset, "ramp.json", {1025, ""});
+  for (size_t k = 0; k < ramp_paraview.size(); ++k)
+    ASSERT_NEAR(ramp_paraview.rgba[k][1], double(k) / 1024, 1.0 / 512 + 1e-9) << k;
 }
 
 std::string preset(const std::string& space, const std::string& rgb, const std::string& points, const std::string& name = "p") {
@@ -233,6 +252,10 @@ TEST(TfFormats, MalformedFilesGiveClearErrors) {
   expect_error([&] { parse(preset("RGB", "0,0,0,2, 1,0,0,0", "")); }, {"colour 2 outside [0,1]"});
   expect_error([&] { parse(preset("RGB", "0.5,0,0,0, 0.5,1,1,1", "")); }, {"one position"});
   expect_error([&] { parse(preset("XYZ", "0,0,0,0, 1,1,1,1", "")); }, {"unknown ColorSpace 'XYZ'"});
+  expect_error([&] { parse("{\"ColorSpace\": 5, \"RGBPoints\": [0,0,0,0, 1,1,1,1]}"); },
+               {"\"ColorSpace\" must be a name", "not 5"});
+  expect_error([&] { parse("{\"tfmatchTableSize\": 1, \"RGBPoints\": [0,0,0,0, 1,1,1,1]}"); },
+               {"\"tfmatchTableSize\" must be a whole number from 2 to 65536"});
   expect_error([&] { parse("{\"Name\": \"x\"}"); }, {"no \"RGBPoints\""});
   expect_error([&] { parse("[1, 2"); }, {"not valid JSON"});
   expect_error([&] { parse("{\"rgba\": [[0,0,0,0],[1,1,1"); }, {"mem.tf", "not valid JSON", "line 1, column"});
@@ -256,8 +279,8 @@ TEST(TfFormats, WriteDispatchesByExtensionAndReadsBack) {
   }
   EXPECT_NE(formats_test::read_bytes(dir / "c.paraview.json").find("\"Name\": \"c\""), std::string::npos);
   expect_error([&] { write_transfer_function(dir / "d.txt", tf); }, {"d.txt", "unknown transfer function format"});
-  // FILE:PRESET names a preset; 16 nodes at j/15 refine to 15 * 17 + 1 entries.
-  EXPECT_EQ(read_transfer_function((dir / "c.paraview.json").string() + ":c").size(), 256u);
+  // FILE:PRESET names a preset; the table comes back at its own 16 entries ("tfmatchTableSize").
+  EXPECT_EQ(read_transfer_function((dir / "c.paraview.json").string() + ":c").size(), 16u);
   expect_error([&] { read_transfer_function((dir / "c.paraview.json").string() + ":nope"); }, {"no preset named 'nope'"});
   // A built-in name is a file's only when a file has it: a folder named viridis (an output folder)
   // leaves the built-in map as it is; a file of that name is read.
