@@ -390,13 +390,23 @@ TransferFunction parse_transfer_function(std::string_view text, const std::strin
   // Skip a UTF-8 byte order mark.
   if (text.substr(p, 3) == "\xEF\xBB\xBF") p += 3;
   if (p == text.size()) throw std::runtime_error(name + ": empty transfer function file");
-  if (text[p] == '<') return table_from_control_points(parse_tf_xml(text, name, notes), options.table_size);
+  // FILE:NAME picks a preset of a ParaView file; a file of one TF has none to pick.
+  auto one_tf = [&](const char* what) {
+    if (!options.preset.empty())
+      throw std::runtime_error(name + ": ':" + options.preset + "' names a preset of a ParaView preset file, but this is " +
+                               what + " of one transfer function");
+  };
+  if (text[p] == '<') {
+    one_tf("an XML file");
+    return table_from_control_points(parse_tf_xml(text, name, notes), options.table_size);
+  }
   if (text[p] != '{' && text[p] != '[')
     throw std::runtime_error(name + ": not a transfer function (expected XML, tfmatch JSON or a ParaView preset)");
   if (text[p] == '{') {
     nlohmann::json doc = nlohmann::json::parse(text, nullptr, false);
     if (doc.is_discarded()) parse_tf_json(std::string(text), name);  // throws, saying where
     if (doc.contains("rgba")) {
+      one_tf("a tfmatch JSON table");
       TransferFunction tf = parse_tf_json(std::string(text), name);
       return options.table_size ? tf.resampled(options.table_size) : tf;
     }

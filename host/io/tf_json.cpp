@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 #include <iomanip>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 
@@ -16,11 +17,23 @@ namespace tfm {
 
 TransferFunction parse_tf_json(const std::string& text, const std::string& source) {
   nlohmann::json doc;
+  // The table's own keys once each: the JSON parser keeps the last of two "rgba" arrays, and
+  // which one a person meant is not for tfmatch to guess.
+  std::string repeated;
+  std::set<std::string> keys;
+  const nlohmann::json::parser_callback_t once = [&](int depth, nlohmann::json::parse_event_t event,
+                                                     nlohmann::json& parsed) {
+    if (depth == 1 && event == nlohmann::json::parse_event_t::key && !keys.insert(parsed.get<std::string>()).second &&
+        repeated.empty())
+      repeated = parsed.get<std::string>();
+    return true;
+  };
   try {
-    doc = nlohmann::json::parse(text);
+    doc = nlohmann::json::parse(text, once);
   } catch (const nlohmann::json::exception& e) {
     throw std::runtime_error(source + ": not valid JSON (" + e.what() + ")");
   }
+  if (!repeated.empty()) throw std::runtime_error(source + ": the key \"" + repeated + "\" appears more than once");
   if (!doc.is_object() || !doc.contains("rgba") || !doc["rgba"].is_array())
     throw std::runtime_error(source + ": expected an object with an \"rgba\" array of [r,g,b,a] rows");
   // Tables are linear RGB (docs/formats.md); a table declared sRGB is converted entry by entry.

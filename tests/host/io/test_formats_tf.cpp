@@ -264,6 +264,12 @@ TEST(TfFormats, MalformedFilesGiveClearErrors) {
   expect_error([&] { parse("{\"rgba\": [[0,0,0,0]]}"); }, {"at least 2 entries"});
   expect_error([&] { parse("{\"colorspace\": \"cmyk\", \"rgba\": [[0,0,0,0],[1,1,1,1]]}"); },
                {"unknown \"colorspace\" \"cmyk\" (linear-rgb, the default, or srgb)"});
+  expect_error([&] { parse("{\"rgba\": [[0,0,0,0],[1,1,1,1]], \"rgba\": [[1,0,0,0],[1,1,1,1]]}"); },
+               {"mem.tf", "the key \"rgba\" appears more than once"});
+  // FILE:NAME picks a preset; a file of one TF has none, and the name is not silently dropped.
+  expect_error([&] { parse_transfer_function("{\"rgba\": [[0,0,0,0],[1,1,1,1]]}", "t.json", {0, "a"}); },
+               {"t.json: ':a' names a preset of a ParaView preset file", "tfmatch JSON table"});
+  expect_error([&] { parse_transfer_function(xml("", "", pt), "t.xml", {0, "a"}); }, {"t.xml: ':a'", "an XML file"});
   expect_error([&] { parse("hello"); }, {"not a transfer function"});
   expect_error([&] { parse(""); }, {"empty transfer function file"});
 }
