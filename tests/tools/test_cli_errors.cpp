@@ -118,6 +118,24 @@ TEST_F(CliErrors, AllNanField) {
   expect_failure(ok_inputs("", dir / "nan_4x4x4_float32.raw"), {"nan_4x4x4_float32.raw", "no finite value"});
 }
 
+// `residual` renders only with --image: picture settings without it are a usage error naming
+// them (they were accepted and dropped), and with it they shape the picture.
+TEST_F(CliErrors, ResidualPictureSettingsNeedAnImage) {
+  const std::string args = "residual --ref " + dir / "ref_4x4x4_float32.raw" + " --ref-tf " + dir / "tf.json" +
+                           " --field " + dir / "field_4x4x4_float32.raw" + " --field-tf " + dir / "tf.json" + " --out " +
+                           dir / "r.raw";
+  auto r = run_cli(args + " --width 64 --step 2");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--width, --step: shape the residual's picture: add --image"), std::string::npos) << r.output;
+  r = run_cli(args + " --display-range 0,1");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--display-range: shapes the residual's picture"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "r.raw"));
+  r = run_cli(args + " --image " + dir / "r.png" + " --width 64 --height 48 --display-range 0,1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(dir / "r.png"));
+}
+
 // The working case: a 3-entry reference TF, an optimized TF of another size, JSON summary.
 TEST_F(CliErrors, DifferentTfSizesWork) {
   std::string out = dir / "out.json", summary = dir / "summary.json";

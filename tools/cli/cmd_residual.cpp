@@ -25,6 +25,7 @@ namespace {
 
 struct ResidualArgs {
   std::string ref, ref_tf, field, field_tf, out, image;
+  std::vector<std::string> image_flags;  // rendering flags and --display-range given
   std::string ref_range, field_range, display_range;
   bool allow_out_of_range = false;
   VolumeFlags volume_flags;
@@ -42,6 +43,14 @@ int run(ResidualArgs a) {
       .output(a.out, "--out")
       .output(a.image, "--image")
       .check();
+  // Picture settings without a picture would be dropped without a word.
+  if (a.image.empty() && !a.image_flags.empty()) {
+    std::string flags;
+    for (const std::string& f : a.image_flags) flags += (flags.empty() ? "" : ", ") + f;
+    const bool one = a.image_flags.size() == 1;
+    throw CLI::ValidationError(flags, std::string(one ? "shapes" : "shape") + " the residual's picture: add --image " +
+                                          "FILE.png, or leave " + (one ? "it" : "them") + " out");
+  }
   std::optional<FieldRange> display;
   if (!a.display_range.empty()) display = parse_range(a.display_range, "--display-range");
   if (!a.image.empty()) validate(a.settings);
@@ -123,6 +132,9 @@ CommandRegistration reg(21, [](CLI::App& app) {
   add_render_options(sub, args->settings);
   sub->callback([args, sub] {
     args->chosen = render_choices(*sub);
+    for (const CLI::Option* o : sub->get_options())
+      if (o->count() > 0 && (o->get_group() == "Rendering" || o->get_name() == "--display-range"))
+        args->image_flags.push_back(o->get_name());
     exit_code() = run(*args);
   });
 });
