@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -56,11 +57,12 @@ Image slice_image(const Volume& v, const SliceValues& s, const TransferFunction&
             uint32_t(std::max(1.0, std::round(cell_h * double(s.height)))));
   const FieldMapping m = make_mapping(range, uint32_t(tf.size()));
   std::vector<Rgb8> colour(s.values.size());
+  std::vector<uint8_t> no_data(s.values.size(), 0);
   for (size_t i = 0; i < s.values.size(); ++i) {
     uint32_t j;
     float w;
     if (!tf_coordinate(s.values[i], m, j, w)) {
-      colour[i] = srgb8(style.no_data[0], style.no_data[1], style.no_data[2]);
+      no_data[i] = 1;
       continue;
     }
     Rgba c;
@@ -69,14 +71,44 @@ Image slice_image(const Volume& v, const SliceValues& s, const TransferFunction&
     colour[i] = srgb8(a * c[0] + (1 - a) * style.background[0], a * c[1] + (1 - a) * style.background[1],
                       a * c[2] + (1 - a) * style.background[2]);
   }
+  const Rgb8 grey = srgb8(style.no_data[0], style.no_data[1], style.no_data[2]);
+  const Rgb8 alt = srgb8(style.no_data_alt[0], style.no_data_alt[1], style.no_data_alt[2]);
   for (uint32_t y = 0; y < img.height; ++y) {
     const uint64_t r = std::min<uint64_t>(s.height - 1, uint64_t(double(y) / double(img.height) * double(s.height)));
     for (uint32_t x = 0; x < img.width; ++x) {
       const uint64_t c = std::min<uint64_t>(s.width - 1, uint64_t(double(x) / double(img.width) * double(s.width)));
-      img.set(int(x), int(y), colour[r * s.width + c]);
+      const size_t i = r * s.width + c;
+      img.set(int(x), int(y), no_data[i] ? ((x / 4 + y / 4) % 2 ? alt : grey) : colour[i]);
     }
   }
   return img;
+}
+
+void mark_slice(Image& picture, const SliceValues& s, const std::vector<GridIndex>& crosses,
+                const std::vector<GridIndex>& dots) {
+  const double cell_w = double(picture.width) / double(s.width), cell_h = double(picture.height) / double(s.height);
+  // The centre of the point's voxel in the picture, if the point is in the plane.
+  auto centre = [&](const GridIndex& p) -> std::optional<std::array<double, 2>> {
+    if (p[size_t(s.axis)] != s.index || p[size_t(s.across)] >= s.width || p[size_t(s.up)] >= s.height) return std::nullopt;
+    const double row = double(s.height - 1 - p[size_t(s.up)]);  // the top row is the highest index
+    // On a pixel's centre, so that one-pixel lines are crisp.
+    return std::array<double, 2>{std::floor((double(p[size_t(s.across)]) + 0.5) * cell_w) + 0.5,
+                                 std::floor((row + 0.5) * cell_h) + 0.5};
+  };
+  const double arm = std::max(6.0, 0.04 * std::min(picture.width, picture.height));
+  for (const GridIndex& p : crosses)
+    if (const auto c = centre(p)) {
+      const auto [x, y] = *c;
+      for (const auto& [colour, width] : {std::pair{Rgb8{255, 255, 255}, 3.0}, std::pair{Rgb8{0, 0, 0}, 1.0}}) {
+        draw_line(picture, x - arm, y, x - 2, y, colour, width);
+        draw_line(picture, x + 2, y, x + arm, y, colour, width);
+        draw_line(picture, x, y - arm, x, y - 2, colour, width);
+        draw_line(picture, x, y + 2, x, y + arm, colour, width);
+      }
+    }
+  const double radius = std::max(2.5, 0.012 * std::min(picture.width, picture.height));
+  for (const GridIndex& p : dots)
+    if (const auto c = centre(p)) draw_dot(picture, (*c)[0], (*c)[1], radius, {220, 20, 20}, {255, 255, 255});
 }
 
 std::string axis_label(const Volume& v, int axis) {

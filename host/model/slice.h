@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "tfmatch/model/field_mapping.h"
+#include "tfmatch/model/grid_point.h"
 #include "tfmatch/model/image.h"
 #include "tfmatch/model/transfer_function.h"
 #include "tfmatch/model/volume.h"
@@ -36,7 +37,10 @@ enum class SliceShading { Colour, Opacity };
 
 struct SliceStyle {
   std::array<double, 3> background{1.0, 1.0, 1.0};  // linear RGB (as RenderSettings::background)
-  std::array<double, 3> no_data{0.55, 0.55, 0.55};  // NaN voxels, linear RGB
+  // NaN voxels: a checkerboard of these two greys (linear RGB) in squares of 4 pixels, a pattern
+  // no TF colour makes (a plain grey was taken for a grey TF's values).
+  std::array<double, 3> no_data{0.55, 0.55, 0.55};
+  std::array<double, 3> no_data_alt{0.25, 0.25, 0.25};
   SliceShading shading = SliceShading::Colour;
   // Opacity shading: a slice shows one sample per pixel rather than an integral along a ray, so
   // the TF's opacity is rescaled: alpha / opacity_scale (clamped to 1) over the background. Pass
@@ -52,6 +56,12 @@ struct SliceStyle {
 // T(v) of every voxel of the slice as style.shading says (linear RGB), sRGB-encoded.
 Image slice_image(const Volume& v, const SliceValues& slice, const TransferFunction& tf, const FieldRange& range,
                   const SliceStyle& style);
+
+// Marks points of the grid on `picture` (slice_image of `slice`, before label_slice_axes) where
+// they lie in the slice's plane: a black-and-white cross at each of `crosses` (the point the
+// slices go through), a red dot ringed in white at each of `dots` (the renderings' markers).
+void mark_slice(Image& picture, const SliceValues& slice, const std::vector<GridIndex>& crosses,
+                const std::vector<GridIndex>& dots);
 
 // The largest opacity of a TF (at least 1e-6), for SliceStyle::opacity_scale.
 double max_opacity(const TransferFunction& tf);

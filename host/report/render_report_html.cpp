@@ -135,7 +135,11 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
       << escape(describe_grid_point(in.ref, s.slice_point))
       << ": each voxel's TF colour at full strength (opacity is what the renderings above show; a slice "
          "shows what the value is, even where the TF makes it nearly transparent); the residual on the scale "
-         "above. North and up are up, the axes labelled with the grid's coordinates; grey is no data.</p>\n";
+         "above. North and up are up, "
+         "the axes labelled with the grid's coordinates; a cross marks the slice point"
+      << (in.markers.empty() ? "" : in.markers.size() == 1 ? ", a red dot the marker where it lies in the plane"
+                                                            : ", red dots the markers where they lie in the plane")
+      << "; a grey checkerboard is no data.</p>\n";
     for (const auto& sl : s.slices) h << figure(sl.file, sl.caption);
   }
 

@@ -198,8 +198,13 @@ void write_slices(const ReportInputs& in, const Volume& residual, const Transfer
     if (ref.width < 2 || ref.height < 2) continue;  // a line, not a plane
     const SliceValues field = extract_slice(in.field, axis, out.slice_point[size_t(axis)]);
     const SliceValues res = extract_slice(residual, axis, out.slice_point[size_t(axis)]);
+    // The slice point crossed and the renderings' markers dotted where they lie in the plane.
     auto labelled = [&](const Volume& v, const SliceValues& sv, const TransferFunction& tf, const FieldRange& range,
-                        const SliceStyle& st) { return label_slice_axes(slice_image(v, sv, tf, range, st), v, sv); };
+                        const SliceStyle& st) {
+      Image picture = slice_image(v, sv, tf, range, st);
+      mark_slice(picture, sv, {out.slice_point}, in.markers);
+      return label_slice_axes(picture, v, sv);
+    };
     const Image row = compose_panels({{labelled(in.ref, ref, in.ref_tf, r.ref_range, style), "Reference"},
                                       {labelled(in.field, field, in.ref_tf, r.field_range, style), "Field, reference TF"},
                                       {labelled(in.field, field, r.tf, r.field_range, style), "Field, optimized TF"},

@@ -110,10 +110,61 @@ TEST(Slice, ColoursAreTheTfsAtFullStrengthOrOverTheBackgroundByOpacity) {
   const Image img = slice_image(v, extract_slice(v, 2, 0), tf, {0.0, 1.0}, style);
   ASSERT_EQ(img.width, 2u);
   auto px = [&](uint32_t x, uint32_t y) { return Rgb8{img.at(x, y)[0], img.at(x, y)[1], img.at(x, y)[2]}; };
-  EXPECT_EQ(px(0, 0), srgb8(0.55, 0.55, 0.55));  // NaN: no-data grey
+  EXPECT_EQ(px(0, 0), srgb8(0.55, 0.55, 0.55));  // NaN: no data (its checkerboard's first square)
   EXPECT_EQ(px(1, 1), srgb8(1.0, 0.0, 0.0));     // value 1: red at full (scaled) opacity
   EXPECT_EQ(px(0, 1), srgb8(0.5, 0.5, 0.5));     // value 0: black at half opacity over white
   EXPECT_EQ(px(1, 0), srgb8(0.5 * 0.75 + 0.25, 0.25, 0.25));  // 0.5: (0.5,0,0) at 0.75 over white
+}
+
+// No data is a checkerboard of two greys in 4-pixel squares (a plain grey read as a grey TF's
+// values); a grey TF's colour is one grey whichever pixel.
+TEST(Slice, NoDataIsACheckerboardNoTfMakes) {
+  Volume v;
+  v.dims = {2, 1, 1};
+  v.values = {NAN, 0.5f};
+  TransferFunction grey;
+  grey.rgba = {{0.55, 0.55, 0.55, 1.0}, {0.55, 0.55, 0.55, 1.0}};
+  SliceStyle style;
+  style.max_size = 16;  // 8 x 16 pixels a voxel: two squares across, four down... and a quarter high at least
+  const SliceValues sv = extract_slice(v, 1, 0);
+  const Image img = slice_image(v, sv, grey, {0.0, 1.0}, style);
+  ASSERT_EQ(img.width, 16u);
+  auto px = [&](uint32_t x, uint32_t y) { return Rgb8{img.at(x, y)[0], img.at(x, y)[1], img.at(x, y)[2]}; };
+  const Rgb8 light = srgb8(0.55, 0.55, 0.55), dark = srgb8(0.25, 0.25, 0.25);
+  EXPECT_EQ(px(0, 0), light);
+  EXPECT_EQ(px(4, 0), dark);
+  EXPECT_EQ(px(4, img.height > 4 ? 4 : 0), img.height > 4 ? light : dark);
+  for (uint32_t y = 0; y < img.height; ++y)
+    for (uint32_t x = 8; x < 16; ++x) ASSERT_EQ(px(x, y), light) << x << " " << y;  // the grey TF: one grey
+}
+
+// The slice point is crossed and markers dotted where they lie in the plane; points off the plane
+// leave the picture as it was.
+TEST(Slice, MarksTheSlicePointAndMarkersInThePlane) {
+  const Volume v = numbered(20, 10, 3);
+  TransferFunction blue;
+  blue.rgba = {{0.0, 0.0, 1.0, 1.0}, {0.0, 0.0, 1.0, 1.0}};
+  SliceStyle style;
+  style.max_size = 200;  // 10 pixels a voxel
+  const SliceValues z1 = extract_slice(v, 2, 1);
+  const Image plain = slice_image(v, z1, blue, {0.0, 300.0}, style);
+  Image marked = plain;
+  mark_slice(marked, z1, {{5, 2, 1}}, {{15, 7, 1}, {3, 3, 0}});
+  auto px = [&](const Image& img, int x, int y) { return Rgb8{img.at(x, y)[0], img.at(x, y)[1], img.at(x, y)[2]}; };
+  // Voxel (5, 2): column 5, row 10 - 1 - 2 = 7; its centre (55, 75). The cross's arms are black.
+  EXPECT_EQ(px(marked, 55 + 5, 75), (Rgb8{0, 0, 0}));
+  EXPECT_EQ(px(marked, 55, 75 - 5), (Rgb8{0, 0, 0}));
+  EXPECT_EQ(px(marked, 55, 75), px(plain, 55, 75));  // the voxel itself stays visible
+  // Marker (15, 7, 1): red at the centre of column 15, row 2.
+  const Rgb8 dot = px(marked, 155, 25);
+  EXPECT_GT(dot[0], 200);
+  EXPECT_LT(dot[2], 80);
+  // Marker (3, 3, 0) is in plane z = 0: nothing drawn at (35, 65) in z = 1.
+  EXPECT_EQ(px(marked, 35, 65), px(plain, 35, 65));
+  size_t changed = 0;
+  for (uint32_t y = 0; y < plain.height; ++y)
+    for (uint32_t x = 0; x < plain.width; ++x) changed += !(px(marked, int(x), int(y)) == px(plain, int(x), int(y)));
+  EXPECT_LT(changed, 400u);  // a cross and a dot, not more
 }
 
 // The axes drawn around a slice: the picture itself unchanged inside margins, the coordinates
