@@ -44,6 +44,7 @@ const char* kStyle = R"(
 body { font-family: sans-serif; margin: 24px; color: #222; background: #fafafa; }
 h1 { font-size: 22px; margin-bottom: 4px; overflow-wrap: anywhere; }
 h2 { font-size: 17px; margin-top: 28px; border-bottom: 1px solid #ddd; padding-bottom: 4px; }
+h3 { font-size: 15px; margin: 18px 0 6px; overflow-wrap: anywhere; }
 .sub { color: #666; font-size: 13px; overflow-wrap: anywhere; }
 .grid { display: grid; gap: 14px; align-items: start; }
 .g3 { grid-template-columns: repeat(3, minmax(0, 1fr)); }
@@ -58,6 +59,7 @@ td.better { background: #e6f4e6; font-weight: bold; }
 pre.cmd { background: #fff; border: 1px solid #e2e2e2; padding: 6px; white-space: pre-wrap; word-break: break-all; }
 div.warn { background: #fff4d6; border: 1px solid #e0b84a; padding: 4px 12px; margin: 12px 0; overflow-wrap: anywhere; }
 .note { font-size: 12px; color: #666; max-width: 60em; overflow-wrap: anywhere; }
+.intro { font-size: 14px; color: #333; max-width: 60em; }
 @media (max-width: 700px) {
   body { margin: 10px; }
   .g2, .g3 { grid-template-columns: minmax(0, 1fr); }
@@ -96,6 +98,11 @@ std::string report_html(const ReportInputs& in, const ReportSummary& s, const nl
     << " &middot; field: " << escape(in.field.name) << " &middot; grid " << in.ref.dims[0] << "&times;"
     << in.ref.dims[1] << "&times;" << in.ref.dims[2] << " &middot; solver: " << escape(r.solver)
     << " &middot; device: " << escape(r.device) << "</div>\n";
+  // One sentence for a reader who has not met the method: what is compared, and what is left.
+  h << "<p class=\"intro\">The <b>reference</b> field is shown with its transfer function (TF). The <b>second "
+       "field</b> is shown twice: with the same TF (before), and with the <b>optimized TF</b>, the one tfmatch "
+       "fitted so that its pictures match the reference's as closely as any TF can (after). What still differs "
+       "after, the <b>residual</b>, is structure no TF explains.</p>\n";
   for (const std::string& n : in.notes) h << "<p class=\"note\">" << escape(n) << "</p>\n";
 
   // Every warning of the run (ranges that miss a field, cond(M), clamping) where it is read first.

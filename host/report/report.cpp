@@ -35,15 +35,6 @@ double max_value(const Volume& v) {
   return m;
 }
 
-// The field's name for an axis: its file name with the variable and selectors, without directories.
-// The file name without its folder, and the values' units where the file gives them.
-std::string field_label(const Volume& v) {
-  const std::string name = v.name;
-  const size_t slash = name.find_last_of('/');
-  const std::string label = slash == std::string::npos ? name : name.substr(slash + 1);
-  return v.units.empty() ? label : label + " (" + v.units + ")";
-}
-
 // Rows of panels stacked top to bottom, each row centred.
 Image stack_rows(const std::vector<Image>& rows, Rgb8 background) {
   uint32_t w = 0, h = 0;

@@ -154,10 +154,13 @@ Image plot_tf_overlay(const std::vector<TransferFunction>& tfs, uint32_t width, 
 }
 
 std::vector<std::string> series_report_file_names(size_t fields) {
-  std::vector<std::string> names{"index.html", "series.json", "reference.png", "rmse.png", "psnr.png", "tfs.png"};
+  std::vector<std::string> names{"index.html", "series.json", "reference.png", "rmse.png",
+                                 "psnr.png",   "tfs.png",     "tf_reference.png"};
   for (size_t i = 0; i < fields; ++i) {
     names.push_back(indexed("field_%03u_before.png", i));
     names.push_back(indexed("field_%03u.png", i));
+    names.push_back(indexed("field_%03u_tf_before.png", i));
+    names.push_back(indexed("field_%03u_tf.png", i));
   }
   return names;
 }
@@ -178,18 +181,38 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
   };
   const RenderSettings& s = in.settings;
   Progress progress("report", n + 1);
+  // The renderings show the box outline, as a single field's report does; the metrics are taken
+  // without it.
+  const VolumeGeometry geometry = VolumeGeometry::from(in.ref.dims, in.ref.spacing, s.z_scale);
+  auto outlined = [&](Image img) {
+    draw_box_outline(img, geometry, s);
+    return img;
+  };
+  // Every TF over its field's histogram, one plot size for all, so each field's colours have values.
+  TfPlotOptions plot;
+  plot.width = std::max<uint32_t>(s.width, 320);
+  plot.log_counts = in.histogram_log;
+  auto tf_plot = [&](const TransferFunction& tf, const Volume& v, const FieldRange& range, const std::string& title) {
+    plot.title = title;
+    plot.axis_label = field_label(v);
+    return plot_transfer_function(tf, v.values, range, plot);
+  };
   const Image ref_img = composite_over(render_volume(ctx, in.ref, in.ref_tf, r.ref_range, s), s.background);
-  write("reference.png", ref_img);
+  write("reference.png", outlined(ref_img));
+  write("tf_reference.png", tf_plot(in.ref_tf, in.ref, r.ref_range, "Reference TF, reference field histogram"));
   progress.update(1);
   for (size_t i = 0; i < n; ++i) {
     const Volume field = in.load_field(i);
     const SeriesFieldResult& f = r.fields[i];
     const Image before = composite_over(render_volume(ctx, field, in.ref_tf, f.field_range, s), s.background);
     const Image after = composite_over(render_volume(ctx, field, f.tf, f.field_range, s), s.background);
-    write(indexed("field_%03u_before.png", i), before);
-    write(indexed("field_%03u.png", i), after);
     summary.before.push_back(compare_images(ref_img, before));
     summary.after.push_back(compare_images(ref_img, after));
+    write(indexed("field_%03u_before.png", i), outlined(before));
+    write(indexed("field_%03u.png", i), outlined(after));
+    write(indexed("field_%03u_tf_before.png", i), tf_plot(in.ref_tf, field, f.field_range, "Reference TF, field histogram"));
+    write(indexed("field_%03u_tf.png", i),
+          tf_plot(f.tf, field, f.field_range, r.shared_tf ? "Shared TF, field histogram" : "Its TF, field histogram"));
     progress.update(i + 2);
   }
   progress.finish();
@@ -246,6 +269,11 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
     << n << " fields &middot; grid " << in.ref.dims[0] << "&times;" << in.ref.dims[1] << "&times;" << in.ref.dims[2]
     << " &middot; solver " << html_escape(r.solver) << (r.shared_tf ? ", one TF shared by all fields" : ", one TF per field")
     << " &middot; " << html_escape(r.device) << "</div>\n";
+  h << "<p class=\"intro\">Every field of the series is shown beside the <b>reference</b>: with the reference's "
+       "transfer function (TF, before), and with the TF tfmatch fitted so that its pictures match the reference's as "
+       "closely as any TF can (after; "
+    << (r.shared_tf ? "one TF shared by every field" : "each field its own") << "). What still differs after is structure "
+       "no TF explains.</p>\n";
   for (const std::string& w : r.warnings) h << "<div class=\"warn\">" << html_escape(w) << "</div>\n";
   // Each field's own, by field; more than a few fold under one line so the page still opens on the
   // series.
@@ -269,8 +297,7 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
        "overlaid\"><figcaption>"
     << (r.shared_tf ? "the shared TF" : "every field's TF: opacity curves overlaid, colours as strips (by field index)")
     << "</figcaption></figure></div>\n";
-  h << "<h2>Renderings</h2>\n<div class=\"grid g3\">\n<figure><img src=\"reference.png\" alt=\"reference\"><figcaption>"
-       "reference with its TF</figcaption></figure>\n</div>\n<table>\n<tr><th>field</th><th>range</th><th>voxel RMSE "
+  h << "<h2>Fields</h2>\n<table>\n<tr><th>field</th><th>range</th><th>voxel RMSE "
        "before</th><th>after</th><th>PSNR before (dB)</th><th>after</th><th>SSIM before</th><th>after</th></tr>\n";
   for (size_t i = 0; i < n; ++i)
     h << "<tr><td>" << i << ": " << html_escape(in.labels[i]) << "</td><td>" << report_number(r.fields[i].field_range.lo, 5)
@@ -282,15 +309,26 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
       << better(summary.before[i].ssim, summary.after[i].ssim, true) << ">" << report_number(summary.after[i].ssim, 4)
       << "</td></tr>\n";
   h << "</table>\n<p class=\"note\">Every number of this page, and each field's in full: <a href=\"series.json\">"
-       "series.json</a>.</p>\n<div class=\"grid g2\">\n";
+       "series.json</a>.</p>\n";
+  // Each field beside the reference at one scale: the pictures compared are read side by side,
+  // and each TF over its field's histogram beneath, so the colours have values.
+  h << "<h2>Renderings</h2>\n";
+  const auto fig = [](const std::string& file, const std::string& alt, const std::string& caption) {
+    return "<figure><img src=\"" + file + "\" alt=\"" + html_escape(alt) + "\"><figcaption>" + caption +
+           "</figcaption></figure>\n";
+  };
   for (size_t i = 0; i < n; ++i) {
-    const std::string before = indexed("field_%03u_before.png", i), after = indexed("field_%03u.png", i);
-    h << "<figure><img src=\"" << before << "\" alt=\"field " << i << " with the reference TF\"><figcaption>" << i << ": "
-      << html_escape(in.labels[i]) << ", reference TF</figcaption></figure>\n<figure><img src=\"" << after
-      << "\" alt=\"field " << i << " with the fitted TF\"><figcaption>" << i << ", "
-      << (r.shared_tf ? "shared TF" : "its own TF") << "</figcaption></figure>\n";
+    const std::string label = std::to_string(i) + ": " + html_escape(in.labels[i]);
+    const std::string own = r.shared_tf ? "the shared TF" : "its own TF";
+    h << "<h3>" << label << "</h3>\n<div class=\"grid g3\">\n"
+      << fig("reference.png", "reference", "reference, its TF")
+      << fig(indexed("field_%03u_before.png", i), "field " + std::to_string(i) + " with the reference TF",
+             label + ", reference TF (before)")
+      << fig(indexed("field_%03u.png", i), "field " + std::to_string(i) + " with " + own, label + ", " + own + " (after)")
+      << fig("tf_reference.png", "reference TF plot", "reference TF over the reference histogram")
+      << fig(indexed("field_%03u_tf_before.png", i), "reference TF plot", "reference TF over the field's histogram")
+      << fig(indexed("field_%03u_tf.png", i), "fitted TF plot", own + " over the field's histogram") << "</div>\n";
   }
-  h << "</div>\n";
   if (!in.command_line.empty()) h << "<h2>Command</h2>\n<pre class=\"cmd\">" << html_escape(in.command_line) << "</pre>\n";
   h << "<div class=\"note\">" << html_escape(in.version) << ". " << html_escape(report_made_text(metrics["made"]))
     << "</div>\n</body></html>\n";

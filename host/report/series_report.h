@@ -26,6 +26,7 @@ struct SeriesReportInputs {
   std::vector<std::string> labels;      // one per field, as the user named it
   std::function<Volume(size_t)> load_field;  // field i again (rendered one at a time)
   std::string title = "tfmatch series report";
+  bool histogram_log = true;  // TF plots: log(1 + count) bars, else counts
   std::string command_line, version;
 };
 

@@ -39,6 +39,13 @@ std::vector<double> nice_ticks(double lo, double hi, int target) {
   return ticks;
 }
 
+std::string field_label(const Volume& v) {
+  const std::string& name = v.name;
+  const size_t slash = name.find_last_of('/');
+  const std::string label = slash == std::string::npos ? name : name.substr(slash + 1);
+  return v.units.empty() ? label : label + " (" + v.units + ")";
+}
+
 Image plot_transfer_function(const TransferFunction& tf, std::span<const float> values, const FieldRange& range,
                              const TfPlotOptions& o) {
   if (o.width < 160 || o.height < 140) throw std::invalid_argument("plot_transfer_function: plot too small");

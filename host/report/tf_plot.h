@@ -11,6 +11,7 @@
 #include "tfmatch/model/field_mapping.h"
 #include "tfmatch/model/image.h"
 #include "tfmatch/model/transfer_function.h"
+#include "tfmatch/model/volume.h"
 
 namespace tfm {
 
@@ -25,6 +26,10 @@ struct TfPlotOptions {
   std::string axis_label;  // under the value axis: the field's name (and units where known)
   bool log_counts = true;  // bar height log(1 + count): data often has one dominant value
 };
+
+// A field's name for a plot's value axis: its file name with the variable and selectors, without
+// folders, and the values' units where the file gives them.
+std::string field_label(const Volume& v);
 
 // About `target` round values (1, 2 or 5 times a power of ten apart) within [lo, hi].
 std::vector<double> nice_ticks(double lo, double hi, int target = 5);

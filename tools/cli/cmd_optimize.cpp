@@ -323,6 +323,7 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
       inputs.labels.push_back(std::filesystem::path(f.name).filename().string());
     inputs.load_field = [&](size_t i) { return load_volume(a.fields[i], vo); };
     inputs.title = "tfmatch: " + std::to_string(count) + " fields matched to " + ref.name;
+    inputs.histogram_log = a.histogram == "log";
     inputs.command_line = globals().command_line;
     inputs.version = version_line();
     summary = write_series_report(*ctx, inputs, a.report);
