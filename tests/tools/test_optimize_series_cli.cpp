@@ -123,7 +123,8 @@ TEST_F(OptimizeSeriesCli, ReportShowsEveryFieldAndTheSeries) {
                          (dir / "rep").string() + " --width 48 --height 40");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   for (const char* f : {"index.html", "series.json", "reference.png", "rmse.png", "psnr.png", "tfs.png", "field_000.png",
-                        "field_000_before.png", "field_002.png"})
+                        "field_000_before.png", "field_002.png", "tf_reference.png", "field_002_tf_before.png",
+                        "field_002_tf.png"})
     EXPECT_TRUE(fs::exists(dir / "rep" / f)) << f;
   const nlohmann::json m = nlohmann::json::parse(read_text(dir / "rep" / "series.json"));
   ASSERT_EQ(m["fields"].size(), 3u);
@@ -138,6 +139,15 @@ TEST_F(OptimizeSeriesCli, ReportShowsEveryFieldAndTheSeries) {
   // SSIM before beside after, and the page's numbers linked.
   EXPECT_NE(html.find("<th>SSIM before</th><th>after</th>"), std::string::npos);
   EXPECT_NE(html.find("<a href=\"series.json\">"), std::string::npos);
+  // Each field's row holds the reference beside it, and the TF plots beneath.
+  size_t rows = 0;
+  for (size_t at = html.find("src=\"reference.png\""); at != std::string::npos; at = html.find("src=\"reference.png\"", at + 1))
+    ++rows;
+  EXPECT_EQ(rows, 3u);
+  const size_t row2 = html.find("<h3>2: ");
+  ASSERT_NE(row2, std::string::npos);
+  EXPECT_LT(html.find("src=\"reference.png\"", row2), html.find("src=\"field_002_before.png\"", row2));
+  EXPECT_LT(html.find("src=\"field_002.png\"", row2), html.find("src=\"field_002_tf.png\"", row2));
 }
 
 // A field given twice is fitted twice, with a warning naming both places ("field k of n").
