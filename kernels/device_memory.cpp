@@ -19,6 +19,18 @@ void check_device_memory(const Context& ctx, uint64_t bytes, const std::string& 
   if (device_memory_is_host(ctx)) check_memory(bytes, what);
 }
 
+DeviceField field_over_host_values(Context& ctx, std::span<const float> values, const std::string& what,
+                                   uint64_t max_chunk_voxels) {
+  if (std::optional<DeviceField> in_place = DeviceField::in_host_memory(ctx, values, what, max_chunk_voxels))
+    return std::move(*in_place);
+  check_device_memory(ctx, values.size_bytes(), what);
+  return DeviceField(ctx, values, what, max_chunk_voxels);
+}
+
+bool reads_host_memory(const Context& ctx) {
+  return ctx.host_import() && ctx.properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU;
+}
+
 bool device_memory_is_host(const Context& ctx) {
   const VkPhysicalDeviceType type = ctx.properties().deviceType;
   return type == VK_PHYSICAL_DEVICE_TYPE_CPU || type == VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU;

@@ -159,8 +159,9 @@ RenderedImage render_volume(Context& ctx, const Volume& volume, const TransferFu
   const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing, settings.z_scale);
   if (volume.values.size() != volume.voxel_count())
     throw std::runtime_error(volume.name + ": value count differs from the grid size");
-  check_device_memory(ctx, volume.values.size() * sizeof(float), volume.name + ": uploading the field");
-  DeviceField field(ctx, volume.values, volume.name.empty() ? "render field" : volume.name);
+  // Read in place on a CPU device (the copy doubled render's memory on lavapipe), else uploaded.
+  const DeviceField field =
+      field_over_host_values(ctx, volume.values, (volume.name.empty() ? "render field" : volume.name) + ": uploading the field");
   Buffer tf_buffer = upload_tf(ctx, tf, "render TF");
   GpuRenderer renderer(ctx, field, geometry);
   return renderer.render(make_mapping(range, uint32_t(tf.size())), tf_buffer, settings, progress);

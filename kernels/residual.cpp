@@ -31,13 +31,15 @@ Volume residual_map_gpu(Context& ctx, const Volume& grid, const DeviceField& ref
 Volume residual_map(Context& ctx, const Volume& ref, const TransferFunction& ref_tf, const FieldRange& ref_range,
                     const Volume& field, const TransferFunction& field_tf, const FieldRange& field_range) {
   require_same_grid(ref, field);
-  // Both fields and the map on the device, and the map read back: one check of the sum where the
-  // device's memory is the host's (two checks of 3 and 1 volumes let a run 18-30 % over pass).
+  // Both fields (unless read in place) and the map on the device, and the map read back: one
+  // check of the sum where the device's memory is the host's (two checks of 3 and 1 volumes let a
+  // run 18-30 % over pass).
   const uint64_t volume_bytes = ref.values.size() * sizeof(float);
-  check_device_memory(ctx, 3 * volume_bytes, "residual map of " + ref.name);
-  check_memory((device_memory_is_host(ctx) ? 4 : 1) * volume_bytes, "residual map of " + ref.name);
-  DeviceField ref_dev(ctx, ref.values, "residual: reference field");
-  DeviceField opt_dev(ctx, field.values, "residual: second field", ref_dev.chunk_voxels());
+  const uint64_t device_volumes = reads_host_memory(ctx) ? 1 : 3;
+  check_device_memory(ctx, device_volumes * volume_bytes, "residual map of " + ref.name);
+  check_memory((device_memory_is_host(ctx) ? device_volumes + 1 : 1) * volume_bytes, "residual map of " + ref.name);
+  const DeviceField ref_dev = field_over_host_values(ctx, ref.values, "residual: reference field");
+  const DeviceField opt_dev = field_over_host_values(ctx, field.values, "residual: second field", ref_dev.chunk_voxels());
   Buffer ref_tf_buf = upload_tf(ctx, ref_tf, "residual: reference TF");
   Buffer opt_tf_buf = upload_tf(ctx, field_tf, "residual: field TF");
   return residual_map_gpu(ctx, ref, ref_dev, opt_dev, make_mapping(ref_range, uint32_t(ref_tf.size())),

@@ -246,10 +246,12 @@ double background_fraction(const Image& img, const std::array<double, 3>& backgr
 
 void check_report_memory(const Context& ctx, uint64_t voxels, const RenderSettings& s) {
   check_render_size(ctx, s);
-  // At most: both fields, a residual map being made and one being rendered on the device; both
-  // maps on the host. Pictures: a rendering's read-back (check_render_size) and about a dozen
-  // RGBA images kept for the overview and the encoder.
-  const uint64_t volume = voxels * sizeof(float), device = 3 * volume, host = 2 * volume;
+  // At most: both fields, a residual map being made and one being rendered on the device (on a
+  // device that reads host memory in place, only the map being made); both maps on the host.
+  // Pictures: a rendering's read-back (check_render_size) and about a dozen RGBA images kept for
+  // the overview and the encoder.
+  const uint64_t volume = voxels * sizeof(float), device = (reads_host_memory(ctx) ? 1 : 3) * volume;
+  const uint64_t host = 2 * volume;
   const uint64_t pictures = uint64_t(s.width) * s.height * (23 + 12 * 4);
   const std::string what = "report: both fields and a residual map on the device, two residual maps and the pictures";
   if (device_memory_is_host(ctx)) {
@@ -295,8 +297,8 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   // Both fields and the three TF tables on the device once; every picture below reuses them, and
   // the residual maps (host and device copies) come on top (check_report_memory).
   const VolumeGeometry geometry = VolumeGeometry::from(in.ref.dims, in.ref.spacing, s.z_scale);
-  DeviceField ref(ctx, in.ref.values, "report: reference field");
-  DeviceField field(ctx, in.field.values, "report: second field", ref.chunk_voxels());
+  const DeviceField ref = field_over_host_values(ctx, in.ref.values, "report: reference field");
+  const DeviceField field = field_over_host_values(ctx, in.field.values, "report: second field", ref.chunk_voxels());
   Buffer ref_tf = upload_tf(ctx, in.ref_tf, "report: reference TF");
   Buffer opt_tf = upload_tf(ctx, r.tf, "report: optimized TF");
   const uint32_t ref_n = uint32_t(in.ref_tf.size()), opt_n = uint32_t(r.tf.size());
@@ -363,7 +365,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   const FieldMapping res_map = make_mapping(res_range, uint32_t(res_tf.size()));
   Image res_imgs[2];
   for (int k = 0; k < 2; ++k) {
-    DeviceField res(ctx, (k == 0 ? res_before : res_after).values, "report: residual map");
+    const DeviceField res = field_over_host_values(ctx, (k == 0 ? res_before : res_after).values, "report: residual map");
     res_imgs[k] = composite_over(GpuRenderer(ctx, res, geometry).render(res_map, res_tf_buf, s), s.background);
     draw_box_outline(res_imgs[k], geometry, s);
     draw_markers(res_imgs[k], geometry, s, in.markers);

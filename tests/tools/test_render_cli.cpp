@@ -114,6 +114,23 @@ TEST_F(RenderCli, PresetColoursRenderAsParaViewShowsThem) {
   }
 }
 
+// On a CPU device that reads host memory the field is rendered where it was loaded, not copied:
+// a 128 MiB field renders under a budget that has no room for a second copy (it was refused,
+// "uploading the field: needs 128 MiB"), within the budget.
+TEST_F(RenderCli, ACpuDeviceRendersTheFieldWhereItWasLoaded) {
+  const test::CliResult devices = run_cli("devices");
+  if (devices.output.find("(CPU)") == std::string::npos) GTEST_SKIP() << "no CPU device first";
+  const std::string big = dir / "big_256x256x512_float32.raw";
+  {
+    std::vector<float> values(256 * 256 * 512);
+    for (size_t i = 0; i < values.size(); ++i) values[i] = float(i % 1013) / 1013.0f;
+    write_floats(big, values);
+  }
+  const test::CliResult r = run_cli("--max-memory 280M render --volume " + big + " --tf viridis --out " + dir / "big.png");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_LT(r.peak_rss_bytes, uint64_t(280) << 20) << "peak RSS " << r.peak_rss_bytes;
+}
+
 TEST_F(RenderCli, MetricsOfIdenticalImages) {
   ASSERT_EQ(run_cli("render --volume " + dir / "a_6x5x4_float32.raw" + " --tf " + dir / "tf.json" + " --out " +
                     dir / "a.png" + " --width 24 --height 24").exit_code, 0);
