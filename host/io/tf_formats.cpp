@@ -16,6 +16,7 @@
 #include "tfmatch/io/xml_tree.h"
 #include "tfmatch/model/builtin_tf.h"
 #include "tfmatch/model/color_spaces.h"
+#include "tfmatch/model/memory_budget.h"
 
 namespace tfm {
 namespace {
@@ -383,6 +384,35 @@ std::string tf_to_paraview_json(const TransferFunction& tf, const std::string& p
   return json_text(nlohmann::json::array({p}), 1) + "\n";
 }
 
+namespace {
+
+// Before a JSON TF is parsed into a document: its nesting (outside strings) is at most what a TF
+// needs, and the document's memory (about 16 bytes a value, as many values as bytes at most) is
+// checked against the budget. A 60 MB file of nested brackets took the parser past 2.9 GB.
+void check_json_shape(std::string_view text, const std::string& name) {
+  constexpr int kMaxDepth = 8;  // tfmatch tables and ParaView presets nest 3 deep
+  int depth = 0;
+  bool in_string = false, escaped = false;
+  for (char c : text) {
+    if (in_string) {
+      if (escaped) escaped = false;
+      else if (c == '\\') escaped = true;
+      else if (c == '"') in_string = false;
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      if (++depth > kMaxDepth)
+        throw std::runtime_error(name + ": JSON nested more than " + std::to_string(kMaxDepth) +
+                                 " levels deep; a transfer function nests 3 (an object, its arrays, their rows)");
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  check_memory(uint64_t(text.size()) * 16, name + ": parsing " + std::to_string(text.size()) + " bytes of JSON");
+}
+
+}  // namespace
+
 TransferFunction parse_transfer_function(std::string_view text, const std::string& name, const TfReadOptions& options,
                                          std::vector<std::string>* notes) {
   size_t p = 0;
@@ -402,6 +432,7 @@ TransferFunction parse_transfer_function(std::string_view text, const std::strin
   }
   if (text[p] != '{' && text[p] != '[')
     throw std::runtime_error(name + ": not a transfer function (expected XML, tfmatch JSON or a ParaView preset)");
+  check_json_shape(text.substr(p), name);
   if (text[p] == '{') {
     nlohmann::json doc = nlohmann::json::parse(text, nullptr, false);
     if (doc.is_discarded()) parse_tf_json(std::string(text), name);  // throws, saying where

@@ -270,6 +270,11 @@ TEST(TfFormats, MalformedFilesGiveClearErrors) {
   expect_error([&] { parse_transfer_function("{\"rgba\": [[0,0,0,0],[1,1,1,1]]}", "t.json", {0, "a"}); },
                {"t.json: ':a' names a preset of a ParaView preset file", "tfmatch JSON table"});
   expect_error([&] { parse_transfer_function(xml("", "", pt), "t.xml", {0, "a"}); }, {"t.xml: ':a'", "an XML file"});
+  // Nesting beyond what a TF has is refused before a document is built (a 60 MB file of brackets
+  // took the parser past 2.9 GB); brackets inside strings do not count.
+  expect_error([&] { parse(std::string(100000, '[') + std::string(100000, ']')); },
+               {"mem.tf", "nested more than 8 levels deep"});
+  EXPECT_EQ(parse("{\"rgba\": [[0,0,0,0],[1,1,1,1]], \"note\": \"[[[[[[[[[[ \\\" {{{{\"}").size(), 2u);
   expect_error([&] { parse("hello"); }, {"not a transfer function"});
   expect_error([&] { parse(""); }, {"empty transfer function file"});
 }
