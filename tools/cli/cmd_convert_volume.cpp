@@ -55,14 +55,20 @@ int run(const ConvertVolumeArgs& a) {
   }
   write_vti(a.out, arrays, VtiWriteOptions{!a.no_compress});
   outputs.commit();
-  if (!globals().quiet) std::cout << "wrote " << a.out << " (" << arrays.size() << " array(s))\n";
+  if (!globals().quiet) {
+    std::cout << "wrote " << a.out << " (" << arrays.size() << " array(s) of Float32:";
+    for (const auto& [name, v] : arrays) std::cout << " " << name;
+    std::cout << ")\n";
+  }
   return 0;
 }
 
 CommandRegistration reg(41, [](CLI::App& app) {
   auto args = std::make_shared<ConvertVolumeArgs>();
   auto* sub = app.add_subcommand("convert-volume", "Write fields (same grid) as one .vti for ParaView");
-  sub->add_option("inputs", args->inputs, "Fields (file or file:VARIABLE), then the output .vti")->required()->expected(2, -1);
+  sub->add_option("inputs", args->inputs, "Fields (file or file:VARIABLE), then the output .vti. Every array is written "
+                  "as Float32, the values as tfmatch loads them (float64 rounded to float32, a vector array as its "
+                  "magnitude)")->required()->expected(2, -1);
   add_volume_flags(sub, args->volume_flags);
   sub->add_flag("--no-compress", args->no_compress, "Write raw instead of zlib-compressed data");
   sub->callback([args] {

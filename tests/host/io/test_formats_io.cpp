@@ -238,6 +238,7 @@ TEST(FormatsIoCli, InfoAndConvertCommands) {
   r = test::run_cli("convert-volume " + f + " " + (dir / "f.vti").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(load_volume((dir / "f.vti").string() + ":density").values[2], 2.0f);
+  EXPECT_NE(r.output.find("(1 array(s) of Float32: density)"), std::string::npos) << r.output;  // what it wrote, named
   formats_test::write_bytes(dir / "tf.json", "{\"rgba\": [[0,0,0,0],[1,0.5,0.25,1]]}");
   r = test::run_cli("convert-tf " + (dir / "tf.json").string() + " " + (dir / "tf.xml").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
