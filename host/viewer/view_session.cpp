@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <sstream>
+#include <utility>
 
 #include "tfmatch/io/tf_json.h"
 #include "tfmatch/io/volume_vti.h"
@@ -166,9 +167,11 @@ std::unique_ptr<ViewSession::Derived> ViewSession::derive(const Volume& ref, con
   d->geometry = VolumeGeometry::from(ref.dims, ref.spacing, config_.render.z_scale);
   // What the session holds beside the loaded fields, checked before any of it is made (the view
   // of two 64 MiB fields held 610 MiB at a budget of 210 MiB): both fields and both residual maps
-  // on the device, and the residual maps on the host.
+  // on the device, and the residual maps on the host. A CPU device reads the fields and maps where
+  // they are in host memory (field_over_host_values): then only a map being made is its own.
   const uint64_t volume_bytes = uint64_t(ref.values.size()) * sizeof(float);
-  check_device_memory(ctx_, (same_fields ? 2 : 4) * volume_bytes,
+  const uint64_t device_volumes = reads_host_memory(ctx_) ? 1 : same_fields ? 2 : 4;
+  check_device_memory(ctx_, device_volumes * volume_bytes,
                       "view: " + std::string(same_fields ? "the residual maps" : "both fields and the residual maps") +
                           " on the device");
   check_memory(2 * volume_bytes, "view: the residual maps");
@@ -178,8 +181,11 @@ std::unique_ptr<ViewSession::Derived> ViewSession::derive(const Volume& ref, con
     d->ref_renderer = same_fields->ref_renderer;
     d->field_renderer = same_fields->field_renderer;
   } else {
-    auto ref_dev = std::make_shared<DeviceField>(ctx_, ref.values, "view: reference field");
-    auto field_dev = std::make_shared<DeviceField>(ctx_, field.values, "view: second field", ref_dev->chunk_voxels());
+    // `ref` and `field` are the session's volumes, or become them by a move (install(), set_field):
+    // their values stay where they are while these fields read them.
+    auto ref_dev = std::make_shared<DeviceField>(field_over_host_values(ctx_, ref.values, "view: reference field"));
+    auto field_dev = std::make_shared<DeviceField>(
+        field_over_host_values(ctx_, field.values, "view: second field", ref_dev->chunk_voxels()));
     d->ref_renderer = std::make_shared<GpuRenderer>(ctx_, *ref_dev, d->geometry);
     d->field_renderer = std::make_shared<GpuRenderer>(ctx_, *field_dev, d->geometry);
     d->ref = std::move(ref_dev);
@@ -197,8 +203,8 @@ std::unique_ptr<ViewSession::Derived> ViewSession::derive(const Volume& ref, con
   d->res_tf_table = residual_transfer_function();
   d->res_tf.emplace(upload_tf(ctx_, d->res_tf_table, "view: residual TF"));
   d->res_map = make_mapping(d->res_range, uint32_t(d->res_tf_table.size()));
-  d->residual_before = std::make_unique<DeviceField>(ctx_, d->res_before.values, "view: residual before");
-  d->residual_after = std::make_unique<DeviceField>(ctx_, d->res_after.values, "view: residual after");
+  d->residual_before = std::make_unique<DeviceField>(field_over_host_values(ctx_, d->res_before.values, "view: residual before"));
+  d->residual_after = std::make_unique<DeviceField>(field_over_host_values(ctx_, d->res_after.values, "view: residual after"));
   d->res_before_renderer = std::make_unique<GpuRenderer>(ctx_, *d->residual_before, d->geometry);
   d->res_after_renderer = std::make_unique<GpuRenderer>(ctx_, *d->residual_after, d->geometry);
   return d;
@@ -208,13 +214,17 @@ void ViewSession::install(std::optional<std::pair<Volume, Volume>> fields, Trans
                           OptimizeResult result, std::unique_ptr<Derived> derived, const std::string& solver,
                           const SolverSettings& settings) {
   std::lock_guard data(data_mutex_);  // the caller holds device_mutex_
+  // The old state first: its device fields may read the volumes replaced below in place
+  // (field_over_host_values), and imported memory must outlive its device memory. The new
+  // state's read `fields`' values, which a move leaves where they are.
+  std::unique_ptr<Derived> old = std::exchange(derived_, std::move(derived));
+  old.reset();
   if (fields) {
     ref_ = std::move(fields->first);
     field_ = std::move(fields->second);
   }
   ref_tf_ = std::move(ref_tf);
   result_ = std::move(result);
-  derived_ = std::move(derived);
   solver_ = solver;
   solver_settings_ = settings;
   ++version_;
@@ -401,7 +411,9 @@ uint64_t ViewSession::set_field(size_t index) {
     {
       std::lock_guard data(data_mutex_);  // the new field with its result just below (a job runs meanwhile)
       series_->index = index;
-      field_ = std::move(field);
+      // Swapped, not assigned: the old field's values stay alive (in `field`) until install() has
+      // released the state whose device fields may read them in place.
+      std::swap(field_, field);
     }
     install(std::nullopt, ref_tf_, std::move(r), std::move(derived), solver, settings);
     finish_job(summary, t0);
