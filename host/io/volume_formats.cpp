@@ -76,7 +76,13 @@ void decode_elements(const char* src, uint64_t count, ElementType type, bool big
 }
 
 uint64_t checked_mul(uint64_t a, uint64_t b, uint64_t limit, const std::string& file, const std::string& what) {
-  if (a != 0 && b > limit / a) throw std::runtime_error(file + ": " + what + " is too large (overflows)");
+  if (a != 0 && b > limit / a) {
+    // A cap (kMaxVoxels and the like), not an overflow: say which.
+    std::ostringstream cap;
+    cap << file << ": " << what << " is too large: more than " << limit;
+    if (limit == kMaxVoxels) cap << " (2^40) values, the most tfmatch reads";
+    throw std::runtime_error(cap.str());
+  }
   return a * b;
 }
 

@@ -205,11 +205,12 @@ FileInfo describe_headerless(const std::filesystem::path& path, const std::strin
   std::string fits;
   const std::pair<uint64_t, const char*> types[] = {{1, "uint8"}, {2, "uint16/int16"}, {4, "float32"}, {8, "float64"}};
   for (auto [size, name] : types) {
-    if (bytes % size) continue;
+    if (bytes == 0 || bytes % size) continue;  // an empty file fits no cube
     const uint64_t n = bytes / size, edge = static_cast<uint64_t>(std::llround(std::cbrt(double(n))));
     if (edge * edge * edge == n) fits += (fits.empty() ? "" : ", ") + std::to_string(edge) + "^3 " + name;
   }
-  info.notes.push_back(std::to_string(bytes) + " bytes" + (fits.empty() ? "" : "; cubes that fit: " + fits) +
+  info.notes.push_back(std::to_string(bytes) + " bytes" + (bytes == 0 ? " (an empty file)" : "") +
+                       (fits.empty() ? "" : "; cubes that fit: " + fits) +
                        " (pass " + parameter("dims") + " X,Y,Z " + parameter("type") + " T, or name it name_XxYxZ_type.raw)");
   return info;
 }

@@ -204,6 +204,14 @@ TEST(FormatsIoRealFiles, InfoDescribesVtkVtiNrrdAndRawFiles) {
                 "isabel_vti/isabel_02.vti", "isabel_vti/isabel_30.vti", "isabel_vti/isabel_31.vti",
                 "raw_fuel/fuel.raw", "raw_combustion/turbulent_combustion.raw", "nrrd_headsq/quarter.nhdr"});
   const std::string dir = test::shared_data_dir();
+  // An empty headerless file is said to be empty, not to fit cubes of side 0.
+  {
+    formats_test::TempDir tmp;
+    formats_test::write_bytes(tmp / "empty.raw", "");
+    const std::string text = format_file_info(describe_file(tmp / "empty.raw"));
+    EXPECT_NE(text.find("0 bytes (an empty file)"), std::string::npos) << text;
+    EXPECT_EQ(text.find("cubes that fit"), std::string::npos) << text;
+  }
   // A headerless raw file: its size, the cubes that fit; with --dims and --type its range.
   FileInfo fuel = describe_file(dir + "/raw_fuel/fuel.raw");
   EXPECT_NE(format_file_info(fuel).find("64^3 uint8"), std::string::npos);

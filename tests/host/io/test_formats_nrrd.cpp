@@ -179,7 +179,8 @@ TEST(Nrrd, MalformedInputGivesClearErrors) {
   expect_error([&] { parse("NRRD0004\ntype: quad\n"); }, {"line 2", "type 'quad' is not supported"});
   expect_error([&] { parse("NRRD0004\ntype: short\ndimension: 3\nsizes: 3 2\n" + raw); }, {"sizes has 2 entries"});
   expect_error([&] { parse("NRRD0004\ntype: short\ndimension: 5\nsizes: 1 1 1 1 1\n" + raw); }, {"dimension 5 is not supported"});
-  expect_error([&] { parse("NRRD0004\ntype: float\ndimension: 3\nsizes: 100000 100000 100000\n" + raw); }, {"too large"});
+  expect_error([&] { parse("NRRD0004\ntype: float\ndimension: 3\nsizes: 100000 100000 100000\n" + raw); },
+               {"too large: more than 1099511627776 (2^40) values, the most tfmatch reads"});
   // A tiny gzip stream cannot hold what the header promises: refused before allocating.
   expect_error([&] { parse("NRRD0004\ntype: float\ndimension: 3\nsizes: 1000 1000 1000\nendian: little\nencoding: gzip\n\n" +
                            gzip("x")); },
