@@ -142,19 +142,60 @@ RaySegment pixel_ray(const CameraFrame& f, const VolumeGeometry& g, const MarchC
   return r;
 }
 
+namespace {
+
+// "x", "y" or "z" (axis 0, 1, 2) as strokes in a 6 x 8 pixel box centred at (cx, cy): the same
+// pixels whatever text face a program has installed, so a picture is the same from every command.
+void draw_axis_letter(Image& image, int axis, double cx, double cy, Rgb8 c) {
+  const double l = cx - 3, r = cx + 3, t = cy - 4, b = cy + 4;
+  switch (axis) {
+    case 0:
+      draw_line(image, l, t, r, b, c, 1.2);
+      draw_line(image, r, t, l, b, c, 1.2);
+      break;
+    case 1:
+      draw_line(image, l, t, cx, cy, c, 1.2);
+      draw_line(image, r, t, l + 1, b, c, 1.2);
+      break;
+    default:
+      draw_line(image, l, t, r, t, c, 1.2);
+      draw_line(image, r, t, l, b, c, 1.2);
+      draw_line(image, l, b, r, b, c, 1.2);
+      break;
+  }
+}
+
+}  // namespace
+
 void draw_box_outline(Image& image, const VolumeGeometry& g, const RenderSettings& s) {
   if (!s.box_outline) return;
   const CameraFrame frame = orbit_frame(s.camera, g, image.width, image.height);
   const glm::dvec3 lo(-0.5), hi(double(g.dims[0]) - 0.5, double(g.dims[1]) - 0.5, double(g.dims[2]) - 0.5);
   auto corner = [&](int i) { return glm::dvec3(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z); };
-  for (int a = 0; a < 8; ++a)
-    for (int bit : {1, 2, 4}) {
-      if (a & bit) continue;  // each edge once: from the corner with the bit clear
-      const auto p = project_to_pixel(frame, g, corner(a), image.width, image.height);
-      const auto q = project_to_pixel(frame, g, corner(a | bit), image.width, image.height);
-      // Pixel coordinates are centred at integer + 0.5 in draw_line's convention.
-      if (p && q) draw_line(image, p->x + 0.5, p->y + 0.5, q->x + 0.5, q->y + 0.5, {128, 128, 128}, 1.0);
-    }
+  // The three edges from the first voxel's corner are the axes, in colour and named at their
+  // ends, so that a picture says which way x, y and z run (east, north and up on a geographic
+  // grid) without the settings beside it.
+  const Rgb8 grey{128, 128, 128};
+  const Rgb8 axis_colour[3] = {{200, 60, 60}, {50, 140, 50}, {60, 90, 210}};
+  for (int pass = 0; pass < 2; ++pass)  // grey edges first, the axes over them
+    for (int a = 0; a < 8; ++a)
+      for (int k = 0; k < 3; ++k) {
+        const int bit = 1 << k;
+        if (a & bit) continue;  // each edge once: from the corner with the bit clear
+        const bool axis = a == 0;
+        if (axis != (pass == 1)) continue;
+        const auto p = project_to_pixel(frame, g, corner(a), image.width, image.height);
+        const auto q = project_to_pixel(frame, g, corner(a | bit), image.width, image.height);
+        if (!p || !q) continue;
+        // Pixel coordinates are centred at integer + 0.5 in draw_line's convention.
+        draw_line(image, p->x + 0.5, p->y + 0.5, q->x + 0.5, q->y + 0.5, axis ? axis_colour[k] : grey, 1.0);
+        const glm::dvec2 along = *q - *p;
+        const double length = glm::length(along);
+        if (!axis || length < 12.0) continue;  // an axis seen end-on (z from above) is not named
+        const glm::dvec2 at = *q + along / length * 8.0;
+        if (at.x >= 4 && at.y >= 5 && at.x + 4 <= image.width && at.y + 5 <= image.height)
+          draw_axis_letter(image, k, std::floor(at.x) + 0.5, std::floor(at.y) + 0.5, axis_colour[k]);
+      }
 }
 
 }  // namespace tfm

@@ -78,7 +78,8 @@ std::optional<glm::dvec2> project_to_pixel(const CameraFrame& frame, const Volum
                                            const glm::dvec3& index_point, uint32_t width, uint32_t height);
 
 // The twelve edges of the box rays march through ([-0.5, n - 0.5] per axis), projected and drawn
-// as thin grey lines: where the data ends, and which way is up, even where the TF is clear.
+// as thin lines: where the data ends, and which way is up, even where the TF is clear. The three
+// from voxel (0, 0, 0)'s corner are the axes: red x, green y, blue z, named at their ends.
 void draw_box_outline(Image& image, const VolumeGeometry& geometry, const RenderSettings& settings);
 
 }  // namespace tfm

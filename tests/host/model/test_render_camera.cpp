@@ -212,6 +212,34 @@ TEST(RenderCamera, BoxOutlineIsDrawnUnlessTurnedOff) {
   size_t grey = 0;
   for (uint8_t v : img.rgb) grey += v < 255;
   EXPECT_GT(grey, 100u);
+  // The edges from voxel (0, 0, 0)'s corner are the axes: red x, green y, blue z at their middles,
+  // each named by a letter of its colour beyond its end (a camera further off leaves them room).
+  RenderSettings far = s;
+  far.camera.distance = 4.5;
+  Image axes(160, 120);
+  draw_box_outline(axes, g, far);
+  const CameraFrame ff = orbit_frame(far.camera, g, 160, 120);
+  // How strongly channel k stands out near (x, y): the most over the other two within `r` pixels.
+  auto tint = [&](glm::dvec2 at, int k, int r) {
+    int best = -255;
+    for (int dy = -r; dy <= r; ++dy)
+      for (int dx = -r; dx <= r; ++dx) {
+        const int x = int(at.x) + dx, y = int(at.y) + dy;
+        if (x < 0 || y < 0 || x >= 160 || y >= 120) continue;
+        const uint8_t* q = axes.at(uint32_t(x), uint32_t(y));
+        best = std::max(best, int(q[k]) - std::max(int(q[(k + 1) % 3]), int(q[(k + 2) % 3])));
+      }
+    return best;
+  };
+  const glm::dvec3 origin(-0.5, -0.5, -0.5), ends[3] = {{11.5, -0.5, -0.5}, {-0.5, 7.5, -0.5}, {-0.5, -0.5, 3.5}};
+  const auto o = project_to_pixel(ff, g, origin, 160, 120);
+  ASSERT_TRUE(o);
+  for (int k = 0; k < 3; ++k) {
+    const auto e = project_to_pixel(ff, g, ends[k], 160, 120);
+    ASSERT_TRUE(e);
+    EXPECT_GT(tint((*o + *e) * 0.5, k, 1), 40) << "axis " << k << " is not in its colour";
+    EXPECT_GT(tint(*e + glm::normalize(*e - *o) * 8.0, k, 3), 40) << "no letter beyond axis " << k << " at " << e->x << "," << e->y;
+  }
   Image off(80, 60);
   s.box_outline = false;
   draw_box_outline(off, g, s);
