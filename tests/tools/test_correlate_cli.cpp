@@ -210,21 +210,38 @@ TEST(CorrelateStreamed, NetcdfMemberDimensionGivesTheLoadedField) {
   EXPECT_EQ(bytes_on, bytes_off);
 }
 
-// An ensemble larger than --max-memory (48 members of 128x128x80: 252 MB) is correlated within it,
-// slab by slab (auto), where loading it whole is refused; the field is the loaded one.
-TEST(CorrelateStreamed, AnEnsembleLargerThanTheBudgetStaysWithinIt) {
-  TempDir dir;
-  const std::array<uint64_t, 3> dims{128, 128, 80};
-  std::string members;
+// `count` raw float32 members of `dims` in `dir` (member100_XxYxZ_float32.raw, ...), member m's
+// value i being value(m, i); returns their paths, each after a space, for --members.
+template <class Value>
+std::string write_raw_members(const TempDir& dir, int count, const std::array<uint64_t, 3>& dims, Value value) {
+  const std::string grid = std::to_string(dims[0]) + "x" + std::to_string(dims[1]) + "x" + std::to_string(dims[2]);
   std::vector<float> values(dims[0] * dims[1] * dims[2]);
-  for (int m = 0; m < 48; ++m) {
-    for (size_t i = 0; i < values.size(); ++i)
-      values[i] = float(std::sin(0.001 * double(i) * (1 + m % 5)) + 0.1 * std::cos(0.37 * m + double(i % 101)));
-    const std::string path = dir / ("member" + std::to_string(100 + m) + "_128x128x80_float32.raw");
+  std::string members;
+  for (int m = 0; m < count; ++m) {
+    for (size_t i = 0; i < values.size(); ++i) values[i] = value(m, i);
+    const std::string path = dir / ("member" + std::to_string(100 + m) + "_" + grid + "_float32.raw");
     std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(values.data()),
                                                 std::streamsize(values.size() * sizeof(float)));
     members += " " + path;
   }
+  return members;
+}
+
+// Whether two files hold the same bytes, and `size` of them.
+void expect_same_file(const std::string& a_path, const std::string& b_path, uint64_t size) {
+  std::ifstream a(a_path, std::ios::binary), b(b_path, std::ios::binary);
+  const std::string bytes_a((std::istreambuf_iterator<char>(a)), {}), bytes_b((std::istreambuf_iterator<char>(b)), {});
+  EXPECT_EQ(bytes_a.size(), size);
+  EXPECT_EQ(bytes_a, bytes_b);
+}
+
+// An ensemble larger than --max-memory (48 members of 128x128x80: 252 MB) is correlated within it,
+// slab by slab (auto), where loading it whole is refused; the field is the loaded one.
+TEST(CorrelateStreamed, AnEnsembleLargerThanTheBudgetStaysWithinIt) {
+  TempDir dir;
+  const std::string members = write_raw_members(dir, 48, {128, 128, 80}, [](int m, size_t i) {
+    return float(std::sin(0.001 * double(i) * (1 + m % 5)) + 0.1 * std::cos(0.37 * m + double(i % 101)));
+  });
   const std::string args = "correlate --members" + members + " --point 5,6,7 --out ";
   // Shader caches empty, as on a machine's first run: the driver compiles the kernel in this
   // process (lavapipe's compiler took 14 MB more than the slabs were planned with).
@@ -240,10 +257,7 @@ TEST(CorrelateStreamed, AnEnsembleLargerThanTheBudgetStaysWithinIt) {
   EXPECT_NE(refused.output.find("memory budget"), std::string::npos) << refused.output;
   const auto whole = run_cli(args + dir / "whole.raw --stream off");
   ASSERT_EQ(whole.exit_code, 0) << whole.output;
-  std::ifstream a(dir / "streamed.raw", std::ios::binary), b(dir / "whole.raw", std::ios::binary);
-  const std::string bytes_a((std::istreambuf_iterator<char>(a)), {}), bytes_b((std::istreambuf_iterator<char>(b)), {});
-  EXPECT_EQ(bytes_a.size(), values.size() * sizeof(float));
-  EXPECT_EQ(bytes_a, bytes_b);
+  expect_same_file(dir / "streamed.raw", dir / "whole.raw", 128 * 128 * 80 * sizeof(float));
 }
 
 // A loaded ensemble beyond one texel view (24 members of 128x128x96: 151 MB) goes to the device in
@@ -251,17 +265,9 @@ TEST(CorrelateStreamed, AnEnsembleLargerThanTheBudgetStaysWithinIt) {
 // (which took this run to 365 MiB under --max-memory 300M). The field is the one without a budget.
 TEST(CorrelateWhole, ChunksStayWithinTheBudget) {
   TempDir dir;
-  const std::array<uint64_t, 3> dims{128, 128, 96};
-  std::string members;
-  std::vector<float> values(dims[0] * dims[1] * dims[2]);
-  for (int m = 0; m < 24; ++m) {
-    for (size_t i = 0; i < values.size(); ++i)
-      values[i] = float(std::cos(0.002 * double(i) * (1 + m % 7)) + 0.2 * std::sin(0.11 * m + double(i % 97)));
-    const std::string path = dir / ("member" + std::to_string(100 + m) + "_128x128x96_float32.raw");
-    std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(values.data()),
-                                                std::streamsize(values.size() * sizeof(float)));
-    members += " " + path;
-  }
+  const std::string members = write_raw_members(dir, 24, {128, 128, 96}, [](int m, size_t i) {
+    return float(std::cos(0.002 * double(i) * (1 + m % 7)) + 0.2 * std::sin(0.11 * m + double(i % 97)));
+  });
   const std::string args = "correlate --stream off --members" + members + " --point 5,6,7 --out ";
   const test::CliEnvironment cold{{"MESA_SHADER_CACHE_DIR", dir / "mesa-cache"},
                                   {"__GL_SHADER_DISK_CACHE_PATH", dir / "nvidia-cache"},
@@ -271,10 +277,7 @@ TEST(CorrelateWhole, ChunksStayWithinTheBudget) {
   EXPECT_LT(budget.peak_rss_bytes, uint64_t(300) << 20) << "peak RSS " << budget.peak_rss_bytes;
   const auto free = run_cli(args + dir / "free.raw");
   ASSERT_EQ(free.exit_code, 0) << free.output;
-  std::ifstream a(dir / "budget.raw", std::ios::binary), b(dir / "free.raw", std::ios::binary);
-  const std::string bytes_a((std::istreambuf_iterator<char>(a)), {}), bytes_b((std::istreambuf_iterator<char>(b)), {});
-  EXPECT_EQ(bytes_a.size(), values.size() * sizeof(float));
-  EXPECT_EQ(bytes_a, bytes_b);
+  expect_same_file(dir / "budget.raw", dir / "free.raw", 128 * 128 * 96 * sizeof(float));
 }
 
 TEST_F(CorrelateCli, MarkersAreRedDotsOnRenderings) {
