@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "tfmatch/engine/commands.h"
+#include "tfmatch/kernels/device_memory.h"
 #include "tfmatch/kernels/render_image.h"
 
 namespace tfm {
@@ -84,6 +85,11 @@ void DiffDvrGradient::set_view_pool(std::span<const OrbitCamera> cameras) {
   // The reference pass of evaluate(), a few cameras per submission, each image then copied into
   // a buffer of its own.
   const uint32_t batch_views = std::min<uint32_t>(group_, 8);
+  // The pool's images and the pass that renders them, checked before any is made (32 views of
+  // 2048 x 2048 are 2 GiB).
+  check_device_memory(ctx_, cameras.size() * image_bytes + uint64_t(batch_views) * image_bytes * 5 / 4,
+                      "diffdvr: the reference images of a pool of " + std::to_string(cameras.size()) + " views of " +
+                          std::to_string(width) + "x" + std::to_string(height));
   Buffer views(ctx_, batch_views * view_bytes, MemoryUsage::Device, "diffdvr: pool cameras");
   Buffer state(ctx_, batch_views * image_bytes, MemoryUsage::Device, "diffdvr: pool rendering");
   Buffer stop(ctx_, batch_views * image_bytes / 4, MemoryUsage::Device, "diffdvr: pool k_stop");
@@ -130,6 +136,15 @@ ImageLossGradient DiffDvrGradient::evaluate_views(const TransferFunction& tf, st
   // Per-pixel state for one group of views: 2 x (16 + 4) bytes per ray, whatever the steps (and
   // 32 more where rays are marched back in parts).
   const uint64_t pixels = uint64_t(width) * height * group;
+  const uint64_t resume_bytes =
+      backward_.resume_bytes(make_render_push(geometry_, march_, opt_map_, opt_, width, height, group));
+  // What grows below, checked first (its size is the image size times the views in a group: 425
+  // MiB held at a budget of 150 MiB).
+  const uint64_t grows = (b.opt_state.size() < pixels * 16 ? pixels * 40 : 0) + (b.resume.size() < resume_bytes ? resume_bytes : 0);
+  if (grows)
+    check_device_memory(ctx_, grows, "diffdvr: the ray states of " + std::to_string(group) +
+                                         (group == 1 ? " view of " : " views of ") + std::to_string(width) + "x" +
+                                         std::to_string(height));
   if (b.opt_state.size() < pixels * 16) {
     b.ref_state = Buffer(ctx_, pixels * 16, MemoryUsage::Device, "diffdvr: reference images");
     b.ref_stop = Buffer(ctx_, pixels * 4, MemoryUsage::Device, "diffdvr: reference k_stop");
@@ -139,8 +154,6 @@ ImageLossGradient DiffDvrGradient::evaluate_views(const TransferFunction& tf, st
     cached_cameras_.clear();
   }
   // Allocated before recording: a buffer replaced while commands use it would be gone.
-  const uint64_t resume_bytes =
-      backward_.resume_bytes(make_render_push(geometry_, march_, opt_map_, opt_, width, height, group));
   if (b.resume.size() < resume_bytes)
     b.resume = Buffer(ctx_, resume_bytes, MemoryUsage::Device, "diffdvr: ray states between parts");
   // Backward passes in row bands whose fixed-point sums stay in range (whole images in practice).

@@ -3,6 +3,7 @@
 // pictures, are refused before the solve with a message that names them, and nothing is written.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <filesystem>
 #include <string>
 
@@ -56,6 +57,26 @@ TEST_F(OptimizeMemoryCli, AReportThatCannotFitIsRefusedBeforeTheSolve) {
   EXPECT_LT(r.peak_rss_bytes, uint64_t(230) << 20) << "peak RSS " << r.peak_rss_bytes;
   EXPECT_FALSE(fs::exists(dir / "tf.json"));
   EXPECT_FALSE(fs::exists(dir / "report"));
+}
+
+// DiffDVR's images grow with the image size and the views: the reference images of its view
+// pool (32 views of 2048 x 2048: 2 GiB) and the per-ray states of the views it renders at once
+// are checked before they are made, refused naming them, and quickly (both were made unchecked:
+// two 256^3 fields held 425 MiB at a budget of 150 MiB).
+TEST_F(OptimizeMemoryCli, DiffDvrImagesAreCheckedBeforeTheyAreMade) {
+  write_pair(24);
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::string diffdvr = " --solver diffdvr --iterations 1 --image-size 2048";
+  test::CliResult r = run_cli("--max-memory 1G " + args() + diffdvr);
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("diffdvr: the reference images of a pool of 32 views of 2048x2048: needs"), std::string::npos)
+      << r.output;
+  r = run_cli("--max-memory 150M " + args() + diffdvr + " --view-pool 0");  // new cameras every iteration: no pool
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("diffdvr: the ray states of "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(" of 2048x2048: needs "), std::string::npos) << r.output;
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(60));
+  EXPECT_FALSE(fs::exists(dir / "tf.json"));
 }
 
 }  // namespace
