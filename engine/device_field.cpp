@@ -43,10 +43,13 @@ DeviceField DeviceField::adopt(Context& ctx, VkBuffer buffer, uint64_t offset, u
   return field;
 }
 
+bool DeviceField::reads_host_memory(const Context& ctx) {
+  return ctx.host_import() && ctx.properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU;
+}
+
 std::optional<DeviceField> DeviceField::in_host_memory(Context& ctx, std::span<const float> values,
                                                        const std::string& name, uint64_t max_chunk_voxels) {
-  if (values.empty() || !ctx.host_import() || ctx.properties().deviceType != VK_PHYSICAL_DEVICE_TYPE_CPU)
-    return std::nullopt;
+  if (values.empty() || !reads_host_memory(ctx)) return std::nullopt;
   // The import takes whole aligned units around the values: no more than the pages they lie in,
   // which are mapped as a whole (a larger alignment could reach unmapped memory).
   const uint64_t align = ctx.min_import_alignment();

@@ -55,6 +55,10 @@ class DeviceField {
   // not a multiple of the buffer offset alignments): then construct it from the values (a copy).
   static std::optional<DeviceField> in_host_memory(Context& ctx, std::span<const float> values,
                                                    const std::string& name, uint64_t max_chunk_voxels = 0);
+  // Whether in_host_memory() can read host values in place on this device (a CPU device that
+  // imports host memory), so that fields take no device memory of their own: for estimates made
+  // before the values exist (in_host_memory still declines values whose placement does not allow it).
+  static bool reads_host_memory(const Context& ctx);
   // Whether the field reads the caller's host memory (in_host_memory).
   bool in_host_memory() const { return static_cast<bool>(host_memory_); }
 

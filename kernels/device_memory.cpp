@@ -27,10 +27,6 @@ DeviceField field_over_host_values(Context& ctx, std::span<const float> values, 
   return DeviceField(ctx, values, what, max_chunk_voxels);
 }
 
-bool reads_host_memory(const Context& ctx) {
-  return ctx.host_import() && ctx.properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU;
-}
-
 bool device_memory_is_host(const Context& ctx) {
   const VkPhysicalDeviceType type = ctx.properties().deviceType;
   return type == VK_PHYSICAL_DEVICE_TYPE_CPU || type == VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU;

@@ -18,16 +18,11 @@ class Context;
 void check_device_memory(const Context& ctx, uint64_t bytes, const std::string& what);
 
 // A field over `values` in host memory: read where they are on a device that can
-// (DeviceField::in_host_memory: nothing copied), else uploaded into device memory after
-// check_device_memory names `what`. The caller keeps `values` alive and unchanged while the field
-// is used.
+// (DeviceField::in_host_memory, DeviceField::reads_host_memory: nothing copied), else uploaded
+// into device memory after check_device_memory names `what`. The caller keeps `values` alive and
+// unchanged while the field is used.
 DeviceField field_over_host_values(Context& ctx, std::span<const float> values, const std::string& what,
                                    uint64_t max_chunk_voxels = 0);
-
-// Whether fields in host memory are read in place on this device (a CPU device that imports host
-// memory), so that they take no device memory of their own: for estimates made before the values
-// exist (field_over_host_values still copies where their placement does not allow it).
-bool reads_host_memory(const Context& ctx);
 
 // Whether the device's memory is the host's (CPU and integrated devices, lavapipe among them): its
 // buffers count against the budget beside the host's own.

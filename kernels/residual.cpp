@@ -35,7 +35,7 @@ Volume residual_map(Context& ctx, const Volume& ref, const TransferFunction& ref
   // check of the sum where the device's memory is the host's (two checks of 3 and 1 volumes let a
   // run 18-30 % over pass).
   const uint64_t volume_bytes = ref.values.size() * sizeof(float);
-  const uint64_t device_volumes = reads_host_memory(ctx) ? 1 : 3;
+  const uint64_t device_volumes = DeviceField::reads_host_memory(ctx) ? 1 : 3;
   check_device_memory(ctx, device_volumes * volume_bytes, "residual map of " + ref.name);
   check_memory((device_memory_is_host(ctx) ? device_volumes + 1 : 1) * volume_bytes, "residual map of " + ref.name);
   const DeviceField ref_dev = field_over_host_values(ctx, ref.values, "residual: reference field");

@@ -250,7 +250,7 @@ void check_report_memory(const Context& ctx, uint64_t voxels, const RenderSettin
   // device that reads host memory in place, only the map being made); both maps on the host.
   // Pictures: a rendering's read-back (check_render_size) and about a dozen RGBA images kept for
   // the overview and the encoder.
-  const uint64_t volume = voxels * sizeof(float), device = (reads_host_memory(ctx) ? 1 : 3) * volume;
+  const uint64_t volume = voxels * sizeof(float), device = (DeviceField::reads_host_memory(ctx) ? 1 : 3) * volume;
   const uint64_t host = 2 * volume;
   const uint64_t pictures = uint64_t(s.width) * s.height * (23 + 12 * 4);
   const std::string what = "report: both fields and a residual map on the device, two residual maps and the pictures";

@@ -170,7 +170,7 @@ std::unique_ptr<ViewSession::Derived> ViewSession::derive(const Volume& ref, con
   // on the device, and the residual maps on the host. A CPU device reads the fields and maps where
   // they are in host memory (field_over_host_values): then only a map being made is its own.
   const uint64_t volume_bytes = uint64_t(ref.values.size()) * sizeof(float);
-  const uint64_t device_volumes = reads_host_memory(ctx_) ? 1 : same_fields ? 2 : 4;
+  const uint64_t device_volumes = DeviceField::reads_host_memory(ctx_) ? 1 : same_fields ? 2 : 4;
   check_device_memory(ctx_, device_volumes * volume_bytes,
                       "view: " + std::string(same_fields ? "the residual maps" : "both fields and the residual maps") +
                           " on the device");

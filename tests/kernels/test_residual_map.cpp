@@ -103,7 +103,7 @@ TEST_F(ResidualMap, DeviceBuffersAndTheReadBackAreCheckedTogether) {
   v.values.assign(v.voxel_count(), 0.5f);
   const TransferFunction tf = random_tf(16, 5);
   // In place: the map on the device and read back (2 volumes); copied: both fields too (4).
-  const uint64_t volumes = reads_host_memory(ctx()) ? 2 : 4;
+  const uint64_t volumes = DeviceField::reads_host_memory(ctx()) ? 2 : 4;
   set_memory_budget(resident_memory() + (volumes * 16 - 8) * (uint64_t(1) << 20), "--max-memory test");
   try {
     residual_map(ctx(), v, tf, {0, 1}, v, tf, {0, 1});
