@@ -125,15 +125,18 @@ TEST(Slice, NoDataIsACheckerboardNoTfMakes) {
   TransferFunction grey;
   grey.rgba = {{0.55, 0.55, 0.55, 1.0}, {0.55, 0.55, 0.55, 1.0}};
   SliceStyle style;
-  style.max_size = 16;  // 8 x 16 pixels a voxel: two squares across, four down... and a quarter high at least
+  style.max_size = 16;  // the x-z plane of 2 x 1 voxels: 8 x 8 pixels a voxel, the NaN one on the left
   const SliceValues sv = extract_slice(v, 1, 0);
   const Image img = slice_image(v, sv, grey, {0.0, 1.0}, style);
   ASSERT_EQ(img.width, 16u);
+  ASSERT_EQ(img.height, 8u);
   auto px = [&](uint32_t x, uint32_t y) { return Rgb8{img.at(x, y)[0], img.at(x, y)[1], img.at(x, y)[2]}; };
   const Rgb8 light = srgb8(0.55, 0.55, 0.55), dark = srgb8(0.25, 0.25, 0.25);
+  // Four squares of 4 x 4 pixels, alternating: light, dark across the top, dark, light below.
   EXPECT_EQ(px(0, 0), light);
   EXPECT_EQ(px(4, 0), dark);
-  EXPECT_EQ(px(4, img.height > 4 ? 4 : 0), img.height > 4 ? light : dark);
+  EXPECT_EQ(px(0, 4), dark);
+  EXPECT_EQ(px(7, 7), light);
   for (uint32_t y = 0; y < img.height; ++y)
     for (uint32_t x = 8; x < 16; ++x) ASSERT_EQ(px(x, y), light) << x << " " << y;  // the grey TF: one grey
 }
