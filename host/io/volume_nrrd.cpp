@@ -564,8 +564,7 @@ std::string read_nrrd_head(const std::filesystem::path& path) {
   while (in) {
     in.read(block.data(), std::streamsize(block.size()));
     head.append(block.data(), size_t(in.gcount()));
-    const size_t end = head.find("\n\n") != std::string::npos ? head.find("\n\n") : head.find("\n\r\n");
-    if (end != std::string::npos) {
+    if (head.find("\n\n") != std::string::npos || head.find("\n\r\n") != std::string::npos) {
       // A data file LIST reads to the end of the file, past empty lines.
       if (head.find("data file: LIST") != std::string::npos || head.find("datafile: LIST") != std::string::npos)
         return read_file_bytes(path);
