@@ -100,6 +100,8 @@ std::vector<VolumeFormat> make_table() {
       .title = "raw",
       .description = "headerless raw data: name_XxYxZ_type.raw, or --dims and --type",
       .extensions = {".raw"},
+      .takes_layout = true,
+      .takes_byte_order = true,
       .read = read_raw_volume,
       .describe = describe_raw,
       .open_slabs = open_raw_slabs,
@@ -111,6 +113,7 @@ std::vector<VolumeFormat> make_table() {
       .title = ".dat",
       .description = ".dat descriptor (ObjectFileName, Resolution, Format, ...) naming a raw data file",
       .extensions = {".dat"},
+      .takes_byte_order = true,  // the descriptor says the type and size, not the byte order
       .read = read_dat_volume,
       .describe = describe_dat,
       .open_slabs = open_dat_slabs,

@@ -30,6 +30,8 @@ struct VolumeFormat {
   bool has_components = false;  // "NAME[k]" / "[k]" picks a component of a vector array
   bool has_times = false;       // ",time=N" / --time
   bool has_members = false;     // ",member=N" / --member
+  bool takes_layout = false;     // --dims and --type describe its files (they have no header)
+  bool takes_byte_order = false; // --big-endian describes its files
   // With has_members: how many members the array `options` select has (1 when it has no member
   // axis); an ensemble is read member by member (host/io/ensemble_io.h).
   uint64_t (*count_members)(const std::filesystem::path& path, const VolumeOptions& options) = nullptr;

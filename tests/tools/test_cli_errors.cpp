@@ -81,6 +81,29 @@ TEST_F(CliErrors, RawNameAndOptionsThatDisagree) {
   EXPECT_EQ(plain.exit_code, 0) << plain.output;
 }
 
+// --dims, --type and --big-endian describe headerless raw files; given where no input is one they
+// used to be ignored without a word (a NetCDF or NRRD file says its own grid and type).
+TEST_F(CliErrors, RawFlagsWhereNoInputIsRaw) {
+  std::string nrrd = "NRRD0004\ntype: float\ndimension: 3\nsizes: 4 4 4\nencoding: ascii\n\n";
+  for (float v : ramp(64, 2.0f)) nrrd += std::to_string(v) + "\n";
+  write_text(dir / "a.nrrd", nrrd);
+  write_text(dir / "b.nrrd", nrrd);
+  const std::string pair = "--ref " + dir / "a.nrrd" + " --field " + dir / "b.nrrd" + " --ref-tf " + dir / "tf.json";
+  expect_failure(pair + " --dims 4,4,4", {"--dims", "describes raw files", "a.nrrd (NRRD)", "b.nrrd (NRRD)"});
+  expect_failure(pair + " --type float32", {"--type", "describes raw files"});
+  expect_failure(pair + " --big-endian", {"--big-endian", "describes raw and .dat files"});
+  for (const std::string cmd : {"info " + dir / "a.nrrd", "render --tf viridis --out " + dir / "a.png" + " --volume " + dir / "a.nrrd"}) {
+    auto r = run_cli(cmd + " --type uint8");
+    EXPECT_EQ(r.exit_code, 2) << cmd << "\n" << r.output;
+    EXPECT_NE(r.output.find("--type: describes raw files, and no input is one: a.nrrd (NRRD)"), std::string::npos) << r.output;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "a.png"));
+  // With a raw input beside the NRRD one, the flags describe it.
+  auto mixed = run_cli("optimize --out " + dir / "mixed.json" + " --ref " + dir / "a.nrrd" + " --field " +
+                       dir / "field_4x4x4_float32.raw" + " --ref-tf " + dir / "tf.json" + " --type float32");
+  EXPECT_EQ(mixed.exit_code, 0) << mixed.output;
+}
+
 TEST_F(CliErrors, ConstantField) {
   write_floats(dir / "const_4x4x4_float32.raw", std::vector<float>(64, 2.5f));
   expect_failure(ok_inputs("", dir / "const_4x4x4_float32.raw"), {"const_4x4x4_float32.raw", "constant"});

@@ -29,7 +29,7 @@ int run(const ConvertVolumeArgs& a) {
   for (size_t i = 0; i < a.inputs.size(); ++i) files.input_spec(a.inputs[i], "input " + std::to_string(i + 1));
   files.output(a.out, "output").check();
   OutputBatch outputs;
-  const VolumeOptions vo = a.volume_flags.options();
+  const VolumeOptions vo = a.volume_flags.options(a.inputs);
   std::vector<Volume> volumes;
   std::vector<std::pair<std::string, const Volume*>> arrays;
   volumes.reserve(a.inputs.size());

@@ -377,7 +377,7 @@ int run(const CorrelateArgs& a) {
   files.check();
   OutputBatch outputs;
 
-  VolumeOptions vo = a.volume_flags.options();
+  VolumeOptions vo = a.volume_flags.options(a.ensemble.empty() ? member_files : std::vector<std::string>{a.ensemble});
   vo.member_dim = a.member_dim;
   const bool distributed = globals().ranks->size() > 1;
   if (distributed && a.stream == "off")

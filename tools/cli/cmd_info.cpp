@@ -31,7 +31,7 @@ int run(const InfoArgs& a) {
   FilePlan files;
   for (const auto& f : a.files) files.input_spec(f, "input");
   files.output(json.file(), "--json").check();
-  const VolumeOptions vo = a.volume_flags.options();
+  const VolumeOptions vo = a.volume_flags.options(a.files);
   nlohmann::json all = nlohmann::json::array();
   for (const auto& f : a.files) {
     const FileInfo info = is_selection(f, a.volume_flags) ? describe_selection(f, vo) : describe_file(f, vo);

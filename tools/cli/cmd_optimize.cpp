@@ -67,7 +67,7 @@ std::optional<Streams> open_streams(const OptimizeArgs& a) {
                                  "stream from disk are normal-equations and qp");
     return std::nullopt;
   }
-  const VolumeOptions vo = a.in.volume.options();
+  const VolumeOptions vo = a.in.volume.options({a.in.ref, a.in.field});
   Streams s;
   if (a.stream == "on" || distributed) {
     s = {open_volume_slabs(a.in.ref, vo), open_volume_slabs(a.in.field, vo)};
@@ -272,7 +272,9 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
 
   StartingContext starting;
   OutputBatch outputs;
-  const VolumeOptions vo = a.in.volume.options();
+  std::vector<std::string> inputs = a.fields;
+  inputs.push_back(a.in.ref);
+  const VolumeOptions vo = a.in.volume.options(inputs);
   if (a.stream == "auto" && solver_streams(a.solver) && a.report.empty()) {
     const std::unique_ptr<VolumeSlabReader> probe = open_volume_slabs_or_load(a.in.ref, vo);
     const uint64_t bytes = 2 * probe->grid().voxel_count() * sizeof(float);

@@ -36,7 +36,7 @@ int run(RenderArgs a) {
   auto ctx = make_context();
   check_render_size(*ctx, a.settings);  // before loading: a too-large image fails in a second
   OutputBatch outputs;
-  Volume volume = load_volume(a.volume, a.volume_flags.options());
+  Volume volume = load_volume(a.volume, a.volume_flags.options({a.volume}));
   if (const std::string note = apply_grid_defaults(a.settings, volume.dims, volume.spacing, a.chosen); !note.empty())
     print_note(note);
   std::vector<std::string> notes;

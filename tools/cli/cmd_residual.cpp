@@ -57,7 +57,7 @@ int run(ResidualArgs a) {
   auto ctx = make_context();
   if (!a.image.empty()) check_render_size(*ctx, a.settings);
   OutputBatch outputs;
-  const VolumeOptions vo = a.volume_flags.options();
+  const VolumeOptions vo = a.volume_flags.options({a.ref, a.field});
   auto [ref, field] = load_volume_pair(a.ref, a.field, vo);
   require_same_grid(ref, field);
   if (const std::string w = grid_geometry_warning(ref, field); !w.empty()) print_warning(w);

@@ -163,13 +163,15 @@ int run(ViewArgs a) {
     e.versus = measure_flag(a.versus, "--versus");
     e.params.bins = a.bins;
     e.params.k = a.k;
-    VolumeOptions vo = a.in.volume.options();
+    std::vector<std::string> files;  // the files read: none for the demo
+    if (!a.demo) files = a.members.empty() ? std::vector<std::string>{a.ensemble} : expand_member_patterns(a.members);
+    VolumeOptions vo = a.in.volume.options(files);
     vo.member_dim = a.member_dim;
     if (a.demo) {
       const uint64_t n = a.size ? a.size : 64;
       e.ensemble = synthetic_ensemble(n, n, std::max<uint64_t>(n / 2, 2), 64);
     } else {
-      e.ensemble = a.members.empty() ? load_ensemble(a.ensemble, vo) : load_ensemble_members(expand_member_patterns(a.members), vo);
+      e.ensemble = a.members.empty() ? load_ensemble(a.ensemble, vo) : load_ensemble_members(files, vo);
     }
     check_correlation_members(e.ensemble);  // before resolving the point, as correlate does
     const Volume& grid = e.ensemble.grid;
@@ -186,7 +188,9 @@ int run(ViewArgs a) {
     session = std::make_unique<ViewSession>(*ctx, std::move(e), config);
   } else if (a.fields.size() > 1) {
     // Series mode: one field at a time, chosen on the page.
-    const VolumeOptions vo = a.in.volume.options();
+    std::vector<std::string> inputs = a.fields;
+    inputs.push_back(a.in.ref);
+    const VolumeOptions vo = a.in.volume.options(inputs);
     Volume ref = load_volume(a.in.ref, vo);
     ViewSeries series;
     for (const std::string& f : a.fields) series.labels.push_back(std::filesystem::path(f).filename().string());
@@ -205,7 +209,7 @@ int run(ViewArgs a) {
       config.ref_tf = demo_transfer_function(64);
       config.title = "demo: synthetic reference vs a remapped field with real changes";
     } else {
-      const VolumeOptions vo = a.in.volume.options();
+      const VolumeOptions vo = a.in.volume.options({a.in.ref, a.in.field});
       std::tie(ref, field) = load_volume_pair(a.in.ref, a.in.field, vo);
       config.title = field.name + " matched to " + ref.name;
       if (config.ref_tf.size() < 2) config.title += " (" + use_default_tf(ref, config) + ")";

@@ -11,6 +11,7 @@
 #include "tfmatch/io/ensemble_io.h"
 #include "tfmatch/io/tf_formats.h"
 #include "tfmatch/io/volume_format_table.h"
+#include "tfmatch/io/volume_formats.h"
 #include "tfmatch/io/volume_io.h"
 
 namespace tfm::cli {
@@ -34,7 +35,28 @@ void add_input_options(CLI::App* sub, InputArgs& a, bool required) {
   add_volume_flags(sub, a.volume);
 }
 
-VolumeOptions VolumeFlags::options() const {
+namespace {
+
+// CLI::ValidationError for `flag` when no input's format `takes` it.
+void check_described(const std::string& flag, bool VolumeFormat::*takes, const std::vector<std::string>& inputs) {
+  std::string seen;  // "a.nc (NetCDF), b.vti (VTI)"
+  for (const std::string& spec : inputs) {
+    const std::filesystem::path path = parse_volume_spec(spec, {}).path;
+    const VolumeFormat* format = find_volume_format(path);
+    if (!format || format->*takes) return;  // an unknown format is its reader's error
+    if (seen.size() < 200) seen += (seen.empty() ? "" : ", ") + path.filename().string() + " (" + format->title + ")";
+  }
+  const std::string formats = volume_format_titles(takes, " and ");
+  throw CLI::ValidationError(flag, "describes " + formats + " files, and no input is one" +
+                                       (seen.empty() ? std::string() : ": " + seen) + "; remove it");
+}
+
+}  // namespace
+
+VolumeOptions VolumeFlags::options(const std::vector<std::string>& inputs) const {
+  if (!dims.empty()) check_described("--dims", &VolumeFormat::takes_layout, inputs);
+  if (!type.empty()) check_described("--type", &VolumeFormat::takes_layout, inputs);
+  if (big_endian) check_described("--big-endian", &VolumeFormat::takes_byte_order, inputs);
   VolumeOptions vo;
   if (dims.size() == 3) vo.dims = std::array<uint64_t, 3>{dims[0], dims[1], dims[2]};
   if (!type.empty()) {
@@ -53,7 +75,7 @@ void add_volume_flags(CLI::App* sub, VolumeFlags& f, FieldSelectors selectors) {
   sub->add_option("--dims", f.dims, "Raw files: grid size X,Y,Z (when the file name does not say)")->expected(3)
       ->delimiter(',')->check(positive_integer())->group(raw);
   sub->add_option("--type", f.type, "Raw files: element type (uint8, uint16, int16, float32, float64, ...)")->group(raw);
-  sub->add_flag("--big-endian", f.big_endian, "Raw files: big-endian data")->group(raw);
+  sub->add_flag("--big-endian", f.big_endian, "Raw and .dat files: big-endian data")->group(raw);
   // Which formats have variables, times and members comes from the format table.
   const std::string selection = "Field selection";
   sub->add_option("--var", f.var, volume_format_selectors() + ", for every field unless FILE:VAR says otherwise")
@@ -67,7 +89,7 @@ void add_volume_flags(CLI::App* sub, VolumeFlags& f, FieldSelectors selectors) {
 }
 
 void load_inputs(const InputArgs& a, LoadedInputs& out) {
-  const VolumeOptions vo = a.volume.options();
+  const VolumeOptions vo = a.volume.options({a.ref, a.field});
   std::tie(out.ref, out.field) = load_volume_pair(a.ref, a.field, vo);
   out.request.ref = &out.ref;
   out.request.field = &out.field;

@@ -26,8 +26,11 @@ struct VolumeFlags {
   bool big_endian = false;
   std::string var;
   std::optional<uint64_t> time, member;
-  // Throws std::runtime_error for an unknown --type.
-  VolumeOptions options() const;
+  // The options for reading `inputs` (the command's FILE[:SELECTION] specs). Throws
+  // std::runtime_error for an unknown --type, and CLI::ValidationError when --dims, --type or
+  // --big-endian is given but none of `inputs` is a file they describe (raw; .dat for the byte
+  // order): they would be ignored.
+  VolumeOptions options(const std::vector<std::string>& inputs) const;
   bool selects() const { return !var.empty() || time || member; }  // --var, --time or --member given
 };
 // Which selectors a command takes: `correlate` reads the member axis whole, so it has no --member.
