@@ -104,14 +104,16 @@ Image plot_series_lines(const std::vector<PlotLine>& lines, uint32_t width, uint
   return img;
 }
 
-Image plot_tf_overlay(const std::vector<TransferFunction>& tfs, uint32_t width, const std::string& title) {
+Image plot_tf_overlay(const std::vector<TransferFunction>& tfs, uint32_t width, const std::string& title,
+                      const std::optional<FieldRange>& shared_range) {
   if (tfs.empty()) throw std::invalid_argument("plot_tf_overlay: no TFs");
   if (width < 200) throw std::invalid_argument("plot_tf_overlay: plot too small");
   const int strip = tfs.size() > 24 ? 4 : 10, curve_height = 160;
   const int label_width = text_width(std::to_string(tfs.size() - 1)) + 8;
   const int left = 12 + std::max(label_width, text_width("1.0")), right = int(width) - 12;
   const int top = 8 + text_height(1) + 8, bottom = top + curve_height;
-  const int strips_top = bottom + 6 + text_height(1) + 8;
+  const int ticks = shared_range ? 4 + 2 + text_height(1) + 2 : 0;  // the value axis
+  const int strips_top = bottom + 6 + ticks + text_height(1) + 8;
   Image img(width, uint32_t(strips_top + int(tfs.size()) * (strip + 2) + 8));
   draw_text(img, 10, 6, title, kText);
   for (double t : {0.0, 0.5, 1.0}) {
@@ -120,9 +122,12 @@ Image plot_tf_overlay(const std::vector<TransferFunction>& tfs, uint32_t width, 
     const std::string label = t == 0.0 ? "0" : t == 1.0 ? "1.0" : "0.5";
     draw_text(img, left - 6 - text_width(label), y - text_height(1) / 2, label, kText);
   }
-  const std::string axis = std::string("opacity over the TF coordinate (0: ") +
-                           (tfs.size() == 1 ? "the range's" : "each field's range's") + " low end, 1: its high end)";
-  draw_text(img, left, bottom + 4, axis, kText);
+  if (shared_range) draw_value_ticks(img, left, right - 1 - left, bottom + 1, *shared_range, kFrame, kText);
+  const std::string axis = shared_range ? std::string("opacity over the values of the range every field shares")
+                                        : std::string("opacity over the TF coordinate (0: ") +
+                                              (tfs.size() == 1 ? "the range's" : "each field's range's") +
+                                              " low end, 1: its high end)";
+  draw_text(img, left, bottom + 4 + ticks, axis, kText);
   // The value of TF `tf` at coordinate x in [0, 1] (node-aligned, as the renderer reads it).
   auto at = [](const TransferFunction& tf, double x, int channel) {
     const double u = std::clamp(x, 0.0, 1.0) * double(tf.size() - 1);
@@ -239,7 +244,8 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
   } else {
     for (const SeriesFieldResult& f : r.fields) tfs.push_back(f.tf);
   }
-  write("tfs.png", plot_tf_overlay(tfs, 640, r.shared_tf ? "the shared TF" : "the fitted TFs, one per field"));
+  write("tfs.png", r.shared_tf ? plot_tf_overlay(tfs, 640, "the shared TF", r.fields.front().field_range)
+                               : plot_tf_overlay(tfs, 640, "the fitted TFs, one per field"));
 
   nlohmann::json fields = nlohmann::json::array();
   for (size_t i = 0; i < n; ++i)

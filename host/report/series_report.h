@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -55,9 +56,10 @@ Image plot_series_lines(const std::vector<PlotLine>& lines, uint32_t width, uint
                         const std::string& x_label);
 
 // The TFs overlaid: each TF's opacity curve in a colour of its own over the TF coordinate
-// (0 = each field's range's low end, 1 its high end; one TF: the shared range's), and beneath,
-// one strip per TF of its colours (labelled with its index). Throws std::invalid_argument for no
-// TFs or a small plot.
-Image plot_tf_overlay(const std::vector<TransferFunction>& tfs, uint32_t width, const std::string& title);
+// (0 = each field's range's low end, 1 its high end), with a value axis where every field shares
+// one range (`shared_range`), and beneath, one strip per TF of its colours (labelled with its
+// index). Throws std::invalid_argument for no TFs or a small plot.
+Image plot_tf_overlay(const std::vector<TransferFunction>& tfs, uint32_t width, const std::string& title,
+                      const std::optional<FieldRange>& shared_range = std::nullopt);
 
 }  // namespace tfm

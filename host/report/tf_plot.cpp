@@ -39,6 +39,22 @@ std::vector<double> nice_ticks(double lo, double hi, int target) {
   return ticks;
 }
 
+int draw_value_ticks(Image& img, int left, int width, int y, const FieldRange& range, Rgb8 tick, Rgb8 text) {
+  const int tick_h = 4, label_y = y + tick_h + 2;
+  int last_right = -1000;
+  for (double v : nice_ticks(range.lo, range.hi, std::max(2, width / 90))) {
+    const int x = int(std::lround(left + (v - range.lo) / (range.hi - range.lo) * width));
+    fill_rect(img, std::min(x, left + width - 1), y, 1, tick_h, tick);
+    const std::string label = short_number(v);
+    const int w = text_width(label);
+    const int lx = std::clamp(x - w / 2, 2, int(img.width) - 2 - w);
+    if (lx < last_right + 6) continue;  // never overlap the previous label
+    draw_text(img, lx, label_y, label, text);
+    last_right = lx + w;
+  }
+  return label_y + text_height(1);
+}
+
 std::string field_label(const Volume& v) {
   const std::string& name = v.name;
   const size_t slash = name.find_last_of('/');
@@ -111,19 +127,7 @@ Image plot_transfer_function(const TransferFunction& tf, std::span<const float> 
     const Rgba c = tf.eval((x + 0.5) / plot_w);
     fill_rect(img, left + x, bar_top, 1, bar_h, srgb8(c[0], c[1], c[2]));  // linear TF, shown as sRGB
   }
-  // Value ticks at round numbers, labels centred under them (kept inside the picture).
-  const int tick_y = bar_top + bar_h, label_y = tick_y + tick_h + 2;
-  int last_right = -1000;
-  for (double v : nice_ticks(range.lo, range.hi, std::max(2, plot_w / 90))) {
-    const int x = int(std::lround(px((v - range.lo) / (range.hi - range.lo))));
-    fill_rect(img, std::min(x, right - 1), tick_y, 1, tick_h, muted);
-    const std::string label = short_number(v);
-    const int w = text_width(label);
-    const int lx = std::clamp(x - w / 2, 2, int(o.width) - 2 - w);
-    if (lx < last_right + 6) continue;  // never overlap the previous label
-    draw_text(img, lx, label_y, label, text);
-    last_right = lx + w;
-  }
+  const int label_y = draw_value_ticks(img, left, plot_w, bar_top + bar_h, range, muted, text) - th;
   if (!o.axis_label.empty()) {
     // Centred under the plot, or as much of its end as the picture holds ("...grib:t,member=0").
     const std::string label = fit_text(o.axis_label, int(o.width) - 8);

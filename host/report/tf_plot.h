@@ -34,6 +34,11 @@ std::string field_label(const Volume& v);
 // About `target` round values (1, 2 or 5 times a power of ten apart) within [lo, hi].
 std::vector<double> nice_ticks(double lo, double hi, int target = 5);
 
+// A value axis under a plot whose [range.lo, range.hi] spans `width` pixels from x = `left`: ticks
+// 4 pixels down from `y` at round values, their labels beneath (inside the picture, never
+// overlapping). Returns the y below the labels.
+int draw_value_ticks(Image& img, int left, int width, int y, const FieldRange& range, Rgb8 tick, Rgb8 text);
+
 // Throws std::invalid_argument when the plot is too small for its axes (< 160 x 140 pixels).
 Image plot_transfer_function(const TransferFunction& tf, std::span<const float> values, const FieldRange& range,
                              const TfPlotOptions& options = {});

@@ -14,6 +14,7 @@
 #include "cli_runner.h"
 #include "tfmatch/report/font.h"
 #include "tfmatch/report/png_io.h"
+#include "tfmatch/report/series_report.h"
 #include "tfmatch/report/tf_plot.h"
 
 namespace tfm {
@@ -352,6 +353,34 @@ TEST(RenderPng, LongLabelsKeepTheirEndInsideThePicture) {
     for (uint32_t y = 0; y < img.height; ++y)
       for (uint32_t x : {0u, 1u, img.width - 2, img.width - 1}) ASSERT_GT(img.at(x, y)[0], 200) << x << "," << y;
   }
+}
+
+// The series report's TF overlay: where every field shares one range (--shared-tf) it has a value
+// axis (ticks at round values under the curves, labels beneath); else the TF coordinate alone.
+TEST(RenderPng, TfOverlayHasAValueAxisWhereTheRangeIsShared) {
+  TextFaceGuard guard;
+  set_text_face(nullptr);
+  TransferFunction tf;
+  tf.rgba = {{0, 0, 1, 0}, {1, 0, 0, 1}};
+  const Image plain = plot_tf_overlay({tf, tf}, 640, "the fitted TFs");
+  const Image shared = plot_tf_overlay({tf}, 640, "the shared TF", FieldRange{250, 300});
+  const int th = text_height(1), bottom = 8 + th + 8 + 160;  // the curves' frame, as drawn
+  EXPECT_EQ(int(shared.height), int(plain.height) - (10 + 2) + 4 + 2 + th + 2) << "one strip fewer, the axis more";
+  // Tick marks (frame grey) one pixel wide, 6 of them (250, 260, ..., 300), evenly spaced.
+  std::vector<int> ticks;
+  for (uint32_t x = 0; x < shared.width; ++x)
+    if (shared.at(x, bottom + 2)[0] == 170) ticks.push_back(int(x));
+  ASSERT_EQ(ticks.size(), 6u);
+  for (size_t k = 1; k < ticks.size(); ++k) EXPECT_NEAR(ticks[k] - ticks[k - 1], (ticks.back() - ticks[0]) / 5.0, 1.0);
+  // Labels beneath: ink in the rows under the ticks, none in the plain plot's same rows.
+  auto ink = [&](const Image& img, int y0, int y1) {
+    int n = 0;
+    for (int y = y0; y < y1; ++y)
+      for (uint32_t x = 0; x < img.width; ++x) n += img.at(x, uint32_t(y))[0] < 128;
+    return n;
+  };
+  EXPECT_GT(ink(shared, bottom + 6, bottom + 6 + th), 30);
+  for (uint32_t x = 0; x < plain.width; ++x) EXPECT_NE(plain.at(x, bottom + 2)[0], 170) << "a tick at x = " << x;
 }
 
 TEST(RenderPng, NiceTicksAreRoundAndInside) {
