@@ -9,6 +9,7 @@
 
 #include "tfmatch/engine/context.h"
 #include "tfmatch/kernels/render_image.h"
+#include "tfmatch/model/transfer_function.h"
 
 namespace tfm {
 
@@ -130,7 +131,7 @@ DiffDvrBackwardKernel::DiffDvrBackwardKernel(Context& ctx, uint32_t field_chunks
       march_(march),
       max_part_samples_(max_part_samples) {
   check_chunks(field_chunks);
-  if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
+  check_table_size(tf_size);
   mode_ = choose(ctx, tf_size, mode);
   if (march_ == RunsMarch::Auto) march_ = ctx.loop_iteration_limit() != 0 ? RunsMarch::Flat : RunsMarch::Nested;
   if (const std::string why = unsupported(ctx, tf_size, mode_); !why.empty())

@@ -17,6 +17,7 @@
 #include "tfmatch/kernels/residual_map.h"
 #include "tfmatch/kernels/voxel_loss.h"
 #include "tfmatch/model/correlation_reference.h"
+#include "tfmatch/model/transfer_function.h"
 #include "tfmatch/shaders/shared_layout.h"
 
 namespace tfm {
@@ -82,6 +83,7 @@ NormalEquationsRecorder::NormalEquationsRecorder(Context& ctx, uint32_t tf_size,
 }
 
 uint64_t NormalEquationsRecorder::scratch_bytes(uint32_t tf_size) {
+  check_table_size(tf_size);
   return uint64_t(TFM_ASSEMBLE_SLOTS(tf_size)) * gpu::kFixedSlotBytes;
 }
 

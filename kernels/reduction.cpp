@@ -8,6 +8,7 @@
 
 #include "tfmatch/engine/context.h"
 #include "tfmatch/kernels/voxel_pair.h"
+#include "tfmatch/model/transfer_function.h"
 #include "tfmatch/shaders/shader_registry.h"
 #include "tfmatch/shaders/shared_layout.h"
 
@@ -31,7 +32,7 @@ uint32_t private_limit(const Context& ctx, uint32_t cpu_limit) {
 
 Reduction Reduction::choose(const Context& ctx, const char* kernel, uint32_t tf_size, uint64_t shared_bytes,
                             const ReductionOptions& options, uint32_t private_max_bins) {
-  if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
+  check_table_size(tf_size);
   const bool shared_fits = shared_bytes <= ctx.limits().maxComputeSharedMemorySize;
   Reduction r;
   r.tf_size = tf_size;

@@ -11,6 +11,7 @@
 
 #include "tfmatch/model/parallel_parts.h"
 #include "tfmatch/model/parameter_names.h"
+#include "tfmatch/model/transfer_function.h"
 
 namespace tfm {
 
@@ -221,7 +222,7 @@ std::string check_range_coverage(const RangeCoverage& c, const FiniteStats& s, c
 }
 
 FieldMapping make_mapping(const FieldRange& range, uint32_t tf_size) {
-  if (tf_size < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
+  check_table_size(tf_size);
   FieldMapping m;
   m.lo = static_cast<float>(range.lo);
   m.scale = static_cast<float>(double(tf_size - 1) / (range.hi - range.lo));

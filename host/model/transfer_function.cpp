@@ -19,6 +19,13 @@ Rgba TransferFunction::eval(double t) const {
   return out;
 }
 
+void check_table_size(uint64_t n) {
+  if (n < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
+  if (n > kMaxTableSize)
+    throw std::invalid_argument("transfer functions hold at most " + std::to_string(kMaxTableSize) + " entries, not " +
+                                std::to_string(n));
+}
+
 TransferFunction TransferFunction::resampled(size_t n) const {
   if (n < 2) throw std::invalid_argument("transfer functions need at least 2 entries");
   if (n == rgba.size()) return *this;

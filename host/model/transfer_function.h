@@ -18,6 +18,10 @@ using Rgba = std::array<double, 4>;
 // read from control points (2^16).
 inline constexpr size_t kMaxTableSize = size_t(1) << 16;
 
+// Throws std::invalid_argument unless a TF of `n` entries is one tfmatch's kernels take:
+// 2 <= n <= kMaxTableSize (their accumulators' sizes, 6n + 8 slots, are 32-bit numbers).
+void check_table_size(uint64_t n);
+
 struct TransferFunction {
   std::vector<Rgba> rgba;             // entry j at t = j/(N-1), values in [0,1]
   std::optional<FieldRange> range;    // data range the table was made for, if the file says

@@ -249,6 +249,11 @@ TEST(FieldMapping, CoordinatesAtTheEdgesAndOutside) {
   FieldRange user{0, 1};
   EXPECT_NO_THROW(resolve_range(constant, &user, "c"));
   EXPECT_THROW(make_mapping({0, 1}, 1), std::invalid_argument);
+  // Past kMaxTableSize the kernels' slot counts (6N + 8, 32-bit) would wrap: N = 715827882 gave
+  // 4 slots, and the assembly wrote far past them.
+  EXPECT_NO_THROW(make_mapping({0, 1}, uint32_t(kMaxTableSize)));
+  for (uint32_t n : {uint32_t(kMaxTableSize) + 1, 2796202u, 715827882u, 0x80000000u})
+    EXPECT_THROW(make_mapping({0, 1}, n), std::invalid_argument) << n;
 }
 
 // Ranges the float32 mapping cannot take are refused with the field's name, given or from the
