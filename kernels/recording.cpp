@@ -174,8 +174,7 @@ void ResidualMapRecorder::record_residual_map(VkCommandBuffer cmd, const DeviceF
                                               DeviceField& out) {
   check_table_for(ref_tf_rgba, ref_map, "record_residual_map: reference TF");
   check_table_for(opt_tf_rgba, opt_map, "record_residual_map: second TF");
-  if (out.voxel_count() != ref.voxel_count() || out.chunk_voxels() != ref.chunk_voxels())
-    throw std::invalid_argument("record_residual_map: the output field differs from the inputs in size or chunking");
+  ResidualMapKernel::check_fields(ref, opt, out);  // before anything is recorded into the host's buffer
   record_residual(restart(recording_, ctx_, cmd), ctx_, *kernel_, ref_tf_, opt_tf_, ref, opt, ref_map, opt_map,
                   ref_tf_rgba, opt_tf_rgba, out);
 }
@@ -186,9 +185,7 @@ void ResidualMapRecorder::record_residual_map(VkCommandBuffer cmd, const ImageFi
                                               DeviceField& out) {
   check_table_for(ref_tf_rgba, ref_map, "record_residual_map: reference TF");
   check_table_for(opt_tf_rgba, opt_map, "record_residual_map: second TF");
-  // Checked before anything is recorded into the host's buffer, as the buffer overload does.
-  if (out.voxel_count() != check_image_pair(ref, opt, "record_residual_map"))
-    throw std::invalid_argument("record_residual_map: the output field differs from the images in voxel count");
+  ResidualMapKernel::check_fields(ref, opt, out);  // before anything is recorded into the host's buffer
   record_residual(restart(recording_, ctx_, cmd), ctx_, *kernel_, ref_tf_, opt_tf_, ref, opt, ref_map, opt_map,
                   ref_tf_rgba, opt_tf_rgba, out);
 }
@@ -242,6 +239,7 @@ void RenderRecorder::record_picture(VkCommandBuffer cmd, const RenderImageKernel
   const MarchConstants march = march_constants(settings, geometry_);
   const gpu::RenderView view = make_render_view(orbit_frame(settings.camera, geometry_, settings.width, settings.height));
   const gpu::RenderPush push = make_render_push(geometry_, march, mapping, field, settings.width, settings.height, 1);
+  kernel.check_field(field, push);  // before anything is recorded into the host's buffer
   if (stop_.size() < pixels * 4) {
     if (host_stop_)
       throw std::invalid_argument("record_render: the host's stop scratch holds " + std::to_string(stop_.size()) +

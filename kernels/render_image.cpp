@@ -131,21 +131,31 @@ RenderImageKernel::RenderImageKernel(Context& ctx, ImageField) : ctx_(ctx), chun
   pipeline_ = shared_pipeline(ctx, desc);
 }
 
+void RenderImageKernel::check_field(const DeviceField& field, const gpu::RenderPush&) const {
+  if (image_field_) throw std::invalid_argument("render: this pipeline reads a 3D image, not a field's buffers");
+  if (field.chunk_count() != chunks_)
+    throw std::invalid_argument("render: the field has " + std::to_string(field.chunk_count()) +
+                                " chunks, the pipeline was made for " + std::to_string(chunks_));
+}
+
+void RenderImageKernel::check_field(const ImageFieldView& field, const gpu::RenderPush& push) const {
+  if (!image_field_) throw std::invalid_argument("render: this pipeline reads a field's buffers, not a 3D image");
+  check_image_field(field, "render");
+  if (field.extent.width != push.dim_x || field.extent.height != push.dim_y || field.extent.depth != push.dim_z)
+    throw std::invalid_argument("render: the image's extent differs from the grid");
+}
+
 void RenderImageKernel::record(CommandBatch& batch, const DeviceField& field, const Buffer& tf, const Buffer& views,
                                gpu::RenderPush push, Buffer& image, Buffer& stop, uint32_t row_begin,
                                uint32_t row_count) const {
-  if (image_field_) throw std::invalid_argument("render: this pipeline reads a 3D image, not a field's buffers");
-  if (field.chunk_count() != chunks_) throw std::invalid_argument("render: field chunk count differs from pipeline's");
+  check_field(field, push);
   record_with(batch, march_field_binding(field), tf, views, push, image, stop, row_begin, row_count);
 }
 
 void RenderImageKernel::record(CommandBatch& batch, const ImageFieldView& field, const Buffer& tf, const Buffer& views,
                                gpu::RenderPush push, Buffer& image, Buffer& stop, uint32_t row_begin,
                                uint32_t row_count) const {
-  if (!image_field_) throw std::invalid_argument("render: this pipeline reads a field's buffers, not a 3D image");
-  check_image_field(field, "render");
-  if (field.extent.width != push.dim_x || field.extent.height != push.dim_y || field.extent.depth != push.dim_z)
-    throw std::invalid_argument("render: the image's extent differs from the grid");
+  check_field(field, push);
   record_with(batch, Binding::image(field.view, field.layout), tf, views, push, image, stop, row_begin, row_count);
 }
 

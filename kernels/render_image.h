@@ -83,6 +83,10 @@ class RenderImageKernel {
   // The same from the image variant: `field`'s extent is the push block's grid.
   void record(CommandBatch& batch, const ImageFieldView& field, const Buffer& tf, const Buffer& views,
               gpu::RenderPush push, Buffer& image, Buffer& stop, uint32_t row_begin, uint32_t row_count) const;
+  // record()'s checks of the field against this pipeline and the push block's grid alone
+  // (std::invalid_argument), for callers that must refuse before they record anything.
+  void check_field(const DeviceField& field, const gpu::RenderPush& push) const;
+  void check_field(const ImageFieldView& field, const gpu::RenderPush& push) const;
 
  private:
   Context& ctx_;

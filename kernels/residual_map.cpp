@@ -46,13 +46,25 @@ PipelineDesc ResidualMapKernel::pipeline_desc(const VkExtent3D* image) const {
   return desc;
 }
 
-void ResidualMapKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
-                               const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
-                               const Buffer& opt_tf, DeviceField& out) const {
-  for (const DeviceField* f : {&opt, static_cast<const DeviceField*>(&out)})
+void ResidualMapKernel::check_fields(const DeviceField& ref, const DeviceField& opt, const DeviceField& out) {
+  for (const DeviceField* f : {&opt, &out})
     if (f->voxel_count() != ref.voxel_count() || f->chunk_voxels() != ref.chunk_voxels())
       throw std::invalid_argument("residual map: fields differ in size or chunking");
   if (out.format() != FieldFormat::Float32) throw std::invalid_argument("residual map: the output field must be float32");
+}
+
+void ResidualMapKernel::check_fields(const ImageFieldView& ref, const ImageFieldView& opt, const DeviceField& out) {
+  const uint64_t voxels = check_image_pair(ref, opt, "residual map");
+  if (out.voxel_count() != voxels || out.chunk_count() != 1)
+    throw std::invalid_argument("residual map: the output must hold the images' " + std::to_string(voxels) +
+                                " voxels in one chunk (an image larger than that: copy it, ImageFieldRecorder)");
+  if (out.format() != FieldFormat::Float32) throw std::invalid_argument("residual map: the output field must be float32");
+}
+
+void ResidualMapKernel::record(CommandBatch& batch, const DeviceField& ref, const DeviceField& opt,
+                               const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
+                               const Buffer& opt_tf, DeviceField& out) const {
+  check_fields(ref, opt, out);
   if (ref_tf.size() < uint64_t(ref_map.tf_size) * 16 || opt_tf.size() < uint64_t(opt_map.tf_size) * 16)
     throw std::invalid_argument("residual map: TF buffer smaller than its mapping's size");
   const Binding rtf = Binding::texels(ref_tf, VK_FORMAT_R32G32B32A32_SFLOAT, 0, uint64_t(ref_map.tf_size) * 16);
@@ -72,11 +84,8 @@ void ResidualMapKernel::record(CommandBatch& batch, const DeviceField& ref, cons
 void ResidualMapKernel::record(CommandBatch& batch, const ImageFieldView& ref, const ImageFieldView& opt,
                                const FieldMapping& ref_map, const FieldMapping& opt_map, const Buffer& ref_tf,
                                const Buffer& opt_tf, DeviceField& out) const {
-  const uint64_t voxels = check_image_pair(ref, opt, "residual map");
-  if (out.voxel_count() != voxels || out.chunk_count() != 1)
-    throw std::invalid_argument("residual map: the output must hold the images' " + std::to_string(voxels) +
-                                " voxels in one chunk (an image larger than that: copy it, ImageFieldRecorder)");
-  if (out.format() != FieldFormat::Float32) throw std::invalid_argument("residual map: the output field must be float32");
+  check_fields(ref, opt, out);
+  const uint64_t voxels = out.voxel_count();
   if (ref_tf.size() < uint64_t(ref_map.tf_size) * 16 || opt_tf.size() < uint64_t(opt_map.tf_size) * 16)
     throw std::invalid_argument("residual map: TF buffer smaller than its mapping's size");
   SharedPipeline& pipeline = image_pipelines_[{ref.extent.width, ref.extent.height}];

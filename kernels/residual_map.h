@@ -32,6 +32,10 @@ class ResidualMapKernel {
   // or of several chunks.
   void record(CommandBatch& batch, const ImageFieldView& ref, const ImageFieldView& opt, const FieldMapping& ref_map,
               const FieldMapping& opt_map, const Buffer& ref_tf, const Buffer& opt_tf, DeviceField& out) const;
+  // record()'s checks of the fields alone (std::invalid_argument), for callers that must refuse
+  // before they record anything (the recorders of recording.h).
+  static void check_fields(const DeviceField& ref, const DeviceField& opt, const DeviceField& out);
+  static void check_fields(const ImageFieldView& ref, const ImageFieldView& opt, const DeviceField& out);
 
  private:
   PipelineDesc pipeline_desc(const VkExtent3D* image) const;

@@ -7,6 +7,8 @@
 #include "host_device.h"
 #include "recording_host.h"
 #include "tfmatch/engine/context.h"
+#include "tfmatch/kernels/gpu_voxel_ops.h"
+#include "tfmatch/model/transfer_function.h"
 
 #include <vulkan/vulkan.h>  // after tfmatch's headers: the loader's prototypes are still declared
 
@@ -112,7 +114,7 @@ TEST(EmbeddingCustomProcAddr, AdoptResolvesEverythingThroughTheHost) {
 // Each refused argument leaves the host's command buffer as it was: no command recorded, and the
 // last recording (its descriptor sets) kept. Image views without a format, a residual output of
 // another size than the images, an image of another extent than the renderer's grid, a TF target
-// without its size.
+// without its size, and the fields in buffers that the kernels refuse.
 TEST(EmbeddingCustomProcAddr, RefusedArgumentsRecordNothing) {
   test::HostDevice device;
   ASSERT_NO_FATAL_FAILURE(device.create());
@@ -154,6 +156,23 @@ TEST(EmbeddingCustomProcAddr, RefusedArgumentsRecordNothing) {
     EXPECT_THROW(residual.record_residual_map(cmd, good, good, m, m, table, table, small_out), std::invalid_argument);
     EXPECT_THROW(render.record_render(cmd, good, m, table, settings, picture), std::invalid_argument);
     EXPECT_THROW(upload.record_tf_upload(cmd, table, TfBufferTarget{tf_buffer, 0}), std::invalid_argument);
+    // Fields in buffers that the kernel, not the recorder, used to refuse (after recording the
+    // tables): an output of another format, a second field of another size, a field of other
+    // chunks than the renderer's pipeline.
+    DeviceField ref_field(*ctx, 64, "ref"), short_field(*ctx, 60, "short"), out_field(*ctx, 64, "out");
+    DeviceField chunked(*ctx, 80, "80 voxels in chunks of 8", 8);
+    void* half_map = nullptr;
+    const DeviceField half_out =
+        DeviceField::adopt(*ctx, host.buffer(64 * 2, &half_map), 0, 64, "float16 out", 0, FieldFormat::Float16);
+    EXPECT_THROW(residual.record_residual_map(cmd, ref_field, ref_field, m, m, table, table, const_cast<DeviceField&>(half_out)),
+                 std::invalid_argument);
+    EXPECT_THROW(residual.record_residual_map(cmd, ref_field, short_field, m, m, table, table, out_field),
+                 std::invalid_argument);
+    EXPECT_THROW(render.record_render(cmd, chunked, m, table, settings, picture), std::invalid_argument);
+    // TFs past kMaxTableSize: the recorder, its scratch size and the blocking assembly refuse them.
+    EXPECT_THROW(NormalEquationsRecorder(*ctx, 715827882u), std::invalid_argument);
+    EXPECT_THROW(NormalEquationsRecorder::scratch_bytes(0x80000000u), std::invalid_argument);
+    EXPECT_THROW(GpuNormalEquations(*ctx, uint32_t(kMaxTableSize) + 1), std::invalid_argument);
     EXPECT_EQ(recorded_commands, before) << "commands recorded by calls that threw";
     // The counting sees a recording that is accepted.
     assembly.record_assemble(cmd, good, good, m, m, table);
