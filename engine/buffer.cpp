@@ -94,6 +94,7 @@ Buffer::Buffer(Context& ctx, uint64_t bytes, MemoryUsage usage, const std::strin
                       r);
   }
   ctx.track_buffer_bytes(int64_t(bytes_));
+  ctx.track_buffer_memory(1);
   VK_CHECK(vk.vkBindBufferMemory(ctx.device(), buffer_, memory_, 0));
   // Host buffers stay mapped for their lifetime. Device buffers are never mapped, even where
   // device memory is host-visible (lavapipe, integrated GPUs): transfers always take the same
@@ -143,6 +144,7 @@ Buffer Buffer::import_host(Context& ctx, void* pointer, uint64_t bytes, const st
     b.memory_ = VK_NULL_HANDLE;
     return {};
   }
+  ctx.track_buffer_memory(1);
   if (vk.vkBindBufferMemory(ctx.device(), b.buffer_, b.memory_, 0) != VK_SUCCESS) return {};
   return b;
 }
@@ -204,6 +206,7 @@ void Buffer::release() {
   if (buffer_) vk.vkDestroyBuffer(ctx_->device(), buffer_, nullptr);
   if (memory_) {
     vk.vkFreeMemory(ctx_->device(), memory_, nullptr);
+    ctx_->track_buffer_memory(-1);
     if (tracked_) ctx_->track_buffer_bytes(-int64_t(bytes_));
   }
   buffer_ = VK_NULL_HANDLE;

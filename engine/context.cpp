@@ -548,6 +548,16 @@ uint64_t Context::max_buffer_bytes() const {
 Context::~Context() {
   pipelines_.reset();  // pipelines and staging buffers belong to the device, also an adopted one
   staging_.reset();
+  if (const int64_t live = live_buffer_memory_.load(); live != 0) {
+    // A use after free follows (the buffers free their memory on the destroyed device): stop
+    // here, saying why, rather than crash later somewhere unrelated.
+    std::fprintf(stderr,
+                 "tfmatch: a Context is destroyed while %lld buffers made on it (fields, recorders, solvers' "
+                 "accumulators) still exist; destroy every tfmatch object made on a Context before the Context "
+                 "(docs/embedding.md, \"Ownership\")\n",
+                 static_cast<long long>(live));
+    std::abort();
+  }
   const Dispatch& vk = *dispatch_;
   if (owns_pipeline_cache_) vk.vkDestroyPipelineCache(device_, pipeline_cache_, nullptr);
   if (!owns_) return;

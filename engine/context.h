@@ -186,6 +186,10 @@ class Context {
   // path, where the host submits (tests check that the count does not move there).
   uint64_t submissions() const { return submissions_.load(); }
   void count_submission() { submissions_.fetch_add(1); }
+  // Device memory allocations of tfm::Buffer objects on this context that are not yet freed
+  // (called by Buffer): ~Context() stops the program with a message while any remain, since
+  // freeing them afterwards would use the destroyed device.
+  void track_buffer_memory(int delta) { live_buffer_memory_.fetch_add(delta); }
   void track_buffer_bytes(int64_t delta) {  // called by Buffer on allocation and release
     const uint64_t now = buffer_bytes_.fetch_add(uint64_t(delta)) + uint64_t(delta);
     uint64_t peak = peak_buffer_bytes_.load();
@@ -228,6 +232,7 @@ class Context {
   std::mutex queue_mutex_;
   std::atomic<uint64_t> submissions_{0};
   std::atomic<uint64_t> buffer_bytes_{0}, peak_buffer_bytes_{0};
+  std::atomic<int64_t> live_buffer_memory_{0};
   std::unique_ptr<StagingBuffers> staging_;  // released before the device
   std::unique_ptr<PipelineRegistry> pipelines_;  // likewise
   VkPipelineCache pipeline_cache_ = VK_NULL_HANDLE;

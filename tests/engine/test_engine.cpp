@@ -339,6 +339,25 @@ TEST(VkCheck, NamesResultsAndThrows) {
   }
 }
 
+// A Context destroyed before a buffer made on it stops the program saying so (the buffer would
+// free its memory on the destroyed device: a crash later, somewhere unrelated). A death test: the
+// child process re-runs this test alone.
+TEST(ContextDeathTest, DestroyedBeforeItsBuffersSaysSo) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  EXPECT_DEATH(
+      {
+        std::unique_ptr<Context> ctx = Context::create();
+        static Buffer* kept = nullptr;  // outlives the context on purpose
+        kept = new Buffer(*ctx, 256, MemoryUsage::Device, "kept");
+        ctx.reset();
+      },
+      "a Context is destroyed while 1 buffers made on it");
+  // In the right order, nothing is said.
+  std::unique_ptr<Context> ctx = Context::create();
+  { Buffer b(*ctx, 256, MemoryUsage::Device, "released first"); }
+  EXPECT_NO_FATAL_FAILURE(ctx.reset());
+}
+
 TEST(DeviceSelection, BadSelectionsListTheDevices) {
   ContextOptions by_index;
   by_index.device_index = 999;
