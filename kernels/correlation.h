@@ -115,7 +115,10 @@ class CorrelationKernel {
   // A buffer of float32 values.
   void record(CommandBatch& batch, const Buffer& ensemble, uint64_t voxels, const CorrelationReference& ref,
               const CorrelationTables& tables, Buffer& out, uint64_t max_chunk_voxels = 0) {
-    record(batch, DeviceEnsemble{&ensemble, voxels}, ref, tables, out, max_chunk_voxels);
+    DeviceEnsemble members;  // named members: an aggregate initializer warns under -Wextra
+    members.buffer = &ensemble;
+    members.voxels = voxels;
+    record(batch, members, ref, tables, out, max_chunk_voxels);
   }
   // record()'s checks of the buffers and sizes alone (std::invalid_argument), for callers that
   // must refuse before they record anything.

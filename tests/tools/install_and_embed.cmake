@@ -89,10 +89,14 @@ find_package(tfmatch REQUIRED)
 add_executable(all_headers all_headers.cpp)
 target_include_directories(all_headers BEFORE PRIVATE \${CMAKE_CURRENT_SOURCE_DIR}/host_headers)
 target_link_libraries(all_headers PRIVATE tfmatch::tfmatch tfmatch::io tfmatch::report)
+# As a host that builds with -Werror sees them: not as system headers, whose warnings are hidden.
+set_target_properties(all_headers PROPERTIES NO_SYSTEM_FROM_IMPORTED ON)
+target_compile_options(all_headers PRIVATE -Wall -Wextra -Werror)
 ")
 build_against_package(${WORK_DIR}/all_headers ${WORK_DIR}/all_headers/build)
 list(LENGTH installed_headers header_count)
-message(STATUS "${header_count} installed headers, by layer, compile together beside host headers of their names")
+message(STATUS "${header_count} installed headers, by layer, compile together beside host headers of their names, "
+               "without a warning under -Wall -Wextra")
 
 # CUDA is the `cuda` component's alone: the main targets name no CUDA library. Where the package
 # has it, a program asking for the component gets the CUDA solvers in the registry.
