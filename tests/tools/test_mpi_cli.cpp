@@ -337,5 +337,27 @@ TEST_F(MpiCli, RanksThatReadDifferentGridsStopBeforeAnyWork) {
 #endif
 }
 
+// A usage error on one rank alone (here its environment's TFMATCH_MAX_MEMORY, as a node's profile
+// may set it) stops every rank with that rank's message, as any failure does; the failing rank
+// used to return alone and leave the others waiting in their first collective until the job's
+// wall time (and print nothing).
+TEST_F(MpiCli, AUsageErrorOnOneRankStopsEveryRank) {
+#ifdef TFMATCH_MPIEXEC
+  const fs::path wrapper = dir / "rank_1_budget.sh";
+  std::ofstream(wrapper) << "#!/bin/sh\n[ \"$OMPI_COMM_WORLD_RANK\" = 1 ] && export TFMATCH_MAX_MEMORY=1M\n"
+                         << "exec " << TFMATCH_CLI_PATH << " \"$@\"\n";
+  fs::permissions(wrapper, fs::perms::owner_all);
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto r = run_shell("timeout 60 " + std::string(TFMATCH_MPIEXEC) + " --oversubscribe -n 2 " + wrapper.string() +
+                           " " + args("usage.json"));
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_LT(seconds, 50.0) << "the job waited for the failed rank";
+  EXPECT_NE(r.output.find("tfmatch: rank 1: error: TFMATCH_MAX_MEMORY: TFMATCH_MAX_MEMORY=1M is below"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(dir / "usage.json"));
+#endif
+}
+
 }  // namespace
 }  // namespace tfm

@@ -310,6 +310,8 @@ Failure describe_failure(std::exception_ptr failure) {
             true};
   } catch (const tfm::RankFailure& e) {
     return {e.what(), e.exit_code()};
+  } catch (const CLI::ParseError& e) {  // a usage error on some ranks of a job only (main())
+    return {std::string("error: ") + e.what(), kExitUsage};
   } catch (const tfm::VulkanError& e) {
     return {std::string("Vulkan error: ") + e.what(), kExitVulkan};
   } catch (const std::bad_alloc&) {
@@ -415,8 +417,11 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     // --help and --version are "errors" of CLI11 that exit 0; every other one is a usage error.
-    // Every rank parses the same command line, so every rank ends here alike.
-    return app.exit(e) == 0 ? kExitOk : kExitUsage;
+    // Under MPI a usage error can be one rank's alone (its environment's TFMATCH_MAX_MEMORY, a
+    // pattern that matches no file there, a --marker outside the grid that rank reads): the ranks
+    // agree on it below, as on any failure, so none is left waiting in a collective.
+    if (e.get_exit_code() == 0 || globals().ranks->size() == 1) return app.exit(e) == 0 ? kExitOk : kExitUsage;
+    failure = std::current_exception();
   } catch (...) {
     failure = std::current_exception();
   }
