@@ -48,8 +48,9 @@ bool to_double(const std::string& text, double& out) {
   }
 }
 
-// A whole number >= 0: digits, or a number with an exact integer value ("1e3").
-bool to_integer(const std::string& text, uint64_t& out) {
+}  // namespace
+
+bool parse_option_integer(const std::string& text, uint64_t& out) {
   if (!text.empty() && std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; })) {
     try {
       out = std::stoull(text);
@@ -63,8 +64,6 @@ bool to_integer(const std::string& text, uint64_t& out) {
   out = uint64_t(v);
   return true;
 }
-
-}  // namespace
 
 // ---- SolverOption -----------------------------------------------------------------------------
 
@@ -158,7 +157,7 @@ OptionValue SolverOption::parse(const std::string& text, std::string_view solver
   switch (type) {
     case OptionType::Integer: {
       uint64_t v = 0;
-      if (!to_integer(text, v) || v < integer_min || v > integer_max) return fail();
+      if (!parse_option_integer(text, v) || v < integer_min || v > integer_max) return fail();
       return v;
     }
     case OptionType::Number: {

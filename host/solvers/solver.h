@@ -96,6 +96,11 @@ struct NumberRange {
   bool max_open = false;
 };
 
+// How an Integer option reads `text`: digits, or a number with an exact whole value ("1e3",
+// "+5", "5.0"); false when it is none (or past 2^64 - 1). Callers that bound an option further
+// (the viewer) read it the same way, so that no spelling slips past their bound.
+bool parse_option_integer(const std::string& text, uint64_t& out);
+
 // A typed option value: none, flag, integer, number, or text (Choice and Text).
 using OptionValue = std::variant<std::monostate, bool, uint64_t, double, std::string>;
 

@@ -18,6 +18,7 @@
 #include "tfmatch/io/json.h"
 #include "tfmatch/model/cancellation.h"
 #include "tfmatch/report/png_io.h"
+#include "tfmatch/solvers/solver.h"
 #include "tfmatch/viewer/connection_workers.h"
 #include "tfmatch/viewer/progress_events.h"
 #include "tfmatch/viewer/tf_points.h"
@@ -137,9 +138,10 @@ void check_viewer_bounds(const std::map<std::string, std::string>& extra) {
   for (const auto& [name, limit] : kBounds) {
     auto it = extra.find(name);
     if (it == extra.end()) continue;
+    // Read as the solver reads it ("1e6", "+5001", "5001.0" are whole numbers to it); what it
+    // cannot read as one it refuses itself.
     uint64_t v = 0;
-    const auto [end, ec] = std::from_chars(it->second.data(), it->second.data() + it->second.size(), v);
-    if (ec == std::errc() && end == it->second.data() + it->second.size() && v > limit)
+    if (parse_option_integer(it->second, v) && v > limit)
       throw bad_request(std::string("option ") + name + " = " + it->second + " is above the viewer's limit " +
                         std::to_string(limit) + " (the command line has no such limit)");
   }
