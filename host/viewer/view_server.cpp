@@ -293,6 +293,19 @@ struct ViewServer::Impl {
       res.set_header("Content-Disposition", "attachment; filename=\"" + name + ".png\"");
   }
 
+  // Each path and the method it takes (one per path), for the 405 of another method.
+  std::map<std::string, std::string> route_methods;
+  template <class Handler>
+  void get(const std::string& path, Handler&& handler) {
+    route_methods[path] = "GET";
+    server.Get(path, std::forward<Handler>(handler));
+  }
+  template <class Handler>
+  void post(const std::string& path, Handler&& handler) {
+    route_methods[path] = "POST";
+    server.Post(path, std::forward<Handler>(handler));
+  }
+
   void routes() {
     // Every request, the page included, must carry the token (http_api.md "Access").
     server.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
@@ -303,30 +316,55 @@ struct ViewServer::Impl {
         return httplib::Server::HandlerResponse::Handled;
       }
       const std::string given = req.has_param("token") ? req.get_param_value("token") : req.get_header_value("X-Tfmatch-Token");
-      if (same_token(given, options.token)) return httplib::Server::HandlerResponse::Unhandled;
-      send_error(res, 403, "missing or wrong token: open the URL tfmatch view printed");
-      return httplib::Server::HandlerResponse::Handled;
+      if (!same_token(given, options.token)) {
+        send_error(res, 403, "missing or wrong token: open the URL tfmatch view printed");
+        return httplib::Server::HandlerResponse::Handled;
+      }
+      // The library answers several byte ranges with a multipart body built in memory, the
+      // ranges may overlap: 1000 of a download made a response 1000 times its size. The page asks
+      // for none; one range (a resumed download) costs at most the file.
+      if (req.ranges.size() > 1) {
+        send_error(res, 416, "at most one byte range per request");
+        return httplib::Server::HandlerResponse::Handled;
+      }
+      return httplib::Server::HandlerResponse::Unhandled;
     });
-    server.set_error_handler([](const httplib::Request& req, httplib::Response& res) {
-      if (res.status == 404) send_error(res, 404, "no such endpoint: " + req.path);
+    // Errors the library makes itself (no route for the path or method, a malformed request, a
+    // body or URI too long) come with an empty body: given one, as every error of http_api.md.
+    server.set_error_handler([this](const httplib::Request& req, httplib::Response& res) {
+      if (!res.body.empty()) return;  // a handler's own error
+      if (res.status == 404) {
+        if (const auto it = route_methods.find(req.path); it != route_methods.end()) {
+          send_error(res, 405, req.path + " takes " + it->second + ", not " + req.method);
+          res.set_header("Allow", it->second);
+        } else {
+          send_error(res, 404, "no such endpoint: " + req.path);
+        }
+        return;
+      }
+      const int status = res.status;
+      send_error(res, status, status == 413   ? "request body too large (at most 1 MiB) or a bad Content-Length"
+                              : status == 414 ? "request URI too long"
+                              : status == 400 ? "malformed HTTP request"
+                                              : "the request failed (HTTP " + std::to_string(status) + ")");
     });
     server.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr) {
       send_error(res, 500, "internal error");
     });
 
-    server.Get("/", [this](const httplib::Request&, httplib::Response& res) {
+    get("/", [this](const httplib::Request&, httplib::Response& res) {
       guarded(res, [&] {
         res.set_content(options.assets_dir.empty() ? page : view_page_html(options.assets_dir), "text/html; charset=utf-8");
         res.set_header("Cache-Control", "no-store");
       });
     });
-    server.Get("/api/state", [this](const httplib::Request&, httplib::Response& res) {
+    get("/api/state", [this](const httplib::Request&, httplib::Response& res) {
       guarded(res, [&] { send_json(res, session.state()); });
     });
-    server.Get("/api/job", [this](const httplib::Request&, httplib::Response& res) {
+    get("/api/job", [this](const httplib::Request&, httplib::Response& res) {
       guarded(res, [&] { send_json(res, session.job()); });
     });
-    server.Get("/api/progress", [this](const httplib::Request& req, httplib::Response& res) {
+    get("/api/progress", [this](const httplib::Request& req, httplib::Response& res) {
       // Server-sent events (progress_events.h): the stream waits on the hub between events, on
       // a thread of its own, so open streams neither poll the session nor hold up requests.
       res.set_header("Cache-Control", "no-store");
@@ -340,7 +378,7 @@ struct ViewServer::Impl {
         return true;
       });
     });
-    server.Get("/api/render", [this](const httplib::Request& req, httplib::Response& res) {
+    get("/api/render", [this](const httplib::Request& req, httplib::Response& res) {
       guarded(res, [&] {
         const ViewKind view = view_param(req);
         const RenderSettings s = camera_params(req, session.default_render());
@@ -358,14 +396,14 @@ struct ViewServer::Impl {
         res.set_header("Access-Control-Expose-Headers", "X-Tfmatch-Distance, X-Tfmatch-Render-Ms, Server-Timing");
       });
     });
-    server.Get("/api/metrics", [this](const httplib::Request& req, httplib::Response& res) {
+    get("/api/metrics", [this](const httplib::Request& req, httplib::Response& res) {
       guarded(res, [&] {
         const RenderSettings s = camera_params(req, session.default_render());
         take_device_slot();
         send_json(res, session.image_metrics(s, camera_wanted(req)));
       });
     });
-    server.Get("/api/slice", [this](const httplib::Request& req, httplib::Response& res) {
+    get("/api/slice", [this](const httplib::Request& req, httplib::Response& res) {
       guarded(res, [&] {
         const ViewKind view = view_param(req);
         const std::string axis_text = req.has_param("axis") ? req.get_param_value("axis") : "z";
@@ -382,7 +420,7 @@ struct ViewServer::Impl {
                  req, std::string(view_kind_name(view)) + "_slice_" + axis_text);
       });
     });
-    server.Get("/api/tf-plot", [this](const httplib::Request& req, httplib::Response& res) {
+    get("/api/tf-plot", [this](const httplib::Request& req, httplib::Response& res) {
       guarded(res, [&] {
         const ViewKind view = view_param(req, "which");
         const uint32_t w = uint32_t(integer_param(req, "w", 512, 160, 2048, 413));
@@ -393,7 +431,7 @@ struct ViewServer::Impl {
         send_png(res, session.tf_plot(view, w, h, scale == "log"), req, std::string("tf_") + view_kind_name(view));
       });
     });
-    server.Post("/api/optimize", [this](const httplib::Request& req, httplib::Response& res) {
+    post("/api/optimize", [this](const httplib::Request& req, httplib::Response& res) {
       guarded(res, [&] {
         const nlohmann::json body = parse_body(req);
         if (!body.contains("solver") || !body["solver"].is_string()) throw bad_request("\"solver\" must name a solver");
@@ -419,7 +457,7 @@ struct ViewServer::Impl {
         publisher.poke();
       });
     });
-    server.Post("/api/ref-tf", [this](const httplib::Request& req, httplib::Response& res) {
+    post("/api/ref-tf", [this](const httplib::Request& req, httplib::Response& res) {
       guarded(res, [&] {
         const nlohmann::json body = parse_body(req);
         ControlPointTf points;
@@ -436,7 +474,7 @@ struct ViewServer::Impl {
         publisher.poke();
       });
     });
-    server.Post("/api/point", [this](const httplib::Request& req, httplib::Response& res) {
+    post("/api/point", [this](const httplib::Request& req, httplib::Response& res) {
       guarded(res, [&] {
         const nlohmann::json body = parse_body(req);
         const nlohmann::json& p = body.contains("point") ? body["point"] : nlohmann::json();
@@ -448,7 +486,7 @@ struct ViewServer::Impl {
         publisher.poke();
       });
     });
-    server.Post("/api/field", [this](const httplib::Request& req, httplib::Response& res) {
+    post("/api/field", [this](const httplib::Request& req, httplib::Response& res) {
       guarded(res, [&] {
         const nlohmann::json body = parse_body(req);
         if (!body.contains("index") || !body["index"].is_number_unsigned())
@@ -464,7 +502,7 @@ struct ViewServer::Impl {
         publisher.poke();
       });
     });
-    server.Get("/api/download", [this](const httplib::Request& req, httplib::Response& res) {
+    get("/api/download", [this](const httplib::Request& req, httplib::Response& res) {
       guarded(res, [&] {
         const std::string what = req.has_param("what") ? req.get_param_value("what") : "";
         ViewSession::Download d;

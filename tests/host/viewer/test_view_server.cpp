@@ -212,6 +212,11 @@ TEST_F(ViewServerTest, BadRequestsGet4xxAndTheServerKeepsServing) {
       {{{"solver", "no-such-solver"}}, "no-such-solver"},
       {{{"solver", "normal-equations"}, {"options", {{"lr", "0.1"}}}}, "gradient-descent"},
       {{{"solver", "gradient-descent"}, {"options", {{"iterations", "100000"}}}}, "limit"},
+      // Spellings the solver reads as whole numbers pass no bound either (they did: a 1e6-iteration
+      // job held the device).
+      {{{"solver", "diffdvr"}, {"options", {{"iterations", "1e6"}}}}, "limit"},
+      {{{"solver", "diffdvr"}, {"options", {{"iterations", "5001.0"}}}}, "limit"},
+      {{{"solver", "cgls"}, {"options", {{"max-iterations", "+10001"}}}}, "limit"},
       {{{"solver", "cgls"}, {"options", {{"tolerance", "2"}}}}, "tolerance"},
       {{{"solver", "cgls"}, {"ridge", -1}}, "ridge"},
       {{{"options", {}}}, "solver"},
@@ -222,6 +227,25 @@ TEST_F(ViewServerTest, BadRequestsGet4xxAndTheServerKeepsServing) {
     EXPECT_EQ(r->status, 400) << body.dump() << ": " << r->body;
     EXPECT_NE(r->body.find(says), std::string::npos) << r->body;
   }
+  // A path's other method: 405 naming the one it takes. Errors the HTTP library makes itself
+  // (a body over 1 MiB) carry a message too. Several byte ranges of a download: refused (the
+  // library built each range's copy in memory); one range is served.
+  auto wrong_method = client_->Post(with_token("/api/state"), "{}", "application/json");
+  ASSERT_TRUE(wrong_method);
+  EXPECT_EQ(wrong_method->status, 405);
+  EXPECT_EQ(wrong_method->get_header_value("Allow"), "GET");
+  EXPECT_NE(wrong_method->body.find("/api/state takes GET, not POST"), std::string::npos) << wrong_method->body;
+  auto too_large = client_->Post(with_token("/api/ref-tf"), std::string(size_t(2) << 20, ' '), "application/json");
+  ASSERT_TRUE(too_large);
+  EXPECT_EQ(too_large->status, 413);
+  EXPECT_TRUE(nlohmann::json::parse(too_large->body, nullptr, false).contains("error")) << too_large->body;
+  auto ranges = client_->Get(with_token("/api/download?what=field.vti"), {{"Range", "bytes=0-,0-,0-"}});
+  ASSERT_TRUE(ranges);
+  EXPECT_EQ(ranges->status, 416);
+  auto one_range = client_->Get(with_token("/api/download?what=field.vti"), {{"Range", "bytes=0-9"}});
+  ASSERT_TRUE(one_range);
+  EXPECT_EQ(one_range->status, 206);
+  EXPECT_EQ(one_range->body.size(), 10u);
   auto not_json = client_->Post(with_token("/api/optimize"), "{solver", "application/json");
   ASSERT_TRUE(not_json);
   EXPECT_EQ(not_json->status, 400);
