@@ -359,5 +359,40 @@ TEST_F(MpiCli, AUsageErrorOnOneRankStopsEveryRank) {
 #endif
 }
 
+// correlate to a .raw or .vti under MPI gathers the whole field on rank 0: checked against rank
+// 0's budget before any work (it was checked per rank only, and a 150 MiB field went to 303 MiB
+// under a 200 MiB budget, or failed at the write after the whole computation). The refusal
+// suggests .pvti; a .pvti run of the same job succeeds and counts its pieces.
+TEST_F(MpiCli, AGatheredFieldIsCheckedAgainstRankZerosBudgetFirst) {
+#ifdef TFMATCH_MPIEXEC
+  std::string members;
+  for (int m = 0; m < 3; ++m) {
+    std::vector<uint8_t> bytes(size_t(256) * 256 * 512);
+    for (size_t i = 0; i < bytes.size(); ++i) bytes[i] = uint8_t((i * (m + 3) + i / 4093) % 251);
+    const fs::path path = dir.path() / ("g" + std::to_string(m) + "_256x256x512_uint8.raw");
+    std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+    members += " " + path.string();
+  }
+  // Rank 0: ~110 MiB in use (lavapipe, validation layer on), its part 64 MiB; the whole field
+  // 128 MiB beside it needs ~300 MiB.
+  const std::string job = "--max-memory 270M correlate --members" + members + " --point 3,4,5 --out ";
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto raw = run_mpi(2, job + (dir / "whole.raw").string());
+  EXPECT_EQ(raw.exit_code, 1) << raw.output;
+  EXPECT_NE(raw.output.find("rank 0 gathers the whole 256x256x512 field to write it (a .pvti output keeps each rank's "
+                            "piece on its rank)"),
+            std::string::npos)
+      << raw.output;
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 30.0) << "refused first";
+  EXPECT_FALSE(fs::exists(dir / "whole.raw"));
+  // As .pvti pieces (with room for a piece's compressed copy as it is written) the job runs.
+  std::string pvti_job = job;
+  pvti_job.replace(pvti_job.find("270M"), 4, "600M");
+  const auto pieces = run_mpi(2, pvti_job + (dir / "pieces.pvti").string() + " --json " + (dir / "pieces.json").string());
+  EXPECT_EQ(pieces.exit_code, 0) << pieces.output;
+  EXPECT_NE(read_text(dir / "pieces.json").find("\"pieces\": 2"), std::string::npos);
+#endif
+}
+
 }  // namespace
 }  // namespace tfm

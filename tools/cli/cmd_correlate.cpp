@@ -65,12 +65,11 @@ struct FieldStats {
   }
 };
 
-// The JSON summary and the printed summary of a field written to a.out; `extra` joins the JSON.
-void summarize_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch& outputs, const FieldStats& stats,
-                     const Volume& grid, const std::string& source, uint32_t members, const CorrelationParams& params,
-                     const GridIndex& p1, const std::optional<GridIndex>& p2, const std::string& device, double load_s,
-                     double compute_s, const nlohmann::json& extra) {
-  const bool vti = has_extension(a.out, ".vti"), pvti = has_extension(a.out, ".pvti");
+// The JSON summary of a field written to a.out.
+void write_field_summary(const CorrelateArgs& a, const JsonOutput& json, const FieldStats& stats, const Volume& grid,
+                         const std::string& source, uint32_t members, const CorrelationParams& params,
+                         const GridIndex& p1, const std::optional<GridIndex>& p2, const std::string& device,
+                         double load_s, double compute_s, const nlohmann::json& extra) {
   const uint64_t nan = stats.nan, voxels = stats.voxels;
   const double lo = stats.lo, hi = stats.hi;
   nlohmann::json j = {{"ensemble", source},
@@ -92,22 +91,50 @@ void summarize_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch
   if (p2) j["point2"] = *p2, j["point2_description"] = describe_grid_point(grid, *p2);
   for (const auto& [key, value] : extra.items()) j[key] = value;
   json.write(j);
-  outputs.commit();
-  if (!globals().quiet) {
-    const auto& d = grid.dims;
-    std::cout << "ensemble " << source << ": " << members << " members on " << d[0] << "x" << d[1] << "x" << d[2]
-              << "\n  reference point " << describe_grid_point(grid, p1) << "\n";
-    if (p2) std::cout << "  minus point     " << describe_grid_point(grid, *p2) << "\n";
-    std::cout << "  " << correlation_measure_name(params.measure) << " (" << CorrelationKernel::strategy(params, members)
-              << ") on " << device << " in " << compute_s << " s";
-    if (nan < voxels) std::cout << ": range [" << lo << ", " << hi << "]";
-    if (nan > 0) std::cout << ", " << nan << " voxels NaN (no data in some member)";
-    std::cout << "\n  wrote " << a.out
-              << (pvti  ? " (ParaView parallel image data: one .vti piece per rank, the source's origin and spacing)"
-                  : vti ? " (VTK ImageData, the source's origin and spacing)"
-                        : " (float32 little-endian, x fastest)")
-              << "\n";
+}
+
+// The printed summary of a field written to a.out.
+void print_field_summary(const CorrelateArgs& a, const FieldStats& stats, const Volume& grid, const std::string& source,
+                         uint32_t members, const CorrelationParams& params, const GridIndex& p1,
+                         const std::optional<GridIndex>& p2, const std::string& device, double compute_s) {
+  const bool vti = has_extension(a.out, ".vti"), pvti = has_extension(a.out, ".pvti");
+  const uint64_t nan = stats.nan, voxels = stats.voxels;
+  const double lo = stats.lo, hi = stats.hi;
+  const auto& d = grid.dims;
+  std::cout << "ensemble " << source << ": " << members << " members on " << d[0] << "x" << d[1] << "x" << d[2]
+            << "\n  reference point " << describe_grid_point(grid, p1) << "\n";
+  if (p2) std::cout << "  minus point     " << describe_grid_point(grid, *p2) << "\n";
+  std::cout << "  " << correlation_measure_name(params.measure) << " (" << CorrelationKernel::strategy(params, members)
+            << ") on " << device << " in " << compute_s << " s";
+  if (nan < voxels) std::cout << ": range [" << lo << ", " << hi << "]";
+  if (nan > 0) std::cout << ", " << nan << " voxels NaN (no data in some member)";
+  std::cout << "\n  wrote " << a.out
+            << (pvti  ? " (ParaView parallel image data: one .vti piece per rank, the source's origin and spacing)"
+                : vti ? " (VTK ImageData, the source's origin and spacing)"
+                      : " (float32 little-endian, x fastest)")
+            << "\n";
+}
+
+// The JSON summary and the printed summary of a field written to a.out (rank 0's); `extra` joins
+// the JSON. Then the staged outputs are committed, on every rank of `ranks` once the summary is
+// written: a rank's .pvti piece never replaces an earlier run's unless every file of this one
+// does. Collective (ranks.h).
+void summarize_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch& outputs, const FieldStats& stats,
+                     const Volume& grid, const std::string& source, uint32_t members, const CorrelationParams& params,
+                     const GridIndex& p1, const std::optional<GridIndex>& p2, const std::string& device, double load_s,
+                     double compute_s, const nlohmann::json& extra, Ranks& ranks = single_rank()) {
+  std::exception_ptr failed;
+  if (ranks.rank() == 0) {
+    try {
+      write_field_summary(a, json, stats, grid, source, members, params, p1, p2, device, load_s, compute_s, extra);
+    } catch (...) {
+      failed = std::current_exception();
+    }
   }
+  ranks.agree(failed);
+  outputs.commit();
+  if (ranks.rank() == 0 && !globals().quiet)
+    print_field_summary(a, stats, grid, source, members, params, p1, p2, device, compute_s);
 }
 
 // The field from members read slab by slab (correlation_field_streamed): each rank of an MPI job
@@ -139,11 +166,11 @@ void remove_stale_pieces(const std::filesystem::path& out, int pieces) {
 
 // ParaView's parallel image data (write_pvti): every rank writes its piece, z-slices [first, end)
 // and the next rank's first slice (`values` holds them: slices [first, computed_end)), then rank 0
-// the .pvti naming every rank's piece. Collective (ranks.h). The files are staged in `outputs`:
-// the other ranks commit their piece once every rank has written, rank 0 everything with the
-// summary; a failure anywhere leaves none of them (and rank 0 removes the pieces' directory).
-void write_pieces(const CorrelateArgs& a, std::span<const float> values, const Volume& grid, const std::string& name,
-                  Ranks& ranks, OutputBatch& outputs, uint64_t first, uint64_t end, uint64_t computed_end) {
+// the .pvti naming every rank's piece; returns how many pieces it names. Collective (ranks.h). The
+// files are staged in `outputs`, committed with the summary (summarize_field); a failure anywhere
+// leaves none of them (and rank 0 removes the pieces' directory).
+int write_pieces(const CorrelateArgs& a, std::span<const float> values, const Volume& grid, const std::string& name,
+                 Ranks& ranks, uint64_t first, uint64_t end, uint64_t computed_end) {
   namespace fs = std::filesystem;
   const fs::path out = a.out;
   const fs::path dir = out.parent_path() / out.stem();
@@ -156,6 +183,11 @@ void write_pieces(const CorrelateArgs& a, std::span<const float> values, const V
     }
   } made;
   std::exception_ptr failed;
+  int pieces = 0;  // ranks with slices: a job of more ranks than z-slices has fewer pieces
+  for (int r = 0; r < ranks.size(); ++r) {
+    const auto [f, e] = rank_slices(grid.dims[2], r, ranks.size());
+    pieces += f < e ? 1 : 0;
+  }
   if (ranks.rank() == 0) {
     try {
       if (!fs::exists(dir)) made.path = dir;
@@ -193,7 +225,7 @@ void write_pieces(const CorrelateArgs& a, std::span<const float> values, const V
   }
   ranks.agree(failed);
   made.keep = true;
-  if (ranks.rank() != 0) outputs.commit();
+  return pieces;
 }
 
 // Writes the whole field (VTI, raw, or a one-piece .pvti) and summarizes it.
@@ -203,7 +235,7 @@ void write_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch& ou
                  double compute_s, const nlohmann::json& extra) {
   const bool pvti = has_extension(a.out, ".pvti");
   if (pvti) {
-    write_pieces(a, field.values, grid, field.name, single_rank(), outputs, 0, grid.dims[2], grid.dims[2]);
+    write_pieces(a, field.values, grid, field.name, single_rank(), 0, grid.dims[2], grid.dims[2]);
   } else if (has_extension(a.out, ".vti")) {
     write_vti(a.out, field, field.name);
   } else {
@@ -254,14 +286,30 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
   const uint64_t held = resident_memory() + (end - first + 1) * slice * sizeof(float), budget = memory_budget().bytes;
   uint64_t slab = a.slab_slices ? a.slab_slices
                                 : correlation_slab_slices(members, slice, (budget > held ? budget - held : 0) / 4);
+  // A .vti or raw output of a job is gathered whole on rank 0 beside its own part, then written
+  // (a .vti's payload is a copy of it): checked here, before the work, not at the gather or write.
+  const bool pvti = has_extension(a.out, ".pvti");
+  std::exception_ptr gather_refused;
+  if (ranks.size() > 1 && ranks.rank() == 0 && !pvti) {
+    try {
+      const uint64_t whole = grid.voxel_count() * sizeof(float), part = (end - first + 1) * slice * sizeof(float);
+      check_memory(whole + std::max(part, has_extension(a.out, ".vti") ? whole : 0),
+                   a.out + ": rank 0 gathers the whole " + std::to_string(grid.dims[0]) + "x" +
+                       std::to_string(grid.dims[1]) + "x" + std::to_string(grid.dims[2]) +
+                       " field to write it (a .pvti output keeps each rank's piece on its rank)");
+    } catch (...) {
+      gather_refused = std::current_exception();
+    }
+  }
   if (ranks.size() > 1) {
-    ranks.agree(nullptr);  // every rank has its device (a rank that failed to start stops them all here)
+    // Every rank has its device (a rank that failed to start stops them all here), and rank 0
+    // has room for the gathered field.
+    ranks.agree(gather_refused);
     std::array<double, 1> smallest{double(slab)};
     ranks.min(smallest);
     slab = uint64_t(smallest[0]);
   }
   // A .pvti piece also holds the next piece's first slice: neighbouring pieces share a slice.
-  const bool pvti = has_extension(a.out, ".pvti");
   const uint64_t computed_end = pvti && first < end ? std::min(end + 1, grid.dims[2]) : end;
   // The job's progress on rank 0: after each slab the ranks add up their voxels done; a rank with
   // fewer slabs meets the others as often (steps: the most slabs any rank has).
@@ -314,7 +362,7 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
   if (ranks.size() > 1) stream["mpi_ranks"] = ranks.size();
   if (pvti) {
     // Each rank writes its piece; the summary's numbers are reduced over the ranks' own slices.
-    write_pieces(a, part, grid, field_name(a), ranks, outputs, first, end, computed_end);
+    const int pieces = write_pieces(a, part, grid, field_name(a), ranks, first, end, computed_end);
     FieldStats stats;
     stats.add(std::span<const float>(part.data(), (end - first) * slice));
     std::array<uint64_t, 2> counts{stats.voxels, stats.nan};
@@ -325,16 +373,15 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
     ranks.max(hi);
     stats = {counts[0], counts[1], lo[0], hi[0]};
     const double compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
-    if (ranks.rank() == 0) {
-      stream["pieces"] = ranks.size();
-      summarize_field(a, json, outputs, stats, grid, source, members, params, p1, p2, ctx->device_name(), load_s,
-                      compute_s, {{"stream", stream}});
-      remove_stale_pieces(a.out, ranks.size());
-    }
+    stream["pieces"] = pieces;
+    summarize_field(a, json, outputs, stats, grid, source, members, params, p1, p2, ctx->device_name(), load_s,
+                    compute_s, {{"stream", stream}}, ranks);
+    if (ranks.rank() == 0) remove_stale_pieces(a.out, pieces);
     return 0;
   }
   // One rank keeps its field: a gather would hold it twice.
   std::vector<float> all = ranks.size() == 1 ? std::move(part) : ranks.gather(part);
+  std::vector<float>().swap(part);  // rank 0 writes the gathered field without its part beside it
   const double compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   if (ranks.rank() != 0) return 0;
   Volume field = empty_like(grid);
