@@ -176,6 +176,11 @@ void probe_uncached(const std::string& path, std::string_view memory, std::chron
     arguments.insert(arguments.end(), {"--", path});
     if (run_program_isolated(path, program, arguments, memory, timeout)) return;
   }
+  // The fork: netCDF-C is loaded here first (its functions load it on first use), so that the
+  // child of this threaded process (a device starting beside the read) runs no dlopen, which
+  // failed there about one time in three under mpirun ("libnetcdf.so.19 could not be loaded",
+  // or a crash reported as a malformed file).
+  nc_strerror(NC_NOERR);
   run_isolated(path, [&] { walk_netcdf4_metadata(path, memory); }, timeout);
 }
 

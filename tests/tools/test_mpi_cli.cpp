@@ -23,6 +23,7 @@
 
 #include "cli_runner.h"
 #include "slab_test_files.h"
+#include "vk_test_env.h"
 
 namespace tfm {
 namespace {
@@ -391,6 +392,27 @@ TEST_F(MpiCli, AGatheredFieldIsCheckedAgainstRankZerosBudgetFirst) {
   const auto pieces = run_mpi(2, pvti_job + (dir / "pieces.pvti").string() + " --json " + (dir / "pieces.json").string());
   EXPECT_EQ(pieces.exit_code, 0) << pieces.output;
   EXPECT_NE(read_text(dir / "pieces.json").find("\"pieces\": 2"), std::string::npos);
+#endif
+}
+
+// NetCDF-4 input where the probe program is not found (a binary copied alone to a cluster's
+// scratch): the probe forks this threaded process, and the child loaded netCDF-C itself, which
+// failed in about one run of four under mpirun, blaming the file ("malformed ... exited with
+// status 127"). Four runs: each must read the file.
+TEST_F(MpiCli, NetCdf4InputsReadWithoutTheProbeProgram) {
+#ifdef TFMATCH_MPIEXEC
+  const std::string data = test::shared_data_dir();
+  if (data.empty()) GTEST_SKIP() << "no ../shared/data: the WRF NetCDF-4 file is not here";
+  const std::string wrf = data + "/wrf_katrina/ci_test_file.nc";
+  setenv("TFMATCH_NETCDF4_PROBE", "/nonexistent/tfmatch-netcdf4-probe", 1);
+  for (int run = 0; run < 4; ++run) {
+    const std::string out = (dir / ("wrf" + std::to_string(run) + ".json")).string();
+    const auto r = run_shell(std::string(TFMATCH_MPIEXEC) + " -x TFMATCH_NETCDF4_PROBE --oversubscribe -n 2 " +
+                             TFMATCH_CLI_PATH + " -q optimize --ref " + wrf + ":T --field " + wrf +
+                             ":QVAPOR --ref-tf viridis --stream on --out " + out);
+    EXPECT_EQ(r.exit_code, 0) << "run " << run << ":\n" << r.output;
+  }
+  unsetenv("TFMATCH_NETCDF4_PROBE");
 #endif
 }
 
