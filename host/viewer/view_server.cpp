@@ -178,7 +178,9 @@ bool same_token(const std::string& a, const std::string& b) {
 // to the cap, instead of a fixed pool whose threads every waiting connection holds.
 class ConnectionQueue : public httplib::TaskQueue {
  public:
-  explicit ConnectionQueue(size_t max_connections) : workers_(max_connections) {}
+  ConnectionQueue(size_t max_connections, double request_timeout_s, int port) : workers_(max_connections) {
+    workers_.set_request_deadline(request_timeout_s, port);
+  }
   void enqueue(std::function<void()> fn) override { workers_.enqueue(std::move(fn)); }
   void shutdown() override { workers_.shutdown(); }
 
@@ -228,7 +230,8 @@ struct ViewServer::Impl {
     else view_page_html(options.assets_dir);  // a missing file fails now, not on the first request
     routes();
     server.set_payload_max_length(1 << 20);
-    server.new_task_queue = [max = options.max_connections] { return new ConnectionQueue(max); };
+    // Made when serving starts, after the port is bound.
+    server.new_task_queue = [this] { return new ConnectionQueue(options.max_connections, options.request_timeout_s, port); };
     server.set_keep_alive_timeout(options.idle_timeout_s);
     server.set_read_timeout(options.read_timeout_s);
     server.set_write_timeout(30);
@@ -309,25 +312,36 @@ struct ViewServer::Impl {
   void routes() {
     // Every request, the page included, must carry the token (http_api.md "Access").
     server.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+      ConnectionWorkers::request_read();  // handled now: no request deadline (an event stream lasts)
+      const auto handled = [] {
+        ConnectionWorkers::response_sent();
+        return httplib::Server::HandlerResponse::Handled;
+      };
       if (ConnectionWorkers::current_over_capacity()) {
         send_error(res, 503, "too many open connections (" + std::to_string(options.max_connections) +
                                  "): try again shortly");
         res.set_header("Connection", "close");
-        return httplib::Server::HandlerResponse::Handled;
+        return handled();
       }
       const std::string given = req.has_param("token") ? req.get_param_value("token") : req.get_header_value("X-Tfmatch-Token");
       if (!same_token(given, options.token)) {
         send_error(res, 403, "missing or wrong token: open the URL tfmatch view printed");
-        return httplib::Server::HandlerResponse::Handled;
+        return handled();
       }
       // The library answers several byte ranges with a multipart body built in memory, the
       // ranges may overlap: 1000 of a download made a response 1000 times its size. The page asks
       // for none; one range (a resumed download) costs at most the file.
       if (req.ranges.size() > 1) {
         send_error(res, 416, "at most one byte range per request");
-        return httplib::Server::HandlerResponse::Handled;
+        return handled();
       }
       return httplib::Server::HandlerResponse::Unhandled;
+    });
+    server.set_post_routing_handler([](const httplib::Request&, httplib::Response& res) {
+      // Called before the response is written. A whole response goes at once: the next
+      // request's deadline starts. A streamed one (an event stream, for hours) keeps its
+      // connection out of the deadline; cpp-httplib 0.11 keeps the provider in a public member.
+      if (!res.content_provider_) ConnectionWorkers::response_sent();
     });
     // Errors the library makes itself (no route for the path or method, a malformed request, a
     // body or URI too long) come with an empty body: given one, as every error of http_api.md.
@@ -369,7 +383,8 @@ struct ViewServer::Impl {
       // a thread of its own, so open streams neither poll the session nor hold up requests.
       res.set_header("Cache-Control", "no-store");
       const bool follow = req.has_param("follow") && req.get_param_value("follow") == "1";
-      auto stream = std::make_shared<ProgressStream>(session, events, follow);
+      auto stream = std::make_shared<ProgressStream>(session, events, follow,
+                                                     std::chrono::milliseconds(options.event_heartbeat_ms));
       res.set_chunked_content_provider("text/event-stream", [stream](size_t, httplib::DataSink& sink) {
         const ProgressStream::Chunk chunk = stream->next();
         // A failed write is a client that went away: nothing else changes.

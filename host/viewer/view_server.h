@@ -28,6 +28,12 @@ struct ViewServerOptions {
   // arriving for this long is answered 400 and closed.
   int idle_timeout_s = 2;
   int read_timeout_s = 2;
+  // A request must arrive whole within this long of the connection's start or of the previous
+  // response, however it trickles in; else the connection is closed (ConnectionWorkers).
+  double request_timeout_s = 10.0;
+  // Silence after which an event stream sends a comment: how soon a stream whose client went
+  // away finds out (a failed write) and frees its connection.
+  int event_heartbeat_ms = 10000;
 };
 
 class ViewServer {
