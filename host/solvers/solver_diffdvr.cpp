@@ -8,6 +8,8 @@
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/kernels/device_memory.h"
 #include "tfmatch/kernels/render_image.h"
+#include "tfmatch/model/cancellation.h"
+#include "tfmatch/model/progress.h"
 
 namespace tfm {
 namespace {
@@ -93,7 +95,17 @@ void DiffDvrGradient::set_view_pool(std::span<const OrbitCamera> cameras) {
   Buffer views(ctx_, batch_views * view_bytes, MemoryUsage::Device, "diffdvr: pool cameras");
   Buffer state(ctx_, batch_views * image_bytes, MemoryUsage::Device, "diffdvr: pool rendering");
   Buffer stop(ctx_, batch_views * image_bytes / 4, MemoryUsage::Device, "diffdvr: pool k_stop");
+  // Hundreds of views take a while on a CPU device: shown, and a Ctrl-C (or the viewer's stop)
+  // ends it between submissions rather than after the whole pool.
+  Progress progress("diffdvr: reference views", cameras.size());
   for (size_t first = 0; first < cameras.size(); first += batch_views) {
+    try {
+      checkpoint("solve");
+    } catch (...) {
+      pool_images_.clear();  // no pool rather than part of one
+      throw;
+    }
+    progress.update(first);
     const uint32_t count = uint32_t(std::min<size_t>(batch_views, cameras.size() - first));
     std::vector<gpu::RenderView> records;
     for (uint32_t v = 0; v < count; ++v)
@@ -110,6 +122,7 @@ void DiffDvrGradient::set_view_pool(std::span<const OrbitCamera> cameras) {
     }
     batch.submit_and_wait();
   }
+  progress.finish();
   pool_cameras_.assign(cameras.begin(), cameras.end());
 }
 

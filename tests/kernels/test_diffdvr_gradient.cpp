@@ -13,6 +13,7 @@
 #include "test_data.h"
 #include "tfmatch/kernels/gpu_voxel_ops.h"
 #include "tfmatch/kernels/render_image.h"
+#include "tfmatch/model/cancellation.h"
 #include "tfmatch/reference/cpu_renderer.h"
 #include "tfmatch/reference/diffdvr_cpu.h"
 #include "tfmatch/solvers/solver_diffdvr.h"
@@ -331,6 +332,12 @@ TEST_F(DiffDvrGradientTest, PooledReferenceViewsGiveTheSameBits) {
   ASSERT_EQ(pooled.gradient.size(), rendered.gradient.size());
   EXPECT_EQ(std::memcmp(pooled.gradient.data(), rendered.gradient.data(), pooled.gradient.size() * sizeof(double)), 0);
   EXPECT_THROW(g.evaluate_pooled(c.tf, std::vector<uint32_t>{4}), std::invalid_argument);
+  // A stop asked for while the pool renders ends it between submissions (a pool of hundreds of
+  // views held a Ctrl-C past the viewer's 20 s grace), leaving no pool rather than part of one.
+  request_cancel(SIGINT);
+  EXPECT_THROW(g.set_view_pool(c.cameras), Cancelled);
+  reset_cancel();
+  EXPECT_EQ(g.pool_size(), 0u);
 }
 
 }  // namespace
