@@ -65,7 +65,7 @@ FieldRange residual_display_range(std::initializer_list<const Volume*> residuals
   for (const Volume* v : residuals)
     for (float x : v->values)
       if (std::isfinite(x)) hi = std::max(hi, double(x));
-  return hi > 0.0 ? FieldRange{0.0, hi} : FieldRange{0.0, 1.0};
+  return hi > 0.0 ? FieldRange{0.0, std::max(hi, kResidualDisplayFloor)} : FieldRange{0.0, 1.0};
 }
 
 }  // namespace tfm

@@ -24,8 +24,13 @@ Volume residual_map(Context& ctx, const Volume& ref, const TransferFunction& ref
 // figures), colour from light yellow through orange to dark red.
 TransferFunction residual_transfer_function(uint32_t n = 64);
 
-// Display range [0, max] over residual maps shown side by side (one scale for all of them);
-// [0, 1] when every residual is 0.
+// The least top of a residual display range: one 8-bit step of a colour channel. A residual
+// below it is no difference any picture shows; scaled to its own maximum, float rounding
+// between two identical fields (2e-7) filled the residual picture with saturated red.
+inline constexpr double kResidualDisplayFloor = 1.0 / 255.0;
+
+// Display range [0, max] over residual maps shown side by side (one scale for all of them),
+// max at least kResidualDisplayFloor; [0, 1] when every residual is 0.
 FieldRange residual_display_range(std::initializer_list<const Volume*> residuals);
 
 }  // namespace tfm

@@ -90,6 +90,14 @@ TEST_F(ResidualMap, FieldAgainstItselfIsZeroAndGridMismatchThrows) {
   Volume w = v;
   w.dims = {7, 13, 5};
   EXPECT_THROW(residual_map(ctx(), v, tf, {0, 1}, w, tf, {0, 1}), std::runtime_error);
+  // The display range: the maximum over the maps shown together, but never below one 8-bit
+  // step (float rounding between identical fields is no structure), [0, 1] for all zeros.
+  Volume noise = r, larger = r;
+  noise.values[3] = 2e-7f;
+  larger.values[5] = 0.5f;
+  EXPECT_EQ(residual_display_range({&noise}).hi, kResidualDisplayFloor);
+  EXPECT_EQ(residual_display_range({&noise, &larger}).hi, 0.5);
+  EXPECT_EQ(residual_display_range({&r}).hi, 1.0);
 }
 
 // Where device buffers are host memory, the fields on the device (none where the device reads
