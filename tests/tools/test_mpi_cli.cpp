@@ -395,6 +395,23 @@ TEST_F(MpiCli, AGatheredFieldIsCheckedAgainstRankZerosBudgetFirst) {
 #endif
 }
 
+// optimize's outputs are rank 0's alone: a rank where the output folder does not exist (another
+// node's file system) reads its share and the job succeeds; it used to stop every rank.
+TEST_F(MpiCli, OnlyRankZeroChecksWhereOptimizeWrites) {
+#ifdef TFMATCH_MPIEXEC
+  fs::create_directories(dir / "rank0" / "out");
+  fs::create_directories(dir / "rank1");
+  const fs::path wrapper = dir / "in_rank_folder.sh";
+  std::ofstream(wrapper) << "#!/bin/sh\ncd '" << dir.path().string() << "/rank'\"$OMPI_COMM_WORLD_RANK\" && exec "
+                         << TFMATCH_CLI_PATH << " \"$@\"\n";
+  fs::permissions(wrapper, fs::perms::owner_all);
+  const auto r = run_shell(std::string(TFMATCH_MPIEXEC) + " --oversubscribe -n 2 " + wrapper.string() + " optimize --ref " +
+                           ref_file + " --field " + field_file + " --ref-tf viridis --stream on --out out/t.json");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir / "rank0" / "out" / "t.json"));
+#endif
+}
+
 // NetCDF-4 input where the probe program is not found (a binary copied alone to a cluster's
 // scratch): the probe forks this threaded process, and the child loaded netCDF-C itself, which
 // failed in about one run of four under mpirun, blaming the file ("malformed ... exited with

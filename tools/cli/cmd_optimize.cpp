@@ -393,15 +393,14 @@ int run(const OptimizeArgs& a) {
   check_usage([&] { parse_solver_args(require_solver(a.solver), settings); });
   if (a.fields.size() > 1) return run_series(a, settings, json);
   if (a.shared_tf) throw CLI::ValidationError("--shared-tf", "one TF shared by several fields: give several --field");
-  // Every file checked before any work: no output replaces an input or another output.
-  FilePlan()
-      .input_spec(a.in.ref, "--ref")
-      .input_spec(a.in.field, "--field")
-      .input_spec(a.in.ref_tf, "--ref-tf")
-      .output(a.out, "--out")
-      .output(json.file(), "--json")
-      .output_directory(a.report, "--report", report_file_names())
-      .check();
+  // Every file checked before any work: no output replaces an input or another output. Under
+  // MPI every rank reads and rank 0 alone writes (docs/mpi.md): a node where the output folder is
+  // read-only or missing stopped the job, though it would write nothing.
+  FilePlan plan;
+  plan.input_spec(a.in.ref, "--ref").input_spec(a.in.field, "--field").input_spec(a.in.ref_tf, "--ref-tf");
+  if (globals().ranks->rank() == 0)
+    plan.output(a.out, "--out").output(json.file(), "--json").output_directory(a.report, "--report", report_file_names());
+  plan.check();
   if (!a.report.empty()) validate(a.render);  // fail before the solve, not after
   if (a.report.empty() && !a.markers.empty())
     throw CLI::ValidationError("--marker", "markers are drawn on the report's renderings: add --report DIR");
