@@ -4,12 +4,14 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cerrno>
 #include <cstring>
 #include <mutex>
 #include <stdexcept>
 #include <string>
 #include <system_error>
+#include <thread>
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -77,6 +79,7 @@ void check_replaceable(const fs::path& path) {
 struct OutputBatchState {
   std::vector<std::pair<fs::path, fs::path>> files;        // temporary -> final
   std::vector<std::pair<fs::path, fs::path>> directories;  // staged top -> final top
+  std::vector<fs::path> made;                              // made_directory()
   bool committed = false;
 };
 
@@ -131,6 +134,27 @@ void write_file_atomically(const fs::path& path, std::string_view bytes) {
   }
 }
 
+namespace {
+
+// Removes `dir` once it is empty. Other processes writing into it (an MPI job's ranks) remove
+// their temporary files as they fail too, a moment later: while it holds nothing else, their
+// removal is waited for, for up to 2 s; anything else in it keeps it.
+void remove_when_left_empty(const fs::path& dir) {
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    std::error_code ec;
+    if (fs::remove(dir, ec) || !fs::exists(dir, ec)) return;
+    bool temporaries_only = true;
+    for (const auto& entry : fs::directory_iterator(dir, ec)) {
+      const std::string name = entry.path().filename().string();
+      temporaries_only = temporaries_only && name.starts_with(".") && name.find(".tmp-") != std::string::npos;
+    }
+    if (ec || !temporaries_only) return;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+}
+
+}  // namespace
+
 OutputBatch::OutputBatch() : state_(nullptr), outermost_(g_batch == nullptr) {
   if (outermost_) g_batch = state_ = new OutputBatchState;
   else state_ = g_batch;
@@ -141,6 +165,8 @@ OutputBatch::~OutputBatch() {
   g_batch = nullptr;
   for (const auto& [tmp, final] : state_->files) remove_registered(tmp);
   for (const auto& [staged, final] : state_->directories) remove_registered(staged);
+  if (!state_->committed)
+    for (auto it = state_->made.rbegin(); it != state_->made.rend(); ++it) remove_when_left_empty(*it);
   delete state_;
 }
 
@@ -177,6 +203,8 @@ fs::path OutputBatch::directory(const fs::path& dir) {
   if (ec) throw std::runtime_error(dir.string() + ": cannot create the directory (" + ec.message() + ")");
   return inside;
 }
+
+void OutputBatch::made_directory(const fs::path& dir) { state_->made.push_back(dir); }
 
 void OutputBatch::commit() {
   if (!outermost_ || state_->committed) return;

@@ -39,6 +39,11 @@ class OutputBatch {
   // is a file, or the staged directory cannot be created.
   std::filesystem::path directory(const std::filesystem::path& dir);
 
+  // A directory the caller created itself for the batch's files where directory() does not serve
+  // (several processes write into it: an MPI job's .pvti pieces): removed, if it is empty then,
+  // when the batch ends without commit().
+  void made_directory(const std::filesystem::path& dir);
+
   // Renames every file, then every staged directory, into place. Throws std::runtime_error
   // naming the path when a rename fails (what is not renamed yet is removed by the destructor).
   void commit();

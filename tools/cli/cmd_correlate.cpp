@@ -168,20 +168,12 @@ void remove_stale_pieces(const std::filesystem::path& out, int pieces) {
 // and the next rank's first slice (`values` holds them: slices [first, computed_end)), then rank 0
 // the .pvti naming every rank's piece; returns how many pieces it names. Collective (ranks.h). The
 // files are staged in `outputs`, committed with the summary (summarize_field); a failure anywhere
-// leaves none of them (and rank 0 removes the pieces' directory).
+// leaves none of them (and rank 0's batch removes the pieces' directory if it made it).
 int write_pieces(const CorrelateArgs& a, std::span<const float> values, const Volume& grid, const std::string& name,
-                 Ranks& ranks, uint64_t first, uint64_t end, uint64_t computed_end) {
+                 Ranks& ranks, OutputBatch& outputs, uint64_t first, uint64_t end, uint64_t computed_end) {
   namespace fs = std::filesystem;
   const fs::path out = a.out;
   const fs::path dir = out.parent_path() / out.stem();
-  struct EmptyDirectory {  // rank 0's: removed again unless the pieces were written
-    fs::path path;
-    bool keep = false;
-    ~EmptyDirectory() {
-      std::error_code ec;
-      if (!keep && !path.empty()) fs::remove(path, ec);  // only when empty
-    }
-  } made;
   std::exception_ptr failed;
   int pieces = 0;  // ranks with slices: a job of more ranks than z-slices has fewer pieces
   for (int r = 0; r < ranks.size(); ++r) {
@@ -190,8 +182,12 @@ int write_pieces(const CorrelateArgs& a, std::span<const float> values, const Vo
   }
   if (ranks.rank() == 0) {
     try {
-      if (!fs::exists(dir)) made.path = dir;
-      fs::create_directories(dir);
+      // Every rank writes into it, so it is made here rather than staged by the batch, which
+      // removes it again (once empty) if the run fails, after the summary as before it.
+      if (!fs::exists(dir)) {
+        fs::create_directories(dir);
+        outputs.made_directory(dir);
+      }
     } catch (...) {
       failed = std::current_exception();
     }
@@ -224,7 +220,6 @@ int write_pieces(const CorrelateArgs& a, std::span<const float> values, const Vo
     }
   }
   ranks.agree(failed);
-  made.keep = true;
   return pieces;
 }
 
@@ -235,7 +230,7 @@ void write_field(const CorrelateArgs& a, const JsonOutput& json, OutputBatch& ou
                  double compute_s, const nlohmann::json& extra) {
   const bool pvti = has_extension(a.out, ".pvti");
   if (pvti) {
-    write_pieces(a, field.values, grid, field.name, single_rank(), 0, grid.dims[2], grid.dims[2]);
+    write_pieces(a, field.values, grid, field.name, single_rank(), outputs, 0, grid.dims[2], grid.dims[2]);
   } else if (has_extension(a.out, ".vti")) {
     write_vti(a.out, field, field.name);
   } else {
@@ -362,7 +357,7 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
   if (ranks.size() > 1) stream["mpi_ranks"] = ranks.size();
   if (pvti) {
     // Each rank writes its piece; the summary's numbers are reduced over the ranks' own slices.
-    const int pieces = write_pieces(a, part, grid, field_name(a), ranks, first, end, computed_end);
+    const int pieces = write_pieces(a, part, grid, field_name(a), ranks, outputs, first, end, computed_end);
     FieldStats stats;
     stats.add(std::span<const float>(part.data(), (end - first) * slice));
     std::array<uint64_t, 2> counts{stats.voxels, stats.nan};

@@ -8,7 +8,9 @@
 #include <unistd.h>
 
 #include <fstream>
+#include <chrono>
 #include <string>
+#include <thread>
 
 #include "cli_runner.h"
 #include "tfmatch/io/atomic_file.h"
@@ -144,6 +146,44 @@ TEST(AtomicFile, BatchCommitsTogetherOrLeavesNothing) {
   EXPECT_EQ(files_under(dir.path),
             (std::vector<std::string>{"made", "made/deeper", "made/deeper/inside.txt", "made/top.txt", "old.txt"}));
   EXPECT_TRUE(pending_temporary_paths().empty());
+}
+
+// A directory the caller made for the batch (an MPI job's .pvti pieces folder, written by several
+// processes): a batch that ends without commit removes it once empty, waiting for the other
+// processes' temporary files to go (an empty folder was left when rank 0 ended first); anything
+// else in it, or a commit, keeps it.
+TEST(AtomicFile, AMadeDirectoryGoesWhenTheBatchFailsAndLeavesItEmpty) {
+  TempDir dir;
+  const fs::path pieces = dir / "pieces";
+  fs::create_directories(pieces);
+  const fs::path foreign = pieces / ".pieces_1.vti.tmp-99999-0";  // another rank's, still there
+  write_text(foreign, "x");
+  std::thread other_rank([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    fs::remove(foreign);
+  });
+  {
+    OutputBatch batch;
+    batch.made_directory(pieces);
+    write_file_atomically(pieces / "pieces_0.vti", "piece");
+  }
+  other_rank.join();
+  EXPECT_FALSE(fs::exists(pieces));
+  const fs::path kept = dir / "kept";
+  fs::create_directories(kept);
+  write_text(kept / "notes.txt", "a user's file");
+  {
+    OutputBatch batch;
+    batch.made_directory(kept);
+  }
+  EXPECT_TRUE(fs::exists(kept / "notes.txt"));
+  fs::create_directories(dir / "committed");
+  {
+    OutputBatch batch;
+    batch.made_directory(dir / "committed");
+    batch.commit();
+  }
+  EXPECT_TRUE(fs::is_directory(dir / "committed"));
 }
 
 // A cancellation during a write (here: already requested) removes the temporary file and throws
