@@ -6,6 +6,7 @@
 #include <climits>
 #include <cstdlib>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace tfm {
@@ -97,16 +98,23 @@ void MpiRanks::sum(std::span<double> values) {
 }
 
 std::vector<float> MpiRanks::gather(std::span<const float> values) {
-  // Counts first, then the values (MPI_Gatherv counts are ints: at most 2^31 - 1 floats a rank).
-  if (values.size() > size_t(INT_MAX)) throw std::runtime_error("MPI: a rank's part exceeds 2^31 values");
-  const int mine = int(values.size());
-  std::vector<int> counts(rank_ == 0 ? size_t(size_) : 0), offsets;
-  check(MPI_Gather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD), "MPI_Gather");
+  // Every rank's count first, to every rank, so that all of them refuse alike what MPI_Gatherv's
+  // int counts and offsets cannot hold (a refusal on rank 0 alone, between two collectives, left
+  // the others inside the second).
+  const uint64_t mine64 = values.size();
+  std::vector<uint64_t> sizes(size_t(size_), 0);
+  check(MPI_Allgather(&mine64, 1, MPI_UINT64_T, sizes.data(), 1, MPI_UINT64_T, MPI_COMM_WORLD), "MPI_Allgather");
+  uint64_t total = 0;
+  for (uint64_t n : sizes) total += n;
+  if (total > uint64_t(INT_MAX))
+    throw std::runtime_error("MPI: the gathered field has " + std::to_string(total) +
+                             " values, past MPI_Gatherv's 2^31 - 1 (write .pvti pieces instead)");
+  const int mine = int(mine64);
+  std::vector<int> counts, offsets;
   std::vector<float> all;
   if (rank_ == 0) {
-    size_t total = 0;
-    for (int c : counts) offsets.push_back(int(total)), total += size_t(c);
-    if (total > size_t(INT_MAX)) throw std::runtime_error("MPI: the gathered field exceeds 2^31 values");
+    int at = 0;
+    for (uint64_t n : sizes) counts.push_back(int(n)), offsets.push_back(at), at += int(n);
     all.resize(total);
   }
   check(MPI_Gatherv(values.data(), mine, MPI_FLOAT, all.data(), counts.data(), offsets.data(), MPI_FLOAT, 0,

@@ -287,6 +287,9 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
   std::exception_ptr gather_refused;
   if (ranks.size() > 1 && ranks.rank() == 0 && !pvti) {
     try {
+      if (grid.voxel_count() > uint64_t(INT32_MAX))  // MPI_Gatherv counts in int
+        throw CLI::ValidationError("--out", a.out + ": a field gathered on rank 0 holds at most 2^31 - 1 voxels, this one " +
+                                                std::to_string(grid.voxel_count()) + ": write .pvti pieces instead");
       const uint64_t whole = grid.voxel_count() * sizeof(float), part = (end - first + 1) * slice * sizeof(float);
       check_memory(whole + std::max(part, has_extension(a.out, ".vti") ? whole : 0),
                    a.out + ": rank 0 gathers the whole " + std::to_string(grid.dims[0]) + "x" +
