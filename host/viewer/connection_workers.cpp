@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <string>
+#include <tuple>
 
 namespace tfm {
 namespace {
@@ -30,20 +31,24 @@ void ConnectionWorkers::set_request_deadline(double seconds, int port) {
   if (seconds > 0 && !watcher_.joinable() && !stopping_) watcher_ = std::thread([this] { watch(); });
 }
 
-// The socket the listening thread has just accepted, or -1. The HTTP library (cpp-httplib)
-// hands enqueue() a closure over it, not the descriptor; it is the one open socket on the
-// listening port that is neither listening nor a connection already known. The list of open
-// descriptors comes from /proc (one directory read, not a probe of every number).
-int ConnectionWorkers::accepted_socket() const {
-  if (port_ <= 0) return -1;
+// The socket the listening thread has just accepted. The HTTP library (cpp-httplib) hands
+// enqueue() a closure over it, not the descriptor; it is the one open socket on the listening
+// port that is neither listening nor a connection already known (by descriptor and inode: a
+// connection's socket closed a moment ago may have left its number to this one). The list of
+// open descriptors comes from /proc (one directory read, not a probe of every number).
+std::pair<int, unsigned long> ConnectionWorkers::accepted_socket() const {
+  if (port_ <= 0) return {-1, 0};
   std::error_code ec;
   for (const auto& entry : std::filesystem::directory_iterator("/proc/self/fd", ec)) {
     const std::string name = entry.path().filename().string();
     if (name.empty() || !std::all_of(name.begin(), name.end(), [](char c) { return c >= '0' && c <= '9'; })) continue;
     const int fd = std::stoi(name);
-    if (std::any_of(connections_.begin(), connections_.end(), [fd](const auto& c) { return c->fd == fd; })) continue;
     struct stat st {};
     if (fstat(fd, &st) != 0 || !S_ISSOCK(st.st_mode)) continue;
+    const unsigned long inode = st.st_ino;
+    if (std::any_of(connections_.begin(), connections_.end(),
+                    [&](const auto& c) { return c->fd == fd && c->inode == inode; }))
+      continue;
     int listening = 0;
     socklen_t length = sizeof listening;
     if (getsockopt(fd, SOL_SOCKET, SO_ACCEPTCONN, &listening, &length) != 0 || listening) continue;
@@ -53,15 +58,17 @@ int ConnectionWorkers::accepted_socket() const {
     const int port = local.ss_family == AF_INET    ? ntohs(reinterpret_cast<const sockaddr_in&>(local).sin_port)
                      : local.ss_family == AF_INET6 ? ntohs(reinterpret_cast<const sockaddr_in6&>(local).sin6_port)
                                                    : -1;
-    if (port == port_) return fd;
+    if (port == port_) return {fd, inode};
   }
-  return -1;
+  return {-1, 0};
 }
 
 void ConnectionWorkers::shut_down(Connection& c) {
   if (c.shut || c.fd < 0) return;
-  ::shutdown(c.fd, SHUT_RDWR);  // the library's poll or recv returns; it closes the socket
   c.shut = true;
+  struct stat st {};
+  if (fstat(c.fd, &st) != 0 || st.st_ino != c.inode) return;  // closed already: the number is another's
+  ::shutdown(c.fd, SHUT_RDWR);  // the library's poll or recv returns; it closes the socket
 }
 
 void ConnectionWorkers::enqueue(std::function<void()> serve) {
@@ -87,7 +94,7 @@ void ConnectionWorkers::enqueue(std::function<void()> serve) {
       }
     }
     job.connection = std::make_shared<Connection>();
-    job.connection->fd = accepted_socket();
+    std::tie(job.connection->fd, job.connection->inode) = accepted_socket();
     if (job.connection->fd >= 0) connections_.push_back(job.connection);
   }
   jobs_.push_back(std::move(job));

@@ -12,6 +12,7 @@
 #include <mutex>
 #include <set>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace tfm {
@@ -59,6 +60,7 @@ class ConnectionWorkers {
   // A connection's socket and whether (since when) it waits for a request.
   struct Connection {
     int fd = -1;
+    unsigned long inode = 0;  // the socket's: a closed socket's descriptor may be reused at once
     bool reading = true;
     bool shut = false;
     std::chrono::steady_clock::time_point since = std::chrono::steady_clock::now();
@@ -70,7 +72,8 @@ class ConnectionWorkers {
   };
   void work();
   void watch();                     // the deadline's thread
-  int accepted_socket() const;      // mutex_ held
+  // mutex_ held: the socket just accepted as {descriptor, inode}, or {-1, 0}.
+  std::pair<int, unsigned long> accepted_socket() const;
   void shut_down(Connection& c);    // mutex_ held
   const size_t max_connections_, max_threads_;
   mutable std::mutex mutex_;
