@@ -364,7 +364,7 @@ TEST_F(MpiCli, AUsageErrorOnOneRankStopsEveryRank) {
 // 0's budget before any work (it was checked per rank only, and a 150 MiB field went to 303 MiB
 // under a 200 MiB budget, or failed at the write after the whole computation). The refusal
 // suggests .pvti; a .pvti run of the same job succeeds and counts its pieces.
-TEST_F(MpiCli, AGatheredFieldIsCheckedAgainstRankZerosBudgetFirst) {
+TEST_F(MpiCli, WhatWritingTheFieldTakesIsCheckedBeforeTheWork) {
 #ifdef TFMATCH_MPIEXEC
   std::string members;
   for (int m = 0; m < 3; ++m) {
@@ -386,7 +386,18 @@ TEST_F(MpiCli, AGatheredFieldIsCheckedAgainstRankZerosBudgetFirst) {
       << raw.output;
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 30.0) << "refused first";
   EXPECT_FALSE(fs::exists(dir / "whole.raw"));
-  // As .pvti pieces (with room for a piece's compressed copy as it is written) the job runs.
+  // A piece's write (its compressed copy, twice the piece) is checked before the work too: it
+  // failed at the write, after the whole computation.
+  const auto t1 = std::chrono::steady_clock::now();
+  const auto tight = run_mpi(2, job + (dir / "tight.pvti").string());
+  EXPECT_EQ(tight.exit_code, 1) << tight.output;
+  EXPECT_NE(tight.output.find("this rank's piece of 256 z-slices and its compressed copy as it is written"),
+            std::string::npos)
+      << tight.output;
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count(), 30.0) << "refused first";
+  EXPECT_FALSE(fs::exists(dir / "tight.pvti"));
+  EXPECT_FALSE(fs::exists(dir / "tight"));
+  // With room for a piece's compressed copy as it is written, the job runs.
   std::string pvti_job = job;
   pvti_job.replace(pvti_job.find("270M"), 4, "600M");
   const auto pieces = run_mpi(2, pvti_job + (dir / "pieces.pvti").string() + " --json " + (dir / "pieces.json").string());

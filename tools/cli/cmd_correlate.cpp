@@ -277,32 +277,43 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
   // it, the peak passed a budget of 240 MiB by 14 MB).
   CorrelationKernel kernel(*ctx);
   kernel.prepare(params, members);
-  // The field this rank computes is held whole beside the slabs, so it comes off first.
-  const uint64_t held = resident_memory() + (end - first + 1) * slice * sizeof(float), budget = memory_budget().bytes;
+  // What this rank holds beside its slabs at its peak: the field it computes, and what writing it
+  // takes (a .vti's compressed payload is a copy, twice its size, as the write checks); rank 0 of
+  // a job writing one .vti or raw file also the gathered whole. Checked here, before the work,
+  // not at the gather or the write after the whole computation, and off the slabs' share.
+  const bool pvti = has_extension(a.out, ".pvti"), vti = has_extension(a.out, ".vti");
+  const uint64_t part_bytes = (end - first + 1) * slice * sizeof(float), whole = grid.voxel_count() * sizeof(float);
+  const bool gathered = ranks.size() > 1 && !pvti;
+  uint64_t peak = part_bytes;
+  std::string peak_what;
+  if (pvti) {
+    peak = 3 * part_bytes;
+    peak_what = a.out + ": " + (ranks.size() > 1 ? "this rank's piece" : "the field") + " of " +
+                std::to_string(end - first) + " z-slices and its compressed copy as it is written";
+  } else if (ranks.rank() == 0) {
+    peak = std::max(whole + (gathered ? part_bytes : 0), whole + (vti ? 2 * whole : 0));
+    peak_what = gathered ? a.out + ": rank 0 gathers the whole " + std::to_string(grid.dims[0]) + "x" +
+                               std::to_string(grid.dims[1]) + "x" + std::to_string(grid.dims[2]) +
+                               " field to write it (a .pvti output keeps each rank's piece on its rank)"
+                         : a.out + ": the field and its compressed copy as it is written";
+  }
+  std::exception_ptr refused;
+  try {
+    if (gathered && ranks.rank() == 0 && grid.voxel_count() > uint64_t(INT32_MAX))  // MPI_Gatherv counts in int
+      throw CLI::ValidationError("--out", a.out + ": a field gathered on rank 0 holds at most 2^31 - 1 voxels, this one " +
+                                              std::to_string(grid.voxel_count()) + ": write .pvti pieces instead");
+    if (!peak_what.empty()) check_memory(peak, peak_what);
+  } catch (...) {
+    if (ranks.size() == 1) throw;
+    refused = std::current_exception();
+  }
+  const uint64_t held = resident_memory() + peak, budget = memory_budget().bytes;
   uint64_t slab = a.slab_slices ? a.slab_slices
                                 : correlation_slab_slices(members, slice, (budget > held ? budget - held : 0) / 4);
-  // A .vti or raw output of a job is gathered whole on rank 0 beside its own part, then written
-  // (a .vti's payload is a copy of it): checked here, before the work, not at the gather or write.
-  const bool pvti = has_extension(a.out, ".pvti");
-  std::exception_ptr gather_refused;
-  if (ranks.size() > 1 && ranks.rank() == 0 && !pvti) {
-    try {
-      if (grid.voxel_count() > uint64_t(INT32_MAX))  // MPI_Gatherv counts in int
-        throw CLI::ValidationError("--out", a.out + ": a field gathered on rank 0 holds at most 2^31 - 1 voxels, this one " +
-                                                std::to_string(grid.voxel_count()) + ": write .pvti pieces instead");
-      const uint64_t whole = grid.voxel_count() * sizeof(float), part = (end - first + 1) * slice * sizeof(float);
-      check_memory(whole + std::max(part, has_extension(a.out, ".vti") ? whole : 0),
-                   a.out + ": rank 0 gathers the whole " + std::to_string(grid.dims[0]) + "x" +
-                       std::to_string(grid.dims[1]) + "x" + std::to_string(grid.dims[2]) +
-                       " field to write it (a .pvti output keeps each rank's piece on its rank)");
-    } catch (...) {
-      gather_refused = std::current_exception();
-    }
-  }
   if (ranks.size() > 1) {
-    // Every rank has its device (a rank that failed to start stops them all here), and rank 0
-    // has room for the gathered field.
-    ranks.agree(gather_refused);
+    // Every rank has its device (a rank that failed to start stops them all here), and room for
+    // its field and its write.
+    ranks.agree(refused);
     std::array<double, 1> smallest{double(slab)};
     ranks.min(smallest);
     slab = uint64_t(smallest[0]);
