@@ -295,7 +295,7 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
     peak_what = gathered ? a.out + ": rank 0 gathers the whole " + std::to_string(grid.dims[0]) + "x" +
                                std::to_string(grid.dims[1]) + "x" + std::to_string(grid.dims[2]) +
                                " field to write it (a .pvti output keeps each rank's piece on its rank)"
-                         : a.out + ": the field and its compressed copy as it is written";
+                         : a.out + (vti ? ": the field and its compressed copy as it is written" : ": the field");
   }
   std::exception_ptr refused;
   try {
