@@ -142,8 +142,8 @@ class ViewSession {
   // cost no rendering at all).
   nlohmann::json image_metrics(const RenderSettings& settings, const std::function<bool()>& wanted = {});
   // Plane `index` of `axis` (0..2) classified by the view's TF (slice.h): its colours at full
-  // strength, or over the background by opacity. Throws std::invalid_argument for an axis or
-  // index outside the grid.
+  // strength, or over the background by opacity, and markers() in the plane as red dots (slice.h
+  // mark_slice). Throws std::invalid_argument for an axis or index outside the grid.
   Image slice(ViewKind view, int axis, uint64_t index, uint32_t max_size,
               SliceShading shading = SliceShading::Colour);
   // The view's TF over its field's histogram (tf_plot.h).

@@ -167,18 +167,24 @@ Image ViewSession::slice(ViewKind view, int axis, uint64_t index, uint32_t max_s
   style.opacity_scale = max_opacity(ref_tf_);  // one scale for the three classified fields (as the report)
   SliceStyle res_style = style;
   res_style.opacity_scale = max_opacity(d.res_tf_table);
+  // The view's field, TF, range and style: one of the three classified fields or a residual map.
+  auto picture = [&](const Volume& v, const TransferFunction& tf, const FieldRange& range, const SliceStyle& st) {
+    const SliceValues values = extract_slice(v, axis, index);
+    Image image = slice_image(v, values, tf, range, st);
+    mark_slice(image, values, {}, markers());  // as on the renderings: red dots where they lie in the plane
+    return image;
+  };
   switch (view) {
     case ViewKind::Reference:
-      return slice_image(ref_, extract_slice(ref_, axis, index), ref_tf_, result_.ref_range, style);
+      return picture(ref_, ref_tf_, result_.ref_range, style);
     case ViewKind::FieldRefTf:
-      return slice_image(field_, extract_slice(field_, axis, index), ref_tf_, result_.field_range, style);
+      return picture(field_, ref_tf_, result_.field_range, style);
     case ViewKind::FieldOptTf:
-      return slice_image(field_, extract_slice(field_, axis, index), result_.tf, result_.field_range, style);
+      return picture(field_, result_.tf, result_.field_range, style);
     case ViewKind::Residual:
-      return slice_image(d.res_after, extract_slice(d.res_after, axis, index), d.res_tf_table, d.res_range, res_style);
+      return picture(d.res_after, d.res_tf_table, d.res_range, res_style);
     case ViewKind::ResidualBefore:
-      return slice_image(d.res_before, extract_slice(d.res_before, axis, index), d.res_tf_table, d.res_range,
-                         res_style);
+      return picture(d.res_before, d.res_tf_table, d.res_range, res_style);
   }
   throw std::invalid_argument("unknown view");
 }

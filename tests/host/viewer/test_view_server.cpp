@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -581,6 +582,22 @@ TEST_F(GpuTest, ViewEnsembleNewReferencePointRecomputesTheFields) {
   EXPECT_EQ(s1["ensemble"]["point"], nlohmann::json({2, 3, 1}));
   EXPECT_EQ(s1["markers"], nlohmann::json::array({{2, 3, 1}}));
   EXPECT_NE(client.Get("/api/render?view=field-ref-tf&w=32&h=32&" + t)->body, before);
+  // The point is a red dot on the slices through it, as on the renderings: plane z = 1 of the
+  // 12 x 10 grid at 120 pixels is 10 pixels a voxel, so voxel (2, 3) is centred on pixel (25, 65)
+  // (the top row is y = 9); plane z = 0 does not hold it.
+  for (const std::string view : {"reference", "field-opt-tf", "residual"}) {
+    const Image through = decode_png(client.Get("/api/slice?view=" + view + "&axis=z&index=1&size=120&" + t)->body, view);
+    const Image beside = decode_png(client.Get("/api/slice?view=" + view + "&axis=z&index=0&size=120&" + t)->body, view);
+    ASSERT_EQ(through.width, 120u);
+    ASSERT_EQ(through.height, 100u);
+    const auto rgb = [](const Image& img, uint32_t x, uint32_t y) {
+      const uint8_t* p = img.at(x, y);
+      return std::array<int, 3>{p[0], p[1], p[2]};
+    };
+    EXPECT_EQ(rgb(through, 25, 65), (std::array<int, 3>{220, 20, 20})) << view;
+    EXPECT_EQ(rgb(through, 25, 62), (std::array<int, 3>{255, 255, 255})) << view << ": the dot's white ring";
+    EXPECT_NE(rgb(beside, 25, 65), (std::array<int, 3>{220, 20, 20})) << view << ": a dot on a plane without the point";
+  }
 }
 
 }  // namespace
