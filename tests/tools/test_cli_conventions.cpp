@@ -341,6 +341,26 @@ TEST_F(CliConventions, ProgressInALogIsPeriodicPlainLines) {
   EXPECT_FALSE(contains(run_cli(render).output, "rendering:"));
 }
 
+// -q drops summaries and notes but keeps warnings, on stderr: a range that leaves most values
+// outside it is said by optimize alone and by a series of fields, as by render.
+TEST_F(CliConventions, QuietKeepsWarnings) {
+  const std::string tf = dir / "tf.json";
+  const std::vector<std::string> runs = {
+      "optimize --ref " + nc + ":A --ref-tf " + tf + " --field " + nc + ":B --out " + dir / "one.json" +
+          " --ref-range 0,10",
+      "optimize --ref " + nc + ":A --ref-tf " + tf + " --field " + nc + ":B,time=0..1 --out " + dir / "many.json" +
+          " --ref-range 0,10",
+      "render --volume " + nc + ":A --tf " + tf + " --out " + dir / "a.png" + " --width 32 --height 32 --range 0,10"};
+  for (const std::string& args : runs) {
+    const test::CliSplitResult r = test::run_cli_split("-q " + args);
+    ASSERT_EQ(r.exit_code, 0) << args << "\n" << r.output << r.errors;
+    EXPECT_EQ(r.output, "") << args;
+    EXPECT_TRUE(contains(r.errors, "tfmatch: warning: ")) << args << "\n" << r.errors;
+    EXPECT_TRUE(contains(r.errors, "of its finite values lie outside the")) << args << "\n" << r.errors;
+    EXPECT_FALSE(contains(r.errors, "note:")) << args << "\n" << r.errors;
+  }
+}
+
 // Each exit code for the reason its message gives: the required options are all there when the
 // unknown one is what must be refused (else "--volume is required" would pass for it).
 TEST(CliExitCodes, DocumentedInHelpAndReturned) {

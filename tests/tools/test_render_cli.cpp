@@ -68,6 +68,24 @@ TEST_F(RenderCli, ThinGridsRenderAsAMapFromAboveByDefault) {
   EXPECT_EQ(read_png(dir / "spelled.png").rgb, map.rgb);
 }
 
+// optimize says the factor too where it renders (the report, an image-based solver), so that a
+// scale given with --opacity-scale can be given scaled; a voxel fit without a report renders
+// nothing and says nothing of it.
+TEST_F(RenderCli, OptimizeSaysTheThinGridsOpacityScaleWhereItRenders) {
+  const std::string a = dir / "a_6x5x4_float32.raw";
+  const std::string common = "optimize --ref " + a + " --ref-tf " + dir / "tf.json" + " --field " + a;
+  const std::string note = "note: a thin grid (6x5x4): seen from above, north up; opacity scale 20 x box length / height";
+  auto r = run_cli(common + " --out " + dir / "with_report.json" + " --report " + dir / "report" + " --width 64 --height 64");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find(note), std::string::npos) << r.output;
+  r = run_cli(common + " --out " + dir / "image_based.json" + " --solver diffdvr --views-per-iteration 1 --view-pool 0 --iterations 1 --image-size 16");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find(note), std::string::npos) << r.output;
+  r = run_cli(common + " --out " + dir / "voxels.json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find("thin grid"), std::string::npos) << r.output;
+}
+
 // A grid of one voxel in two axes is a line: at a small size no ray meets its box and the
 // picture is the background alone, which the command says (it said nothing, exit 0); a picture
 // that shows it does not warn.

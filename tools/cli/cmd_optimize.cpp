@@ -48,6 +48,25 @@ struct OptimizeArgs {
   RenderChoices render_chosen;
 };
 
+// The render settings the report and an image-based solver use: the grid's defaults (a thin
+// grid seen from above, its opacity scaled to the box's height), with their note when something
+// renders, so that a scale given with --opacity-scale can be given scaled.
+RenderSettings grid_render_settings(const OptimizeArgs& a, const std::array<uint64_t, 3>& dims,
+                                    const std::array<double, 3>& spacing) {
+  RenderSettings render = a.render;
+  const std::string note = apply_grid_defaults(render, dims, spacing, a.render_chosen);
+  if (!note.empty() && (!a.report.empty() || require_solver(a.solver).image_based())) print_note(note);
+  return render;
+}
+
+// The summary on stdout, or with -q the warnings alone on stderr: -q keeps warnings.
+void print_result(const OptimizeResult& result) {
+  if (!globals().quiet)
+    result.print_summary(std::cout);
+  else
+    for (const std::string& w : result.warnings) print_warning(w);
+}
+
 // Both fields opened for a streamed run, or nothing when the run loads them whole: with
 // --stream on; with auto when the solver streams, both files do and both fields as float32 take
 // over a quarter of the memory budget (loaded whole, they are held on the host and the device).
@@ -150,10 +169,8 @@ int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const So
                           (ranks > 1 ? " (rank 0's share: " + slice_span(s.first_slice, s.end_slice) + " of " +
                                            std::to_string(d[2]) + ", " + std::to_string(ranks) + " MPI ranks)"
                                      : "");
-  if (!globals().quiet) {
-    result.print_summary(std::cout);
-    std::cout << "  " << how << "\n";
-  }
+  print_result(result);
+  if (!globals().quiet) std::cout << "  " << how << "\n";
   write_transfer_function(a.out, result.tf);
   nlohmann::json stream_json = {{"streamed", s.streamed},
                                 {"passes", s.passes},
@@ -170,8 +187,8 @@ int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const So
   if (!a.report.empty()) {
     set_progress_enabled(!globals().quiet);
     const Volume& ref = s.ref_preview;
-    RenderSettings render = a.render;  // the whole grid's shape decides, not the preview's
-    apply_grid_defaults(render, streams.ref->grid().dims, streams.ref->grid().spacing, a.render_chosen);
+    // The whole grid's shape decides, not the preview's.
+    const RenderSettings render = grid_render_settings(a, streams.ref->grid().dims, streams.ref->grid().spacing);
     ReportInputs inputs{ref, s.field_preview, req.ref_tf, result, render};
     const uint64_t k = s.preview_factor;
     for (GridIndex m : markers) inputs.markers.push_back({m[0] / k, m[1] / k, m[2] / k});
@@ -291,8 +308,7 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
   req.ref = stream ? nullptr : &ref;
   req.solver = a.solver;
   req.settings = settings;
-  RenderSettings render = a.render;  // image-based solvers render with the grid's defaults
-  apply_grid_defaults(render, ref.dims, ref.spacing, a.render_chosen);
+  const RenderSettings render = grid_render_settings(a, ref.dims, ref.spacing);  // image-based solvers render too
   req.settings.render = render;
   req.shared_tf = a.shared_tf;
   req.field_count = count;
@@ -377,6 +393,10 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
     std::cout << "  wrote " << (a.shared_tf ? a.out : tf_files.front() + " .. " + tf_files.back()) << ", " << table
               << (json.file().empty() ? "" : " and " + a.json) << "\n";
     if (summary) std::cout << "  report: " << summary->index.string() << "\n";
+  } else {  // -q keeps warnings
+    for (const std::string& w : s.warnings) print_warning(w);
+    for (const SeriesFieldResult& f : s.fields)
+      for (const std::string& w : f.warnings) print_warning(f.name + ": " + w);
   }
   return 0;
 }
@@ -424,8 +444,7 @@ int run(const OptimizeArgs& a) {
   auto ctx = starting.get();
   const Volume& ref = loaded.ref;
   // Image-based solvers render what the report shows: both take the grid's defaults.
-  RenderSettings render = a.render;
-  apply_grid_defaults(render, ref.dims, ref.spacing, a.render_chosen);
+  const RenderSettings render = grid_render_settings(a, ref.dims, ref.spacing);
   settings.render = render;
   // The report's needs on top of the loaded fields, before the solve rather than after it.
   if (!a.report.empty()) check_report_memory(*ctx, ref.voxel_count(), render);
@@ -437,7 +456,7 @@ int run(const OptimizeArgs& a) {
   req.settings = settings;
   req.voxel_mae = !a.json.empty() || !a.report.empty();  // both show the mean absolute error
   OptimizeResult result = run_optimize(*ctx, req);
-  if (!globals().quiet) result.print_summary(std::cout);
+  print_result(result);
   write_transfer_function(a.out, result.tf);
   json.write(to_json(result));
   std::optional<ReportSummary> summary;
