@@ -66,19 +66,21 @@ double copy_ms(Context& ctx, const DeviceField& field, int repeats) {
   }, 300);
 }
 
-// Best GPU time (ms) of reading both fields with the assembly's loads (FieldPairReadKernel);
-// throws when its sums differ from the CPU's (a voxel not read, or read twice).
+// Best GPU time (ms) of reading both fields with the assembly's loads (FieldPairReadKernel),
+// warmed as the assembly is (warm_best_ms): timed cold, the bound ran at idle clocks and came
+// out slower than the kernels it bounds. Throws when its sums differ from the CPU's (a voxel not
+// read, or read twice).
 double read_ms(Context& ctx, const DeviceField& ref, const DeviceField& opt, const std::array<uint32_t, 2>& expected,
                int repeats, uint64_t lane_voxels = 0) {
   const FieldPairReadKernel kernel(ctx, 0, lane_voxels);
-  double best = 1e300;
-  for (int r = 0; r <= repeats; ++r) {  // the first run compiles the shader on lavapipe: not timed
+  auto run = [&] {
     double ms = -1.0;
     if (kernel.run(ref, opt, &ms) != expected)
       throw std::runtime_error("bench: the read-bound kernel's sums differ from the CPU's on " + ctx.device_name());
-    if (r > 0) best = std::min(best, ms);
-  }
-  return best;
+    return ms;
+  };
+  run();  // the first run compiles the shader on lavapipe: not timed
+  return warm_best_ms(repeats, run);
 }
 
 // Host-to-device rates (bytes/s) of uploading both fields, best of `repeats`: in place (host
