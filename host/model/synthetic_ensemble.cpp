@@ -45,28 +45,26 @@ GridIndex synthetic_ensemble_reference(const Ensemble& ens) {
   return {uint64_t(std::lround(c[0])), uint64_t(std::lround(c[1])), uint64_t(std::lround(c[2]))};
 }
 
-Ensemble synthetic_ensemble(uint64_t nx, uint64_t ny, uint64_t nz, uint32_t members, uint64_t seed) {
-  Ensemble e;
-  e.grid.dims = {nx, ny, nz};
-  e.grid.name = "synthetic ensemble";
-  e.member_count = members;
-  const uint64_t voxels = nx * ny * nz;
-  e.values.resize(uint64_t(members) * voxels);
+std::vector<float> synthetic_ensemble_voxels(uint64_t nx, uint64_t ny, uint64_t nz, uint32_t members, uint64_t begin,
+                                             uint64_t end, uint64_t seed) {
+  end = std::min(end, nx * ny * nz);
+  begin = std::min(begin, end);
+  const uint64_t count = end - begin;
+  std::vector<float> values(uint64_t(members) * count);
   const EnsembleBlobs blobs = synthetic_ensemble_blobs(nx, ny, nz);
   // Blob weights per voxel, shared by every member.
-  std::vector<std::array<float, 4>> w(voxels);
-  for (uint64_t k = 0, i = 0; k < nz; ++k)
-    for (uint64_t j = 0; j < ny; ++j)
-      for (uint64_t x = 0; x < nx; ++x, ++i)
-        for (int b = 0; b < 4; ++b) {
-          const auto& c = blobs.centre[b];
-          const double d2 = (x - c[0]) * (x - c[0]) + (j - c[1]) * (j - c[1]) + (k - c[2]) * (k - c[2]);
-          w[i][b] = float(std::exp(-d2 / (2.0 * blobs.sigma * blobs.sigma)));
-        }
+  std::vector<std::array<float, 4>> w(count);
+  for (uint64_t i = begin; i < end; ++i) {
+    const uint64_t x = i % nx, j = i / nx % ny, k = i / (nx * ny);
+    for (int b = 0; b < 4; ++b) {
+      const auto& c = blobs.centre[b];
+      const double d2 = (x - c[0]) * (x - c[0]) + (j - c[1]) * (j - c[1]) + (k - c[2]) * (k - c[2]);
+      w[i - begin][b] = float(std::exp(-d2 / (2.0 * blobs.sigma * blobs.sigma)));
+    }
+  }
   SplitMix rng{seed * 0x2545f4914f6cdd1dull + 1};
   const double two_pi = 2.0 * std::numbers::pi;
   for (uint32_t m = 0; m < members; ++m) {
-    e.member_names.push_back("synthetic member " + std::to_string(m));
     const double z1 = rng.normal(), z2 = rng.normal();
     const double q = (z1 * z1 - 1.0) / std::numbers::sqrt2;
     // Three plane waves with random directions and phases, about five periods across the box:
@@ -75,16 +73,25 @@ Ensemble synthetic_ensemble(uint64_t nx, uint64_t ny, uint64_t nz, uint32_t memb
     std::array<std::array<double, 4>, 3> waves;
     const double n_max = double(std::max({nx, ny, nz}));
     for (auto& wv : waves) wv = {rng.normal() * 5.0 / n_max, rng.normal() * 5.0 / n_max, rng.normal() * 5.0 / n_max, rng.uniform()};
-    float* out = e.values.data() + uint64_t(m) * voxels;
-    for (uint64_t k = 0, i = 0; k < nz; ++k)
-      for (uint64_t j = 0; j < ny; ++j)
-        for (uint64_t x = 0; x < nx; ++x, ++i) {
-          double s = 0.0;
-          for (const auto& wv : waves) s += std::sin(two_pi * (wv[0] * x + wv[1] * j + wv[2] * k + wv[3]));
-          const auto& a = w[i];
-          out[i] = float(a[0] * z1 - a[1] * z1 + a[2] * q + a[3] * z2 + 0.35 * s / std::sqrt(1.5));
-        }
+    float* out = values.data() + uint64_t(m) * count;
+    for (uint64_t i = begin; i < end; ++i) {
+      const uint64_t x = i % nx, j = i / nx % ny, k = i / (nx * ny);
+      double s = 0.0;
+      for (const auto& wv : waves) s += std::sin(two_pi * (wv[0] * x + wv[1] * j + wv[2] * k + wv[3]));
+      const auto& a = w[i - begin];
+      out[i - begin] = float(a[0] * z1 - a[1] * z1 + a[2] * q + a[3] * z2 + 0.35 * s / std::sqrt(1.5));
+    }
   }
+  return values;
+}
+
+Ensemble synthetic_ensemble(uint64_t nx, uint64_t ny, uint64_t nz, uint32_t members, uint64_t seed) {
+  Ensemble e;
+  e.grid.dims = {nx, ny, nz};
+  e.grid.name = "synthetic ensemble";
+  e.member_count = members;
+  for (uint32_t m = 0; m < members; ++m) e.member_names.push_back("synthetic member " + std::to_string(m));
+  e.values = synthetic_ensemble_voxels(nx, ny, nz, members, 0, nx * ny * nz, seed);
   return e;
 }
 

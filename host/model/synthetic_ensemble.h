@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "tfmatch/model/ensemble.h"
 #include "tfmatch/model/grid_point.h"
@@ -18,6 +19,12 @@ namespace tfm {
 // (independent); mutual information is high in a, n and q alike. Deterministic for a seed,
 // on every platform (its own generator and normal deviates).
 Ensemble synthetic_ensemble(uint64_t nx, uint64_t ny, uint64_t nz, uint32_t members, uint64_t seed = 1);
+
+// Voxels [begin, end) (linear indices, x fastest) of every member of synthetic_ensemble(nx, ny, nz,
+// members, seed), member-major: the same values, without the memory of the whole grid (a
+// benchmark of a few voxels over many members).
+std::vector<float> synthetic_ensemble_voxels(uint64_t nx, uint64_t ny, uint64_t nz, uint32_t members, uint64_t begin,
+                                             uint64_t end, uint64_t seed = 1);
 
 // The reference point of synthetic_ensemble(): the centre of blob a.
 GridIndex synthetic_ensemble_reference(const Ensemble& ens);

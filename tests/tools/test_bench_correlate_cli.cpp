@@ -79,6 +79,15 @@ TEST(BenchCorrelateCli, TinyRunWritesTableAndJson) {
   EXPECT_TRUE(seen.count({"mi-coefficient", 40}));
 }
 
+// A few voxels over many members hold those voxels' values, not whole slices of the grid: one
+// voxel of 4000 members held 1.4 GB (88 000 voxels a member) before.
+TEST(BenchCorrelateCli, FewVoxelsOfManyMembersHoldOnlyThoseVoxels) {
+  const test::CliResult r = test::run_cli("-q bench-correlate --voxels 1 --members 4000 --measures pearson --cpu-threads 1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("pearson"), std::string::npos) << r.output;
+  EXPECT_LT(r.peak_rss_bytes, 600ull << 20) << "peak RSS " << (r.peak_rss_bytes >> 20) << " MiB";
+}
+
 TEST(BenchCorrelateCli, RejectsUnknownMeasureAndTooFewMembers) {
   test::CliResult r = test::run_cli("-q bench-correlate --measures pearsn");
   EXPECT_NE(r.exit_code, 0);

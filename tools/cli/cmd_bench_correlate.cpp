@@ -48,28 +48,23 @@ struct BenchArgs {
 };
 
 // The first `voxels` voxels (x fastest) of the synthetic ensemble (host/model/synthetic_ensemble.h)
-// on the paper's grid, generated on just the z levels they need, and the series at its reference
-// point (the centre of its strongly dependent blob).
+// on the paper's grid, generated on just the z levels they need (the memory of those voxels alone:
+// `--voxels 1 --members 10000` held 3.5 GB of whole slices), and the series at its reference point
+// (the centre of its strongly dependent blob).
 struct BenchEnsemble {
   std::vector<float> values;  // member-major, `voxels` per member
   std::vector<float> reference;
 };
 BenchEnsemble bench_ensemble(uint32_t members, uint64_t voxels) {
   const uint64_t slice = kGrid[0] * kGrid[1];
-  Ensemble full = synthetic_ensemble(kGrid[0], kGrid[1], (voxels + slice - 1) / slice, members);
-  BenchEnsemble b;
-  GridIndex point = synthetic_ensemble_reference(full);
-  // (On a grid one level deep it names level 1: the centre 0.5 rounds up.)
-  for (int axis = 0; axis < 3; ++axis) point[axis] = std::min(point[axis], full.grid.dims[axis] - 1);
-  b.reference = ensemble_series(full.view(), linear_index(full.grid, point));
-  if (voxels == full.voxel_count()) {
-    b.values = std::move(full.values);
-    return b;
-  }
-  b.values.resize(uint64_t(members) * voxels);
-  for (uint32_t m = 0; m < members; ++m)
-    std::copy_n(full.values.begin() + int64_t(m * full.voxel_count()), voxels, b.values.begin() + int64_t(m * voxels));
-  return b;
+  const std::array<uint64_t, 3> dims{kGrid[0], kGrid[1], (voxels + slice - 1) / slice};
+  const auto& centre = synthetic_ensemble_blobs(dims[0], dims[1], dims[2]).centre[0];  // synthetic_ensemble_reference
+  uint64_t reference = 0;
+  // (On a grid one level deep the centre 0.5 rounds up to level 1: the last level is taken.)
+  for (int axis = 2; axis >= 0; --axis)
+    reference = reference * dims[axis] + std::min<uint64_t>(std::lround(centre[axis]), dims[axis] - 1);
+  return {synthetic_ensemble_voxels(dims[0], dims[1], dims[2], members, 0, voxels),
+          synthetic_ensemble_voxels(dims[0], dims[1], dims[2], members, reference, reference + 1)};
 }
 
 // The ensemble on the device once (member-major float32), and the device's read bound for its

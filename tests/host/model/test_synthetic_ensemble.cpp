@@ -36,5 +36,20 @@ TEST(SyntheticEnsemble, DependenceIsWhereTheBlobsSayAndDeterministic) {
   EXPECT_NE(synthetic_ensemble(24, 24, 12, 200, 4).values, e.values);
 }
 
+// A part of the grid is the whole ensemble's values there, bit for bit, member-major; a range
+// past the grid ends with it.
+TEST(SyntheticEnsemble, AnyRangeOfVoxelsIsTheWholeEnsemblesValues) {
+  const Ensemble e = synthetic_ensemble(13, 7, 5, 9, 2);
+  const uint64_t n = e.voxel_count();
+  for (const auto& [begin, end] : std::vector<std::pair<uint64_t, uint64_t>>{{0, n}, {91, 92}, {57, 301}, {400, n + 50}}) {
+    const std::vector<float> part = synthetic_ensemble_voxels(13, 7, 5, 9, begin, end, 2);
+    const uint64_t count = std::min(end, n) - begin;
+    ASSERT_EQ(part.size(), 9 * count) << begin << ".." << end;
+    for (uint32_t m = 0; m < 9; ++m)
+      for (uint64_t i = 0; i < count; ++i)
+        ASSERT_EQ(part[m * count + i], e.values[m * n + begin + i]) << "member " << m << ", voxel " << begin + i;
+  }
+}
+
 }  // namespace
 }  // namespace tfm
