@@ -2,6 +2,7 @@
 #include "tfmatch/engine/context.h"
 
 #include <algorithm>
+#include <charconv>
 #include <cctype>
 #include <chrono>
 #include <cstdlib>
@@ -17,6 +18,18 @@
 #include "tfmatch/model/phase_timer.h"
 
 namespace tfm {
+
+std::optional<uint32_t> parse_device_index(const std::string& text, const std::string& source) {
+  if (text.empty() || !std::all_of(text.begin(), text.end(), [](unsigned char c) { return std::isdigit(c); }))
+    return std::nullopt;
+  uint64_t index = 0;
+  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), index);
+  if (error != std::errc() || end != text.data() + text.size() || index > UINT32_MAX)
+    throw DeviceChoiceError(source + ": device index " + text + " is past any device's (devices are numbered from 0; "
+                            "tfmatch devices lists them)");
+  return uint32_t(index);
+}
+
 namespace {
 
 constexpr const char* kValidationLayer = "VK_LAYER_KHRONOS_validation";
@@ -175,9 +188,8 @@ DeviceSummary summarize(const Dispatch& vk, VkPhysicalDevice pd, uint32_t index)
 ContextOptions with_environment(ContextOptions options) {
   if (!options.device_index && options.device_name.empty()) {
     if (const char* env = std::getenv("TFMATCH_DEVICE"); env && *env) {
-      std::string v = env;
-      if (std::all_of(v.begin(), v.end(), ::isdigit)) options.device_index = std::stoul(v);
-      else options.device_name = v;
+      if (std::optional<uint32_t> index = parse_device_index(env, "TFMATCH_DEVICE")) options.device_index = index;
+      else options.device_name = env;
     }
   }
   if (!options.validation) {
@@ -187,7 +199,7 @@ ContextOptions with_environment(ContextOptions options) {
   return options;
 }
 
-// The index in `devices` that `options` select; throws std::runtime_error naming the devices
+// The index in `devices` that `options` select; throws DeviceChoiceError naming the devices
 // when none fits.
 uint32_t choose_device(const Dispatch& vk, const std::vector<VkPhysicalDevice>& devices, const ContextOptions& options) {
   std::vector<DeviceSummary> summaries;
@@ -198,12 +210,12 @@ uint32_t choose_device(const Dispatch& vk, const std::vector<VkPhysicalDevice>& 
     return os.str();
   };
   if (devices.empty())
-    throw std::runtime_error("no Vulkan device found (install mesa-vulkan-drivers for lavapipe)");
+    throw DeviceChoiceError("no Vulkan device found (install mesa-vulkan-drivers for lavapipe)");
 
   std::optional<uint32_t> chosen;
   if (options.device_index) {
     if (*options.device_index >= devices.size())
-      throw std::runtime_error("device index " + std::to_string(*options.device_index) +
+      throw DeviceChoiceError("device index " + std::to_string(*options.device_index) +
                                " out of range; devices:" + list());
     chosen = *options.device_index;
   } else if (!options.device_name.empty()) {
@@ -213,7 +225,7 @@ uint32_t choose_device(const Dispatch& vk, const std::vector<VkPhysicalDevice>& 
         break;
       }
     if (!chosen)
-      throw std::runtime_error("no device name contains '" + options.device_name + "'; devices:" + list());
+      throw DeviceChoiceError("no device name contains '" + options.device_name + "'; devices:" + list());
   } else {
     // Default: a discrete GPU, then integrated, then anything with a compute queue.
     int best_rank = -1;
@@ -222,10 +234,10 @@ uint32_t choose_device(const Dispatch& vk, const std::vector<VkPhysicalDevice>& 
       int rank = s.type == "discrete GPU" ? 3 : s.type == "integrated GPU" ? 2 : s.type == "CPU" ? 0 : 1;
       if (rank > best_rank) best_rank = rank, chosen = s.index;
     }
-    if (!chosen) throw std::runtime_error("no Vulkan device has a compute queue; devices:" + list());
+    if (!chosen) throw DeviceChoiceError("no Vulkan device has a compute queue; devices:" + list());
   }
   if (!summaries[*chosen].compute_queue)
-    throw std::runtime_error("device " + summaries[*chosen].name + " has no compute queue");
+    throw DeviceChoiceError("device " + summaries[*chosen].name + " has no compute queue");
   return *chosen;
 }
 

@@ -12,6 +12,7 @@
 #include <shared_mutex>
 #include <span>
 #include <string>
+#include <stdexcept>
 #include <vector>
 
 #include <vulkan/vulkan_core.h>
@@ -31,6 +32,18 @@ struct ContextOptions {
   std::optional<bool> validation;   // Khronos validation layer (+ synchronization validation)
   bool require_validation = false;  // throw when the layer is requested but not installed
 };
+
+// No device is as the options ask: none at all, an index past the devices, a name no device
+// contains, or none with a compute queue. The message lists the devices there are.
+class DeviceChoiceError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// The device index `text` spells (digits only), nullopt when it is a name. Throws
+// DeviceChoiceError, saying `source` (an option or variable), for an index past 2^32 - 1:
+// taken modulo 2^32 it chose another device.
+std::optional<uint32_t> parse_device_index(const std::string& text, const std::string& source);
 
 // Handles of a host application's Vulkan objects. The context borrows them and never destroys
 // them; the host must keep them alive and must not use `queue` concurrently with tfmatch

@@ -364,12 +364,12 @@ TEST(DeviceSelection, BadSelectionsListTheDevices) {
   try {
     Context::create(by_index);
     FAIL();
-  } catch (const std::runtime_error& e) {
+  } catch (const DeviceChoiceError& e) {
     EXPECT_NE(std::string(e.what()).find("out of range"), std::string::npos) << e.what();
   }
   ContextOptions by_name;
   by_name.device_name = "no-such-gpu-name";
-  EXPECT_THROW(Context::create(by_name), std::runtime_error);
+  EXPECT_THROW(Context::create(by_name), DeviceChoiceError);
   // Selecting the first device by (a case-changed part of) its name works.
   auto devices = enumerate_devices();
   ASSERT_FALSE(devices.empty());
@@ -378,6 +378,25 @@ TEST(DeviceSelection, BadSelectionsListTheDevices) {
   for (char& c : part) c = char(std::toupper(static_cast<unsigned char>(c)));
   ok.device_name = part;
   EXPECT_NO_THROW(Context::create(ok));
+}
+
+// An index is digits alone, and one past 2^32 - 1 is refused naming where it came from: taken
+// modulo 2^32, "4294967296" chose device 0.
+TEST(DeviceSelection, IndicesAreDigitsWithinThirtyTwoBits) {
+  EXPECT_EQ(parse_device_index("0", "--device"), 0u);
+  EXPECT_EQ(parse_device_index("007", "--device"), 7u);
+  EXPECT_EQ(parse_device_index("4294967295", "--device"), 4294967295u);
+  for (const std::string name : {"", "nvidia", "1.5", "-1", "0x0", " 1", "\xc3\xa9"})
+    EXPECT_EQ(parse_device_index(name, "--device"), std::nullopt) << name;
+  for (const std::string past : {"4294967296", "4294967297", "99999999999999999999999"}) {
+    try {
+      parse_device_index(past, "TFMATCH_DEVICE");
+      ADD_FAILURE() << past << " was taken";
+    } catch (const DeviceChoiceError& e) {
+      EXPECT_NE(std::string(e.what()).find("TFMATCH_DEVICE: device index " + past + " is past"), std::string::npos)
+          << e.what();
+    }
+  }
 }
 
 // The driver floor times a bare instance and device on the device Context::create chooses, and

@@ -106,8 +106,19 @@ CommandRegistration reg(95, [](CLI::App& app) {
                   "(the Khronos validation layer on where installed; any message fails the case); exit 1 on a failure");
   sub->add_flag("--quick", args->quick, "Small sizes only (seconds on lavapipe)");
   add_json_option(sub, args->json, "the report");
+  // Checked as the command line is, before any device starts: a misspelt name is a usage error
+  // (exit 2), never a failure the device is blamed for (exit 1).
   sub->add_option("--kernel", args->kernels, "Run only these kernels (shader names; repeat or comma-separate)")
-      ->delimiter(',');
+      ->delimiter(',')
+      ->check(CLI::Validator(
+          [](std::string& name) -> std::string {
+            const std::vector<std::string> known = selftest_kernels();
+            if (std::find(known.begin(), known.end(), name) != known.end()) return "";
+            std::string list;
+            for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+            return "no kernel named '" + name + "' (kernels: " + list + ")";
+          },
+          "KERNEL"));
   sub->add_flag("--no-validation", args->no_validation,
                 "Do not turn the validation layer on by default (--validation or TFMATCH_VALIDATION=1 still do)");
   sub->callback([args] { exit_code() = run_selftest_command(*args); });

@@ -71,7 +71,8 @@ std::string exit_code_help() {
          "  1    error: the message names the file or option and what is wrong; nothing written\n"
          "  2    usage: unknown, missing or misapplied option or value (e.g. a solver flag of another solver,\n"
          "       an output name whose extension is not the format written)\n"
-         "  3    the Vulkan validation layer reported a message (--validation, selftest)\n"
+         "  3    the Vulkan validation layer reported a message (--validation; in selftest, one outside every\n"
+         "       case: one while a case runs fails that case, exit 1)\n"
          "  4    Vulkan error: no usable device, or the driver failed\n"
          "  130  interrupted by SIGINT (Ctrl-C), 143 by SIGTERM: stopped within a second, nothing written\n"
          "       (tfmatch view ends this way normally: exit 0)\n";
@@ -101,7 +102,7 @@ ContextOptions context_options(bool validation_when_installed) {
     }
   }
   if (!d.empty()) {
-    if (std::all_of(d.begin(), d.end(), ::isdigit)) options.device_index = std::stoul(d);
+    if (std::optional<uint32_t> index = parse_device_index(d, "--device")) options.device_index = index;
     else options.device_name = d;
   }
   if (globals().validation) {
@@ -314,6 +315,8 @@ Failure describe_failure(std::exception_ptr failure) {
     return {std::string("error: ") + e.what(), kExitUsage};
   } catch (const tfm::VulkanError& e) {
     return {std::string("Vulkan error: ") + e.what(), kExitVulkan};
+  } catch (const tfm::DeviceChoiceError& e) {  // no usable device: as a driver that fails
+    return {std::string("error: ") + e.what(), kExitVulkan};
   } catch (const std::bad_alloc&) {
     // Allocations an input decides are checked against the budget first; this is what slipped by.
     return {"error: out of memory (the memory budget is " + tfm::format_bytes(tfm::memory_budget().bytes) +

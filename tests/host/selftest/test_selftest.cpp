@@ -183,9 +183,17 @@ TEST(SelftestCli, PrintsAnAlignedTableAndExitsOneOnFailure) {
   }
   ASSERT_TRUE(std::getline(lines, row)) << r.output;
   EXPECT_EQ(header.find("case"), row.find_first_not_of(' ', std::string("residual_map").size())) << header << "\n" << row;
-  const test::CliResult bad = test::run_cli("selftest --quick --kernel nope");
-  EXPECT_NE(bad.exit_code, 0);
-  EXPECT_NE(bad.output.find("no kernel named 'nope'"), std::string::npos) << bad.output;
+  // A misspelt kernel is a usage error (2) before any device starts; a device that is not
+  // there is exit 4 (no usable device); neither is a failure of the device (1).
+  const test::CliResult bad = test::run_cli("selftest --quick --kernel nope", test::kQuickCliTimeout);
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("--kernel: no kernel named 'nope'"), std::string::npos) << bad.output;
+  for (const std::string device : {"4294967296", "999", "no-such-gpu-name"}) {
+    const test::CliResult none = test::run_cli("selftest --quick --kernel loop_probe --device " + device);
+    EXPECT_EQ(none.exit_code, 4) << device << "\n" << none.output;
+  }
+  const test::CliResult wrapped = test::run_cli("selftest --quick --kernel loop_probe --device 4294967296");
+  EXPECT_NE(wrapped.output.find("--device: device index 4294967296 is past"), std::string::npos) << wrapped.output;
 }
 
 TEST(VersionCli, PrintsVersionCommitAndBuild) {
