@@ -175,7 +175,7 @@ TEST_F(CliConventions, JsonDashKeepsStdoutToOneJsonDocument) {
           " --tf-size 8 --json -",
       "solvers --synthetic --size 8x6x4 --solvers normal-equations --json -",
       "bench-render --size 16 --images 16 --repeat 1 --cpu-rows 2 --json -",
-      "bench --sizes 9x7x5 --tf-sizes 4 --repeats 1 --lane-voxels 4,1000 --json -",
+      "bench --sizes 9x7x5,3x2x2 --tf-sizes 4 --repeats 1 --lane-voxels 4,1000 --json -",
   };
   for (const std::string& args : runs) {
     const test::CliSplitResult r = run_cli_split(args);
@@ -199,6 +199,11 @@ TEST_F(CliConventions, JsonDashKeepsStdoutToOneJsonDocument) {
       EXPECT_EQ(lanes[1]["lane_voxels"].get<int>(), 1000);
       EXPECT_GT(lanes[1]["assemble_ms"].get<double>(), 0.0);
       EXPECT_TRUE(lanes[0]["same_sums"].get<bool>());
+      // A list of sizes runs each (it ran the first alone, labelled with the whole list).
+      ASSERT_EQ(j["runs"].size(), 2u);
+      EXPECT_EQ(j["runs"][0]["dims"], "9x7x5");
+      EXPECT_EQ(j["runs"][1]["dims"], "3x2x2");
+      EXPECT_EQ(j["runs"][1]["voxels"], 12);
     }
   }
   // A file instead: the text as usual, and the same JSON in the file.
@@ -291,6 +296,17 @@ TEST_F(CliConventions, SolverFlagsOfAnotherSolverAreUsageErrorsNamingTheirSolver
   expect_usage_error("solvers --synthetic --size 8x6x4 --solvers cgls,qp --lr 0.1", {"--lr applies to", "not to qp, cgls"});
   // What applies still runs.
   EXPECT_EQ(run_cli(optimize + " --factorization ldlt --tf-size 8").exit_code, 0);
+}
+
+// Grid sizes are three positive integers and nothing else, every one of a list checked before
+// any work (bench read "8x8x8junk" as 8x8x8, and found a bad size after running the others).
+TEST_F(CliConventions, GridSizesAreUsageErrorsBeforeAnyWork) {
+  const std::string json = dir / "bench.json";
+  for (const std::string bad : {"8x8x8junk", "-5x8x8", "8x8", "0x4x4", "8x8x8,bad", "1234567890123x1x1"})
+    expect_usage_error("bench --sizes " + bad + " --tf-sizes 4 --repeats 1 --json " + json,
+                       {"--sizes: expected a grid size XxYxZ of positive integers"}, json);
+  expect_usage_error("solvers --synthetic --size 8x6x4x2 --solvers normal-equations",
+                     {"--size: expected a grid size XxYxZ of positive integers, got '8x6x4x2'"});
 }
 
 TEST_F(CliConventions, OutputNamesMustNameTheFormatWritten) {

@@ -67,6 +67,12 @@ Failure describe_failure(std::exception_ptr failure);
 // host/solvers) and turns what it throws into a usage error (exit code 2).
 void check_usage(const std::function<void()>& check);
 
+// A grid size "XxYxZ" (three positive integers of at most 12 digits, nothing else): parsed, or
+// std::nullopt. grid_size_check() is it as a CLI11 check, so that every size of a list is a usage
+// error before any work (bench ran the sizes before a bad one, and read "8x8x8,16x16x16" as 8x8x8).
+std::optional<std::array<uint64_t, 3>> parse_grid_size(const std::string& text);
+CLI::Validator grid_size_check();
+
 // The device choice and validation of the global options (--device, --validation; under MPI the
 // node-local rank's device).
 ContextOptions context_options(bool validation_when_installed = false);

@@ -39,16 +39,6 @@ struct BenchArgs {
   std::string json;
 };
 
-std::array<uint64_t, 3> parse_dims(const std::string& s) {
-  std::array<uint64_t, 3> d{};
-  char x1 = 0, x2 = 0;
-  std::istringstream in(s);
-  if (!(in >> d[0] >> x1 >> d[1] >> x2 >> d[2]) || x1 != 'x' || x2 != 'x' || !d[0] || !d[1] || !d[2])
-    throw std::runtime_error("--sizes: expected XxYxZ, got '" + s + "'");
-  return d;
-}
-
-
 // Best GPU time (ms) of copying every chunk of `field` into a scratch buffer, `repeats` times and
 // for at least 0.3 s (warm_best_ms).
 double copy_ms(Context& ctx, const DeviceField& field, int repeats) {
@@ -197,7 +187,7 @@ int run(const BenchArgs& a) {
   std::cout << "tfmatch bench: normal-equation assembly on " << ctx->device_name() << " (best of " << a.repeats
             << "; CPU loop on " << threads << " threads; load average " << load_average() << ")\n";
   for (const std::string& size : a.sizes) {
-    const auto d = parse_dims(size);
+    const auto d = *parse_grid_size(size);  // checked as the command line was
     Volume ref = synthetic_reference(d[0], d[1], d[2]);
     Volume field = synthetic_remapped(ref);
     const uint64_t voxels = ref.voxel_count();
@@ -305,7 +295,9 @@ CommandRegistration reg(80, [](CLI::App& app) {
   auto args = std::make_shared<BenchArgs>();
   auto* sub = app.add_subcommand(
       "bench", "Benchmark normal-equation assembly against a multi-threaded CPU loop, copy speed and Eigen");
-  sub->add_option("--sizes", args->sizes, "Grids XxYxZ (default: the paper's 1.76 M and 41.5 M voxels)")
+  sub->add_option("--sizes", args->sizes, "Grids XxYxZ, comma separated (default: the paper's 1.76 M and 41.5 M voxels)")
+      ->delimiter(',')
+      ->check(grid_size_check())
       ->capture_default_str();
   sub->add_option("--tf-sizes", args->tf_sizes, "TF entries to assemble for, comma separated")
       ->delimiter(',')

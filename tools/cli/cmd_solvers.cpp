@@ -3,7 +3,6 @@
 // Table 1, as text and/or JSON.
 #include <iostream>
 #include <map>
-#include <sstream>
 
 #include "cli.h"
 #include "input_options.h"
@@ -28,15 +27,6 @@ struct SolversArgs {
   std::map<std::string, std::string> extra;  // solver options (solver_options.h)
 };
 
-std::array<uint64_t, 3> parse_size(const std::string& s) {
-  std::array<uint64_t, 3> d{};
-  char x1 = 0, x2 = 0;
-  std::istringstream in(s);
-  if (!(in >> d[0] >> x1 >> d[1] >> x2 >> d[2]) || x1 != 'x' || x2 != 'x' || !d[0] || !d[1] || !d[2] || !in.eof())
-    throw CLI::ValidationError("--size", "expected XxYxZ, got '" + s + "'");
-  return d;
-}
-
 int run(const SolversArgs& a) {
   const JsonOutput json(a.json);  // first: with '-', stdout holds only the JSON
   SolverSettings settings;
@@ -55,7 +45,7 @@ int run(const SolversArgs& a) {
   if (a.synthetic) {
     if (!a.input.ref.empty() || !a.input.field.empty() || !a.input.ref_tf.empty())
       throw std::runtime_error("--synthetic replaces --ref, --ref-tf and --field; give either");
-    const auto d = parse_size(a.size);
+    const auto d = *parse_grid_size(a.size);  // checked as the command line was
     in.ref = synthetic_reference(d[0], d[1], d[2]);
     in.field = synthetic_remapped(in.ref);
     in.request.ref = &in.ref;
@@ -92,7 +82,7 @@ CommandRegistration reg(15, [](CLI::App& app) {
       "solvers", "Run every solver on one problem and compare time, iterations, voxel loss and the box constraints");
   add_input_options(sub, args->input, false);
   sub->add_flag("--synthetic", args->synthetic, "Use the built-in synthetic pair instead of --ref/--ref-tf/--field");
-  sub->add_option("--size", args->size, "--synthetic: grid size XxYxZ")->capture_default_str();
+  sub->add_option("--size", args->size, "--synthetic: grid size XxYxZ")->check(grid_size_check())->capture_default_str();
   sub->add_option("--solvers", args->solvers, "Solvers to run, comma-separated (default: every voxel solver; name the "
                   "image-based diffdvr to include it — it takes minutes on large fields; qp always runs as the reference)")
       ->delimiter(',');

@@ -10,6 +10,7 @@
 #include <memory>
 #include <new>
 #include <optional>
+#include <regex>
 #include <sstream>
 #include <string_view>
 
@@ -84,6 +85,23 @@ void check_usage(const std::function<void()>& check) {
   } catch (const std::runtime_error& e) {
     throw CLI::ValidationError(e.what());
   }
+}
+
+std::optional<std::array<uint64_t, 3>> parse_grid_size(const std::string& text) {
+  static const std::regex size(R"(([0-9]{1,12})x([0-9]{1,12})x([0-9]{1,12}))");
+  std::smatch m;
+  if (!std::regex_match(text, m, size)) return std::nullopt;
+  std::array<uint64_t, 3> d{std::stoull(m[1]), std::stoull(m[2]), std::stoull(m[3])};
+  if (!d[0] || !d[1] || !d[2]) return std::nullopt;
+  return d;
+}
+
+CLI::Validator grid_size_check() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        return parse_grid_size(text) ? "" : "expected a grid size XxYxZ of positive integers, got '" + text + "'";
+      },
+      "XxYxZ");
 }
 
 ContextOptions context_options(bool validation_when_installed) {
