@@ -59,7 +59,8 @@ GridIndex parse_grid_index(const std::string& text, const std::string& what) {
   return p;
 }
 
-GridIndex resolve_grid_point(const Volume& grid, const std::string& text, const std::string& what) {
+GridIndex resolve_grid_point(const Volume& grid, const std::string& text, const std::string& what,
+                             std::vector<std::string>* warnings) {
   std::ostringstream dims;
   dims << grid.dims[0] << "x" << grid.dims[1] << "x" << grid.dims[2];
   if (text.find('=') == std::string::npos) {
@@ -101,10 +102,23 @@ GridIndex resolve_grid_point(const Volume& grid, const std::string& text, const 
     }
     const double lo = axis_coordinate(grid, a, 0), hi = axis_coordinate(grid, a, grid.dims[a] - 1);
     const double step = grid.dims[a] > 1 ? std::abs(hi - lo) / double(grid.dims[a] - 1) : 0.0;
-    if (!is_longitude(axis) && best > step + 1e-9 * std::abs(value))
-      throw std::invalid_argument(what + " '" + text + "': " + key + "=" + value_text + " is outside " + grid.name + "'s " +
-                                  (axis.name.empty() ? std::string(1, "xyz"[a]) : axis.name) + " range " +
-                                  std::to_string(std::min(lo, hi)) + " .. " + std::to_string(std::max(lo, hi)));
+    if (is_longitude(axis)) continue;
+    const double tolerance = 1e-9 * std::max(std::abs(value), step);
+    const bool outside = value < std::min(lo, hi) - tolerance || value > std::max(lo, hi) + tolerance;
+    if (!outside) continue;
+    std::ostringstream range;
+    range << (axis.name.empty() ? std::string(1, "xyz"[a]) : axis.name) << " range " << std::min(lo, hi) << " .. "
+          << std::max(lo, hi);
+    if (best > step + tolerance)
+      throw std::invalid_argument(what + " '" + text + "': " + key + "=" + value_text + " is outside " + grid.name +
+                                  "'s " + range.str());
+    // Within a step of an end: taken as that end, which is not what was asked, so said.
+    if (warnings) {
+      std::ostringstream w;
+      w << what << " '" << text << "': " << key << "=" << value_text << " lies outside " << grid.name << "'s "
+        << range.str() << "; the nearest, " << axis_coordinate(grid, a, p[a]) << ", is used";
+      warnings->push_back(w.str());
+    }
   }
   for (int a = 0; a < 3; ++a)
     if (!given[a] && grid.dims[a] > 1)

@@ -258,11 +258,11 @@ int run_streamed(const CorrelateArgs& a, const CorrelationParams& params, const 
   CorrelationRequest request;
   request.params = params;
   request.absolute = a.absolute;
-  const GridIndex p1 = resolve_grid_point(grid, a.point, "--point");
+  const GridIndex p1 = resolve_point(grid, a.point, "--point");
   request.point = linear_index(grid, p1);
   std::optional<GridIndex> p2;
   if (!a.point2.empty()) {
-    p2 = resolve_grid_point(grid, a.point2, "--point2");
+    p2 = resolve_point(grid, a.point2, "--point2");
     request.point2 = linear_index(grid, *p2);
   }
   const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -468,11 +468,11 @@ int run(const CorrelateArgs& a) {
   CorrelationRequest request;
   request.params = params;
   request.absolute = a.absolute;
-  const GridIndex p1 = resolve_grid_point(ens.grid, a.point, "--point");
+  const GridIndex p1 = resolve_point(ens.grid, a.point, "--point");
   request.point = linear_index(ens.grid, p1);
   std::optional<GridIndex> p2;
   if (!a.point2.empty()) {
-    p2 = resolve_grid_point(ens.grid, a.point2, "--point2");
+    p2 = resolve_point(ens.grid, a.point2, "--point2");
     request.point2 = linear_index(ens.grid, *p2);
   }
   try {

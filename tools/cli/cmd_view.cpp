@@ -175,7 +175,7 @@ int run(ViewArgs a) {
     }
     check_correlation_members(e.ensemble);  // before resolving the point, as correlate does
     const Volume& grid = e.ensemble.grid;
-    e.point = !a.point.empty()  ? resolve_grid_point(grid, a.point, "--point")
+    e.point = !a.point.empty()  ? resolve_point(grid, a.point, "--point")
               : a.demo          ? synthetic_ensemble_reference(e.ensemble)
                                 : GridIndex{grid.dims[0] / 2, grid.dims[1] / 2, grid.dims[2] / 2};
     apply_grid_defaults(config.render, grid.dims, grid.spacing, a.render_chosen);

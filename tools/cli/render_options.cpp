@@ -78,10 +78,17 @@ void add_slice_point_option(CLI::App* sub, std::string& point) {
       ->group("Rendering");
 }
 
+GridIndex resolve_point(const Volume& grid, const std::string& text, const std::string& what) {
+  std::vector<std::string> warnings;
+  const GridIndex p = resolve_grid_point(grid, text, what, &warnings);
+  for (const std::string& w : warnings) print_warning(w);
+  return p;
+}
+
 std::optional<GridIndex> resolve_slice_point(const Volume& grid, const std::string& text) {
   if (text.empty()) return std::nullopt;
   try {
-    return resolve_grid_point(grid, text, "--slice-point");
+    return resolve_point(grid, text, "--slice-point");
   } catch (const std::invalid_argument& e) {
     throw CLI::ValidationError("--slice-point", e.what());
   }
@@ -91,7 +98,7 @@ std::vector<GridIndex> resolve_markers(const Volume& grid, const std::vector<std
   std::vector<GridIndex> out;
   for (const auto& t : texts) {
     try {
-      out.push_back(resolve_grid_point(grid, t, "--marker"));
+      out.push_back(resolve_point(grid, t, "--marker"));
     } catch (const std::invalid_argument& e) {
       throw CLI::ValidationError("--marker", e.what());
     }

@@ -35,6 +35,9 @@ void add_histogram_option(CLI::App* sub, std::string& histogram);
 // --slice-point: the voxel the report's slices go through (default: the grid's middle).
 void add_slice_point_option(CLI::App* sub, std::string& point);
 
+// resolve_grid_point (host/model/grid_point.h) with its warnings printed (a coordinate just past
+// an axis's end, taken as the end).
+GridIndex resolve_point(const Volume& grid, const std::string& text, const std::string& what);
 // Resolves the --marker texts on `grid`; throws CLI::ValidationError saying what is wrong.
 std::vector<GridIndex> resolve_markers(const Volume& grid, const std::vector<std::string>& texts);
 // Resolves --slice-point (empty: none); throws CLI::ValidationError saying what is wrong.

@@ -61,6 +61,28 @@ TEST(GridPoint, CoordinatesPickTheNearestPointPerAxis) {
   EXPECT_EQ(describe_grid_point(g, {2, 2, 1}), "(2, 2, 1) at longitude=120, latitude=-30, isobaricInhPa=500");
 }
 
+// A coordinate just past an axis's end (within a step: levels 250..850 step 300) is the end, and
+// said so; one inside the axis is the nearest point, silently; further out is an error.
+TEST(GridPoint, CoordinatesJustPastAnEndAreThatEndWithAWarning) {
+  const Volume g = geo_grid();
+  std::vector<std::string> warnings;
+  EXPECT_EQ(resolve_grid_point(g, "lon=0,lat=90,level=1000", "--point", &warnings), (GridIndex{0, 0, 2}));
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_EQ(warnings[0], "--point 'lon=0,lat=90,level=1000': level=1000 lies outside geo's isobaricInhPa range 250 .. 850; "
+                         "the nearest, 850, is used");
+  warnings.clear();
+  EXPECT_EQ(resolve_grid_point(g, "lon=0,lat=100,level=700", "--point", &warnings), (GridIndex{0, 0, 2}));
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("lat=100 lies outside geo's latitude range -90 .. 90; the nearest, 90, is used"),
+            std::string::npos) << warnings[0];
+  warnings.clear();
+  EXPECT_EQ(resolve_grid_point(g, "lon=0,lat=-90,level=850", "--point", &warnings), (GridIndex{0, 3, 2}));
+  EXPECT_EQ(resolve_grid_point(g, "lon=0,lat=10,level=600", "--point", &warnings), (GridIndex{0, 1, 1}));
+  EXPECT_TRUE(warnings.empty()) << warnings[0];
+  EXPECT_EQ(error_of([&] { resolve_grid_point(g, "lon=0,lat=0,level=1200", "--point", &warnings); }),
+            "--point 'lon=0,lat=0,level=1200': level=1200 is outside geo's isobaricInhPa range 250 .. 850");
+}
+
 TEST(GridPoint, AxesWithoutCoordinatesUseOriginAndSpacing) {
   Volume g;
   g.dims = {10, 1, 5};
