@@ -167,7 +167,8 @@ FieldRange resolve_range(const FiniteStats& s, const FieldRange* user, const std
   if (s.hi == s.lo) {
     std::ostringstream os;
     os << what << ": the field is constant (every finite value is " << s.lo
-       << "); a transfer function cannot be fitted to it (give a range with --*-range to map it anyway)";
+       << "), so it has no range of its own to map the TF over; give it one (" << parameter("ref-range") << ", "
+       << parameter("field-range") << " or " << parameter("range") << ")";
     throw std::runtime_error(os.str());
   }
   // The data's own range must be one the kernels can map too (a field of values near 1e-40 is too

@@ -10,6 +10,7 @@
 #include "cli_runner.h"
 #include "tfmatch/io/tf_json.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/parameter_names.h"
 #include "tfmatch/model/field_mapping.h"
 #include "tfmatch/model/transfer_function.h"
 #include "tfmatch/model/volume.h"
@@ -245,7 +246,15 @@ TEST(FieldMapping, CoordinatesAtTheEdgesAndOutside) {
   EXPECT_EQ(w, 1.0f);
   EXPECT_FALSE(tf_coordinate(NAN, m, j, w));
   std::vector<float> constant(10, 3.0f);
-  EXPECT_THROW(resolve_range(constant, nullptr, "c"), std::runtime_error);
+  try {
+    resolve_range(constant, nullptr, "c");
+    ADD_FAILURE() << "a constant field has no range";
+  } catch (const std::runtime_error& e) {
+    // (The parameters in the style the process installed: "--range" in the test program.)
+    EXPECT_EQ(std::string(e.what()).rfind("c: the field is constant (every finite value is 3), so it has no range of its "
+                                          "own to map the TF over; give it one (" + parameter("ref-range") + ", ", 0),
+              0u) << e.what();
+  }
   FieldRange user{0, 1};
   EXPECT_NO_THROW(resolve_range(constant, &user, "c"));
   EXPECT_THROW(make_mapping({0, 1}, 1), std::invalid_argument);
