@@ -189,6 +189,14 @@ TEST_F(CliConventions, JsonDashKeepsStdoutToOneJsonDocument) {
     std::set<std::string> keys;
     for (const auto& [key, value] : j["timings"].items()) keys.insert(key);
     EXPECT_EQ(keys, documented_timing_keys()) << args << ": docs/commands.md's `timings` paragraph names other keys";
+    // And where it comes from: tfmatch's build, and the device and driver where the run made one.
+    const nlohmann::json& env = j["environment"];
+    EXPECT_EQ(env["tfmatch"]["version"], TFMATCH_EXPECTED_VERSION) << args;
+    EXPECT_TRUE(env["tfmatch"]["commit"].is_string()) << args;
+    EXPECT_GE(env["cpu_threads"].get<int>(), 1) << args;
+    const bool device = args.rfind("info ", 0) != 0 && args.rfind("metrics ", 0) != 0;
+    EXPECT_EQ(env.contains("device") && env.contains("driver"), device) << args << "\n" << env.dump();
+    if (device) EXPECT_NE(env["driver"].get<std::string>().find("Vulkan 1."), std::string::npos) << env.dump();
     if (args.rfind("bench --", 0) == 0) {
       for (const char* rate : {"upload_staged_bytes_per_s", "host_memcpy_bytes_per_s"})
         EXPECT_GT(j["runs"][0][rate].get<double>(), 0.0) << rate;

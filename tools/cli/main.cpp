@@ -15,6 +15,7 @@
 #include <string_view>
 
 #include "cli.h"
+#include "output_options.h"
 #include "tfmatch/model/cancellation.h"
 #ifdef TFMATCH_HAVE_CUDA
 #include "tfmatch/cuda/cuda_solver_registration.h"
@@ -135,6 +136,7 @@ ContextOptions context_options(bool validation_when_installed) {
 std::shared_ptr<Context> make_context(bool validation_when_installed) {
   const ContextOptions options = context_options(validation_when_installed);
   std::unique_ptr<Context> created = Context::create(options);
+  record_run_device(created->device_name(), created->driver_description());  // every JSON's `environment`
   // The pipelines of earlier runs on this device and build, so this one need not compile them.
   std::optional<std::filesystem::path> cache_file;
   std::vector<uint8_t> cached;

@@ -7,13 +7,16 @@
 #include <cstdio>
 #include <cstring>
 #include <iostream>
+#include <mutex>
 #include <stdexcept>
+#include <thread>
 
 #include <fcntl.h>
 #include <unistd.h>
 
 #include "tfmatch/io/atomic_file.h"
 #include "tfmatch/model/phase_timer.h"
+#include "tfmatch_version.h"  // generated in the build directory (top-level CMakeLists.txt)
 
 namespace tfm::cli {
 namespace {
@@ -119,10 +122,44 @@ nlohmann::json timings_json() {
   return j;
 }
 
+namespace {
+struct RunDevice {
+  std::mutex mutex;
+  std::string device, driver;
+};
+RunDevice& run_device() {
+  static RunDevice d;
+  return d;
+}
+}  // namespace
+
+void record_run_device(const std::string& device, const std::string& driver) {
+  RunDevice& d = run_device();
+  const std::lock_guard lock(d.mutex);
+  d.device = device;
+  d.driver = driver;
+}
+
+nlohmann::json environment_json() {
+  nlohmann::json j = {
+      {"tfmatch", {{"version", TFMATCH_VERSION}, {"commit", TFMATCH_GIT_COMMIT}, {"build_type", TFMATCH_BUILD_TYPE}}},
+      {"cpu_threads", std::thread::hardware_concurrency()}};
+  RunDevice& d = run_device();
+  const std::lock_guard lock(d.mutex);
+  if (!d.device.empty()) {
+    j["device"] = d.device;
+    j["driver"] = d.driver;
+  }
+  return j;
+}
+
 void JsonOutput::write(const nlohmann::json& j) const {
   if (!wanted()) return;
   nlohmann::json out = j;
-  if (out.is_object()) out["timings"] = timings_json();
+  if (out.is_object()) {
+    out["timings"] = timings_json();
+    out["environment"] = environment_json();
+  }
   const std::string text = json_text(out, 2) + "\n";
   if (!to_stdout()) return write_file_atomically(target_, text);
   for (size_t done = 0; done < text.size();) {

@@ -48,6 +48,13 @@ CLI::Option* add_json_option(CLI::App* sub, std::string& target, const std::stri
 // (parsing, host-side work between phases; negative only when phases ran side by side).
 nlohmann::json timings_json();
 
+// The device this run made its context on (make_context records it), for environment_json().
+void record_run_device(const std::string& device, const std::string& driver);
+// Where a run's figures come from, in every JSON object as `environment`: tfmatch's version,
+// commit and build type, the CPU threads, and the device and driver when the run made a context
+// (figures gathered from many machines then say which; docs/commands.md).
+nlohmann::json environment_json();
+
 class JsonOutput {
  public:
   explicit JsonOutput(std::string target);
