@@ -57,6 +57,10 @@ constexpr double kMaxRelativeSmooth = 1e9;
 // 1e-100 of the colours: zero to any precision that matters.
 constexpr double kMaxRelativeRidge = 1e100;
 
+// How far a clamp to [0,1] must move a TF component for solve_normal_equations to warn: far
+// below an 8-bit step (1/255), far above rounding (a TF's zeros fitted exactly land on -1e-9).
+constexpr double kClampWarnDistance = 1e-4;
+
 // Throws std::invalid_argument, naming the flag, for a weight that is negative, not finite, or
 // above kMaxRelativeSmooth (smooth) or kMaxRelativeRidge (ridge).
 Regularization absolute_regularization(const NormalEquations& eq, const SolveOptions& options);

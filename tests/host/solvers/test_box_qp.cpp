@@ -165,6 +165,28 @@ TEST(BoxQp, InactiveConstraintsGiveTheNormalEquationsSolution) {
   }
 }
 
+// A clamp by rounding (a TF's zeros fitted exactly) is counted but not said; one that matters is
+// said with how far it moved. M = I, so x = the right-hand side.
+TEST(BoxQp, OnlyClampsThatMatterAreWarnedOf) {
+  for (const double below : {-1e-9, -0.02}) {
+    NormalEquations eq(3);
+    for (uint32_t j = 0; j < 3; ++j) eq.diag[j] = 1.0;
+    eq.rhs.setConstant(0.5);
+    eq.rhs(1, 3) = below;
+    eq.voxels = 3;
+    const SolveResult ne = solve_normal_equations(eq);
+    EXPECT_EQ(ne.clamped_values, 1u) << below;
+    EXPECT_EQ(ne.tf.rgba[1][3], 0.0) << below;
+    if (below > -kClampWarnDistance) {
+      EXPECT_TRUE(ne.warnings.empty()) << ne.warnings[0];
+    } else {
+      ASSERT_EQ(ne.warnings.size(), 1u);
+      EXPECT_EQ(ne.warnings[0].find("1 TF component fell outside [0,1] and was clamped (by up to 0.02); "), 0u)
+          << ne.warnings[0];
+    }
+  }
+}
+
 TEST(BoxQp, ActiveConstraintsBeatClampingAndSatisfyKkt) {
   const DenseSystem d = make_system(2000, 16, 5, step_colour);
   const NormalEquations eq = equations_of(d);
