@@ -123,13 +123,13 @@ bool step_back(MarchParams mp, inout Adjoint a, out uint j, out float w, out vec
   if (!sample_field(sample_position(a.ray, a.k, mp.dt), mp, value)) return false;
   // shade_sample() of raymarch.glsl, with the interval (j, w) and the clamp kept.
   const vec4 c = clamp(classify(value, mp, j, w), 0.0, 1.0);
-  const float tau = sample_transmittance(c.a, mp);
+  const float tau = sample_transmittance(c.a, a.ray);
   uncomposite(a.color, a.transmittance, c.rgb, tau);  // transmittance is now T before sample k
   const float gc_dot_c = dot(a.g_color, c.rgb);
   const vec3 d_rgb = a.g_color * (a.transmittance * (1.0 - tau));
   const float d_tau = a.transmittance * (a.g_trans - gc_dot_c);
-  const bool clamped = c.a * mp.depth_per_alpha >= TFM_MAX_SAMPLE_OPTICAL_DEPTH;
-  const float d_alpha = clamped ? 0.0 : -d_tau * mp.depth_per_alpha * tau;
+  const bool clamped = c.a * a.ray.depth_per_alpha >= TFM_MAX_SAMPLE_OPTICAL_DEPTH;
+  const float d_alpha = clamped ? 0.0 : -d_tau * a.ray.depth_per_alpha * tau;
   a.g_trans = (1.0 - tau) * gc_dot_c + tau * a.g_trans;
   d = vec4(d_rgb, d_alpha);
   return true;

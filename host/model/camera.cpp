@@ -137,8 +137,11 @@ RaySegment pixel_ray(const CameraFrame& f, const VolumeGeometry& g, const MarchC
   r.t_exit = t1;
   if (!(t1 > t0)) return r;
   const double q = (t1 - t0) / m.dt;
-  r.steps = static_cast<uint32_t>(std::min(std::floor(q + 0.5), double(m.max_steps)));
+  const double count = std::floor(q + 0.5);
+  r.steps = static_cast<uint32_t>(std::min(count, double(m.max_steps)));
   r.steps_ambiguous = std::abs(q - std::floor(q) - 0.5) < tolerance;
+  if (count >= 1.0 && count <= double(m.max_steps))  // as setup_ray() of shaders/raymarch.glsl
+    r.depth_scale = (t1 - t0) / (count * m.dt);
   return r;
 }
 

@@ -58,11 +58,14 @@ struct MarchConstants {
 // Validates the settings (throws std::runtime_error) and derives the constants.
 MarchConstants march_constants(const RenderSettings& settings, const VolumeGeometry& geometry);
 
-// A ray in index space: sample k at entry + (k + 0.5) dt dir, k < steps.
+// A ray in index space: sample k at entry + (k + 0.5) dt dir, k < steps. Its samples share the
+// chord's optical length: a sample's optical depth is depth_scale = (t_exit - t_entry) / (steps dt)
+// times MarchConstants::depth_per_alpha (a ray cut at max_steps keeps dt: depth_scale 1).
 struct RaySegment {
   glm::dvec3 entry{0.0}, dir{0.0};
   double t_entry = 0.0, t_exit = 0.0;  // world distances from the eye
   uint32_t steps = 0;
+  double depth_scale = 1.0;
   // True when (t_exit - t_entry) / dt lies within `tolerance` of a half-integer, where float
   // and double may round the sample count differently (tests treat such pixels separately).
   bool steps_ambiguous = false;

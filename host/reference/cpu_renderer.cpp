@@ -88,7 +88,7 @@ CpuRender render_cpu(const Volume& vol, const TransferFunction& tf, const FieldR
         if (has_nan && nan_status_ambiguous(vol, p, tol)) ambiguous = true;
         if (sample_trilinear(vol, p, value)) {
           const Rgba c = classify_cpu(tf, range, value);
-          const double tau = std::exp(-std::min(c[3] * march.depth_per_alpha, kMaxSampleOpticalDepth));
+          const double tau = std::exp(-std::min(c[3] * march.depth_per_alpha * ray.depth_scale, kMaxSampleOpticalDepth));
           for (int ch = 0; ch < 3; ++ch) color[ch] += transmittance * (1.0 - tau) * c[ch];
           transmittance *= tau;
         }

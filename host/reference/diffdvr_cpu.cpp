@@ -69,7 +69,7 @@ CpuLossGradient image_loss_gradient_cpu(const Volume& vol, const TransferFunctio
           Sample smp{trans, 0.0, {}, j, w, false};
           for (int c = 0; c < 4; ++c)
             smp.colour[c] = std::clamp((1.0 - w) * tf.rgba[j][c] + w * tf.rgba[j + 1][c], 0.0, 1.0);
-          const double depth = smp.colour[3] * march.depth_per_alpha;
+          const double depth = smp.colour[3] * march.depth_per_alpha * ray.depth_scale;
           smp.depth_clamped = depth >= kMaxSampleOpticalDepth;
           smp.tau = std::exp(-std::min(depth, kMaxSampleOpticalDepth));
           for (int c = 0; c < 3; ++c) colour[c] += trans * (1.0 - smp.tau) * smp.colour[c];
@@ -97,7 +97,7 @@ CpuLossGradient image_loss_gradient_cpu(const Volume& vol, const TransferFunctio
         Rgba d;
         for (int c = 0; c < 3; ++c) d[c] = g[c] * smp.transmittance * (1.0 - smp.tau);
         const double d_tau = smp.transmittance * (g_trans - gc_dot_c);
-        d[3] = smp.depth_clamped ? 0.0 : -d_tau * march.depth_per_alpha * smp.tau;
+        d[3] = smp.depth_clamped ? 0.0 : -d_tau * march.depth_per_alpha * ray.depth_scale * smp.tau;
         g_trans = (1.0 - smp.tau) * gc_dot_c + smp.tau * g_trans;
         for (int c = 0; c < 4; ++c) {
           out.gradient[smp.j][c] += (1.0 - smp.w) * d[c];

@@ -50,8 +50,9 @@ TEST_F(RenderOptics, SlabMatchesOneMinusExpSigmaL) {
   }
   EXPECT_EQ(gpu.stop[centre], 16u);
 
-  // Every other pixel: a constant medium composites to exactly 1 - exp(-a depth_per_alpha K)
-  // for its K samples, and K dt is the chord through the box to within dt / 2.
+  // Every other pixel: a constant medium composites to exactly 1 - exp(-sigma L) over its chord L
+  // through the box, whatever its sample count K = round(L / dt): each sample weighs L / K (weighed
+  // by dt the optical depth jumped by a step where K did: rings on thin slabs).
   const VolumeGeometry geo = VolumeGeometry::from(vol.dims, vol.spacing);
   const MarchConstants m = march_constants(s, geo);
   const CameraFrame frame = orbit_frame(s.camera, geo, s.width, s.height);
@@ -59,12 +60,14 @@ TEST_F(RenderOptics, SlabMatchesOneMinusExpSigmaL) {
     for (uint32_t px = 0; px < s.width; ++px) {
       const size_t p = size_t(py) * s.width + px;
       const RaySegment ray = pixel_ray(frame, geo, m, px, py, s.width, s.height);
-      const double expected = 1.0 - std::exp(-c[3] * m.depth_per_alpha * ray.steps);
+      const double chord = ray.t_exit - ray.t_entry;
+      const double expected = ray.steps == 0 ? 0.0 : 1.0 - std::exp(-c[3] * m.depth_per_alpha * chord / m.dt);
       EXPECT_NEAR(cpu.rgba[4 * p + 3], expected, 1e-12) << px << "," << py;
       if (!ray.steps_ambiguous) EXPECT_NEAR(gpu.rgba[4 * p + 3], expected, 1e-5) << px << "," << py;
-      if (ray.t_exit > ray.t_entry)
-        EXPECT_LE(std::abs(ray.steps * m.dt - (ray.t_exit - ray.t_entry)), 0.5 * m.dt + 1e-9);
-      else
+      if (ray.t_exit > ray.t_entry) {
+        EXPECT_LE(std::abs(ray.steps * m.dt - chord), 0.5 * m.dt + 1e-9);
+        if (ray.steps > 0) EXPECT_NEAR(ray.depth_scale * ray.steps * m.dt, chord, 1e-9 * chord);
+      } else
         EXPECT_EQ(ray.steps, 0u) << "a ray that misses the box has no samples";
     }
 }
