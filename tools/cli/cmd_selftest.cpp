@@ -12,7 +12,6 @@
 #include "tfmatch/io/output_check.h"
 #include "tfmatch/model/progress.h"
 #include "tfmatch/selftest/selftest.h"
-#include "tfmatch_version.h"
 
 namespace tfm::cli {
 namespace {
@@ -42,7 +41,7 @@ nlohmann::json report_json(const SelftestReport& r) {
   nlohmann::json kernels = nlohmann::json::array();
   for (const SelftestCase& c : r.cases)
     if (std::find(kernels.begin(), kernels.end(), c.kernel) == kernels.end()) kernels.push_back(c.kernel);
-  return {{"tfmatch", {{"version", TFMATCH_VERSION}, {"commit", TFMATCH_GIT_COMMIT}, {"build_type", TFMATCH_BUILD_TYPE}}},
+  return {{"tfmatch", environment_json()["tfmatch"]},  // as every JSON's environment names it
           {"device", r.device},
           {"driver", r.driver},
           {"vulkan",
