@@ -16,9 +16,10 @@ namespace {
 
 // Bound on |contribution of one ray| to any accumulator slot: the loss is <= 4 per pixel, the
 // colour gradient <= 2 per channel (|dL/dX| <= 2 times sum_k T_k (1 - tau_k) <= 1), and the
-// opacity gradient <= 12 D K (|gT - gC.c| <= 12, sum_k D tau_k T_k <= D K for K steps of
-// depth D at opacity 1). A sum of fewer than 2^30 / bound rays stays below 2^30, half the range
-// of the signed 32.32 accumulators.
+// opacity gradient <= 12 D K (|gT - gC.c| <= 12, sum_k D' tau_k T_k <= D' K for K steps of
+// depth D' at opacity 1; a ray's steps share its chord, so D' K = D chord / dt <= D max_steps).
+// A sum of fewer than 2^30 / bound rays stays below 2^30, half the range of the signed 32.32
+// accumulators.
 double ray_bound(const MarchConstants& m) { return 4.0 + 12.0 * m.depth_per_alpha * double(m.max_steps); }
 constexpr double kAccumulatorBudget = double(1u << 30);
 
