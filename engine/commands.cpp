@@ -204,6 +204,11 @@ void CommandBatch::dispatch(const ComputePipeline& pipeline, std::span<const Bin
     if (texel) {
       if (b.buffers.size() > 1 && (b.texel_offset != 0 || b.texel_range != VK_WHOLE_SIZE))
         throw std::logic_error(where + ": an array of texel buffers takes whole buffers");
+      // Every kernel's field formats are checked where the field enters (require_field_format);
+      // this catches any texel format a kernel binds that the device cannot read.
+      if (!(ctx_.buffer_format_features(b.texel_format) & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT))
+        throw UnsupportedFieldFormat(where + ": " + ctx_.device_name() + " reads no uniform texel buffer of " +
+                                     vk_format_name(b.texel_format));
       auto& list = views.emplace_back();
       for (const Buffer* buf : b.buffers) {
         const uint64_t texel = texel_bytes(b.texel_format);

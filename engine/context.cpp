@@ -488,6 +488,12 @@ void Context::create_pipeline_cache(VkPipelineCache borrowed) {
   owns_pipeline_cache_ = true;
 }
 
+VkFormatFeatureFlags Context::buffer_format_features(VkFormat format) const {
+  VkFormatProperties props{};
+  dispatch_->vkGetPhysicalDeviceFormatProperties(physical_device_, format, &props);
+  return props.bufferFeatures;
+}
+
 std::string Context::pipeline_cache_identity() const {
   char head[64];
   std::snprintf(head, sizeof head, "%04x-%04x-%08x-", properties_.vendorID, properties_.deviceID,

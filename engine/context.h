@@ -134,6 +134,11 @@ class Context {
   const VkPhysicalDeviceLimits& limits() const { return properties_.limits; }
   const VkPhysicalDeviceMemoryProperties& memory_properties() const { return memory_; }
   std::string device_name() const { return properties_.deviceName; }
+  // What the device can do with `format` in a buffer (VkFormatProperties::bufferFeatures), e.g.
+  // VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT, which the kernels need of every field format they
+  // read as texels: Vulkan makes it mandatory for R32_SFLOAT, R16_SFLOAT and R8_UNORM (and their
+  // RGBA forms) but not for R16_UNORM, which a device may lack.
+  VkFormatFeatureFlags buffer_format_features(VkFormat format) const;
   // The driver and the Vulkan version it reports, as `tfmatch devices` shows them: "llvmpipe Mesa
   // 22.3.6, Vulkan 1.3.230" (figures and reports name the driver beside the device).
   const std::string& driver_description() const { return driver_description_; }

@@ -34,6 +34,7 @@ DeviceField::DeviceField(Context& ctx, uint64_t voxel_count, const std::string& 
 
 DeviceField DeviceField::adopt(Context& ctx, VkBuffer buffer, uint64_t offset, uint64_t voxel_count,
                                const std::string& name, uint64_t max_chunk_voxels, FieldFormat format) {
+  require_field_format(ctx, format, "DeviceField '" + name + "'");
   DeviceField field(ChunkingOnly{}, ctx, voxel_count, max_chunk_voxels, name);
   field.format_ = format;
   const uint64_t bytes = field_format_bytes(format);
@@ -145,6 +146,26 @@ FieldFormat field_format_of(VkFormat format, const char* what) {
       throw std::invalid_argument(std::string(what) + ": image format " + vk_format_name(format) +
                                   " is not a field format (R32_SFLOAT, R16_SFLOAT, R16_UNORM or R8_UNORM)");
   }
+}
+
+std::string field_format_unsupported(const Context& ctx, FieldFormat format, bool quads) {
+  for (VkFormat texel : {voxel_texel_format(format), quad_texel_format(format)}) {
+    if (!(ctx.buffer_format_features(texel) & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT))
+      return "the device reads no uniform texel buffer of " + vk_format_name(texel);
+    if (!quads) break;
+  }
+  return {};
+}
+
+void require_field_format(const Context& ctx, FieldFormat format, const std::string& what, bool quads) {
+  const std::string why = field_format_unsupported(ctx, format, quads);
+  if (why.empty()) return;
+  std::string readable;
+  for (FieldFormat f : {FieldFormat::Float32, FieldFormat::Float16, FieldFormat::Unorm16, FieldFormat::Unorm8})
+    if (field_format_unsupported(ctx, f, quads).empty()) readable += std::string(readable.empty() ? "" : ", ") + field_format_name(f);
+  throw UnsupportedFieldFormat(what + ": " + field_format_name(format) + " fields cannot be read on " + ctx.device_name() +
+                               " (" + why + "); it reads " + (readable.empty() ? "none" : readable) +
+                               ": store the field in one of those");
 }
 
 DeviceField::DeviceField(Context& ctx, std::span<const float> values, const std::string& name,

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,21 @@ std::string vk_format_name(VkFormat format);
 // R16_SFLOAT, R16_UNORM, R8_UNORM); std::invalid_argument naming `what` and the format for any
 // other.
 FieldFormat field_format_of(VkFormat format, const char* what);
+
+// A field format the device cannot read the way the kernels read fields: as uniform texel buffers
+// of its one-voxel and four-voxel texel formats. Vulkan requires that of every device for float32,
+// float16 and unorm8, not for unorm16 (R16_UNORM, R16G16B16A16_UNORM), which some devices lack;
+// a kernel would then read whatever the driver makes of an unsupported view.
+class UnsupportedFieldFormat : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+// Empty when the device of `ctx` reads `format` as texels (one voxel a texel, and with `quads`
+// four voxels a texel too, as the voxel-pair kernels read them), else which texel format it lacks.
+std::string field_format_unsupported(const Context& ctx, FieldFormat format, bool quads = true);
+// Throws UnsupportedFieldFormat naming `what`, the device and the texel format it lacks, with
+// the formats it does read, where field_format_unsupported() says why not.
+void require_field_format(const Context& ctx, FieldFormat format, const std::string& what, bool quads = true);
 
 class DeviceField {
  public:

@@ -34,6 +34,7 @@ void load_instance_functions(Dispatch& d, PFN_vkGetInstanceProcAddr get, VkInsta
   load(d.vkGetPhysicalDeviceFeatures, get, instance, "vkGetPhysicalDeviceFeatures");
   load(d.vkGetPhysicalDeviceFeatures2, get, instance, "vkGetPhysicalDeviceFeatures2");
   load(d.vkGetPhysicalDeviceMemoryProperties, get, instance, "vkGetPhysicalDeviceMemoryProperties");
+  load(d.vkGetPhysicalDeviceFormatProperties, get, instance, "vkGetPhysicalDeviceFormatProperties");
   load(d.vkGetPhysicalDeviceQueueFamilyProperties, get, instance, "vkGetPhysicalDeviceQueueFamilyProperties");
   load(d.vkEnumerateDeviceExtensionProperties, get, instance, "vkEnumerateDeviceExtensionProperties");
   load(d.vkCreateDevice, get, instance, "vkCreateDevice");

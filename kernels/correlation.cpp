@@ -478,6 +478,7 @@ void CorrelationKernel::check_record(const DeviceEnsemble& ensemble, const Corre
                                 std::to_string(uint64_t(members) * voxels * value_bytes));
   for (const CommandBatch::HostImage& image : ensemble.images)
     if (image.image == VK_NULL_HANDLE) throw std::invalid_argument(name + ": a member image is VK_NULL_HANDLE");
+  require_field_format(ctx, ensemble.format, name + " ensemble", /*quads=*/false);
   if (out.size() < voxels * sizeof(float))
     throw std::invalid_argument(name + ": the output buffer holds fewer than " + std::to_string(voxels) + " floats");
   if (uint64_t(members) * kRecordChunkAlign > ctx.limits().maxTexelBufferElements)
