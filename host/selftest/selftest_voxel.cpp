@@ -2,9 +2,13 @@
 // width, chunked fields, TF sizes past shared memory, exact fixed-point totals), voxel_loss,
 // residual_map, field_histogram and field_pair_read (the bench's read bound), each against its
 // CPU reference.
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <string>
+
+#include <glm/gtc/packing.hpp>
 
 #include "tfmatch/engine/commands.h"
 #include "tfmatch/kernels/assemble_normal_equations.h"
@@ -86,6 +90,73 @@ void assemble(Context& ctx, Check& check, const AssembleCase& c) {
       check.near("loss before, channel", size_t(ch), (*g.before)[ch], want[ch],
                  1e-6 * want[ch] + double(g.voxels) * std::ldexp(1.0, -31));
   }
+}
+
+// The second field as an embedder may store it (DeviceField::adopt): float16, unorm16 or unorm8
+// codes in a buffer, read by texel fetches as the stored numbers. Skipped, saying which texel
+// format is missing, where the device cannot read the format (unorm16 is optional in Vulkan).
+// The reference is the assembly in double of the numbers the codes stand for: float16 converts
+// exactly, so the bounds and the exact fixed-point totals are those of float32 fields; a unorm
+// code c stands for c / (2^b - 1), which a device may give as the rounded quotient or as c times
+// the rounded reciprocal, one float ulp (<= 2^-24 on [0, 1]) apart. A value moved by d moves each
+// of its hat weights by at most (N - 1) d, so each M entry (two weights) and S^T b entry (a
+// weight times b in [-0.1, 1.1]) by at most 2.2 (N - 1) d per voxel: that, per voxel, is added
+// to the bounds, and the fixed-point totals are not compared.
+void assemble_stored(Context& ctx, Check& check, FieldFormat format, size_t voxels) {
+  if (std::string why = field_format_unsupported(ctx, format); !why.empty()) return check.skip(why);
+  const uint32_t n = 64;
+  const FieldPair p = random_pair(voxels, 4321u + uint32_t(voxels), {0.0, 1.0}, n);
+  const bool unorm = format != FieldFormat::Float16;
+  const double code_max = format == FieldFormat::Unorm16 ? 65535.0 : 255.0;
+  std::vector<uint8_t> stored(voxels * field_format_bytes(format));
+  std::vector<float> values(voxels);  // what each stored code stands for
+  for (size_t i = 0; i < voxels; ++i) {
+    if (!unorm) {
+      const uint16_t h = glm::packHalf1x16(p.opt[i]);
+      std::memcpy(&stored[2 * i], &h, 2);
+      values[i] = glm::unpackHalf1x16(h);
+      continue;
+    }
+    // No NaN in a unorm: a field without missing values, clamped to [0, 1] (values 10% past it
+    // land on the ends, as off-range values do).
+    const double v = std::isfinite(p.opt[i]) ? std::clamp(double(p.opt[i]), 0.0, 1.0) : 0.5;
+    const uint32_t code = uint32_t(std::lround(v * code_max));
+    if (format == FieldFormat::Unorm16) {
+      const uint16_t c16 = uint16_t(code);
+      std::memcpy(&stored[2 * i], &c16, 2);
+    } else {
+      stored[i] = uint8_t(code);
+    }
+    values[i] = float(double(code) / code_max);
+  }
+  const TransferFunction ref_tf = random_tf(17, 98);
+  const FieldMapping ref_map = make_mapping({0.0, 1.0}, 17), opt_map = make_mapping({0.0, 1.0}, n);
+  Buffer memory(ctx, std::max<uint64_t>(4, (stored.size() + 3) / 4 * 4), MemoryUsage::Device, "selftest stored field");
+  upload(ctx, memory, stored.data(), stored.size());
+  DeviceField ref(ctx, p.ref, "selftest reference");
+  const DeviceField opt =
+      DeviceField::adopt(ctx, memory.handle(), memory.offset(), voxels, "selftest stored field", 0, format);
+  Buffer tf = upload_tf(ctx, ref_tf, "selftest reference TF");
+  GpuNormalEquations gpu(ctx, n);
+  gpu.add(ref, opt, ref_map, opt_map, tf);
+  const NormalEquations g = gpu.result();
+  const NormalEquations r = assemble_normal_equations_cpu(p.ref, values, ref_map, opt_map, ref_tf);
+  check.equal("voxel count", 0, double(g.voxels), double(r.voxels));
+  const double per_voxel = std::ldexp(1.0, -32) + (unorm ? 2.2 * (n - 1) * std::ldexp(1.0, -24) : 0.0);
+  const double abs_bound = double(voxels) * per_voxel + 1e-12;
+  auto near = [&](const char* what, size_t j, double device, double reference) {
+    check.near(what, j, device, reference, 1e-6 * std::abs(reference) + abs_bound);
+  };
+  for (size_t j = 0; j < r.diag.size(); ++j) near("M diagonal", j, g.diag[j], r.diag[j]);
+  for (size_t j = 0; j < r.off.size(); ++j) near("M off-diagonal", j, g.off[j], r.off[j]);
+  for (Eigen::Index j = 0; j < r.rhs.rows(); ++j)
+    for (int ch = 0; ch < 4; ++ch) near("S^T b (4j+c)", size_t(4 * j + ch), g.rhs(j, ch), r.rhs(j, ch));
+  if (unorm) return;
+  const std::vector<uint64_t> exact = assemble_normal_equations_fixed_point(p.ref, values, ref_map, opt_map, ref_tf);
+  const std::vector<uint64_t> device = gpu.fixed_point_slots();
+  check.require(device.size() == exact.size(), "the device returned another number of slots");
+  for (size_t k = 0; k < exact.size() && k < device.size(); ++k)
+    check.equal("fixed-point slot (units of 2^-32)", k, double(int64_t(device[k] - exact[k])), 0.0);
 }
 
 std::string assemble_name(const AssembleCase& c) {
@@ -258,6 +329,14 @@ void add_voxel_cases(CaseList& cases) {
   // Chunks split into texel ranges of 64 quads, the last ones short.
   add_assemble({5003, 64, M::Auto, W::Auto, 1027, 64}, true);
   add_assemble({259, 16, M::Auto, W::Auto, 0, 64}, true);
+
+  // The second field stored in each narrower format an embedder may hand over.
+  for (FieldFormat format : {FieldFormat::Float16, FieldFormat::Unorm16, FieldFormat::Unorm8})
+    for (size_t voxels : {size_t(13), size_t(5003)})
+      cases.push_back({"assemble_normal_equations", "AssembleNormalEquationsKernel",
+                       voxels_name(voxels) + ", N=64, second field stored as " + field_format_name(format),
+                       voxels < 100, TFM_VOXEL_WORKGROUP,
+                       [format, voxels](Context& ctx, Check& check) { assemble_stored(ctx, check, format, voxels); }});
 
   auto add_loss = [&](size_t voxels, uint64_t chunk, bool quick, bool before = false) {
     std::string name = voxels_name(voxels) + (chunk ? ", chunks of " + std::to_string(chunk) : "") +
