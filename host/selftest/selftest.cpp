@@ -95,14 +95,10 @@ SelftestCase run_case(Context& ctx, const CaseSpec& spec, double perturbation) {
   return c;
 }
 
-// The driver as the device properties give it (vendor-specific encoding). Not the driver's name:
-// that needs a second instance (enumerate_devices()), which must not be created while a context
-// lives (it reloads the loader's instance-level entry points).
-std::string driver_of(const Context& ctx) {
-  const VkPhysicalDeviceProperties& props = ctx.properties();
-  std::ostringstream os;
-  os << "vendor 0x" << std::hex << props.vendorID << ", driver version 0x" << props.driverVersion;
-  return os.str();
+std::string hex(uint32_t v, int width) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "0x%0*x", width, v);
+  return buf;
 }
 
 std::string format_number(double v) {
@@ -155,7 +151,10 @@ SelftestReport run_selftest(Context& ctx, const SelftestOptions& options, const 
   const VkPhysicalDeviceProperties& props = ctx.properties();
   report.device = ctx.device_name();
   report.api_version = props.apiVersion;
-  report.driver = driver_of(ctx);
+  report.driver = ctx.driver_description();
+  report.vendor_id = props.vendorID;
+  report.device_id = props.deviceID;
+  report.driver_version = props.driverVersion;
   report.validation = ctx.validation_enabled();
   report.quick = options.quick;
   // Messages from before the self-test are not any case's doing.
@@ -214,9 +213,9 @@ void print_selftest_table(std::ostream& out, const SelftestReport& report) {
     const std::string fill(width - s.size(), ' ');
     return right ? fill + s : s + fill;
   };
-  out << "device: " << report.device << "; driver: " << report.driver << "; Vulkan "
-      << VK_API_VERSION_MAJOR(report.api_version) << "." << VK_API_VERSION_MINOR(report.api_version) << "."
-      << VK_API_VERSION_PATCH(report.api_version) << "; validation " << (report.validation ? "on" : "off") << "\n";
+  out << "device: " << report.device << " (vendor " << hex(report.vendor_id, 4) << ", device "
+      << hex(report.device_id, 4) << "); driver: " << report.driver << " (version " << hex(report.driver_version, 8)
+      << "); validation " << (report.validation ? "on" : "off") << "\n";
   for (const Row& r : rows)
     out << pad(r.kernel, w[0], false) << "  " << pad(r.name, w[1], false) << "  " << pad(r.error, w[2], true) << "  "
         << pad(r.bound, w[3], true) << "  " << pad(r.time, w[4], true) << "  " << r.result << "\n";

@@ -35,7 +35,7 @@ struct SelftestCase {
   // its bound. Bounds are absolute; where a kernel's bound is relative the case scales it first.
   double max_error = 0.0;
   double bound = 0.0;
-  uint64_t compared = 0;  // values compared
+  uint64_t compared = 0;  // values compared (0: max_error and bound mean nothing)
   // Why a case failed (first failing element: where, expected, actual; or the validation
   // message or exception) or was skipped ("needs ..."); empty when it passed.
   std::string detail;
@@ -44,7 +44,10 @@ struct SelftestCase {
 
 struct SelftestReport {
   std::string device;
-  std::string driver;  // vendor and driver version as the device reports them
+  std::string driver;  // the driver's name and version: "llvmpipe Mesa 22.3.6, Vulkan 1.3.230"
+  // The device's PCI vendor and device IDs and its driver version (vendor-specific encoding), as
+  // VkPhysicalDeviceProperties has them: what tells two devices of one name apart.
+  uint32_t vendor_id = 0, device_id = 0, driver_version = 0;
   uint32_t api_version = 0;
   bool validation = false;  // the Khronos validation layer was on (any message fails the case)
   bool quick = false;
