@@ -81,6 +81,9 @@ nlohmann::json to_json(const ComparisonResult& c) {
     rows_json.push_back(rj);
   }
   j["rows"] = rows_json;
+  auto skipped = nlohmann::json::array();
+  for (const auto& [solver, why] : c.skipped) skipped.push_back({{"solver", solver}, {"reason", why}});
+  j["skipped"] = skipped;
   return j;
 }
 

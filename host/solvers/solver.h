@@ -190,6 +190,9 @@ class Solver {
   // Optimizes renderings rather than voxel colours (left out of the default comparison).
   virtual bool image_based() const { return false; }
   virtual std::vector<SolverOption> options() const { return {}; }
+  // Why this solver cannot run in this process (the CUDA solvers without a CUDA device or their
+  // plugin), led by its name; empty when it can. May load what it needs to find out.
+  virtual std::string unavailable() const { return {}; }
   // Solves `problem` with `args` from parse_solver_args(*this, ...). Throws std::runtime_error
   // for an unusable problem (no voxel with data, ...), VulkanError for device failures.
   virtual SolverOutput solve(VoxelProblem& problem, const SolverArgs& args) const = 0;

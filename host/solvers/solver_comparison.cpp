@@ -41,7 +41,8 @@ std::string format_g(double v, int digits = 3) {
 }  // namespace
 
 ComparisonPlan plan_comparison(const SolverSettings& settings, std::vector<std::string> solvers) {
-  if (solvers.empty()) {
+  const bool defaults = solvers.empty();
+  if (defaults) {
     // Image-based solvers optimize renderings, not voxel colours, and take minutes at their
     // defaults: name them explicitly to include them.
     for (const auto& s : tfm::solvers())
@@ -50,9 +51,17 @@ ComparisonPlan plan_comparison(const SolverSettings& settings, std::vector<std::
   for (const std::string& s : solvers) require_solver(s);
   solvers.erase(std::remove(solvers.begin(), solvers.end(), "qp"), solvers.end());
   solvers.insert(solvers.begin(), "qp");
-  // Every option must be some chosen solver's; each solver gets its own.
+  // Every option must be some chosen solver's (of the whole default list: an option of a solver
+  // that cannot run here is still a known option); each solver gets its own.
   check_options_apply(settings, solvers);
   ComparisonPlan plan;
+  if (defaults)
+    std::erase_if(solvers, [&](const std::string& name) {
+      std::string why = require_solver(name).unavailable();
+      if (why.empty()) return false;
+      plan.skipped.emplace_back(name, std::move(why));
+      return true;
+    });
   for (const std::string& name : solvers) {
     const Solver& solver = require_solver(name);
     const std::vector<SolverOption> declared = solver.options();
@@ -78,6 +87,7 @@ ComparisonResult compare_solvers(Context& ctx, const OptimizeRequest& request, s
   const ComparisonPlan plan = plan_comparison(request.settings, std::move(names));
   const std::vector<std::string>& solvers = plan.solvers;
   ComparisonResult out;
+  out.skipped = plan.skipped;
   out.device = ctx.device_name();
   out.tf_size = request.tf_size;
   // The box-constrained problem every result is checked against, from the double-precision CPU
@@ -177,6 +187,7 @@ void ComparisonResult::print_table(std::ostream& os) const {
   }());
   for (const auto& row : cells) print_row(row);
   os << std::left;
+  for (const auto& [solver, why] : skipped) os << "not run: " << solver << " (" << why << ")\n";
   for (const ComparisonRow& r : rows)
     for (const std::string& w : r.warnings) os << "warning (" << r.solver << "): " << w << "\n";
 }

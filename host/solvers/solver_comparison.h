@@ -6,6 +6,7 @@
 #include <functional>
 #include <ostream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tfmatch/solvers/optimize.h"
@@ -33,20 +34,27 @@ struct ComparisonResult {
   uint32_t tf_size = 0;
   double rmse_reference_tf = 0.0;    // the field shown with the reference TF
   std::vector<ComparisonRow> rows;   // the QP reference first
+  // Solvers of the default list that cannot run here (Solver::unavailable: the CUDA solvers
+  // without a CUDA device), with why: left out rather than listed as failed.
+  std::vector<std::pair<std::string, std::string>> skipped;
 
   void print_table(std::ostream& os) const;  // JSON: host/report/result_json.h
 };
 
-// The runs of a comparison: `solvers` (empty: every solver that is not image-based), `qp`
-// first, and the settings each gets (the options of settings.extra it declares, checked).
-// Throws std::runtime_error for an unknown solver, an option none of them has, or a bad value.
+// The runs of a comparison: `solvers` (empty: every solver that is not image-based and can run
+// here, those that cannot in `skipped` with why), `qp` first, and the settings each gets (the
+// options of settings.extra it declares, checked). A solver named explicitly always runs (and
+// fails with its reason). Throws std::runtime_error for an unknown solver, an option none of them
+// has, or a bad value.
 struct ComparisonPlan {
   std::vector<std::string> solvers;
   std::vector<SolverSettings> settings;
+  std::vector<std::pair<std::string, std::string>> skipped;
 };
 ComparisonPlan plan_comparison(const SolverSettings& settings, std::vector<std::string> solvers);
 
-// Runs `solvers` (empty: every solver that is not image-based, i.e. all but diffdvr) on the
+// Runs `solvers` (empty: every solver that is not image-based, i.e. all but diffdvr, and can run
+// here: plan_comparison) on the
 // problem of `request` (its solver field is ignored), `qp` always first as the reference. Each
 // solver gets the options of request.settings.extra it declares. Throws std::runtime_error
 // before running anything for an unknown solver, an option none of them has, or a bad value.

@@ -20,6 +20,17 @@
 namespace tfm {
 namespace {
 
+// Why the solver named `who` cannot run here (no plugin, or no CUDA device), or empty.
+std::string cuda_unavailable(const std::string& who) {
+  try {
+    std::string why;
+    if (!cuda::backend(who).device_available(&why)) return who + ": no CUDA device available (" + why + ")";
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return {};
+}
+
 // The plugin with device 0 selected, or the reason there is none, led by the solver's name.
 const cuda::Backend& device_backend(const std::string& who) {
   const cuda::Backend& backend = cuda::backend(who);
@@ -158,6 +169,7 @@ class CudaNormalEquationsSolver final : public Solver {
     return "CUDA: A^T A and A^T b by cuSPARSE from the explicit system built on the device (as the paper), host tridiagonal solve";
   }
   SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true, true}; }
+  std::string unavailable() const override { return cuda_unavailable(std::string(name())); }
   SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override {
     return solve_with_cuda_normal_equations(p, args);
   }
@@ -169,6 +181,7 @@ class CudaCglsSolver final : public Solver {
   std::string_view summary() const override { return "CUDA: Jacobi-preconditioned CGLS with cuSPARSE SpMM on the explicit system built on the device"; }
   SolverConstraints constraints() const override { return {BoxHandling::Clamped, true, true}; }
   std::vector<SolverOption> options() const override { return cgls_stop_options(); }
+  std::string unavailable() const override { return cuda_unavailable(std::string(name())); }
   SolverOutput solve(VoxelProblem& p, const SolverArgs& args) const override { return solve_with_cuda_cgls(p, args); }
 };
 

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "cli_runner.h"
 #include "solver_problem.h"
@@ -123,6 +124,43 @@ TEST(SolversCli, SyntheticTableAndJson) {
   EXPECT_EQ(j["voxels"], 20 * 18 * 6);
   ASSERT_EQ(j["rows"].size(), 1u);
   EXPECT_EQ(j["rows"][0]["solver"], "qp");
+}
+
+// The default list leaves out what cannot run here (the CUDA solvers on a machine without a CUDA
+// device), saying why, instead of running it and listing it failed; named, it still runs and fails.
+TEST(SolversCli, DefaultListLeavesOutSolversThatCannotRunHere) {
+  const ComparisonPlan plan = plan_comparison({}, {});
+  size_t unavailable = 0;
+  for (const auto& s : solvers()) {
+    if (s->image_based()) continue;
+    const std::string name(s->name()), why = s->unavailable();
+    SCOPED_TRACE(name);
+    const bool planned = std::count(plan.solvers.begin(), plan.solvers.end(), name) == 1;
+    const auto skipped = std::find_if(plan.skipped.begin(), plan.skipped.end(), [&](const auto& p) { return p.first == name; });
+    EXPECT_EQ(planned, why.empty()) << why;
+    EXPECT_EQ(skipped != plan.skipped.end(), !why.empty());
+    if (skipped != plan.skipped.end()) {
+      EXPECT_EQ(skipped->second, why);
+      EXPECT_EQ(why.rfind(name, 0), 0u) << "the reason does not lead with the solver's name: " << why;
+      ++unavailable;
+      const ComparisonPlan named = plan_comparison({}, {name});
+      EXPECT_EQ(std::count(named.solvers.begin(), named.solvers.end(), name), 1) << "a named solver is not run";
+      EXPECT_TRUE(named.skipped.empty());
+    }
+  }
+#if defined(TFMATCH_HAVE_CUDA)
+  if (!find_solver("cuda-cgls")->unavailable().empty()) EXPECT_GE(unavailable, 2u) << "the CUDA solvers were not left out";
+#endif
+  test::TempDir dir;
+  const test::CliResult r = test::run_cli("solvers --synthetic --size 12x10x4 --json " + (dir / "s.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find("failed"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("error:"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("not run: ") != std::string::npos, unavailable > 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(test::read_text(dir / "s.json"));
+  EXPECT_EQ(j["skipped"].size(), unavailable);
+  EXPECT_EQ(j["rows"].size(), plan.solvers.size());
+  for (const auto& row : j["rows"]) EXPECT_FALSE(row.contains("error")) << row.dump();
 }
 
 TEST(SolversCli, BadInputIsAClearError) {
