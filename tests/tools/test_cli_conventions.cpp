@@ -385,6 +385,16 @@ TEST_F(CliConventions, QuietKeepsWarnings) {
   }
 }
 
+// A benchmark that sets image sizes or steps by its own flags refuses the shared ones it would
+// ignore (usage errors, before any work).
+TEST(CliExitCodes, BenchmarksRefuseRenderFlagsTheyWouldIgnore) {
+  for (const std::string args : {"bench-render --width 64", "bench-render --height 64", "bench-diffdvr --step 0.5"}) {
+    const test::CliResult r = run_cli(args, test::kQuickCliTimeout);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    EXPECT_TRUE(contains(r.output, args.substr(args.find(' ') + 1, args.rfind(' ') - args.find(' ') - 1))) << r.output;
+  }
+}
+
 // Each exit code for the reason its message gives: the required options are all there when the
 // unknown one is what must be refused (else "--volume is required" would pass for it).
 TEST(CliExitCodes, DocumentedInHelpAndReturned) {

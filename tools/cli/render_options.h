@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <initializer_list>
 #include <optional>
 #include <string>
 #include <vector>
@@ -22,6 +23,9 @@ namespace tfm::cli {
 // Adds the flags to `sub`, writing into `settings` (which must outlive parsing; its current
 // values are the defaults shown in --help). Flags go into the group "Rendering".
 void add_render_options(CLI::App* sub, RenderSettings& settings);
+// Removes rendering options that `sub` sets by its own means (a benchmark's --images sizes), so
+// that they are refused as unknown rather than accepted and ignored.
+void remove_render_options(CLI::App* sub, std::initializer_list<const char*> names);
 // Which of those flags the command line gave (after parsing `sub`): the grid's defaults
 // (render_defaults.h, apply_grid_defaults) take the place of the others.
 RenderChoices render_choices(const CLI::App& sub);
