@@ -8,12 +8,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <regex>
 #include <set>
 #include <sstream>
 
 #include "cli_runner.h"
+#include "vk_test_env.h"
 #include "tfmatch/io/json.h"
 #include "tfmatch/io/volume_io.h"
 #include "tfmatch/model/volume.h"
@@ -383,6 +385,26 @@ TEST_F(CliConventions, QuietKeepsWarnings) {
     EXPECT_TRUE(contains(r.errors, "of its finite values lie outside the")) << args << "\n" << r.errors;
     EXPECT_FALSE(contains(r.errors, "note:")) << args << "\n" << r.errors;
   }
+}
+
+// TFMATCH_VALIDATION=1 where the layer cannot be found (VK_LAYER_PATH names an empty folder)
+// runs, as the tests need, but says that the run is not validated; --validation refuses.
+TEST_F(CliConventions, ValidationVariableWithoutTheLayerIsSaid) {
+  const std::string tf = dir / "tf.json";
+  const std::string args = "render --volume " + nc + ":A --tf " + tf + " --out " + dir / "v.png" + " --width 16 --height 16";
+  const test::CliEnvironment no_layer{{"VK_LAYER_PATH", dir / "no-layers"}, {"TFMATCH_VALIDATION", "1"}};
+  std::filesystem::create_directories(dir / "no-layers");
+  const test::CliResult r = run_cli(args, test::kCliTimeout, no_layer);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "tfmatch: warning: TFMATCH_VALIDATION=1, but the Khronos validation layer is not "
+                                 "installed: this run is not validated"))
+      << r.output;
+  const test::CliResult strict = run_cli("--validation " + args, test::kCliTimeout, no_layer);
+  EXPECT_EQ(strict.exit_code, 1) << strict.output;
+  EXPECT_TRUE(contains(strict.output, "requested but not installed")) << strict.output;
+  // Where the layer is found, no such warning (the test process itself runs validated).
+  if (test::context().validation_enabled())
+    EXPECT_FALSE(contains(run_cli(args).output, "not validated"));
 }
 
 // A benchmark that sets image sizes or steps by its own flags refuses the shared ones it would

@@ -137,6 +137,13 @@ std::shared_ptr<Context> make_context(bool validation_when_installed) {
   const ContextOptions options = context_options(validation_when_installed);
   std::unique_ptr<Context> created = Context::create(options);
   record_run_device(created->device_name(), created->driver_description());  // every JSON's `environment`
+  // --validation fails without the layer; the variable leaves it on where installed (the tests
+  // set it everywhere), so say when it asked for what this run does not have.
+  if (const char* env = std::getenv("TFMATCH_VALIDATION");
+      env && *env && std::string(env) != "0" && !created->validation_enabled())
+    print_warning(std::string("TFMATCH_VALIDATION=") + env +
+                  ", but the Khronos validation layer is not installed: this run is not validated "
+                  "(apt-get install vulkan-validationlayers; --validation makes this an error)");
   // The pipelines of earlier runs on this device and build, so this one need not compile them.
   std::optional<std::filesystem::path> cache_file;
   std::vector<uint8_t> cached;
