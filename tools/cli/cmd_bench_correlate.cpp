@@ -58,7 +58,8 @@ struct BenchEnsemble {
 BenchEnsemble bench_ensemble(uint32_t members, uint64_t voxels) {
   const uint64_t slice = kGrid[0] * kGrid[1];
   const std::array<uint64_t, 3> dims{kGrid[0], kGrid[1], (voxels + slice - 1) / slice};
-  const auto& centre = synthetic_ensemble_blobs(dims[0], dims[1], dims[2]).centre[0];  // synthetic_ensemble_reference
+  // A copy: the blobs are a temporary, gone at the end of this statement.
+  const auto centre = synthetic_ensemble_blobs(dims[0], dims[1], dims[2]).centre[0];  // synthetic_ensemble_reference
   uint64_t reference = 0;
   // (On a grid one level deep the centre 0.5 rounds up to level 1: the last level is taken.)
   for (int axis = 2; axis >= 0; --axis)
