@@ -4,7 +4,9 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <iomanip>
 #include <span>
+#include <sstream>
 #include <stdexcept>
 
 #include "tfmatch/model/color_spaces.h"
@@ -130,6 +132,20 @@ TransferFunction builtin_transfer_function(const BuiltinTf& tf, size_t n) {
 BuiltinTf default_builtin_tf(const FieldRange& range) {
   const char* name = range.lo < 0.0 && range.hi > 0.0 ? "diverging" : "viridis";
   return {name, default_opacity_shape(name)};
+}
+
+bool diverging_builtin_tf(const std::string& name) { return name == "diverging" || name == "cool-warm"; }
+
+std::string diverging_middle_note(const BuiltinTf& tf, const FieldRange& range, const std::string& range_flag) {
+  if (!diverging_builtin_tf(tf.name) || !(range.lo < 0.0 && range.hi > 0.0)) return {};
+  const double middle = 0.5 * (range.lo + range.hi);
+  if (std::abs(middle) <= 1e-3 * (range.hi - range.lo)) return {};
+  const double m = std::max(-range.lo, range.hi);
+  std::ostringstream os;
+  os << std::setprecision(6) << "the built-in '" << tf.name << "' is laid over [" << range.lo << ", " << range.hi
+     << "], so its neutral middle lies at " << middle << ", not at 0; " << range_flag << " " << -m << "," << m
+     << " centres it on 0";
+  return os.str();
 }
 
 }  // namespace tfm

@@ -63,4 +63,13 @@ TransferFunction builtin_transfer_function(const BuiltinTf& tf, size_t n = kDefa
 // lo < 0 < hi, else "viridis" (ramp).
 BuiltinTf default_builtin_tf(const FieldRange& range);
 
+// Whether the map's colours diverge from a neutral middle (diverging, cool-warm: white or grey
+// at t = 0.5), which a reader takes for zero.
+bool diverging_builtin_tf(const std::string& name);
+// For such a map laid over `range` (a field's min..max, not centred on zero): a note that its
+// neutral middle lies at (lo + hi) / 2 rather than at 0, and that `range_flag` -m,m (m the larger
+// of -lo and hi) puts it there. Empty for other maps, for ranges that do not span zero, and for
+// ranges centred on zero within 0.1 % of their width.
+std::string diverging_middle_note(const BuiltinTf& tf, const FieldRange& range, const std::string& range_flag);
+
 }  // namespace tfm

@@ -97,6 +97,29 @@ TEST_F(BuiltinTfCli, OptimizeAndRenderTakeANameWhereTheyTakeATfFile) {
   EXPECT_EQ(r.exit_code, 0) << r.output;
 }
 
+// A diverging map laid over a signed field's own range says where its middle falls, and how to
+// centre it; a range given, a centred one or another map say nothing.
+TEST_F(BuiltinTfCli, DivergingMapsSayWhereTheirMiddleFalls) {
+  std::vector<float> signed_values(8 * 8 * 8);
+  for (size_t i = 0; i < signed_values.size(); ++i) signed_values[i] = -1.0f + 4.0f * float(i % 29) / 28.0f;  // -1..3
+  write_floats(dir / "u_8x8x8_float32.raw", signed_values);
+  const std::string u = dir / "u_8x8x8_float32.raw", note = "its neutral middle lies at 1, not at 0";
+  const std::string render = "render --volume " + u + " --out " + dir / "u.png" + " --width 16 --height 16 --tf ";
+  auto r = test::run_cli_split(render + "cool-warm");
+  ASSERT_EQ(r.exit_code, 0) << r.errors;
+  EXPECT_NE(r.errors.find(note), std::string::npos) << r.errors;
+  EXPECT_NE(r.errors.find("--range -3,3 centres it on 0"), std::string::npos) << r.errors;
+  for (const std::string& quiet : {render + "cool-warm --range -3,3", render + "viridis", "-q " + render + "diverging"}) {
+    r = test::run_cli_split(quiet);
+    ASSERT_EQ(r.exit_code, 0) << quiet << "\n" << r.errors;
+    EXPECT_EQ(r.errors.find("neutral middle"), std::string::npos) << quiet << "\n" << r.errors;
+  }
+  r = test::run_cli_split("optimize --ref " + u + " --ref-tf diverging --field " + field + " --out " + dir / "d.json");
+  ASSERT_EQ(r.exit_code, 0) << r.errors;
+  EXPECT_NE(r.errors.find(note), std::string::npos) << r.errors;
+  EXPECT_NE(r.errors.find("--ref-range -3,3"), std::string::npos) << r.errors;
+}
+
 TEST_F(BuiltinTfCli, UnknownNamesFailListingTheBuiltInMaps) {
   // Neither a file nor a built-in: exit 1, as for a missing TF file, naming what was typed and
   // every name there is.

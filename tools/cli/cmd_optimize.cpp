@@ -170,6 +170,7 @@ int run_streamed(const OptimizeArgs& a, Context& ctx, Streams& streams, const So
                                            std::to_string(d[2]) + ", " + std::to_string(ranks) + " MPI ranks)"
                                      : "");
   print_result(result);
+  note_diverging_middle(a.in.ref_tf, req.ref_tf, req.ref_range.has_value(), result.ref_range, "--ref-range");
   if (!globals().quiet) std::cout << "  " << how << "\n";
   write_transfer_function(a.out, result.tf);
   nlohmann::json stream_json = {{"streamed", s.streamed},
@@ -457,6 +458,7 @@ int run(const OptimizeArgs& a) {
   req.voxel_mae = !a.json.empty() || !a.report.empty();  // both show the mean absolute error
   OptimizeResult result = run_optimize(*ctx, req);
   print_result(result);
+  note_diverging_middle(a.in.ref_tf, req.ref_tf, req.ref_range.has_value(), result.ref_range, "--ref-range");
   write_transfer_function(a.out, result.tf);
   json.write(to_json(result));
   std::optional<ReportSummary> summary;

@@ -42,7 +42,7 @@ int run(RenderArgs a) {
   std::vector<std::string> notes;
   TransferFunction tf = read_transfer_function(a.tf, {}, &notes);
   for (const std::string& n : notes) print_note(n);
-  const FieldRange range = field_range_for(volume, tf, a.range, "--range", a.allow_out_of_range);
+  const FieldRange range = field_range_for(volume, tf, a.range, "--range", a.allow_out_of_range, a.tf);
   const std::vector<GridIndex> markers = resolve_markers(volume, a.markers);
 
   const auto t0 = std::chrono::steady_clock::now();

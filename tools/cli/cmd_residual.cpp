@@ -68,8 +68,8 @@ int run(ResidualArgs a) {
   TransferFunction ref_tf = read_transfer_function(a.ref_tf, {}, &notes);
   TransferFunction field_tf = read_transfer_function(a.field_tf, {}, &notes);
   for (const std::string& n : notes) print_note(n);
-  const FieldRange ref_range = field_range_for(ref, ref_tf, a.ref_range, "--ref-range", a.allow_out_of_range);
-  const FieldRange field_range = field_range_for(field, field_tf, a.field_range, "--field-range", a.allow_out_of_range);
+  const FieldRange ref_range = field_range_for(ref, ref_tf, a.ref_range, "--ref-range", a.allow_out_of_range, a.ref_tf);
+  const FieldRange field_range = field_range_for(field, field_tf, a.field_range, "--field-range", a.allow_out_of_range, a.field_tf);
 
   // A map of zeros would read as a perfect match (optimize refuses such a pair the same way).
   bool both = false;

@@ -8,14 +8,23 @@
 #include <stdexcept>
 
 #include "cli.h"
+#include "tfmatch/io/tf_formats.h"
 #include "tfmatch/io/volume_io.h"
+#include "tfmatch/model/builtin_tf.h"
 #include "tfmatch/model/color_spaces.h"
 #include "tfmatch/model/field_mapping.h"
 
 namespace tfm::cli {
 
+void note_diverging_middle(const std::string& tf_spec, const TransferFunction& tf, bool range_given,
+                           const FieldRange& range, const std::string& flag) {
+  if (range_given || tf.range || tf_spec.empty()) return;
+  if (const std::optional<BuiltinTf> builtin = builtin_tf_named_by(tf_spec))
+    if (const std::string note = diverging_middle_note(*builtin, range, flag); !note.empty()) print_note(note);
+}
+
 FieldRange field_range_for(const Volume& v, const TransferFunction& tf, const std::string& flag_value,
-                           const std::string& flag, bool allow) {
+                           const std::string& flag, bool allow, const std::string& tf_spec) {
   FieldRange user;
   if (!flag_value.empty()) user = parse_range(flag_value, flag);
   const FieldRange* given = !flag_value.empty() ? &user : (tf.range ? &*tf.range : nullptr);
@@ -25,6 +34,7 @@ FieldRange field_range_for(const Volume& v, const TransferFunction& tf, const st
     const std::string w = check_range_coverage(v.values, range, v.name, source, allow);
     if (!w.empty()) std::cerr << "tfmatch: warning: " << w << "\n";
   }
+  note_diverging_middle(tf_spec, tf, !flag_value.empty(), range, flag);
   return range;
 }
 

@@ -23,6 +23,11 @@ namespace tfm::cli {
 // Adds the flags to `sub`, writing into `settings` (which must outlive parsing; its current
 // values are the defaults shown in --help). Flags go into the group "Rendering".
 void add_render_options(CLI::App* sub, RenderSettings& settings);
+// A note on stderr when `tf_spec` names a built-in diverging map laid over a range that neither
+// the user (`range_given`) nor the TF gave and that is not centred on 0: where its neutral middle
+// lies, and the `flag` value that centres it (diverging_middle_note).
+void note_diverging_middle(const std::string& tf_spec, const TransferFunction& tf, bool range_given,
+                           const FieldRange& range, const std::string& flag);
 // Removes rendering options that `sub` sets by its own means (a benchmark's --images sizes), so
 // that they are refused as unknown rather than accepted and ignored.
 void remove_render_options(CLI::App* sub, std::initializer_list<const char*> names);
@@ -50,8 +55,10 @@ std::optional<GridIndex> resolve_slice_point(const Volume& grid, const std::stri
 // The range `v` is mapped to `tf` with: the flag's value (lo,hi) if given, else the TF file's,
 // else the field's finite min/max. A range not from the field is checked against it
 // (check_range_coverage): a warning goes to stderr, over 95 % outside is an error unless `allow`.
+// `tf_spec`, the TF as given: a built-in diverging map on a range of the field's gets
+// note_diverging_middle's note.
 FieldRange field_range_for(const Volume& v, const TransferFunction& tf, const std::string& flag_value,
-                           const std::string& flag, bool allow);
+                           const std::string& flag, bool allow, const std::string& tf_spec = "");
 
 // "white", "black", "gray", "#rrggbb" or "r,g,b" with components in [0,1], as written (the
 // caller decides the colour space; --background reads it as sRGB). Throws

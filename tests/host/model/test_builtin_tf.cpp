@@ -149,5 +149,21 @@ TEST(BuiltinTf, ViewDefaultIsDivergingOnlyForRangesSpanningZero) {
   EXPECT_EQ(default_builtin_tf({40.0, 340.0}).opacity, OpacityShape::Ramp);
 }
 
+// A diverging map's neutral middle is said where a range of the field's puts it away from 0.
+TEST(BuiltinTf, DivergingMiddleNoteSaysWhereTheMiddleLies) {
+  const std::string note = diverging_middle_note({"cool-warm", OpacityShape::Vee}, {-20.0, 60.0}, "--range");
+  EXPECT_NE(note.find("'cool-warm' is laid over [-20, 60]"), std::string::npos) << note;
+  EXPECT_NE(note.find("middle lies at 20, not at 0"), std::string::npos) << note;
+  EXPECT_NE(note.find("--range -60,60 centres it"), std::string::npos) << note;
+  EXPECT_NE(diverging_middle_note({"diverging", OpacityShape::Flat}, {-5.0, 1.0}, "--ref-range").find("--ref-range -5,5"),
+            std::string::npos);
+  EXPECT_EQ(diverging_middle_note({"diverging", OpacityShape::Vee}, {-2.0, 2.0}, "--range"), "");  // centred
+  EXPECT_EQ(diverging_middle_note({"diverging", OpacityShape::Vee}, {-2.0, 2.003}, "--range"), "");  // within 0.1 %
+  EXPECT_EQ(diverging_middle_note({"diverging", OpacityShape::Vee}, {1.0, 9.0}, "--range"), "");   // not signed
+  EXPECT_EQ(diverging_middle_note({"viridis", OpacityShape::Ramp}, {-20.0, 60.0}, "--range"), "");  // not diverging
+  for (const std::string& name : builtin_tf_names())
+    EXPECT_EQ(diverging_builtin_tf(name), name == "diverging" || name == "cool-warm") << name;
+}
+
 }  // namespace
 }  // namespace tfm
