@@ -9,6 +9,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
+#include <string>
 
 #include "cli_runner.h"
 #include "slab_test_files.h"
@@ -59,14 +61,61 @@ TEST_F(OptimizeSeriesCli, OneTfPerFieldEachAsItsOwnRun) {
     EXPECT_EQ(j["fields"][i]["field"], specs[i]);
     const fs::path tf_file = dir / ("tf_00" + std::to_string(i) + ".json");
     ASSERT_TRUE(fs::exists(tf_file));
-    EXPECT_LT(j["fields"][i]["rmse_after"].get<double>(), j["fields"][i]["rmse_before"].get<double>());
+    EXPECT_LT(j["fields"][i]["voxel_rmse_after"].get<double>(), j["fields"][i]["voxel_rmse_before"].get<double>());
     const auto one = run_cli(base("one.json") + " --field " + specs[i]);
     ASSERT_EQ(one.exit_code, 0) << one.output;
     EXPECT_EQ(read_text(tf_file), read_text(dir / "one.json")) << "the same TF as the field's own run";
   }
   const std::string csv = read_text(dir / "tf_series.csv");
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 6) << csv;
-  EXPECT_NE(csv.find("index,field,tf_file,field_lo,field_hi,voxels,rmse_before,rmse_after"), std::string::npos);
+  EXPECT_NE(csv.find("index,field,tf_file,field_lo,field_hi,voxels,voxel_rmse_before,voxel_rmse_after"), std::string::npos);
+}
+
+// The keys docs/commands.md's tables under "The JSON summary" list after `<!-- json-keys: NAME -->`
+// (each row's backticked names in its first cell), in a set.
+std::set<std::string> documented_keys(const std::string& name) {
+  std::ifstream in(std::string(TFMATCH_SOURCE_DIR) + "/docs/commands.md");
+  std::set<std::string> keys;
+  bool inside = false;
+  for (std::string line; std::getline(in, line);) {
+    if (line == "<!-- json-keys: " + name + " -->") {
+      inside = true;
+      continue;
+    }
+    if (!inside) continue;
+    if (line.empty()) break;
+    if (line.rfind("| `", 0) != 0) continue;  // the header and its rule
+    const std::string cell = line.substr(1, line.find('|', 1) - 1);
+    for (size_t a = cell.find('`'); a != std::string::npos; a = cell.find('`', cell.find('`', a + 1) + 1))
+      keys.insert(cell.substr(a + 1, cell.find('`', a + 1) - a - 1));
+  }
+  EXPECT_FALSE(keys.empty()) << "no table after <!-- json-keys: " << name << " --> in docs/commands.md";
+  return keys;
+}
+
+std::set<std::string> keys_of(const nlohmann::json& j) {
+  std::set<std::string> keys;
+  for (const auto& [k, v] : j.items()) keys.insert(k);
+  return keys;
+}
+
+// optimize's --json, of one field and of a series (with and without one shared TF), has exactly
+// the keys its documentation lists: single and series runs name the same numbers alike.
+TEST_F(OptimizeSeriesCli, JsonKeysAreTheDocumentedOnes) {
+  ASSERT_EQ(run_cli(base("one.json") + " --field " + steps[0] + " --json " + (dir / "one_run.json").string()).exit_code, 0);
+  EXPECT_EQ(keys_of(nlohmann::json::parse(read_text(dir / "one_run.json"))), documented_keys("optimize"));
+  for (const std::string shared : {"", " --shared-tf"}) {
+    SCOPED_TRACE(shared);
+    const auto r = run_cli(base("s.json") + " --field " + steps[0] + " --field " + steps[1] + shared + " --json " +
+                           (dir / "series_run.json").string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const nlohmann::json j = nlohmann::json::parse(read_text(dir / "series_run.json"));
+    std::set<std::string> want = documented_keys("optimize-series");
+    if (shared.empty()) want.erase("details");  // with --shared-tf only
+    EXPECT_EQ(keys_of(j), want);
+    ASSERT_EQ(j["fields"].size(), 2u);
+    for (const auto& row : j["fields"]) EXPECT_EQ(keys_of(row), documented_keys("optimize-series-field"));
+  }
 }
 
 // Each row names the field as loaded: a time chosen by the global --time shows in the table, the
@@ -221,9 +270,9 @@ TEST_F(OptimizeSeriesCli, Era5MembersOneTfEachAndOneForAll) {
   // Ten members of one forecast: one TF (over the union of their ranges) fits them all about as
   // well as ten do (each over its own range).
   for (size_t m = 0; m < 10; ++m) {
-    const double own = each["fields"][m]["rmse_after"].get<double>(), shared = all["fields"][m]["rmse_after"].get<double>();
+    const double own = each["fields"][m]["voxel_rmse_after"].get<double>(), shared = all["fields"][m]["voxel_rmse_after"].get<double>();
     EXPECT_LT(std::abs(shared - own), 0.1 * own) << "member " << m;
-    EXPECT_LT(shared, 0.6 * all["fields"][m]["rmse_before"].get<double>());
+    EXPECT_LT(shared, 0.6 * all["fields"][m]["voxel_rmse_before"].get<double>());
   }
 }
 

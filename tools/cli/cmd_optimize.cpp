@@ -350,7 +350,7 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
 
   for (size_t i = 0; i < tf_files.size(); ++i) write_transfer_function(tf_files[i], a.shared_tf ? s.tf : s.fields[i].tf);
   std::ostringstream csv;
-  csv << "index,field,tf_file,field_lo,field_hi,voxels,rmse_before,rmse_after\n";
+  csv << "index,field,tf_file,field_lo,field_hi,voxels,voxel_rmse_before,voxel_rmse_after\n";
   nlohmann::json rows = nlohmann::json::array();
   for (size_t i = 0; i < count; ++i) {
     const SeriesFieldResult& f = s.fields[i];
@@ -363,8 +363,8 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
                     {"tf_file", tf_file},
                     {"field_range", {f.field_range.lo, f.field_range.hi}},
                     {"voxels", f.after.voxels},
-                    {"rmse_before", f.before.rmse()},
-                    {"rmse_after", f.after.rmse()},
+                    {"voxel_rmse_before", f.before.rmse()},
+                    {"voxel_rmse_after", f.after.rmse()},
                     {"warnings", f.warnings}});
   }
   write_file_atomically(table, csv.str());
@@ -373,8 +373,8 @@ int run_series(const OptimizeArgs& a, const SolverSettings& settings, const Json
                       {"shared_tf", s.shared_tf},
                       {"ref_range", {s.ref_range.lo, s.ref_range.hi}},
                       {"fields", rows},
-                      {"rmse_before", s.before.rmse()},
-                      {"rmse_after", s.after.rmse()},
+                      {"voxel_rmse_before", s.before.rmse()},
+                      {"voxel_rmse_after", s.after.rmse()},
                       {"series_table", table},
                       {"warnings", s.warnings}};
   if (s.shared_tf) j["details"] = to_json(s.details);
