@@ -95,6 +95,22 @@ TEST(BenchCorrelateCli, RejectsUnknownMeasureAndTooFewMembers) {
   r = test::run_cli("-q bench-correlate --members 2");
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.output.find("--members"), std::string::npos) << r.output;
+  // A thread count no machine has is a usage error naming the option (was errno's text).
+  r = test::run_cli("-q bench-correlate --cpu-threads 100000000");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--cpu-threads"), std::string::npos) << r.output;
+}
+
+// --quick lowers the voxels and the default member counts, never counts the user gave.
+TEST(BenchCorrelateCli, QuickKeepsTheMembersGiven) {
+  test::TempDir dir;
+  const test::CliResult r = test::run_cli("-q bench-correlate --quick --members 7 --measures pearson --json " + (dir / "b.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(dir / "b.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  ASSERT_EQ(j["results"].size(), 1u) << j.dump();
+  EXPECT_EQ(j["results"][0]["members"], 7);
+  EXPECT_LE(j["results"][0]["voxels"].get<uint64_t>(), 2000u);
 }
 
 }  // namespace

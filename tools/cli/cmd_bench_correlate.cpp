@@ -44,6 +44,7 @@ struct BenchArgs {
   unsigned cpu_threads = 0;
   uint32_t bins = 16, k = 3;
   bool quick = false;
+  bool members_given = false;  // --members was on the command line
   std::string json;
 };
 
@@ -134,7 +135,7 @@ int run(BenchArgs a) {
   FilePlan().output(json.file(), "--json").check();
   if (a.quick) {
     a.voxels = std::min<uint64_t>(a.voxels, 2000);
-    a.members = {10, 40};
+    if (!a.members_given) a.members = {10, 40};
   }
   std::vector<CorrelationParams> params;
   for (const std::string& name : a.measures) params.push_back({parse_correlation_measure(name), a.bins, a.k});
@@ -218,13 +219,17 @@ CommandRegistration reg(93, [](CLI::App& app) {
   sub->add_option("--max-values", args->max_values,
                   "At most this many values (members x voxels) per member count: fewer voxels for large M")
       ->check(CLI::Range(uint64_t(1000), uint64_t(1) << 36))->capture_default_str();
-  sub->add_option("--cpu-threads", args->cpu_threads, "CPU threads (0: all cores)")->capture_default_str();
+  sub->add_option("--cpu-threads", args->cpu_threads, "CPU threads (0: all cores)")
+      ->check(CLI::Range(0u, 4096u))->capture_default_str();
   sub->add_option("--bins", args->bins, "mi-binned bins")->check(CLI::Range(2u, kMaxCorrelationBins))->capture_default_str();
   sub->add_option("--k", args->k, "mi-kraskov / mi-coefficient neighbours")->check(CLI::Range(1u, kMaxCorrelationK))
       ->capture_default_str();
-  sub->add_flag("--quick", args->quick, "A sanity run: at most 2000 voxels, 10 and 40 members");
+  sub->add_flag("--quick", args->quick, "A sanity run: at most 2000 voxels; members 10 and 40 unless --members gives them");
   add_json_option(sub, args->json, "the results");
-  sub->callback([args] { exit_code() = run(*args); });
+  sub->callback([args, sub] {
+    args->members_given = sub->count("--members") > 0;  // --quick only replaces the default counts
+    exit_code() = run(*args);
+  });
 });
 
 }  // namespace
