@@ -76,6 +76,8 @@ StoredPipelineCache read_pipeline_cache(const fs::path& file) {
     out.data.clear();
     return out;
   };
+  // A directory opens as a stream on Linux, and its "size" is then nonsense.
+  if (!fs::is_regular_file(file, ec)) return ignored(fs::is_directory(file, ec) ? "a directory, not a file" : "not a regular file");
   // The size of the file this stream opened: a writer renames a new file into place (never
   // rewrites one), so the open file stays whole while another takes its name; asking the path
   // for the size first could see the next file's.

@@ -119,7 +119,9 @@ TEST(PipelineCacheFile, DamagedFilesAreIgnoredWithANote) {
   // A directory where the file should be: a note, no exception.
   fs::remove(file);
   fs::create_directory(file);
-  EXPECT_FALSE(read_pipeline_cache(file).note.empty());
+  const std::string note = read_pipeline_cache(file).note;
+  EXPECT_NE(note.find("a directory, not a file"), std::string::npos) << note;
+  EXPECT_EQ(note.find("size"), std::string::npos) << "a directory has no size to report: " << note;
   EXPECT_NE(write_pipeline_cache(file, data), "");
 }
 
