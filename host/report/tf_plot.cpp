@@ -62,6 +62,16 @@ std::string field_label(const Volume& v) {
   return v.units.empty() ? label : label + " (" + v.units + ")";
 }
 
+// A value axis's caption within `width` pixels: whole where it fits; else without the file
+// ("file.grib:t,member=3 (K)" as "t,member=3 (K)": the variable is what the axis shows); else as
+// much of that end as fits.
+std::string axis_caption(const std::string& label, int width) {
+  if (text_width(label) <= width) return label;
+  const size_t colon = label.find(':');
+  const std::string variable = colon == std::string::npos ? label : label.substr(colon + 1);
+  return fit_text(variable, width);
+}
+
 Image plot_transfer_function(const TransferFunction& tf, std::span<const float> values, const FieldRange& range,
                              const TfPlotOptions& o) {
   if (o.width < 160 || o.height < 140) throw std::invalid_argument("plot_transfer_function: plot too small");
@@ -71,17 +81,19 @@ Image plot_transfer_function(const TransferFunction& tf, std::span<const float> 
   const int th = text_height(1);
   // Left: opacity tick labels; bottom: colour bar, value ticks, the axis label.
   const int left = 8 + text_width("0.5") + 6, right = int(o.width) - 12;
-  const int top = o.title.empty() ? 8 : 8 + th + 6;
+  // Which histogram this is: beside the title, right-aligned, where the title leaves room; else
+  // on a line of its own under the title, never over the plot (the opacity curve of a ramp ends
+  // in its top-right corner).
+  const std::string scale = o.log_counts ? "histogram: log(1 + count)" : "histogram: count";
+  const bool scale_beside_title =
+      !o.title.empty() && 8 + text_width(o.title) + 12 + text_width(scale) <= right;
+  const int scale_line = scale_beside_title ? 0 : th + 4;
+  const int top = (o.title.empty() ? 8 : 8 + th + 6) + scale_line;
   const int bar_h = 12, tick_h = 4;
   const int bottom_block = 3 + bar_h + tick_h + 2 + th + (o.axis_label.empty() ? 0 : th + 2) + 6;
   const int plot_bottom = int(o.height) - bottom_block;
   const int plot_w = right - left, plot_h = plot_bottom - top;
   if (plot_h < 20) throw std::invalid_argument("plot_transfer_function: plot too small for its labels");
-  // Which histogram this is: beside the title, right-aligned, where the title leaves room; else
-  // on a white patch in the plot's top-right corner (the opacity curve of a ramp ends there).
-  const std::string scale = o.log_counts ? "histogram: log(1 + count)" : "histogram: count";
-  const bool scale_beside_title =
-      !o.title.empty() && 8 + text_width(o.title) + 12 + text_width(scale) <= right;
   if (!o.title.empty()) draw_text(img, 8, 6, fit_text(o.title, right - 8), text);
 
   // Histogram: one bar per pixel column.
@@ -117,10 +129,8 @@ Image plot_transfer_function(const TransferFunction& tf, std::span<const float> 
   if (scale_beside_title) {
     draw_text(img, right - text_width(scale), 6, scale, muted);
   } else {
-    const std::string fitted = fit_text(scale, plot_w - 10);
-    const int sx = right - 4 - text_width(fitted);
-    fill_rect(img, sx - 3, top + 1, text_width(fitted) + 6, th + 4, {255, 255, 255});
-    draw_text(img, sx, top + 3, fitted, muted);
+    const std::string fitted = fit_text(scale, plot_w);
+    draw_text(img, right - text_width(fitted), top - scale_line - 2, fitted, muted);
   }
   const int bar_top = plot_bottom + 3;
   for (int x = 0; x < plot_w; ++x) {
@@ -129,8 +139,7 @@ Image plot_transfer_function(const TransferFunction& tf, std::span<const float> 
   }
   const int label_y = draw_value_ticks(img, left, plot_w, bar_top + bar_h, range, muted, text) - th;
   if (!o.axis_label.empty()) {
-    // Centred under the plot, or as much of its end as the picture holds ("...grib:t,member=0").
-    const std::string label = fit_text(o.axis_label, int(o.width) - 8);
+    const std::string label = axis_caption(o.axis_label, int(o.width) - 8);
     const int lx = std::clamp(left + (plot_w - text_width(label)) / 2, 4, std::max(4, int(o.width) - 4 - text_width(label)));
     draw_text(img, lx, label_y + th + 2, label, muted);
   }

@@ -39,6 +39,10 @@ std::vector<double> nice_ticks(double lo, double hi, int target = 5);
 // overlapping). Returns the y below the labels.
 int draw_value_ticks(Image& img, int left, int width, int y, const FieldRange& range, Rgb8 tick, Rgb8 text);
 
+// A value axis's caption within `width` pixels: whole where it fits; else the variable part of a
+// "FILE:VAR..." name (the file dropped); else as much of its end as fits (fit_text).
+std::string axis_caption(const std::string& label, int width);
+
 // Throws std::invalid_argument when the plot is too small for its axes (< 160 x 140 pixels).
 Image plot_transfer_function(const TransferFunction& tf, std::span<const float> values, const FieldRange& range,
                              const TfPlotOptions& options = {});

@@ -355,6 +355,40 @@ TEST(RenderPng, LongLabelsKeepTheirEndInsideThePicture) {
   }
 }
 
+// A plot too narrow for the histogram's scale beside its title puts the scale on a line of its
+// own: the opacity curve of a ramp, which ends in the plot's top-right corner, stays visible there
+// (a white patch over that corner hid it). An axis caption too long drops the file before the
+// variable.
+TEST(RenderPng, TfPlotLabelsNeverCoverTheCurve) {
+  TextFaceGuard guard;
+  for (const TextFace* face : {static_cast<const TextFace*>(nullptr), report_face()}) {
+    set_text_face(face);
+    SCOPED_TRACE(face ? "FreeType" : "bitmap font");
+    TransferFunction tf;
+    tf.rgba = {{0, 0, 1, 0}, {1, 0, 0, 1}};
+    std::vector<float> values(100, 0.5f);
+    TfPlotOptions o;
+    o.width = 320;
+    o.height = 240;
+    o.title = "Reference TF, reference field histogram";
+    ASSERT_GT(8 + text_width(o.title) + 12 + text_width("histogram: log(1 + count)"), int(o.width) - 12)
+        << "the case needs a title that leaves no room beside it";
+    const Image img = plot_transfer_function(tf, values, {0, 1}, o);
+    // Every column of the curve's last tenth has curve ink (dark) somewhere.
+    const int left = 8 + text_width("0.5") + 6, right = int(o.width) - 12, plot_w = right - left;
+    for (int x = left + int(0.9 * plot_w); x < right - 3; ++x) {
+      bool dark = false;
+      for (uint32_t y = 0; y < img.height && !dark; ++y) dark = img.at(uint32_t(x), y)[0] < 80 && img.at(uint32_t(x), y)[2] < 80;
+      EXPECT_TRUE(dark) << "the opacity curve is hidden at column " << x;
+    }
+    const std::string name = "era5-levels-members.grib:t@isobaricInhPa,time=0,member=3 (K)";
+    EXPECT_EQ(axis_caption(name, text_width(name)), name);
+    EXPECT_EQ(axis_caption(name, text_width(name) - 1), "t@isobaricInhPa,time=0,member=3 (K)");
+    const std::string narrow = axis_caption(name, text_width("member=3 (K)") + text_width("..."));
+    EXPECT_TRUE(narrow.starts_with("...") && name.ends_with(narrow.substr(3))) << narrow;
+  }
+}
+
 // The series report's TF overlay: where every field shares one range (--shared-tf) it has a value
 // axis (ticks at round values under the curves, labels beneath); else the TF coordinate alone.
 TEST(RenderPng, TfOverlayHasAValueAxisWhereTheRangeIsShared) {
