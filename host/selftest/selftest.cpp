@@ -10,6 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "tfmatch/model/memory_budget.h"
 #include "tfmatch/selftest/selftest_support.h"
 
 namespace tfm {
@@ -79,6 +80,11 @@ SelftestCase run_case(Context& ctx, const CaseSpec& spec, double perturbation) {
       c.status = SelftestStatus::Fail;
       c.detail = check.failed() ? check.failure() : "nothing was compared";
     }
+  } catch (const MemoryBudgetExceeded& e) {
+    // The host's memory budget (--max-memory, TFMATCH_MAX_MEMORY) is the user's limit, not the
+    // device's failing: the case did not run.
+    c.status = SelftestStatus::Skipped;
+    c.detail = std::string("needs more memory than the budget: ") + e.what();
   } catch (const std::exception& e) {
     c.status = SelftestStatus::Fail;
     c.detail = std::string("exception: ") + e.what();

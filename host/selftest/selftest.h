@@ -66,7 +66,8 @@ std::vector<std::string> selftest_kernels();
 
 // Runs the cases on `ctx`. A case fails when an element exceeds its bound, the kernel throws, or
 // the validation layer reports anything while it runs; it is skipped when the device lacks a
-// limit or feature it needs (the detail says which). Throws std::invalid_argument when
+// limit or feature it needs, or the process's memory budget is too small for it (the detail says
+// which). Throws std::invalid_argument when
 // options.kernels names a kernel selftest_kernels() does not list.
 SelftestReport run_selftest(Context& ctx, const SelftestOptions& options = {},
                             const SelftestProgress& progress = nullptr);

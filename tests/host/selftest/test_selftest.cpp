@@ -186,6 +186,17 @@ TEST(SelftestCli, QuickJsonListsTheKernelsAndCasesItRan) {
   if (context.limits().maxComputeSharedMemorySize < 72 * 1024) EXPECT_GE(compared_nothing, 1);
 }
 
+// A memory budget too small for a case (the user's --max-memory or TFMATCH_MAX_MEMORY) skips it,
+// saying so: the device did nothing wrong, so nothing fails.
+TEST(SelftestCli, CasesBeyondTheMemoryBudgetAreSkippedNotFailed) {
+  const test::CliResult r = test::run_cli("selftest --quick --kernel sparse_prepare", test::kCliTimeout,
+                                          {{"TFMATCH_MAX_MEMORY", "16M"}});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find("FAIL"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("skipped: needs more memory than the budget: "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("TFMATCH_MAX_MEMORY=16M"), std::string::npos) << r.output;
+}
+
 TEST(SelftestCli, PrintsAnAlignedTableAndExitsOneOnFailure) {
   const test::CliResult r = test::run_cli("selftest --quick --kernel residual_map");
   EXPECT_EQ(r.exit_code, 0) << r.output;
