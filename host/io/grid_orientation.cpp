@@ -3,6 +3,7 @@
 #include "tfmatch/io/grid_orientation.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cctype>
 #include <sstream>
 
@@ -86,14 +87,21 @@ void apply_world_orientation(Volume& v, const WorldOrientation& o) {
         }
     v.values = std::move(out);
   }
-  orient_axes(v.axes, v.origin, o);
+  orient_axes(v.axes, v.origin, v.spacing, o);
 }
 
-void orient_axes(std::array<GridAxis, 3>& axes, std::array<double, 3>& origin, const WorldOrientation& o) {
+void orient_axes(std::array<GridAxis, 3>& axes, std::array<double, 3>& origin, const std::array<double, 3>& spacing,
+                 const WorldOrientation& o) {
   for (int k = 0; k < 3; ++k) {
     auto& c = axes[k].coordinates;
     if (o.flip[k]) std::reverse(c.begin(), c.end());
-    if (!c.empty()) origin[k] = c.front();
+    if (c.empty()) continue;
+    // Whether origin c[0] and the spacing give every coordinate (within float32 rounding of the span).
+    const double span = std::abs(c.back() - c.front()), tolerance = 1e-6 * std::max(span, std::abs(c.front())) + 1e-9;
+    bool affine = true;
+    for (size_t i = 0; i < c.size() && affine; ++i)
+      affine = std::abs(c.front() + double(i) * spacing[size_t(k)] - c[i]) <= tolerance;
+    origin[k] = affine ? c.front() : 0.0;
   }
 }
 

@@ -521,7 +521,7 @@ FileInfo describe_grib(const GribSource& source) {
       grid.axes[2] = level_axis(key.second);
       for (const auto& l : levels) grid.axes[2].coordinates.push_back(l.first);
       const WorldOrientation o = world_orientation(grid.axes, a.grid);
-      orient_axes(grid.axes, a.origin, o);
+      orient_axes(grid.axes, a.origin, a.spacing, o);
       a.orientation = orientation_lines(grid.axes, a.origin, a.spacing, o);
     } else {
       a.notes.push_back(same_grid ? "not a rectangular grid: cannot be loaded" : "messages on different grids: cannot be stacked");

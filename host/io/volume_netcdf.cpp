@@ -588,7 +588,7 @@ class NetcdfSlabs final : public VolumeSlabReader {
     const auto [axes, orientation] = oriented_axes(file_, layout_);
     grid_.axes = axes;
     orientation_ = orientation;
-    orient_axes(grid_.axes, grid_.origin, orientation_);
+    orient_axes(grid_.axes, grid_.origin, grid_.spacing, orientation_);
     grid_.name = file + ":" + layout_.name;
     grid_.units = att_text(file_.id(), layout_.varid, "units").value_or("");
     if (layout_.time_axis >= 0 && layout_.dim_sizes[layout_.time_axis] > 1) grid_.name += ",time=" + std::to_string(t);
@@ -665,7 +665,7 @@ FileInfo describe_netcdf(const NcFile& f, const VolumeOptions& options) {
     a.grid = L.grid();
     a.spacing = spacing_of(f, L);
     auto [axes, orientation] = oriented_axes(f, L);  // as loaded: reversed axes and their origin
-    orient_axes(axes, a.origin, orientation);
+    orient_axes(axes, a.origin, a.spacing, orientation);
     a.orientation = orientation_lines(axes, a.origin, a.spacing, orientation);
     if (L.time_axis >= 0)
       a.choices.push_back("time: " + L.dim_names[L.time_axis] + " = " + std::to_string(L.dim_sizes[L.time_axis]) + " (" + parameter("time") + ")");

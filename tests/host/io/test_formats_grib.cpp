@@ -94,7 +94,9 @@ TEST(GribGenerated, StacksLevelsSortedAndSelectsTimeMember) {
   EXPECT_EQ(t.axes[1].coordinates.front(), 0.0);
   EXPECT_EQ(t.axes[1].coordinates.back(), 60.0);
   EXPECT_EQ(t.origin[1], 0.0);
-  EXPECT_EQ(t.origin[2], 850.0);
+  // Levels 850, 500, 300 hPa are no even axis in spacing 1: index units, origin 0 (a .vti with
+  // origin 850 and spacing 1 put 500 hPa at z = 851); the levels are the axis's coordinates.
+  EXPECT_EQ(t.origin[2], 0.0);
   for (int z = 0; z < 3; ++z) {
     const long level = z == 0 ? 850 : z == 1 ? 500 : 300;
     for (int j : {0, 7, kNj - 1})
@@ -131,7 +133,7 @@ TEST(GribGenerated, StacksLevelsSortedAndSelectsTimeMember) {
   EXPECT_EQ(info.arrays[0].orientation[1], "y (latitude): 0 .. 60 degrees_north, north, reversed from the file's order");
   EXPECT_EQ(info.arrays[0].orientation[2],
             "z (isobaricInhPa): 850 .. 300 hPa, up (pressure decreasing, surface at z = 0), reversed from the file's order");
-  EXPECT_EQ(info.arrays[0].origin[2], 850.0);
+  EXPECT_EQ(info.arrays[0].origin[2], 0.0);
 }
 
 TEST(GribGenerated, DifferentGridsAndDuplicateLevelsAreErrors) {
@@ -197,7 +199,7 @@ TEST(GribRealFiles, GfsWindsStackedOver26Levels) {
   ASSERT_EQ(u.axes[2].coordinates.size(), 26u);
   EXPECT_EQ(u.axes[2].coordinates.front(), 1000.0);
   EXPECT_EQ(u.axes[2].coordinates.back(), 10.0);
-  EXPECT_EQ(u.origin, (std::array<double, 3>{0.0, -90.0, 1000.0}));
+  EXPECT_EQ(u.origin, (std::array<double, 3>{0.0, -90.0, 0.0}));  // even lon/lat; levels in index units
   // The file's (lon, lat, level) points: level 10 first point (0, 90) -18.5, (180, 0) -18.3,
   // last point (357.5, -90) 2.4; level 500 (0, 90) -25.31, (180, 0) -3.31; level 1000 (180, 0) -10.26.
   EXPECT_FLOAT_EQ(u.at(0, 72, 25), -18.5f);

@@ -226,7 +226,7 @@ TEST(NetcdfOrientation, LoadsNorthUpAndSurfaceDown) {
   EXPECT_EQ(t.axes[1].coordinates, (std::vector<double>{-60, 0, 60}));
   EXPECT_EQ(t.axes[2].coordinates, (std::vector<double>{100000, 50000, 1000}));
   EXPECT_EQ(t.axes[0].coordinates, (std::vector<double>{0, 90, 180, 270}));
-  EXPECT_EQ(t.origin, (std::array<double, 3>{0, -60, 100000}));
+  EXPECT_EQ(t.origin, (std::array<double, 3>{0, -60, 0}));  // pressure levels: index units (spacing 1)
   EXPECT_EQ(t.spacing, (std::array<double, 3>{90, 60, 1}));  // positive; pressure levels: 1
   // Depth (positive = "down") reversed: the deepest level at z = 0. Height stays as stored.
   Volume s = load_volume(f + ":S");
@@ -248,7 +248,7 @@ TEST(NetcdfOrientation, LoadsNorthUpAndSurfaceDown) {
   EXPECT_EQ(a->orientation[2],
             "z (plev): 100000 .. 1000 Pa, up (pressure decreasing, surface at z = 0), reversed from the file's order");
   const std::string text = format_file_info(info);
-  EXPECT_NE(text.find("origin 0 -60 100000"), std::string::npos) << text;
+  EXPECT_NE(text.find("origin 0 -60 0"), std::string::npos) << text;  // levels: index units
 }
 
 // The oriented grid written as .vti keeps origin, spacing and coordinates: read back by tfmatch
@@ -277,7 +277,9 @@ TEST(NetcdfOrientation, VtiOutputCarriesOriginSpacingAndCoordinates) {
   std::ifstream in(out);
   const nlohmann::json j = nlohmann::json::parse(in);
   EXPECT_EQ(j["dims"], nlohmann::json({4, 3, 3}));
-  EXPECT_EQ(j["origin"], nlohmann::json({0.0, -60.0, 100000.0}));
+  // Pressure levels in index units: VTK puts them at z = 0, 1, 2 (not 100000, 100001, ...), their
+  // values in z_coordinates.
+  EXPECT_EQ(j["origin"], nlohmann::json({0.0, -60.0, 0.0}));
   EXPECT_EQ(j["spacing"], nlohmann::json({90.0, 60.0, 1.0}));
   // North up and surface down as VTK sees it: (1, 0, 0) is the file's last latitude and level.
   EXPECT_EQ(j["points"]["1,0,0"].get<double>(), 100 * 2 + 10 * 2 + 1);
