@@ -61,6 +61,7 @@ FileInfo describe_selection(const std::string& spec, const VolumeOptions& option
          << " .. " << axis_coordinate(v, i, v.dims[size_t(i)] - 1) << (ax.units.empty() ? "" : " " + ax.units);
     a.orientation.push_back(line.str());
   }
+  if (!v.units.empty()) a.notes.push_back("units: " + v.units);  // as describe() says it
   accumulate_stats(a, v.values.data(), v.values.size());
   info.arrays.push_back(std::move(a));
   return info;

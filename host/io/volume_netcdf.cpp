@@ -302,7 +302,9 @@ Unpacker unpacker_of(const NcFile& f, const Layout& L) {
   }
   if (auto mv = att_numbers(nc, v, "missing_value")) {
     u.missing.insert(u.missing.end(), mv->begin(), mv->end());
-    u.notes.push_back("missing_value " + std::to_string((*mv)[0]) + (mv->size() > 1 ? " ..." : ""));
+    std::ostringstream os;  // as _FillValue is printed: 1e+20, not std::to_string's 100000000000000000000.000000
+    os << "missing_value " << (*mv)[0] << (mv->size() > 1 ? " ..." : "");
+    u.notes.push_back(os.str());
   }
   auto sf = att_numbers(nc, v, "scale_factor");
   auto ao = att_numbers(nc, v, "add_offset");

@@ -72,6 +72,7 @@ std::filesystem::path make_file(const TempDir& dir, const std::string& file, int
   ok(nc_put_att_double(nc, P, "scale_factor", NC_DOUBLE, 1, &scale));
   ok(nc_put_att_double(nc, P, "add_offset", NC_DOUBLE, 1, &offset));
   ok(nc_put_att_double(nc, P, "missing_value", NC_DOUBLE, 1, &missing));
+  text_att(nc, P, "units", "Pa");
   const int E = def_var(nc, "E", NC_DOUBLE, {ens, time, lat, lon});
   const int B = def_var(nc, "B", NC_BYTE, {lat, lon});
   text_att(nc, B, "_Unsigned", "true");
@@ -366,6 +367,12 @@ TEST(NetcdfInfo, ListsVariablesWithRangesAndNoData) {
   EXPECT_EQ(*a->min, 0.0);
   EXPECT_EQ(*a->max, 1000 + 200 + 30 + 3);  // the largest value is the fill's neighbour
   EXPECT_NE(format_file_info(info).find("time = 2 (--time)"), std::string::npos);
+  // Attribute values as numbers are written elsewhere ("-32767", not "-32767.000000").
+  const std::string text = format_file_info(info);
+  EXPECT_NE(text.find("missing_value -32767\n"), std::string::npos) << text;
+  // One selected variable (info FILE:VAR) names its units too.
+  const std::string one = format_file_info(describe_selection(path.string() + ":P", {}));
+  EXPECT_NE(one.find("units: Pa"), std::string::npos) << one;
 }
 
 // `info` reads a variable's slabs a block of rows at a time (a 2048 x 1024 one under a budget
