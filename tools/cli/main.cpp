@@ -30,6 +30,7 @@
 #include "tfmatch/model/parameter_names.h"
 #include "tfmatch/model/phase_timer.h"
 #include "tfmatch/model/progress.h"
+#include "tfmatch/model/shell_words.h"
 #include "tfmatch/shaders/shader_registry.h"
 #include "tfmatch_version.h"  // generated in the build directory (top-level CMakeLists.txt)
 
@@ -309,18 +310,10 @@ std::string version_text() {
 
 std::string version_line() { return std::string("tfmatch ") + TFMATCH_VERSION + " (commit " + TFMATCH_GIT_COMMIT + ")"; }
 
-// argv as a shell would need it typed: words with anything but [A-Za-z0-9_./:=,+-@%] single-quoted.
+// argv as a shell would need it typed (shell_word).
 static std::string quoted_command_line(int argc, char** argv) {
   std::string out;
-  for (int i = 0; i < argc; ++i) {
-    const std::string w = argv[i];
-    const bool plain = !w.empty() && std::all_of(w.begin(), w.end(), [](char c) {
-      return std::isalnum(static_cast<unsigned char>(c)) || std::string_view("_./:=,+-@%").find(c) != std::string_view::npos;
-    });
-    std::string q = "'";
-    for (char c : w) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    out += (i ? " " : "") + (plain ? w : q + "'");
-  }
+  for (int i = 0; i < argc; ++i) out += (i ? " " : "") + shell_word(argv[i]);
   return out;
 }
 
