@@ -18,6 +18,7 @@
 #include "tfmatch/model/cancellation.h"
 #include "tfmatch/model/memory_budget.h"
 #include "tfmatch/model/progress.h"
+#include "tfmatch/model/shell_words.h"
 #include "tfmatch/model/slice.h"
 #include "tfmatch/report/font.h"
 #include "tfmatch/report/png_io.h"
@@ -438,9 +439,13 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   write_file_atomically(dir / "metrics.json", json_text(metrics, 2) + "\n");
   out.files.push_back("metrics.json");
 
-  // What reproduces the page: the command, the version, and both TFs as used (linear tables).
-  write_file_atomically(dir / "command.txt", (in.command_line.empty() ? std::string("(library call)") : in.command_line) +
-                                                 "\n" + (in.version.empty() ? "" : in.version + "\n"));
+  // What reproduces the page: where and what was run (its paths may be relative to that
+  // directory), the version, and both TFs as used (linear tables).
+  write_file_atomically(dir / "command.txt",
+                        (in.command_line.empty() ? std::string("(library call)")
+                                                 : "cd " + shell_word(std::filesystem::current_path().string()) + "\n" +
+                                                       in.command_line) +
+                            "\n" + (in.version.empty() ? "" : in.version + "\n"));
   write_file_atomically(dir / "reference_tf.json", tf_to_json(in.ref_tf));
   write_file_atomically(dir / "optimized_tf.json", tf_to_json(r.tf));
   for (const char* f : {"command.txt", "reference_tf.json", "optimized_tf.json"}) out.files.push_back(f);

@@ -9,6 +9,7 @@
 #include "cli_runner.h"
 #include "tfmatch/io/json.h"
 #include "tfmatch/io/tf_formats.h"
+#include "tfmatch/model/shell_words.h"
 #include "tfmatch/model/synthetic.h"
 #include "tfmatch/report/metrics.h"
 #include "tfmatch/report/png_io.h"
@@ -98,7 +99,9 @@ TEST_F(Report, WritesPicturesMetricsAndPage) {
   const double rb = s.residual_max_before, ra = s.residual_max_after;
   EXPECT_EQ(row("Residual max").find("class=\"better\"") != std::string::npos, ra < rb - 0.01 * std::max(rb, ra))
       << row("Residual max");
-  EXPECT_EQ(read_text(dir / "command.txt"), in.command_line + "\n" + in.version + "\n");
+  // Where it ran first: the command's paths may be relative to it.
+  EXPECT_EQ(read_text(dir / "command.txt"),
+            "cd " + shell_word(std::filesystem::current_path().string()) + "\n" + in.command_line + "\n" + in.version + "\n");
   EXPECT_EQ(read_transfer_function(dir / "reference_tf.json").rgba, ref_tf.rgba);
   const TransferFunction saved = read_transfer_function(dir / "optimized_tf.json");
   EXPECT_EQ(saved.rgba, result.tf.rgba);
