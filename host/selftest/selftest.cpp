@@ -163,6 +163,7 @@ SelftestReport run_selftest(Context& ctx, const SelftestOptions& options, const 
   report.driver_version = props.driverVersion;
   report.validation = ctx.validation_enabled();
   report.quick = options.quick;
+  report.perturbation = options.perturbation;
   // Messages from before the self-test are not any case's doing.
   (void)ctx.take_validation_messages();
   const auto t0 = std::chrono::steady_clock::now();
@@ -221,7 +222,10 @@ void print_selftest_table(std::ostream& out, const SelftestReport& report) {
   };
   out << "device: " << report.device << " (vendor " << hex(report.vendor_id, 4) << ", device "
       << hex(report.device_id, 4) << "); driver: " << report.driver << " (version " << hex(report.driver_version, 8)
-      << "); validation " << (report.validation ? "on" : "off") << "\n";
+      << "); validation " << (report.validation ? "on" : "off");
+  if (report.perturbation != 0.0)
+    out << "; device values perturbed by " << format_number(report.perturbation) << " (--perturb: every case must fail)";
+  out << "\n";
   for (const Row& r : rows)
     out << pad(r.kernel, w[0], false) << "  " << pad(r.name, w[1], false) << "  " << pad(r.error, w[2], true) << "  "
         << pad(r.bound, w[3], true) << "  " << pad(r.time, w[4], true) << "  " << r.result << "\n";

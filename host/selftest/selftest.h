@@ -51,6 +51,7 @@ struct SelftestReport {
   uint32_t api_version = 0;
   bool validation = false;  // the Khronos validation layer was on (any message fails the case)
   bool quick = false;
+  double perturbation = 0.0;  // SelftestOptions::perturbation: non-zero, every comparing case must fail
   std::vector<SelftestCase> cases;
   double time_ms = 0.0;
 

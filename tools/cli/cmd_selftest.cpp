@@ -21,6 +21,7 @@ struct SelftestArgs {
   bool no_validation = false;
   std::string json;
   std::vector<std::string> kernels;
+  double perturbation = 0.0;
 };
 
 // A non-finite error (NaN read back, say) becomes null: JSON has no infinity.
@@ -53,6 +54,7 @@ nlohmann::json report_json(const SelftestReport& r) {
                "." + std::to_string(VK_API_VERSION_PATCH(r.api_version))},
           {"validation", r.validation},
           {"quick", r.quick},
+          {"perturbation", r.perturbation},
           {"passed", r.passed()},
           {"counts",
            {{"pass", r.count(SelftestStatus::Pass)},
@@ -70,6 +72,7 @@ int run_selftest_command(const SelftestArgs& a) {
   SelftestOptions options;
   options.quick = a.quick;
   options.kernels = a.kernels;
+  options.perturbation = a.perturbation;
   // The case being run (a full run takes tens of seconds on a CPU device): an updating line on a
   // terminal, periodic lines in a log.
   std::unique_ptr<Progress> progress;
@@ -117,6 +120,10 @@ CommandRegistration reg(95, [](CLI::App& app) {
             return "no kernel named '" + name + "' (kernels: " + list + ")";
           },
           "KERNEL"));
+  sub->add_option("--perturb", args->perturbation,
+                  "Add this to the first device value each case compares, to prove on this device that every "
+                  "check can fail: with a value past the bounds (1) every case that compares must FAIL (exit 1)")
+      ->check(CLI::Range(0.0, 1e6));
   sub->add_flag("--no-validation", args->no_validation,
                 "Do not turn the validation layer on by default (--validation or TFMATCH_VALIDATION=1 still do)");
   sub->callback([args] { exit_code() = run_selftest_command(*args); });

@@ -197,6 +197,28 @@ TEST(SelftestCli, CasesBeyondTheMemoryBudgetAreSkippedNotFailed) {
   EXPECT_NE(r.output.find("TFMATCH_MAX_MEMORY=16M"), std::string::npos) << r.output;
 }
 
+// --perturb proves on the device at hand that every check can fail: each case that compares
+// fails (exit 1), and the report says the run was perturbed.
+TEST(SelftestCli, PerturbMakesEveryComparingCaseFail) {
+  const test::CliSplitResult r = test::run_cli_split("-q selftest --quick --kernel residual_map,gd_update --perturb 1 --json -");
+  EXPECT_EQ(r.exit_code, 1) << r.errors;
+  const nlohmann::json j = nlohmann::json::parse(r.output, nullptr, false);  // stdout: the JSON alone
+  ASSERT_TRUE(j.is_object()) << r.output;
+  EXPECT_EQ(j["perturbation"], 1.0);
+  EXPECT_FALSE(j["passed"].get<bool>());
+  int failed = 0;
+  for (const auto& c : j["cases"]) {
+    if (c["status"] == "skipped") continue;
+    EXPECT_EQ(c["status"], "fail") << c.dump();
+    ++failed;
+  }
+  EXPECT_GT(failed, 0);
+  const test::CliResult table = test::run_cli("selftest --quick --kernel gd_update --perturb 1");
+  EXPECT_EQ(table.exit_code, 1);
+  EXPECT_NE(table.output.find("perturbed by 1 (--perturb: every case must fail)"), std::string::npos) << table.output;
+  EXPECT_EQ(test::run_cli("selftest --perturb -1").exit_code, 2);
+}
+
 TEST(SelftestCli, PrintsAnAlignedTableAndExitsOneOnFailure) {
   const test::CliResult r = test::run_cli("selftest --quick --kernel residual_map");
   EXPECT_EQ(r.exit_code, 0) << r.output;
