@@ -6,7 +6,10 @@
 #include <numbers>
 #include <sstream>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
+#include "tfmatch/model/axis_ticks.h"
 #include "tfmatch/shaders/render_layout.h"  // TFM_MAX_SAMPLE_OPTICAL_DEPTH, the shaders' clamp
 
 namespace tfm {
@@ -168,9 +171,70 @@ void draw_axis_letter(Image& image, int axis, double cx, double cy, Rgb8 c) {
   }
 }
 
+// Ticks along the axis edge of axis k (from `origin`, the first voxel's corner, to `end`), at round
+// values of its coordinates, each labelled: outside the box (away from its centre in the picture)
+// where the picture has room, else just inside the edge on a white patch (a framed box fills the
+// picture: a map's edges are the picture's). A label that would touch the previous one is left out.
+void draw_coordinate_ticks(Image& image, const CameraFrame& frame, const VolumeGeometry& g, const GridAxis& axis,
+                           int k, const glm::dvec2& origin, const glm::dvec2& end, const glm::dvec2& centre,
+                           Rgb8 colour) {
+  const glm::dvec2 along = end - origin;
+  const double length = glm::length(along);
+  const auto& c = axis.coordinates;
+  if (length < 80.0 || c.size() != g.dims[size_t(k)] || c.size() < 2) return;
+  glm::dvec2 outward(-along.y / length, along.x / length);
+  if (glm::dot(outward, 0.5 * (origin + end) - centre) < 0) outward = -outward;
+  const Rgb8 text{60, 60, 60}, patch{255, 255, 255};
+  const int label_h = 7;
+  struct Tick {
+    glm::dvec2 at;
+    std::string label;
+    int width;
+  };
+  std::vector<Tick> ticks;
+  const auto [lo, hi] = std::minmax_element(c.begin(), c.end());
+  for (double v : axis_ticks(axis, *lo, *hi, std::max(2, int(length / 70.0)))) {
+    const std::optional<double> f = coordinate_index(axis, v);
+    if (!f) continue;
+    glm::dvec3 point(-0.5);
+    point[k] = *f;
+    const auto p = project_to_pixel(frame, g, point, image.width, image.height);
+    // Not at the edge's ends: the corners belong to two axes, whose labels would meet there.
+    if (!p || glm::length(*p - origin) < 12.0 || glm::length(*p - end) < 12.0) continue;
+    const std::string label = coordinate_label(axis, v);
+    ticks.push_back({*p + 0.5, label, fixed_text_width(label)});
+  }
+  // A label's top-left corner on side `n`: its centre beyond a 4-pixel tick by its half-extent along n.
+  auto label_at = [&](const Tick& t, const glm::dvec2& n) {
+    const double reach = 7.0 + 0.5 * (std::abs(n.x) * t.width + std::abs(n.y) * label_h);
+    return glm::ivec2(int(std::lround(t.at.x + reach * n.x - 0.5 * t.width)),
+                      int(std::lround(t.at.y + reach * n.y - 0.5 * label_h)));
+  };
+  auto fits = [&](const Tick& t, const glm::ivec2& at) {
+    return at.x >= 2 && at.y >= 2 && at.x + t.width + 2 <= int(image.width) && at.y + label_h + 2 <= int(image.height);
+  };
+  // One side for the whole axis: outside where every label fits there.
+  const bool out = std::all_of(ticks.begin(), ticks.end(), [&](const Tick& t) { return fits(t, label_at(t, outward)); });
+  const glm::dvec2 n = out ? outward : -outward;
+  bool placed = false;
+  glm::dvec4 last(0.0);  // the previous label's box: x0, y0, x1, y1
+  for (const Tick& t : ticks) {
+    const glm::ivec2 at = label_at(t, n);
+    if (!fits(t, at)) continue;
+    const glm::dvec4 box(at.x - 2, at.y - 2, at.x + t.width + 2, at.y + label_h + 2);
+    if (placed && box.x < last.z + 2 && last.x < box.z + 2 && box.y < last.w + 2 && last.y < box.w + 2) continue;
+    draw_line(image, t.at.x, t.at.y, t.at.x + 4.0 * n.x, t.at.y + 4.0 * n.y, colour, 1.0);
+    if (!out) fill_rect(image, at.x - 1, at.y - 1, t.width + 2, label_h + 2, patch);
+    draw_fixed_text(image, at.x, at.y, t.label, text);
+    last = box;
+    placed = true;
+  }
+}
+
 }  // namespace
 
-void draw_box_outline(Image& image, const VolumeGeometry& g, const RenderSettings& s) {
+void draw_box_outline(Image& image, const VolumeGeometry& g, const RenderSettings& s,
+                      const std::array<GridAxis, 3>* axes) {
   if (!s.box_outline) return;
   const CameraFrame frame = orbit_frame(s.camera, g, image.width, image.height);
   const glm::dvec3 lo(-0.5), hi(double(g.dims[0]) - 0.5, double(g.dims[1]) - 0.5, double(g.dims[2]) - 0.5);
@@ -199,6 +263,13 @@ void draw_box_outline(Image& image, const VolumeGeometry& g, const RenderSetting
         if (at.x >= 4 && at.y >= 5 && at.x + 4 <= image.width && at.y + 5 <= image.height)
           draw_axis_letter(image, k, std::floor(at.x) + 0.5, std::floor(at.y) + 0.5, axis_colour[k]);
       }
+  if (!axes) return;
+  const auto centre = project_to_pixel(frame, g, 0.5 * (lo + hi), image.width, image.height);
+  const auto origin = project_to_pixel(frame, g, corner(0), image.width, image.height);
+  if (!centre || !origin) return;
+  for (int k = 0; k < 3; ++k)
+    if (const auto end = project_to_pixel(frame, g, corner(1 << k), image.width, image.height))
+      draw_coordinate_ticks(image, frame, g, (*axes)[size_t(k)], k, *origin, *end, *centre, axis_colour[k]);
 }
 
 }  // namespace tfm

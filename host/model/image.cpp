@@ -240,6 +240,12 @@ int text_width(const std::string& text, int scale) {
 
 int text_height(int scale) { return g_face ? g_face->height(scale) : 7 * scale; }
 
+int draw_fixed_text(Image& img, int x, int y, const std::string& text, Rgb8 c) {
+  return draw_bitmap_text(img, x, y, text, c, 1);
+}
+
+int fixed_text_width(const std::string& text) { return text.empty() ? 0 : int(text.size()) * 6 - 1; }
+
 std::string fit_text(const std::string& text, int max_width, int scale) {
   if (text_width(text, scale) <= max_width) return text;
   const std::string dots = "...";

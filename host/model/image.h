@@ -62,6 +62,10 @@ void draw_line(Image& img, double x0, double y0, double x1, double y1, Rgb8 c, d
 int draw_text(Image& img, int x, int y, const std::string& text, Rgb8 c, int scale = 1);
 int text_width(const std::string& text, int scale = 1);
 int text_height(int scale = 1);
+// Text in the built-in 5x7 font whatever face is installed: for labels drawn on renderings, which
+// must be the same pixels from every command (render, the reports, the viewer). 7 pixels tall.
+int draw_fixed_text(Image& img, int x, int y, const std::string& text, Rgb8 c);
+int fixed_text_width(const std::string& text);
 // `text` when it is at most `max_width` pixels wide, else "..." and the longest end of it that
 // fits (a path's end names the file and variable; its start is the least telling), cut at a
 // character, not inside a UTF-8 sequence. "" when not even "..." fits.

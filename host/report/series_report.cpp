@@ -190,7 +190,7 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
   // without it.
   const VolumeGeometry geometry = VolumeGeometry::from(in.ref.dims, in.ref.spacing, s.z_scale);
   auto outlined = [&](Image img) {
-    draw_box_outline(img, geometry, s);
+    draw_box_outline(img, geometry, s, &in.ref.axes);
     return img;
   };
   // Every TF over its field's histogram, one plot size for all, so each field's colours have values.

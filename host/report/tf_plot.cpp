@@ -29,16 +29,6 @@ std::vector<uint64_t> field_histogram(std::span<const float> values, const Field
   return counts;
 }
 
-std::vector<double> nice_ticks(double lo, double hi, int target) {
-  if (!(hi > lo) || !std::isfinite(lo) || !std::isfinite(hi) || target < 1) return {};
-  const double raw = (hi - lo) / target, mag = std::pow(10.0, std::floor(std::log10(raw)));
-  const double step = raw / mag < 1.5 ? mag : raw / mag < 3.5 ? 2 * mag : raw / mag < 7.5 ? 5 * mag : 10 * mag;
-  std::vector<double> ticks;
-  for (double k = std::ceil(lo / step - 1e-9); k * step <= hi + 1e-9 * step; k += 1)
-    ticks.push_back(std::abs(k) < 1e-12 ? 0.0 : k * step);  // no "-0"
-  return ticks;
-}
-
 int draw_value_ticks(Image& img, int left, int width, int y, const FieldRange& range, Rgb8 tick, Rgb8 text) {
   const int tick_h = 4, label_y = y + tick_h + 2;
   int last_right = -1000;

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "tfmatch/model/axis_ticks.h"  // nice_ticks
 #include "tfmatch/model/field_mapping.h"
 #include "tfmatch/model/image.h"
 #include "tfmatch/model/transfer_function.h"
@@ -30,9 +31,6 @@ struct TfPlotOptions {
 // A field's name for a plot's value axis: its file name with the variable and selectors, without
 // folders, and the values' units where the file gives them.
 std::string field_label(const Volume& v);
-
-// About `target` round values (1, 2 or 5 times a power of ten apart) within [lo, hi].
-std::vector<double> nice_ticks(double lo, double hi, int target = 5);
 
 // A value axis under a plot whose [range.lo, range.hi] spans `width` pixels from x = `left`: ticks
 // 4 pixels down from `y` at round values, their labels beneath (inside the picture, never

@@ -165,6 +165,7 @@ std::unique_ptr<ViewSession::Derived> ViewSession::derive(const Volume& ref, con
                                                           const Derived* same_fields) {
   auto d = std::make_unique<Derived>();
   d->geometry = VolumeGeometry::from(ref.dims, ref.spacing, config_.render.z_scale);
+  d->axes = ref.axes;
   // What the session holds beside the loaded fields, checked before any of it is made (the view
   // of two 64 MiB fields held 610 MiB at a budget of 210 MiB): both fields and both residual maps
   // on the device, and the residual maps on the host. A CPU device reads the fields and maps where

@@ -16,6 +16,7 @@ namespace tfm {
 // installed whole, so a picture never mixes one state's field with another's TF.
 struct ViewSession::Derived {
   VolumeGeometry geometry;
+  std::array<GridAxis, 3> axes;  // the reference's: coordinate ticks on the pictures
   // The two fields on the device with their renderers: shared with the next Derived when a job
   // changes only TFs (an optimization, a reference-TF edit), so they are uploaded once per field.
   std::shared_ptr<const DeviceField> ref, field;

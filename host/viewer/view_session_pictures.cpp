@@ -42,14 +42,14 @@ bool same_rendering(const RenderSettings& a, const RenderSettings& b) {
 // markers when decorated (`undecorated`, when given, receives the picture before). Needs no
 // device: render() does it after letting the device go, so it overlaps the next request's render.
 Image finish_picture(const RenderedImage& rendered, const RenderSettings& s, const VolumeGeometry& geometry,
-                     const std::vector<GridIndex>& markers, bool decorate, PictureTiming* timing,
-                     Image* undecorated = nullptr) {
+                     const std::array<GridAxis, 3>& axes, const std::vector<GridIndex>& markers, bool decorate,
+                     PictureTiming* timing, Image* undecorated = nullptr) {
   const auto t0 = std::chrono::steady_clock::now();
   Image picture = composite_over(rendered, s.background);
   if (undecorated) *undecorated = picture;
   const auto t1 = std::chrono::steady_clock::now();
   if (decorate) {
-    draw_box_outline(picture, geometry, s);
+    draw_box_outline(picture, geometry, s, &axes);
     draw_markers(picture, geometry, s, markers);
   }
   if (timing) {
@@ -88,7 +88,7 @@ RenderedImage ViewSession::render_on_device(ViewKind view, RenderSettings& s, Pi
 Image ViewSession::render_picture(ViewKind view, const RenderSettings& settings, bool decorate) {
   RenderSettings s = settings;
   const RenderedImage rendered = render_on_device(view, s, nullptr);
-  return finish_picture(rendered, s, derived_->geometry, markers(), decorate, nullptr);
+  return finish_picture(rendered, s, derived_->geometry, derived_->axes, markers(), decorate, nullptr);
 }
 
 Image ViewSession::render(ViewKind view, const RenderSettings& settings, double* distance_used, PictureTiming* timing,
@@ -102,6 +102,7 @@ Image ViewSession::render(ViewKind view, const RenderSettings& settings, double*
   // What the picture needs of the session's state, copied while the device (and so the state a
   // job would replace) is still this request's.
   const VolumeGeometry geometry = derived_->geometry;
+  const std::array<GridAxis, 3> axes = derived_->axes;
   const std::vector<GridIndex> dots = markers();
   const uint64_t version = version_;
   device.unlock();
@@ -110,7 +111,7 @@ Image ViewSession::render(ViewKind view, const RenderSettings& settings, double*
     *distance_used = glm::length(frame.eye - geometry.center()) / geometry.radius();
   }
   Shown shown{version, s, {}};
-  Image picture = finish_picture(rendered, s, geometry, dots, true, timing, &shown.picture);
+  Image picture = finish_picture(rendered, s, geometry, axes, dots, true, timing, &shown.picture);
   keep_shown(view, std::move(shown));
   return picture;
 }

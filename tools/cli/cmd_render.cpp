@@ -54,7 +54,7 @@ int run(RenderArgs a) {
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   Image picture = composite_over(image, a.settings.background);
   const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing, a.settings.z_scale);
-  draw_box_outline(picture, geometry, a.settings);
+  draw_box_outline(picture, geometry, a.settings, &volume.axes);
   draw_markers(picture, geometry, a.settings, markers);
   write_png(a.out, picture);
   outputs.commit();

@@ -86,7 +86,8 @@ int run(ResidualArgs a) {
     RenderedImage img = render_volume(*ctx, residual, residual_transfer_function(), shown, a.settings, &progress);
     progress.finish();
     Image picture = composite_over(img, a.settings.background);
-    draw_box_outline(picture, VolumeGeometry::from(residual.dims, residual.spacing, a.settings.z_scale), a.settings);
+    draw_box_outline(picture, VolumeGeometry::from(residual.dims, residual.spacing, a.settings.z_scale), a.settings,
+                     &ref.axes);
     write_png(a.image, picture);
   }
   outputs.commit();

@@ -1,0 +1,87 @@
+// Axis ticks and coordinate labels.
+#include "tfmatch/model/axis_ticks.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace tfm {
+namespace {
+
+std::string number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4g", std::abs(v) < 1e-9 ? 0.0 : v);
+  return buf;
+}
+
+bool has(const std::string& text, const char* word) { return text == word; }
+
+}  // namespace
+
+std::vector<double> nice_ticks(double lo, double hi, int target) {
+  if (!(hi > lo) || !std::isfinite(lo) || !std::isfinite(hi) || target < 1) return {};
+  const double raw = (hi - lo) / target, mag = std::pow(10.0, std::floor(std::log10(raw)));
+  const double step = raw / mag < 1.5 ? mag : raw / mag < 3.5 ? 2 * mag : raw / mag < 7.5 ? 5 * mag : 10 * mag;
+  std::vector<double> ticks;
+  for (double k = std::ceil(lo / step - 1e-9); k * step <= hi + 1e-9 * step; k += 1)
+    ticks.push_back(std::abs(k) < 1e-12 ? 0.0 : k * step);  // no "-0"
+  return ticks;
+}
+
+std::vector<double> axis_ticks(const GridAxis& axis, double lo, double hi, int target) {
+  if (!(is_longitude(axis) || is_latitude(axis)) || !(hi > lo) || !std::isfinite(lo) || !std::isfinite(hi) ||
+      target < 1)
+    return nice_ticks(lo, hi, target);
+  const double raw = (hi - lo) / target;
+  double step = 90.0;
+  for (double s : {1.0, 2.0, 5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 90.0})
+    if (s >= raw * 0.75) {
+      step = s;
+      break;
+    }
+  if (raw < 0.75) return nice_ticks(lo, hi, target);  // finer than a degree: decimal steps
+  std::vector<double> ticks;
+  for (double k = std::ceil(lo / step - 1e-9); k * step <= hi + 1e-9 * step; k += 1)
+    ticks.push_back(std::abs(k) < 1e-12 ? 0.0 : k * step);
+  return ticks;
+}
+
+bool is_longitude(const GridAxis& a) {
+  return a.units == "degrees_east" || a.units == "degree_east" || has(a.name, "lon") || has(a.name, "longitude");
+}
+
+bool is_latitude(const GridAxis& a) {
+  return a.units == "degrees_north" || a.units == "degree_north" || has(a.name, "lat") || has(a.name, "latitude");
+}
+
+std::string coordinate_label(const GridAxis& axis, double value) {
+  if (is_longitude(axis)) {
+    double lon = std::fmod(value, 360.0);
+    if (lon > 180.0) lon -= 360.0;
+    if (lon <= -180.0) lon += 360.0;
+    if (std::abs(lon) < 1e-9 || std::abs(std::abs(lon) - 180.0) < 1e-9) return number(std::abs(lon));
+    return number(std::abs(lon)) + (lon > 0 ? "E" : "W");
+  }
+  if (is_latitude(axis)) {
+    if (std::abs(value) < 1e-9) return "EQ";
+    return number(std::abs(value)) + (value > 0 ? "N" : "S");
+  }
+  return number(value);
+}
+
+std::optional<double> coordinate_index(const GridAxis& axis, double value) {
+  const std::vector<double>& c = axis.coordinates;
+  if (c.size() < 2 || !std::isfinite(value)) return std::nullopt;
+  const bool up = c.back() > c.front();
+  for (size_t i = 0; i + 1 < c.size(); ++i)
+    if (!(up ? c[i + 1] > c[i] : c[i + 1] < c[i])) return std::nullopt;  // not strictly monotone
+  for (size_t i = 0; i + 1 < c.size(); ++i) {
+    const double a = c[i], b = c[i + 1];
+    const double lo = std::min(a, b), hi = std::max(a, b);
+    if (value >= lo - 1e-9 * (hi - lo) && value <= hi + 1e-9 * (hi - lo))
+      return double(i) + std::clamp((value - a) / (b - a), 0.0, 1.0);
+  }
+  return std::nullopt;
+}
+
+}  // namespace tfm

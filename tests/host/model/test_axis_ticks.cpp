@@ -1,0 +1,103 @@
+// Coordinate ticks: round values at the steps maps use, labels as maps write them, where a value
+// lies among an axis's coordinates, and the ticks a rendering of a lat/lon grid gets along its
+// box's edges (none without coordinates, the same pixels whatever text face is installed).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "tfmatch/model/axis_ticks.h"
+#include "tfmatch/model/camera.h"
+
+namespace tfm {
+namespace {
+
+GridAxis axis(const std::string& name, const std::string& units, double first, double step, size_t n) {
+  GridAxis a{name, units, {}};
+  for (size_t i = 0; i < n; ++i) a.coordinates.push_back(first + step * double(i));
+  return a;
+}
+
+TEST(AxisTicks, LabelsAsMapsWriteThem) {
+  const GridAxis lon = axis("longitude", "degrees_east", 0, 2.5, 144), lat = axis("lat", "", -90, 2.5, 73);
+  const GridAxis lev = axis("isobaricInhPa", "hPa", 850, -350, 2);
+  EXPECT_EQ(coordinate_label(lon, 45), "45E");
+  EXPECT_EQ(coordinate_label(lon, 315), "45W");  // 0..360 grids wrap into -180..180
+  EXPECT_EQ(coordinate_label(lon, -120), "120W");
+  EXPECT_EQ(coordinate_label(lon, 0), "0");
+  EXPECT_EQ(coordinate_label(lon, 180), "180");
+  EXPECT_EQ(coordinate_label(lat, 30), "30N");
+  EXPECT_EQ(coordinate_label(lat, -7.5), "7.5S");
+  EXPECT_EQ(coordinate_label(lat, 0), "EQ");
+  EXPECT_EQ(coordinate_label(lev, 500), "500");
+  // Degree axes step as maps do (45 over 360 degrees), others as nice_ticks.
+  EXPECT_EQ(axis_ticks(lon, 0, 357.5, 7), (std::vector<double>{0, 45, 90, 135, 180, 225, 270, 315}));
+  EXPECT_EQ(axis_ticks(lat, -90, 90, 4), (std::vector<double>{-90, -45, 0, 45, 90}));
+  EXPECT_EQ(axis_ticks(lev, 500, 850, 4), nice_ticks(500, 850, 4));
+  EXPECT_EQ(axis_ticks(lat, 44.2, 44.8, 3), nice_ticks(44.2, 44.8, 3));  // finer than a degree
+}
+
+TEST(AxisTicks, CoordinateIndexInterpolatesIncreasingAndDecreasingAxes) {
+  const GridAxis lat = axis("lat", "degrees_north", -90, 2.5, 73);
+  EXPECT_DOUBLE_EQ(*coordinate_index(lat, -90), 0.0);
+  EXPECT_DOUBLE_EQ(*coordinate_index(lat, 0), 36.0);
+  EXPECT_DOUBLE_EQ(*coordinate_index(lat, 1.25), 36.5);
+  EXPECT_FALSE(coordinate_index(lat, 91).has_value());
+  const GridAxis lev = axis("lev", "hPa", 1000, -100, 10);  // 1000 .. 100 hPa, decreasing
+  EXPECT_DOUBLE_EQ(*coordinate_index(lev, 850), 1.5);
+  GridAxis bent = lev;
+  bent.coordinates[4] = bent.coordinates[2];  // not monotone: no place for any value
+  EXPECT_FALSE(coordinate_index(bent, 950).has_value());
+  EXPECT_FALSE(coordinate_index(GridAxis{}, 1.0).has_value());
+}
+
+// A 73 x 37 x 2 lat/lon grid seen from above, as a map: labels on the south and west edges (the
+// x and y axis edges), in the fixed font, whatever face is installed; nothing without coordinates.
+TEST(AxisTicks, AMapRenderingGetsLabelledTicksAlongItsAxisEdges) {
+  const VolumeGeometry g = VolumeGeometry::from({73, 37, 2}, {5, 5, 1}, 1.0);
+  RenderSettings s;
+  s.width = 400;
+  s.height = 220;
+  s.camera.elevation_deg = 90;
+  s.camera.azimuth_deg = -90;
+  const std::array<GridAxis, 3> axes{axis("lon", "degrees_east", 0, 5, 73), axis("lat", "degrees_north", -90, 5, 37),
+                                     axis("lev", "hPa", 850, -350, 2)};
+  auto draw = [&](const std::array<GridAxis, 3>* a) {
+    Image img(s.width, s.height);
+    draw_box_outline(img, g, s, a);
+    return img;
+  };
+  const Image plain = draw(nullptr), ticked = draw(&axes);
+  const std::array<GridAxis, 3> bare{};
+  EXPECT_EQ(draw(&bare).rgb, plain.rgb) << "an axis without coordinates gets no ticks";
+  EXPECT_NE(ticked.rgb, plain.rgb);
+  // Label ink (the labels' grey) near the bottom and the left edges of the box, none elsewhere.
+  const CameraFrame frame = orbit_frame(s.camera, g, s.width, s.height);
+  const auto sw = *project_to_pixel(frame, g, glm::dvec3(-0.5), s.width, s.height);
+  int south = 0, west = 0, elsewhere = 0;
+  for (uint32_t y = 0; y < ticked.height; ++y)
+    for (uint32_t x = 0; x < ticked.width; ++x) {
+      const uint8_t* p = ticked.at(x, y);
+      if (!(p[0] == 60 && p[1] == 60 && p[2] == 60)) continue;
+      const bool near_south = std::abs(double(y) - sw.y) < 20, near_west = std::abs(double(x) - sw.x) < 30;
+      south += near_south;
+      west += near_west && !near_south;
+      elsewhere += !near_south && !near_west;
+    }
+  EXPECT_GT(south, 60) << "longitude labels";
+  EXPECT_GT(west, 30) << "latitude labels";
+  EXPECT_EQ(elsewhere, 0);
+  // The same pixels with another text face installed: the labels use the fixed font.
+  struct Wide : TextFace {
+    int draw(Image&, int, int, const std::string& t, Rgb8, int) const override { return int(t.size()) * 20; }
+    int width(const std::string& t, int) const override { return int(t.size()) * 20; }
+    int height(int) const override { return 30; }
+  } wide;
+  set_text_face(&wide);
+  const Image with_face = draw(&axes);
+  set_text_face(nullptr);
+  EXPECT_EQ(with_face.rgb, ticked.rgb);
+}
+
+}  // namespace
+}  // namespace tfm
