@@ -44,6 +44,27 @@ struct AssembleCase {
 // form the same integer totals as the CPU's exact emulation. Every case also sums the loss before
 // optimization (the second field on the reference TF's 17 entries), so it is checked on every
 // path, chunking and range: within 1e-6 relative plus 2^-31 per voxel of before_loss_cpu.
+// The device's system against the reference's: the voxel count exactly, every entry of M, S^T b
+// and b^T b within 1e-6 relative plus `abs_bound`.
+void check_system(Check& check, const NormalEquations& g, const NormalEquations& r, double abs_bound) {
+  check.equal("voxel count", 0, double(g.voxels), double(r.voxels));
+  auto near = [&](const char* what, size_t j, double device, double reference) {
+    check.near(what, j, device, reference, 1e-6 * std::abs(reference) + abs_bound);
+  };
+  for (size_t j = 0; j < r.diag.size(); ++j) near("M diagonal", j, g.diag[j], r.diag[j]);
+  for (size_t j = 0; j < r.off.size(); ++j) near("M off-diagonal", j, g.off[j], r.off[j]);
+  for (Eigen::Index j = 0; j < r.rhs.rows(); ++j)
+    for (int ch = 0; ch < 4; ++ch) near("S^T b (4j+c)", size_t(4 * j + ch), g.rhs(j, ch), r.rhs(j, ch));
+  for (int ch = 0; ch < 4; ++ch) near("b^T b channel", size_t(ch), g.btb[ch], r.btb[ch]);
+}
+
+// Every 32.32 fixed-point slot the device formed against the CPU's exact integer totals.
+void check_fixed_point(Check& check, const std::vector<uint64_t>& device, const std::vector<uint64_t>& exact) {
+  check.require(device.size() == exact.size(), "the device returned another number of slots");
+  for (size_t k = 0; k < exact.size() && k < device.size(); ++k)
+    check.equal("fixed-point slot (units of 2^-32)", k, double(int64_t(device[k] - exact[k])), 0.0);
+}
+
 void assemble(Context& ctx, Check& check, const AssembleCase& c) {
   const std::string missing =
       reduction_unavailable(ctx, {c.mode, c.atomics}, c.tf_size, uint64_t(TFM_ASSEMBLE_SLOTS(c.tf_size)) * 8,
@@ -67,22 +88,9 @@ void assemble(Context& ctx, Check& check, const AssembleCase& c) {
   gpu.add(ref, opt, ref_map, opt_map, tf, &before_map);
   const NormalEquations g = gpu.result();
   const NormalEquations r = assemble_normal_equations_cpu(p.ref, p.opt, ref_map, opt_map, ref_tf);
-  check.equal("voxel count", 0, double(g.voxels), double(r.voxels));
-  const double abs_bound = double(c.voxels) * std::ldexp(1.0, -32) + 1e-12;
-  auto near = [&](const char* what, size_t j, double device, double reference) {
-    check.near(what, j, device, reference, 1e-6 * std::abs(reference) + abs_bound);
-  };
-  for (size_t j = 0; j < r.diag.size(); ++j) near("M diagonal", j, g.diag[j], r.diag[j]);
-  for (size_t j = 0; j < r.off.size(); ++j) near("M off-diagonal", j, g.off[j], r.off[j]);
-  for (Eigen::Index j = 0; j < r.rhs.rows(); ++j)
-    for (int ch = 0; ch < 4; ++ch) near("S^T b (4j+c)", size_t(4 * j + ch), g.rhs(j, ch), r.rhs(j, ch));
-  for (int ch = 0; ch < 4; ++ch) near("b^T b channel", size_t(ch), g.btb[ch], r.btb[ch]);
-  const std::vector<uint64_t> exact =
-      assemble_normal_equations_fixed_point(p.ref, p.opt, ref_map, opt_map, ref_tf, &before_map);
-  const std::vector<uint64_t> device = gpu.fixed_point_slots();
-  check.require(device.size() == exact.size(), "the device returned another number of slots");
-  for (size_t k = 0; k < exact.size() && k < device.size(); ++k)
-    check.equal("fixed-point slot (units of 2^-32)", k, double(int64_t(device[k] - exact[k])), 0.0);
+  check_system(check, g, r, double(c.voxels) * std::ldexp(1.0, -32) + 1e-12);
+  check_fixed_point(check, gpu.fixed_point_slots(),
+                    assemble_normal_equations_fixed_point(p.ref, p.opt, ref_map, opt_map, ref_tf, &before_map));
   check.require(g.before.has_value(), "the assembly returned no loss before optimization");
   if (g.before) {
     const std::array<double, 4> want = before_loss_cpu(p.ref, p.opt, ref_map, before_map, ref_tf);
@@ -141,22 +149,11 @@ void assemble_stored(Context& ctx, Check& check, FieldFormat format, size_t voxe
   gpu.add(ref, opt, ref_map, opt_map, tf);
   const NormalEquations g = gpu.result();
   const NormalEquations r = assemble_normal_equations_cpu(p.ref, values, ref_map, opt_map, ref_tf);
-  check.equal("voxel count", 0, double(g.voxels), double(r.voxels));
   const double per_voxel = std::ldexp(1.0, -32) + (unorm ? 2.2 * (n - 1) * std::ldexp(1.0, -24) : 0.0);
-  const double abs_bound = double(voxels) * per_voxel + 1e-12;
-  auto near = [&](const char* what, size_t j, double device, double reference) {
-    check.near(what, j, device, reference, 1e-6 * std::abs(reference) + abs_bound);
-  };
-  for (size_t j = 0; j < r.diag.size(); ++j) near("M diagonal", j, g.diag[j], r.diag[j]);
-  for (size_t j = 0; j < r.off.size(); ++j) near("M off-diagonal", j, g.off[j], r.off[j]);
-  for (Eigen::Index j = 0; j < r.rhs.rows(); ++j)
-    for (int ch = 0; ch < 4; ++ch) near("S^T b (4j+c)", size_t(4 * j + ch), g.rhs(j, ch), r.rhs(j, ch));
-  if (unorm) return;
-  const std::vector<uint64_t> exact = assemble_normal_equations_fixed_point(p.ref, values, ref_map, opt_map, ref_tf);
-  const std::vector<uint64_t> device = gpu.fixed_point_slots();
-  check.require(device.size() == exact.size(), "the device returned another number of slots");
-  for (size_t k = 0; k < exact.size() && k < device.size(); ++k)
-    check.equal("fixed-point slot (units of 2^-32)", k, double(int64_t(device[k] - exact[k])), 0.0);
+  check_system(check, g, r, double(voxels) * per_voxel + 1e-12);
+  if (!unorm)
+    check_fixed_point(check, gpu.fixed_point_slots(),
+                      assemble_normal_equations_fixed_point(p.ref, values, ref_map, opt_map, ref_tf));
 }
 
 std::string assemble_name(const AssembleCase& c) {
