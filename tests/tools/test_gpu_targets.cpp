@@ -12,6 +12,7 @@
 
 #include "cli_runner.h"
 #include "tfmatch/io/json.h"
+#include "tfmatch/kernels/reduction.h"
 
 namespace tfm {
 namespace {
@@ -117,8 +118,15 @@ TEST_F(GpuTargets, JudgesTheBenchmarksRunsAgainstEachGoal) {
   EXPECT_EQ(rows["optimize from disk"]["verdict"], verdict(stream["runs"][0]["optimize_over_read"].get<double>() <= 1.5));
   EXPECT_EQ(rows["cuda-normal-equations"]["verdict"], "not measured");  // no row of it
   bool diffdvr = true;
-  const json diffdvr_rows = read_json(dir.path / "bench-diffdvr.json")["iterations"];
+  const json diffdvr_json = read_json(dir.path / "bench-diffdvr.json");
+  const json diffdvr_rows = diffdvr_json["iterations"];
   ASSERT_FALSE(diffdvr_rows.empty());
+  // Which summing path the backward pass took, as the table's header names it.
+  const std::string backward = diffdvr_json.value("backward_reduction", std::string());
+  EXPECT_TRUE(backward == reduction_mode_name(ReductionMode::Private) ||
+              backward == reduction_mode_name(ReductionMode::RunsShared) ||
+              backward == reduction_mode_name(ReductionMode::RunsGlobal))
+      << diffdvr_json.dump();
   for (const json& row : diffdvr_rows)
     diffdvr = diffdvr && row["iteration_over_forward_only"].get<double>() <= 2.5;
   EXPECT_EQ(rows["DiffDVR iteration / forward"]["verdict"], verdict(diffdvr));

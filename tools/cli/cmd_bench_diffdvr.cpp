@@ -225,7 +225,11 @@ int run(const BenchArgs& a) {
   validate(a.settings);
   auto ctx = make_context();
   nlohmann::json j{{"device", ctx->device_name()}};
-  if (!a.cube_only) j["iterations"] = bench_iterations(*ctx, a);
+  if (!a.cube_only) {
+    j["iterations"] = bench_iterations(*ctx, a);
+    // How the backward pass sums its gradients on this device, as the table's header says.
+    j["backward_reduction"] = reduction_mode_name(DiffDvrBackwardKernel::choose(*ctx, 64));
+  }
   if (a.cube || a.cube_only) j["cube"] = bench_cube(*ctx, a);
   json.write(j);
   return 0;
