@@ -96,8 +96,9 @@ void orient_axes(std::array<GridAxis, 3>& axes, std::array<double, 3>& origin, c
     auto& c = axes[k].coordinates;
     if (o.flip[k]) std::reverse(c.begin(), c.end());
     if (c.empty()) continue;
-    // Whether origin c[0] and the spacing give every coordinate (within float32 rounding of the span).
-    const double span = std::abs(c.back() - c.front()), tolerance = 1e-6 * std::max(span, std::abs(c.front())) + 1e-9;
+    // Whether origin c[0] and the spacing put every coordinate within half a step of its own
+    // (a nearly regular axis, such as Gaussian latitudes with their mean step, keeps its origin).
+    const double tolerance = 0.5 * std::abs(spacing[size_t(k)]);
     bool affine = true;
     for (size_t i = 0; i < c.size() && affine; ++i)
       affine = std::abs(c.front() + double(i) * spacing[size_t(k)] - c[i]) <= tolerance;

@@ -140,6 +140,10 @@ TEST_P(NetcdfGenerated, MapsDimensionsTimeFillPackingAndSpacing) {
   EXPECT_DOUBLE_EQ(v.spacing[0], 2.5);
   EXPECT_NEAR(v.spacing[1], (30.1 + 60.0) / 3.0, 1e-5);
   EXPECT_EQ(v.spacing[2], 1.0);
+  // The origin: the first latitude where the mean step keeps every latitude within half a step of
+  // its own (-60 + 30.03 i against -30.1, 0, 30.1); the irregular levels are in index units.
+  EXPECT_EQ(v.origin[1], -60.0);
+  EXPECT_EQ(v.origin[2], 0.0);
   // --var / --time through VolumeOptions; the spec's selection wins.
   VolumeOptions o;
   o.variable = "P";
