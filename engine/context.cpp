@@ -489,8 +489,12 @@ void Context::create_pipeline_cache(VkPipelineCache borrowed) {
 }
 
 VkFormatFeatureFlags Context::buffer_format_features(VkFormat format) const {
+  std::lock_guard lock(format_features_mutex_);
+  for (const auto& [known, features] : buffer_format_features_)
+    if (known == format) return features;
   VkFormatProperties props{};
   dispatch_->vkGetPhysicalDeviceFormatProperties(physical_device_, format, &props);
+  buffer_format_features_.emplace_back(format, props.bufferFeatures);
   return props.bufferFeatures;
 }
 

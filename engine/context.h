@@ -13,6 +13,7 @@
 #include <span>
 #include <string>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include <vulkan/vulkan_core.h>
@@ -137,7 +138,8 @@ class Context {
   // What the device can do with `format` in a buffer (VkFormatProperties::bufferFeatures), e.g.
   // VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT, which the kernels need of every field format they
   // read as texels: Vulkan makes it mandatory for R32_SFLOAT, R16_SFLOAT and R8_UNORM (and their
-  // RGBA forms) but not for R16_UNORM, which a device may lack.
+  // RGBA forms) but not for R16_UNORM, which a device may lack. Asked of the driver once per format
+  // (every dispatch that binds texels asks).
   VkFormatFeatureFlags buffer_format_features(VkFormat format) const;
   // The driver and the Vulkan version it reports, as `tfmatch devices` shows them: "llvmpipe Mesa
   // 22.3.6, Vulkan 1.3.230" (figures and reports name the driver beside the device).
@@ -243,6 +245,8 @@ class Context {
   uint32_t loop_iteration_limit_ = 0;
   bool int64_atomics_ = false;
   bool host_import_ = false;
+  mutable std::mutex format_features_mutex_;
+  mutable std::vector<std::pair<VkFormat, VkFormatFeatureFlags>> buffer_format_features_;  // asked so far
   uint64_t min_import_alignment_ = 0;
   uint64_t max_allocation_bytes_ = 0;
   std::mutex messages_mutex_;
