@@ -32,10 +32,11 @@ WorldOrientation world_orientation(const std::array<GridAxis, 3>& axes, const st
                                    const std::array<std::string, 3>& cf_positive = {});
 
 // Reverses the coordinates of the axes `o` flips. An axis with coordinates gets its first one as
-// origin where origin + i * spacing puts each within half a step of its own (an even or nearly even
-// axis in the spacing's units: longitudes, Gaussian latitudes, metres), else origin 0: an uneven or descending axis (pressure levels 850, 500 hPa)
-// is in index units, its coordinates in the axes alone, so that a file written with that origin
-// and spacing does not put 500 hPa at 851. No data: what `info` shows.
+// origin where origin + i * spacing puts each within half a step of its own (an even or nearly
+// even axis in the spacing's units: longitudes, Gaussian latitudes, metres), else origin 0: an
+// uneven or descending axis (pressure levels 850, 500 hPa) is in index units, its coordinates in
+// the axes alone, so that a file written with that origin and spacing does not put 500 hPa at
+// 851. No data: what `info` shows.
 void orient_axes(std::array<GridAxis, 3>& axes, std::array<double, 3>& origin, const std::array<double, 3>& spacing,
                  const WorldOrientation& o);
 

@@ -14,7 +14,13 @@ std::string number(double v) {
   return buf;
 }
 
-bool has(const std::string& text, const char* word) { return text == word; }
+// The multiples of `step` within [lo, hi].
+std::vector<double> multiples(double lo, double hi, double step) {
+  std::vector<double> ticks;
+  for (double k = std::ceil(lo / step - 1e-9); k * step <= hi + 1e-9 * step; k += 1)
+    ticks.push_back(std::abs(k) < 1e-12 ? 0.0 : k * step);  // no "-0"
+  return ticks;
+}
 
 }  // namespace
 
@@ -22,36 +28,29 @@ std::vector<double> nice_ticks(double lo, double hi, int target) {
   if (!(hi > lo) || !std::isfinite(lo) || !std::isfinite(hi) || target < 1) return {};
   const double raw = (hi - lo) / target, mag = std::pow(10.0, std::floor(std::log10(raw)));
   const double step = raw / mag < 1.5 ? mag : raw / mag < 3.5 ? 2 * mag : raw / mag < 7.5 ? 5 * mag : 10 * mag;
-  std::vector<double> ticks;
-  for (double k = std::ceil(lo / step - 1e-9); k * step <= hi + 1e-9 * step; k += 1)
-    ticks.push_back(std::abs(k) < 1e-12 ? 0.0 : k * step);  // no "-0"
-  return ticks;
+  return multiples(lo, hi, step);
 }
 
 std::vector<double> axis_ticks(const GridAxis& axis, double lo, double hi, int target) {
-  if (!(is_longitude(axis) || is_latitude(axis)) || !(hi > lo) || !std::isfinite(lo) || !std::isfinite(hi) ||
-      target < 1)
+  const double raw = target >= 1 ? (hi - lo) / target : 0.0;
+  // Other axes, and degrees finer than one (decimal steps), as nice_ticks has them.
+  if (!(is_longitude(axis) || is_latitude(axis)) || !std::isfinite(lo) || !std::isfinite(hi) || !(raw >= 0.75))
     return nice_ticks(lo, hi, target);
-  const double raw = (hi - lo) / target;
   double step = 90.0;
   for (double s : {1.0, 2.0, 5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 90.0})
     if (s >= raw * 0.75) {
       step = s;
       break;
     }
-  if (raw < 0.75) return nice_ticks(lo, hi, target);  // finer than a degree: decimal steps
-  std::vector<double> ticks;
-  for (double k = std::ceil(lo / step - 1e-9); k * step <= hi + 1e-9 * step; k += 1)
-    ticks.push_back(std::abs(k) < 1e-12 ? 0.0 : k * step);
-  return ticks;
+  return multiples(lo, hi, step);
 }
 
 bool is_longitude(const GridAxis& a) {
-  return a.units == "degrees_east" || a.units == "degree_east" || has(a.name, "lon") || has(a.name, "longitude");
+  return a.units == "degrees_east" || a.units == "degree_east" || a.name == "lon" || a.name == "longitude";
 }
 
 bool is_latitude(const GridAxis& a) {
-  return a.units == "degrees_north" || a.units == "degree_north" || has(a.name, "lat") || has(a.name, "latitude");
+  return a.units == "degrees_north" || a.units == "degree_north" || a.name == "lat" || a.name == "latitude";
 }
 
 std::string coordinate_label(const GridAxis& axis, double value) {

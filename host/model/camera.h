@@ -85,8 +85,9 @@ std::optional<glm::dvec2> project_to_pixel(const CameraFrame& frame, const Volum
 // as thin lines: where the data ends, and which way is up, even where the TF is clear. The three
 // from voxel (0, 0, 0)'s corner are the axes: red x, green y, blue z, named at their ends. With
 // `axes` (the volume's), each axis edge long enough in the picture gets ticks at round values of
-// its coordinates, labelled outside the box ("10E", "45N", "850"; coordinate_label), so that a
-// map says where it is; the labels are in the fixed 5x7 font, the same pixels from every command.
+// its coordinates, labelled ("10E", "45N", "850"; coordinate_label) outside the box where the
+// picture has room, else just inside it, so that a map says where it is; the labels are in the
+// fixed 5x7 font, the same pixels from every command.
 void draw_box_outline(Image& image, const VolumeGeometry& geometry, const RenderSettings& settings,
                       const std::array<GridAxis, 3>* axes = nullptr);
 
