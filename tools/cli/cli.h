@@ -2,6 +2,7 @@
 #pragma once
 
 #include <functional>
+#include <initializer_list>
 #include <future>
 #include <memory>
 #include <string>
@@ -66,6 +67,11 @@ Failure describe_failure(std::exception_ptr failure);
 // Runs `check` (a check of flag values made outside CLI11, such as the solver-flag checks of
 // host/solvers) and turns what it throws into a usage error (exit code 2).
 void check_usage(const std::function<void()>& check);
+
+// Removes options that a shared add_*_options() gave `sub` and that it sets by its own means (a
+// benchmark's --images sizes, --tf-sizes), so that they are refused as unknown rather than
+// accepted and ignored.
+void remove_options(CLI::App* sub, std::initializer_list<const char*> names);
 
 // A grid size "XxYxZ" (three positive integers of at most 12 digits, nothing else): parsed, or
 // std::nullopt. grid_size_check() is it as a CLI11 check, so that every size of a list is a usage

@@ -259,7 +259,7 @@ CommandRegistration reg(92, [](CLI::App& app) {
       ->capture_default_str();
   add_json_option(sub, args->json, "the results");
   add_render_options(sub, args->settings);
-  remove_render_options(sub, {"--step"});  // --steps gives the step sizes
+  remove_options(sub, {"--step"});  // --steps gives the step sizes
   sub->callback([args] { exit_code() = run(*args); });
 });
 

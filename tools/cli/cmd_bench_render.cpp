@@ -118,7 +118,7 @@ CommandRegistration reg(91, [](CLI::App& app) {
       ->check(CLI::Range(1u, 8192u))->capture_default_str();
   add_json_option(sub, args->json, "the results");
   add_render_options(sub, args->settings);
-  remove_render_options(sub, {"--width", "--height"});  // --images gives the sizes
+  remove_options(sub, {"--width", "--height"});  // --images gives the sizes
   sub->callback([args] { exit_code() = run(*args); });
 });
 

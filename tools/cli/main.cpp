@@ -89,6 +89,11 @@ void check_usage(const std::function<void()>& check) {
   }
 }
 
+void remove_options(CLI::App* sub, std::initializer_list<const char*> names) {
+  for (const char* name : names)
+    if (!sub->remove_option(sub->get_option(name))) throw std::logic_error(std::string("no option ") + name);
+}
+
 std::optional<std::array<uint64_t, 3>> parse_grid_size(const std::string& text) {
   static const std::regex size(R"(([0-9]{1,12})x([0-9]{1,12})x([0-9]{1,12}))");
   std::smatch m;

@@ -175,9 +175,4 @@ void add_render_options(CLI::App* sub, RenderSettings& s) {
       ->group(g);
 }
 
-void remove_render_options(CLI::App* sub, std::initializer_list<const char*> names) {
-  for (const char* name : names)
-    if (!sub->remove_option(sub->get_option(name))) throw std::logic_error(std::string("no render option ") + name);
-}
-
 }  // namespace tfm::cli

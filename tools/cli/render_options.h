@@ -4,7 +4,6 @@
 #pragma once
 
 #include <array>
-#include <initializer_list>
 #include <optional>
 #include <string>
 #include <vector>
@@ -28,9 +27,6 @@ void add_render_options(CLI::App* sub, RenderSettings& settings);
 // lies, and the `flag` value that centres it (diverging_middle_note).
 void note_diverging_middle(const std::string& tf_spec, const TransferFunction& tf, bool range_given,
                            const FieldRange& range, const std::string& flag);
-// Removes rendering options that `sub` sets by its own means (a benchmark's --images sizes), so
-// that they are refused as unknown rather than accepted and ignored.
-void remove_render_options(CLI::App* sub, std::initializer_list<const char*> names);
 // Which of those flags the command line gave (after parsing `sub`): the grid's defaults
 // (render_defaults.h, apply_grid_defaults) take the place of the others.
 RenderChoices render_choices(const CLI::App& sub);
