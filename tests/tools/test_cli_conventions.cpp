@@ -319,6 +319,20 @@ TEST_F(CliConventions, GridSizesAreUsageErrorsBeforeAnyWork) {
                      {"--size: expected a grid size XxYxZ of positive integers, got '8x6x4x2'"});
 }
 
+// Flags that say how to read or map input files are refused where a built-in pair replaces the
+// files (bench-solve without --ref, solvers --synthetic): they were accepted and ignored.
+TEST(CliExitCodes, InputFlagsWithoutInputsAreUsageErrors) {
+  for (const std::string flag : {"--ref-range 0,1", "--field-range 0,1", "--allow-out-of-range", "--dims 4,4,4",
+                                 "--type uint8", "--big-endian", "--var t", "--time 1", "--member 2"}) {
+    const std::string name = flag.substr(0, flag.find(' '));
+    for (const std::string command : {"bench-solve --tf-sizes 4", "solvers --synthetic --size 4x4x4 --solvers normal-equations"}) {
+      const test::CliResult r = run_cli(command + " " + flag, test::kQuickCliTimeout);
+      EXPECT_EQ(r.exit_code, 2) << command << " " << flag << "\n" << r.output;
+      EXPECT_TRUE(contains(r.output, name + ": describes the input files")) << r.output;
+    }
+  }
+}
+
 TEST_F(CliConventions, OutputNamesMustNameTheFormatWritten) {
   const std::string tf = dir / "tf.json";
   const std::string render = "render --volume " + nc + ":A --tf " + tf + " --width 16 --height 16 --out ";
@@ -407,10 +421,11 @@ TEST_F(CliConventions, ValidationVariableWithoutTheLayerIsSaid) {
     EXPECT_FALSE(contains(run_cli(args).output, "not validated"));
 }
 
-// A benchmark that sets image sizes or steps by its own flags refuses the shared ones it would
-// ignore (usage errors, before any work).
+// A benchmark that sets image sizes, steps or TF sizes by its own flags refuses the shared ones it
+// would ignore (usage errors, before any work).
 TEST(CliExitCodes, BenchmarksRefuseRenderFlagsTheyWouldIgnore) {
-  for (const std::string args : {"bench-render --width 64", "bench-render --height 64", "bench-diffdvr --step 0.5"}) {
+  for (const std::string args :
+       {"bench-render --width 64", "bench-render --height 64", "bench-diffdvr --step 0.5", "bench-solve --tf-size 8"}) {
     const test::CliResult r = run_cli(args, test::kQuickCliTimeout);
     EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
     EXPECT_TRUE(contains(r.output, args.substr(args.find(' ') + 1, args.rfind(' ') - args.find(' ') - 1))) << r.output;

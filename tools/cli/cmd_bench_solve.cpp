@@ -50,6 +50,7 @@ int run(const BenchSolveArgs& a) {
   LoadedInputs in;
   if (a.input.ref.empty()) {
     // Without inputs: the demo pair at 128^3.
+    reject_input_flags(a.input, "without --ref bench-solve runs the demo's 128^3 pair");
     in.ref = synthetic_reference(128, 128, 128);
     in.field = synthetic_remapped(in.ref);
     in.request.ref_tf = demo_transfer_function(64);
@@ -116,6 +117,7 @@ CommandRegistration reg(83, [](CLI::App& app) {
   auto* sub = app.add_subcommand("bench-solve", "Benchmark the normal-equations solve and cond(M) against the TF size "
                                                 "(time, rank, peak memory)");
   add_input_options(sub, args->input, false);
+  remove_options(sub, {"--tf-size"});  // --tf-sizes gives the sizes
   sub->add_option("--tf-sizes", args->sizes, "TF sizes N to run, comma-separated (2..65536)")->delimiter(',')
       ->capture_default_str();
   add_json_option(sub, args->json, "the numbers");

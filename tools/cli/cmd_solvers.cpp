@@ -45,6 +45,7 @@ int run(const SolversArgs& a) {
   if (a.synthetic) {
     if (!a.input.ref.empty() || !a.input.field.empty() || !a.input.ref_tf.empty())
       throw std::runtime_error("--synthetic replaces --ref, --ref-tf and --field; give either");
+    reject_input_flags(a.input, "--synthetic replaces them");
     const auto d = *parse_grid_size(a.size);  // checked as the command line was
     in.ref = synthetic_reference(d[0], d[1], d[2]);
     in.field = synthetic_remapped(in.ref);

@@ -35,6 +35,18 @@ void add_input_options(CLI::App* sub, InputArgs& a, bool required) {
   add_volume_flags(sub, a.volume);
 }
 
+void reject_input_flags(const InputArgs& a, const std::string& instead) {
+  const VolumeFlags& v = a.volume;
+  const std::pair<bool, const char*> given[] = {
+      {!a.ref_range.empty(), "--ref-range"}, {!a.field_range.empty(), "--field-range"},
+      {a.allow_out_of_range, "--allow-out-of-range"}, {!v.dims.empty(), "--dims"}, {!v.type.empty(), "--type"},
+      {v.big_endian, "--big-endian"}, {!v.var.empty(), "--var"}, {v.time.has_value(), "--time"},
+      {v.member.has_value(), "--member"}};
+  for (const auto& [is_given, flag] : given)
+    if (is_given)
+      throw CLI::ValidationError(flag, "describes the input files, and " + instead + "; remove it");
+}
+
 namespace {
 
 // CLI::ValidationError for `flag` when no input's format `takes` it.

@@ -49,6 +49,12 @@ struct InputArgs {
 // Adds the flags to `sub`; `required` makes --ref, --ref-tf and --field required.
 void add_input_options(CLI::App* sub, InputArgs& args, bool required);
 
+// Throws CLI::ValidationError naming the first flag given that says how to read or map the input
+// files (--ref-range, --field-range, --allow-out-of-range, the raw-file layout and the field
+// selectors) when a command runs without them, `instead` saying why (its built-in pair replaces
+// them): such flags would be ignored.
+void reject_input_flags(const InputArgs& args, const std::string& instead);
+
 // The loaded inputs: volumes (owned here, the request points at them) and the request.
 struct LoadedInputs {
   Volume ref, field;
