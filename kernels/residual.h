@@ -23,6 +23,8 @@ Volume residual_map(Context& ctx, const Volume& ref, const TransferFunction& ref
 // The TF residual maps are rendered with: opacity linear in the residual (as in the paper's
 // figures), colour from light yellow through orange to dark red.
 TransferFunction residual_transfer_function(uint32_t n = 64);
+// What a residual's value axis is called beside its colours (TF plots, colour bars).
+inline constexpr const char* kResidualValueLabel = "residual (RGBA distance)";
 
 // The least top of a residual display range: one 8-bit step of a colour channel. A residual
 // below it is no difference any picture shows; scaled to its own maximum, float rounding

@@ -390,7 +390,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   plot.title = "Optimized TF, field histogram";
   const Image plot_opt = plot_transfer_function(r.tf, in.field.values, r.field_range, plot);
   plot.title = "Residual TF, histogram after";
-  plot.axis_label = "residual (RGBA distance)";
+  plot.axis_label = kResidualValueLabel;
   const Image plot_res = plot_transfer_function(res_tf, res_after.values, res_range, plot);
   save("tf_reference.png", plot_ref);
   save("tf_field_reference.png", plot_before);

@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <chrono>
 
+#include "tfmatch/kernels/residual.h"
 #include "tfmatch/model/camera.h"
 #include "tfmatch/report/metrics.h"
 #include "tfmatch/report/tf_plot.h"
@@ -213,7 +214,7 @@ Image ViewSession::tf_plot(ViewKind view, uint32_t width, uint32_t height, bool 
     case ViewKind::Residual:
     case ViewKind::ResidualBefore:
       plot.title = view == ViewKind::Residual ? "Residual TF, histogram after" : "Residual TF, histogram before";
-      plot.axis_label = "residual (RGBA distance)";
+      plot.axis_label = kResidualValueLabel;
       return plot_transfer_function(d.res_tf_table, (view == ViewKind::Residual ? d.res_after : d.res_before).values,
                                     d.res_range, plot);
   }
