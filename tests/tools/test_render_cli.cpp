@@ -6,6 +6,8 @@
 
 #include "cli_runner.h"
 #include "tfmatch/io/json.h"
+#include "tfmatch/kernels/residual.h"
+#include "tfmatch/model/color_bar.h"
 #include "tfmatch/report/png_io.h"
 
 namespace tfm {
@@ -172,6 +174,50 @@ TEST_F(RenderCli, ResidualWritesTheMapAndItsPicture) {
   EXPECT_EQ(std::filesystem::file_size(dir / "res.raw"), 6u * 5 * 4 * 4);
   EXPECT_NE(r.output.find("--dims 6,5,4"), std::string::npos) << "tells how to read the raw file back";
   EXPECT_EQ(read_png(dir / "res.png").width, 20u);
+}
+
+// A residual's picture maps the data's own range, so it carries its colour bar in a strip beneath
+// (--no-color-bar leaves it out); render adds one with --color-bar, the picture above unchanged.
+TEST_F(RenderCli, ColorBarsGoBeneathPicturesThatStandAlone) {
+  const std::string residual = "residual --ref " + dir / "a_6x5x4_float32.raw" + " --ref-tf " + dir / "tf.json" +
+                               " --field " + dir / "b_6x5x4_float32.raw" + " --field-tf " + dir / "tf.json" + " --out " +
+                               dir / "res.raw --width 160 --height 64 --image ";
+  ASSERT_EQ(run_cli(residual + dir / "bar.png").exit_code, 0);
+  ASSERT_EQ(run_cli(residual + dir / "plain.png --no-color-bar").exit_code, 0);
+  const Image bar = read_png(dir / "bar.png"), plain = read_png(dir / "plain.png");
+  EXPECT_EQ(bar.width, 160u);
+  EXPECT_EQ(bar.height, 64u + kColorBarStripHeight);
+  EXPECT_EQ(plain.height, 64u);
+  EXPECT_TRUE(std::equal(plain.rgb.begin(), plain.rgb.end(), bar.rgb.begin()));
+  // The bar's colours are the residual TF's: light yellow at its left end to dark red at its right.
+  const TransferFunction res_tf = residual_transfer_function();
+  std::vector<Rgb8> strip;
+  for (uint32_t x = 0; x < bar.width; ++x) {
+    const uint8_t* p = bar.at(x, 64 + 8);
+    if (!(p[0] == p[1] && p[1] == p[2])) strip.push_back({p[0], p[1], p[2]});
+  }
+  ASSERT_GE(strip.size(), 90u);
+  const Rgba lo = res_tf.eval(0.5 / double(strip.size())), hi = res_tf.eval(1.0 - 0.5 / double(strip.size()));
+  EXPECT_EQ(strip.front(), srgb8(lo[0], lo[1], lo[2]));
+  EXPECT_EQ(strip.back(), srgb8(hi[0], hi[1], hi[2]));
+
+  const std::string render = "render --volume " + dir / "a_6x5x4_float32.raw" + " --tf " + dir / "tf.json" +
+                             " --height 64 --out ";
+  ASSERT_EQ(run_cli(render + dir / "r.png --width 160").exit_code, 0);
+  ASSERT_EQ(run_cli(render + dir / "rb.png --width 160 --color-bar").exit_code, 0);
+  const Image r = read_png(dir / "r.png"), rb = read_png(dir / "rb.png");
+  EXPECT_EQ(r.height, 64u) << "render adds none unless asked";
+  EXPECT_EQ(rb.height, 64u + kColorBarStripHeight);
+  EXPECT_TRUE(std::equal(r.rgb.begin(), r.rgb.end(), rb.rgb.begin()));
+  // Too narrow: said, and the picture written without one.
+  const test::CliResult narrow = run_cli(render + dir / "n.png --color-bar --width 100");
+  ASSERT_EQ(narrow.exit_code, 0) << narrow.output;
+  EXPECT_NE(narrow.output.find("no colour bar: the picture is narrower than 120 pixels"), std::string::npos) << narrow.output;
+  EXPECT_EQ(read_png(dir / "n.png").height, 64u);
+  // Without --image, the flag shapes nothing: a usage error as the other picture settings.
+  const test::CliResult bare = run_cli(residual.substr(0, residual.find(" --width")) + " --no-color-bar");
+  EXPECT_EQ(bare.exit_code, 2) << bare.output;
+  EXPECT_NE(bare.output.find("--no-color-bar"), std::string::npos) << bare.output;
 }
 
 TEST_F(RenderCli, ErrorsNameTheProblem) {

@@ -15,6 +15,7 @@
 #include "tfmatch/model/progress.h"
 #include "tfmatch/model/transfer_function.h"
 #include "tfmatch/report/png_io.h"
+#include "tfmatch/report/tf_plot.h"
 
 namespace tfm::cli {
 namespace {
@@ -22,6 +23,7 @@ namespace {
 struct RenderArgs {
   std::string volume, tf, out, range;
   bool allow_out_of_range = false;
+  bool color_bar = false;
   std::vector<std::string> markers;
   VolumeFlags volume_flags;
   RenderSettings settings;
@@ -56,6 +58,7 @@ int run(RenderArgs a) {
   const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing, a.settings.z_scale);
   draw_box_outline(picture, geometry, a.settings, &volume.axes);
   draw_markers(picture, geometry, a.settings, markers);
+  if (a.color_bar) add_picture_color_bar(picture, tf, range, field_label(volume), a.settings);
   write_png(a.out, picture);
   outputs.commit();
   // No ray met the box (a grid of one voxel in two axes is a line thinner than a pixel at a
@@ -93,6 +96,7 @@ CommandRegistration reg(20, [](CLI::App& app) {
   add_allow_out_of_range_flag(sub, args->allow_out_of_range);
   add_volume_flags(sub, args->volume_flags);
   add_render_options(sub, args->settings);
+  add_color_bar_flag(sub, args->color_bar);
   add_marker_option(sub, args->markers);
   sub->callback([args, sub] {
     args->chosen = render_choices(*sub);

@@ -28,6 +28,7 @@ struct ResidualArgs {
   std::vector<std::string> image_flags;  // rendering flags and --display-range given
   std::string ref_range, field_range, display_range;
   bool allow_out_of_range = false;
+  bool color_bar = true;  // the display range is the data's own: the picture must say it
   VolumeFlags volume_flags;
   RenderSettings settings;
   RenderChoices chosen;
@@ -88,6 +89,7 @@ int run(ResidualArgs a) {
     Image picture = composite_over(img, a.settings.background);
     draw_box_outline(picture, VolumeGeometry::from(residual.dims, residual.spacing, a.settings.z_scale), a.settings,
                      &ref.axes);
+    if (a.color_bar) add_picture_color_bar(picture, residual_transfer_function(), shown, kResidualValueLabel, a.settings);
     write_png(a.image, picture);
   }
   outputs.commit();
@@ -131,11 +133,13 @@ CommandRegistration reg(21, [](CLI::App& app) {
   sub->add_option("--display-range", args->display_range, "Residual range lo,hi the image maps (default: 0,max)");
   add_volume_flags(sub, args->volume_flags);
   add_render_options(sub, args->settings);
+  add_color_bar_flag(sub, args->color_bar);
   sub->callback([args, sub] {
     args->chosen = render_choices(*sub);
     for (const CLI::Option* o : sub->get_options())
       if (o->count() > 0 && (o->get_group() == "Rendering" || o->get_name() == "--display-range"))
-        args->image_flags.push_back(o->get_name());
+        // One option has two names: the one given.
+        args->image_flags.push_back(o->get_name() == "--color-bar" && !args->color_bar ? "--no-color-bar" : o->get_name());
     exit_code() = run(*args);
   });
 });

@@ -11,6 +11,7 @@
 #include "tfmatch/io/tf_formats.h"
 #include "tfmatch/io/volume_io.h"
 #include "tfmatch/model/builtin_tf.h"
+#include "tfmatch/model/color_bar.h"
 #include "tfmatch/model/color_spaces.h"
 #include "tfmatch/model/field_mapping.h"
 
@@ -173,6 +174,23 @@ void add_render_options(CLI::App* sub, RenderSettings& s) {
          },
          "Background as shown (sRGB): white, black, gray, #rrggbb or r,g,b (default white)")
       ->group(g);
+}
+
+void add_color_bar_flag(CLI::App* sub, bool& on) {
+  sub->add_flag("--color-bar,!--no-color-bar", on,
+                "Add a colour bar of the TF with its value range in a " + std::to_string(kColorBarStripHeight) +
+                    "-pixel strip beneath the picture (" + (on ? "default; --no-color-bar leaves it out" : "default off") +
+                    ")")
+      ->group("Rendering");
+}
+
+void add_picture_color_bar(Image& picture, const TransferFunction& tf, const FieldRange& range,
+                           const std::string& title, const RenderSettings& settings) {
+  if (std::optional<Image> framed = with_color_bar(picture, tf, range, title, settings.background))
+    picture = std::move(*framed);
+  else
+    print_note("no colour bar: the picture is narrower than " + std::to_string(kColorBarMinWidth) +
+               " pixels, too narrow for one");
 }
 
 }  // namespace tfm::cli

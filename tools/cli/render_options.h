@@ -12,6 +12,7 @@
 
 #include "tfmatch/io/volume_io.h"
 #include "tfmatch/model/grid_point.h"
+#include "tfmatch/model/image.h"
 #include "tfmatch/model/render_defaults.h"
 #include "tfmatch/model/render_settings.h"
 #include "tfmatch/model/transfer_function.h"
@@ -22,6 +23,13 @@ namespace tfm::cli {
 // Adds the flags to `sub`, writing into `settings` (which must outlive parsing; its current
 // values are the defaults shown in --help). Flags go into the group "Rendering".
 void add_render_options(CLI::App* sub, RenderSettings& settings);
+// --color-bar / --no-color-bar (group "Rendering"): a colour bar of the TF in a strip beneath the
+// picture (color_bar.h). `on` holds the command's default, which the help states.
+void add_color_bar_flag(CLI::App* sub, bool& on);
+// with_color_bar of `picture` with the render's background, or a note on stderr when the picture
+// is too narrow for one (then `picture` stays as it is).
+void add_picture_color_bar(Image& picture, const TransferFunction& tf, const FieldRange& range,
+                           const std::string& title, const RenderSettings& settings);
 // A note on stderr when `tf_spec` names a built-in diverging map laid over a range that neither
 // the user (`range_given`) nor the TF gave and that is not centred on 0: where its neutral middle
 // lies, and the `flag` value that centres it (diverging_middle_note).
