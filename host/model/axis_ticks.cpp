@@ -8,12 +8,6 @@
 namespace tfm {
 namespace {
 
-std::string number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4g", std::abs(v) < 1e-9 ? 0.0 : v);
-  return buf;
-}
-
 // The multiples of `step` within [lo, hi].
 std::vector<double> multiples(double lo, double hi, double step) {
   std::vector<double> ticks;
@@ -23,6 +17,12 @@ std::vector<double> multiples(double lo, double hi, double step) {
 }
 
 }  // namespace
+
+std::string tick_label(double v, int significant) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.*g", significant, v);
+  return buf;
+}
 
 std::vector<double> nice_ticks(double lo, double hi, int target) {
   if (!(hi > lo) || !std::isfinite(lo) || !std::isfinite(hi) || target < 1) return {};
@@ -58,14 +58,15 @@ std::string coordinate_label(const GridAxis& axis, double value) {
     double lon = std::fmod(value, 360.0);
     if (lon > 180.0) lon -= 360.0;
     if (lon <= -180.0) lon += 360.0;
-    if (std::abs(lon) < 1e-9 || std::abs(std::abs(lon) - 180.0) < 1e-9) return number(std::abs(lon));
-    return number(std::abs(lon)) + (lon > 0 ? "E" : "W");
+    if (std::abs(lon) < 1e-9) return "0";
+    if (std::abs(std::abs(lon) - 180.0) < 1e-9) return "180";
+    return tick_label(std::abs(lon)) + (lon > 0 ? "E" : "W");
   }
   if (is_latitude(axis)) {
     if (std::abs(value) < 1e-9) return "EQ";
-    return number(std::abs(value)) + (value > 0 ? "N" : "S");
+    return tick_label(std::abs(value)) + (value > 0 ? "N" : "S");
   }
-  return number(value);
+  return tick_label(std::abs(value) < 1e-9 ? 0.0 : value);  // no "-0" or "1e-15" for a level at 0
 }
 
 std::optional<double> coordinate_index(const GridAxis& axis, double value) {

@@ -10,6 +10,9 @@
 
 namespace tfm {
 
+// `v` as an axis label: printf's %g with `significant` digits ("0.25", "1.5e+04").
+std::string tick_label(double v, int significant = 4);
+
 // About `target` round values (1, 2 or 5 times a power of ten apart) within [lo, hi].
 std::vector<double> nice_ticks(double lo, double hi, int target = 5);
 

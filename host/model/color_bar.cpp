@@ -12,12 +12,6 @@
 namespace tfm {
 namespace {
 
-std::string tick_label(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3g", v);
-  return buf;
-}
-
 // `text` in the 5x7 font's ASCII (each other UTF-8 character one '?') within `max_chars`: whole,
 // else without what precedes its first ':', else "..." and its end.
 std::string fixed_label(const std::string& text, size_t max_chars) {
@@ -59,7 +53,7 @@ std::optional<Image> with_color_bar(const Image& picture, const TransferFunction
   int last_right = -1000;
   for (double v : nice_ticks(range.lo, range.hi, std::max(2, bar_w / 50))) {
     const int x = bar_x + int(std::lround((v - range.lo) / (range.hi - range.lo) * (bar_w - 1)));
-    const std::string label = tick_label(v);
+    const std::string label = tick_label(v, 3);
     const int lw = fixed_text_width(label);
     const int lx = std::min(x - lw / 2, w - 2 - lw);
     if (lx < last_right + 6) continue;  // never overlap the previous label

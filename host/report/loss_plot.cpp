@@ -6,20 +6,11 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "tfmatch/model/axis_ticks.h"
 #include "tfmatch/report/font.h"
 #include "tfmatch/report/tf_plot.h"
 
 namespace tfm {
-namespace {
-
-std::string short_number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3g", v);
-  return buf;
-}
-
-}  // namespace
-
 Image plot_loss_curve(std::span<const double> curve, uint32_t width, uint32_t height, const std::string& title) {
   if (curve.empty()) throw std::invalid_argument("plot_loss_curve: empty curve");
   if (width < 120 || height < 80) throw std::invalid_argument("plot_loss_curve: plot too small");
@@ -35,7 +26,7 @@ Image plot_loss_curve(std::span<const double> curve, uint32_t width, uint32_t he
   // Every decade labelled where the labels fit one above another, else every k-th.
   const int decades = int(l1 - l0), line_height = text_height(1) + 4;
   int label_width = 0;
-  for (int d = 0; d <= decades; ++d) label_width = std::max(label_width, text_width(short_number(std::pow(10.0, l0 + d))));
+  for (int d = 0; d <= decades; ++d) label_width = std::max(label_width, text_width(tick_label(std::pow(10.0, l0 + d), 3)));
   const int left = 10 + label_width, right = int(width) - 10;
   const int top = 8 + text_height(1) + 6, bottom = int(height) - 8 - text_height(1) - 4;
   draw_text(img, 10, 6, title + " (log scale)", text);
@@ -54,16 +45,16 @@ Image plot_loss_curve(std::span<const double> curve, uint32_t width, uint32_t he
   fill_rect(img, left, top, 1, bottom - top, frame);
   fill_rect(img, right - 1, top, 1, bottom - top, frame);
   for (int d = 0; d <= decades; d += every)
-    draw_text(img, 6, decade_y(d) - text_height(1) / 2, short_number(std::pow(10.0, l0 + d)), text);
+    draw_text(img, 6, decade_y(d) - text_height(1) / 2, tick_label(std::pow(10.0, l0 + d), 3), text);
   // Iterations on round ticks, the last one named.
   const double last = double(curve.size() - 1);
-  const std::string last_label = "iteration " + short_number(last);
+  const std::string last_label = "iteration " + tick_label(last, 3);
   const int last_x = right - text_width(last_label);
   int free_from = left;
   for (double t : nice_ticks(0.0, std::max(last, 1.0), 6)) {
     if (t > last) continue;
     const int x = int(std::lround(px(size_t(t))));
-    const std::string label = short_number(t);
+    const std::string label = tick_label(t, 3);
     const int lx = std::max(x - text_width(label) / 2, left);
     fill_rect(img, x, bottom, 1, 3, frame);
     if (lx >= free_from && lx + text_width(label) + 6 < last_x) {

@@ -10,6 +10,7 @@
 #include "tfmatch/io/atomic_file.h"
 #include "tfmatch/io/json.h"
 #include "tfmatch/kernels/render.h"
+#include "tfmatch/model/axis_ticks.h"
 #include "tfmatch/model/progress.h"
 #include "tfmatch/report/font.h"
 #include "tfmatch/report/png_io.h"
@@ -27,12 +28,6 @@ Rgb8 series_colour(size_t i) {
   static const Rgb8 palette[10] = {{31, 119, 180}, {255, 127, 14}, {44, 160, 44},  {214, 39, 40},  {148, 103, 189},
                                    {140, 86, 75},  {227, 119, 194}, {127, 127, 127}, {188, 189, 34}, {23, 190, 207}};
   return palette[i % 10];
-}
-
-std::string number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4g", v);
-  return buf;
 }
 
 std::string indexed(const char* pattern, size_t i) {
@@ -64,7 +59,7 @@ Image plot_series_lines(const std::vector<PlotLine>& lines, uint32_t width, uint
   const std::vector<double> ticks = nice_ticks(lo, hi, 5);
   Image img(width, height);
   int label_width = 0;
-  for (double t : ticks) label_width = std::max(label_width, text_width(number(t)));
+  for (double t : ticks) label_width = std::max(label_width, text_width(tick_label(t)));
   const int left = 12 + label_width, right = int(width) - 12;
   const int top = 8 + text_height(1) + 8 + text_height(1) + 4;
   const int bottom = int(height) - 8 - 2 * text_height(1) - 6;
@@ -81,7 +76,7 @@ Image plot_series_lines(const std::vector<PlotLine>& lines, uint32_t width, uint
   for (double t : ticks) {
     const int y = int(std::lround(py(t)));
     fill_rect(img, left, y, right - left, 1, kGrid);
-    draw_text(img, left - 6 - text_width(number(t)), y - text_height(1) / 2, number(t), kText);
+    draw_text(img, left - 6 - text_width(tick_label(t)), y - text_height(1) / 2, tick_label(t), kText);
   }
   // x ticks: every field when they fit, else about ten.
   const size_t step = std::max<size_t>(1, (points + 9) / 10);

@@ -7,16 +7,6 @@
 #include <stdexcept>
 
 namespace tfm {
-namespace {
-
-std::string short_number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4g", v);
-  return buf;
-}
-
-}  // namespace
-
 std::vector<uint64_t> field_histogram(std::span<const float> values, const FieldRange& range, uint32_t bins) {
   if (bins == 0 || !(range.hi > range.lo)) throw std::invalid_argument("field_histogram: empty range or no bins");
   std::vector<uint64_t> counts(bins, 0);
@@ -35,7 +25,7 @@ int draw_value_ticks(Image& img, int left, int width, int y, const FieldRange& r
   for (double v : nice_ticks(range.lo, range.hi, std::max(2, width / 90))) {
     const int x = int(std::lround(left + (v - range.lo) / (range.hi - range.lo) * width));
     fill_rect(img, std::min(x, left + width - 1), y, 1, tick_h, tick);
-    const std::string label = short_number(v);
+    const std::string label = tick_label(v);
     const int w = text_width(label);
     const int lx = std::clamp(x - w / 2, 2, int(img.width) - 2 - w);
     if (lx < last_right + 6) continue;  // never overlap the previous label

@@ -37,6 +37,19 @@ TEST(AxisTicks, LabelsAsMapsWriteThem) {
   EXPECT_EQ(axis_ticks(lat, 44.2, 44.8, 3), nice_ticks(44.2, 44.8, 3));  // finer than a degree
 }
 
+TEST(AxisTicks, TickLabelsHoldTheirSignificantDigits) {
+  EXPECT_EQ(tick_label(0.25), "0.25");
+  EXPECT_EQ(tick_label(1234.5), "1234");
+  EXPECT_EQ(tick_label(1234.5, 3), "1.23e+03");
+  EXPECT_EQ(tick_label(15000), "1.5e+04");
+  EXPECT_EQ(tick_label(-0.5, 3), "-0.5");
+  // Coordinates a step's sum leaves a hair off zero or 180 still read as maps write them.
+  const GridAxis lon{"lon", "degrees_east", {}}, lev{"level", "", {}};
+  EXPECT_EQ(coordinate_label(lon, 1e-13), "0");
+  EXPECT_EQ(coordinate_label(lon, 180.0 - 1e-12), "180");
+  EXPECT_EQ(coordinate_label(lev, -1e-15), "0");
+}
+
 TEST(AxisTicks, CoordinateIndexInterpolatesIncreasingAndDecreasingAxes) {
   const GridAxis lat = axis("lat", "degrees_north", -90, 2.5, 73);
   EXPECT_DOUBLE_EQ(*coordinate_index(lat, -90), 0.0);
