@@ -80,6 +80,7 @@ struct OutputBatchState {
   std::vector<std::pair<fs::path, fs::path>> files;        // temporary -> final
   std::vector<std::pair<fs::path, fs::path>> directories;  // staged top -> final top
   std::vector<fs::path> made;                              // made_directory()
+  std::vector<fs::path> stale;                             // remove_on_commit()
   bool committed = false;
 };
 
@@ -206,8 +207,12 @@ fs::path OutputBatch::directory(const fs::path& dir) {
 
 void OutputBatch::made_directory(const fs::path& dir) { state_->made.push_back(dir); }
 
+void OutputBatch::remove_on_commit(const fs::path& file) { state_->stale.push_back(file); }
+
 void OutputBatch::commit() {
   if (!outermost_ || state_->committed) return;
+  std::vector<fs::path> written;  // what the batch puts in place is never stale
+  for (const auto& [temporary, final] : state_->files) written.push_back(fs::absolute(final).lexically_normal());
   // Files first (some live inside staged directories), then the directories. Each renamed entry
   // leaves the list at once, so that a failure leaves the destructor only what is still pending.
   auto rename_all = [](std::vector<std::pair<fs::path, fs::path>>& list, const char* what) {
@@ -222,6 +227,12 @@ void OutputBatch::commit() {
   };
   rename_all(state_->files, "the file");
   rename_all(state_->directories, "the directory");
+  for (const fs::path& file : state_->stale) {
+    if (std::find(written.begin(), written.end(), fs::absolute(file).lexically_normal()) != written.end()) continue;
+    std::error_code ec;
+    fs::remove(file, ec);
+    if (ec) throw std::runtime_error(file.string() + ": cannot remove this file of an earlier run (" + ec.message() + ")");
+  }
   state_->committed = true;
 }
 

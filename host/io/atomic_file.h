@@ -44,8 +44,14 @@ class OutputBatch {
   // when the batch ends without commit().
   void made_directory(const std::filesystem::path& dir);
 
-  // Renames every file, then every staged directory, into place. Throws std::runtime_error
-  // naming the path when a rename fails (what is not renamed yet is removed by the destructor).
+  // A file of an earlier run that this batch's files replace as a set (a report's file that this
+  // run's report does not write again): commit() removes it after the renames, unless the batch
+  // itself wrote it; without commit() it stays, like everything else the batch would change.
+  void remove_on_commit(const std::filesystem::path& file);
+
+  // Renames every file, then every staged directory, into place, then removes the files given to
+  // remove_on_commit(). Throws std::runtime_error naming the path when a rename or removal fails
+  // (what is not renamed yet is removed by the destructor).
   void commit();
 
  private:

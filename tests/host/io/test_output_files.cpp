@@ -148,6 +148,34 @@ TEST(AtomicFile, BatchCommitsTogetherOrLeavesNothing) {
   EXPECT_TRUE(pending_temporary_paths().empty());
 }
 
+// An earlier run's file that the batch's files replace as a set goes at commit, not before and
+// not without commit; a file the batch itself writes is never removed as stale.
+TEST(AtomicFile, StaleFilesGoOnlyWhenTheBatchCommits) {
+  TempDir dir;
+  write_text(dir / "stale.txt", "old run");
+  write_text(dir / "kept.txt", "old run");
+  {
+    OutputBatch batch;
+    write_file_atomically(dir / "kept.txt", "new run");
+    batch.remove_on_commit(dir / "stale.txt");
+    batch.remove_on_commit(dir / "kept.txt");
+    EXPECT_TRUE(fs::exists(dir / "stale.txt"));
+    // Without commit(): the earlier run's files stay as they were.
+  }
+  EXPECT_EQ(files_under(dir.path), (std::vector<std::string>{"kept.txt", "stale.txt"}));
+  EXPECT_EQ(read_text(dir / "kept.txt"), "old run");
+  {
+    OutputBatch batch;
+    write_file_atomically(dir / "kept.txt", "new run");
+    batch.remove_on_commit(dir / "stale.txt");
+    batch.remove_on_commit(dir / "kept.txt");
+    batch.remove_on_commit(dir / "gone-already.txt");  // nothing there: nothing to do
+    batch.commit();
+  }
+  EXPECT_EQ(files_under(dir.path), (std::vector<std::string>{"kept.txt"}));
+  EXPECT_EQ(read_text(dir / "kept.txt"), "new run");
+}
+
 // A directory the caller made for the batch (an MPI job's .pvti pieces folder, written by several
 // processes): a batch that ends without commit removes it once empty, waiting for the other
 // processes' temporary files to go (an empty folder was left when rank 0 ended first); anything
