@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <ctime>
+#include <regex>
 #include <sstream>
 
 #include "tfmatch/io/atomic_file.h"
@@ -24,6 +25,7 @@
 #include "tfmatch/report/png_io.h"
 #include "tfmatch/report/render_report_html.h"
 #include "tfmatch/report/result_json.h"
+#include "tfmatch/report/series_report.h"
 #include "tfmatch/report/tf_plot.h"
 
 namespace tfm {
@@ -216,6 +218,22 @@ std::vector<std::string> report_file_names() {
           "tf_residual.png",     "loss.png",               "overview.png",           "metrics.json",
           "command.txt",         "reference_tf.json",      "optimized_tf.json",      "slices_x.png",
           "slices_y.png",        "slices_z.png",           "inputs.json",            "index.html"};
+}
+
+void remove_earlier_report_files(OutputBatch& batch, const std::filesystem::path& dir,
+                                 const std::vector<std::string>& written) {
+  std::vector<std::string> names = report_file_names();
+  for (const std::string& n : series_report_file_names(0)) names.push_back(n);
+  // A series report's per-field pictures: field_000.png, field_000_before.png, ... for any count.
+  static const std::regex field_picture(R"(field_\d{3,}(_before|_tf_before|_tf)?\.png)");
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    const bool report_file = std::find(names.begin(), names.end(), name) != names.end() ||
+                             std::regex_match(name, field_picture);
+    if (report_file && entry.is_regular_file(ec) && std::find(written.begin(), written.end(), name) == written.end())
+      batch.remove_on_commit(entry.path());
+  }
 }
 
 nlohmann::json report_made(const Context& ctx) {
@@ -458,6 +476,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   write_file_atomically(dir / "index.html", report_html(in, out, metrics));
   out.files.push_back("index.html");
   out.index = final_dir / "index.html";
+  if (dir == final_dir) remove_earlier_report_files(batch, dir, out.files);  // an existing directory
   batch.commit();
   progress.finish();
   return out;

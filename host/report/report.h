@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "tfmatch/engine/context.h"
+#include "tfmatch/io/atomic_file.h"
 #include "tfmatch/io/json.h"
 #include "tfmatch/model/grid_point.h"
 #include "tfmatch/model/image.h"
@@ -107,5 +108,13 @@ void check_report_memory(const Context& ctx, uint64_t voxels, const RenderSettin
 
 // The names write_report() may write inside its directory (for FilePlan::output_directory).
 std::vector<std::string> report_file_names();
+
+// For a report written into `dir` when it already exists: schedules in `batch` the removal of the
+// files there that a report of either kind writes (report_file_names(), series_report_file_names()
+// for any number of fields) and that this report, which wrote `written`, did not. A directory
+// reused for another run then holds one run's report: an earlier run's metrics.json or
+// command.txt beside a new index.html would describe the wrong run. Other files are kept.
+void remove_earlier_report_files(OutputBatch& batch, const std::filesystem::path& dir,
+                                 const std::vector<std::string>& written);
 
 }  // namespace tfm

@@ -15,6 +15,7 @@
 #include "tfmatch/report/font.h"
 #include "tfmatch/report/png_io.h"
 #include "tfmatch/report/render_report_html.h"
+#include "tfmatch/report/report.h"
 #include "tfmatch/report/tf_plot.h"
 
 namespace tfm {
@@ -335,6 +336,7 @@ SeriesReportSummary write_series_report(Context& ctx, const SeriesReportInputs& 
     << "</div>\n</body></html>\n";
   write_file_atomically(out / "index.html", h.str());
   summary.files.push_back("index.html");
+  if (out == dir) remove_earlier_report_files(batch, dir, summary.files);  // an existing directory
   batch.commit();
   summary.index = dir / "index.html";
   return summary;

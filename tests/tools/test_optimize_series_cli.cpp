@@ -46,6 +46,39 @@ class OptimizeSeriesCli : public ::testing::Test {
   std::vector<std::string> steps;  // the raw files runs/step<k>_19x13x9_float32.raw
 };
 
+// A report directory used again holds one run's report: a series after a single field's report
+// removes that report's files (its metrics.json and command.txt described the other run), a
+// single report after a series the series' files; the user's own files there are kept.
+TEST_F(OptimizeSeriesCli, AReportDirectoryUsedAgainHoldsOneRunsReport) {
+  const fs::path rep = dir / "rep";
+  fs::create_directory(rep);
+  std::ofstream(rep / "my-notes.txt") << "mine";
+  const std::string small = " --width 48 --height 40";
+  auto r = run_cli(base("one.json") + " --field " + steps[0] + " --report " + rep.string() + small);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  ASSERT_TRUE(fs::exists(rep / "command.txt"));
+  ASSERT_TRUE(fs::exists(rep / "metrics.json"));
+  r = run_cli(base("many.json") + " --field " + steps[0] + " --field " + steps[1] + " --field " + steps[2] +
+              " --report " + rep.string() + small);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::set<std::string> names;
+  for (const auto& e : fs::directory_iterator(rep)) names.insert(e.path().filename().string());
+  for (const char* gone : {"command.txt", "metrics.json", "overview.png", "slices_z.png", "optimized_tf.json",
+                           "residual_optimized_tf.png"})
+    EXPECT_FALSE(names.count(gone)) << gone << " of the first run is still there";
+  for (const char* there : {"index.html", "series.json", "field_002.png", "my-notes.txt"}) EXPECT_TRUE(names.count(there)) << there;
+  EXPECT_NE(read_text(rep / "index.html").find("step2"), std::string::npos);
+  // Back to one field: the series' files go, three fields' pictures among them.
+  r = run_cli(base("one.json") + " --field " + steps[1] + " --report " + rep.string() + small);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  names.clear();
+  for (const auto& e : fs::directory_iterator(rep)) names.insert(e.path().filename().string());
+  for (const char* gone : {"series.json", "field_000.png", "field_002_tf_before.png", "rmse.png"})
+    EXPECT_FALSE(names.count(gone)) << gone;
+  for (const char* there : {"command.txt", "metrics.json", "index.html", "my-notes.txt"}) EXPECT_TRUE(names.count(there)) << there;
+  EXPECT_NE(read_text(rep / "command.txt").find("step1"), std::string::npos);
+}
+
 TEST_F(OptimizeSeriesCli, OneTfPerFieldEachAsItsOwnRun) {
   // Two time steps of a NetCDF file and three raw files by pattern: five fields.
   const std::string pattern = "'" + (dir / "runs" / "step*.raw").string() + "'";
