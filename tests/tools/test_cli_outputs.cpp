@@ -162,7 +162,9 @@ TEST_F(CliOutputs, EveryCommandThatWritesChecksItsFilesFirst) {
   expect_refused("bench --json " + dir / "nodir/b.json", {"--json", "does not exist"});
   expect_refused("bench-render --json " + dir / "ro.json", {"--json", "read-only"});
   expect_refused("bench-diffdvr --json " + dir / "nodir/b.json", {"--json", "does not exist"});
-  expect_refused("bench-solve " + inputs() + " --json " + dir / "tf.json", {"--json", "same file as --ref-tf"});
+  // bench-solve takes its TF sizes from --tf-sizes.
+  const std::string bench_inputs = inputs().substr(0, inputs().rfind(" --tf-size")) + " --tf-sizes 16";
+  expect_refused("bench-solve " + bench_inputs + " --json " + dir / "tf.json", {"--json", "same file as --ref-tf"});
   expect_refused("selftest --json " + dir / "nodir/s.json", {"--json", "does not exist"});
   expect_refused("solvers --json " + dir / "ro.json", {"--json", "read-only"});
   expect_refused("devices --json " + dir / "afile/d.json", {"--json", "afile"});
