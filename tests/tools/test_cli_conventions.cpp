@@ -308,6 +308,28 @@ TEST_F(CliConventions, SolverFlagsOfAnotherSolverAreUsageErrorsNamingTheirSolver
   EXPECT_EQ(run_cli(optimize + " --factorization ldlt --tf-size 8").exit_code, 0);
 }
 
+// Picture flags without --report are usage errors naming them, except where the fit itself
+// renders (diffdvr, --weights visibility): they were accepted and dropped without a word.
+TEST_F(CliConventions, OptimizePictureFlagsWithoutAReportAreUsageErrors) {
+  const std::string out = dir / "o.json";
+  const std::string optimize = "optimize --ref " + nc + ":A --field " + nc + ":B --ref-tf " + dir / "tf.json" + " --out " + out;
+  expect_usage_error(optimize + " --width 100 --azimuth 10",
+                     {"--azimuth, --width: shape the report's pictures", "diffdvr or --weights visibility", "add --report DIR"},
+                     out);
+  expect_usage_error(optimize + " --background black", {"--background: shapes the report's pictures"}, out);
+  expect_usage_error(optimize + " --histogram linear", {"--histogram: shapes the report's pictures: add --report DIR"}, out);
+  // A series the same way.
+  expect_usage_error(optimize + " --field " + nc + ":A --fov 20", {"--fov: shapes the report's pictures"}, out);
+  // Where the fit renders, the camera and image flags shape it; the histogram still needs a report.
+  const std::string fit = optimize + " --weights visibility --weight-views 1 --tf-size 4 --width 16 --height 16";
+  EXPECT_EQ(run_cli(fit).exit_code, 0);
+  expect_usage_error(fit + " --histogram linear", {"--histogram: shapes the report's pictures"});
+  EXPECT_EQ(run_cli(optimize + " --solver diffdvr --iterations 1 --views-per-iteration 1 --view-pool 1 --tf-size 4 --width 16 --height 16")
+                .exit_code,
+            0);
+  EXPECT_EQ(run_cli(optimize + " --width 32 --height 32 --report " + dir / "rep").exit_code, 0);
+}
+
 // Grid sizes are three positive integers and nothing else, every one of a list checked before
 // any work (bench read "8x8x8junk" as 8x8x8, and found a bad size after running the others).
 TEST_F(CliConventions, GridSizesAreUsageErrorsBeforeAnyWork) {

@@ -46,6 +46,7 @@ struct OptimizeArgs {
   std::string stream = "auto";                // auto, on, off: read both fields slab by slab
   RenderSettings render;
   RenderChoices render_chosen;
+  std::vector<std::string> picture_flags;     // the "Rendering" flags given, but --marker and --slice-point
 };
 
 // The render settings the report and an image-based solver use: the grid's defaults (a thin
@@ -57,6 +58,29 @@ RenderSettings grid_render_settings(const OptimizeArgs& a, const std::array<uint
   const std::string note = apply_grid_defaults(render, dims, spacing, a.render_chosen);
   if (!note.empty() && (!a.report.empty() || require_solver(a.solver).image_based())) print_note(note);
   return render;
+}
+
+// Picture flags shape the report's pictures, and those that an image-based solver or visibility
+// weights fit; given for none of them, they would be dropped without a word (a usage error, as
+// residual's picture flags without --image).
+void check_picture_flags(const OptimizeArgs& a, const SolverSettings& settings) {
+  if (!a.report.empty() || a.picture_flags.empty()) return;
+  const bool histogram_only = a.picture_flags.size() == 1 && a.picture_flags.front() == "--histogram";
+  const auto weights = settings.extra.find("weights");
+  const bool fit_renders = require_solver(a.solver).image_based() ||
+                           (weights != settings.extra.end() && weights->second == "visibility");
+  if (fit_renders && std::find(a.picture_flags.begin(), a.picture_flags.end(), "--histogram") == a.picture_flags.end())
+    return;
+  std::vector<std::string> dropped;
+  for (const std::string& f : a.picture_flags)
+    if (!fit_renders || f == "--histogram") dropped.push_back(f);
+  std::string names;
+  for (const std::string& f : dropped) names += (names.empty() ? "" : ", ") + f;
+  const bool one = dropped.size() == 1;
+  throw CLI::ValidationError(
+      names, std::string(one ? "shapes" : "shape") + " the report's pictures" +
+                 (histogram_only || fit_renders ? "" : " (and the renderings that diffdvr or --weights visibility fit)") +
+                 ": add --report DIR, or leave " + (one ? "it" : "them") + " out");
 }
 
 // The summary on stdout, or with -q the warnings alone on stderr: -q keeps warnings.
@@ -412,6 +436,7 @@ int run(const OptimizeArgs& a) {
   settings.solve.factorization = a.factorization == "ldlt" ? Factorization::LDLT : Factorization::Auto;
   // Bad or misapplied solver flags fail before loading, as usage errors.
   check_usage([&] { parse_solver_args(require_solver(a.solver), settings); });
+  check_picture_flags(a, settings);
   if (a.fields.size() > 1) return run_series(a, settings, json);
   if (a.shared_tf) throw CLI::ValidationError("--shared-tf", "one TF shared by several fields: give several --field");
   // Every file checked before any work: no output replaces an input or another output. Under
@@ -526,6 +551,10 @@ CommandRegistration reg(10, [](CLI::App& app) {
   sub->footer(solver_descriptions());
   sub->callback([args, sub] {
     args->render_chosen = render_choices(*sub);
+    for (const CLI::Option* o : sub->get_options())
+      if (o->count() > 0 && o->get_group() == "Rendering" && o->get_name() != "--marker" &&
+          o->get_name() != "--slice-point")  // those two have their own message
+        args->picture_flags.push_back(o->get_name());
     args->fields = expand_field_specs(args->fields, "--field");
     args->in.field = args->fields.front();
     exit_code() = run(*args);
