@@ -183,9 +183,14 @@ NrrdHeader parse_header(std::string_view bytes, const std::string& file) {
       else if (e == "bz2" || e == "bzip2") throw fail("bzip2 encoding is not supported (use raw or gzip)");
       else throw fail("unknown encoding '" + value + "'");
     } else if (field == "spacings") {
+      // NaN is the format's "no spacing along this axis"; a negative one runs the axis backwards
+      // (its size is what matters here). Anything else would be dropped for unit spacing.
       for (const auto& w : words(value)) {
         auto n = parse_number(w);
-        h.spacings.push_back(n ? std::abs(*n) : std::nan(""));
+        const bool nan = n ? std::isnan(*n) : (w == "nan" || w == "NaN" || w == "NAN");
+        if (!nan && (!n || !std::isfinite(*n) || *n == 0))
+          throw fail("spacings: '" + w + "' is not a spacing (a finite non-zero number, or nan for an axis without one)");
+        h.spacings.push_back(nan ? std::nan("") : std::abs(*n));
       }
     } else if (field == "space directions") {
       // "(x,y,z) (x,y,z) none ...": the voxel size along an axis is its direction's length.
@@ -368,8 +373,10 @@ void decode_chunk(std::string_view data, const NrrdHeader& h, uint64_t count, co
       while (p < data.size() && sep(data[p])) ++p;
       size_t b = p;
       while (p < data.size() && !sep(data[p])) ++p;
+      if (b == data.size())
+        throw std::runtime_error(where + ": " + std::to_string(i) + " values, the sizes need " + std::to_string(count));
       auto n = parse_number(data.substr(b, p - b));
-      if (!n) throw std::runtime_error(where + ": value " + std::to_string(i) + " is not a number");
+      if (!n) throw std::runtime_error(where + ": value " + std::to_string(i) + " ('" + std::string(data.substr(b, std::min<size_t>(p - b, 20))) + "') is not a number");
       values[filled++] = static_cast<float>(*n);
       if (filled == values.size() || i + 1 == count) {
         sink(values.data(), filled);
@@ -473,7 +480,15 @@ struct NrrdData {
 std::filesystem::path data_file_path(const std::filesystem::path& header, const std::string& name) {
   std::filesystem::path p = name;
   if (p.is_relative()) p = header.parent_path() / p;
-  if (!std::filesystem::exists(p)) throw std::runtime_error(header.string() + ": data file " + p.string() + " does not exist");
+  std::error_code ec;
+  const auto status = std::filesystem::status(p, ec);
+  if (!std::filesystem::exists(status))
+    throw std::runtime_error(header.string() + ": data file " + p.string() + " does not exist");
+  // A directory, a device or a pipe has no size to check against the header's (and a pipe would
+  // block the read): the data must be a file.
+  if (!std::filesystem::is_regular_file(status))
+    throw std::runtime_error(header.string() + ": data file " + p.string() + " is " +
+                             (std::filesystem::is_directory(status) ? "a directory" : "not a regular file"));
   return p;
 }
 
@@ -544,6 +559,10 @@ NrrdData resolve_nrrd(std::string_view bytes, const std::string& file, const Dat
                            : h.encoding == "gzip" ? (kMaxDeflateRatio * n + 1024) / elem
                            : h.encoding == "hex"  ? n / 2 / elem
                                                   : (n + 1) / 2;
+    if (d.per_chunk > bound && h.encoding == "ascii")
+      throw std::runtime_error(d.where[i] + ": " + std::to_string(n) + " bytes of text hold at most " +
+                               std::to_string(bound) + " values, the sizes need " + std::to_string(d.per_chunk) +
+                               " (truncated, or wrong sizes in the header)");
     if (d.per_chunk > bound)
       throw std::runtime_error(d.where[i] + " has " + std::to_string(n) + " bytes, too few for " +
                                std::to_string(d.per_chunk) + " " + h.type_text + " values (" + h.encoding +

@@ -5,6 +5,8 @@
 #include <zlib.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <tuple>
 
@@ -191,10 +193,34 @@ TEST(Nrrd, MalformedInputGivesClearErrors) {
   expect_error([&] { parse(kHead + "endian: little\nencoding: raw\ndata file: a%d%d 1 2 1\n"); }, {"exactly one %d"});
   expect_error([&] { parse(kHead + "endian: little\nencoding: raw\ndata file: a%d 1 3 1\n"); }, {"3 data files", "needing 2"});
   expect_error([&] { parse(kHead + "endian: little\nencoding: raw\ndata file: gone.raw\n"); }, {"no file gone.raw"});
-  expect_error([&] { parse(kHead + "encoding: ascii\n\n1 2 x 4 5 6 7 8 9 10 11 12\n"); }, {"value 2 is not a number"});
+  expect_error([&] { parse(kHead + "encoding: ascii\n\n1 2 x 4 5 6 7 8 9 10 11 12\n"); }, {"value 2 ('x') is not a number"});
   expect_error([&] { parse(kHead + "endian: big\nencoding: hex\n\n00 0g 00\n"); }, {"has 9 bytes, too few for 12 short values (hex"});
   expect_error([&] { parse("NRRD0004\nno colon here\n"); }, {"line 2", "expected 'field: description'"});
   expect_error([&] { parse(kHead + "endian: little\nencoding: gzip\nbyte skip: -1\n\n"); }, {"byte skip -1 needs raw"});
+}
+
+// What was dropped or misnamed: spacings that are no spacing (unit spacing was taken in silence),
+// ASCII data that ends early ("value 11 is not a number"), a data file that is a directory (a
+// filesystem exception's text).
+TEST(Nrrd, SpacingsShortTextAndDataFilesThatAreNoFiles) {
+  const std::string head = "NRRD0004\ntype: short\ndimension: 3\nsizes: 3 2 2\n";
+  const std::string ascii = "encoding: ascii\n\n1 2 3 4 5 6 7 8 9 10 11 12\n";
+  expect_error([&] { parse(head + "spacings: nan inf 1\n" + ascii); },
+               {"line 5", "spacings: 'inf' is not a spacing", "nan for an axis without one"});
+  expect_error([&] { parse(head + "spacings: 1 0 1\n" + ascii); }, {"spacings: '0' is not a spacing"});
+  expect_error([&] { parse(head + "spacings: 1 x 1\n" + ascii); }, {"spacings: 'x' is not a spacing"});
+  // nan is the format's own "no spacing", and a negative spacing runs the axis backwards.
+  const Volume v = parse(head + "spacings: nan -2 0.5\n" + ascii);
+  EXPECT_EQ(v.spacing, (std::array<double, 3>{1, 2, 0.5}));
+  expect_error([&] { parse(head + "encoding: ascii\n\n1 2 3 4 5 6 7 8 9 10 11\n"); },
+               {"attached data: 11 values, the sizes need 12"});
+  expect_error([&] { parse(head + "encoding: ascii\n\n1 2 3\n"); },
+               {"bytes of text hold at most 3 values, the sizes need 12"});
+  formats_test::TempDir dir;
+  std::filesystem::create_directory(dir.path() / "slices");
+  const auto header = dir.path() / "h.nhdr";
+  std::ofstream(header) << head << "endian: little\nencoding: raw\ndata file: slices\n";
+  expect_error([&] { load_volume(header.string()); }, {"h.nhdr: data file", "slices is a directory"});
 }
 
 TEST(NrrdRealFiles, HeadsqQuarterSlices) {
