@@ -24,6 +24,7 @@ void apply_selection(const std::string& selection, const std::string& file, Volu
   // Array names may contain '[' ']' for components; only ",key=N" parts are options.
   std::string var = selection.substr(0, comma);
   if (!var.empty()) o.variable = var;
+  bool seen_time = false, seen_member = false;  // a key given twice: which one was meant?
   while (comma != std::string::npos) {
     size_t next = selection.find(',', comma + 1);
     std::string part = selection.substr(comma + 1, next == std::string::npos ? std::string::npos : next - comma - 1);
@@ -36,6 +37,9 @@ void apply_selection(const std::string& selection, const std::string& file, Volu
     if (eq == std::string::npos || value.empty() || ec != std::errc() || p != value.data() + value.size() ||
         (key != "time" && key != "member"))
       throw std::runtime_error(file + ": bad selection ',"+ part + "' (expected ,time=N or ,member=N)");
+    bool& seen = key == "time" ? seen_time : seen_member;
+    if (seen) throw std::runtime_error(file + ": bad selection: " + key + " is given twice");
+    seen = true;
     (key == "time" ? o.time_index : o.member_index) = n;
   }
 }

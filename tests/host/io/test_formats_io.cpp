@@ -62,6 +62,7 @@ TEST(FormatsIo, SelectionSyntax) {
   EXPECT_EQ(s.options.member_index, 3u);
   expect_error([&] { parse_volume_spec("/n/x.nc:U,time=-1", {}); }, {"x.nc", "bad selection ',time=-1'"});
   expect_error([&] { parse_volume_spec("/n/x.nc:U,level=3", {}); }, {"bad selection"});
+  expect_error([&] { parse_volume_spec("/n/x.nc:U,time=1,member=0,time=2", {}); }, {"x.nc", "bad selection: time is given twice"});
   // A file whose name contains ':' is taken whole.
   TempDir dir;
   const auto odd = dir / "a:b_2x1x1_uint8.raw";
