@@ -486,6 +486,10 @@ TransferFunction read_transfer_function(const std::filesystem::path& path_in, co
   // A range the file gives maps the reference field as a user range would: check it here, where
   // the message can name the file.
   if (tf.range) check_range(*tf.range, path.string());
+  // A table no kernel takes fails here, naming the file, in every command (convert-tf wrote it on).
+  if (tf.size() > kMaxTableSize)
+    throw std::runtime_error(path.string() + ": " + std::to_string(tf.size()) + " entries; transfer functions hold at most " +
+                             std::to_string(kMaxTableSize));
   return tf;
 }
 

@@ -289,6 +289,12 @@ TEST(TfFormats, WriteDispatchesByExtensionAndReadsBack) {
       for (int c = 0; c < 4; ++c) ASSERT_NEAR(back.rgba[j][c], tf.rgba[j][c], 1e-12) << name;
   }
   EXPECT_NE(formats_test::read_bytes(dir / "c.paraview.json").find("\"Name\": \"c\""), std::string::npos);
+  // A table larger than any kernel takes is refused on reading, naming the file (convert-tf
+  // passed it on to fail later, nameless).
+  std::string big = "{\"rgba\": [";
+  for (size_t j = 0; j <= kMaxTableSize; ++j) big += (j ? ",[0,0,0,0]" : "[0,0,0,0]");
+  formats_test::write_bytes(dir / "big.json", big + "]}");
+  expect_error([&] { read_transfer_function(dir / "big.json"); }, {"big.json", "65537 entries", "at most 65536"});
   expect_error([&] { write_transfer_function(dir / "d.txt", tf); }, {"d.txt", "unknown transfer function format"});
   // FILE:PRESET names a preset; the table comes back at its own 16 entries ("tfmatchTableSize").
   EXPECT_EQ(read_transfer_function((dir / "c.paraview.json").string() + ":c").size(), 16u);
