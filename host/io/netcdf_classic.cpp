@@ -52,13 +52,15 @@ class HeaderCursor {
   HeaderCursor(const ByteReader& read, uint64_t size, const std::string& name, const Sizes& s)
       : read_(read), size_(size), name_(name), s_(s) {}
   uint64_t left() const { return size_ - pos_; }
-  [[noreturn]] void fail(const std::string& what) const {
+  // What is wrong at the cursor; `past_end`: something there runs past the file's end, whose size
+  // the message then gives (a wrong value well inside the file is not "beyond" it).
+  [[noreturn]] void fail(const std::string& what, bool past_end = false) const {
     throw std::runtime_error(name_ + ": NetCDF header: " + what + " at byte " + std::to_string(pos_) +
-                             ", beyond the file's " + std::to_string(size_) + " bytes");
+                             (past_end ? " of the file's " + std::to_string(size_) + " bytes" : std::string()));
   }
   uint64_t number(uint64_t bytes, const char* what) {
     unsigned char b[8];
-    if (bytes > left() || !read_(pos_, bytes, reinterpret_cast<char*>(b))) fail(std::string(what) + " ends the file");
+    if (bytes > left() || !read_(pos_, bytes, reinterpret_cast<char*>(b))) fail(std::string(what) + " ends the file", true);
     pos_ += bytes;
     uint64_t v = 0;
     for (uint64_t i = 0; i < bytes; ++i) v = (v << 8) | b[i];  // big-endian
@@ -67,9 +69,9 @@ class HeaderCursor {
   uint64_t count() { return number(s_.non_neg, "a count"); }
   // Skips `n` bytes of which each element needs `each` at least: the count must fit.
   void skip(uint64_t n, uint64_t each, const std::string& what) {
-    if (each > 0 && n > left() / each) fail(what + " (" + std::to_string(n) + " of them) need more bytes than are left");
+    if (each > 0 && n > left() / each) fail(what + " (" + std::to_string(n) + " of them) need more bytes than are left", true);
     pos_ += pad4(n * each);
-    if (pos_ > size_) fail(what + " run past the end");
+    if (pos_ > size_) fail(what + " run past the end", true);
   }
   // netCDF-C copies names into buffers of NC_MAX_NAME + 1 bytes (its own and tfmatch's) without
   // checking what the file says: a longer name overflows them.
@@ -92,7 +94,7 @@ class HeaderCursor {
     const uint64_t t = number(4, what), n = count();
     if (t == 0 && n == 0) return 0;
     if (t != tag) fail(std::string(what) + " has tag " + std::to_string(t));
-    if (n > left() / least_each) fail(std::string(what) + " claims " + std::to_string(n) + " entries");
+    if (n > left() / least_each) fail(std::string(what) + " claims " + std::to_string(n) + " entries, more than the bytes left hold", true);
     return n;
   }
   void attributes() {

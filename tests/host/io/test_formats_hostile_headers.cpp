@@ -132,6 +132,15 @@ TEST(FormatsHostileHeaders, NetcdfHeadersThatCrashNetcdfCAreRefused) {
                  {"rec.nc: NetCDF header", "unlimited dimension in position 1"});
   expect_refused([&] { parse_netcdf(netcdf_with({{"x", 4}}, {0}, 9), "type.nc", {}); }, {"type.nc", "9 is not a classic type"});
   expect_refused([&] { parse_netcdf(netcdf_with({{"x", 4}}, {3}), "dim.nc", {}); }, {"names dimension 3 of 1"});
+  // A wrong value inside the file is not said to lie beyond its end; a header cut short is.
+  try {
+    parse_netcdf(netcdf_with({{"x", 4}}, {0}, 9), "type.nc", {});
+    ADD_FAILURE() << "type 9 accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()).find("file's"), std::string::npos) << e.what();
+  }
+  const std::string cut = netcdf_with({{"x", 4}}, {0}).substr(0, 30);
+  expect_refused([&] { parse_netcdf(cut, "cut.nc", {}); }, {"cut.nc: NetCDF header", "of the file's 30 bytes"});
   // The same layout with sound values opens (the checks do not refuse real files).
   VolumeOptions v;
   v.variable = "v";
