@@ -10,6 +10,7 @@
 #include "cli_runner.h"
 #include "solver_problem.h"
 #include "tfmatch/io/json.h"
+#include "tfmatch/model/phase_timer.h"
 #include "tfmatch/report/result_json.h"
 #include "tfmatch/solvers/solver_comparison.h"
 #include "vk_test_env.h"
@@ -41,6 +42,22 @@ double max_abs_difference(const TransferFunction& x, const TransferFunction& x_q
   for (size_t j = 0; j < std::min(x.size(), x_qp.size()); ++j)
     for (size_t c = 0; c < 4; ++c) d = std::max(d, std::abs(double(x.rgba[j][c]) - double(x_qp.rgba[j][c])));
   return d;
+}
+
+// Kernels are created before the timed runs (a lookup of one made already takes microseconds):
+// no row pays for pipelines (qp, run first, showed the assembly's creation as 140 ms of "assemble").
+TEST_F(SolverComparison, NoTimedRunCreatesPipelines) {
+  const test::SolverProblem p = test::make_solver_problem(6000, 16, 10, 0.2, 0.8, 12, 0.05, 23);
+  std::vector<double> creating;  // the process's pipeline-creation seconds as each row ends
+  const double before = phase_times().seconds[size_t(Phase::Pipelines)];
+  const ComparisonResult r = compare_solvers(ctx(), request_for(p), {"qp", "normal-equations", "cgls", "irls"},
+                                             [&](const ComparisonRow&, size_t, size_t) {
+                                               creating.push_back(phase_times().seconds[size_t(Phase::Pipelines)]);
+                                             });
+  ASSERT_EQ(creating.size(), 4u);
+  EXPECT_GT(creating.front(), before) << "the kernels were created in this call";
+  for (size_t i = 1; i < creating.size(); ++i)
+    EXPECT_LT(creating[i] - creating.front(), 1e-3) << r.rows[i].solver << " created pipelines while timed";
 }
 
 TEST_F(SolverComparison, AllSolversAgreeWhenConstraintsAreInactive) {
