@@ -66,15 +66,34 @@ std::string errno_text() { return std::strerror(errno); }
 
 // An existing target must be a file that may be replaced: a read-only file stays as it is (the
 // owner's write bit decides, since root may write anything).
-void check_replaceable(const fs::path& path) {
-  struct stat st{};
-  if (::stat(path.c_str(), &st) != 0) return;  // does not exist (or is unreachable: open says why)
-  if (S_ISDIR(st.st_mode)) throw std::runtime_error(path.string() + ": is a directory, cannot write a file there");
-  if ((st.st_mode & (S_IWUSR | S_IWGRP | S_IWOTH)) == 0)
-    throw std::runtime_error(path.string() + ": exists and is read-only; refusing to replace it");
+}  // namespace
+
+fs::path output_target(const fs::path& path) {
+  std::error_code ec;
+  fs::path p = path;
+  // Link by link (weakly_canonical stops at a dangling one), at most as deep as the kernel goes.
+  for (int hop = 0; hop < 40 && fs::is_symlink(fs::symlink_status(p, ec)); ++hop) {
+    const fs::path next = fs::read_symlink(p, ec);
+    if (ec) return path;
+    p = next.is_absolute() ? next : p.parent_path() / next;
+  }
+  if (p == path) return path;
+  const fs::path target = fs::weakly_canonical(fs::absolute(p, ec), ec);
+  return ec ? p.lexically_normal() : target;
 }
 
-}  // namespace
+void check_replaceable_target(const fs::path& path, const fs::path& target) {
+  struct stat st{};
+  if (::stat(target.c_str(), &st) != 0) return;  // does not exist (or is unreachable: open says why)
+  const std::string via = target == path ? std::string() : " (a link to " + target.string() + ")";
+  if (S_ISDIR(st.st_mode)) throw std::runtime_error(path.string() + via + ": is a directory, not a file");
+  if (!S_ISREG(st.st_mode))
+    throw std::runtime_error(path.string() + via + ": is a device, pipe or socket, not a file; outputs are files, "
+                             "written whole through a temporary name");
+  // The owner's write bit decides (root may write anything, yet a read-only file stays so).
+  if ((st.st_mode & (S_IWUSR | S_IWGRP | S_IWOTH)) == 0)
+    throw std::runtime_error(path.string() + via + ": exists and is read-only; refusing to replace it");
+}
 
 struct OutputBatchState {
   std::vector<std::pair<fs::path, fs::path>> files;        // temporary -> final
@@ -88,9 +107,10 @@ namespace {
 OutputBatchState* g_batch = nullptr;  // the outermost open batch's (single-threaded, see the header)
 }  // namespace
 
-void write_file_atomically(const fs::path& path, std::string_view bytes) {
+void write_file_atomically(const fs::path& given, std::string_view bytes) {
   PhaseScope timing(Phase::Write);
-  check_replaceable(path);
+  const fs::path path = output_target(given);
+  check_replaceable_target(given, path);
   const fs::path tmp = temporary_name(path);
   int fd = -1;
   create_registered(tmp, [&] {

@@ -15,7 +15,18 @@ namespace tfm {
 
 struct OutputBatchState;  // atomic_file.cpp
 
-// Writes `bytes` to `path` through ".NAME.tmp-PID-K" in the same directory, in blocks with a
+// Where a write of `path` lands: `path`, or where a symbolic link there leads (followed to the end,
+// a dangling link to the file it names), so that a link is written through, as other tools do,
+// rather than replaced by a file of its own.
+std::filesystem::path output_target(const std::filesystem::path& path);
+
+// Throws std::runtime_error naming `path` (as given) when `target` (its output_target) exists and
+// is not a file that can be replaced: a directory, a device, pipe or socket (a write through a
+// temporary name would replace the device's node, or, to /dev/full, report success), or a
+// read-only file.
+void check_replaceable_target(const std::filesystem::path& path, const std::filesystem::path& target);
+
+// Writes `bytes` to `path` (its output_target) through ".NAME.tmp-PID-K" in the same directory, in blocks with a
 // cancellation checkpoint ("write", host/model/cancellation.h) after each. Renames it over `path`
 // at once, or when the open OutputBatch commits. On any error or cancellation the temporary file
 // is removed. Throws std::runtime_error naming `path` when it is a directory, an existing

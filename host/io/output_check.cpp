@@ -8,6 +8,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "tfmatch/io/atomic_file.h"
+
 namespace fs = std::filesystem;
 
 namespace tfm {
@@ -51,15 +53,16 @@ void require_writable_directory(const fs::path& dir, const std::string& what) {
     throw std::runtime_error(what + ": directory " + dir.string() + " is not writable");
 }
 
+// As write_file_atomically() will find it: through a symbolic link, where the link leads.
 void check_output_file(const fs::path& path, const std::string& what) {
-  struct stat st{};
-  if (::stat(path.c_str(), &st) == 0) {
-    if (S_ISDIR(st.st_mode)) throw std::runtime_error(what + ": is a directory, not a file");
-    // The owner's write bit decides (root may write anything, yet a read-only file stays so).
-    if ((st.st_mode & (S_IWUSR | S_IWGRP | S_IWOTH)) == 0)
-      throw std::runtime_error(what + ": exists and is read-only; refusing to replace it");
+  const fs::path target = output_target(path);
+  try {
+    check_replaceable_target(path, target);
+  } catch (const std::runtime_error& e) {
+    const std::string m = e.what();  // "PATH...: problem": the role leads instead
+    throw std::runtime_error(what + m.substr(path.string().size()));
   }
-  require_writable_directory(parent_of(path), what);
+  require_writable_directory(parent_of(target), what);
 }
 
 void check_output_directory(const fs::path& dir, const std::string& what) {

@@ -77,6 +77,40 @@ TEST(FilePlan, RefusesAnOutputThatIsAnInput) {
   expect_refused(FilePlan().input(dir / "ref.raw", "--ref").output(dir / "hard.raw", "--out"), {"an input"});
 }
 
+// An output that is a symbolic link is written through, as other tools do: the link stays and the
+// file it names gets the bytes (the link was replaced by a file of its own, and a link to
+// /dev/full "succeeded"). A device, pipe or socket is no output file.
+TEST(AtomicFile, WritesThroughSymbolicLinksAndRefusesDevices) {
+  TempDir dir;
+  fs::create_directory(dir / "real");
+  fs::create_symlink("real/target.json", dir / "link.json");  // dangling until written
+  fs::create_symlink("link.json", dir / "chain.json");
+  write_file_atomically(dir / "chain.json", "first");
+  EXPECT_TRUE(fs::is_symlink(dir / "chain.json"));
+  EXPECT_TRUE(fs::is_symlink(dir / "link.json"));
+  EXPECT_EQ(read_text(dir / "real/target.json"), "first");
+  {
+    OutputBatch batch;
+    write_file_atomically(dir / "link.json", "second");
+    batch.commit();
+  }
+  EXPECT_TRUE(fs::is_symlink(dir / "link.json"));
+  EXPECT_EQ(read_text(dir / "real/target.json"), "second");
+  EXPECT_EQ(output_target(dir / "chain.json"), fs::weakly_canonical(dir / "real/target.json"));
+  EXPECT_EQ(output_target(dir / "plain.json"), dir / "plain.json");
+  // A link into a missing directory fails as a path into it would, naming the link.
+  fs::create_symlink("nowhere/x.json", dir / "dangling.json");
+  expect_refused(FilePlan().output(dir / "dangling.json", "--out"), {"--out", "dangling.json", "nowhere", "does not exist"});
+  // Devices, directly or through a link: refused up front and when written.
+  fs::create_symlink("/dev/null", dir / "null.json");
+  expect_refused(FilePlan().output(dir / "null.json", "--out"),
+                 {"--out", "null.json (a link to /dev/null)", "is a device, pipe or socket, not a file"});
+  expect_refused(FilePlan().output("/dev/null", "--json"), {"--json /dev/null: is a device, pipe or socket"});
+  EXPECT_THROW(write_file_atomically(dir / "null.json", "x"), std::runtime_error);
+  EXPECT_TRUE(fs::is_symlink(dir / "null.json"));
+  EXPECT_TRUE(pending_temporary_paths().empty());
+}
+
 TEST(FilePlan, RefusesUnwritableTargets) {
   TempDir dir;
   write_text(dir / "ro.json", "keep");
