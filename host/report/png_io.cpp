@@ -269,9 +269,20 @@ Image decode_png(std::string_view bytes, const std::string& name) {
   return image;
 }
 
-std::pair<uint32_t, uint32_t> read_png_size(const std::filesystem::path& path) {
+namespace {
+
+// Throws std::runtime_error unless `path` is a file (libpng read a directory as "Read Error").
+void require_file(const std::filesystem::path& path) {
   std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw std::runtime_error(path.string() + ": no such file");
+  const auto status = std::filesystem::status(path, ec);
+  if (!std::filesystem::exists(status)) throw std::runtime_error(path.string() + ": no such file");
+  if (std::filesystem::is_directory(status)) throw std::runtime_error(path.string() + ": is a directory, not a PNG image");
+}
+
+}  // namespace
+
+std::pair<uint32_t, uint32_t> read_png_size(const std::filesystem::path& path) {
+  require_file(path);
   png_image p;
   std::memset(&p, 0, sizeof p);
   p.version = PNG_IMAGE_VERSION;
@@ -283,8 +294,8 @@ std::pair<uint32_t, uint32_t> read_png_size(const std::filesystem::path& path) {
 
 Image read_png(const std::filesystem::path& path) {
   PhaseScope timing(Phase::Read);  // reading and decoding: `metrics --json` timings showed none
+  require_file(path);
   std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw std::runtime_error(path.string() + ": no such file");
   const uint64_t size = std::filesystem::file_size(path, ec);
   if (ec) throw std::runtime_error(path.string() + ": cannot read (" + ec.message() + ")");
   check_memory(size, path.string() + ": reading the file");

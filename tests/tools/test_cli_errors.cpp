@@ -54,6 +54,22 @@ TEST_F(CliErrors, MissingFile) {
   expect_failure(ok_inputs(dir / "nope_4x4x4_float32.raw"), {"nope_4x4x4_float32.raw", "no such file"});
 }
 
+// A missing or unreadable input is an error naming it (exit 1) in every command: metrics said
+// "B: File does not exist" as a usage error, and read a directory as "Read Error". An unknown
+// element type is a bad option value: a usage error (exit 2), as --dims 0 is.
+TEST_F(CliErrors, InputsThatAreNoFilesAndUnknownTypes) {
+  auto r = run_cli("metrics " + dir / "nope.png" + " " + dir / "nope2.png");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("tfmatch: error: " + dir / "nope.png" + ": no such file"), std::string::npos) << r.output;
+  std::filesystem::create_directory(dir / "pics");
+  r = run_cli("metrics " + dir / "pics" + " " + dir / "pics");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("pics: is a directory, not a PNG image"), std::string::npos) << r.output;
+  r = run_cli("info " + dir / "ref_4x4x4_float32.raw" + " --type complex64");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--type: unknown element type 'complex64'"), std::string::npos) << r.output;
+}
+
 TEST_F(CliErrors, WrongSizeRaw) {
   write_floats(dir / "short_4x4x4_float32.raw", ramp(60));
   expect_failure(ok_inputs(dir / "short_4x4x4_float32.raw"), {"short_4x4x4_float32.raw", "240 bytes", "needs 256"});

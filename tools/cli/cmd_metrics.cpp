@@ -43,8 +43,8 @@ int run(const MetricsArgs& args) {
 CommandRegistration reg(22, [](CLI::App& app) {
   auto args = std::make_shared<MetricsArgs>();
   auto* sub = app.add_subcommand("metrics", "Image similarity of two PNGs: RMSE, PSNR (0-255 scale) and SSIM");
-  sub->add_option("A", args->a, "First image (PNG)")->required()->check(CLI::ExistingFile);
-  sub->add_option("B", args->b, "Second image (PNG)")->required()->check(CLI::ExistingFile);
+  sub->add_option("A", args->a, "First image (PNG)")->required();
+  sub->add_option("B", args->b, "Second image (PNG)")->required();
 add_json_option(sub, args->json, "{\"rmse\", \"psnr\" (\"inf\" when identical), \"ssim\"}");
   sub->footer("SSIM: Wang et al. 2004 (11x11 Gaussian window, sigma 1.5, K1 0.01, K2 0.03) on RGB, as "
               "scikit-image's structural_similarity(gaussian_weights=True, use_sample_covariance=False, "

@@ -73,7 +73,9 @@ VolumeOptions VolumeFlags::options(const std::vector<std::string>& inputs) const
   if (dims.size() == 3) vo.dims = std::array<uint64_t, 3>{dims[0], dims[1], dims[2]};
   if (!type.empty()) {
     vo.type = parse_scalar_type(type);
-    if (vo.type == ScalarType::Unknown) throw std::runtime_error("--type: unknown element type '" + type + "'");
+    if (vo.type == ScalarType::Unknown)  // a bad option value: a usage error, as --dims 0 is
+      throw CLI::ValidationError("--type", "unknown element type '" + type +
+                                               "' (uint8, int8, uint16, int16, uint32, int32, float32, float64, ...)");
   }
   vo.big_endian = big_endian;
   vo.variable = var;

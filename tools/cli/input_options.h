@@ -27,7 +27,7 @@ struct VolumeFlags {
   std::string var;
   std::optional<uint64_t> time, member;
   // The options for reading `inputs` (the command's FILE[:SELECTION] specs). Throws
-  // std::runtime_error for an unknown --type, and CLI::ValidationError when --dims, --type or
+  // CLI::ValidationError for an unknown --type, and when --dims, --type or
   // --big-endian is given but none of `inputs` is a file they describe (raw; .dat for the byte
   // order): they would be ignored.
   VolumeOptions options(const std::vector<std::string>& inputs) const;
