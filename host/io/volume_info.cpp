@@ -67,6 +67,31 @@ FileInfo describe_selection(const std::string& spec, const VolumeOptions& option
   return info;
 }
 
+namespace {
+
+// How many fields (times, members) an array's range and no-data count cover: its values over one
+// field's (1 where the grid is unknown).
+uint64_t fields_examined(const ArrayInfo& a) {
+  const uint64_t per_field = a.grid[0] * a.grid[1] * a.grid[2] * std::max<uint64_t>(a.components, 1);
+  return per_field > 0 && a.values > per_field ? a.values / per_field : 1;
+}
+
+// " over all 4 times" where the range covers more than one field: a range copied into --range
+// from here maps the field of one time differently than that field's own range would.
+std::string range_scope(const ArrayInfo& a) {
+  const uint64_t fields = fields_examined(a);
+  if (fields <= 1) return "";
+  bool times = false, members = false;
+  for (const std::string& c : a.choices) {
+    times = times || c.find("(--time)") != std::string::npos;
+    members = members || c.find("(--member)") != std::string::npos;
+  }
+  const char* what = times && members ? "times and members" : times ? "times" : members ? "members" : "fields";
+  return " over all " + std::to_string(fields) + " " + what;
+}
+
+}  // namespace
+
 std::string format_file_info(const FileInfo& info) {
   std::ostringstream os;
   os.precision(7);
@@ -89,7 +114,7 @@ std::string format_file_info(const FileInfo& info) {
     }
     for (const auto& c : a.choices) os << "      " << c << "\n";
     if (a.values > 0) {
-      os << "      range ";
+      os << "      range" << range_scope(a) << " ";
       if (a.min) os << "[" << *a.min << ", " << *a.max << "]";
       else os << "(no finite values)";
       os << ", no data (NaN/Inf/fill/missing) " << a.nan_count << " of " << a.values << "\n";
@@ -120,6 +145,7 @@ nlohmann::json file_info_json(const FileInfo& info) {
     x["notes"] = a.notes;
     x["values"] = a.values;
     x["nan_count"] = a.nan_count;
+    x["fields_examined"] = fields_examined(a);  // times and members the range and count cover
     if (a.min) x["range"] = {*a.min, *a.max};
     j["arrays"].push_back(x);
   }

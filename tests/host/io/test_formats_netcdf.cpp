@@ -371,6 +371,14 @@ TEST(NetcdfInfo, ListsVariablesWithRangesAndNoData) {
   EXPECT_EQ(*a->min, 0.0);
   EXPECT_EQ(*a->max, 1000 + 200 + 30 + 3);  // the largest value is the fill's neighbour
   EXPECT_NE(format_file_info(info).find("time = 2 (--time)"), std::string::npos);
+  // The range is over both times, and says so (one time's own range is another: a range copied
+  // into --range from here mapped that field differently without a word).
+  EXPECT_NE(format_file_info(info).find("range over all 2 times [0, 1233]"), std::string::npos) << format_file_info(info);
+  for (const auto& x : file_info_json(info)["arrays"])
+    if (x["name"] == "A") EXPECT_EQ(x["fields_examined"], 2u);
+  // One selected field's range is its own.
+  const std::string at_time = format_file_info(describe_selection(path.string() + ":A,time=1", {}));
+  EXPECT_NE(at_time.find("      range ["), std::string::npos) << at_time;
   // Attribute values as numbers are written elsewhere ("-32767", not "-32767.000000").
   const std::string text = format_file_info(info);
   EXPECT_NE(text.find("missing_value -32767\n"), std::string::npos) << text;
