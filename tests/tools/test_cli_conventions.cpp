@@ -264,13 +264,20 @@ TEST_F(CliConventions, FieldSelectorsOnEveryCommandThatReadsFields) {
   const Volume a1 = load_volume(dir / "a1.vti");
   ASSERT_EQ(a1.values.size(), kVoxels);
   for (size_t i = 0; i < kVoxels; ++i) ASSERT_EQ(a1.values[i], value_a(1, i)) << i;
-  // Two fields of one name (a variable of two times, by --time) get names of their own, each
-  // selectable (both were named A, and `aa.vti:A` could only ever read the first).
+  // Fields of one name get names of their own, each selectable (both were named A, and
+  // `aa.vti:A` could only ever read the first): by their selection where it differs (a bare
+  // "A_2" read as time 2 in ParaView), else numbered.
   r = run_cli("convert-volume " + nc + ":A " + nc + ":A " + dir / "aa.vti --time 1");
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  const Volume first = load_volume(dir / "aa.vti:A"), second = load_volume(dir / "aa.vti:A_2");
+  EXPECT_TRUE(contains(r.output, "A_time1 A_time1_2)")) << r.output;
+  const Volume first = load_volume(dir / "aa.vti:A_time1"), second = load_volume(dir / "aa.vti:A_time1_2");
   ASSERT_EQ(second.values.size(), kVoxels);
   for (size_t i = 0; i < kVoxels; ++i) ASSERT_EQ(second.values[i], first.values[i]) << i;
+  r = run_cli("convert-volume " + nc + ":A,time=0 " + nc + ":A,time=1 " + nc + ":B " + dir / "at.vti");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "A_time0 A_time1 B)")) << r.output;
+  const Volume at1 = load_volume(dir / "at.vti:A_time1");
+  for (size_t i = 0; i < kVoxels; ++i) ASSERT_EQ(at1.values[i], value_a(1, i)) << i;
   // optimize: the flags select both fields; --ref's FILE:VAR overrides only the variable.
   const test::CliSplitResult o = run_cli_split("optimize --ref " + nc + ":A --field " + nc + " --var B --time 1 --ref-tf " +
                                                dir / "tf.json" + " --out " + dir / "o.json --tf-size 8 --json -");

@@ -1,4 +1,5 @@
 // `tfmatch convert-volume IN... OUT.vti`: any field tfmatch reads, as VTK ImageData for ParaView.
+#include <algorithm>
 #include <filesystem>
 #include <iostream>
 #include <set>
@@ -37,17 +38,39 @@ int run(const ConvertVolumeArgs& a) {
     volumes.push_back(load_volume(in, vo));
     if (volumes.size() > 1) require_same_grid(volumes.front(), volumes.back());
   }
+  // Array names: the variable after the last ':' without its ",time=N"-style selectors (a name
+  // with them could not be selected, `FILE:A,time=1` being a selector itself), else the file
+  // stem. One variable given at several times or members is named by them ("T_time0",
+  // "T_time3": a bare "T_2" read as time 2 in ParaView); what is still taken (two files of one
+  // name in different folders) gets _2, _3, ..., so that each array can be selected by its name.
+  std::vector<std::string> names, selections;
+  for (size_t i = 0; i < volumes.size(); ++i) {
+    const std::string& n = volumes[i].name;
+    const auto colon = n.rfind(':');
+    std::string name = colon != std::string::npos ? n.substr(colon + 1) : std::filesystem::path(n).stem().string();
+    std::string selection;  // "time3_member1" from ",time=3,member=1": the name's, else as given
+    auto selectors = [](const std::string& spec_part) {
+      std::string s;
+      for (char c : spec_part.substr(std::min(spec_part.find(','), spec_part.size())))
+        if (c != '=') s += c == ',' ? '_' : c;
+      return s.empty() ? s : s.substr(1);
+    };
+    if (colon != std::string::npos) {
+      selection = selectors(name);
+      name = name.substr(0, name.find(','));
+    }
+    if (selection.empty()) {
+      const std::string& spec = a.inputs[i];
+      const auto spec_colon = spec.rfind(':');
+      if (spec_colon != std::string::npos) selection = selectors(spec.substr(spec_colon + 1));
+    }
+    names.push_back(name.empty() ? "field" + std::to_string(i) : name);
+    selections.push_back(selection);
+  }
   std::set<std::string> taken;
   for (size_t i = 0; i < volumes.size(); ++i) {
-    // Array name: the variable after the last ':' without its ",time=N"-style selectors (a name
-    // with them could not be selected, `FILE:A,time=1` being a selector itself), else the file
-    // stem; a name already taken (two files of one name in different folders, one variable at two
-    // times) gets _2, _3, ..., so that each array can be selected by its name.
-    const std::string& n = volumes[i].name;
-    auto colon = n.rfind(':');
-    std::string name = colon != std::string::npos ? n.substr(colon + 1) : std::filesystem::path(n).stem().string();
-    if (colon != std::string::npos) name = name.substr(0, name.find(','));
-    if (name.empty()) name = "field" + std::to_string(i);
+    std::string name = names[i];
+    if (std::count(names.begin(), names.end(), names[i]) > 1 && !selections[i].empty()) name += "_" + selections[i];
     std::string unique = name;
     for (int k = 2; taken.count(unique); ++k) unique = name + "_" + std::to_string(k);
     taken.insert(unique);
