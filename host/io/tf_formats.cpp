@@ -441,6 +441,10 @@ TransferFunction parse_transfer_function(std::string_view text, const std::strin
       TransferFunction tf = parse_tf_json(std::string(text), name);
       return options.table_size ? tf.resampled(options.table_size) : tf;
     }
+    // Neither kind: say which keys would make it one (it was called a preset without RGBPoints).
+    if (doc.is_object() && !doc.contains("RGBPoints") && !doc.contains("Name") && !doc.contains("ColorSpace"))
+      throw std::runtime_error(name + ": a JSON object with neither \"rgba\" (a tfmatch table) nor \"RGBPoints\" (a "
+                               "ParaView preset): not a transfer function");
   }
   const ControlPointTf cp = parse_paraview_preset(text, name, options.preset, notes);
   return table_from_control_points(cp, options.table_size ? options.table_size : cp.table_size.value_or(0));

@@ -257,6 +257,9 @@ TEST(TfFormats, MalformedFilesGiveClearErrors) {
   expect_error([&] { parse("{\"tfmatchTableSize\": 1, \"RGBPoints\": [0,0,0,0, 1,1,1,1]}"); },
                {"\"tfmatchTableSize\" must be a whole number from 2 to 65536"});
   expect_error([&] { parse("{\"Name\": \"x\"}"); }, {"no \"RGBPoints\""});
+  // An object of neither kind is not called a preset.
+  expect_error([&] { parse("{\"range\": [0, 1]}"); },
+               {"mem.tf: a JSON object with neither \"rgba\" (a tfmatch table) nor \"RGBPoints\""});
   expect_error([&] { parse("[1, 2"); }, {"not valid JSON"});
   expect_error([&] { parse("{\"rgba\": [[0,0,0,0],[1,1,1"); }, {"mem.tf", "not valid JSON", "line 1, column"});
   expect_error([&] { parse("{\"rgba\": [[0,0,0,0],[1.0000001,1,1,1]]}"); }, {"row 1 has value 1.0000001 outside"});
