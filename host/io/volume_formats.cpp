@@ -60,6 +60,23 @@ const char* element_type_name(ElementType t) {
   return "unknown";
 }
 
+bool fits_element_type(double v, ElementType t) {
+  double lo = 0, hi = 0;
+  switch (t) {
+    case ElementType::Float32:
+    case ElementType::Float64: return true;
+    case ElementType::UInt8: hi = 255; break;
+    case ElementType::Int8: lo = -128, hi = 127; break;
+    case ElementType::UInt16: hi = 65535; break;
+    case ElementType::Int16: lo = -32768, hi = 32767; break;
+    case ElementType::UInt32: hi = 4294967295.0; break;
+    case ElementType::Int32: lo = -2147483648.0, hi = 2147483647.0; break;
+    case ElementType::UInt64: hi = 18446744073709551615.0; break;
+    case ElementType::Int64: lo = -9223372036854775808.0, hi = 9223372036854775807.0; break;
+  }
+  return v == std::floor(v) && v >= lo && v <= hi;  // false for NaN and the infinities
+}
+
 void decode_elements(const char* src, uint64_t count, ElementType type, bool big_endian, float* dst) {
   switch (type) {
     case ElementType::UInt8: convert<uint8_t>(src, count, big_endian, dst); break;

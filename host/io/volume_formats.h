@@ -25,6 +25,11 @@ enum class ElementType { UInt8, Int8, UInt16, Int16, UInt32, Int32, UInt64, Int6
 size_t element_bytes(ElementType t);
 const char* element_type_name(ElementType t);
 
+// Whether a number written as text (ASCII data) is a value of type `t`: any number for the float
+// types; for the integer types a whole number within the type's range (999 is no unsigned_char:
+// read as it stands, it gave a uint8 field a range of [1, 999]).
+bool fits_element_type(double v, ElementType t);
+
 // Decodes `count` elements stored with the given byte order into floats (64-bit integers and
 // doubles are rounded to the nearest float). `dst` may equal `src` for four-byte types.
 void decode_elements(const char* src, uint64_t count, ElementType type, bool big_endian, float* dst);

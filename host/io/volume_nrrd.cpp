@@ -377,6 +377,9 @@ void decode_chunk(std::string_view data, const NrrdHeader& h, uint64_t count, co
         throw std::runtime_error(where + ": " + std::to_string(i) + " values, the sizes need " + std::to_string(count));
       auto n = parse_number(data.substr(b, p - b));
       if (!n) throw std::runtime_error(where + ": value " + std::to_string(i) + " ('" + std::string(data.substr(b, std::min<size_t>(p - b, 20))) + "') is not a number");
+      if (!fits_element_type(*n, *h.type))
+        throw std::runtime_error(where + ": value " + std::to_string(i) + " (" + std::string(data.substr(b, p - b)) +
+                                 ") is no " + h.type_text + " value (the type the header declares)");
       values[filled++] = static_cast<float>(*n);
       if (filled == values.size() || i + 1 == count) {
         sink(values.data(), filled);

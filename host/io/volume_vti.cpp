@@ -326,6 +326,9 @@ std::vector<float> decode_array(std::string_view bytes, const VtiDocument& doc, 
       while (p < text.size() && !space(text[p])) ++p;
       auto n = parse_number(text.substr(b, p - b));
       if (!n) throw std::runtime_error(where + ": value " + std::to_string(i) + " is '" + std::string(text.substr(b, p - b)) + "', not a number");
+      if (!fits_element_type(*n, a.type))
+        throw std::runtime_error(where + ": value " + std::to_string(i) + " is " + std::string(text.substr(b, p - b)) +
+                                 ", no " + element_type_name(a.type) + " value (the array's declared type)");
       v[i] = static_cast<float>(*n);
     }
     while (p < text.size() && space(text[p])) ++p;

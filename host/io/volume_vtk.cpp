@@ -325,7 +325,11 @@ std::vector<float> decode_array(std::string_view bytes, const VtkDocument& doc, 
     c.seek(a.data_begin);
     for (uint64_t i = 0; i < count; ++i) {
       std::string_view tok = c.token();
-      v[i] = static_cast<float>(parse_real(tok, c, a.keyword + " '" + a.name + "'"));
+      const double x = parse_real(tok, c, a.keyword + " '" + a.name + "'");
+      if (!fits_element_type(x, a.type))
+        c.fail(a.keyword + " '" + a.name + "': value " + std::string(tok) + " is no " + element_type_name(a.type) +
+               " value (the type the header declares)");
+      v[i] = static_cast<float>(x);
     }
   }
   return v;

@@ -214,6 +214,8 @@ TEST(Nrrd, SpacingsShortTextAndDataFilesThatAreNoFiles) {
   EXPECT_EQ(v.spacing, (std::array<double, 3>{1, 2, 0.5}));
   expect_error([&] { parse(head + "encoding: ascii\n\n1 2 3 4 5 6 7 8 9 10 11\n"); },
                {"attached data: 11 values, the sizes need 12"});
+  expect_error([&] { parse(head + "encoding: ascii\n\n1 2 3 4 5 6 7 8 9 10 11 40000\n"); },
+               {"value 11 (40000) is no short value"});
   expect_error([&] { parse(head + "encoding: ascii\n\n1 2 3\n"); },
                {"bytes of text hold at most 3 values, the sizes need 12"});
   formats_test::TempDir dir;

@@ -63,6 +63,12 @@ TEST(Vti, AsciiArraysComponentsAndCellData) {
   Volume c = parse(doc, "c");
   EXPECT_EQ(c.dims, (std::array<uint64_t, 3>{2, 1, 1}));
   EXPECT_EQ(c.values, (std::vector<float>{200, 201}));
+  // Text that is no value of the declared type is an error, not a uint8 field of range [200, 300].
+  for (const std::string bad : {"200 300", "200 -1", "200 1.5", "200 nan"}) {
+    const std::string d = document("byte_order=\"LittleEndian\"", arrays, "",
+                                   "<DataArray type=\"UInt8\" Name=\"c\" format=\"ascii\">" + bad + "</DataArray>");
+    expect_error([&] { parse(d, "c"); }, {"mem.vti", "array 'c'", "value 1 is " + bad.substr(4), "no uint8 value"});
+  }
 }
 
 TEST(Vti, InlineBase64HeaderApartOrTogether) {

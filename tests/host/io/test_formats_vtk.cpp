@@ -108,6 +108,12 @@ TEST(VtkLegacy, MalformedInputGivesClearErrors) {
   expect_error([&] { parse(head + "SPACING 1 0 1\nDIMENSIONS 2 2 2\n"); }, {"SPACING must be positive"});
   expect_error([&] { parse(head + "POINT_DATA 8\n"); }, {"before DIMENSIONS"});
   expect_error([&] { parse(head + "DIMENSIONS 2 2 2\nPOINT_DATA 8\nSCALARS s float 9\n"); }, {"components must be 1..4"});
+  // ASCII values must be values of the declared type (999 was read into a uint8 field).
+  const std::string text = kHeader3 + "ASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 2 2 2\nPOINT_DATA 8\n";
+  EXPECT_NO_THROW(parse(text + "SCALARS s unsigned_char\n1 2 3 4 5 6 7 255\n"));
+  expect_error([&] { parse(text + "SCALARS s unsigned_char\n1 2 3 4 5 6 7 999\n"); },
+               {"mem.vtk", "SCALARS 's': value 999 is no uint8 value"});
+  expect_error([&] { parse(text + "SCALARS s short\n1 2 3 4 5 6 7 2.5\n"); }, {"value 2.5 is no int16 value"});
   expect_error([&] { parse(head + "DIMENSIONS 2 2 2\nPOINT_DATA 8\nFROBNICATE x\n"); }, {"unknown keyword"});
   // A huge array claimed by a header must not be allocated: it fails the size check first.
   expect_error([&] { parse(head + "DIMENSIONS 10000 10000 1000\nPOINT_DATA 100000000000\nSCALARS s double\n"); },
