@@ -284,6 +284,22 @@ struct Unpacker {
   }
 };
 
+// A packing attribute (scale_factor, add_offset): absent, or one finite number. Anything else
+// changes what every value means, so it is an error naming it rather than a default taken in
+// silence (a text scale_factor "abc" left the data unscaled).
+std::optional<double> packing_attribute(const NcFile& f, const Layout& L, const char* key) {
+  nc_type t;
+  size_t len = 0;
+  if (nc_inq_att(f.id(), L.varid, key, &t, &len) != NC_NOERR) return std::nullopt;
+  const std::string where = f.name() + ": variable " + L.name + ": attribute " + key;
+  if (!is_numeric(t)) throw std::runtime_error(where + " is text, not a number");
+  if (len != 1) throw std::runtime_error(where + " has " + std::to_string(len) + " values, not one");
+  double v = 0;
+  if (nc_get_att_double(f.id(), L.varid, key, &v) != NC_NOERR || !std::isfinite(v))
+    throw std::runtime_error(where + " is not a finite number");
+  return v;
+}
+
 Unpacker unpacker_of(const NcFile& f, const Layout& L) {
   Unpacker u;
   const int nc = f.id(), v = L.varid;
@@ -306,18 +322,24 @@ Unpacker unpacker_of(const NcFile& f, const Layout& L) {
     os << "missing_value " << (*mv)[0] << (mv->size() > 1 ? " ..." : "");
     u.notes.push_back(os.str());
   }
-  auto sf = att_numbers(nc, v, "scale_factor");
-  auto ao = att_numbers(nc, v, "add_offset");
-  if (sf) u.scale = (*sf)[0];
-  if (ao) u.offset = (*ao)[0];
+  const auto sf = packing_attribute(f, L, "scale_factor");
+  const auto ao = packing_attribute(f, L, "add_offset");
+  if (sf) u.scale = *sf;
+  if (ao) u.offset = *ao;
   if (sf || ao) {
     std::ostringstream os;
     os.precision(15);
     os << "packed: value = stored * " << u.scale << " + " << u.offset;
     u.notes.push_back(os.str());
   }
-  if (auto un = att_text(nc, v, "_Unsigned"); un && lower(*un) == "true" &&
-                                              (L.type == NC_BYTE || L.type == NC_SHORT || L.type == NC_INT)) {
+  const auto un = att_text(nc, v, "_Unsigned");
+  nc_type ut;
+  size_t ulen;
+  if ((un && lower(*un) != "true" && lower(*un) != "false") ||
+      (!un && nc_inq_att(nc, v, "_Unsigned", &ut, &ulen) == NC_NOERR))
+    throw std::runtime_error(f.name() + ": variable " + L.name + ": attribute _Unsigned is " +
+                             (un ? "'" + *un + "'" : std::string("not text")) + ", not \"true\" or \"false\"");
+  if (un && lower(*un) == "true" && (L.type == NC_BYTE || L.type == NC_SHORT || L.type == NC_INT)) {
     u.unsigned_fix = true;
     u.bits = L.type == NC_BYTE ? 8 : L.type == NC_SHORT ? 16 : 32;
     u.notes.push_back("_Unsigned = true");
@@ -673,7 +695,16 @@ FileInfo describe_netcdf(const NcFile& f, const VolumeOptions& options) {
       a.choices.push_back("time: " + L.dim_names[L.time_axis] + " = " + std::to_string(L.dim_sizes[L.time_axis]) + " (" + parameter("time") + ")");
     for (int e : L.extra_axes)
       a.choices.push_back("member: " + L.dim_names[e] + " = " + std::to_string(L.dim_sizes[e]) + " (" + parameter("member") + ")");
-    auto u = unpacker_of(f, L);
+    // A variable whose packing cannot be read is listed saying why, not the end of the listing.
+    Unpacker u;
+    try {
+      u = unpacker_of(f, L);
+    } catch (const std::runtime_error& e) {
+      const std::string m = e.what();
+      a.notes.push_back("not loadable: " + m.substr(std::min(m.size(), f.name().size() + 2)));
+      info.arrays.push_back(std::move(a));
+      continue;
+    }
     a.notes.insert(a.notes.end(), u.notes.begin(), u.notes.end());
     // Every slab of every time and member counts towards the range.
     std::vector<int> iterate;

@@ -387,6 +387,40 @@ TEST(NetcdfInfo, ListsVariablesWithRangesAndNoData) {
   EXPECT_NE(one.find("units: Pa"), std::string::npos) << one;
 }
 
+// Packing attributes that cannot be what they say are errors naming the variable and attribute
+// (a text scale_factor left the data unscaled, a second value was dropped, _Unsigned "maybe" was
+// read as false); info lists such a variable saying why and goes on with the others.
+TEST(NetcdfMalformed, PackingAttributesMustBeWhatTheySay) {
+  TempDir dir;
+  const auto path = dir / "packing.nc";
+  int nc, x;
+  ASSERT_EQ(nc_create(path.c_str(), NC_CLOBBER, &nc), NC_NOERR);
+  ok(nc_def_dim(nc, "x", 4, &x));
+  const int text = def_var(nc, "text", NC_SHORT, {x}), two = def_var(nc, "two", NC_SHORT, {x});
+  const int inf = def_var(nc, "inf", NC_SHORT, {x}), maybe = def_var(nc, "maybe", NC_SHORT, {x});
+  const int fine = def_var(nc, "fine", NC_SHORT, {x});
+  ok(nc_put_att_text(nc, text, "scale_factor", 3, "abc"));
+  const double pair[2] = {1, 2}, infinite = INFINITY, half = 0.5;
+  ok(nc_put_att_double(nc, two, "add_offset", NC_DOUBLE, 2, pair));
+  ok(nc_put_att_double(nc, inf, "scale_factor", NC_DOUBLE, 1, &infinite));
+  ok(nc_put_att_text(nc, maybe, "_Unsigned", 5, "maybe"));
+  ok(nc_put_att_double(nc, fine, "scale_factor", NC_DOUBLE, 1, &half));
+  ok(nc_put_att_text(nc, fine, "_Unsigned", 5, "false"));
+  ok(nc_enddef(nc));
+  const short stored[4] = {2, 4, 6, 8};
+  for (int v : {text, two, inf, maybe, fine}) ok(nc_put_var_short(nc, v, stored));
+  ok(nc_close(nc));
+  const std::string f = path.string();
+  expect_error([&] { load_volume(f + ":text"); }, {f, "variable text: attribute scale_factor is text, not a number"});
+  expect_error([&] { load_volume(f + ":two"); }, {"variable two: attribute add_offset has 2 values, not one"});
+  expect_error([&] { load_volume(f + ":inf"); }, {"variable inf: attribute scale_factor is not a finite number"});
+  expect_error([&] { load_volume(f + ":maybe"); }, {"variable maybe: attribute _Unsigned is 'maybe', not \"true\" or \"false\""});
+  EXPECT_EQ(load_volume(f + ":fine").values, (std::vector<float>{1, 2, 3, 4}));
+  const std::string listing = format_file_info(describe_file(path));
+  EXPECT_NE(listing.find("not loadable: variable text: attribute scale_factor is text"), std::string::npos) << listing;
+  EXPECT_NE(listing.find("packed: value = stored * 0.5 + 0"), std::string::npos) << listing;
+}
+
 // `info` reads a variable's slabs a block of rows at a time (a 2048 x 1024 one under a budget
 // with 16 MiB left: whole slabs of double and float took 24 MiB), and lists a variable too large to
 // scan (an unwritten 10 x 10^5 x 10^5 one in a netCDF-4 file of a few KiB) without its range
