@@ -236,15 +236,21 @@ ControlPointTf parse_paraview_preset(std::string_view text, const std::string& n
   }
   const nlohmann::json* obj = nullptr;
   if (doc.is_array()) {
-    std::string names;
+    std::string names, first;
+    size_t count = 0;
     for (const auto& p : doc) {
       if (!p.is_object() || !p.contains("RGBPoints")) continue;
       const std::string n = p.contains("Name") && p["Name"].is_string() ? p["Name"].get<std::string>() : "";
       names += (names.empty() ? "" : ", ") + n;
+      if (++count == 1) first = n;
       if (!obj && (preset.empty() || n == preset)) obj = &p;
     }
     if (!obj)
       throw std::runtime_error(name + (preset.empty() ? ": no preset with RGBPoints" : ": no preset named '" + preset + "' (presets: " + names + ")"));
+    // Which of several was taken, and how to take another (the first was used without a word).
+    if (preset.empty() && count > 1 && notes)
+      notes->push_back(name + ": " + std::to_string(count) + " presets (" + names + "); using the first, '" + first +
+                       "' (FILE:NAME picks one)");
   } else if (doc.is_object()) {
     obj = &doc;
   } else {

@@ -223,15 +223,20 @@ TEST(TfFormats, ParaViewColourSpacesOpacityShapeAndRange) {
   EXPECT_NEAR(hsv.rgba[1][0], 1.0, 1e-12);
   EXPECT_NEAR(hsv.rgba[1][1], 0.0, 1e-12);
   EXPECT_NEAR(hsv.rgba[1][2], 1.0, 1e-12);
-  // Several presets: by name; no opacity points: a ramp, with a note.
+  // Several presets: by name, else the first, saying so; no opacity points: a ramp, with a note.
   const std::string many = "[" + preset("RGB", "0,0,0,0, 1,1,1,1", "", "gray") + "," +
                            preset("RGB", "0,1,0,0, 1,1,0,0", "0,0.5,0.5,0, 1,0.5,0.5,0", "red") + "]";
   EXPECT_EQ(parse_transfer_function(many, "m.json", {0, "red"}).rgba[0][3], 0.5);
   std::vector<std::string> notes;
   TransferFunction g = parse_transfer_function(many, "m.json", {3, ""}, &notes);
   EXPECT_EQ(g.rgba[1][3], 0.5);
-  ASSERT_EQ(notes.size(), 1u);
-  EXPECT_NE(notes[0].find("ramp"), std::string::npos);
+  ASSERT_EQ(notes.size(), 2u);
+  EXPECT_NE(notes[0].find("m.json: 2 presets (gray, red); using the first, 'gray' (FILE:NAME picks one)"), std::string::npos)
+      << notes[0];
+  EXPECT_NE(notes[1].find("ramp"), std::string::npos);
+  notes.clear();
+  parse_transfer_function(many, "m.json", {3, "red"}, &notes);
+  EXPECT_TRUE(notes.empty()) << notes.front();  // the one named: nothing to say
   expect_error([&] { parse_transfer_function(many, "m.json", {0, "blue"}); }, {"m.json", "no preset named 'blue'", "gray, red"});
 }
 
