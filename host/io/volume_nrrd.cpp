@@ -378,7 +378,7 @@ void decode_chunk(std::string_view data, const NrrdHeader& h, uint64_t count, co
       auto n = parse_number(data.substr(b, p - b));
       if (!n) throw std::runtime_error(where + ": value " + std::to_string(i) + " ('" + std::string(data.substr(b, std::min<size_t>(p - b, 20))) + "') is not a number");
       if (!fits_element_type(*n, *h.type))
-        throw std::runtime_error(where + ": value " + std::to_string(i) + " (" + std::string(data.substr(b, p - b)) +
+        throw std::runtime_error(where + ": value " + std::to_string(i) + " (" + std::string(data.substr(b, std::min<size_t>(p - b, 20))) +
                                  ") is no " + h.type_text + " value (the type the header declares)");
       values[filled++] = static_cast<float>(*n);
       if (filled == values.size() || i + 1 == count) {
