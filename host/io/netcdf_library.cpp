@@ -55,6 +55,10 @@ int nc_get_att_double(int ncid, int varid, const char* name, double* ip) {
   FORWARD(nc_get_att_double, ncid, varid, name, ip)
 }
 int nc_get_att_text(int ncid, int varid, const char* name, char* ip) { FORWARD(nc_get_att_text, ncid, varid, name, ip) }
+int nc_get_att_string(int ncid, int varid, const char* name, char** ip) {
+  FORWARD(nc_get_att_string, ncid, varid, name, ip)
+}
+int nc_free_string(size_t len, char** data) { FORWARD(nc_free_string, len, data) }
 int nc_get_var_double(int ncid, int varid, double* ip) { FORWARD(nc_get_var_double, ncid, varid, ip) }
 int nc_get_vara_double(int ncid, int varid, const size_t* startp, const size_t* countp, double* ip) {
   FORWARD(nc_get_vara_double, ncid, varid, startp, countp, ip)

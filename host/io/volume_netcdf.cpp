@@ -139,7 +139,16 @@ const char* nc_type_name(nc_type t) {
 std::optional<std::string> att_text(int nc, int var, const char* name) {
   nc_type t;
   size_t len;
-  if (nc_inq_att(nc, var, name, &t, &len) != NC_NOERR || t != NC_CHAR || len > 4096) return std::nullopt;
+  if (nc_inq_att(nc, var, name, &t, &len) != NC_NOERR) return std::nullopt;
+  // netCDF-4 may store text as one NC_STRING (as some Python writers do): the same text.
+  if (t == NC_STRING && len == 1) {
+    char* value = nullptr;
+    if (nc_get_att_string(nc, var, name, &value) != NC_NOERR) return std::nullopt;
+    std::string s = value ? std::string(value).substr(0, 4096) : std::string();
+    nc_free_string(1, &value);
+    return s;
+  }
+  if (t != NC_CHAR || len > 4096) return std::nullopt;
   std::string s(len, '\0');
   if (nc_get_att_text(nc, var, name, s.data()) != NC_NOERR) return std::nullopt;
   while (!s.empty() && s.back() == '\0') s.pop_back();

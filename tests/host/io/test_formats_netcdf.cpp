@@ -419,6 +419,23 @@ TEST(NetcdfMalformed, PackingAttributesMustBeWhatTheySay) {
   const std::string listing = format_file_info(describe_file(path));
   EXPECT_NE(listing.find("not loadable: variable text: attribute scale_factor is text"), std::string::npos) << listing;
   EXPECT_NE(listing.find("packed: value = stored * 0.5 + 0"), std::string::npos) << listing;
+  // netCDF-4 text attributes may be one NC_STRING (as some Python writers store them): read as
+  // text, _Unsigned and units alike (both were ignored).
+  const auto path4 = dir / "strings.nc";
+  ASSERT_EQ(nc_create(path4.c_str(), NC_CLOBBER | NC_NETCDF4, &nc), NC_NOERR);
+  ok(nc_def_dim(nc, "x", 2, &x));
+  const int b = def_var(nc, "b", NC_BYTE, {x});
+  const char* yes[1] = {"true"};
+  const char* kelvin[1] = {"K"};
+  ok(nc_put_att_string(nc, b, "_Unsigned", 1, yes));
+  ok(nc_put_att_string(nc, b, "units", 1, kelvin));
+  ok(nc_enddef(nc));
+  const signed char bytes[2] = {-1, 5};
+  ok(nc_put_var_schar(nc, b, bytes));
+  ok(nc_close(nc));
+  const Volume u = load_volume(path4.string() + ":b");
+  EXPECT_EQ(u.values, (std::vector<float>{255, 5}));
+  EXPECT_EQ(u.units, "K");
 }
 
 // `info` reads a variable's slabs a block of rows at a time (a 2048 x 1024 one under a budget
