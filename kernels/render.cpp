@@ -171,8 +171,7 @@ void draw_markers(Image& image, const VolumeGeometry& geometry, const RenderSett
                   const std::vector<std::array<uint64_t, 3>>& markers) {
   if (markers.empty()) return;
   const CameraFrame frame = orbit_frame(settings.camera, geometry, image.width, image.height);
-  // About 1 % of the image's short side, at least 2.5 pixels, so dots stay visible on thumbnails.
-  const double radius = std::max(2.5, 0.012 * std::min(image.width, image.height));
+  const double radius = marker_radius(image.width, image.height);
   for (const auto& m : markers) {
     const auto p = project_to_pixel(frame, geometry, glm::dvec3(double(m[0]), double(m[1]), double(m[2])), image.width,
                                     image.height);

@@ -174,10 +174,11 @@ void draw_axis_letter(Image& image, int axis, double cx, double cy, Rgb8 c) {
 // Ticks along the axis edge of axis k (from `origin`, the first voxel's corner, to `end`), at round
 // values of its coordinates, each labelled: outside the box (away from its centre in the picture)
 // where the picture has room, else just inside the edge on a white patch (a framed box fills the
-// picture: a map's edges are the picture's). A label that would touch the previous one is left out.
+// picture: a map's edges are the picture's). A label that would touch the previous one, or that a
+// marker's dot (`dots`, of `dot_radius`) would cover, is left out.
 void draw_coordinate_ticks(Image& image, const CameraFrame& frame, const VolumeGeometry& g, const GridAxis& axis,
                            int k, const glm::dvec2& origin, const glm::dvec2& end, const glm::dvec2& centre,
-                           Rgb8 colour) {
+                           Rgb8 colour, const std::vector<glm::dvec2>& dots, double dot_radius) {
   const glm::dvec2 along = end - origin;
   const double length = glm::length(along);
   const auto& c = axis.coordinates;
@@ -223,6 +224,12 @@ void draw_coordinate_ticks(Image& image, const CameraFrame& frame, const VolumeG
     if (!fits(t, at)) continue;
     const glm::dvec4 box(at.x - 2, at.y - 2, at.x + t.width + 2, at.y + label_h + 2);
     if (placed && box.x < last.z + 2 && last.x < box.z + 2 && box.y < last.w + 2 && last.y < box.w + 2) continue;
+    // A marker's dot drawn over a label turned "45N" into "4*N": the label gives way to the dot.
+    const bool under_dot = std::any_of(dots.begin(), dots.end(), [&](const glm::dvec2& d) {
+      const glm::dvec2 nearest = glm::clamp(d, glm::dvec2(box.x, box.y), glm::dvec2(box.z, box.w));
+      return glm::length(d - nearest) < dot_radius + 1.0;
+    });
+    if (under_dot) continue;
     draw_line(image, t.at.x, t.at.y, t.at.x + 4.0 * n.x, t.at.y + 4.0 * n.y, colour, 1.0);
     if (!out) fill_rect(image, at.x - 1, at.y - 1, t.width + 2, label_h + 2, patch);
     draw_fixed_text(image, at.x, at.y, t.label, text);
@@ -233,8 +240,12 @@ void draw_coordinate_ticks(Image& image, const CameraFrame& frame, const VolumeG
 
 }  // namespace
 
+double marker_radius(uint32_t width, uint32_t height) {
+  return std::max(2.5, 0.012 * std::min(width, height));  // about 1 % of the short side, at least 2.5 px
+}
+
 void draw_box_outline(Image& image, const VolumeGeometry& g, const RenderSettings& s,
-                      const std::array<GridAxis, 3>* axes) {
+                      const std::array<GridAxis, 3>* axes, const std::vector<GridIndex>& markers) {
   if (!s.box_outline) return;
   const CameraFrame frame = orbit_frame(s.camera, g, image.width, image.height);
   const glm::dvec3 lo(-0.5), hi(double(g.dims[0]) - 0.5, double(g.dims[1]) - 0.5, double(g.dims[2]) - 0.5);
@@ -267,9 +278,15 @@ void draw_box_outline(Image& image, const VolumeGeometry& g, const RenderSetting
   const auto centre = project_to_pixel(frame, g, 0.5 * (lo + hi), image.width, image.height);
   const auto origin = project_to_pixel(frame, g, corner(0), image.width, image.height);
   if (!centre || !origin) return;
+  std::vector<glm::dvec2> dots;  // where draw_markers will draw them, in draw_line's coordinates
+  for (const GridIndex& m : markers)
+    if (const auto p = project_to_pixel(frame, g, glm::dvec3(double(m[0]), double(m[1]), double(m[2])), image.width,
+                                        image.height))
+      dots.push_back(*p + 0.5);
   for (int k = 0; k < 3; ++k)
     if (const auto end = project_to_pixel(frame, g, corner(1 << k), image.width, image.height))
-      draw_coordinate_ticks(image, frame, g, (*axes)[size_t(k)], k, *origin, *end, *centre, axis_colour[k]);
+      draw_coordinate_ticks(image, frame, g, (*axes)[size_t(k)], k, *origin, *end, *centre, axis_colour[k], dots,
+                            marker_radius(image.width, image.height));
 }
 
 }  // namespace tfm

@@ -5,10 +5,12 @@
 #include <array>
 #include <cstdint>
 #include <optional>
+#include <vector>
 
 #include <glm/glm.hpp>
 
 #include "tfmatch/model/field_mapping.h"
+#include "tfmatch/model/grid_point.h"
 #include "tfmatch/model/image.h"
 #include "tfmatch/model/render_settings.h"
 #include "tfmatch/model/volume.h"
@@ -88,7 +90,11 @@ std::optional<glm::dvec2> project_to_pixel(const CameraFrame& frame, const Volum
 // its coordinates, labelled ("10E", "45N", "850"; coordinate_label) outside the box where the
 // picture has room, else just inside it, so that a map says where it is; the labels are in the
 // fixed 5x7 font, the same pixels from every command.
+// With `markers` (the grid points draw_markers will dot), a tick label a dot would cover is left out.
 void draw_box_outline(Image& image, const VolumeGeometry& geometry, const RenderSettings& settings,
-                      const std::array<GridAxis, 3>* axes = nullptr);
+                      const std::array<GridAxis, 3>* axes = nullptr, const std::vector<GridIndex>& markers = {});
+
+// The radius of a marker's dot on a width x height picture (draw_markers).
+double marker_radius(uint32_t width, uint32_t height);
 
 }  // namespace tfm

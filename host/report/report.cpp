@@ -360,7 +360,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   }
   // The pictures show the markers and the box outline; the metrics above were taken without them.
   for (Image* img : {&ref_img, &before_img, &after_img}) {
-    draw_box_outline(*img, geometry, s, &in.ref.axes);
+    draw_box_outline(*img, geometry, s, &in.ref.axes, in.markers);
     draw_markers(*img, geometry, s, in.markers);
   }
   save("reference.png", ref_img);
@@ -386,7 +386,7 @@ ReportSummary write_report(Context& ctx, const ReportInputs& in, const std::file
   for (int k = 0; k < 2; ++k) {
     const DeviceField res = field_over_host_values(ctx, (k == 0 ? res_before : res_after).values, "report: residual map");
     res_imgs[k] = composite_over(GpuRenderer(ctx, res, geometry).render(res_map, res_tf_buf, s), s.background);
-    draw_box_outline(res_imgs[k], geometry, s, &in.ref.axes);
+    draw_box_outline(res_imgs[k], geometry, s, &in.ref.axes, in.markers);
     draw_markers(res_imgs[k], geometry, s, in.markers);
   }
   save("residual_reference_tf.png", res_imgs[0]);

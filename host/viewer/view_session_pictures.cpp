@@ -50,7 +50,7 @@ Image finish_picture(const RenderedImage& rendered, const RenderSettings& s, con
   if (undecorated) *undecorated = picture;
   const auto t1 = std::chrono::steady_clock::now();
   if (decorate) {
-    draw_box_outline(picture, geometry, s, &axes);
+    draw_box_outline(picture, geometry, s, &axes, markers);
     draw_markers(picture, geometry, s, markers);
   }
   if (timing) {

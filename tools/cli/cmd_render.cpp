@@ -56,7 +56,7 @@ int run(RenderArgs a) {
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   Image picture = composite_over(image, a.settings.background);
   const VolumeGeometry geometry = VolumeGeometry::from(volume.dims, volume.spacing, a.settings.z_scale);
-  draw_box_outline(picture, geometry, a.settings, &volume.axes);
+  draw_box_outline(picture, geometry, a.settings, &volume.axes, markers);
   draw_markers(picture, geometry, a.settings, markers);
   if (a.color_bar) add_picture_color_bar(picture, tf, range, field_label(volume), a.settings);
   write_png(a.out, picture);

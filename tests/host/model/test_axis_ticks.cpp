@@ -112,5 +112,53 @@ TEST(AxisTicks, AMapRenderingGetsLabelledTicksAlongItsAxisEdges) {
   EXPECT_EQ(with_face.rgb, ticked.rgb);
 }
 
+// A marker's dot would cover a tick label ("45N" read "4*N" under the ERA5 recipe's marker at
+// lat 45): that label gives way, the others stay.
+TEST(AxisTicks, ALabelUnderAMarkerGivesWay) {
+  const VolumeGeometry g = VolumeGeometry::from({73, 37, 2}, {5, 5, 1}, 1.0);
+  RenderSettings s;
+  s.width = 400;
+  s.height = 220;
+  s.camera.elevation_deg = 90;
+  s.camera.azimuth_deg = -90;
+  const std::array<GridAxis, 3> axes{axis("lon", "degrees_east", 0, 5, 73), axis("lat", "degrees_north", -90, 5, 37),
+                                     axis("lev", "hPa", 850, -350, 2)};
+  const CameraFrame frame = orbit_frame(s.camera, g, s.width, s.height);
+  auto ink = [](const Image& img, int x0, int y0, int x1, int y1) {
+    int n = 0;
+    for (int y = std::max(0, y0); y < std::min<int>(y1, int(img.height)); ++y)
+      for (int x = std::max(0, x0); x < std::min<int>(x1, int(img.width)); ++x) {
+        const uint8_t* p = img.at(uint32_t(x), uint32_t(y));
+        n += p[0] == 60 && p[1] == 60 && p[2] == 60;
+      }
+    return n;
+  };
+  Image plain(s.width, s.height);
+  draw_box_outline(plain, g, s, &axes);
+  // The EQ label (the one latitude label at this size): ink beside the west edge on the row of
+  // latitude 0 (index 18).
+  const auto row = *project_to_pixel(frame, g, glm::dvec3(-0.5, 18, -0.5), s.width, s.height);
+  int x0 = int(s.width), x1 = -1;
+  for (int y = int(row.y) - 4; y <= int(row.y) + 4; ++y)
+    for (int x = 0; x < 80; ++x)
+      if (ink(plain, x, y, x + 1, y + 1)) x0 = std::min(x0, x), x1 = std::max(x1, x);
+  ASSERT_LT(x0, x1) << "no EQ label found";
+  // The grid point on the equator whose dot falls on the label's middle.
+  uint64_t best = 0;
+  double gap = 1e9;
+  for (uint64_t i = 0; i < 20; ++i) {
+    const auto p = *project_to_pixel(frame, g, glm::dvec3(double(i), 18, 0), s.width, s.height);
+    if (std::abs(p.x - 0.5 * (x0 + x1)) < gap) gap = std::abs(p.x - 0.5 * (x0 + x1)), best = i;
+  }
+  Image marked(s.width, s.height);
+  draw_box_outline(marked, g, s, &axes, {GridIndex{best, 18, 0}});
+  EXPECT_GT(ink(plain, x0, int(row.y) - 5, x1 + 1, int(row.y) + 6), 10);
+  EXPECT_EQ(ink(marked, x0, int(row.y) - 5, x1 + 1, int(row.y) + 6), 0) << "the EQ label is still under the dot";
+  // Every other label is where it was.
+  const int all = ink(plain, 0, 0, int(s.width), int(s.height)), kept = ink(marked, 0, 0, int(s.width), int(s.height));
+  EXPECT_GT(kept, all / 2);
+  EXPECT_EQ(all - kept, ink(plain, x0, int(row.y) - 5, x1 + 1, int(row.y) + 6));
+}
+
 }  // namespace
 }  // namespace tfm
