@@ -64,17 +64,28 @@ TEST(AxisTicks, CoordinateIndexInterpolatesIncreasingAndDecreasingAxes) {
   EXPECT_FALSE(coordinate_index(GridAxis{}, 1.0).has_value());
 }
 
+// A 73 x 37 x 2 lat/lon grid (5 degrees, two levels) seen from above, as a map, at 400 x 220.
+struct MapView {
+  VolumeGeometry geometry = VolumeGeometry::from({73, 37, 2}, {5, 5, 1}, 1.0);
+  RenderSettings settings = [] {
+    RenderSettings s;
+    s.width = 400;
+    s.height = 220;
+    s.camera.elevation_deg = 90;
+    s.camera.azimuth_deg = -90;
+    return s;
+  }();
+  std::array<GridAxis, 3> axes{axis("lon", "degrees_east", 0, 5, 73), axis("lat", "degrees_north", -90, 5, 37),
+                               axis("lev", "hPa", 850, -350, 2)};
+};
+
 // A 73 x 37 x 2 lat/lon grid seen from above, as a map: labels on the south and west edges (the
 // x and y axis edges), in the fixed font, whatever face is installed; nothing without coordinates.
 TEST(AxisTicks, AMapRenderingGetsLabelledTicksAlongItsAxisEdges) {
-  const VolumeGeometry g = VolumeGeometry::from({73, 37, 2}, {5, 5, 1}, 1.0);
-  RenderSettings s;
-  s.width = 400;
-  s.height = 220;
-  s.camera.elevation_deg = 90;
-  s.camera.azimuth_deg = -90;
-  const std::array<GridAxis, 3> axes{axis("lon", "degrees_east", 0, 5, 73), axis("lat", "degrees_north", -90, 5, 37),
-                                     axis("lev", "hPa", 850, -350, 2)};
+  const MapView m;
+  const VolumeGeometry& g = m.geometry;
+  const RenderSettings& s = m.settings;
+  const std::array<GridAxis, 3>& axes = m.axes;
   auto draw = [&](const std::array<GridAxis, 3>* a) {
     Image img(s.width, s.height);
     draw_box_outline(img, g, s, a);
@@ -113,16 +124,12 @@ TEST(AxisTicks, AMapRenderingGetsLabelledTicksAlongItsAxisEdges) {
 }
 
 // A marker's dot would cover a tick label ("45N" read "4*N" under the ERA5 recipe's marker at
-// lat 45): that label gives way, the others stay.
+// lat 45): that label gives way, the others stay. Here the EQ label.
 TEST(AxisTicks, ALabelUnderAMarkerGivesWay) {
-  const VolumeGeometry g = VolumeGeometry::from({73, 37, 2}, {5, 5, 1}, 1.0);
-  RenderSettings s;
-  s.width = 400;
-  s.height = 220;
-  s.camera.elevation_deg = 90;
-  s.camera.azimuth_deg = -90;
-  const std::array<GridAxis, 3> axes{axis("lon", "degrees_east", 0, 5, 73), axis("lat", "degrees_north", -90, 5, 37),
-                                     axis("lev", "hPa", 850, -350, 2)};
+  const MapView m;
+  const VolumeGeometry& g = m.geometry;
+  const RenderSettings& s = m.settings;
+  const std::array<GridAxis, 3>& axes = m.axes;
   const CameraFrame frame = orbit_frame(s.camera, g, s.width, s.height);
   auto ink = [](const Image& img, int x0, int y0, int x1, int y1) {
     int n = 0;
