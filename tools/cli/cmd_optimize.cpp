@@ -74,13 +74,12 @@ void check_picture_flags(const OptimizeArgs& a, const SolverSettings& settings) 
   std::vector<std::string> dropped;
   for (const std::string& f : a.picture_flags)
     if (!fit_renders || f == "--histogram") dropped.push_back(f);
-  std::string names;
-  for (const std::string& f : dropped) names += (names.empty() ? "" : ", ") + f;
-  const bool one = dropped.size() == 1;
-  throw CLI::ValidationError(
-      names, std::string(one ? "shapes" : "shape") + " the report's pictures" +
-                 (histogram_only || fit_renders ? "" : " (and the renderings that diffdvr or --weights visibility fit)") +
-                 ": add --report DIR, or leave " + (one ? "it" : "them") + " out");
+  throw unused_picture_flags(dropped,
+                             std::string("the report's pictures") +
+                                 (histogram_only || fit_renders
+                                      ? ""
+                                      : " (and the renderings that diffdvr or --weights visibility fit)"),
+                             "add --report DIR");
 }
 
 // The summary on stdout, or with -q the warnings alone on stderr: -q keeps warnings.
@@ -551,10 +550,7 @@ CommandRegistration reg(10, [](CLI::App& app) {
   sub->footer(solver_descriptions());
   sub->callback([args, sub] {
     args->render_chosen = render_choices(*sub);
-    for (const CLI::Option* o : sub->get_options())
-      if (o->count() > 0 && o->get_group() == "Rendering" && o->get_name() != "--marker" &&
-          o->get_name() != "--slice-point")  // those two have their own message
-        args->picture_flags.push_back(o->get_name());
+    args->picture_flags = given_picture_flags(*sub, {}, {"--marker", "--slice-point"});  // own messages
     args->fields = expand_field_specs(args->fields, "--field");
     args->in.field = args->fields.front();
     exit_code() = run(*args);

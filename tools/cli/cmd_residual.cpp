@@ -45,13 +45,8 @@ int run(ResidualArgs a) {
       .output(a.image, "--image")
       .check();
   // Picture settings without a picture would be dropped without a word.
-  if (a.image.empty() && !a.image_flags.empty()) {
-    std::string flags;
-    for (const std::string& f : a.image_flags) flags += (flags.empty() ? "" : ", ") + f;
-    const bool one = a.image_flags.size() == 1;
-    throw CLI::ValidationError(flags, std::string(one ? "shapes" : "shape") + " the residual's picture: add --image " +
-                                          "FILE.png, or leave " + (one ? "it" : "them") + " out");
-  }
+  if (a.image.empty() && !a.image_flags.empty())
+    throw unused_picture_flags(a.image_flags, "the residual's picture", "add --image FILE.png");
   std::optional<FieldRange> display;
   if (!a.display_range.empty()) display = parse_range(a.display_range, "--display-range");
   if (!a.image.empty()) validate(a.settings);
@@ -136,10 +131,7 @@ CommandRegistration reg(21, [](CLI::App& app) {
   add_color_bar_flag(sub, args->color_bar);
   sub->callback([args, sub] {
     args->chosen = render_choices(*sub);
-    for (const CLI::Option* o : sub->get_options())
-      if (o->count() > 0 && (o->get_group() == "Rendering" || o->get_name() == "--display-range"))
-        // One option has two names: the one given.
-        args->image_flags.push_back(o->get_name() == "--color-bar" && !args->color_bar ? "--no-color-bar" : o->get_name());
+    args->image_flags = given_picture_flags(*sub, {"--display-range"});
     exit_code() = run(*args);
   });
 });

@@ -1,6 +1,7 @@
 // The shared render flags.
 #include "render_options.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cstdlib>
 #include <iostream>
@@ -182,6 +183,29 @@ void add_color_bar_flag(CLI::App* sub, bool& on) {
                     "-pixel strip beneath the picture (" + (on ? "default; --no-color-bar leaves it out" : "default off") +
                     ")")
       ->group("Rendering");
+}
+
+std::vector<std::string> given_picture_flags(const CLI::App& sub, std::initializer_list<const char*> also,
+                                             std::initializer_list<const char*> except) {
+  auto listed = [](std::initializer_list<const char*> names, const std::string& name) {
+    return std::any_of(names.begin(), names.end(), [&](const char* n) { return name == n; });
+  };
+  std::vector<std::string> given;
+  for (const CLI::Option* o : sub.get_options()) {
+    const std::string name = o->get_name();
+    if (o->count() == 0 || listed(except, name) || (o->get_group() != "Rendering" && !listed(also, name))) continue;
+    given.push_back(name == "--color-bar" && !o->as<bool>() ? "--no-color-bar" : name);  // one option, two names
+  }
+  return given;
+}
+
+CLI::ValidationError unused_picture_flags(const std::vector<std::string>& flags, const std::string& picture,
+                                          const std::string& fix) {
+  std::string names;
+  for (const std::string& f : flags) names += (names.empty() ? "" : ", ") + f;
+  const bool one = flags.size() == 1;
+  return CLI::ValidationError(names, std::string(one ? "shapes " : "shape ") + picture + ": " + fix + ", or leave " +
+                                         (one ? "it" : "them") + " out");
 }
 
 void add_picture_color_bar(Image& picture, const TransferFunction& tf, const FieldRange& range,

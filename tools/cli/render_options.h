@@ -26,6 +26,15 @@ void add_render_options(CLI::App* sub, RenderSettings& settings);
 // --color-bar / --no-color-bar (group "Rendering"): a colour bar of the TF in a strip beneath the
 // picture (color_bar.h). `on` holds the command's default, which the help states.
 void add_color_bar_flag(CLI::App* sub, bool& on);
+// The picture flags given on `sub`'s command line (after parsing): its "Rendering" group and the
+// names in `also`, but those in `except`, each as typed (--no-color-bar, not --color-bar).
+std::vector<std::string> given_picture_flags(const CLI::App& sub, std::initializer_list<const char*> also = {},
+                                             std::initializer_list<const char*> except = {});
+// The usage error for picture flags given where nothing is drawn, so that they would be dropped
+// without a word: "--width, --step: shape the residual's picture: add --image FILE.png, or leave
+// them out" (`picture`: "the residual's picture"; `fix`: "add --image FILE.png").
+CLI::ValidationError unused_picture_flags(const std::vector<std::string>& flags, const std::string& picture,
+                                          const std::string& fix);
 // with_color_bar of `picture` with the render's background, or a note on stderr when the picture
 // is too narrow for one (then `picture` stays as it is).
 void add_picture_color_bar(Image& picture, const TransferFunction& tf, const FieldRange& range,
